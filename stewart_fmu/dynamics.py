@@ -1,0 +1,270 @@
+"""Inverse and forward dynamics: compiled kernels over the Kane terms of `kane.py`.
+
+inverse_dynamics(model, q, qd, qdd) -> sigma and forward_dynamics(model, q, qd, sigma) -> qdd
+accept one sample (6,) or a trajectory (N, 6). sigma is the force the drive delivers at the rack
+(Eq. 12): actuator force plus m_d lddot when the scene has a [drive].
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from . import model as M
+from .errors import SingularityError, StrokeLimitError, TrajectoryError
+from .kane import STROKE, twist_forces, twist_mass_matrix
+from .linalg import cholesky_solve, lu_factor, lu_solve
+from .model import Model
+from .rotations import angular_motion, rotation_matrix, solve_rate_matrix
+
+OK, NONFINITE, SINGULAR, GIMBAL = 0, 1, 3, 4
+# min|pivot|/max|entry| of the LU of the scaled Jacobian below which a pose counts as singular
+# (cond(J) then exceeds ~1e10 and the forces would carry fewer than ~6 good digits).
+SINGULAR_PIVOT = 1e-10
+PARTS = ("platform", "lower_legs", "upper_legs", "drives", "gravity", "friction")
+
+
+@njit(cache=True)
+def _workspace():
+    return (np.empty((3, 3)), np.empty(3), np.empty(3), np.empty((6, 3)), np.empty((6, 3)),
+            np.empty((6, 3)), np.empty((6, 6)), np.empty((4, 6)), np.empty(6, np.int64),
+            np.empty(6), np.empty((6, 6)))
+
+
+@njit(cache=True)
+def _finite(a, b, c) -> bool:
+    for j in range(6):
+        if not (np.isfinite(a[j]) and np.isfinite(b[j]) and np.isfinite(c[j])):
+            return False
+    return True
+
+
+@njit(cache=True)
+def _friction(p, ld) -> float:
+    """mu_i of Eq. 9: the force friction opposes to extension (sign(0) = 0)."""
+    if p[M.P_HAS_FRICTION] == 0.0:
+        return 0.0
+    return p[M.P_VISCOUS] * ld + p[M.P_COULOMB] * np.sign(ld)
+
+
+@njit(cache=True)
+def _drive_mass(p) -> float:
+    return p[M.P_DRIVE_MASS] if p[M.P_HAS_DRIVE] != 0.0 else 0.0
+
+
+@njit(cache=True)
+def _factor_jacobian(p, JT, piv) -> bool:
+    """LU of J^T with rotational rows in units of the characteristic length; False if singular."""
+    c = p[M.P_CHAR_LENGTH]
+    for k in range(3, 6):
+        for j in range(6):
+            JT[k, j] /= c
+    return lu_factor(JT, piv) >= SINGULAR_PIVOT
+
+
+@njit(cache=True)
+def _solve_jt(p, JT, piv, rhs) -> None:
+    """rhs <- J^-T rhs with the factors of _factor_jacobian."""
+    c = p[M.P_CHAR_LENGTH]
+    for k in range(3, 6):
+        rhs[k] /= c
+    lu_solve(JT, piv, rhs)
+
+
+@njit(cache=True)
+def _inverse_prepare(p, q, qd, qdd, ws) -> int:
+    R, om, al, U, Rr, leg, JT, gen, piv = ws[0], ws[1], ws[2], ws[3], ws[4], ws[5], ws[6], ws[7], ws[8]
+    if not _finite(q, qd, qdd):
+        return NONFINITE
+    rotation_matrix(q[3:], R)
+    angular_motion(q[3:], qd[3:], qdd[3:], om, al)
+    status = twist_forces(p, q[:3], R, qd[:3], om, qdd[:3], al, U, Rr, leg, JT, gen)
+    if status != OK:
+        return status
+    return OK if _factor_jacobian(p, JT, piv) else SINGULAR
+
+
+@njit(cache=True)
+def _inverse_sample(p, q, qd, qdd, ws, out) -> int:
+    """sigma = J^-T (-K*_nu - K_g,nu) + mu + m_d lddot for one sample into out (6,)."""
+    status = _inverse_prepare(p, q, qd, qdd, ws)
+    if status != OK:
+        return status
+    leg, JT, gen, piv, rhs = ws[5], ws[6], ws[7], ws[8], ws[9]
+    for j in range(6):
+        rhs[j] = -(gen[0, j] + gen[1, j] + gen[2, j] + gen[3, j])
+    _solve_jt(p, JT, piv, rhs)
+    md = _drive_mass(p)
+    for i in range(6):
+        out[i] = rhs[i] + _friction(p, leg[i, 1]) + md * leg[i, 2]
+    return OK
+
+
+@njit(cache=True)
+def _parts_sample(p, q, qd, qdd, ws, out) -> int:
+    """The contributions of PARTS for one sample into out (6 parts, 6 legs)."""
+    status = _inverse_prepare(p, q, qd, qdd, ws)
+    if status != OK:
+        return status
+    leg, JT, gen, piv, rhs = ws[5], ws[6], ws[7], ws[8], ws[9]
+    for k, slot in ((0, 0), (1, 1), (2, 2), (3, 4)):
+        for j in range(6):
+            rhs[j] = -gen[k, j]
+        _solve_jt(p, JT, piv, rhs)
+        out[slot, :] = rhs
+    md = _drive_mass(p)
+    for i in range(6):
+        out[3, i] = md * leg[i, 2]
+        out[5, i] = _friction(p, leg[i, 1])
+    return OK
+
+
+@njit(cache=True)
+def _forward_sample(p, q, qd, sigma, ws, out) -> int:
+    """(M_nu + m_d J^T J) nudot = J^T (sigma - mu - m_d lddot_0) + K*_0 + K_g, then Euler rates."""
+    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt = ws
+    if not _finite(q, qd, sigma):
+        return NONFINITE
+    rotation_matrix(q[3:], R)
+    zero = np.zeros(3)
+    angular_motion(q[3:], qd[3:], zero, om, al)        # al = Edot thd, the Euler-rate part
+    status = twist_forces(p, q[:3], R, qd[:3], om, zero, zero, U, Rr, leg, JT, gen)
+    if status != OK:
+        return status
+    twist_mass_matrix(p, R, U, Rr, leg, Mt)
+    md = _drive_mass(p)
+    for j in range(6):
+        s = gen[0, j] + gen[1, j] + gen[2, j] + gen[3, j]
+        for i in range(6):
+            s += JT[j, i] * (sigma[i] - _friction(p, leg[i, 1]) - md * leg[i, 2])
+        rhs[j] = s
+    if not _factor_jacobian(p, JT, piv):
+        return SINGULAR
+    if not cholesky_solve(Mt, rhs):
+        return SINGULAR
+    out[0], out[1], out[2] = rhs[0], rhs[1], rhs[2]
+    for k in range(3):
+        rhs[3 + k] -= al[k]
+    return OK if solve_rate_matrix(q[3:], rhs[3:], out[3:]) else GIMBAL
+
+
+@njit(cache=True)
+def _inverse_batch(p, Q, QD, QDD, out):
+    ws = _workspace()
+    for n in range(Q.shape[0]):
+        status = _inverse_sample(p, Q[n], QD[n], QDD[n], ws, out[n])
+        if status != OK:
+            return n, status
+    return -1, OK
+
+
+@njit(cache=True)
+def _inverse_one(p, q, qd, qdd):
+    out = np.empty(6)
+    return out, _inverse_sample(p, q, qd, qdd, _workspace(), out)
+
+
+@njit(cache=True)
+def _parts_batch(p, Q, QD, QDD, out):
+    ws = _workspace()
+    for n in range(Q.shape[0]):
+        status = _parts_sample(p, Q[n], QD[n], QDD[n], ws, out[n])
+        if status != OK:
+            return n, status
+    return -1, OK
+
+
+@njit(cache=True)
+def _forward_batch(p, Q, QD, S, out):
+    ws = _workspace()
+    for n in range(Q.shape[0]):
+        status = _forward_sample(p, Q[n], QD[n], S[n], ws, out[n])
+        if status != OK:
+            return n, status
+    return -1, OK
+
+
+@njit(cache=True)
+def _forward_one(p, q, qd, sigma):
+    out = np.empty(6)
+    return out, _forward_sample(p, q, qd, sigma, _workspace(), out)
+
+
+def inverse_dynamics(model: Model, q, qd, qdd) -> np.ndarray:
+    """Actuator (rack) forces sigma (Eq. 12) for poses and their derivatives, (N, 6) or (6,)."""
+    q, qd, qdd = _as_float(q), _as_float(qd), _as_float(qdd)
+    if q.ndim == 1 and q.shape == qd.shape == qdd.shape == (6,):
+        sigma, status = _inverse_one(model.params, q, qd, qdd)
+        if status:
+            _raise(model, status, 0, q, ("q", "qd", "qdd"), (q, qd, qdd))
+        return sigma
+    _check_shapes(("q", "qd", "qdd"), (q, qd, qdd))
+    out = np.empty(q.shape)
+    index, status = _inverse_batch(model.params, q, qd, qdd, out)
+    if status:
+        _raise(model, status, index, q[index], ("q", "qd", "qdd"), (q[index], qd[index], qdd[index]))
+    return out
+
+
+def inverse_dynamics_parts(model: Model, q, qd, qdd) -> dict[str, np.ndarray]:
+    """The breakdown of inverse_dynamics by contribution (PARTS); each (N, 6), summing to sigma."""
+    q, qd, qdd = (np.atleast_2d(_as_float(a)) for a in (q, qd, qdd))
+    _check_shapes(("q", "qd", "qdd"), (q, qd, qdd))
+    out = np.empty((q.shape[0], len(PARTS), 6))
+    index, status = _parts_batch(model.params, q, qd, qdd, out)
+    if status:
+        _raise(model, status, index, q[index], ("q", "qd", "qdd"), (q[index], qd[index], qdd[index]))
+    return {name: out[:, k, :] for k, name in enumerate(PARTS)}
+
+
+def forward_dynamics(model: Model, q, qd, sigma) -> np.ndarray:
+    """Pose accelerations qdd from rack forces sigma (the inverse of inverse_dynamics)."""
+    q, qd, sigma = _as_float(q), _as_float(qd), _as_float(sigma)
+    if q.ndim == 1 and q.shape == qd.shape == sigma.shape == (6,):
+        qdd, status = _forward_one(model.params, q, qd, sigma)
+        if status:
+            _raise(model, status, 0, q, ("q", "qd", "sigma"), (q, qd, sigma))
+        return qdd
+    _check_shapes(("q", "qd", "sigma"), (q, qd, sigma))
+    out = np.empty(q.shape)
+    index, status = _forward_batch(model.params, q, qd, sigma, out)
+    if status:
+        _raise(model, status, index, q[index], ("q", "qd", "sigma"),
+               (q[index], qd[index], sigma[index]))
+    return out
+
+
+def _as_float(a) -> np.ndarray:
+    if type(a) is np.ndarray and a.dtype == np.float64 and a.flags.c_contiguous:
+        return a
+    return np.ascontiguousarray(a, dtype=float)
+
+
+def _check_shapes(names, arrays) -> None:
+    shape = arrays[0].shape
+    for name, a in zip(names, arrays):
+        if a.ndim not in (1, 2) or a.shape[-1] != 6 or a.shape != shape:
+            raise TrajectoryError(
+                f"'{name}' must have shape (N, 6) or (6,) like '{names[0]}' {shape}, got {a.shape}")
+
+
+def _raise(model: Model, status: int, index: int, q, names, rows) -> None:
+    """Turn a kernel status into the typed error, naming the sample and the values."""
+    from .kinematics import inverse_kinematics  # error path only
+
+    if status == NONFINITE:
+        bad = [n for n, r in zip(names, rows) if not np.all(np.isfinite(r))]
+        raise TrajectoryError(
+            f"non-finite value in {', '.join(bad)} at sample {index}: "
+            + "; ".join(f"{n} = {np.asarray(r).tolist()}" for n, r in zip(names, rows)))
+    if status == STROKE:
+        lengths = inverse_kinematics(model, q).lengths
+        raise StrokeLimitError(
+            f"leg lengths {lengths.tolist()} leave the stroke [{model.leg_min}, {model.leg_max}] m "
+            f"at pose {np.asarray(q).tolist()}", index=index)
+    if status == GIMBAL:
+        raise SingularityError(
+            f"pitch thy = {q[4]!r} rad is at gimbal lock (|cos thy| < 1e-9): Euler rates undefined",
+            index=index)
+    cond = inverse_kinematics(model, q).cond
+    raise SingularityError(f"Jacobian singular at pose {np.asarray(q).tolist()} (cond = {cond:.3g})",
+                           index=index)

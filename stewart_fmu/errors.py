@@ -1,0 +1,42 @@
+"""Typed errors: every failure names the input and the reason."""
+from __future__ import annotations
+
+
+class StewartError(Exception):
+    """Base of every error this package raises on purpose."""
+
+
+class SceneError(StewartError, ValueError):
+    """A scene file or table is malformed or non-physical; `key` names the offending key."""
+
+    def __init__(self, key: str, reason: str, source: str | None = None):
+        self.key, self.reason, self.source = key, reason, source
+        where = f"{source}: " if source else ""
+        super().__init__(f"{where}scene key '{key}': {reason}")
+
+
+class TrajectoryError(StewartError, ValueError):
+    """A trajectory (file or arrays) is malformed: wrong columns, shapes or non-finite values."""
+
+
+class KinematicsError(StewartError):
+    """A pose cannot be reached or computed; `index`/`time` locate the sample when known."""
+
+    def __init__(self, message: str, index: int | None = None, time: float | None = None):
+        self.index, self.time = index, time
+        loc = ""
+        if index is not None:
+            loc = f" at sample {index}" + (f" (t = {time!r} s)" if time is not None else "")
+        super().__init__(message + loc)
+
+
+class ForwardKinematicsError(KinematicsError):
+    """Newton's method for the pose from leg lengths did not converge."""
+
+
+class StrokeLimitError(KinematicsError):
+    """A leg length lies outside [leg_min, leg_max]."""
+
+
+class SingularityError(KinematicsError):
+    """The leg Jacobian (or the Euler-rate matrix) is singular or nearly so at a pose."""

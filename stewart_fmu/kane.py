@@ -1,0 +1,200 @@
+"""Kane's equations of the paper, Eqs. 1-14.
+
+Generalized speeds are the leg rates ldot (the paper's choice). Internally the compiled kernel
+projects every body's inertia and gravity forces onto the platform twist nu = (v, omega) and maps
+to leg space with the Jacobian J (ldot = J nu), because the partial velocities with respect to
+ldot are those with respect to nu times J^-1:
+
+    K*_l = J^-T K*_nu,   [m] = J^-T M_nu J^-1,   [a] = I.
+
+Sign convention: we write the generalized inertia force as K* = -([m] lddot + b), with [m] the
+(positive-definite) mass matrix, and the active force K = g + [a] sigma + f (Eq. 10), so Kane's
+equations K* + K = 0 (Eq. 11) give sigma = [a]^-1 ([m] lddot + b - g - f). The paper folds the
+minus sign into [m] and b; the forces are the same. With the drive (Eq. 12) the rack delivers
+sigma + [m_d] lddot, [m_d] = diag(zeta^2 I / r^2) (Eqs. 13-14, the paper's typo corrected).
+
+The per-leg reduction used by the kernel follows from the leg partial velocities: with vp the
+velocity of the platform joint, the lower part A, the upper part B and their common angular
+velocity w have
+
+    dV_A/dvp = (c_A / l) P,   dV_B/dvp = u u^T + ((l - c_B) / l) P,   dw/dvp = [u]x / l,
+
+P = I - u u^T. The partial velocities of vp with respect to nu are [I, -[r]x], so a leg
+contributes [f; r x f] to the twist-space forces, f = the sum over its parts of the transposed
+partial velocities times the part's inertia force and torque.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from . import model as M
+
+STROKE = 2  # status code: a leg is outside [leg_min, leg_max]
+
+
+@njit(cache=True)
+def twist_forces(p, x, R, v, om, acc, al, U, Rr, leg, JT, gen) -> int:
+    """Generalized inertia (Eqs. 3-7) and gravity (Eq. 8) forces on the twist, per body group.
+
+    gen rows: 0 platform inertia, 1 lower-leg inertia, 2 upper-leg inertia, 3 gravity.
+    Also fills U (unit vectors u_i), Rr (R p_i), leg rows (l, ldot, lddot) and JT = J^T.
+    Returns 0, or STROKE when a leg is outside its limits.
+    """
+    status = 0
+    gx, gy, gz = p[M.P_GRAVITY], p[M.P_GRAVITY + 1], p[M.P_GRAVITY + 2]
+    mp = p[M.P_MASS]
+    for k in range(4):
+        for j in range(6):
+            gen[k, j] = 0.0
+    _platform_inertia(p, R, om, acc, al, gen)
+    gen[3, 0], gen[3, 1], gen[3, 2] = mp * gx, mp * gy, mp * gz
+    has_legs = p[M.P_HAS_LEGS] != 0.0
+    for i in range(6):
+        # Leg kinematics: r = R p_i, L = x + r - a_i, u = L / l.
+        b = M.P_PLATFORM + 3 * i
+        rx = R[0, 0] * p[b] + R[0, 1] * p[b + 1] + R[0, 2] * p[b + 2]
+        ry = R[1, 0] * p[b] + R[1, 1] * p[b + 1] + R[1, 2] * p[b + 2]
+        rz = R[2, 0] * p[b] + R[2, 1] * p[b + 1] + R[2, 2] * p[b + 2]
+        a = M.P_BASE + 3 * i
+        Lx, Ly, Lz = x[0] + rx - p[a], x[1] + ry - p[a + 1], x[2] + rz - p[a + 2]
+        l = np.sqrt(Lx * Lx + Ly * Ly + Lz * Lz)
+        ux, uy, uz = Lx / l, Ly / l, Lz / l
+        if l < p[M.P_LEG_MIN] or l > p[M.P_LEG_MAX]:
+            status = STROKE
+        # Joint velocity vp = v + om x r and acceleration ap = acc + al x r + om x (om x r).
+        wrx, wry, wrz = om[1] * rz - om[2] * ry, om[2] * rx - om[0] * rz, om[0] * ry - om[1] * rx
+        vpx, vpy, vpz = v[0] + wrx, v[1] + wry, v[2] + wrz
+        apx = acc[0] + al[1] * rz - al[2] * ry + om[1] * wrz - om[2] * wry
+        apy = acc[1] + al[2] * rx - al[0] * rz + om[2] * wrx - om[0] * wrz
+        apz = acc[2] + al[0] * ry - al[1] * rx + om[0] * wry - om[1] * wrx
+        ld = ux * vpx + uy * vpy + uz * vpz
+        udx, udy, udz = (vpx - ld * ux) / l, (vpy - ld * uy) / l, (vpz - ld * uz) / l
+        ud2 = udx * udx + udy * udy + udz * udz
+        ldd = ux * apx + uy * apy + uz * apz + l * ud2
+        # uddot from L'' = ldd u + 2 ld udot + l uddot.
+        uddx = (apx - ldd * ux - 2.0 * ld * udx) / l
+        uddy = (apy - ldd * uy - 2.0 * ld * udy) / l
+        uddz = (apz - ldd * uz - 2.0 * ld * udz) / l
+        U[i, 0], U[i, 1], U[i, 2] = ux, uy, uz
+        Rr[i, 0], Rr[i, 1], Rr[i, 2] = rx, ry, rz
+        leg[i, 0], leg[i, 1], leg[i, 2] = l, ld, ldd
+        JT[0, i], JT[1, i], JT[2, i] = ux, uy, uz
+        JT[3, i], JT[4, i], JT[5, i] = ry * uz - rz * uy, rz * ux - rx * uz, rx * uy - ry * ux
+        if has_legs:
+            # P uddot = uddot + |udot|^2 u, since u . uddot = -|udot|^2.
+            pux, puy, puz = uddx + ud2 * ux, uddy + ud2 * uy, uddz + ud2 * uz
+            _lower_leg(p, l, pux, puy, puz, rx, ry, rz, gen)
+            _upper_leg(p, l, ld, ldd, ud2, udx, udy, udz, pux, puy, puz, ux, uy, uz,
+                       rx, ry, rz, gen)
+            _leg_gravity(p, l, ux, uy, uz, gx, gy, gz, rx, ry, rz, gen)
+    return status
+
+
+@njit(cache=True)
+def _platform_inertia(p, R, om, acc, al, gen) -> None:
+    """F* = -m a and T* = R (-(I alpha_c + omega_c x I omega_c)) in C (Eqs. 3-5)."""
+    mp = p[M.P_MASS]
+    I0, I1, I2 = p[M.P_INERTIA], p[M.P_INERTIA + 1], p[M.P_INERTIA + 2]
+    gen[0, 0], gen[0, 1], gen[0, 2] = -mp * acc[0], -mp * acc[1], -mp * acc[2]
+    wc0 = R[0, 0] * om[0] + R[1, 0] * om[1] + R[2, 0] * om[2]
+    wc1 = R[0, 1] * om[0] + R[1, 1] * om[1] + R[2, 1] * om[2]
+    wc2 = R[0, 2] * om[0] + R[1, 2] * om[1] + R[2, 2] * om[2]
+    ac0 = R[0, 0] * al[0] + R[1, 0] * al[1] + R[2, 0] * al[2]
+    ac1 = R[0, 1] * al[0] + R[1, 1] * al[1] + R[2, 1] * al[2]
+    ac2 = R[0, 2] * al[0] + R[1, 2] * al[1] + R[2, 2] * al[2]
+    h0, h1, h2 = I0 * wc0, I1 * wc1, I2 * wc2
+    t0 = -(I0 * ac0 + wc1 * h2 - wc2 * h1)
+    t1 = -(I1 * ac1 + wc2 * h0 - wc0 * h2)
+    t2 = -(I2 * ac2 + wc0 * h1 - wc1 * h0)
+    gen[0, 3] = R[0, 0] * t0 + R[0, 1] * t1 + R[0, 2] * t2
+    gen[0, 4] = R[1, 0] * t0 + R[1, 1] * t1 + R[1, 2] * t2
+    gen[0, 5] = R[2, 0] * t0 + R[2, 1] * t1 + R[2, 2] * t2
+
+
+@njit(cache=True)
+def _add_joint_force(gen, k, fx, fy, fz, rx, ry, rz) -> None:
+    """Add [f; r x f], the twist-space image of a force f per unit joint velocity."""
+    gen[k, 0] += fx
+    gen[k, 1] += fy
+    gen[k, 2] += fz
+    gen[k, 3] += ry * fz - rz * fy
+    gen[k, 4] += rz * fx - rx * fz
+    gen[k, 5] += rx * fy - ry * fx
+
+
+@njit(cache=True)
+def _lower_leg(p, l, pux, puy, puz, rx, ry, rz, gen) -> None:
+    """Part A: (c_A/l) P (-m_A c_A uddot) plus the torque -I_t alpha through [u]x/l."""
+    mA, cA, ItA = p[M.P_LOWER], p[M.P_LOWER + 1], p[M.P_LOWER + 2]
+    s = -(mA * cA * cA + ItA) / l
+    _add_joint_force(gen, 1, s * pux, s * puy, s * puz, rx, ry, rz)
+
+
+@njit(cache=True)
+def _upper_leg(p, l, ld, ldd, ud2, udx, udy, udz, pux, puy, puz, ux, uy, uz,
+               rx, ry, rz, gen) -> None:
+    """Part B: a_B = ldd u + 2 ld udot + (l - c_B) uddot, projected by dV_B/dvp and dw/dvp."""
+    mB, cB, ItB = p[M.P_UPPER], p[M.P_UPPER + 1], p[M.P_UPPER + 2]
+    e = l - cB
+    axial = -mB * (ldd - e * ud2)            # u . F*_B
+    sp = e / l
+    fx = axial * ux + sp * (-mB) * (2.0 * ld * udx + e * pux) - ItB / l * pux
+    fy = axial * uy + sp * (-mB) * (2.0 * ld * udy + e * puy) - ItB / l * puy
+    fz = axial * uz + sp * (-mB) * (2.0 * ld * udz + e * puz) - ItB / l * puz
+    _add_joint_force(gen, 2, fx, fy, fz, rx, ry, rz)
+
+
+@njit(cache=True)
+def _leg_gravity(p, l, ux, uy, uz, gx, gy, gz, rx, ry, rz, gen) -> None:
+    """Eq. 8 for both parts: m_B (u.g) u + ((m_A c_A + m_B (l - c_B)) / l) P g."""
+    mA, cA = p[M.P_LOWER], p[M.P_LOWER + 1]
+    mB, cB = p[M.P_UPPER], p[M.P_UPPER + 1]
+    ug = ux * gx + uy * gy + uz * gz
+    s = (mA * cA + mB * (l - cB)) / l
+    c = mB * ug - s * ug
+    _add_joint_force(gen, 3, s * gx + c * ux, s * gy + c * uy, s * gz + c * uz, rx, ry, rz)
+
+
+@njit(cache=True)
+def twist_mass_matrix(p, R, U, Rr, leg, Mt) -> None:
+    """M_nu: platform blocks plus each leg's S^T M_leg S, M_leg = m_B uu^T + (k / l^2) P,
+    k = m_A c_A^2 + m_B (l - c_B)^2 + I_tA + I_tB (the leg's inertia about its base joint),
+    plus the drive's m_d J^T J."""
+    for i in range(6):
+        for j in range(6):
+            Mt[i, j] = 0.0
+    mp = p[M.P_MASS]
+    for i in range(3):
+        Mt[i, i] = mp
+        for j in range(3):
+            s = 0.0
+            for k in range(3):
+                s += R[i, k] * p[M.P_INERTIA + k] * R[j, k]
+            Mt[3 + i, 3 + j] = s
+    has_legs = p[M.P_HAS_LEGS] != 0.0
+    md = p[M.P_DRIVE_MASS] if p[M.P_HAS_DRIVE] != 0.0 else 0.0
+    S = np.empty((3, 6))
+    MS = np.empty((3, 6))
+    for n in range(6):
+        l = leg[n, 0]
+        u0, u1, u2 = U[n, 0], U[n, 1], U[n, 2]
+        r0, r1, r2 = Rr[n, 0], Rr[n, 1], Rr[n, 2]
+        # S = [I, -[r]x]: vp = S nu.
+        S[0, 0], S[0, 1], S[0, 2], S[0, 3], S[0, 4], S[0, 5] = 1.0, 0.0, 0.0, 0.0, r2, -r1
+        S[1, 0], S[1, 1], S[1, 2], S[1, 3], S[1, 4], S[1, 5] = 0.0, 1.0, 0.0, -r2, 0.0, r0
+        S[2, 0], S[2, 1], S[2, 2], S[2, 3], S[2, 4], S[2, 5] = 0.0, 0.0, 1.0, r1, -r0, 0.0
+        mB, kp = 0.0, 0.0
+        if has_legs:
+            mA, cA, ItA = p[M.P_LOWER], p[M.P_LOWER + 1], p[M.P_LOWER + 2]
+            mB, cB, ItB = p[M.P_UPPER], p[M.P_UPPER + 1], p[M.P_UPPER + 2]
+            kp = (mA * cA * cA + mB * (l - cB) ** 2 + ItA + ItB) / (l * l)
+        ax = mB + md - kp  # M_leg + m_d uu^T = kp I + (mB + md - kp) uu^T
+        uu = (u0, u1, u2)
+        for i in range(3):
+            for j in range(6):
+                us = u0 * S[0, j] + u1 * S[1, j] + u2 * S[2, j]
+                MS[i, j] = kp * S[i, j] + ax * uu[i] * us
+        for i in range(6):
+            for j in range(6):
+                Mt[i, j] += S[0, i] * MS[0, j] + S[1, i] * MS[1, j] + S[2, i] * MS[2, j]

@@ -1,0 +1,127 @@
+"""Inverse and forward kinematics, the leg Jacobian, stroke limits and the singularity measure.
+
+The Jacobian maps the platform twist nu = (v, omega) in N to the leg rates: ldot = J nu, row i
+= [u_i, (R p_i) x u_i]. The singularity measure is the condition number of J with its rotational
+columns divided by the model's characteristic length (mean platform-joint radius), so that it
+does not depend on the choice of units.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import ForwardKinematicsError, SingularityError, StrokeLimitError
+from .model import Model
+from .rotations import euler_motion
+
+COND_LIMIT = 1e10  # cond(J) above this counts as singular: forces keep fewer than ~6 digits
+
+
+@dataclass(frozen=True)
+class LegKinematics:
+    """Inverse kinematics of N poses; rates and accelerations when the pose derivatives are given."""
+
+    leg_vectors: np.ndarray    # (N, 6, 3) L_i = x + R p_i - a_i
+    lengths: np.ndarray        # (N, 6)
+    unit_vectors: np.ndarray   # (N, 6, 3)
+    jacobian: np.ndarray       # (N, 6, 6) ldot = J nu
+    cond: np.ndarray           # (N,) scaled condition number of J
+    rates: np.ndarray | None = None          # (N, 6) ldot
+    accelerations: np.ndarray | None = None  # (N, 6) lddot
+
+
+def inverse_kinematics(model: Model, q, qd=None, qdd=None) -> LegKinematics:
+    """Leg vectors, lengths, unit vectors, Jacobian and cond(J); rates/accelerations if given."""
+    q = np.asarray(q, dtype=float)
+    single = q.ndim == 1
+    Q = np.atleast_2d(q)
+    QD = np.zeros_like(Q) if qd is None else np.atleast_2d(np.asarray(qd, dtype=float))
+    QDD = np.zeros_like(Q) if qdd is None else np.atleast_2d(np.asarray(qdd, dtype=float))
+    n = Q.shape[0]
+    R, om, al = np.empty((n, 3, 3)), np.empty((n, 3)), np.empty((n, 3))
+    euler_motion(Q, QD, QDD, R, om, al)
+    r = np.einsum("nij,kj->nki", R, model.platform_joints)          # R p_i
+    L = Q[:, None, :3] + r - model.base_joints[None]
+    l = np.linalg.norm(L, axis=-1)
+    u = L / l[..., None]
+    J = np.concatenate([u, np.cross(r, u)], axis=-1)
+    scale = np.r_[np.ones(3), np.full(3, 1.0 / model.characteristic_length)]
+    with np.errstate(all="ignore"):
+        cond = np.linalg.cond(J * scale) if np.all(np.isfinite(J)) else np.full(n, np.inf)
+    rates = accels = None
+    if qd is not None:
+        vp = QD[:, None, :3] + np.cross(om[:, None, :], r)
+        rates = np.einsum("nki,nki->nk", u, vp)
+        if qdd is not None:
+            ap = (QDD[:, None, :3] + np.cross(al[:, None, :], r)
+                  + np.cross(om[:, None, :], np.cross(om[:, None, :], r)))
+            accels = (np.einsum("nki,nki->nk", u, ap)
+                      + (np.einsum("nki,nki->nk", vp, vp) - rates**2) / l)
+    out = LegKinematics(L, l, u, J, cond, rates, accels)
+    if single:
+        out = LegKinematics(*(None if a is None else a[0] for a in vars(out).values()))
+    return out
+
+
+def check_poses(model: Model, q, t=None) -> LegKinematics:
+    """Inverse kinematics that raises at the first pose past a stroke limit or near a singularity."""
+    Q = np.atleast_2d(np.asarray(q, dtype=float))
+    kin = inverse_kinematics(model, Q)
+    lo = model.leg_min if model.leg_min is not None else 0.0
+    hi = model.leg_max if model.leg_max is not None else np.inf
+    bad = np.flatnonzero(np.any((kin.lengths < lo) | (kin.lengths > hi)
+                                | ~np.isfinite(kin.lengths) | (kin.lengths == 0), axis=1))
+    time = (lambda k: None if t is None else float(t[k]))
+    if bad.size:
+        k = int(bad[0])
+        legs = [i + 1 for i in range(6) if not lo <= kin.lengths[k, i] <= hi]
+        raise StrokeLimitError(
+            f"leg(s) {legs} with lengths {kin.lengths[k].tolist()} m outside the stroke "
+            f"[{lo}, {hi}] m at pose {Q[k].tolist()}", index=k, time=time(k))
+    bad = np.flatnonzero(~(kin.cond < COND_LIMIT))
+    if bad.size:
+        k = int(bad[0])
+        raise SingularityError(
+            f"Jacobian near-singular (cond = {kin.cond[k]:.3g} > {COND_LIMIT:.0e}) at pose "
+            f"{Q[k].tolist()}", index=k, time=time(k))
+    return kin
+
+
+def forward_kinematics(model: Model, lengths, guess=None, tol: float = 1e-12,
+                       max_iter: int = 50) -> np.ndarray:
+    """The pose with the given six leg lengths, by Newton's method from `guess` (default home)."""
+    target = np.asarray(lengths, dtype=float)
+    if target.shape != (6,) or not np.all(np.isfinite(target)) or np.any(target <= 0):
+        raise ForwardKinematicsError(f"leg lengths must be six finite positive numbers, got {target.tolist()}")
+    q = np.array(model.home if guess is None else guess, dtype=float)
+    residual = np.inf
+    for iteration in range(max_iter):
+        kin = inverse_kinematics(model, q)
+        f = kin.lengths - target
+        residual = float(np.max(np.abs(f)))
+        if residual <= tol * max(1.0, float(np.max(target))):
+            return q
+        # dl/dq = J diag(I, E(theta)): columns for Euler angles go through the rate matrix.
+        E = _rate_matrix(q[3:])
+        Jq = np.concatenate([kin.jacobian[:, :3], kin.jacobian[:, 3:] @ E], axis=1)
+        try:
+            step = np.linalg.solve(Jq, -f)
+        except np.linalg.LinAlgError:
+            break
+        if not np.all(np.isfinite(step)):
+            break
+        q = q + step
+    raise ForwardKinematicsError(
+        f"Newton did not converge for leg lengths {target.tolist()} from guess "
+        f"{(model.home if guess is None else np.asarray(guess)).tolist()}: max residual "
+        f"{residual:.3g} m after {iteration + 1} iterations (lengths unreachable or singular pose)")
+
+
+def _rate_matrix(th: np.ndarray) -> np.ndarray:
+    """E(theta) as the linear map thetadot -> omega, read from the compiled convention."""
+    Q = np.zeros((3, 6))
+    Q[:, 3:] = th
+    R, om, al = np.empty((3, 3, 3)), np.empty((3, 3)), np.empty((3, 3))
+    euler_motion(Q, np.hstack([np.zeros((3, 3)), np.eye(3)]), np.zeros((3, 6)), R, om, al)
+    return om.T

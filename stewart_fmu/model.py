@@ -1,0 +1,125 @@
+"""The immutable model: parameters built once from a scene (MuJoCo's mjModel, Pinocchio's Model).
+
+Only the bodies and effects the scene declares are present: `legs`, `drive` and `friction` are
+None when their table is absent, and the compiled kernels then skip that work entirely.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any, Mapping
+
+import numpy as np
+
+# Layout of Model.params, the flat float64 vector the compiled kernels read.
+P_HAS_LEGS, P_HAS_DRIVE, P_HAS_FRICTION = 0, 1, 2
+P_GRAVITY = 3            # 3 values
+P_MASS, P_INERTIA = 6, 7  # platform mass, 3 principal moments
+P_LOWER = 10             # mass, com, transverse, axial
+P_UPPER = 14             # mass, com, transverse, axial
+P_DRIVE_MASS = 18        # reflected drive inertia m_d = zeta^2 I / r^2
+P_VISCOUS, P_COULOMB = 19, 20
+P_LEG_MIN, P_LEG_MAX = 21, 22
+P_CHAR_LENGTH = 23       # scales rotational Jacobian columns for cond(J)
+P_BASE = 24              # 18 values: a_i rows
+P_PLATFORM = 42          # 18 values: p_i rows
+N_PARAMS = 60
+
+
+@dataclass(frozen=True)
+class LegParams:
+    """Both rigid parts of every leg (the same for all six legs)."""
+
+    lower_mass: float
+    lower_com: float
+    lower_inertia: tuple[float, float]  # (transverse, axial) about the part's CoM
+    upper_mass: float
+    upper_com: float
+    upper_inertia: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class DriveParams:
+    """Servomotor, gearbox and rack-and-pinion of every leg."""
+
+    gear_ratio: float
+    rotor_inertia: float
+    pinion_radius: float
+
+    @property
+    def reflected_mass(self) -> float:
+        """m_d = zeta^2 I / r^2 (Eq. 14 with the paper's typo corrected)."""
+        return self.gear_ratio**2 * self.rotor_inertia / self.pinion_radius**2
+
+
+@dataclass(frozen=True)
+class FrictionParams:
+    """Viscous and Coulomb friction of every prismatic joint."""
+
+    viscous: float
+    coulomb: float
+
+
+@dataclass(frozen=True)
+class Model:
+    """Immutable parameters of one Stewart mechanism."""
+
+    name: str
+    gravity: np.ndarray          # (3,) in N
+    base_joints: np.ndarray      # (6, 3) a_i in N
+    platform_joints: np.ndarray  # (6, 3) p_i in C
+    home: np.ndarray             # (6,) pose
+    leg_min: float | None
+    leg_max: float | None
+    platform_mass: float
+    platform_inertia: np.ndarray  # (3,) principal moments in C
+    legs: LegParams | None
+    drive: DriveParams | None
+    friction: FrictionParams | None
+    extra: Mapping[str, Any] = field(default_factory=dict)  # project tables (controller, ...)
+    source: str | None = None
+    params: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        for name in ("gravity", "base_joints", "platform_joints", "home", "platform_inertia"):
+            arr = np.array(getattr(self, name), dtype=float)
+            arr.flags.writeable = False
+            object.__setattr__(self, name, arr)
+        object.__setattr__(self, "extra", MappingProxyType(dict(self.extra)))
+        object.__setattr__(self, "params", _pack(self))
+
+    @property
+    def characteristic_length(self) -> float:
+        """Mean platform-joint radius: makes the Jacobian's rotational columns metres."""
+        return float(np.mean(np.linalg.norm(self.platform_joints, axis=1)))
+
+    @property
+    def effects(self) -> tuple[str, ...]:
+        """The optional effects this model computes."""
+        return tuple(n for n in ("legs", "drive", "friction") if getattr(self, n) is not None)
+
+
+def _pack(m: Model) -> np.ndarray:
+    """Flatten the model into the kernels' parameter vector (see the P_* layout)."""
+    p = np.zeros(N_PARAMS)
+    p[P_HAS_LEGS] = m.legs is not None
+    p[P_HAS_DRIVE] = m.drive is not None
+    p[P_HAS_FRICTION] = m.friction is not None
+    p[P_GRAVITY:P_GRAVITY + 3] = m.gravity
+    p[P_MASS] = m.platform_mass
+    p[P_INERTIA:P_INERTIA + 3] = m.platform_inertia
+    if m.legs is not None:
+        lg = m.legs
+        p[P_LOWER:P_LOWER + 4] = (lg.lower_mass, lg.lower_com, *lg.lower_inertia)
+        p[P_UPPER:P_UPPER + 4] = (lg.upper_mass, lg.upper_com, *lg.upper_inertia)
+    if m.drive is not None:
+        p[P_DRIVE_MASS] = m.drive.reflected_mass
+    if m.friction is not None:
+        p[P_VISCOUS], p[P_COULOMB] = m.friction.viscous, m.friction.coulomb
+    p[P_LEG_MIN] = m.leg_min if m.leg_min is not None else 0.0
+    p[P_LEG_MAX] = m.leg_max if m.leg_max is not None else np.inf
+    p[P_CHAR_LENGTH] = m.characteristic_length
+    p[P_BASE:P_BASE + 18] = m.base_joints.ravel()
+    p[P_PLATFORM:P_PLATFORM + 18] = m.platform_joints.ravel()
+    p.flags.writeable = False
+    return p

@@ -1,0 +1,69 @@
+"""Orientation convention of the contract: R = Rz(thz) Ry(thy) Rx(thx), fixed axes X, Y, Z.
+
+omega = E(theta) thetadot and alpha = E thetaddot + Edot thetadot convert Euler-angle rates to
+the angular velocity and acceleration in N. E is singular at thy = +-pi/2 (gimbal lock).
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+GIMBAL_LIMIT = 1e-9  # |cos(thy)| below this: E cannot be inverted
+
+
+@njit(cache=True)
+def rotation_matrix(th: np.ndarray, R: np.ndarray) -> None:
+    """Fill R (3, 3) with Rz(th[2]) @ Ry(th[1]) @ Rx(th[0])."""
+    cx, sx = np.cos(th[0]), np.sin(th[0])
+    cy, sy = np.cos(th[1]), np.sin(th[1])
+    cz, sz = np.cos(th[2]), np.sin(th[2])
+    R[0, 0] = cz * cy
+    R[0, 1] = cz * sy * sx - sz * cx
+    R[0, 2] = cz * sy * cx + sz * sx
+    R[1, 0] = sz * cy
+    R[1, 1] = sz * sy * sx + cz * cx
+    R[1, 2] = sz * sy * cx - cz * sx
+    R[2, 0] = -sy
+    R[2, 1] = cy * sx
+    R[2, 2] = cy * cx
+
+
+@njit(cache=True)
+def angular_motion(th, thd, thdd, om, al) -> None:
+    """Fill omega = E thd and alpha = E thdd + Edot thd (all in N) from Euler angles and rates."""
+    cy, sy = np.cos(th[1]), np.sin(th[1])
+    cz, sz = np.cos(th[2]), np.sin(th[2])
+    # Columns of E: Rz Ry e_x, Rz e_y, e_z.
+    e1x, e1y, e1z = cy * cz, cy * sz, -sy
+    e2x, e2y = -sz, cz
+    d1x = -sy * thd[1] * cz - cy * sz * thd[2]
+    d1y = -sy * thd[1] * sz + cy * cz * thd[2]
+    d1z = -cy * thd[1]
+    d2x, d2y = -cz * thd[2], -sz * thd[2]
+    om[0] = e1x * thd[0] + e2x * thd[1]
+    om[1] = e1y * thd[0] + e2y * thd[1]
+    om[2] = e1z * thd[0] + thd[2]
+    al[0] = e1x * thdd[0] + e2x * thdd[1] + d1x * thd[0] + d2x * thd[1]
+    al[1] = e1y * thdd[0] + e2y * thdd[1] + d1y * thd[0] + d2y * thd[1]
+    al[2] = e1z * thdd[0] + thdd[2] + d1z * thd[0]
+
+
+@njit(cache=True)
+def solve_rate_matrix(th, w, out) -> bool:
+    """Solve E(th) out = w for Euler-angle rates; False at gimbal lock."""
+    cy, sy = np.cos(th[1]), np.sin(th[1])
+    if abs(cy) < GIMBAL_LIMIT:
+        return False
+    cz, sz = np.cos(th[2]), np.sin(th[2])
+    out[0] = (cz * w[0] + sz * w[1]) / cy
+    out[1] = -sz * w[0] + cz * w[1]
+    out[2] = w[2] + sy * out[0]
+    return True
+
+
+@njit(cache=True)
+def euler_motion(Q, QD, QDD, R, OM, AL) -> None:
+    """Batch form over samples: R (N, 3, 3), omega and alpha (N, 3) from pose rows."""
+    for n in range(Q.shape[0]):
+        rotation_matrix(Q[n, 3:], R[n])
+        angular_motion(Q[n, 3:], QD[n, 3:], QDD[n, 3:], OM[n], AL[n])

@@ -1,0 +1,215 @@
+"""Scene files (TOML): parse, validate with errors that name the key, build the Model."""
+from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from .errors import KinematicsError, SceneError
+from .model import DriveParams, FrictionParams, LegParams, Model
+
+DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
+# Tables the project defines on top of the contract; each owner module validates its own.
+PROJECT_TABLES = frozenset({"trajectory", "controller", "link", "solver", "device"})
+_TOP_KEYS = {"name", "gravity", "geometry", "platform", "legs", "drive", "friction"}
+_TABLE_KEYS = {
+    "geometry": ({"base_joints", "platform_joints", "home"}, {"leg_min", "leg_max"}),
+    "platform": ({"mass", "inertia"}, set()),
+    "legs": ({"lower_mass", "lower_com", "lower_inertia",
+              "upper_mass", "upper_com", "upper_inertia"}, set()),
+    "drive": ({"gear_ratio", "rotor_inertia", "pinion_radius"}, set()),
+    "friction": ({"viscous", "coulomb"}, set()),
+}
+
+
+def load_scene(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Model:
+    """Read a scene file and build its Model; `overrides` maps 'table.key' to a new value."""
+    path = Path(path)
+    try:
+        with path.open("rb") as fh:
+            data = tomllib.load(fh)
+    except FileNotFoundError:
+        raise SceneError("<file>", f"no such scene file: {path}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError("<file>", f"not valid TOML: {exc}", str(path)) from None
+    if overrides:
+        data = apply_overrides(data, overrides)
+    return scene_from_dict(data, source=str(path))
+
+
+def apply_overrides(data: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
+    """Return a copy of a scene dict with dotted keys ('drive.gear_ratio') replaced."""
+    out = {k: (dict(v) if isinstance(v, Mapping) else v) for k, v in data.items()}
+    for dotted, value in overrides.items():
+        *tables, key = dotted.split(".")
+        node = out
+        for t in tables:
+            node = node.setdefault(t, {})
+            if not isinstance(node, dict):
+                raise SceneError(dotted, "override path runs through a non-table value")
+        node[key] = value
+    return out
+
+
+def scene_from_dict(data: Mapping[str, Any], source: str | None = None) -> Model:
+    """Validate a parsed scene and build its Model (the reference for every rejection rule)."""
+    v = _Validator(source)
+    unknown = set(data) - _TOP_KEYS - PROJECT_TABLES
+    if unknown:
+        v.fail(sorted(unknown)[0], f"unknown key (allowed: {sorted(_TOP_KEYS | PROJECT_TABLES)})")
+    name = data.get("name", Path(source).stem if source else "scene")
+    if not isinstance(name, str):
+        v.fail("name", "must be a string")
+    gravity = v.vector(data, "gravity", 3, default=DEFAULT_GRAVITY)
+    geo = v.table(data, "geometry", required=True)
+    plat = v.table(data, "platform", required=True)
+    base = v.points(geo, "geometry.base_joints")
+    top = v.points(geo, "geometry.platform_joints")
+    home = v.vector(geo, "geometry.home", 6)
+    leg_min = v.number(geo, "geometry.leg_min", positive=True, optional=True)
+    leg_max = v.number(geo, "geometry.leg_max", positive=True, optional=True)
+    if leg_min is not None and leg_max is not None and leg_min >= leg_max:
+        v.fail("geometry.leg_max", f"must exceed leg_min ({leg_max} <= {leg_min})")
+    mass = v.number(plat, "platform.mass", positive=True)
+    inertia = v.principal_inertia(plat, "platform.inertia")
+    model = Model(
+        name=name, gravity=gravity, base_joints=base, platform_joints=top, home=home,
+        leg_min=leg_min, leg_max=leg_max, platform_mass=mass, platform_inertia=inertia,
+        legs=_legs(v, data), drive=_drive(v, data), friction=_friction(v, data),
+        extra={k: data[k] for k in PROJECT_TABLES if k in data}, source=source,
+    )
+    _check_home(v, model)
+    return model
+
+
+def _legs(v: "_Validator", data: Mapping[str, Any]) -> LegParams | None:
+    t = v.table(data, "legs")
+    if t is None:
+        return None
+    parts = {}
+    for part in ("lower", "upper"):
+        parts[f"{part}_mass"] = v.number(t, f"legs.{part}_mass", nonnegative=True)
+        parts[f"{part}_com"] = v.number(t, f"legs.{part}_com", nonnegative=True)
+        trans, axial = v.vector(t, f"legs.{part}_inertia", 2)
+        if trans < 0 or axial < 0:
+            v.fail(f"legs.{part}_inertia", f"moments must be >= 0, got {[trans, axial]}")
+        if axial > 2 * trans:
+            v.fail(f"legs.{part}_inertia",
+                   f"axial moment {axial} exceeds twice the transverse {trans}: no rigid body has it")
+        parts[f"{part}_inertia"] = (trans, axial)
+    return LegParams(**parts)
+
+
+def _drive(v: "_Validator", data: Mapping[str, Any]) -> DriveParams | None:
+    t = v.table(data, "drive")
+    if t is None:
+        return None
+    return DriveParams(**{k: v.number(t, f"drive.{k}", positive=True)
+                          for k in ("gear_ratio", "rotor_inertia", "pinion_radius")})
+
+
+def _friction(v: "_Validator", data: Mapping[str, Any]) -> FrictionParams | None:
+    t = v.table(data, "friction")
+    if t is None:
+        return None
+    return FrictionParams(**{k: v.number(t, f"friction.{k}", nonnegative=True)
+                             for k in ("viscous", "coulomb")})
+
+
+def _check_home(v: "_Validator", model: Model) -> None:
+    """The home pose must be reachable: within stroke and away from singularities."""
+    from .kinematics import check_poses  # kinematics needs a Model; import here, not at top
+
+    try:
+        check_poses(model, model.home[None, :])
+    except KinematicsError as exc:
+        v.fail("geometry.home", str(exc))
+
+
+class _Validator:
+    """Typed accessors that raise SceneError naming the dotted key."""
+
+    def __init__(self, source: str | None):
+        self.source = source
+
+    def fail(self, key: str, reason: str) -> None:
+        raise SceneError(key, reason, self.source)
+
+    def table(self, data: Mapping[str, Any], name: str, required: bool = False):
+        t = data.get(name)
+        if t is None:
+            if required:
+                self.fail(name, "required table is missing")
+            return None
+        if not isinstance(t, Mapping):
+            self.fail(name, f"must be a table, got {type(t).__name__}")
+        need, optional = _TABLE_KEYS[name]
+        for key in sorted(set(t) - need - optional):
+            self.fail(f"{name}.{key}", f"unknown key (allowed: {sorted(need | optional)})")
+        for key in sorted(need - set(t)):
+            self.fail(f"{name}.{key}", "required key is missing")
+        return t
+
+    def number(self, t: Mapping[str, Any], dotted: str, positive: bool = False,
+               nonnegative: bool = False, optional: bool = False) -> float | None:
+        key = dotted.rsplit(".", 1)[-1]
+        if key not in t:
+            if optional:
+                return None
+            self.fail(dotted, "required key is missing")
+        x = t[key]
+        if isinstance(x, bool) or not isinstance(x, (int, float)):
+            self.fail(dotted, f"must be a number, got {x!r}")
+        x = float(x)
+        if not math.isfinite(x):
+            self.fail(dotted, f"must be finite, got {x}")
+        if positive and x <= 0:
+            self.fail(dotted, f"must be > 0, got {x}")
+        if nonnegative and x < 0:
+            self.fail(dotted, f"must be >= 0, got {x}")
+        return x
+
+    def vector(self, t: Mapping[str, Any], dotted: str, n: int, default=None) -> np.ndarray:
+        key = dotted.rsplit(".", 1)[-1]
+        if key not in t:
+            if default is None:
+                self.fail(dotted, "required key is missing")
+            return np.array(default, dtype=float)
+        return self._array(t[key], dotted, (n,))
+
+    def points(self, t: Mapping[str, Any], dotted: str) -> np.ndarray:
+        pts = self._array(t[dotted.rsplit(".", 1)[-1]], dotted, (6, 3))
+        scale = max(float(np.abs(pts).max()), 1e-300)
+        for i in range(6):
+            for j in range(i + 1, 6):
+                if np.linalg.norm(pts[i] - pts[j]) <= 1e-9 * scale:
+                    self.fail(dotted, f"joints {i + 1} and {j + 1} coincide at {pts[i].tolist()}")
+        return pts
+
+    def principal_inertia(self, t: Mapping[str, Any], dotted: str) -> np.ndarray:
+        inertia = self.vector(t, dotted, 3)
+        if np.any(inertia <= 0):
+            self.fail(dotted, f"not positive definite: principal moments {inertia.tolist()} must be > 0")
+        a, b, c = inertia
+        if a + b < c or b + c < a or a + c < b:
+            self.fail(dotted, f"moments {inertia.tolist()} break the triangle inequality: no rigid body has them")
+        return inertia
+
+    def _array(self, x: Any, dotted: str, shape: tuple[int, ...]) -> np.ndarray:
+        def bad(reason: str):
+            self.fail(dotted, reason)
+
+        try:
+            arr = np.array(x, dtype=float)
+        except (TypeError, ValueError):
+            bad(f"must be numbers of shape {shape}, got {x!r}")
+        if any(isinstance(e, bool) for e in np.ravel(np.array(x, dtype=object))):
+            bad("must be numbers, not booleans")
+        if arr.shape != shape:
+            bad(f"wrong shape: expected {shape}, got {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            bad(f"must be finite, got {np.asarray(x).tolist()}")
+        return arr
