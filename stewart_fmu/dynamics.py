@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+
 from . import model as M
 from .errors import SingularityError, StrokeLimitError, TrajectoryError
 from .kane import STROKE, twist_forces, twist_mass_matrix
@@ -17,28 +18,44 @@ from .model import Model
 from .rotations import angular_motion, rotation_matrix, solve_rate_matrix
 
 OK, NONFINITE, SINGULAR, GIMBAL = 0, 1, 3, 4
-# min|pivot|/max|entry| of the LU of the scaled Jacobian below which a pose counts as singular
-# (cond(J) then exceeds ~1e10 and the forces would carry fewer than ~6 good digits).
+# Smallest pivot of the LU of the scaled J^T (entries of order one) below which a pose counts as
+# singular (cond(J) then exceeds ~1e10 and the forces would carry fewer than ~6 good digits).
 SINGULAR_PIVOT = 1e-10
 PARTS = ("platform", "lower_legs", "upper_legs", "drives", "gravity", "friction")
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _workspace():
-    return (np.empty((3, 3)), np.empty(3), np.empty(3), np.empty((6, 3)), np.empty((6, 3)),
-            np.empty((6, 3)), np.empty((6, 6)), np.empty((4, 6)), np.empty(6, np.int64),
-            np.empty(6), np.empty((6, 6)))
+    """Scratch for one sample, as views of one buffer (one allocation per kernel call):
+    R, omega, alpha, U, R p_i, (l, ldot, lddot), J^T, gen, pivots, rhs, M_nu, zero3, and the
+    two (3, 6) scratch matrices of twist_mass_matrix."""
+    buf = np.empty(210)
+    ws = (buf[0:9].reshape((3, 3)), buf[9:12], buf[12:15], buf[15:33].reshape((6, 3)),
+          buf[33:51].reshape((6, 3)), buf[51:69].reshape((6, 3)), buf[69:105].reshape((6, 6)),
+          buf[105:129].reshape((4, 6)), np.empty(6, np.int64), buf[129:135],
+          buf[135:171].reshape((6, 6)), buf[171:174], buf[174:192].reshape((3, 6)),
+          buf[192:210].reshape((3, 6)))
+    ws[11][:] = 0.0
+    return ws
 
 
-@njit(cache=True)
-def _finite(a, b, c) -> bool:
+@njit(cache=True, error_model="numpy", inline="always")
+def _finite(a) -> bool:
+    """All six entries finite; a NaN or inf in any input reaches every output, so kernels test
+    their outputs (cheap) and report NONFINITE only after the inputs are confirmed bad."""
     for j in range(6):
-        if not (np.isfinite(a[j]) and np.isfinite(b[j]) and np.isfinite(c[j])):
+        if not np.isfinite(a[j]):
             return False
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
+def _nonfinite_cause(a, b, c) -> int:
+    """NONFINITE when an input is not finite, else SINGULAR (the numbers overflowed)."""
+    return NONFINITE if not (_finite(a) and _finite(b) and _finite(c)) else SINGULAR
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def _friction(p, ld) -> float:
     """mu_i of Eq. 9: the force friction opposes to extension (sign(0) = 0)."""
     if p[M.P_HAS_FRICTION] == 0.0:
@@ -46,67 +63,52 @@ def _friction(p, ld) -> float:
     return p[M.P_VISCOUS] * ld + p[M.P_COULOMB] * np.sign(ld)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def _drive_mass(p) -> float:
     return p[M.P_DRIVE_MASS] if p[M.P_HAS_DRIVE] != 0.0 else 0.0
 
 
-@njit(cache=True)
-def _factor_jacobian(p, JT, piv) -> bool:
-    """LU of J^T with rotational rows in units of the characteristic length; False if singular."""
-    c = p[M.P_CHAR_LENGTH]
-    for k in range(3, 6):
-        for j in range(6):
-            JT[k, j] /= c
+@njit(cache=True, error_model="numpy", inline="always")
+def _factor_jacobian(JT, piv) -> bool:
+    """LU of the scaled J^T written by twist_forces; False if singular."""
     return lu_factor(JT, piv) >= SINGULAR_PIVOT
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def _solve_jt(p, JT, piv, rhs) -> None:
-    """rhs <- J^-T rhs with the factors of _factor_jacobian."""
-    c = p[M.P_CHAR_LENGTH]
+    """rhs <- J^-T rhs with the factors of _factor_jacobian (rhs moments scaled like J^T)."""
+    ic = 1.0 / p[M.P_CHAR_LENGTH]
     for k in range(3, 6):
-        rhs[k] /= c
+        rhs[k] *= ic
     lu_solve(JT, piv, rhs)
 
 
-@njit(cache=True)
-def _inverse_prepare(p, q, qd, qdd, ws) -> int:
-    R, om, al, U, Rr, leg, JT, gen, piv = ws[0], ws[1], ws[2], ws[3], ws[4], ws[5], ws[6], ws[7], ws[8]
-    if not _finite(q, qd, qdd):
-        return NONFINITE
+@njit(cache=True, error_model="numpy", inline="always")
+def _inverse_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, piv, rhs, out) -> int:
+    """sigma = J^-T (-K*_nu - K_g,nu) + mu + m_d lddot for one sample into out (6,)."""
     rotation_matrix(q[3:], R)
     angular_motion(q[3:], qd[3:], qdd[3:], om, al)
     status = twist_forces(p, q[:3], R, qd[:3], om, qdd[:3], al, U, Rr, leg, JT, gen)
     if status != OK:
         return status
-    return OK if _factor_jacobian(p, JT, piv) else SINGULAR
-
-
-@njit(cache=True)
-def _inverse_sample(p, q, qd, qdd, ws, out) -> int:
-    """sigma = J^-T (-K*_nu - K_g,nu) + mu + m_d lddot for one sample into out (6,)."""
-    status = _inverse_prepare(p, q, qd, qdd, ws)
-    if status != OK:
-        return status
-    leg, JT, gen, piv, rhs = ws[5], ws[6], ws[7], ws[8], ws[9]
+    if not _factor_jacobian(JT, piv):
+        return SINGULAR
     for j in range(6):
         rhs[j] = -(gen[0, j] + gen[1, j] + gen[2, j] + gen[3, j])
     _solve_jt(p, JT, piv, rhs)
     md = _drive_mass(p)
     for i in range(6):
         out[i] = rhs[i] + _friction(p, leg[i, 1]) + md * leg[i, 2]
-    return OK
+    return OK if _finite(out) else _nonfinite_cause(q, qd, qdd)
 
 
-@njit(cache=True)
-def _parts_sample(p, q, qd, qdd, ws, out) -> int:
-    """The contributions of PARTS for one sample into out (6 parts, 6 legs)."""
-    status = _inverse_prepare(p, q, qd, qdd, ws)
+@njit(cache=True, error_model="numpy", inline="always")
+def _parts_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, piv, rhs, total, out) -> int:
+    """The contributions of PARTS for one sample into out (6 parts, 6 legs), sigma into total."""
+    status = _inverse_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, piv, rhs, total)
     if status != OK:
         return status
-    leg, JT, gen, piv, rhs = ws[5], ws[6], ws[7], ws[8], ws[9]
-    for k, slot in ((0, 0), (1, 1), (2, 2), (3, 4)):
+    for k, slot in ((0, 0), (1, 1), (2, 2), (3, 4)):   # reuse the LU of J^T
         for j in range(6):
             rhs[j] = -gen[k, j]
         _solve_jt(p, JT, piv, rhs)
@@ -115,78 +117,89 @@ def _parts_sample(p, q, qd, qdd, ws, out) -> int:
     for i in range(6):
         out[3, i] = md * leg[i, 2]
         out[5, i] = _friction(p, leg[i, 1])
+    for k in range(6):
+        if not _finite(out[k]):
+            return _nonfinite_cause(q, qd, qdd)
     return OK
 
 
-@njit(cache=True)
-def _forward_sample(p, q, qd, sigma, ws, out) -> int:
+@njit(cache=True, error_model="numpy", inline="always")
+def _forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, zero, S,
+                    MS, out) -> int:
     """(M_nu + m_d J^T J) nudot = J^T (sigma - mu - m_d lddot_0) + K*_0 + K_g, then Euler rates."""
-    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt = ws
-    if not _finite(q, qd, sigma):
-        return NONFINITE
     rotation_matrix(q[3:], R)
-    zero = np.zeros(3)
     angular_motion(q[3:], qd[3:], zero, om, al)        # al = Edot thd, the Euler-rate part
     status = twist_forces(p, q[:3], R, qd[:3], om, zero, zero, U, Rr, leg, JT, gen)
     if status != OK:
         return status
     twist_mass_matrix(p, R, U, Rr, leg, Mt)
     md = _drive_mass(p)
+    c = p[M.P_CHAR_LENGTH]
     for j in range(6):
-        s = gen[0, j] + gen[1, j] + gen[2, j] + gen[3, j]
+        s = 0.0
         for i in range(6):
             s += JT[j, i] * (sigma[i] - _friction(p, leg[i, 1]) - md * leg[i, 2])
-        rhs[j] = s
-    if not _factor_jacobian(p, JT, piv):
+        # JT's moment rows are scaled by 1/c: undo that for J^T sigma.
+        rhs[j] = gen[0, j] + gen[1, j] + gen[2, j] + gen[3, j] + (s if j < 3 else s * c)
+    if not _factor_jacobian(JT, piv):
         return SINGULAR
     if not cholesky_solve(Mt, rhs):
         return SINGULAR
     out[0], out[1], out[2] = rhs[0], rhs[1], rhs[2]
     for k in range(3):
         rhs[3 + k] -= al[k]
-    return OK if solve_rate_matrix(q[3:], rhs[3:], out[3:]) else GIMBAL
+    if not solve_rate_matrix(q[3:], rhs[3:], out[3:]):
+        return GIMBAL
+    return OK if _finite(out) else _nonfinite_cause(q, qd, sigma)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _inverse_batch(p, Q, QD, QDD, out):
-    ws = _workspace()
+    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, zero, S, MS = _workspace()
     for n in range(Q.shape[0]):
-        status = _inverse_sample(p, Q[n], QD[n], QDD[n], ws, out[n])
+        status = _inverse_sample(p, Q[n], QD[n], QDD[n], R, om, al, U, Rr, leg, JT, gen, piv,
+                                 rhs, out[n])
         if status != OK:
             return n, status
     return -1, OK
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _inverse_one(p, q, qd, qdd):
     out = np.empty(6)
-    return out, _inverse_sample(p, q, qd, qdd, _workspace(), out)
+    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, zero, S, MS = _workspace()
+    return out, _inverse_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, piv, rhs, out)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _parts_batch(p, Q, QD, QDD, out):
-    ws = _workspace()
+    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, zero, S, MS = _workspace()
+    total = np.empty(6)
     for n in range(Q.shape[0]):
-        status = _parts_sample(p, Q[n], QD[n], QDD[n], ws, out[n])
+        status = _parts_sample(p, Q[n], QD[n], QDD[n], R, om, al, U, Rr, leg, JT, gen, piv,
+                               rhs, total, out[n])
         if status != OK:
             return n, status
     return -1, OK
 
 
-@njit(cache=True)
-def _forward_batch(p, Q, QD, S, out):
-    ws = _workspace()
+@njit(cache=True, error_model="numpy")
+def _forward_batch(p, Q, QD, F, out):
+    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, zero, S, MS = _workspace()
     for n in range(Q.shape[0]):
-        status = _forward_sample(p, Q[n], QD[n], S[n], ws, out[n])
+        status = _forward_sample(p, Q[n], QD[n], F[n], R, om, al, U, Rr, leg, JT, gen, piv,
+                                 rhs, Mt, zero, S, MS, out[n])
         if status != OK:
             return n, status
     return -1, OK
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _forward_one(p, q, qd, sigma):
     out = np.empty(6)
-    return out, _forward_sample(p, q, qd, sigma, _workspace(), out)
+    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, zero, S, MS = _workspace()
+    return out, _forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt,
+                                zero, S, MS, out)
 
 
 def inverse_dynamics(model: Model, q, qd, qdd) -> np.ndarray:

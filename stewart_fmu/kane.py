@@ -28,17 +28,19 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+
 from . import model as M
 
 STROKE = 2  # status code: a leg is outside [leg_min, leg_max]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def twist_forces(p, x, R, v, om, acc, al, U, Rr, leg, JT, gen) -> int:
     """Generalized inertia (Eqs. 3-7) and gravity (Eq. 8) forces on the twist, per body group.
 
     gen rows: 0 platform inertia, 1 lower-leg inertia, 2 upper-leg inertia, 3 gravity.
-    Also fills U (unit vectors u_i), Rr (R p_i), leg rows (l, ldot, lddot) and JT = J^T.
+    Also fills U (unit vectors u_i), Rr (R p_i), leg rows (l, ldot, lddot) and JT = J^T with
+    its rotational rows divided by the characteristic length (dimensionless, entries O(1)).
     Returns 0, or STROKE when a leg is outside its limits.
     """
     status = 0
@@ -50,6 +52,7 @@ def twist_forces(p, x, R, v, om, acc, al, U, Rr, leg, JT, gen) -> int:
     _platform_inertia(p, R, om, acc, al, gen)
     gen[3, 0], gen[3, 1], gen[3, 2] = mp * gx, mp * gy, mp * gz
     has_legs = p[M.P_HAS_LEGS] != 0.0
+    ic = 1.0 / p[M.P_CHAR_LENGTH]
     for i in range(6):
         # Leg kinematics: r = R p_i, L = x + r - a_i, u = L / l.
         b = M.P_PLATFORM + 3 * i
@@ -59,7 +62,8 @@ def twist_forces(p, x, R, v, om, acc, al, U, Rr, leg, JT, gen) -> int:
         a = M.P_BASE + 3 * i
         Lx, Ly, Lz = x[0] + rx - p[a], x[1] + ry - p[a + 1], x[2] + rz - p[a + 2]
         l = np.sqrt(Lx * Lx + Ly * Ly + Lz * Lz)
-        ux, uy, uz = Lx / l, Ly / l, Lz / l
+        il = 1.0 / l  # one division per leg: the rest multiply
+        ux, uy, uz = Lx * il, Ly * il, Lz * il
         if l < p[M.P_LEG_MIN] or l > p[M.P_LEG_MAX]:
             status = STROKE
         # Joint velocity vp = v + om x r and acceleration ap = acc + al x r + om x (om x r).
@@ -69,29 +73,31 @@ def twist_forces(p, x, R, v, om, acc, al, U, Rr, leg, JT, gen) -> int:
         apy = acc[1] + al[2] * rx - al[0] * rz + om[2] * wrx - om[0] * wrz
         apz = acc[2] + al[0] * ry - al[1] * rx + om[0] * wry - om[1] * wrx
         ld = ux * vpx + uy * vpy + uz * vpz
-        udx, udy, udz = (vpx - ld * ux) / l, (vpy - ld * uy) / l, (vpz - ld * uz) / l
+        udx, udy, udz = (vpx - ld * ux) * il, (vpy - ld * uy) * il, (vpz - ld * uz) * il
         ud2 = udx * udx + udy * udy + udz * udz
         ldd = ux * apx + uy * apy + uz * apz + l * ud2
         # uddot from L'' = ldd u + 2 ld udot + l uddot.
-        uddx = (apx - ldd * ux - 2.0 * ld * udx) / l
-        uddy = (apy - ldd * uy - 2.0 * ld * udy) / l
-        uddz = (apz - ldd * uz - 2.0 * ld * udz) / l
+        uddx = (apx - ldd * ux - 2.0 * ld * udx) * il
+        uddy = (apy - ldd * uy - 2.0 * ld * udy) * il
+        uddz = (apz - ldd * uz - 2.0 * ld * udz) * il
         U[i, 0], U[i, 1], U[i, 2] = ux, uy, uz
         Rr[i, 0], Rr[i, 1], Rr[i, 2] = rx, ry, rz
         leg[i, 0], leg[i, 1], leg[i, 2] = l, ld, ldd
         JT[0, i], JT[1, i], JT[2, i] = ux, uy, uz
-        JT[3, i], JT[4, i], JT[5, i] = ry * uz - rz * uy, rz * ux - rx * uz, rx * uy - ry * ux
+        JT[3, i] = (ry * uz - rz * uy) * ic
+        JT[4, i] = (rz * ux - rx * uz) * ic
+        JT[5, i] = (rx * uy - ry * ux) * ic
         if has_legs:
             # P uddot = uddot + |udot|^2 u, since u . uddot = -|udot|^2.
             pux, puy, puz = uddx + ud2 * ux, uddy + ud2 * uy, uddz + ud2 * uz
-            _lower_leg(p, l, pux, puy, puz, rx, ry, rz, gen)
-            _upper_leg(p, l, ld, ldd, ud2, udx, udy, udz, pux, puy, puz, ux, uy, uz,
+            _lower_leg(p, il, pux, puy, puz, rx, ry, rz, gen)
+            _upper_leg(p, l, il, ld, ldd, ud2, udx, udy, udz, pux, puy, puz, ux, uy, uz,
                        rx, ry, rz, gen)
-            _leg_gravity(p, l, ux, uy, uz, gx, gy, gz, rx, ry, rz, gen)
+            _leg_gravity(p, l, il, ux, uy, uz, gx, gy, gz, rx, ry, rz, gen)
     return status
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _platform_inertia(p, R, om, acc, al, gen) -> None:
     """F* = -m a and T* = R (-(I alpha_c + omega_c x I omega_c)) in C (Eqs. 3-5)."""
     mp = p[M.P_MASS]
@@ -112,7 +118,7 @@ def _platform_inertia(p, R, om, acc, al, gen) -> None:
     gen[0, 5] = R[2, 0] * t0 + R[2, 1] * t1 + R[2, 2] * t2
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _add_joint_force(gen, k, fx, fy, fz, rx, ry, rz) -> None:
     """Add [f; r x f], the twist-space image of a force f per unit joint velocity."""
     gen[k, 0] += fx
@@ -123,78 +129,99 @@ def _add_joint_force(gen, k, fx, fy, fz, rx, ry, rz) -> None:
     gen[k, 5] += rx * fy - ry * fx
 
 
-@njit(cache=True)
-def _lower_leg(p, l, pux, puy, puz, rx, ry, rz, gen) -> None:
+@njit(cache=True, error_model="numpy")
+def _lower_leg(p, il, pux, puy, puz, rx, ry, rz, gen) -> None:
     """Part A: (c_A/l) P (-m_A c_A uddot) plus the torque -I_t alpha through [u]x/l."""
     mA, cA, ItA = p[M.P_LOWER], p[M.P_LOWER + 1], p[M.P_LOWER + 2]
-    s = -(mA * cA * cA + ItA) / l
+    s = -(mA * cA * cA + ItA) * il
     _add_joint_force(gen, 1, s * pux, s * puy, s * puz, rx, ry, rz)
 
 
-@njit(cache=True)
-def _upper_leg(p, l, ld, ldd, ud2, udx, udy, udz, pux, puy, puz, ux, uy, uz,
+@njit(cache=True, error_model="numpy")
+def _upper_leg(p, l, il, ld, ldd, ud2, udx, udy, udz, pux, puy, puz, ux, uy, uz,
                rx, ry, rz, gen) -> None:
     """Part B: a_B = ldd u + 2 ld udot + (l - c_B) uddot, projected by dV_B/dvp and dw/dvp."""
     mB, cB, ItB = p[M.P_UPPER], p[M.P_UPPER + 1], p[M.P_UPPER + 2]
     e = l - cB
     axial = -mB * (ldd - e * ud2)            # u . F*_B
-    sp = e / l
-    fx = axial * ux + sp * (-mB) * (2.0 * ld * udx + e * pux) - ItB / l * pux
-    fy = axial * uy + sp * (-mB) * (2.0 * ld * udy + e * puy) - ItB / l * puy
-    fz = axial * uz + sp * (-mB) * (2.0 * ld * udz + e * puz) - ItB / l * puz
+    sp, st = -mB * e * il, -ItB * il
+    fx = axial * ux + sp * (2.0 * ld * udx + e * pux) + st * pux
+    fy = axial * uy + sp * (2.0 * ld * udy + e * puy) + st * puy
+    fz = axial * uz + sp * (2.0 * ld * udz + e * puz) + st * puz
     _add_joint_force(gen, 2, fx, fy, fz, rx, ry, rz)
 
 
-@njit(cache=True)
-def _leg_gravity(p, l, ux, uy, uz, gx, gy, gz, rx, ry, rz, gen) -> None:
+@njit(cache=True, error_model="numpy")
+def _leg_gravity(p, l, il, ux, uy, uz, gx, gy, gz, rx, ry, rz, gen) -> None:
     """Eq. 8 for both parts: m_B (u.g) u + ((m_A c_A + m_B (l - c_B)) / l) P g."""
     mA, cA = p[M.P_LOWER], p[M.P_LOWER + 1]
     mB, cB = p[M.P_UPPER], p[M.P_UPPER + 1]
     ug = ux * gx + uy * gy + uz * gz
-    s = (mA * cA + mB * (l - cB)) / l
+    s = (mA * cA + mB * (l - cB)) * il
     c = mB * ug - s * ug
     _add_joint_force(gen, 3, s * gx + c * ux, s * gy + c * uy, s * gz + c * uz, rx, ry, rz)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def twist_mass_matrix(p, R, U, Rr, leg, Mt) -> None:
-    """M_nu: platform blocks plus each leg's S^T M_leg S, M_leg = m_B uu^T + (k / l^2) P,
-    k = m_A c_A^2 + m_B (l - c_B)^2 + I_tA + I_tB (the leg's inertia about its base joint),
-    plus the drive's m_d J^T J."""
+    """M_nu = M_platform + sum_i S_i^T (M_leg,i + m_d u u^T) S_i with S_i = [I, -[r_i]x] (vp = S nu).
+
+    M_leg = m_B uu^T + (k / l^2) P, k = m_A c_A^2 + m_B (l - c_B)^2 + I_tA + I_tB (the leg's
+    inertia about its base joint), P = I - uu^T. Writing M_leg + m_d uu^T = kp I + ax uu^T,
+    S^T S = [[I, -[r]x], [[r]x, |r|^2 I - r r^T]] and S^T u = j_i, the Jacobian row [u; r x u].
+    """
+    mp = p[M.P_MASS]
+    has_legs = p[M.P_HAS_LEGS] != 0.0
+    md = p[M.P_DRIVE_MASS] if p[M.P_HAS_DRIVE] != 0.0 else 0.0
     for i in range(6):
         for j in range(6):
             Mt[i, j] = 0.0
-    mp = p[M.P_MASS]
-    for i in range(3):
-        Mt[i, i] = mp
-        for j in range(3):
-            s = 0.0
-            for k in range(3):
-                s += R[i, k] * p[M.P_INERTIA + k] * R[j, k]
-            Mt[3 + i, 3 + j] = s
-    has_legs = p[M.P_HAS_LEGS] != 0.0
-    md = p[M.P_DRIVE_MASS] if p[M.P_HAS_DRIVE] != 0.0 else 0.0
-    S = np.empty((3, 6))
-    MS = np.empty((3, 6))
+    s0 = 0.0
+    s1x = s1y = s1z = 0.0
     for n in range(6):
         l = leg[n, 0]
         u0, u1, u2 = U[n, 0], U[n, 1], U[n, 2]
         r0, r1, r2 = Rr[n, 0], Rr[n, 1], Rr[n, 2]
-        # S = [I, -[r]x]: vp = S nu.
-        S[0, 0], S[0, 1], S[0, 2], S[0, 3], S[0, 4], S[0, 5] = 1.0, 0.0, 0.0, 0.0, r2, -r1
-        S[1, 0], S[1, 1], S[1, 2], S[1, 3], S[1, 4], S[1, 5] = 0.0, 1.0, 0.0, -r2, 0.0, r0
-        S[2, 0], S[2, 1], S[2, 2], S[2, 3], S[2, 4], S[2, 5] = 0.0, 0.0, 1.0, r1, -r0, 0.0
-        mB, kp = 0.0, 0.0
+        kp = 0.0
+        ax = md
         if has_legs:
             mA, cA, ItA = p[M.P_LOWER], p[M.P_LOWER + 1], p[M.P_LOWER + 2]
             mB, cB, ItB = p[M.P_UPPER], p[M.P_UPPER + 1], p[M.P_UPPER + 2]
             kp = (mA * cA * cA + mB * (l - cB) ** 2 + ItA + ItB) / (l * l)
-        ax = mB + md - kp  # M_leg + m_d uu^T = kp I + (mB + md - kp) uu^T
-        uu = (u0, u1, u2)
-        for i in range(3):
-            for j in range(6):
-                us = u0 * S[0, j] + u1 * S[1, j] + u2 * S[2, j]
-                MS[i, j] = kp * S[i, j] + ax * uu[i] * us
-        for i in range(6):
-            for j in range(6):
-                Mt[i, j] += S[0, i] * MS[0, j] + S[1, i] * MS[1, j] + S[2, i] * MS[2, j]
+            ax += mB - kp
+        # kp S^T S: translational trace, coupling [kp r]x, rotational kp (|r|^2 I - r r^T).
+        s0 += kp
+        s1x += kp * r0
+        s1y += kp * r1
+        s1z += kp * r2
+        rr = r0 * r0 + r1 * r1 + r2 * r2
+        rv = (r0, r1, r2)
+        for a in range(3):
+            for b in range(3):
+                Mt[3 + a, 3 + b] += kp * ((rr if a == b else 0.0) - rv[a] * rv[b])
+        # ax j j^T
+        j = (u0, u1, u2, r1 * u2 - r2 * u1, r2 * u0 - r0 * u2, r0 * u1 - r1 * u0)
+        for a in range(6):
+            for b in range(6):
+                Mt[a, b] += ax * j[a] * j[b]
+    for a in range(3):
+        Mt[a, a] += mp + s0
+    # -[s1]x in the upper right block, [s1]x in the lower left.
+    Mt[0, 4] += s1z
+    Mt[0, 5] -= s1y
+    Mt[1, 3] -= s1z
+    Mt[1, 5] += s1x
+    Mt[2, 3] += s1y
+    Mt[2, 4] -= s1x
+    Mt[4, 0] += s1z
+    Mt[5, 0] -= s1y
+    Mt[3, 1] -= s1z
+    Mt[5, 1] += s1x
+    Mt[3, 2] += s1y
+    Mt[4, 2] -= s1x
+    for a in range(3):
+        for b in range(3):
+            s = 0.0
+            for k in range(3):
+                s += R[a, k] * p[M.P_INERTIA + k] * R[b, k]
+            Mt[3 + a, 3 + b] += s

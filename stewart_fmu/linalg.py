@@ -5,16 +5,13 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True)
+
+@njit(cache=True, error_model="numpy", inline="always")
 def lu_factor(A, piv) -> float:
-    """LU with partial pivoting in place; returns min|pivot| / max|A| (0 when singular)."""
-    n = A.shape[0]
-    amax = 0.0
-    for i in range(n):
-        for j in range(n):
-            amax = max(amax, abs(A[i, j]))
-    if amax == 0.0 or not np.isfinite(amax):
-        return 0.0
+    """LU of a 6x6 with partial pivoting in place; returns min |pivot| (0 when singular).
+
+    Callers scale rows to entries of order one, so the smallest pivot measures singularity."""
+    n = 6
     pmin = np.inf
     for k in range(n):
         p, best = k, abs(A[k, k])
@@ -34,13 +31,13 @@ def lu_factor(A, piv) -> float:
             A[i, k] = f
             for j in range(k + 1, n):
                 A[i, j] -= f * A[k, j]
-    return pmin / amax
+    return pmin
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def lu_solve(LU, piv, b) -> None:
-    """Solve in place with the factors of lu_factor."""
-    n = LU.shape[0]
+    """Solve a 6x6 in place with the factors of lu_factor."""
+    n = 6
     for k in range(n):
         p = piv[k]
         if p != k:
@@ -57,10 +54,10 @@ def lu_solve(LU, piv, b) -> None:
         b[i] = s / LU[i, i]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def cholesky_solve(A, b) -> bool:
-    """Solve A x = b in place for symmetric positive-definite A (A is overwritten)."""
-    n = A.shape[0]
+    """Solve a 6x6 A x = b in place for symmetric positive-definite A (A is overwritten)."""
+    n = 6
     for j in range(n):
         d = A[j, j]
         for k in range(j):

@@ -8,10 +8,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+
 GIMBAL_LIMIT = 1e-9  # |cos(thy)| below this: E cannot be inverted
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def rotation_matrix(th: np.ndarray, R: np.ndarray) -> None:
     """Fill R (3, 3) with Rz(th[2]) @ Ry(th[1]) @ Rx(th[0])."""
     cx, sx = np.cos(th[0]), np.sin(th[0])
@@ -28,7 +29,7 @@ def rotation_matrix(th: np.ndarray, R: np.ndarray) -> None:
     R[2, 2] = cy * cx
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def angular_motion(th, thd, thdd, om, al) -> None:
     """Fill omega = E thd and alpha = E thdd + Edot thd (all in N) from Euler angles and rates."""
     cy, sy = np.cos(th[1]), np.sin(th[1])
@@ -48,7 +49,7 @@ def angular_motion(th, thd, thdd, om, al) -> None:
     al[2] = e1z * thdd[0] + thdd[2] + d1z * thd[0]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def solve_rate_matrix(th, w, out) -> bool:
     """Solve E(th) out = w for Euler-angle rates; False at gimbal lock."""
     cy, sy = np.cos(th[1]), np.sin(th[1])
@@ -61,7 +62,7 @@ def solve_rate_matrix(th, w, out) -> bool:
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def euler_motion(Q, QD, QDD, R, OM, AL) -> None:
     """Batch form over samples: R (N, 3, 3), omega and alpha (N, 3) from pose rows."""
     for n in range(Q.shape[0]):
