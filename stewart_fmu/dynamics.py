@@ -27,14 +27,12 @@ PARTS = ("platform", "lower_legs", "upper_legs", "drives", "gravity", "friction"
 @njit(cache=True, error_model="numpy")
 def _workspace():
     """Scratch for one sample, as views of one buffer (one allocation per kernel call):
-    R, omega, alpha, U, R p_i, (l, ldot, lddot), J^T, gen, pivots, rhs, M_nu, zero3, and the
-    two (3, 6) scratch matrices of twist_mass_matrix."""
-    buf = np.empty(210)
+    R, omega, alpha, U, R p_i, (l, ldot, lddot), J^T, gen, pivots, rhs, M_nu, zero3."""
+    buf = np.empty(174)
     ws = (buf[0:9].reshape((3, 3)), buf[9:12], buf[12:15], buf[15:33].reshape((6, 3)),
           buf[33:51].reshape((6, 3)), buf[51:69].reshape((6, 3)), buf[69:105].reshape((6, 6)),
           buf[105:129].reshape((4, 6)), np.empty(6, np.int64), buf[129:135],
-          buf[135:171].reshape((6, 6)), buf[171:174], buf[174:192].reshape((3, 6)),
-          buf[192:210].reshape((3, 6)))
+          buf[135:171].reshape((6, 6)), buf[171:174])
     ws[11][:] = 0.0
     return ws
 
@@ -124,8 +122,8 @@ def _parts_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, piv, rhs, total
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, zero, S,
-                    MS, out) -> int:
+def _forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, zero,
+                    out) -> int:
     """(M_nu + m_d J^T J) nudot = J^T (sigma - mu - m_d lddot_0) + K*_0 + K_g, then Euler rates."""
     rotation_matrix(q[3:], R)
     angular_motion(q[3:], qd[3:], zero, om, al)        # al = Edot thd, the Euler-rate part
@@ -155,7 +153,7 @@ def _forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, piv, rhs, M
 
 @njit(cache=True, error_model="numpy")
 def _inverse_batch(p, Q, QD, QDD, out):
-    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, zero, S, MS = _workspace()
+    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, zero = _workspace()
     for n in range(Q.shape[0]):
         status = _inverse_sample(p, Q[n], QD[n], QDD[n], R, om, al, U, Rr, leg, JT, gen, piv,
                                  rhs, out[n])
@@ -167,13 +165,13 @@ def _inverse_batch(p, Q, QD, QDD, out):
 @njit(cache=True, error_model="numpy")
 def _inverse_one(p, q, qd, qdd):
     out = np.empty(6)
-    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, zero, S, MS = _workspace()
+    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, zero = _workspace()
     return out, _inverse_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, piv, rhs, out)
 
 
 @njit(cache=True, error_model="numpy")
 def _parts_batch(p, Q, QD, QDD, out):
-    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, zero, S, MS = _workspace()
+    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, zero = _workspace()
     total = np.empty(6)
     for n in range(Q.shape[0]):
         status = _parts_sample(p, Q[n], QD[n], QDD[n], R, om, al, U, Rr, leg, JT, gen, piv,
@@ -185,10 +183,10 @@ def _parts_batch(p, Q, QD, QDD, out):
 
 @njit(cache=True, error_model="numpy")
 def _forward_batch(p, Q, QD, F, out):
-    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, zero, S, MS = _workspace()
+    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, zero = _workspace()
     for n in range(Q.shape[0]):
         status = _forward_sample(p, Q[n], QD[n], F[n], R, om, al, U, Rr, leg, JT, gen, piv,
-                                 rhs, Mt, zero, S, MS, out[n])
+                                 rhs, Mt, zero, out[n])
         if status != OK:
             return n, status
     return -1, OK
@@ -197,9 +195,9 @@ def _forward_batch(p, Q, QD, F, out):
 @njit(cache=True, error_model="numpy")
 def _forward_one(p, q, qd, sigma):
     out = np.empty(6)
-    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, zero, S, MS = _workspace()
+    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, zero = _workspace()
     return out, _forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt,
-                                zero, S, MS, out)
+                                zero, out)
 
 
 def inverse_dynamics(model: Model, q, qd, qdd) -> np.ndarray:

@@ -34,7 +34,7 @@ from . import model as M
 STROKE = 2  # status code: a leg is outside [leg_min, leg_max]
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def twist_forces(p, x, R, v, om, acc, al, U, Rr, leg, JT, gen) -> int:
     """Generalized inertia (Eqs. 3-7) and gravity (Eq. 8) forces on the twist, per body group.
 

@@ -29,6 +29,12 @@ class LegKinematics:
     cond: np.ndarray           # (N,) scaled condition number of J
     rates: np.ndarray | None = None          # (N, 6) ldot
     accelerations: np.ndarray | None = None  # (N, 6) lddot
+    rotation: np.ndarray | None = None       # (N, 3, 3) R
+    lever_arms: np.ndarray | None = None     # (N, 6, 3) R p_i, from C's origin to joint i, in N
+    omega: np.ndarray | None = None          # (N, 3) platform angular velocity in N
+    alpha: np.ndarray | None = None          # (N, 3) platform angular acceleration in N
+    joint_velocities: np.ndarray | None = None     # (N, 6, 3) vp_i = v + omega x R p_i
+    joint_accelerations: np.ndarray | None = None  # (N, 6, 3) ap_i
 
 
 def inverse_kinematics(model: Model, q, qd=None, qdd=None) -> LegKinematics:
@@ -49,16 +55,14 @@ def inverse_kinematics(model: Model, q, qd=None, qdd=None) -> LegKinematics:
     scale = np.r_[np.ones(3), np.full(3, 1.0 / model.characteristic_length)]
     with np.errstate(all="ignore"):
         cond = np.linalg.cond(J * scale) if np.all(np.isfinite(J)) else np.full(n, np.inf)
-    rates = accels = None
-    if qd is not None:
-        vp = QD[:, None, :3] + np.cross(om[:, None, :], r)
-        rates = np.einsum("nki,nki->nk", u, vp)
-        if qdd is not None:
-            ap = (QDD[:, None, :3] + np.cross(al[:, None, :], r)
-                  + np.cross(om[:, None, :], np.cross(om[:, None, :], r)))
-            accels = (np.einsum("nki,nki->nk", u, ap)
-                      + (np.einsum("nki,nki->nk", vp, vp) - rates**2) / l)
-    out = LegKinematics(L, l, u, J, cond, rates, accels)
+    vp = QD[:, None, :3] + np.cross(om[:, None, :], r)
+    ap = (QDD[:, None, :3] + np.cross(al[:, None, :], r)
+          + np.cross(om[:, None, :], np.cross(om[:, None, :], r)))
+    rates = np.einsum("nki,nki->nk", u, vp)
+    # lddot = u . ap + |udot|^2 l, with udot = (vp - ldot u) / l.
+    accels = np.einsum("nki,nki->nk", u, ap) + (np.einsum("nki,nki->nk", vp, vp) - rates**2) / l
+    out = LegKinematics(L, l, u, J, cond, None if qd is None else rates,
+                        None if qd is None or qdd is None else accels, R, r, om, al, vp, ap)
     if single:
         out = LegKinematics(*(None if a is None else a[0] for a in vars(out).values()))
     return out

@@ -1,0 +1,88 @@
+"""Speed of the plant's dynamics: batch throughput and single-call latency, one core.
+
+Prints a table. Machines are noisy: each figure is the best of several repeats, and the ratios
+within one run (levels against the full model) are more telling than the absolute numbers.
+Run: .venv/bin/python benchmarks/bench_dynamics.py [--samples N]
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import time
+from pathlib import Path
+
+import numpy as np
+
+from stewart_fmu import forward_dynamics, inverse_dynamics, load_scene
+from stewart_fmu import kane_terms
+
+SCENE = Path(__file__).resolve().parents[1] / "scenes" / "micro_manipulator.toml"
+
+
+def smooth_trajectory(model, n: int, duration: float = 10.0):
+    """Sinusoids in all six coordinates around home (exact derivatives)."""
+    t = np.linspace(0.0, duration, n)[:, None]
+    amp = np.array([0.01, 0.01, 0.01, 0.1, 0.1, 0.1])
+    w = 2 * np.pi * np.array([0.5, 0.7, 0.9, 0.6, 0.8, 1.0])
+    return (model.home + amp * np.sin(w * t), amp * w * np.cos(w * t), -amp * w**2 * np.sin(w * t))
+
+
+def best_time(fn, repeats: int) -> float:
+    """Best wall time of fn() over repeats (after one warm-up call)."""
+    fn()
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return min(times)
+
+
+def per_call(fn, calls: int) -> float:
+    """Mean seconds per call over a loop of calls, best of 5 loops."""
+    def loop():
+        for _ in range(calls):
+            fn()
+    return best_time(loop, 5) / calls
+
+
+def levels(model):
+    """The model at each level of detail, from platform only to the full scene."""
+    bare = dataclasses.replace(model, legs=None, drive=None, friction=None)
+    yield "platform only", bare
+    yield "+ legs", dataclasses.replace(bare, legs=model.legs)
+    yield "+ legs + drive", dataclasses.replace(bare, legs=model.legs, drive=model.drive)
+    yield "full (+ friction)", model
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--samples", type=int, default=100_000)
+    ap.add_argument("--scene", default=str(SCENE))
+    args = ap.parse_args(argv)
+    model = load_scene(args.scene)
+    Q, QD, QDD = smooth_trajectory(model, args.samples)
+    rows = []
+    for name, m in levels(model):
+        t = best_time(lambda: inverse_dynamics(m, Q, QD, QDD), 5)
+        rows.append((f"inverse_dynamics batch, {name}", args.samples / t, t / args.samples))
+    S = inverse_dynamics(model, Q, QD, QDD)
+    t = best_time(lambda: forward_dynamics(model, Q, QD, S), 5)
+    rows.append(("forward_dynamics batch, full", args.samples / t, t / args.samples))
+    q, qd, qdd, s = Q[1], QD[1], QDD[1], S[1]
+    t = per_call(lambda: inverse_dynamics(model, q, qd, qdd), 20_000)
+    rows.append(("inverse_dynamics single call, full", 1 / t, t))
+    t = per_call(lambda: forward_dynamics(model, q, qd, s), 20_000)
+    rows.append(("forward_dynamics single call, full", 1 / t, t))
+    t = per_call(lambda: kane_terms.actuator_forces(model, q, qd, qdd), 200)
+    rows.append(("kane_terms.actuator_forces (numpy, readable form)", 1 / t, t))
+    print(f"scene: {model.name}   samples: {args.samples}   (best of repeats, one core)")
+    print(f"{'what':<52} {'per second':>14} {'per sample/call':>16}")
+    for what, rate, sec in rows:
+        print(f"{what:<52} {rate:>14,.0f} {sec * 1e9:>13,.0f} ns")
+    full = rows[3][1]
+    print(f"platform-only / full throughput ratio: {rows[0][1] / full:.2f}")
+
+
+if __name__ == "__main__":
+    main()
