@@ -17,7 +17,7 @@ from .linalg import cholesky_solve, lu_factor, lu_solve
 from .model import Model
 from .rotations import angular_motion, rotation_matrix, solve_rate_matrix
 
-OK, NONFINITE, SINGULAR, GIMBAL = 0, 1, 3, 4
+OK, NONFINITE, SINGULAR, GIMBAL, OVERFLOW = 0, 1, 3, 4, 5
 # Smallest pivot of the LU of the scaled J^T (entries of order one) below which a pose counts as
 # singular (cond(J) then exceeds ~1e10 and the forces would carry fewer than ~6 good digits).
 SINGULAR_PIVOT = 1e-10
@@ -47,10 +47,13 @@ def _finite(a) -> bool:
     return True
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _nonfinite_cause(a, b, c) -> int:
-    """NONFINITE when an input is not finite, else SINGULAR (the numbers overflowed)."""
-    return NONFINITE if not (_finite(a) and _finite(b) and _finite(c)) else SINGULAR
+@njit(cache=True, error_model="numpy")
+def _classify(status, a, b, c) -> int:
+    """The error of a failed sample: a non-finite input explains any failure (an inf in x is
+    not a stroke violation); otherwise an overflowed output means a near-singular pose."""
+    if not (_finite(a) and _finite(b) and _finite(c)):
+        return NONFINITE
+    return SINGULAR if status == OVERFLOW else status
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -97,7 +100,7 @@ def _inverse_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, piv, rhs, out
     md = _drive_mass(p)
     for i in range(6):
         out[i] = rhs[i] + _friction(p, leg[i, 1]) + md * leg[i, 2]
-    return OK if _finite(out) else _nonfinite_cause(q, qd, qdd)
+    return OK if _finite(out) else OVERFLOW
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -117,7 +120,7 @@ def _parts_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, piv, rhs, total
         out[5, i] = _friction(p, leg[i, 1])
     for k in range(6):
         if not _finite(out[k]):
-            return _nonfinite_cause(q, qd, qdd)
+            return OVERFLOW
     return OK
 
 
@@ -148,7 +151,7 @@ def _forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, piv, rhs, M
         rhs[3 + k] -= al[k]
     if not solve_rate_matrix(q[3:], rhs[3:], out[3:]):
         return GIMBAL
-    return OK if _finite(out) else _nonfinite_cause(q, qd, sigma)
+    return OK if _finite(out) else OVERFLOW
 
 
 @njit(cache=True, error_model="numpy")
@@ -158,7 +161,7 @@ def _inverse_batch(p, Q, QD, QDD, out):
         status = _inverse_sample(p, Q[n], QD[n], QDD[n], R, om, al, U, Rr, leg, JT, gen, piv,
                                  rhs, out[n])
         if status != OK:
-            return n, status
+            return n, _classify(status, Q[n], QD[n], QDD[n])
     return -1, OK
 
 
@@ -166,7 +169,8 @@ def _inverse_batch(p, Q, QD, QDD, out):
 def _inverse_one(p, q, qd, qdd):
     out = np.empty(6)
     R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, zero = _workspace()
-    return out, _inverse_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, piv, rhs, out)
+    status = _inverse_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, piv, rhs, out)
+    return out, (OK if status == OK else _classify(status, q, qd, qdd))
 
 
 @njit(cache=True, error_model="numpy")
@@ -177,7 +181,7 @@ def _parts_batch(p, Q, QD, QDD, out):
         status = _parts_sample(p, Q[n], QD[n], QDD[n], R, om, al, U, Rr, leg, JT, gen, piv,
                                rhs, total, out[n])
         if status != OK:
-            return n, status
+            return n, _classify(status, Q[n], QD[n], QDD[n])
     return -1, OK
 
 
@@ -188,7 +192,7 @@ def _forward_batch(p, Q, QD, F, out):
         status = _forward_sample(p, Q[n], QD[n], F[n], R, om, al, U, Rr, leg, JT, gen, piv,
                                  rhs, Mt, zero, out[n])
         if status != OK:
-            return n, status
+            return n, _classify(status, Q[n], QD[n], F[n])
     return -1, OK
 
 
@@ -196,13 +200,14 @@ def _forward_batch(p, Q, QD, F, out):
 def _forward_one(p, q, qd, sigma):
     out = np.empty(6)
     R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, zero = _workspace()
-    return out, _forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt,
-                                zero, out)
+    status = _forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt,
+                             zero, out)
+    return out, (OK if status == OK else _classify(status, q, qd, sigma))
 
 
 def inverse_dynamics(model: Model, q, qd, qdd) -> np.ndarray:
     """Actuator (rack) forces sigma (Eq. 12) for poses and their derivatives, (N, 6) or (6,)."""
-    q, qd, qdd = _as_float(q), _as_float(qd), _as_float(qdd)
+    q, qd, qdd = _as_float(q, "q"), _as_float(qd, "qd"), _as_float(qdd, "qdd")
     if q.ndim == 1 and q.shape == qd.shape == qdd.shape == (6,):
         sigma, status = _inverse_one(model.params, q, qd, qdd)
         if status:
@@ -216,20 +221,32 @@ def inverse_dynamics(model: Model, q, qd, qdd) -> np.ndarray:
     return out
 
 
+def present_parts(model: Model) -> tuple[str, ...]:
+    """The PARTS a model computes: absent effects are left out, not reported as zeros."""
+    absent = set()
+    if model.legs is None:
+        absent |= {"lower_legs", "upper_legs"}
+    if model.drive is None:
+        absent.add("drives")
+    if model.friction is None:
+        absent.add("friction")
+    return tuple(p for p in PARTS if p not in absent)
+
+
 def inverse_dynamics_parts(model: Model, q, qd, qdd) -> dict[str, np.ndarray]:
-    """The breakdown of inverse_dynamics by contribution (PARTS); each (N, 6), summing to sigma."""
-    q, qd, qdd = (np.atleast_2d(_as_float(a)) for a in (q, qd, qdd))
+    """inverse_dynamics by contribution: {part: (N, 6)} for the present_parts, summing to sigma."""
+    q, qd, qdd = (np.atleast_2d(_as_float(a, n)) for a, n in ((q, "q"), (qd, "qd"), (qdd, "qdd")))
     _check_shapes(("q", "qd", "qdd"), (q, qd, qdd))
     out = np.empty((q.shape[0], len(PARTS), 6))
     index, status = _parts_batch(model.params, q, qd, qdd, out)
     if status:
         _raise(model, status, index, q[index], ("q", "qd", "qdd"), (q[index], qd[index], qdd[index]))
-    return {name: out[:, k, :] for k, name in enumerate(PARTS)}
+    return {name: out[:, PARTS.index(name), :] for name in present_parts(model)}
 
 
 def forward_dynamics(model: Model, q, qd, sigma) -> np.ndarray:
     """Pose accelerations qdd from rack forces sigma (the inverse of inverse_dynamics)."""
-    q, qd, sigma = _as_float(q), _as_float(qd), _as_float(sigma)
+    q, qd, sigma = _as_float(q, "q"), _as_float(qd, "qd"), _as_float(sigma, "sigma")
     if q.ndim == 1 and q.shape == qd.shape == sigma.shape == (6,):
         qdd, status = _forward_one(model.params, q, qd, sigma)
         if status:
@@ -244,10 +261,14 @@ def forward_dynamics(model: Model, q, qd, sigma) -> np.ndarray:
     return out
 
 
-def _as_float(a) -> np.ndarray:
+def _as_float(a, name: str) -> np.ndarray:
+    """The input as a contiguous float64 array (no copy when it already is one)."""
     if type(a) is np.ndarray and a.dtype == np.float64 and a.flags.c_contiguous:
         return a
-    return np.ascontiguousarray(a, dtype=float)
+    try:
+        return np.ascontiguousarray(a, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise TrajectoryError(f"'{name}' must be numbers of shape (N, 6) or (6,): {exc}") from None
 
 
 def _check_shapes(names, arrays) -> None:
@@ -266,7 +287,8 @@ def _raise(model: Model, status: int, index: int, q, names, rows) -> None:
         bad = [n for n, r in zip(names, rows) if not np.all(np.isfinite(r))]
         raise TrajectoryError(
             f"non-finite value in {', '.join(bad)} at sample {index}: "
-            + "; ".join(f"{n} = {np.asarray(r).tolist()}" for n, r in zip(names, rows)))
+            + "; ".join(f"{n} = {np.asarray(r).tolist()}" for n, r in zip(names, rows)),
+            index=index)
     if status == STROKE:
         lengths = inverse_kinematics(model, q).lengths
         raise StrokeLimitError(

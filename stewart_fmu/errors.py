@@ -16,7 +16,13 @@ class SceneError(StewartError, ValueError):
 
 
 class TrajectoryError(StewartError, ValueError):
-    """A trajectory (file or arrays) is malformed: wrong columns, shapes or non-finite values."""
+    """A trajectory (file or arrays) is malformed: wrong columns, shapes or non-finite values.
+
+    `index` and `time` locate the sample when known (the message already names it)."""
+
+    def __init__(self, message: str, index: int | None = None, time: float | None = None):
+        self.index, self.time = index, time
+        super().__init__(message)
 
 
 class KinematicsError(StewartError):

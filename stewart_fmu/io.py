@@ -5,6 +5,7 @@ import csv
 import os
 import tempfile
 from pathlib import Path
+from typing import IO, Callable, Iterable, Iterator
 
 import numpy as np
 
@@ -13,6 +14,7 @@ from .errors import TrajectoryError
 POSE = ("x", "y", "z", "thx", "thy", "thz")
 TRAJECTORY_COLUMNS = ("t", *POSE, *(f"d{c}" for c in POSE), *(f"dd{c}" for c in POSE))
 FORCE_COLUMNS = ("t", *(f"sigma{i}" for i in range(1, 7)))
+CHUNK_ROWS = 50_000  # rows per block when reading and writing long files
 
 
 def named_array(columns: dict[str, np.ndarray]) -> np.ndarray:
@@ -26,15 +28,39 @@ def named_array(columns: dict[str, np.ndarray]) -> np.ndarray:
 
 def write_csv(path: str | Path, table: np.ndarray) -> Path:
     """Write a structured array as CSV with repr-exact floats; the old file survives a failure."""
+    starts = range(0, max(len(table), 1), CHUNK_ROWS)  # an empty table still gets its header
+    return write_csv_chunks(path, (table[i:i + CHUNK_ROWS] for i in starts))
+
+
+def write_csv_chunks(path: str | Path, chunks: Iterable[np.ndarray]) -> Path:
+    """Write structured arrays with the same float64 fields as one CSV, atomically.
+
+    The chunks may be computed while the file is written (long runs need not hold every row);
+    any failure, also one raised by `chunks`, leaves the old file untouched.
+    """
+    def write(fh) -> None:
+        names = None
+        for chunk in chunks:
+            if names is None:
+                names = chunk.dtype.names
+                csv.writer(fh).writerow(names)
+            elif chunk.dtype.names != names:
+                raise ValueError(f"chunk columns {chunk.dtype.names} differ from {names}")
+            fh.write("".join(",".join(map(repr, row)) + "\r\n" for row in chunk.tolist()))
+        if names is None:
+            raise ValueError(f"{path}: nothing to write (no chunks)")
+
+    return atomic_write(path, write)
+
+
+def atomic_write(path: str | Path, write: Callable[[IO], object], binary: bool = False) -> Path:
+    """Write a file through a temporary one beside it; a failure leaves the old file as it was."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
-        with os.fdopen(fd, "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(table.dtype.names)
-            for row in table.tolist():
-                w.writerow([repr(float(v)) for v in row])
+        with (os.fdopen(fd, "wb") if binary else os.fdopen(fd, "w", newline="", encoding="utf-8")) as fh:
+            write(fh)
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; results are for everyone
         os.replace(tmp, path)
     except BaseException:
@@ -43,36 +69,30 @@ def write_csv(path: str | Path, table: np.ndarray) -> Path:
     return path
 
 
-def read_trajectory(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Read a trajectory CSV: returns t (N,), q, qd, qdd (N, 6); errors name the row and column."""
+def write_text(path: str | Path, text: str) -> Path:
+    """Write a text file atomically."""
+    return atomic_write(path, lambda fh: fh.write(text))
+
+
+def read_trajectory(path: str | Path, progress: Callable[[int], None] | None = None
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Read a trajectory CSV: returns t (N,), q, qd, qdd (N, 6); errors name the row and column.
+
+    Rows are parsed in blocks of CHUNK_ROWS; `progress(rows_read)` is called after each block.
+    """
     path = Path(path)
     try:
         with path.open(newline="") as fh:
-            rows = list(csv.reader(fh))
-    except OSError as exc:
-        raise TrajectoryError(f"{path}: cannot read trajectory: {exc.strerror}") from None
-    if not rows:
-        raise TrajectoryError(f"{path}: empty file, expected header {','.join(TRAJECTORY_COLUMNS)}")
-    header = tuple(c.strip() for c in rows[0])
-    if header != TRAJECTORY_COLUMNS:
-        missing = [c for c in TRAJECTORY_COLUMNS if c not in header]
-        extra = [c for c in header if c not in TRAJECTORY_COLUMNS]
-        raise TrajectoryError(
-            f"{path}: header must be {','.join(TRAJECTORY_COLUMNS)}; "
-            f"missing {missing or 'none'}, unexpected {extra or 'none'}"
-            + ("" if missing or extra else ", columns out of order"))
-    if len(rows) < 2:
-        raise TrajectoryError(f"{path}: no samples after the header")
-    data = np.empty((len(rows) - 1, len(TRAJECTORY_COLUMNS)))
-    for r, row in enumerate(rows[1:], start=2):
-        if len(row) != len(TRAJECTORY_COLUMNS):
-            raise TrajectoryError(f"{path}: line {r} has {len(row)} fields, expected {len(TRAJECTORY_COLUMNS)}")
-        for c, cell in enumerate(row):
+            reader = csv.reader(fh)
             try:
-                data[r - 2, c] = float(cell)
-            except ValueError:
+                data = _read_rows(path, reader, progress)
+            except csv.Error as exc:
                 raise TrajectoryError(
-                    f"{path}: line {r}, column '{TRAJECTORY_COLUMNS[c]}': not a number: {cell!r}") from None
+                    f"{path}: line {reader.line_num}: not valid CSV: {exc}") from None
+    except OSError as exc:
+        raise TrajectoryError(f"{path}: cannot read trajectory: {exc.strerror or exc}") from None
+    except UnicodeDecodeError as exc:
+        raise TrajectoryError(f"{path}: not a text file: {exc}") from None
     bad = np.argwhere(~np.isfinite(data))
     if bad.size:
         r, c = bad[0]
@@ -83,6 +103,56 @@ def read_trajectory(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarra
         r = int(np.flatnonzero(np.diff(t) <= 0)[0]) + 3
         raise TrajectoryError(f"{path}: line {r}, column 't': time must increase strictly")
     return t, data[:, 1:7].copy(), data[:, 7:13].copy(), data[:, 13:19].copy()
+
+
+def _read_rows(path: Path, reader: Iterator[list[str]],
+               progress: Callable[[int], None] | None) -> np.ndarray:
+    """Check the header, then parse the rows block by block into an (N, 19) array."""
+    header = next(reader, None)
+    if header is None:
+        raise TrajectoryError(f"{path}: empty file, expected header {','.join(TRAJECTORY_COLUMNS)}")
+    _check_header(path, tuple(c.strip() for c in header))
+    width = len(TRAJECTORY_COLUMNS)
+    blocks, block = [], []
+    for r, row in enumerate(reader, start=2):
+        if len(row) != width:
+            raise TrajectoryError(f"{path}: line {r} has {len(row)} fields, expected {width}")
+        try:
+            block.append([float(cell) for cell in row])
+        except ValueError:
+            raise _bad_cell(path, r, row) from None
+        if len(block) == CHUNK_ROWS:
+            blocks.append(np.array(block))
+            block = []
+            if progress is not None:
+                progress(CHUNK_ROWS * len(blocks))
+    if block:
+        blocks.append(np.array(block))
+    if not blocks:
+        raise TrajectoryError(f"{path}: no samples after the header")
+    return np.concatenate(blocks)
+
+
+def _check_header(path: Path, header: tuple[str, ...]) -> None:
+    """The header must be exactly the contract's trajectory columns, in order."""
+    if header != TRAJECTORY_COLUMNS:
+        missing = [c for c in TRAJECTORY_COLUMNS if c not in header]
+        extra = [c for c in header if c not in TRAJECTORY_COLUMNS]
+        raise TrajectoryError(
+            f"{path}: header must be {','.join(TRAJECTORY_COLUMNS)}; "
+            f"missing {missing or 'none'}, unexpected {extra or 'none'}"
+            + ("" if missing or extra else ", columns out of order"))
+
+
+def _bad_cell(path: Path, line: int, row: list[str]) -> TrajectoryError:
+    """The error for the first cell of a row that is not a number."""
+    for c, cell in enumerate(row):
+        try:
+            float(cell)
+        except ValueError:
+            return TrajectoryError(
+                f"{path}: line {line}, column '{TRAJECTORY_COLUMNS[c]}': not a number: {cell!r}")
+    return TrajectoryError(f"{path}: line {line}: not a number")
 
 
 def trajectory_table(t, q, qd, qdd) -> np.ndarray:

@@ -98,6 +98,12 @@ def forward_kinematics(model: Model, lengths, guess=None, tol: float = 1e-12,
     target = np.asarray(lengths, dtype=float)
     if target.shape != (6,) or not np.all(np.isfinite(target)) or np.any(target <= 0):
         raise ForwardKinematicsError(f"leg lengths must be six finite positive numbers, got {target.tolist()}")
+    lo = model.leg_min if model.leg_min is not None else 0.0
+    hi = model.leg_max if model.leg_max is not None else np.inf
+    outside = [i + 1 for i in range(6) if not lo <= target[i] <= hi]
+    if outside:
+        raise StrokeLimitError(f"leg(s) {outside} with lengths {target.tolist()} m outside the "
+                               f"stroke [{lo}, {hi}] m: no pose to find")
     q = np.array(model.home if guess is None else guess, dtype=float)
     residual = np.inf
     for iteration in range(max_iter):

@@ -22,7 +22,7 @@ from typing import Mapping
 
 import numpy as np
 
-from .dynamics import inverse_dynamics, inverse_dynamics_parts
+from .dynamics import inverse_dynamics, inverse_dynamics_parts, present_parts
 from .errors import KinematicsError, SceneError, TrajectoryError
 from .kinematics import check_poses, inverse_kinematics
 from .model import FrictionParams, Model
@@ -270,19 +270,6 @@ def _run(model: Model, tr: Trajectory) -> Run:
     sigma = inverse_dynamics(model, tr.q, tr.qd, tr.qdd)
     parts = inverse_dynamics_parts(model, tr.q, tr.qd, tr.qdd)
     return Run(sigma, MappingProxyType({k: parts[k] for k in present_parts(model)}))
-
-
-def present_parts(model: Model) -> tuple[str, ...]:
-    """The breakdown parts a model computes (absent effects are left out, not zeros)."""
-    names = ["platform"]
-    if model.legs is not None:
-        names += ["lower_legs", "upper_legs"]
-    if model.drive is not None:
-        names.append("drives")
-    names.append("gravity")
-    if model.friction is not None:
-        names.append("friction")
-    return tuple(names)
 
 
 def _peak(a: np.ndarray) -> float:

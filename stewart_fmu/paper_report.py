@@ -2,23 +2,21 @@
 Figs. 2-5, a comparison of the three levels, and report.md with the setup and the claim figures."""
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
-from typing import IO, Callable
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.ticker import LogFormatter
 
-from .io import named_array, write_csv
+from .io import named_array, write_csv, write_text
+from .dynamics import present_parts
 from .model import Model
+from .plots import plot_leg_forces, save_figure
 from .paper import (FAR_LARGER, LEVEL_TITLES, LEVELS, NEGLIGIBLE, SIGNIFICANT, TRAJECTORIES,
-                    VARIANTS, PaperResults, Run, Trajectory, present_parts)
+                    VARIANTS, PaperResults, Run, Trajectory)
 
 FIG45_TRAJECTORIES = ("x", "thz")  # the paper does not say which two moves Figs. 4-5 show
-LEG_COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown")
+FORCE_LABEL = "actuator force σ (N)"
 LEG_WIDTHS = (3.4, 2.9, 2.4, 1.9, 1.5, 1.1)  # thick to thin, so coincident curves stay visible
 PANEL = "abcdef"
 
@@ -29,7 +27,7 @@ def write_paper_report(results: PaperResults, out_dir: str | Path) -> list[Path]
     out.mkdir(parents=True, exist_ok=True)
     paths = write_csvs(results, out)
     paths += write_plots(results, out)
-    paths.append(_write_text(out / "report.md", report_markdown(results, paths)))
+    paths.append(write_text(out / "report.md", report_markdown(results, paths)))
     return paths
 
 
@@ -69,7 +67,7 @@ def write_plots(results: PaperResults, out: Path) -> list[Path]:
         "fig4_5_drive_inertia.png": drive_figure(results),
         "levels_comparison.png": levels_figure(results),
     }
-    return [_save(fig, out / name) for name, fig in figs.items()]
+    return [save_figure(fig, out / name) for name, fig in figs.items()]
 
 
 def trajectory_label(tr: Trajectory) -> str:
@@ -78,23 +76,13 @@ def trajectory_label(tr: Trajectory) -> str:
     return f"{tr.name}: constant {tr.acceleration:g} {unit}"
 
 
-def _plot_forces(ax, t: np.ndarray, sigma: np.ndarray, title: str) -> None:
-    """Six force curves on one axes, labelled with units."""
-    for i in range(6):
-        ax.plot(t, sigma[:, i], color=LEG_COLOURS[i], lw=LEG_WIDTHS[i], label=f"σ{i + 1}")
-    ax.set_title(title, fontsize=9)
-    ax.set_xlabel("time t (s)")
-    ax.set_ylabel("actuator force σ (N)")
-    ax.grid(True, alpha=0.3)
-
-
 def force_grid(results: PaperResults, level: str, style: str) -> Figure:
     """2x3 grid, one panel per trajectory, six force curves each."""
     fig = Figure(figsize=(13, 7.5), layout="constrained")
     axes = fig.subplots(2, 3)
     for k, (ax, name) in enumerate(zip(axes.ravel(), TRAJECTORIES)):
         tr = results.trajectories[name]
-        _plot_forces(ax, results.t, results.runs[name][level].sigma,
+        plot_leg_forces(ax, results.t, results.runs[name][level].sigma,
                      f"({PANEL[k]}) {trajectory_label(tr)}")
     axes[0, 0].legend(fontsize=8, ncols=2)
     fig.suptitle(f"{style}: {results.scene}, {LEVEL_TITLES[level]}, no friction")
@@ -108,8 +96,9 @@ def drive_figure(results: PaperResults) -> Figure:
     for row, name in enumerate(FIG45_TRAJECTORIES):
         tr = results.trajectories[name]
         for col, (level, tag) in enumerate((("legs", "(a) without"), ("drive", "(b) with"))):
-            _plot_forces(axes[row, col], results.t, results.runs[name][level].sigma,
-                         f"Fig. {4 + row}{tag} drive inertia — {trajectory_label(tr)}")
+            plot_leg_forces(axes[row, col], results.t, results.runs[name][level].sigma,
+                         f"Fig. {4 + row}{tag} drive inertia — {trajectory_label(tr)}",
+                         FORCE_LABEL, LEG_WIDTHS)
     axes[0, 0].legend(fontsize=8, ncols=2)
     fig.suptitle(f"Figs. 4-5 style: {results.scene}, m_d = {results.drive_mass:.4g} kg per leg")
     return fig
@@ -137,31 +126,6 @@ def levels_figure(results: PaperResults) -> Figure:
     fig.legend(handles, labels, loc="outside lower center", ncols=3)
     fig.suptitle(f"{results.scene}: platform only vs + legs vs + legs + drive inertia (log scale)")
     return fig
-
-
-def _save(fig: Figure, path: Path) -> Path:
-    """Render a figure to PNG with the Agg canvas, atomically."""
-    FigureCanvasAgg(fig)
-    return _atomic_write(path, "wb", lambda fh: fig.savefig(fh, format="png", dpi=110))
-
-
-def _write_text(path: Path, text: str) -> Path:
-    """Write a text file atomically."""
-    return _atomic_write(path, "w", lambda fh: fh.write(text))
-
-
-def _atomic_write(path: Path, mode: str, write: Callable[[IO], object]) -> Path:
-    """Write through a temporary file in the same folder; the old file survives a failure."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, mode, **({} if "b" in mode else {"encoding": "utf-8"})) as fh:
-            write(fh)
-        os.chmod(tmp, 0o644)  # mkstemp makes 0600; a report is meant to be read
-        os.replace(tmp, path)
-    except BaseException:
-        os.unlink(tmp)
-        raise
-    return path
 
 
 def report_markdown(results: PaperResults, paths: list[Path]) -> str:

@@ -206,8 +206,11 @@ class _Validator:
             arr = np.array(x, dtype=float)
         except (TypeError, ValueError):
             bad(f"must be numbers of shape {shape}, got {x!r}")
-        if any(isinstance(e, bool) for e in np.ravel(np.array(x, dtype=object))):
-            bad("must be numbers, not booleans")
+        for e in np.ravel(np.array(x, dtype=object)):
+            if isinstance(e, bool):
+                bad("must be numbers, not booleans")
+            if not isinstance(e, (int, float)):
+                bad(f"must be numbers, got {e!r} in {x!r}")
         if arr.shape != shape:
             bad(f"wrong shape: expected {shape}, got {arr.shape}")
         if not np.all(np.isfinite(arr)):

@@ -1,7 +1,6 @@
 """Physics self-checks of the independent Newton-Euler reference (tests/reference/newton_euler.py)."""
 from __future__ import annotations
 
-import copy
 import math
 
 import numpy as np

@@ -1,0 +1,54 @@
+"""Progress of long runs: one status line on stderr, quiet for short runs."""
+from __future__ import annotations
+
+import math
+import sys
+import time
+from typing import TextIO
+
+PROGRESS_SAMPLES = 200_000   # show progress from the start for runs longer than this
+PROGRESS_SECONDS = 1.0       # ... and for any run still busy after this long
+PROGRESS_INTERVAL = 0.5      # s between two progress updates
+
+
+class Progress:
+    """One status line on stderr for long runs (carriage return on a terminal), quiet otherwise."""
+
+    def __init__(self, stream: TextIO | None = None) -> None:
+        self.stream = stream if stream is not None else sys.stderr
+        self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
+        self.start = time.monotonic()
+        self.last = -math.inf
+        self.shown = False
+        self.width = 0
+
+    def update(self, stage: str, done: int, total: int | None = None) -> None:
+        """Report `done` of `total` samples (total None: unknown) of the current stage."""
+        now = time.monotonic()
+        finished = total is not None and done >= total
+        if not self.shown:
+            big = (total if total is not None else done) > PROGRESS_SAMPLES
+            if not (big or (now - self.start > PROGRESS_SECONDS and not finished)):
+                return
+            self.shown = True
+        elif not finished and now - self.last < PROGRESS_INTERVAL:
+            return
+        self.last = now
+        count = f"{done:,}" if total is None else f"{done:,}/{total:,} ({100 * done / total:.0f}%)"
+        self._write(f"{stage}: {count} samples, {now - self.start:.1f} s")
+
+    def close(self) -> None:
+        """End the status line so that later output starts on a fresh line."""
+        if self.tty and self.width:
+            self.stream.write("\n")
+            self.stream.flush()
+        self.width = 0
+
+    def _write(self, text: str) -> None:
+        """Overwrite the line on a terminal; one line per update elsewhere (logs)."""
+        if self.tty:
+            self.stream.write("\r" + text.ljust(self.width))
+            self.width = max(self.width, len(text))
+        else:
+            self.stream.write(text + "\n")
+        self.stream.flush()
