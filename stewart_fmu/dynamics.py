@@ -47,7 +47,7 @@ def _finite(a) -> bool:
     return True
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _classify(status, a, b, c) -> int:
     """The error of a failed sample: a non-finite input explains any failure (an inf in x is
     not a stroke violation); otherwise an overflowed output means a near-singular pose."""
@@ -207,18 +207,7 @@ def _forward_one(p, q, qd, sigma):
 
 def inverse_dynamics(model: Model, q, qd, qdd) -> np.ndarray:
     """Actuator (rack) forces sigma (Eq. 12) for poses and their derivatives, (N, 6) or (6,)."""
-    q, qd, qdd = _as_float(q, "q"), _as_float(qd, "qd"), _as_float(qdd, "qdd")
-    if q.ndim == 1 and q.shape == qd.shape == qdd.shape == (6,):
-        sigma, status = _inverse_one(model.params, q, qd, qdd)
-        if status:
-            _raise(model, status, 0, q, ("q", "qd", "qdd"), (q, qd, qdd))
-        return sigma
-    _check_shapes(("q", "qd", "qdd"), (q, qd, qdd))
-    out = np.empty(q.shape)
-    index, status = _inverse_batch(model.params, q, qd, qdd, out)
-    if status:
-        _raise(model, status, index, q[index], ("q", "qd", "qdd"), (q[index], qd[index], qdd[index]))
-    return out
+    return _evaluate(model, _inverse_one, _inverse_batch, ("q", "qd", "qdd"), q, qd, qdd)
 
 
 def present_parts(model: Model) -> tuple[str, ...]:
@@ -240,24 +229,28 @@ def inverse_dynamics_parts(model: Model, q, qd, qdd) -> dict[str, np.ndarray]:
     out = np.empty((q.shape[0], len(PARTS), 6))
     index, status = _parts_batch(model.params, q, qd, qdd, out)
     if status:
-        _raise(model, status, index, q[index], ("q", "qd", "qdd"), (q[index], qd[index], qdd[index]))
+        _raise(model, status, index, ("q", "qd", "qdd"), (q[index], qd[index], qdd[index]))
     return {name: out[:, PARTS.index(name), :] for name in present_parts(model)}
 
 
 def forward_dynamics(model: Model, q, qd, sigma) -> np.ndarray:
     """Pose accelerations qdd from rack forces sigma (the inverse of inverse_dynamics)."""
-    q, qd, sigma = _as_float(q, "q"), _as_float(qd, "qd"), _as_float(sigma, "sigma")
-    if q.ndim == 1 and q.shape == qd.shape == sigma.shape == (6,):
-        qdd, status = _forward_one(model.params, q, qd, sigma)
+    return _evaluate(model, _forward_one, _forward_batch, ("q", "qd", "sigma"), q, qd, sigma)
+
+
+def _evaluate(model: Model, one, batch, names, a, b, c) -> np.ndarray:
+    """Run the single-sample kernel on (6,) inputs, the batch kernel on (N, 6) ones."""
+    a, b, c = _as_float(a, names[0]), _as_float(b, names[1]), _as_float(c, names[2])
+    if a.ndim == 1 and a.shape == b.shape == c.shape == (6,):
+        result, status = one(model.params, a, b, c)
         if status:
-            _raise(model, status, 0, q, ("q", "qd", "sigma"), (q, qd, sigma))
-        return qdd
-    _check_shapes(("q", "qd", "sigma"), (q, qd, sigma))
-    out = np.empty(q.shape)
-    index, status = _forward_batch(model.params, q, qd, sigma, out)
+            _raise(model, status, 0, names, (a, b, c))
+        return result
+    _check_shapes(names, (a, b, c))
+    out = np.empty(a.shape)
+    index, status = batch(model.params, a, b, c, out)
     if status:
-        _raise(model, status, index, q[index], ("q", "qd", "sigma"),
-               (q[index], qd[index], sigma[index]))
+        _raise(model, status, index, names, (a[index], b[index], c[index]))
     return out
 
 
@@ -279,10 +272,11 @@ def _check_shapes(names, arrays) -> None:
                 f"'{name}' must have shape (N, 6) or (6,) like '{names[0]}' {shape}, got {a.shape}")
 
 
-def _raise(model: Model, status: int, index: int, q, names, rows) -> None:
+def _raise(model: Model, status: int, index: int, names, rows) -> None:
     """Turn a kernel status into the typed error, naming the sample and the values."""
     from .kinematics import inverse_kinematics  # error path only
 
+    q = rows[0]
     if status == NONFINITE:
         bad = [n for n, r in zip(names, rows) if not np.all(np.isfinite(r))]
         raise TrajectoryError(

@@ -6,13 +6,17 @@ class StewartError(Exception):
     """Base of every error this package raises on purpose."""
 
 
+FILE_KEY = "<file>"  # SceneError.key when the file itself is at fault (missing, not TOML)
+
+
 class SceneError(StewartError, ValueError):
     """A scene file or table is malformed or non-physical; `key` names the offending key."""
 
     def __init__(self, key: str, reason: str, source: str | None = None):
         self.key, self.reason, self.source = key, reason, source
         where = f"{source}: " if source else ""
-        super().__init__(f"{where}scene key '{key}': {reason}")
+        what = "" if key == FILE_KEY else f"scene key '{key}': "
+        super().__init__(f"{where}{what}{reason}")
 
 
 class TrajectoryError(StewartError, ValueError):

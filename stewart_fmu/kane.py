@@ -206,19 +206,10 @@ def twist_mass_matrix(p, R, U, Rr, leg, Mt) -> None:
                 Mt[a, b] += ax * j[a] * j[b]
     for a in range(3):
         Mt[a, a] += mp + s0
-    # -[s1]x in the upper right block, [s1]x in the lower left.
-    Mt[0, 4] += s1z
-    Mt[0, 5] -= s1y
-    Mt[1, 3] -= s1z
-    Mt[1, 5] += s1x
-    Mt[2, 3] += s1y
-    Mt[2, 4] -= s1x
-    Mt[4, 0] += s1z
-    Mt[5, 0] -= s1y
-    Mt[3, 1] -= s1z
-    Mt[5, 1] += s1x
-    Mt[3, 2] += s1y
-    Mt[4, 2] -= s1x
+    # -[s1]x in the upper right block, its transpose [s1]x in the lower left.
+    for a, b, v in ((0, 4, s1z), (0, 5, -s1y), (1, 3, -s1z), (1, 5, s1x), (2, 3, s1y), (2, 4, -s1x)):
+        Mt[a, b] += v
+        Mt[b, a] += v
     for a in range(3):
         for b in range(3):
             s = 0.0
