@@ -58,7 +58,7 @@ def _skew(v: np.ndarray) -> np.ndarray:
 
 def twist_partials(model: Model, q) -> tuple[np.ndarray, ...]:
     """Partial velocities with respect to the twist nu = (v, omega): (3, 6) maps per body."""
-    kin = inverse_kinematics(model, q)
+    kin = inverse_kinematics(model, q, with_cond=False)
     _, cA, _, _, _, cB, _, _ = _leg_constants(model)
     u, l, r = kin.unit_vectors, kin.lengths[:, None, None], kin.lever_arms
     P = np.eye(3) - u[:, :, None] * u[:, None, :]
@@ -73,7 +73,7 @@ def twist_partials(model: Model, q) -> tuple[np.ndarray, ...]:
 
 def partial_velocities(model: Model, q) -> PartialVelocities:
     """V_jP, omega_jP, V_jA_i, V_jB_i, omega_jL_i with respect to the leg rates (Eqs. 1-2)."""
-    Jinv = np.linalg.inv(inverse_kinematics(model, q).jacobian)  # nu = J^-1 ldot
+    Jinv = np.linalg.inv(inverse_kinematics(model, q, with_cond=False).jacobian)  # nu = J^-1 ldot
     VP, WP, VA, VB, WL = twist_partials(model, q)
     speeds = lambda T: np.swapaxes(T @ Jinv, -1, -2)
     return PartialVelocities(speeds(VP), speeds(WP), speeds(VA), speeds(VB), speeds(WL))
@@ -81,7 +81,7 @@ def partial_velocities(model: Model, q) -> PartialVelocities:
 
 def body_motion(model: Model, q, qd, qdd) -> BodyMotion:
     """Every body's velocity and acceleration from the pose and its derivatives."""
-    kin = inverse_kinematics(model, q, qd, qdd)
+    kin = inverse_kinematics(model, q, qd, qdd, with_cond=False)
     _, cA, _, _, _, cB, _, _ = _leg_constants(model)
     u, l = kin.unit_vectors, kin.lengths[:, None]
     ld, ldd = kin.rates[:, None], kin.accelerations[:, None]
@@ -96,7 +96,7 @@ def body_motion(model: Model, q, qd, qdd) -> BodyMotion:
 def inertia_forces(model: Model, q, qd, qdd) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Inertia force F* and torque T* of every body in N (Eqs. 3-5): name -> (F*, T*)."""
     mot = body_motion(model, q, qd, qdd)
-    kin = inverse_kinematics(model, q)
+    kin = inverse_kinematics(model, q, with_cond=False)
     R, u = kin.rotation, kin.unit_vectors
     _, a, om, al = mot.platform
     Ic = model.platform_inertia
@@ -140,7 +140,7 @@ def gravity_terms(model: Model, q) -> np.ndarray:
 def actuator_matrix(model: Model, q) -> np.ndarray:
     """[a]_ji = (V_jB_i - V_jA_i) . u_i (Eq. 9): the identity, as the leg rates are the speeds."""
     pv = partial_velocities(model, q)
-    u = inverse_kinematics(model, q).unit_vectors
+    u = inverse_kinematics(model, q, with_cond=False).unit_vectors
     return np.einsum("ijk,ik->ji", pv.upper_linear - pv.lower_linear, u)
 
 
@@ -154,14 +154,14 @@ def friction_forces(model: Model, ldot) -> np.ndarray:
 
 def friction_terms(model: Model, q, qd) -> np.ndarray:
     """f = -[a] mu: the generalized active force of joint friction (Eq. 9), shape (6,)."""
-    ldot = inverse_kinematics(model, q, qd).rates
+    ldot = inverse_kinematics(model, q, qd, with_cond=False).rates
     return -actuator_matrix(model, q) @ friction_forces(model, ldot)
 
 
 def mass_matrix(model: Model, q) -> np.ndarray:
     """[m]_jk = sum over bodies of m V_j . V_k + omega_j . I omega_k (Eq. 7), shape (6, 6)."""
     pv = partial_velocities(model, q)
-    kin = inverse_kinematics(model, q)
+    kin = inverse_kinematics(model, q, with_cond=False)
     I_P = kin.rotation @ np.diag(model.platform_inertia) @ kin.rotation.T
     Mm = (model.platform_mass * pv.platform_linear @ pv.platform_linear.T
           + pv.platform_angular @ I_P @ pv.platform_angular.T)
@@ -179,7 +179,7 @@ def mass_matrix(model: Model, q) -> np.ndarray:
 def velocity_terms(model: Model, q, qd) -> np.ndarray:
     """b = -K* - [m] lddot, the centrifugal and Coriolis part of Eq. 7 (any qdd gives it)."""
     zero = np.zeros(6)
-    lddot = inverse_kinematics(model, q, qd, zero).accelerations
+    lddot = inverse_kinematics(model, q, qd, zero, with_cond=False).accelerations
     return -generalized_inertia_forces(model, q, qd, zero) - mass_matrix(model, q) @ lddot
 
 
@@ -191,7 +191,7 @@ def drive_inertia(model: Model) -> np.ndarray:
 
 def actuator_forces(model: Model, q, qd, qdd) -> np.ndarray:
     """sigma = [a]^-1 (([m] + [m_d]) lddot + b - g - f) (Eqs. 11-12), the rack forces."""
-    lddot = inverse_kinematics(model, q, qd, qdd).accelerations
+    lddot = inverse_kinematics(model, q, qd, qdd, with_cond=False).accelerations
     rhs = ((mass_matrix(model, q) + drive_inertia(model)) @ lddot + velocity_terms(model, q, qd)
            - gravity_terms(model, q) - friction_terms(model, q, qd))
     return np.linalg.solve(actuator_matrix(model, q), rhs)

@@ -26,7 +26,7 @@ class LegKinematics:
     lengths: np.ndarray        # (N, 6)
     unit_vectors: np.ndarray   # (N, 6, 3)
     jacobian: np.ndarray       # (N, 6, 6) ldot = J nu
-    cond: np.ndarray           # (N,) scaled condition number of J
+    cond: np.ndarray | None    # (N,) scaled condition number of J (None: not asked for)
     rates: np.ndarray | None = None          # (N, 6) ldot
     accelerations: np.ndarray | None = None  # (N, 6) lddot
     rotation: np.ndarray | None = None       # (N, 3, 3) R
@@ -37,8 +37,11 @@ class LegKinematics:
     joint_accelerations: np.ndarray | None = None  # (N, 6, 3) ap_i
 
 
-def inverse_kinematics(model: Model, q, qd=None, qdd=None) -> LegKinematics:
-    """Leg vectors, lengths, unit vectors, Jacobian and cond(J); rates/accelerations if given."""
+def inverse_kinematics(model: Model, q, qd=None, qdd=None, *, with_cond: bool = True
+                       ) -> LegKinematics:
+    """Leg vectors, lengths, unit vectors, Jacobian and cond(J); rates/accelerations if given.
+
+    cond(J) takes an SVD per pose, the bulk of the cost: with_cond=False leaves it None."""
     q = np.asarray(q, dtype=float)
     single = q.ndim == 1
     Q = np.atleast_2d(q)
@@ -53,8 +56,10 @@ def inverse_kinematics(model: Model, q, qd=None, qdd=None) -> LegKinematics:
     u = L / l[..., None]
     J = np.concatenate([u, np.cross(r, u)], axis=-1)
     scale = np.r_[np.ones(3), np.full(3, 1.0 / model.characteristic_length)]
-    with np.errstate(all="ignore"):
-        cond = np.linalg.cond(J * scale) if np.all(np.isfinite(J)) else np.full(n, np.inf)
+    cond = None
+    if with_cond:
+        with np.errstate(all="ignore"):
+            cond = np.linalg.cond(J * scale) if np.all(np.isfinite(J)) else np.full(n, np.inf)
     vp = QD[:, None, :3] + np.cross(om[:, None, :], r)
     ap = (QDD[:, None, :3] + np.cross(al[:, None, :], r)
           + np.cross(om[:, None, :], np.cross(om[:, None, :], r)))
