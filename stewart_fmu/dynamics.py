@@ -15,7 +15,7 @@ from .errors import SingularityError, StrokeLimitError, TrajectoryError
 from .kane import STROKE, twist_forces, twist_mass_matrix
 from .linalg import cholesky_solve, lu_factor, lu_solve
 from .model import Model
-from .rotations import angular_motion, rotation_matrix, solve_rate_matrix
+from .rotations import orientation, solve_rate_matrix
 
 OK, NONFINITE, SINGULAR, GIMBAL, OVERFLOW = 0, 1, 3, 4, 5
 # Smallest pivot of the LU of the scaled J^T (entries of order one) below which a pose counts as
@@ -27,14 +27,12 @@ PARTS = ("platform", "lower_legs", "upper_legs", "drives", "gravity", "friction"
 @njit(cache=True, error_model="numpy")
 def _workspace():
     """Scratch for one sample, as views of one buffer (one allocation per kernel call):
-    R, omega, alpha, U, R p_i, (l, ldot, lddot), J^T, gen, pivots, rhs, M_nu, zero3."""
-    buf = np.empty(174)
-    ws = (buf[0:9].reshape((3, 3)), buf[9:12], buf[12:15], buf[15:33].reshape((6, 3)),
-          buf[33:51].reshape((6, 3)), buf[51:69].reshape((6, 3)), buf[69:105].reshape((6, 6)),
-          buf[105:129].reshape((4, 6)), np.empty(6, np.int64), buf[129:135],
-          buf[135:171].reshape((6, 6)), buf[171:174])
-    ws[11][:] = 0.0
-    return ws
+    R, omega, alpha, U, R p_i, (l, ldot, lddot), J^T, gen, pivots, rhs, M_nu."""
+    buf = np.empty(171)
+    return (buf[0:9].reshape((3, 3)), buf[9:12], buf[12:15], buf[15:33].reshape((6, 3)),
+            buf[33:51].reshape((6, 3)), buf[51:69].reshape((6, 3)), buf[69:105].reshape((6, 6)),
+            buf[105:129].reshape((4, 6)), np.empty(6, np.int64), buf[129:135],
+            buf[135:171].reshape((6, 6)))
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -84,12 +82,20 @@ def _solve_jt(p, JT, piv, rhs) -> None:
     lu_solve(JT, piv, rhs)
 
 
+# Samples travel as tuples of six floats, not array views: a view costs an atomic reference
+# count pair in numba, and a dozen of them per sample cost more than the arithmetic.
+
 @njit(cache=True, error_model="numpy", inline="always")
-def _inverse_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, piv, rhs, out) -> int:
-    """sigma = J^-T (-K*_nu - K_g,nu) + mu + m_d lddot for one sample into out (6,)."""
-    rotation_matrix(q[3:], R)
-    angular_motion(q[3:], qd[3:], qdd[3:], om, al)
-    status = twist_forces(p, q[:3], R, qd[:3], om, qdd[:3], al, U, Rr, leg, JT, gen)
+def _row(A, n):
+    """Row n of an (N, 6) array as a tuple."""
+    return (A[n, 0], A[n, 1], A[n, 2], A[n, 3], A[n, 4], A[n, 5])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _inverse_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, piv, rhs, out, n) -> int:
+    """sigma = J^-T (-K*_nu - K_g,nu) + mu + m_d lddot for one sample into out[n]."""
+    orientation(q, qd, qdd, R, om, al)
+    status = twist_forces(p, q, R, qd, om, qdd, al, U, Rr, leg, JT, gen)
     if status != OK:
         return status
     if not _factor_jacobian(JT, piv):
@@ -98,39 +104,42 @@ def _inverse_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, piv, rhs, out
         rhs[j] = -(gen[0, j] + gen[1, j] + gen[2, j] + gen[3, j])
     _solve_jt(p, JT, piv, rhs)
     md = _drive_mass(p)
+    ok = True
     for i in range(6):
-        out[i] = rhs[i] + _friction(p, leg[i, 1]) + md * leg[i, 2]
-    return OK if _finite(out) else OVERFLOW
+        s = rhs[i] + _friction(p, leg[i, 1]) + md * leg[i, 2]
+        out[n, i] = s
+        ok = ok and np.isfinite(s)
+    return OK if ok else OVERFLOW
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _parts_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, piv, rhs, total, out) -> int:
-    """The contributions of PARTS for one sample into out (6 parts, 6 legs), sigma into total."""
-    status = _inverse_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, piv, rhs, total)
+def _parts_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, piv, rhs, total, out, n) -> int:
+    """The contributions of PARTS for one sample into out[n] (6 parts, 6 legs)."""
+    status = _inverse_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, piv, rhs, total, 0)
     if status != OK:
         return status
     for k, slot in ((0, 0), (1, 1), (2, 2), (3, 4)):   # reuse the LU of J^T
         for j in range(6):
             rhs[j] = -gen[k, j]
         _solve_jt(p, JT, piv, rhs)
-        out[slot, :] = rhs
+        for j in range(6):
+            out[n, slot, j] = rhs[j]
     md = _drive_mass(p)
+    ok = True
     for i in range(6):
-        out[3, i] = md * leg[i, 2]
-        out[5, i] = _friction(p, leg[i, 1])
-    for k in range(6):
-        if not _finite(out[k]):
-            return OVERFLOW
-    return OK
+        out[n, 3, i] = md * leg[i, 2]
+        out[n, 5, i] = _friction(p, leg[i, 1])
+        for k in range(6):
+            ok = ok and np.isfinite(out[n, k, i])
+    return OK if ok else OVERFLOW
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, zero,
-                    out) -> int:
+def _forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, out, n) -> int:
     """(M_nu + m_d J^T J) nudot = J^T (sigma - mu - m_d lddot_0) + K*_0 + K_g, then Euler rates."""
-    rotation_matrix(q[3:], R)
-    angular_motion(q[3:], qd[3:], zero, om, al)        # al = Edot thd, the Euler-rate part
-    status = twist_forces(p, q[:3], R, qd[:3], om, zero, zero, U, Rr, leg, JT, gen)
+    zero = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    orientation(q, qd, zero, R, om, al)        # al = Edot thd, the Euler-rate part
+    status = twist_forces(p, q, R, qd, om, zero, zero, U, Rr, leg, JT, gen)
     if status != OK:
         return status
     twist_mass_matrix(p, R, U, Rr, leg, Mt)
@@ -146,63 +155,65 @@ def _forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, piv, rhs, M
         return SINGULAR
     if not cholesky_solve(Mt, rhs):
         return SINGULAR
-    out[0], out[1], out[2] = rhs[0], rhs[1], rhs[2]
-    for k in range(3):
-        rhs[3 + k] -= al[k]
-    if not solve_rate_matrix(q[3:], rhs[3:], out[3:]):
+    ok, a0, a1, a2 = solve_rate_matrix(q, rhs[3] - al[0], rhs[4] - al[1], rhs[5] - al[2])
+    if not ok:
         return GIMBAL
-    return OK if _finite(out) else OVERFLOW
+    result = (rhs[0], rhs[1], rhs[2], a0, a1, a2)
+    for k in range(6):
+        out[n, k] = result[k]
+    return OK if _finite(result) else OVERFLOW
 
 
 @njit(cache=True, error_model="numpy")
 def _inverse_batch(p, Q, QD, QDD, out):
-    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, zero = _workspace()
+    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt = _workspace()
     for n in range(Q.shape[0]):
-        status = _inverse_sample(p, Q[n], QD[n], QDD[n], R, om, al, U, Rr, leg, JT, gen, piv,
-                                 rhs, out[n])
+        q, qd, qdd = _row(Q, n), _row(QD, n), _row(QDD, n)
+        status = _inverse_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, piv, rhs, out, n)
         if status != OK:
-            return n, _classify(status, Q[n], QD[n], QDD[n])
+            return n, _classify(status, q, qd, qdd)
     return -1, OK
 
 
 @njit(cache=True, error_model="numpy")
 def _inverse_one(p, q, qd, qdd):
-    out = np.empty(6)
-    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, zero = _workspace()
-    status = _inverse_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, piv, rhs, out)
-    return out, (OK if status == OK else _classify(status, q, qd, qdd))
+    out = np.empty((1, 6))
+    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt = _workspace()
+    status = _inverse_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, piv, rhs, out, 0)
+    return out[0], (OK if status == OK else _classify(status, q, qd, qdd))
 
 
 @njit(cache=True, error_model="numpy")
 def _parts_batch(p, Q, QD, QDD, out):
-    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, zero = _workspace()
-    total = np.empty(6)
+    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt = _workspace()
+    total = np.empty((1, 6))
     for n in range(Q.shape[0]):
-        status = _parts_sample(p, Q[n], QD[n], QDD[n], R, om, al, U, Rr, leg, JT, gen, piv,
-                               rhs, total, out[n])
+        q, qd, qdd = _row(Q, n), _row(QD, n), _row(QDD, n)
+        status = _parts_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, piv, rhs, total,
+                               out, n)
         if status != OK:
-            return n, _classify(status, Q[n], QD[n], QDD[n])
+            return n, _classify(status, q, qd, qdd)
     return -1, OK
 
 
 @njit(cache=True, error_model="numpy")
 def _forward_batch(p, Q, QD, F, out):
-    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, zero = _workspace()
+    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt = _workspace()
     for n in range(Q.shape[0]):
-        status = _forward_sample(p, Q[n], QD[n], F[n], R, om, al, U, Rr, leg, JT, gen, piv,
-                                 rhs, Mt, zero, out[n])
+        q, qd, sigma = _row(Q, n), _row(QD, n), _row(F, n)
+        status = _forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt,
+                                 out, n)
         if status != OK:
-            return n, _classify(status, Q[n], QD[n], F[n])
+            return n, _classify(status, q, qd, sigma)
     return -1, OK
 
 
 @njit(cache=True, error_model="numpy")
 def _forward_one(p, q, qd, sigma):
-    out = np.empty(6)
-    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, zero = _workspace()
-    status = _forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt,
-                             zero, out)
-    return out, (OK if status == OK else _classify(status, q, qd, sigma))
+    out = np.empty((1, 6))
+    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt = _workspace()
+    status = _forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, out, 0)
+    return out[0], (OK if status == OK else _classify(status, q, qd, sigma))
 
 
 def inverse_dynamics(model: Model, q, qd, qdd) -> np.ndarray:

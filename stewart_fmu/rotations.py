@@ -13,8 +13,12 @@ GIMBAL_LIMIT = 1e-9  # |cos(thy)| below this: E cannot be inverted
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def rotation_matrix(th: np.ndarray, R: np.ndarray) -> None:
-    """Fill R (3, 3) with Rz(th[2]) @ Ry(th[1]) @ Rx(th[0])."""
+def orientation(q, qd, qdd, R, om, al) -> None:
+    """Fill R = Rz Ry Rx, omega = E thd and alpha = E thdd + Edot thd (in N) from pose rows
+    (indexables whose entries 3-5 are the Euler angles, their rates and accelerations)."""
+    th = (q[3], q[4], q[5])
+    thd = (qd[3], qd[4], qd[5])
+    thdd = (qdd[3], qdd[4], qdd[5])
     cx, sx = np.cos(th[0]), np.sin(th[0])
     cy, sy = np.cos(th[1]), np.sin(th[1])
     cz, sz = np.cos(th[2]), np.sin(th[2])
@@ -27,14 +31,7 @@ def rotation_matrix(th: np.ndarray, R: np.ndarray) -> None:
     R[2, 0] = -sy
     R[2, 1] = cy * sx
     R[2, 2] = cy * cx
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def angular_motion(th, thd, thdd, om, al) -> None:
-    """Fill omega = E thd and alpha = E thdd + Edot thd (all in N) from Euler angles and rates."""
-    cy, sy = np.cos(th[1]), np.sin(th[1])
-    cz, sz = np.cos(th[2]), np.sin(th[2])
-    # Columns of E: Rz Ry e_x, Rz e_y, e_z.
+    # Columns of E: Rz Ry e_x, Rz e_y, e_z; and their time derivatives.
     e1x, e1y, e1z = cy * cz, cy * sz, -sy
     e2x, e2y = -sz, cz
     d1x = -sy * thd[1] * cz - cy * sz * thd[2]
@@ -50,21 +47,18 @@ def angular_motion(th, thd, thdd, om, al) -> None:
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def solve_rate_matrix(th, w, out) -> bool:
-    """Solve E(th) out = w for Euler-angle rates; False at gimbal lock."""
-    cy, sy = np.cos(th[1]), np.sin(th[1])
+def solve_rate_matrix(q, w0, w1, w2):
+    """Euler-angle rates x with E(th) x = w (th = q[3:6]): (ok, x0, x1, x2); ok False at gimbal lock."""
+    cy, sy = np.cos(q[4]), np.sin(q[4])
     if abs(cy) < GIMBAL_LIMIT:
-        return False
-    cz, sz = np.cos(th[2]), np.sin(th[2])
-    out[0] = (cz * w[0] + sz * w[1]) / cy
-    out[1] = -sz * w[0] + cz * w[1]
-    out[2] = w[2] + sy * out[0]
-    return True
+        return False, 0.0, 0.0, 0.0
+    cz, sz = np.cos(q[5]), np.sin(q[5])
+    x0 = (cz * w0 + sz * w1) / cy
+    return True, x0, -sz * w0 + cz * w1, w2 + sy * x0
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def euler_motion(Q, QD, QDD, R, OM, AL) -> None:
     """Batch form over samples: R (N, 3, 3), omega and alpha (N, 3) from pose rows."""
     for n in range(Q.shape[0]):
-        rotation_matrix(Q[n, 3:], R[n])
-        angular_motion(Q[n, 3:], QD[n, 3:], QDD[n, 3:], OM[n], AL[n])
+        orientation(Q[n], QD[n], QDD[n], R[n], OM[n], AL[n])
