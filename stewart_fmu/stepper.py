@@ -1,0 +1,315 @@
+"""The plant as an FMI 2.0 co-simulation component, in-process.
+
+`Plant` follows the FMI life cycle (instantiate, setup experiment, initialization mode, set
+inputs, do_step, get outputs, get/set/serialize state, reset, terminate) and checks the call
+sequence itself, as the FMI Reference FMUs do. The pythonfmu adapter (`fmu_slave.py`) only
+translates names; the physics and every check live here, so they run without an importer.
+
+State is (t, q, qd) plus the held inputs and the adaptive step guess: everything a master needs
+to roll back exactly (`get_state` / `set_state`, `serialize_state` / `deserialize_state`).
+"""
+from __future__ import annotations
+
+import math
+import pickle
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .dynamics import GIMBAL, NONFINITE, OVERFLOW, SINGULAR, inverse_dynamics_parts, present_parts
+from .dynamics import forward_dynamics
+from .errors import StewartError, TrajectoryError
+from .integrators import (_A, _E, STEP_TOO_SMALL, TOO_MANY_STEPS, IntegratorOptions,
+                          dopri5_advance, rk4_advance, scipy_advance)
+from .kane import STROKE
+from .kinematics import check_poses, inverse_kinematics
+from .model import Model
+
+STATE_VERSION = 1
+PHASES = ("instantiated", "initialization", "stepping", "terminated")
+_WHY = {NONFINITE: "the state became non-finite", OVERFLOW: "the accelerations overflowed",
+        STROKE: "a leg left its stroke", SINGULAR: "the Jacobian became singular",
+        GIMBAL: "the pitch reached +-90 degrees (Euler-rate singularity)",
+        TOO_MANY_STEPS: "the integrator needed too many internal steps (stiff or too loose "
+                        "max_steps: try 'Radau' or 'BDF')",
+        STEP_TOO_SMALL: "the integrator's step fell below its minimum (stiff: try 'Radau')"}
+
+
+class CallSequenceError(StewartError):
+    """An FMI call out of order or with bad arguments (the FMU returns fmi2Error)."""
+
+
+class StepRejected(StewartError):
+    """A step would leave the valid region; the state stays at the start of the step
+    (the FMU returns fmi2Discard: roll back or take a smaller step)."""
+
+    def __init__(self, message: str, time: float, status: int):
+        self.time, self.status = time, status
+        super().__init__(message)
+
+
+@dataclass(frozen=True)
+class PlantState:
+    """Everything needed to restore a Plant exactly (immutable; arrays are copies)."""
+
+    phase: str
+    time: float
+    y: np.ndarray            # (12,) q then qd
+    force: np.ndarray        # (6,) rack forces sigma_i (N), held over a step
+    torque: np.ndarray       # (6,) motor torques (N m), held over a step
+    step_guess: float        # next internal step of the adaptive method (s)
+    start_time: float
+    initial: np.ndarray      # (12,) the initial q, qd of this experiment
+
+
+class Outputs:
+    """Outputs after the last step, computed on first use (cond(J) and the breakdown cost)."""
+
+    def __init__(self, plant: "Plant"):
+        self.plant = plant
+
+    def _get(self, name: str, compute):
+        cache = self.plant._cache
+        if name not in cache:
+            cache[name] = compute()
+        return cache[name]
+
+    @property
+    def q(self) -> np.ndarray:
+        return self.plant._y[:6].copy()
+
+    @property
+    def qd(self) -> np.ndarray:
+        return self.plant._y[6:].copy()
+
+    def _kinematics(self):
+        y = self.plant._y
+        return self._get("kin", lambda: inverse_kinematics(self.plant.model, y[:6], y[6:]))
+
+    @property
+    def lengths(self) -> np.ndarray:
+        return self._kinematics().lengths
+
+    @property
+    def rates(self) -> np.ndarray:
+        return self._kinematics().rates
+
+    @property
+    def twist(self) -> np.ndarray:
+        """(v, omega) of the platform in N."""
+        kin = self._kinematics()
+        return np.r_[self.plant._y[6:9], kin.omega]
+
+    @property
+    def cond(self) -> float:
+        return float(self._kinematics().cond)
+
+    @property
+    def qdd(self) -> np.ndarray:
+        p = self.plant
+        return self._get("qdd", lambda: forward_dynamics(p.model, p._y[:6], p._y[6:], p._rack))
+
+    @property
+    def parts(self) -> dict[str, np.ndarray]:
+        """How the rack force splits: platform, legs, drives, gravity, friction (sums to it)."""
+        p = self.plant
+        return self._get("parts", lambda: {k: v[0] for k, v in inverse_dynamics_parts(
+            p.model, p._y[:6], p._y[6:], self.qdd).items()})
+
+
+class Plant:
+    """The Stewart platform plant as an FMI co-simulation component (see the module doc)."""
+
+    def __init__(self, model: Model, options: IntegratorOptions | None = None):
+        self.model = model
+        self.options = options or IntegratorOptions()
+        self._drive_gain = (model.drive.gear_ratio / model.drive.pinion_radius
+                            if model.drive is not None else 0.0)
+        self._initial = np.r_[model.home, np.zeros(6)]
+        self._set_fresh()
+
+    # --- life cycle ------------------------------------------------------------------------
+
+    def _set_fresh(self) -> None:
+        self._phase = "instantiated"
+        self._start = 0.0
+        self._t = 0.0
+        self._y = self._initial.copy()
+        self._force = np.zeros(6)
+        self._torque = np.zeros(6)
+        self._rack = np.zeros(6)
+        self._step_guess = self.options.max_step
+        self._next = np.empty(12)     # the step's result; swapped with _y on success
+        self._cache: dict = {}
+        self._outputs = Outputs(self)
+
+    @property
+    def phase(self) -> str:
+        return self._phase
+
+    @property
+    def time(self) -> float:
+        return self._t
+
+    def setup_experiment(self, start_time: float = 0.0, tolerance: float | None = None) -> None:
+        """Start time and (optionally) the integrator's relative tolerance."""
+        self._require("setup_experiment", "instantiated")
+        _finite_scalar("start_time", start_time)
+        if tolerance is not None:
+            if not (math.isfinite(tolerance) and tolerance > 0):
+                raise CallSequenceError(f"setup_experiment: tolerance must be > 0, got {tolerance}")
+            self.options = replace(self.options, rtol=tolerance)
+        self._start = self._t = float(start_time)
+
+    def enter_initialization_mode(self) -> None:
+        self._require("enter_initialization_mode", "instantiated")
+        self._phase = "initialization"
+
+    def set_initial(self, q=None, qd=None) -> None:
+        """Initial pose and pose rates (before or during initialization mode)."""
+        self._require("set_initial", "instantiated", "initialization")
+        for name, value, sl in (("q", q, slice(0, 6)), ("qd", qd, slice(6, 12))):
+            if value is not None:
+                self._initial[sl] = _finite_vector(name, value)
+        self._y = self._initial.copy()
+
+    def exit_initialization_mode(self) -> None:
+        """Check the initial pose (stroke, singularity) and start stepping."""
+        self._require("exit_initialization_mode", "initialization")
+        check_poses(self.model, self._y[:6])
+        self._phase = "stepping"
+        self._cache.clear()
+
+    def terminate(self) -> None:
+        self._require("terminate", "initialization", "stepping")
+        self._phase = "terminated"
+
+    def reset(self) -> None:
+        """Back to the state right after instantiation (options and initial values kept)."""
+        self._set_fresh()
+
+    # --- inputs and outputs ----------------------------------------------------------------
+
+    def set_force(self, sigma) -> None:
+        """Rack forces sigma_i (N) held from now on."""
+        self._require("set_force", "instantiated", "initialization", "stepping")
+        self._force = _finite_vector("force", sigma)
+        self._inputs_changed()
+
+    def set_torque(self, tau) -> None:
+        """Motor torques (N m), added to the rack force as zeta / r * tau (needs a [drive])."""
+        self._require("set_torque", "instantiated", "initialization", "stepping")
+        if self.model.drive is None:
+            raise CallSequenceError("set_torque: the scene has no [drive]: set rack forces instead")
+        self._torque = _finite_vector("torque", tau)
+        self._inputs_changed()
+
+    def _inputs_changed(self) -> None:
+        self._rack = self._force + self._drive_gain * self._torque
+        self._cache.clear()
+
+    @property
+    def rack_force(self) -> np.ndarray:
+        """The total force at each rack: sigma + zeta / r * tau."""
+        return self._rack.copy()
+
+    @property
+    def outputs(self) -> Outputs:
+        return self._outputs
+
+    @property
+    def parts(self) -> tuple[str, ...]:
+        return present_parts(self.model)
+
+    # --- stepping --------------------------------------------------------------------------
+
+    def do_step(self, current_time: float, step_size: float) -> None:
+        """Advance from current_time (the component's time) by step_size > 0."""
+        if self._phase != "stepping":
+            self._require("do_step", "stepping")
+        t = self._t
+        if not (step_size > 0 and math.isfinite(step_size)):
+            raise CallSequenceError(f"do_step: step_size must be finite and > 0, got {step_size!r}")
+        if not abs(current_time - t) <= 1e-9 * max(1.0, abs(t)):  # also catches NaN
+            raise CallSequenceError(f"do_step: current_time {current_time!r} is not the "
+                                    f"component's time {t!r}")
+        status = self._advance(step_size)
+        if status:
+            raise StepRejected(self._rejection(status, current_time, step_size), current_time,
+                               status)
+        self._y, self._next = self._next, self._y
+        self._t = current_time + step_size
+        self._cache.clear()
+
+    def _advance(self, h: float) -> int:
+        """self._next = self._y advanced by h; the integrator's status."""
+        o, p = self.options, self.model.params
+        if o.method == "rk4":
+            n = max(1, math.ceil(h / o.max_step - 1e-9))
+            return rk4_advance(p, self._y, self._next, self._rack, h, n)
+        if o.method == "dopri5":
+            status, self._step_guess, _, _ = dopri5_advance(
+                p, self._y, self._next, self._rack, h, self._step_guess, o.rtol, o.atol,
+                o.max_step, o.max_steps, _A, _E)
+            return status
+        return scipy_advance(p, self._y, self._next, self._rack, h, o)[0]
+
+    def _rejection(self, status: int, t: float, h: float) -> str:
+        q, qd = self._y[:6], self._y[6:]
+        lengths = inverse_kinematics(self.model, q, with_cond=False).lengths
+        return (f"step from t = {t!r} s by {h!r} s rejected ({self.options.method}): "
+                f"{_WHY.get(status, f'status {status}')}; state at the start of the step: "
+                f"q = {q.tolist()}, qd = {qd.tolist()}, leg lengths = {lengths.tolist()} m "
+                f"(stroke [{self.model.leg_min}, {self.model.leg_max}]), rack force = "
+                f"{self._rack.tolist()} N")
+
+    # --- state -----------------------------------------------------------------------------
+
+    def get_state(self) -> PlantState:
+        return PlantState(self._phase, self._t, self._y.copy(), self._force.copy(),
+                          self._torque.copy(), self._step_guess, self._start,
+                          self._initial.copy())
+
+    def set_state(self, state: PlantState) -> None:
+        if not isinstance(state, PlantState):
+            raise CallSequenceError(f"set_state: expected a PlantState, got {type(state).__name__}")
+        self._phase, self._t, self._start = state.phase, state.time, state.start_time
+        self._y, self._force, self._torque = state.y.copy(), state.force.copy(), state.torque.copy()
+        self._step_guess, self._initial = state.step_guess, state.initial.copy()
+        self._inputs_changed()
+
+    @staticmethod
+    def serialize_state(state: PlantState) -> bytes:
+        return pickle.dumps((STATE_VERSION, state), protocol=pickle.HIGHEST_PROTOCOL)
+
+    @staticmethod
+    def deserialize_state(data: bytes) -> PlantState:
+        try:
+            version, state = pickle.loads(data)
+        except Exception as exc:  # any unpickling failure means the bytes are not ours
+            raise CallSequenceError(f"deserialize_state: not a serialized plant state ({exc})") from None
+        if version != STATE_VERSION or not isinstance(state, PlantState):
+            raise CallSequenceError(f"deserialize_state: state version {version!r} is not {STATE_VERSION}")
+        return state
+
+    def _require(self, call: str, *phases: str) -> None:
+        if self._phase not in phases:
+            raise CallSequenceError(f"{call} is not allowed in phase '{self._phase}' "
+                                    f"(allowed in: {', '.join(phases)})")
+
+
+def _finite_scalar(name: str, value) -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise CallSequenceError(f"{name} must be a finite number, got {value!r}")
+
+
+def _finite_vector(name: str, value) -> np.ndarray:
+    try:
+        arr = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise TrajectoryError(f"{name} must be six numbers, got {value!r}") from None
+    if arr.shape != (6,):
+        raise TrajectoryError(f"{name} must be six numbers, got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise TrajectoryError(f"{name} must be finite, got {arr.tolist()}")
+    return arr
