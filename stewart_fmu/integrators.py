@@ -31,7 +31,7 @@ class IntegratorOptions:
     rtol: float = 1e-8
     atol: float = 1e-10
     max_step: float = 1e-3
-    max_steps: int = 100_000   # internal steps per communication step before giving up
+    max_steps: int = 10_000    # internal steps per communication step before giving up
 
     def __post_init__(self) -> None:
         if self.method not in INTEGRATORS:
@@ -103,9 +103,12 @@ _E = np.array([71 / 57600, 0, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525,
 def dopri5_advance(p, y0, y, F, h, h_try, rtol, atol, max_step, max_steps, A, E):
     """y = y0 advanced over h with error-controlled Dormand-Prince 5(4) steps (y0 kept).
 
-    Returns (status, next step size to try, internal steps taken, rejected steps)."""
+    Returns (status, next step size to try, internal steps taken, rejected steps). A stage
+    that leaves the valid region (stroke, singularity) shrinks the step; if the step cannot
+    complete, that stage's status is the reported cause."""
     ws = _workspace()
     y[:] = y0
+    cause = OK
     K = np.empty((7, 12))
     ytmp = np.empty(12)
     ynew = np.empty(12)
@@ -115,7 +118,7 @@ def dopri5_advance(p, y0, y, F, h, h_try, rtol, atol, max_step, max_steps, A, E)
     steps = rejected = 0
     while status == OK and t < h:
         if steps + rejected >= max_steps:
-            return TOO_MANY_STEPS, dt, steps, rejected
+            return (cause if cause != OK else TOO_MANY_STEPS), dt, steps, rejected
         last = t + dt >= h * (1.0 - 1e-12)
         step = h - t if last else dt
         for s in range(1, 7):
@@ -130,7 +133,7 @@ def dopri5_advance(p, y0, y, F, h, h_try, rtol, atol, max_step, max_steps, A, E)
         if status != OK:  # a stage left the workspace: retry smaller before giving up
             if step < 1e-14 * h:
                 return status, dt, steps, rejected
-            dt, status, rejected = 0.25 * step, OK, rejected + 1
+            cause, dt, status, rejected = status, 0.25 * step, OK, rejected + 1
             status = _derivative(p, y, F, ws, K[0])
             continue
         err = 0.0
@@ -153,7 +156,7 @@ def dopri5_advance(p, y0, y, F, h, h_try, rtol, atol, max_step, max_steps, A, E)
             rejected += 1
             dt = step * max(0.2, factor)
             if dt < 1e-14 * max(h, 1e-300):
-                return STEP_TOO_SMALL, dt, steps, rejected
+                return (cause if cause != OK else STEP_TOO_SMALL), dt, steps, rejected
     return status, dt, steps, rejected
 
 
