@@ -1,7 +1,7 @@
 """The stewart-sim command line: the only module that knows about files, plots and progress.
 
 Subcommands: `inverse` (the contract's command), `paper` (Section 3 rerun), `demo` (what
-`make demo` runs) and `scene-info`. Exit status: 0 on success; 2 on a usage error or on an
+`make demo` runs), `scene-info` and `export-fmu`. Exit status: 0 on success; 2 on a usage error or on an
 error in the inputs (every StewartError: scene, trajectory, pose); 1 when an output cannot be
 written (OutputError); 130 on Ctrl-C. Every output file is written atomically: an error leaves
 an existing file as it was.
@@ -21,6 +21,7 @@ from . import io
 from .demo import DEMO_DURATION, DEMO_RATE, demo_trajectory
 from .dynamics import inverse_dynamics, inverse_dynamics_parts, present_parts
 from .errors import KinematicsError, SceneError, StewartError
+from .fmu import export_fmu
 from .kinematics import check_poses, inverse_kinematics
 from .model import Model
 from .paper import PaperResults, run_paper_experiments
@@ -113,6 +114,14 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Print the model a scene file builds.")
     p.add_argument("scene", metavar="SCENE", help="scene file (TOML)")
     p.set_defaults(run=cmd_scene_info)
+
+    p = sub.add_parser("export-fmu", help="export the plant as an FMI 2.0 co-simulation FMU",
+                       description="Build an FMI 2.0 co-simulation FMU of the scene's plant "
+                                   "(pythonfmu). It runs in the importer's Python, which needs "
+                                   "stewart-sim installed.")
+    p.add_argument("scene", metavar="SCENE", help="scene file (TOML)")
+    p.add_argument("-o", "--out", required=True, metavar="PLANT.fmu", help="the FMU to write")
+    p.set_defaults(run=cmd_export_fmu)
     return parser
 
 
@@ -285,6 +294,16 @@ def run_demo(model: Model, out: Path, duration: float) -> list[Path]:
     else:
         written.append(run_paper(model, out / "paper"))
     return written
+
+
+# --- export-fmu ------------------------------------------------------------------------------
+
+def cmd_export_fmu(args: argparse.Namespace) -> None:
+    """`stewart-sim export-fmu SCENE -o PLANT.fmu`."""
+    out = Path(args.out)
+    with writing(out):
+        export_fmu(args.scene, out)
+    print(f"wrote {out}")
 
 
 # --- scene-info ------------------------------------------------------------------------------
