@@ -1,14 +1,20 @@
 """pythonfmu slave of the Stewart platform plant: a thin adapter over stewart_fmu.stepper.Plant.
 
-pythonfmu copies this file into the FMU and finds the class by the literal line
-`class StewartPlant(Fmi2Slave):`. Every name it registers comes from stewart_fmu.fmu; every
-check and all physics run in Plant. Errors: a CallSequenceError, a bad input or a bad parameter
-raises (the FMU returns fmi2Error with the message logged); a StepRejected is logged and do_step
-returns False (fmi2Discard), the state staying at the start of the step for a rollback.
+pythonfmu copies this file into the FMU and finds the slave class by its literal header line.
+Every name it registers comes from stewart_fmu.fmu; every check and all physics run in Plant.
+
+pythonfmu 0.7 turns any Python exception into fmi2Fatal and then releases its references to the
+slave without clearing them, so an instance that raised once is unsafe to call again. This
+adapter therefore never raises: every problem is logged with its cause, time and values, and
+makes the next doStep return fmi2Discard (state unchanged, so the master can roll back): a
+non-finite input (ignored until a finite value is set), a call out of sequence, a step <= 0 or
+at the wrong time, a rejected step (stroke, singularity), a parameter that fails validation at
+exitInitializationMode (the instance then refuses every step).
 """
 from __future__ import annotations
 
 import pickle
+import traceback
 from xml.etree.ElementTree import Element, SubElement
 
 import numpy as np
@@ -16,7 +22,6 @@ from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real, String
 from pythonfmu.enums import Fmi2Initial, Fmi2Status
 
 from stewart_fmu import fmu
-from stewart_fmu.errors import StewartError
 from stewart_fmu.integrators import INTEGRATORS, IntegratorOptions
 from stewart_fmu.scene import apply_overrides, scene_from_dict
 from stewart_fmu.stepper import Plant, StepRejected
@@ -39,6 +44,8 @@ class StewartPlant(Fmi2Slave):
                        "max_step": defaults.max_step}
         self.start_time = 0.0
         self.plant = Plant(self.model, defaults)
+        self.bad_inputs: dict[str, float] = {}   # non-finite inputs set and not yet replaced
+        self.init_error: str | None = None       # why exitInitializationMode failed
         self._register_all()
 
     # --- variables -------------------------------------------------------------------------
@@ -81,7 +88,8 @@ class StewartPlant(Fmi2Slave):
 
     def _scene_setter(self, var):
         def set_(value):
-            self._require_setup(var.name)
+            if self._too_late(var.name):
+                return
             if not var.index:
                 self.overrides[var.key] = float(value)
                 return
@@ -95,15 +103,19 @@ class StewartPlant(Fmi2Slave):
 
     def _array_setter(self, var):
         def set_(value):
-            self._require_setup(var.name)
-            self.values[var.key][var.index] = value
+            if not self._too_late(var.name):
+                self.values[var.key][var.index] = value
         return set_
 
     def _input_setter(self, var):
         def set_(value):
-            if not np.isfinite(value):
-                self._fail(f"input {var.name} = {value!r} at t = {self.plant.time!r} s is not finite")
-            self.values[var.key][var.index] = value
+            if np.isfinite(value):
+                self.bad_inputs.pop(var.name, None)
+                self.values[var.key][var.index] = value
+                return
+            self.bad_inputs[var.name] = value
+            self._error(f"input {var.name} = {value!r} at t = {self.plant.time!r} s is not "
+                        f"finite: ignored, and every doStep is discarded until it is finite")
         return set_
 
     def _output_getter(self, var):
@@ -119,74 +131,116 @@ class StewartPlant(Fmi2Slave):
         return lambda: float(getattr(self.plant.outputs, attr)[idx])
 
     def _set_solver(self, name: str, value) -> None:
-        self._require_setup(f"solver.{name}")
-        self.solver[name] = value
+        if not self._too_late(f"solver.{name}"):
+            self.solver[name] = value
 
-    def _require_setup(self, name: str) -> None:
-        if self.plant.phase not in ("instantiated", "initialization"):
-            self._fail(f"parameter {name} can only be set before the end of initialization")
+    def _too_late(self, name: str) -> bool:
+        """Parameters are fixed once initialization ends: a later set is logged and ignored."""
+        if self.plant.phase in ("instantiated", "initialization"):
+            return False
+        self._error(f"parameter {name} can only be set before exitInitializationMode: ignored")
+        return True
 
-    def _fail(self, message: str):
+    def _error(self, message: str) -> None:
         self.log(message, Fmi2Status.error)
-        raise StewartError(message)
+
+    # --- never raise into pythonfmu (see the module doc) ------------------------------------
+
+    def set_real(self, vrs, values):
+        self._guarded("setReal", super().set_real, vrs, values)
+
+    def set_string(self, vrs, values):
+        self._guarded("setString", super().set_string, vrs, values)
+
+    def get_real(self, vrs):
+        result = self._guarded("getReal", super().get_real, vrs)
+        return result if result is not None else [float("nan")] * len(vrs)
+
+    def _guarded(self, call: str, fn, *args):
+        try:
+            return fn(*args)
+        except Exception as exc:  # an exception would make pythonfmu drop this instance
+            self._error(f"{call}: {type(exc).__name__}: {exc}")
+            return None
 
     # --- life cycle ------------------------------------------------------------------------
 
     def setup_experiment(self, start_time, stop_time=None, tolerance=None):
+        self._guarded("setupExperiment", self._setup, start_time)
+
+    def _setup(self, start_time) -> None:
         self.start_time = float(start_time)
         self.plant.setup_experiment(self.start_time)
 
     def enter_initialization_mode(self):
-        self.plant.enter_initialization_mode()
+        self._guarded("enterInitializationMode", self.plant.enter_initialization_mode)
 
     def exit_initialization_mode(self):
         """Build the model with the parameters set, then start the plant at q0, qd0."""
         try:
             model = scene_from_dict(apply_overrides(self.scene, self.overrides))
-            options = IntegratorOptions(**self.solver)
-        except (StewartError, ValueError, TypeError) as exc:
-            self._fail(f"exitInitializationMode: {exc}")
-        plant = Plant(model, options)
-        plant.setup_experiment(self.start_time)
-        plant.enter_initialization_mode()
-        plant.set_initial(self.values["q0"], self.values["qd0"])
-        try:
+            plant = Plant(model, IntegratorOptions(**self.solver))
+            plant.setup_experiment(self.start_time)
+            plant.enter_initialization_mode()
+            plant.set_initial(self.values["q0"], self.values["qd0"])
             plant.exit_initialization_mode()
-        except StewartError as exc:
-            self._fail(f"exitInitializationMode: initial pose rejected: {exc}")
-        self.model, self.plant = model, plant
+        except Exception as exc:  # a bad parameter or initial pose: refuse to step, say why
+            self.init_error = f"exitInitializationMode failed: {type(exc).__name__}: {exc}"
+            self._error(self.init_error)
+            return
+        self.model, self.plant, self.init_error = model, plant, None
 
     def do_step(self, current_time, step_size):
-        self.plant.set_force(self.values["sigma"])
-        if self.model.drive is not None:
-            self.plant.set_torque(self.values["tau"])
+        """fmi2OK, or fmi2Discard (False) with the reason logged; never raises."""
+        refusal = self._refusal()
+        if refusal:
+            self.log(f"doStep at t = {current_time!r} s refused: {refusal}", Fmi2Status.discard)
+            return False
         try:
+            self.plant.set_force(self.values["sigma"])
+            if self.model.drive is not None:
+                self.plant.set_torque(self.values["tau"])
             self.plant.do_step(current_time, step_size)
         except StepRejected as exc:
             self.log(str(exc), Fmi2Status.discard)
             return False
-        except StewartError as exc:
-            self._fail(f"doStep: {exc}")
+        except Exception as exc:  # call out of sequence, bad step: logged as an error, discarded
+            self._error(f"doStep(t = {current_time!r}, h = {step_size!r}): {type(exc).__name__}: {exc}")
+            return False
         return True
 
+    def _refusal(self) -> str | None:
+        if self.init_error:
+            return self.init_error
+        if self.bad_inputs:
+            return f"non-finite inputs {self.bad_inputs}"
+        return None
+
     def terminate(self):
-        self.plant.terminate()
+        self._guarded("terminate", self.plant.terminate)
 
     # --- state -----------------------------------------------------------------------------
 
     def _get_fmu_state(self):
         return {"plant": self.plant.get_state(), "values": {k: v.copy() for k, v in self.values.items()},
                 "overrides": dict(self.overrides), "solver": dict(self.solver),
-                "start_time": self.start_time}
+                "start_time": self.start_time, "bad_inputs": dict(self.bad_inputs),
+                "init_error": self.init_error}
 
     def _set_fmu_state(self, state):
+        self._guarded("setFMUstate", self._restore, state)
+
+    def _restore(self, state) -> None:
+        if state is None:
+            raise ValueError("the serialized state could not be read (see the log)")
         if state["overrides"] != self.overrides or state["solver"] != self.solver:
             self.overrides, self.solver = dict(state["overrides"]), dict(state["solver"])
             self.model = scene_from_dict(apply_overrides(self.scene, self.overrides))
             self.plant = Plant(self.model, IntegratorOptions(**self.solver))
         self.plant.set_state(state["plant"])
         self.values = {k: v.copy() for k, v in state["values"].items()}
-        self.start_time = state["start_time"]
+        self.start_time, self.init_error = state["start_time"], state["init_error"]
+        self.bad_inputs = dict(state["bad_inputs"])
 
     @staticmethod
     def _fmu_state_to_bytes(state) -> bytes:
@@ -194,7 +248,11 @@ class StewartPlant(Fmi2Slave):
 
     @staticmethod
     def _fmu_state_from_bytes(data: bytes):
-        return pickle.loads(data)
+        try:
+            return pickle.loads(data)
+        except Exception:  # reported by _set_fmu_state (a static method cannot log)
+            traceback.print_exc()
+            return None
 
     # --- model description -----------------------------------------------------------------
 
