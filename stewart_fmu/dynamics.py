@@ -216,6 +216,22 @@ def _forward_one(p, q, qd, sigma):
     return out[0], (OK if status == OK else _classify(status, q, qd, sigma))
 
 
+@njit(cache=True, error_model="numpy")
+def _leg_state(p, q, qd):
+    """Leg lengths, rates and the platform's angular velocity at one pose (the kinematics part
+    of the inverse kernel, at zero acceleration)."""
+    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt = _workspace()
+    zero = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    orientation(q, qd, zero, R, om, al)
+    twist_forces(p, q, R, qd, om, zero, al, U, Rr, leg, JT, gen)
+    return leg[:, 0].copy(), leg[:, 1].copy(), om.copy()
+
+
+def leg_state(model: Model, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(lengths, rates, omega) of one pose and its rates: compiled, for per-step outputs."""
+    return _leg_state(model.params, q, qd)
+
+
 def inverse_dynamics(model: Model, q, qd, qdd) -> np.ndarray:
     """Actuator (rack) forces sigma (Eq. 12) for poses and their derivatives, (N, 6) or (6,)."""
     return _evaluate(model, _inverse_one, _inverse_batch, ("q", "qd", "qdd"), q, qd, qdd)

@@ -66,7 +66,7 @@ def scene_parameters(data: Mapping[str, Any]) -> list[Variable]:
     out = []
     for dotted, (shape, unit, what) in _SCENE_KEYS.items():
         value = _lookup(data, dotted)
-        if value is None:
+        if value is None and dotted != "gravity":  # gravity has a default: always a parameter
             continue
         if not shape:
             out.append(Variable(dotted, unit, what, dotted))
@@ -74,7 +74,8 @@ def scene_parameters(data: Mapping[str, Any]) -> list[Variable]:
         for idx in _indices(shape):
             name = f"{dotted}[{','.join(str(i + 1) for i in idx)}]"
             u = _POSE_UNITS[idx[0]] if dotted == "geometry.home" else unit
-            out.append(Variable(name, u, f"{what}, element {idx}", dotted, idx))
+            element = ",".join(str(i + 1) for i in idx)
+            out.append(Variable(name, u, f"{what}, element [{element}]", dotted, idx))
     return out
 
 

@@ -13,6 +13,7 @@ exitInitializationMode (the instance then refuses every step).
 """
 from __future__ import annotations
 
+import math
 import pickle
 import traceback
 from xml.etree.ElementTree import Element, SubElement
@@ -23,7 +24,7 @@ from pythonfmu.enums import Fmi2Initial, Fmi2Status
 
 from stewart_fmu import fmu
 from stewart_fmu.integrators import INTEGRATORS, IntegratorOptions
-from stewart_fmu.scene import apply_overrides, scene_from_dict
+from stewart_fmu.scene import DEFAULT_GRAVITY, apply_overrides, scene_from_dict
 from stewart_fmu.stepper import Plant, StepRejected
 
 
@@ -43,7 +44,9 @@ class StewartPlant(Fmi2Slave):
         self.solver = {"method": defaults.method, "rtol": defaults.rtol, "atol": defaults.atol,
                        "max_step": defaults.max_step}
         self.start_time = 0.0
+        self.tolerance: float | None = None
         self.plant = Plant(self.model, defaults)
+        self.inputs_changed = False               # values["sigma"/"tau"] not yet in the plant
         self.bad_inputs: dict[str, float] = {}   # non-finite inputs set and not yet replaced
         self.init_error: str | None = None       # why exitInitializationMode failed
         self._register_all()
@@ -83,6 +86,8 @@ class StewartPlant(Fmi2Slave):
     def _scene_getter(self, var):
         def get():
             value = self.overrides.get(var.key, fmu._lookup(self.scene, var.key))
+            if value is None:  # gravity left to its default
+                value = DEFAULT_GRAVITY
             return float(np.asarray(value, dtype=float)[var.index]) if var.index else float(value)
         return get
 
@@ -93,7 +98,8 @@ class StewartPlant(Fmi2Slave):
             if not var.index:
                 self.overrides[var.key] = float(value)
                 return
-            current = np.array(self.overrides.get(var.key, fmu._lookup(self.scene, var.key)), dtype=float)
+            current = np.array(self.overrides.get(var.key, fmu._lookup(self.scene, var.key))
+                               or DEFAULT_GRAVITY, dtype=float)
             current[var.index] = value
             self.overrides[var.key] = current.tolist()
         return set_
@@ -109,9 +115,11 @@ class StewartPlant(Fmi2Slave):
 
     def _input_setter(self, var):
         def set_(value):
-            if np.isfinite(value):
-                self.bad_inputs.pop(var.name, None)
+            if math.isfinite(value):
+                if self.bad_inputs:
+                    self.bad_inputs.pop(var.name, None)
                 self.values[var.key][var.index] = value
+                self.inputs_changed = True
                 return
             self.bad_inputs[var.name] = value
             self._error(f"input {var.name} = {value!r} at t = {self.plant.time!r} s is not "
@@ -124,9 +132,9 @@ class StewartPlant(Fmi2Slave):
         if key == "cond":
             return lambda: self.plant.outputs.cond
         if key.startswith("part:"):
-            return lambda: float(self.plant.outputs.parts[key[5:]][idx])
+            return lambda: float(self._synced().outputs.parts[key[5:]][idx])
         if key == "rack_force":
-            return lambda: float(self.plant.rack_force[idx])
+            return lambda: float(self._synced().rack_force[idx])
         attr = {"l": "lengths", "ldot": "rates"}.get(key, key)
         return lambda: float(getattr(self.plant.outputs, attr)[idx])
 
@@ -149,12 +157,26 @@ class StewartPlant(Fmi2Slave):
     def set_real(self, vrs, values):
         self._guarded("setReal", super().set_real, vrs, values)
 
+    def set_integer(self, vrs, values):
+        self._guarded("setInteger", super().set_integer, vrs, values)
+
+    def set_boolean(self, vrs, values):
+        self._guarded("setBoolean", super().set_boolean, vrs, values)
+
     def set_string(self, vrs, values):
         self._guarded("setString", super().set_string, vrs, values)
 
     def get_real(self, vrs):
-        result = self._guarded("getReal", super().get_real, vrs)
-        return result if result is not None else [float("nan")] * len(vrs)
+        return self._guarded("getReal", super().get_real, vrs) or [math.nan] * len(vrs)
+
+    def get_integer(self, vrs):
+        return self._guarded("getInteger", super().get_integer, vrs) or [0] * len(vrs)
+
+    def get_boolean(self, vrs):
+        return self._guarded("getBoolean", super().get_boolean, vrs) or [False] * len(vrs)
+
+    def get_string(self, vrs):
+        return self._guarded("getString", super().get_string, vrs) or [""] * len(vrs)
 
     def _guarded(self, call: str, fn, *args):
         try:
@@ -166,11 +188,13 @@ class StewartPlant(Fmi2Slave):
     # --- life cycle ------------------------------------------------------------------------
 
     def setup_experiment(self, start_time, stop_time=None, tolerance=None):
-        self._guarded("setupExperiment", self._setup, start_time)
+        self._guarded("setupExperiment", self._setup, start_time, tolerance)
 
-    def _setup(self, start_time) -> None:
+    def _setup(self, start_time, tolerance=None) -> None:
         self.start_time = float(start_time)
-        self.plant.setup_experiment(self.start_time)
+        # pythonfmu passes 0 when the master defines no tolerance: only a positive one counts.
+        self.tolerance = float(tolerance) if tolerance and math.isfinite(tolerance) and tolerance > 0 else None
+        self.plant.setup_experiment(self.start_time, self.tolerance)
 
     def enter_initialization_mode(self):
         self._guarded("enterInitializationMode", self.plant.enter_initialization_mode)
@@ -180,7 +204,7 @@ class StewartPlant(Fmi2Slave):
         try:
             model = scene_from_dict(apply_overrides(self.scene, self.overrides))
             plant = Plant(model, IntegratorOptions(**self.solver))
-            plant.setup_experiment(self.start_time)
+            plant.setup_experiment(self.start_time, self.tolerance)
             plant.enter_initialization_mode()
             plant.set_initial(self.values["q0"], self.values["qd0"])
             plant.exit_initialization_mode()
@@ -189,6 +213,7 @@ class StewartPlant(Fmi2Slave):
             self._error(self.init_error)
             return
         self.model, self.plant, self.init_error = model, plant, None
+        self.inputs_changed = True
 
     def do_step(self, current_time, step_size):
         """fmi2OK, or fmi2Discard (False) with the reason logged; never raises."""
@@ -197,10 +222,7 @@ class StewartPlant(Fmi2Slave):
             self.log(f"doStep at t = {current_time!r} s refused: {refusal}", Fmi2Status.discard)
             return False
         try:
-            self.plant.set_force(self.values["sigma"])
-            if self.model.drive is not None:
-                self.plant.set_torque(self.values["tau"])
-            self.plant.do_step(current_time, step_size)
+            self._synced().do_step(current_time, step_size)
         except StepRejected as exc:
             self.log(str(exc), Fmi2Status.discard)
             return False
@@ -208,6 +230,13 @@ class StewartPlant(Fmi2Slave):
             self._error(f"doStep(t = {current_time!r}, h = {step_size!r}): {type(exc).__name__}: {exc}")
             return False
         return True
+
+    def _synced(self) -> Plant:
+        """The plant, holding the inputs last set (each value was checked in its setter)."""
+        if self.inputs_changed:
+            self.plant.hold_inputs(self.values["sigma"], self.values["tau"])
+            self.inputs_changed = False
+        return self.plant
 
     def _refusal(self) -> str | None:
         if self.init_error:
@@ -222,7 +251,10 @@ class StewartPlant(Fmi2Slave):
     # --- state -----------------------------------------------------------------------------
 
     def _get_fmu_state(self):
-        return {"plant": self.plant.get_state(), "values": {k: v.copy() for k, v in self.values.items()},
+        return self._guarded("getFMUstate", self._snapshot)
+
+    def _snapshot(self) -> dict:
+        return {"plant": self._synced().get_state(), "values": {k: v.copy() for k, v in self.values.items()},
                 "overrides": dict(self.overrides), "solver": dict(self.solver),
                 "start_time": self.start_time, "bad_inputs": dict(self.bad_inputs),
                 "init_error": self.init_error}
@@ -241,6 +273,7 @@ class StewartPlant(Fmi2Slave):
         self.values = {k: v.copy() for k, v in state["values"].items()}
         self.start_time, self.init_error = state["start_time"], state["init_error"]
         self.bad_inputs = dict(state["bad_inputs"])
+        self.inputs_changed = False
 
     @staticmethod
     def _fmu_state_to_bytes(state) -> bytes:

@@ -73,10 +73,11 @@ def inverse_kinematics(model: Model, q, qd=None, qdd=None, *, with_cond: bool = 
     return out
 
 
-def check_poses(model: Model, q, t=None) -> LegKinematics:
-    """Inverse kinematics that raises at the first pose past a stroke limit or near a singularity."""
+def check_poses(model: Model, q, t=None, qd=None, qdd=None) -> LegKinematics:
+    """Inverse kinematics (with rates and accelerations when qd, qdd are given) that raises at
+    the first pose past a stroke limit or near a singularity."""
     Q = np.atleast_2d(np.asarray(q, dtype=float))
-    kin = inverse_kinematics(model, Q)
+    kin = inverse_kinematics(model, Q, qd, qdd)
     lo = model.leg_min if model.leg_min is not None else 0.0
     hi = model.leg_max if model.leg_max is not None else np.inf
     bad = np.flatnonzero(np.any((kin.lengths < lo) | (kin.lengths > hi)

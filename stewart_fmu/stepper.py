@@ -17,7 +17,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .dynamics import GIMBAL, NONFINITE, OVERFLOW, SINGULAR, inverse_dynamics_parts, present_parts
-from .dynamics import forward_dynamics
+from .dynamics import forward_dynamics, leg_state
 from .errors import StewartError, TrajectoryError
 from .integrators import (_A, _E, STEP_TOO_SMALL, TOO_MANY_STEPS, IntegratorOptions,
                           dopri5_advance, rk4_advance, scipy_advance)
@@ -82,27 +82,28 @@ class Outputs:
     def qd(self) -> np.ndarray:
         return self.plant._y[6:].copy()
 
-    def _kinematics(self):
+    def _legs(self):
         y = self.plant._y
-        return self._get("kin", lambda: inverse_kinematics(self.plant.model, y[:6], y[6:]))
+        return self._get("legs", lambda: leg_state(self.plant.model, y[:6], y[6:]))
 
     @property
     def lengths(self) -> np.ndarray:
-        return self._kinematics().lengths
+        return self._legs()[0]
 
     @property
     def rates(self) -> np.ndarray:
-        return self._kinematics().rates
+        return self._legs()[1]
 
     @property
     def twist(self) -> np.ndarray:
         """(v, omega) of the platform in N."""
-        kin = self._kinematics()
-        return np.r_[self.plant._y[6:9], kin.omega]
+        return np.r_[self.plant._y[6:9], self._legs()[2]]
 
     @property
     def cond(self) -> float:
-        return float(self._kinematics().cond)
+        """cond(J), scaled (an SVD: computed only when asked for)."""
+        y = self.plant._y
+        return self._get("cond", lambda: float(inverse_kinematics(self.plant.model, y[:6]).cond))
 
     @property
     def qdd(self) -> np.ndarray:
@@ -202,6 +203,12 @@ class Plant:
         if self.model.drive is None:
             raise CallSequenceError("set_torque: the scene has no [drive]: set rack forces instead")
         self._torque = _finite_vector("torque", tau)
+        self._inputs_changed()
+
+    def hold_inputs(self, force: np.ndarray, torque: np.ndarray) -> None:
+        """Set both inputs without copying or checking them (an adapter that already checked
+        each value, e.g. the FMU slave); use set_force / set_torque otherwise."""
+        self._force, self._torque = force.copy(), torque.copy()
         self._inputs_changed()
 
     def _inputs_changed(self) -> None:
