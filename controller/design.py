@@ -1,0 +1,89 @@
+"""Per-axis controller design with python-control: a PID on leg position (the derivative acting
+on the measured leg rate) tuned to a crossover frequency and phase margin, and its analysis.
+
+C(s) = Kp + Ki / s + Kd s, with the integral zero a fixed fraction of the crossover
+(Ki = Kp wc / INTEGRAL_RATIO). Kp and Kd then follow from the two real equations
+C(j wc) P(j wc) = exp(j (PM - 180 deg)). Where the plant already has more phase than the margin
+needs (the motor's back-EMF damping makes it an integrator below its mechanical pole), that
+gives Kd < 0: the design is then a PI (Kd = 0) with Kp and Ki from the same two equations.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import control as ct
+import numpy as np
+
+from stewart_fmu.errors import StewartError
+
+from .drive import AxisModel
+
+INTEGRAL_RATIO = 10.0
+
+
+class DesignError(StewartError):
+    """The requested bandwidth and phase margin cannot be met by this controller structure."""
+
+
+@dataclass(frozen=True)
+class PidGains:
+    """V / m, V / (m s), V s / m."""
+
+    kp: float
+    ki: float
+    kd: float
+
+    def tf(self) -> ct.TransferFunction:
+        return ct.tf([self.kd, self.kp, self.ki], [1, 0])
+
+
+@dataclass(frozen=True)
+class Analysis:
+    """Margins and step response of the constant-load loop (continuous time)."""
+
+    gain_margin_db: float      # inf when the phase never crosses -180 deg
+    phase_margin_deg: float
+    crossover_hz: float
+    stable: bool
+    rise_time: float           # s, 10-90 %
+    overshoot_pct: float
+    settling_time: float       # s, 2 %
+
+
+def tune_pid(axis: AxisModel, bandwidth_hz: float, phase_margin_deg: float) -> PidGains:
+    """Gains that put the loop's crossover at bandwidth_hz with phase_margin_deg."""
+    if not (bandwidth_hz > 0 and 0 < phase_margin_deg < 90):
+        raise DesignError(f"bandwidth {bandwidth_hz} Hz must be > 0 and phase margin "
+                          f"{phase_margin_deg} deg in (0, 90)")
+    wc = 2 * np.pi * bandwidth_hz
+    P = complex(axis.position_tf()(1j * wc))
+    target = np.exp(1j * np.deg2rad(phase_margin_deg - 180.0)) / P
+    a = 1 + 1 / (INTEGRAL_RATIO * 1j)   # C = Kp a + Kd b
+    b = 1j * wc
+    M = np.array([[a.real, b.real], [a.imag, b.imag]])
+    kp, kd = np.linalg.solve(M, [target.real, target.imag])
+    if kd >= 0 and kp > 0:
+        return PidGains(float(kp), float(kp * wc / INTEGRAL_RATIO), float(kd))
+    kp, ki = target.real, -target.imag * wc   # PI: C(j wc) = Kp - j Ki / wc
+    if kp <= 0 or ki < 0:
+        raise DesignError(f"no PID with non-negative gains reaches {bandwidth_hz} Hz at "
+                          f"{phase_margin_deg} deg phase margin (PI would need Kp = {kp:.3g}, "
+                          f"Ki = {ki:.3g})")
+    return PidGains(float(kp), float(ki), 0.0)
+
+
+def loop(axis: AxisModel, gains: PidGains) -> ct.TransferFunction:
+    """The open loop C(s) P(s) on leg position."""
+    return gains.tf() * axis.position_tf()
+
+
+def analyse(axis: AxisModel, gains: PidGains) -> Analysis:
+    """Gain and phase margin, crossover, and the closed loop's step figures."""
+    L = loop(axis, gains)
+    gm, pm, _, wc = ct.margin(L)
+    T = ct.feedback(L, 1)
+    stable = bool(np.all(np.real(ct.poles(T)) < 0))
+    info = ct.step_info(T) if stable else {}
+    return Analysis(float(20 * np.log10(gm)) if np.isfinite(gm) else float("inf"), float(pm),
+                    float(wc / (2 * np.pi)), stable, float(info.get("RiseTime", np.nan)),
+                    float(info.get("Overshoot", np.nan)), float(info.get("SettlingTime", np.nan)))

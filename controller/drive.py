@@ -1,0 +1,117 @@
+"""One leg's drive as the paper's controller sees it: a DC servomotor, gearbox and rack and
+pinion moving a constant load mass (the constant-load assumption of Section 4).
+
+Leg coordinate x (m, the leg length), rack speed v = x', motor current i:
+
+    L i' = V - R i - (Ke zeta / r) v
+    (m_load + m_d) v' = (Kt zeta / r) i - c v         m_d = zeta^2 I / r^2
+
+The constant load is derived from the Kane model: the largest diagonal entry of the leg-space
+mass matrix [m] at home (what one actuator accelerates when the other five hold still), so the
+design sees the platform and leg inertia but none of the coupling. A scene can give it instead.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import control as ct
+import numpy as np
+
+from stewart_fmu.errors import SceneError
+from stewart_fmu.kane_terms import mass_matrix
+from stewart_fmu.model import Model
+
+_MOTOR_KEYS = ("resistance", "inductance", "torque_constant", "back_emf", "current_limit",
+               "voltage_limit")
+
+
+@dataclass(frozen=True)
+class Motor:
+    """DC servomotor: ohm, H, N m / A, V s / rad, A, V."""
+
+    resistance: float
+    inductance: float
+    torque_constant: float
+    back_emf: float
+    current_limit: float
+    voltage_limit: float
+
+
+@dataclass(frozen=True)
+class AxisModel:
+    """Drive of one leg with its constant load."""
+
+    motor: Motor
+    gear_ratio: float
+    pinion_radius: float
+    rotor_inertia: float
+    load_mass: float        # kg, the constant load (see the module doc)
+    viscous: float          # N s / m, joint friction (0 without [friction])
+
+    @property
+    def force_constant(self) -> float:
+        """Rack force per ampere, N / A: Kt zeta / r."""
+        return self.motor.torque_constant * self.gear_ratio / self.pinion_radius
+
+    @property
+    def emf_constant(self) -> float:
+        """Back-EMF per rack speed, V s / m: Ke zeta / r."""
+        return self.motor.back_emf * self.gear_ratio / self.pinion_radius
+
+    @property
+    def reflected_mass(self) -> float:
+        """m_d = zeta^2 I / r^2, kg."""
+        return self.gear_ratio**2 * self.rotor_inertia / self.pinion_radius**2
+
+    @property
+    def moving_mass(self) -> float:
+        return self.load_mass + self.reflected_mass
+
+    def state_space(self) -> ct.StateSpace:
+        """States (x, v, i), input voltage V, outputs (x, v)."""
+        L, R = self.motor.inductance, self.motor.resistance
+        m = self.moving_mass
+        A = [[0, 1, 0], [0, -self.viscous / m, self.force_constant / m],
+             [0, -self.emf_constant / L, -R / L]]
+        return ct.ss(A, [[0], [0], [1 / L]], [[1, 0, 0], [0, 1, 0]], [[0], [0]],
+                     inputs=["V"], outputs=["x", "v"], states=["x", "v", "i"], name="axis")
+
+    def position_tf(self) -> ct.TransferFunction:
+        """x(s) / V(s) = Kf / (s ((L s + R)(m s + c) + Kf Ke))."""
+        L, R, m, c = self.motor.inductance, self.motor.resistance, self.moving_mass, self.viscous
+        den = np.polymul([L, R], [m, c]) + np.r_[0, 0, self.force_constant * self.emf_constant]
+        return ct.tf([self.force_constant], np.polymul(den, [1, 0]), inputs="V", outputs="x")
+
+
+def constant_load(model: Model) -> float:
+    """The largest diagonal entry of the Kane mass matrix [m] at home (kg), drives excluded."""
+    return float(np.max(np.diag(mass_matrix(model, model.home))))
+
+
+def axis_model(model: Model, motor: Motor, load_mass: float | None = None) -> AxisModel:
+    """The drive of the scene's legs with its constant load (derived when not given)."""
+    if model.drive is None:
+        raise SceneError("drive", "the per-axis controller needs the scene's [drive] table")
+    d = model.drive
+    return AxisModel(motor, d.gear_ratio, d.pinion_radius, d.rotor_inertia,
+                     constant_load(model) if load_mass is None else load_mass,
+                     model.friction.viscous if model.friction is not None else 0.0)
+
+
+def motor_from_table(table: Mapping[str, Any], where: str = "controller.motor") -> Motor:
+    """Read and check a motor table: every key present, finite and > 0."""
+    if not isinstance(table, Mapping):
+        raise SceneError(where, "must be a table")
+    unknown = sorted(set(table) - set(_MOTOR_KEYS))
+    if unknown:
+        raise SceneError(f"{where}.{unknown[0]}", f"unknown key (allowed: {list(_MOTOR_KEYS)})")
+    values = {}
+    for key in _MOTOR_KEYS:
+        if key not in table:
+            raise SceneError(f"{where}.{key}", "required key is missing")
+        x = table[key]
+        if isinstance(x, bool) or not isinstance(x, (int, float)) or not np.isfinite(x) or x <= 0:
+            raise SceneError(f"{where}.{key}", f"must be a finite number > 0, got {x!r}")
+        values[key] = float(x)
+    return Motor(**values)
