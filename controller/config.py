@@ -1,0 +1,79 @@
+"""The scene's [controller] table: motor, design targets, controller rate and feedforward.
+
+    [controller]
+    rate = 1000.0            # Hz, controller and communication rate
+    bandwidth = 20.0         # Hz, crossover of each axis loop
+    phase_margin = 60.0      # deg
+    feedforward = "none"     # "none" | "constant_load" | "kane" (computed torque)
+    load_mass = 0.5          # kg, optional: the constant load (default: from the Kane model)
+    [controller.motor]
+    resistance = 2.5         # ohm
+    inductance = 5e-4        # H
+    torque_constant = 0.02   # N m / A
+    back_emf = 0.02          # V s / rad
+    current_limit = 2.0      # A
+    voltage_limit = 24.0     # V
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+
+from stewart_fmu.errors import SceneError
+from stewart_fmu.model import Model
+
+from .drive import Motor, motor_from_table
+
+FEEDFORWARD = ("none", "constant_load", "kane")
+_KEYS = {"rate", "bandwidth", "phase_margin", "feedforward", "load_mass", "motor"}
+
+
+@dataclass(frozen=True)
+class ControllerConfig:
+    """What the scene asks of the per-axis controllers."""
+
+    motor: Motor
+    rate: float = 1000.0
+    bandwidth: float = 20.0
+    phase_margin: float = 60.0
+    feedforward: str = "none"
+    load_mass: float | None = None
+
+    @property
+    def dt(self) -> float:
+        return 1.0 / self.rate
+
+
+def controller_config(model: Model) -> ControllerConfig:
+    """The [controller] table of the model's scene, checked (SceneError names the key)."""
+    table = model.extra.get("controller")
+    if table is None:
+        raise SceneError("controller", "the scene has no [controller] table (motor and design "
+                                       "targets): see controller/config.py", model.source)
+    unknown = sorted(set(table) - _KEYS)
+    if unknown:
+        raise SceneError(f"controller.{unknown[0]}", f"unknown key (allowed: {sorted(_KEYS)})",
+                         model.source)
+    if "motor" not in table:
+        raise SceneError("controller.motor", "required table is missing", model.source)
+    values: dict[str, Any] = {"motor": motor_from_table(table["motor"])}
+    for key in ("rate", "bandwidth", "phase_margin", "load_mass"):
+        if key in table:
+            values[key] = _positive(table, key, model.source)
+    if not values.get("phase_margin", 60.0) < 90:
+        raise SceneError("controller.phase_margin", "must be below 90 deg", model.source)
+    ff = table.get("feedforward", "none")
+    if ff not in FEEDFORWARD:
+        raise SceneError("controller.feedforward", f"must be one of {FEEDFORWARD}, got {ff!r}",
+                         model.source)
+    values["feedforward"] = ff
+    return ControllerConfig(**values)
+
+
+def _positive(table: Mapping[str, Any], key: str, source: str | None) -> float:
+    x = table[key]
+    if isinstance(x, bool) or not isinstance(x, (int, float)) or not np.isfinite(x) or x <= 0:
+        raise SceneError(f"controller.{key}", f"must be a finite number > 0, got {x!r}", source)
+    return float(x)

@@ -1,0 +1,266 @@
+"""The co-simulation master: six axis controllers and their drives around the plant.
+
+At each communication step (the controller period): measure leg lengths and rates, compute the
+voltages (PID + feedforward), advance the motor currents, hand the mean motor torques to the
+plant, step the plant. The plant is the in-process component (stewart_fmu.stepper.Plant) or the
+exported FMU driven through fmpy; both see the same calls, so their results are equal.
+"""
+from __future__ import annotations
+
+import time as wallclock
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Protocol
+
+import numpy as np
+
+from stewart_fmu.dynamics import inverse_dynamics
+from stewart_fmu.errors import StewartError
+from stewart_fmu.io import POSE, named_array
+from stewart_fmu.model import Model
+from stewart_fmu.stepper import Plant, StepRejected
+
+from .axis import AxisControllers, MotorCurrents
+from .config import ControllerConfig
+from .design import Analysis, DesignError, PidGains, analyse, tune_pid
+from .drive import AxisModel, axis_model
+from .trajectory import LegReferences, Trajectory, leg_references
+
+DIVERGENCE_FRACTION = 0.5  # a leg error beyond this fraction of the stroke range means unstable
+
+
+class UnstableLoopError(DesignError):
+    """The closed loop is unstable (by analysis before the run, or diverging during it)."""
+
+
+class PlantStepError(StewartError):
+    """The plant refused a step (stroke, singularity) during a closed-loop run."""
+
+
+class PlantPort(Protocol):
+    """What the master needs of a plant."""
+
+    def start(self, q0: np.ndarray, qd0: np.ndarray, t0: float) -> None: ...
+    def step(self, t: float, h: float, torque: np.ndarray) -> None: ...
+    def measure(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...  # l, ldot, q
+
+
+class InProcessPlant:
+    """stewart_fmu.stepper.Plant behind the PlantPort calls."""
+
+    def __init__(self, model: Model):
+        self.plant = Plant(model)
+
+    def start(self, q0, qd0, t0) -> None:
+        self.plant.setup_experiment(t0)
+        self.plant.enter_initialization_mode()
+        self.plant.set_initial(q0, qd0)
+        self.plant.exit_initialization_mode()
+
+    def step(self, t, h, torque) -> None:
+        self.plant.set_torque(torque)
+        try:
+            self.plant.do_step(t, h)
+        except StepRejected as exc:
+            raise PlantStepError(str(exc)) from None
+
+    def measure(self):
+        out = self.plant.outputs
+        return out.lengths, out.rates, out.q
+
+
+class FmuPlant:
+    """The exported FMU driven through fmpy's FMU2Slave."""
+
+    def __init__(self, path: str | Path):
+        from fmpy import extract, read_model_description
+        from fmpy.fmi2 import FMU2Slave
+
+        self.md = read_model_description(str(path))
+        self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
+        self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=extract(str(path)),
+                             modelIdentifier=self.md.coSimulation.modelIdentifier,
+                             instanceName="plant")
+        self.vr_tau = [self.vr[f"tau[{i}]"] for i in range(1, 7)]
+        names = [f"l[{i}]" for i in range(1, 7)] + [f"ldot[{i}]" for i in range(1, 7)] + list(POSE)
+        self.vr_out = [self.vr[n] for n in names]
+
+    def start(self, q0, qd0, t0) -> None:
+        f = self.fmu
+        f.instantiate()
+        f.setupExperiment(startTime=t0)
+        f.enterInitializationMode()
+        f.setReal([self.vr[f"q0[{k}]"] for k in range(1, 7)], list(map(float, q0)))
+        f.setReal([self.vr[f"qd0[{k}]"] for k in range(1, 7)], list(map(float, qd0)))
+        f.exitInitializationMode()
+
+    def step(self, t, h, torque) -> None:
+        from fmpy.fmi1 import FMICallException
+
+        self.fmu.setReal(self.vr_tau, list(map(float, torque)))
+        try:
+            self.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=h)
+        except FMICallException as exc:
+            raise PlantStepError(f"FMU refused the step at t = {t!r} s: {exc}") from None
+
+    def measure(self):
+        v = np.array(self.fmu.getReal(self.vr_out))
+        return v[:6], v[6:12], v[12:18]
+
+    def close(self) -> None:
+        self.fmu.terminate()
+        self.fmu.freeInstance()
+
+
+@dataclass(frozen=True)
+class Summary:
+    """Tracking and effort figures of a run."""
+
+    leg_rms: np.ndarray        # (6,) m
+    leg_max: np.ndarray        # (6,) m
+    pose_rms: np.ndarray       # (6,) m or rad
+    pose_max: np.ndarray       # (6,) m or rad
+    voltage_rms: np.ndarray    # (6,) V
+    current_max: np.ndarray    # (6,) A
+    saturated_time: float      # s, any axis at its voltage or current limit
+    wall_time: float           # s
+    realtime_factor: float     # simulated time / wall time
+
+
+@dataclass(frozen=True)
+class ClosedLoopResult:
+    """Every signal per sample (a structured array, one column per signal) and the figures."""
+
+    table: np.ndarray
+    summary: Summary
+    gains: PidGains
+    analysis: Analysis
+    axis: AxisModel
+    config: ControllerConfig
+
+
+def design_axis(model: Model, config: ControllerConfig) -> tuple[AxisModel, PidGains, Analysis]:
+    """The constant-load drive, its tuned gains and the loop's analysis; refuses unstable loops."""
+    axis = axis_model(model, config.motor, config.load_mass)
+    gains = tune_pid(axis, config.bandwidth, config.phase_margin)
+    return axis, gains, check_stable(axis, gains)
+
+
+def check_stable(axis: AxisModel, gains: PidGains) -> Analysis:
+    """analyse(), raising UnstableLoopError (with the margins) when the loop is unstable."""
+    a = analyse(axis, gains)
+    if not a.stable:
+        raise UnstableLoopError(
+            f"closed loop unstable with gains {gains}: gain margin {a.gain_margin_db:.3g} dB, "
+            f"phase margin {a.phase_margin_deg:.3g} deg at {a.crossover_hz:.3g} Hz")
+    return a
+
+
+def feedforward_voltage(model: Model, config: ControllerConfig, axis: AxisModel,
+                        traj: Trajectory, refs: LegReferences) -> tuple[np.ndarray, np.ndarray]:
+    """(voltage, current) feedforward per sample for the configured mode."""
+    if config.feedforward == "kane":
+        force = inverse_dynamics(model, traj.q, traj.qd, traj.qdd)
+    elif config.feedforward == "constant_load":
+        force = axis.moving_mass * refs.lddot + axis.viscous * refs.ldot
+    else:
+        return np.zeros_like(refs.l), np.zeros_like(refs.l)
+    current = force / axis.force_constant
+    rate = np.gradient(current, traj.t, axis=0)
+    m = axis.motor
+    voltage = m.resistance * current + m.inductance * rate + axis.emf_constant * refs.ldot
+    return voltage, current
+
+
+def run_closed_loop(model: Model, config: ControllerConfig, traj: Trajectory,
+                    plant: PlantPort | None = None, gains: PidGains | None = None,
+                    progress: Callable[[int, int], None] | None = None) -> ClosedLoopResult:
+    """Track traj with the per-axis controllers; raises UnstableLoopError or PlantStepError."""
+    axis = axis_model(model, config.motor, config.load_mass)
+    gains = gains or tune_pid(axis, config.bandwidth, config.phase_margin)
+    analysis = check_stable(axis, gains)
+    _check_rate(traj, config)
+    refs = leg_references(model, traj)
+    v_ff, i_ff = feedforward_voltage(model, config, axis, traj, refs)
+    plant = plant or InProcessPlant(model)
+    ctrl, motors = AxisControllers(gains, axis, config.dt), MotorCurrents(axis, config.dt)
+    _start_at_equilibrium(model, traj, axis, gains, ctrl, motors, v_ff[0], plant)
+    rec = _Recorder(len(traj.t))
+    bound = DIVERGENCE_FRACTION * _stroke_range(model, refs)
+    start = wallclock.perf_counter()
+    for k, t in enumerate(traj.t):
+        l, ldot, q = plant.measure()
+        v, sat = ctrl.step(refs.l[k], refs.ldot[k], l, ldot, v_ff[k])
+        torque, limited = motors.step(v, ldot)
+        rec.add(k, l, ldot, q, v, motors.current, torque, sat | limited)
+        err = np.abs(refs.l[k] - l)
+        if np.any(err > bound) or not np.all(np.isfinite(err)):
+            raise UnstableLoopError(f"tracking diverged at t = {t!r} s: leg errors {err.tolist()} m "
+                                    f"exceed {bound:.3g} m ({DIVERGENCE_FRACTION} of the stroke)")
+        if k + 1 < len(traj.t):
+            plant.step(t, traj.t[k + 1] - t, torque)
+        if progress is not None and k % 1000 == 0:
+            progress(k, len(traj.t))
+    wall = wallclock.perf_counter() - start
+    table = rec.table(traj, refs, v_ff)
+    return ClosedLoopResult(table, _summary(table, traj, config, wall), gains, analysis, axis, config)
+
+
+def _check_rate(traj: Trajectory, config: ControllerConfig) -> None:
+    steps = np.diff(traj.t)
+    if not np.allclose(steps, config.dt, rtol=1e-9, atol=0):
+        raise StewartError(f"trajectory sampled at {1 / np.mean(steps):.6g} Hz; the controller runs "
+                           f"at {config.rate:g} Hz: sample the trajectory at the controller rate")
+
+
+def _start_at_equilibrium(model, traj, axis, gains, ctrl, motors, v_ff0, plant) -> None:
+    """The drives hold the platform at the first pose before the move (bumpless start)."""
+    hold = inverse_dynamics(model, traj.q[0], traj.qd[0], np.zeros(6))
+    motors.current = hold / axis.force_constant
+    v_hold = motors.voltage_for(motors.current, np.zeros(6), np.zeros(6))
+    ctrl.integral = (v_hold - v_ff0) / gains.ki if gains.ki > 0 else np.zeros(6)
+    plant.start(traj.q[0], traj.qd[0], float(traj.t[0]))
+
+
+def _stroke_range(model: Model, refs: LegReferences) -> float:
+    lo = model.leg_min if model.leg_min is not None else 0.0
+    hi = model.leg_max if model.leg_max is not None else 2 * float(np.max(refs.l))
+    return hi - lo
+
+
+class _Recorder:
+    """Preallocated signal arrays (no per-step allocation)."""
+
+    def __init__(self, n: int):
+        self.data = {k: np.empty((n, 6)) for k in ("l", "ldot", "q", "v", "i", "tau")}
+        self.sat = np.zeros((n, 6), dtype=bool)
+
+    def add(self, k, l, ldot, q, v, i, tau, sat) -> None:
+        for key, val in (("l", l), ("ldot", ldot), ("q", q), ("v", v), ("i", i), ("tau", tau)):
+            self.data[key][k] = val
+        self.sat[k] = sat
+
+    def table(self, traj: Trajectory, refs: LegReferences, v_ff: np.ndarray) -> np.ndarray:
+        cols = {"time": traj.t}
+        for name, arr in (("l_ref", refs.l), ("l", self.data["l"]), ("e", refs.l - self.data["l"]),
+                          ("voltage", self.data["v"]), ("v_ff", v_ff), ("current", self.data["i"]),
+                          ("torque", self.data["tau"]), ("saturated", self.sat.astype(float))):
+            cols.update({f"{name}{i + 1}": arr[:, i] for i in range(6)})
+        for k, c in enumerate(POSE):
+            cols[f"{c}_ref"] = traj.q[:, k]
+            cols[c] = self.data["q"][:, k]
+        return named_array(cols)
+
+
+def _summary(table: np.ndarray, traj: Trajectory, config: ControllerConfig, wall: float) -> Summary:
+    def legs(prefix):
+        return np.column_stack([table[f"{prefix}{i}"] for i in range(1, 7)])
+
+    e = legs("e")
+    pose_err = np.column_stack([table[c] - table[f"{c}_ref"] for c in POSE])
+    sat = np.any(legs("saturated") > 0, axis=1)
+    duration = float(traj.t[-1] - traj.t[0])
+    return Summary(np.sqrt(np.mean(e**2, axis=0)), np.max(np.abs(e), axis=0),
+                   np.sqrt(np.mean(pose_err**2, axis=0)), np.max(np.abs(pose_err), axis=0),
+                   np.sqrt(np.mean(legs("voltage") ** 2, axis=0)), np.max(np.abs(legs("current")), axis=0),
+                   float(np.count_nonzero(sat)) * config.dt, wall, duration / wall if wall > 0 else np.inf)
