@@ -10,13 +10,44 @@ the sampling of the integral and the zero-order hold.
 `MotorCurrents` integrates each motor's current exactly over a step with the voltage and the
 leg rate held (first-order ODE), clamps it at the current limit, and returns the step's mean
 torque, which the plant receives as its motor-torque input.
+
+The arithmetic lives in two compiled functions (`pid_voltages`, `advance_currents`) shared by
+these classes (the master's Python loop, e.g. around an FMU) and by the master's compiled
+in-process loop, so both loops compute the same numbers.
 """
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from .design import PidGains
 from .drive import AxisModel
+
+
+@njit(cache=True, error_model="numpy")
+def pid_voltages(kp, ki, kd, vmax, dt, integral, l_ref, ldot_ref, l, ldot, v_ff, v, sat) -> None:
+    """Fill v (6,) and sat (6,) and advance the integral in place (anti-windup)."""
+    for i in range(6):
+        e = l_ref[i] - l[i]
+        u = kp * e + ki * integral[i] + kd * (ldot_ref[i] - ldot[i]) + v_ff[i]
+        out = min(max(u, -vmax), vmax)
+        v[i] = out
+        sat[i] = out != u
+        if not (sat[i] and (e > 0) == (u > 0) and e != 0.0):
+            integral[i] += e * dt
+
+
+@njit(cache=True, error_model="numpy")
+def advance_currents(R, Kt, emf, ilim, decay, mean_decay, current, v, ldot, torque, limited) -> None:
+    """Advance the currents in place; fill the mean torque over the step and the limited flags."""
+    for i in range(6):
+        steady = (v[i] - emf * ldot[i]) / R
+        gap = current[i] - steady
+        mean = steady + gap * mean_decay
+        end = steady + gap * decay
+        limited[i] = abs(mean) > ilim
+        current[i] = min(max(end, -ilim), ilim)
+        torque[i] = Kt * min(max(mean, -ilim), ilim)
 
 
 class AxisControllers:
@@ -32,14 +63,11 @@ class AxisControllers:
     def step(self, l_ref: np.ndarray, ldot_ref: np.ndarray, l: np.ndarray, ldot: np.ndarray,
              v_ff: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Voltages for this sample and which axes are saturated."""
-        g, vmax = self.gains, self.axis.motor.voltage_limit
-        e = l_ref - l
-        v = g.kp * e + g.ki * self.integral + g.kd * (ldot_ref - ldot) + v_ff
-        out = np.clip(v, -vmax, vmax)
-        saturated = out != v
-        winding = saturated & (np.sign(e) == np.sign(v))
-        self.integral += np.where(winding, 0.0, e * self.dt)
-        return out, saturated
+        g = self.gains
+        v, sat = np.empty(6), np.empty(6, dtype=np.bool_)
+        pid_voltages(g.kp, g.ki, g.kd, self.axis.motor.voltage_limit, self.dt, self.integral,
+                     l_ref, ldot_ref, l, ldot, v_ff, v, sat)
+        return v, sat
 
 
 class MotorCurrents:
@@ -48,7 +76,7 @@ class MotorCurrents:
     def __init__(self, axis: AxisModel, dt: float):
         m = axis.motor
         self.axis, self.dt = axis, dt
-        self.decay = np.exp(-m.resistance * dt / m.inductance)
+        self.decay = float(np.exp(-m.resistance * dt / m.inductance))
         # mean of exp(-t R / L) over the step
         self.mean_decay = (1.0 - self.decay) * m.inductance / (m.resistance * dt)
         self.current = np.zeros(6)
@@ -59,13 +87,10 @@ class MotorCurrents:
     def step(self, voltage: np.ndarray, ldot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Advance the currents; returns (mean motor torque over the step, current-limited axes)."""
         m = self.axis.motor
-        steady = (voltage - self.axis.emf_constant * ldot) / m.resistance
-        gap = self.current - steady
-        mean = steady + gap * self.mean_decay
-        end = steady + gap * self.decay
-        limited = np.abs(mean) > m.current_limit
-        self.current = np.clip(end, -m.current_limit, m.current_limit)
-        return m.torque_constant * np.clip(mean, -m.current_limit, m.current_limit), limited
+        torque, limited = np.empty(6), np.empty(6, dtype=np.bool_)
+        advance_currents(m.resistance, m.torque_constant, self.axis.emf_constant, m.current_limit,
+                         self.decay, self.mean_decay, self.current, voltage, ldot, torque, limited)
+        return torque, limited
 
     def voltage_for(self, current: np.ndarray, current_rate: np.ndarray,
                     ldot: np.ndarray) -> np.ndarray:

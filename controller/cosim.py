@@ -7,26 +7,30 @@ exported FMU driven through fmpy; both see the same calls, so their results are 
 """
 from __future__ import annotations
 
+import math
 import time as wallclock
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Protocol
 
 import numpy as np
+from numba import njit
 
-from stewart_fmu.dynamics import inverse_dynamics
+from stewart_fmu.dynamics import _leg_state, inverse_dynamics
 from stewart_fmu.errors import StewartError
+from stewart_fmu.integrators import _A, _E, IntegratorOptions, dopri5_advance, rk4_advance
 from stewart_fmu.io import POSE, named_array
 from stewart_fmu.model import Model
-from stewart_fmu.stepper import Plant, StepRejected
+from stewart_fmu.stepper import _WHY, Plant, StepRejected
 
-from .axis import AxisControllers, MotorCurrents
+from .axis import AxisControllers, MotorCurrents, advance_currents, pid_voltages
 from .config import ControllerConfig
 from .design import Analysis, DesignError, PidGains, analyse, tune_pid
 from .drive import AxisModel, axis_model
 from .trajectory import LegReferences, Trajectory, leg_references
 
 DIVERGENCE_FRACTION = 0.5  # a leg error beyond this fraction of the stroke range means unstable
+DIVERGED = -1              # status of the compiled loop: tracking error beyond the bound
 
 
 class UnstableLoopError(DesignError):
@@ -182,12 +186,23 @@ def run_closed_loop(model: Model, config: ControllerConfig, traj: Trajectory,
     _check_rate(traj, config)
     refs = leg_references(model, traj)
     v_ff, i_ff = feedforward_voltage(model, config, axis, traj, refs)
-    plant = plant or InProcessPlant(model)
     ctrl, motors = AxisControllers(gains, axis, config.dt), MotorCurrents(axis, config.dt)
-    _start_at_equilibrium(model, traj, axis, gains, ctrl, motors, v_ff[0], plant)
     rec = _Recorder(len(traj.t))
     bound = DIVERGENCE_FRACTION * _stroke_range(model, refs)
     start = wallclock.perf_counter()
+    if plant is None:  # in-process: the whole loop in one compiled call
+        _start_at_equilibrium(model, traj, axis, gains, ctrl, motors, v_ff[0], None)
+        _run_compiled(model, traj, refs, v_ff, ctrl, motors, bound, rec, progress)
+    else:
+        _start_at_equilibrium(model, traj, axis, gains, ctrl, motors, v_ff[0], plant)
+        _run_ports(plant, traj, refs, v_ff, ctrl, motors, bound, rec, progress)
+    wall = wallclock.perf_counter() - start
+    table = rec.table(traj, refs, v_ff)
+    return ClosedLoopResult(table, _summary(table, traj, config, wall), gains, analysis, axis, config)
+
+
+def _run_ports(plant, traj, refs, v_ff, ctrl, motors, bound, rec, progress) -> None:
+    """The master's loop in Python, around any PlantPort (e.g. an FMU)."""
     for k, t in enumerate(traj.t):
         l, ldot, q = plant.measure()
         v, sat = ctrl.step(refs.l[k], refs.ldot[k], l, ldot, v_ff[k])
@@ -195,15 +210,86 @@ def run_closed_loop(model: Model, config: ControllerConfig, traj: Trajectory,
         rec.add(k, l, ldot, q, v, motors.current, torque, sat | limited)
         err = np.abs(refs.l[k] - l)
         if np.any(err > bound) or not np.all(np.isfinite(err)):
-            raise UnstableLoopError(f"tracking diverged at t = {t!r} s: leg errors {err.tolist()} m "
-                                    f"exceed {bound:.3g} m ({DIVERGENCE_FRACTION} of the stroke)")
+            raise _diverged(t, err, bound)
         if k + 1 < len(traj.t):
             plant.step(t, traj.t[k + 1] - t, torque)
         if progress is not None and k % 1000 == 0:
             progress(k, len(traj.t))
-    wall = wallclock.perf_counter() - start
-    table = rec.table(traj, refs, v_ff)
-    return ClosedLoopResult(table, _summary(table, traj, config, wall), gains, analysis, axis, config)
+
+
+def _diverged(t: float, err: np.ndarray, bound: float) -> UnstableLoopError:
+    return UnstableLoopError(f"tracking diverged at t = {t!r} s: leg errors {err.tolist()} m "
+                             f"exceed {bound:.3g} m ({DIVERGENCE_FRACTION} of the stroke)")
+
+
+CHUNK = 20_000  # samples per compiled call, so that long runs can report progress
+
+
+def _run_compiled(model, traj, refs, v_ff, ctrl, motors, bound, rec, progress) -> None:
+    """The in-process loop as one compiled call; the same arithmetic as _run_ports with
+    InProcessPlant (the default integrator options of stewart_fmu.stepper.Plant)."""
+    o = IntegratorOptions()
+    h = float(traj.t[1] - traj.t[0])
+    n_sub = max(1, math.ceil(h / o.max_step - 1e-9))
+    g, m, ax = ctrl.gains, motors.axis.motor, motors.axis
+    y = np.r_[traj.q[0], traj.qd[0]]
+    gain = model.drive.gear_ratio / model.drive.pinion_radius
+    h_try = np.array([o.max_step])
+    n = len(traj.t)
+    for k0 in range(0, n, CHUNK):
+        k, status = _loop_kernel(
+            model.params, y, traj.t, k0, min(k0 + CHUNK, n), refs.l, refs.ldot, v_ff, g.kp, g.ki,
+            g.kd, m.voltage_limit, ctrl.dt, ctrl.integral, m.resistance, m.torque_constant,
+            ax.emf_constant, m.current_limit, motors.decay, motors.mean_decay, motors.current,
+            gain, n_sub, o.method == "rk4", o.rtol, o.atol, o.max_step, o.max_steps, _A, _E,
+            h_try, bound, rec.data["l"], rec.data["ldot"], rec.data["q"], rec.data["v"],
+            rec.data["i"], rec.data["tau"], rec.sat)
+        if status:
+            break
+        if progress is not None:
+            progress(min(k0 + CHUNK, n), n)
+    if status == DIVERGED:
+        raise _diverged(float(traj.t[k]), np.abs(refs.l[k] - rec.data["l"][k]), bound)
+    if status:
+        raise PlantStepError(f"plant refused the step at t = {traj.t[k]!r} s: "
+                             f"{_WHY.get(status, f'status {status}')}")
+
+
+@njit(cache=True, error_model="numpy")
+def _loop_kernel(p, y, t, k0, k1, l_ref, ldot_ref, v_ff, kp, ki, kd, vmax, dt, integral, R, Kt,
+                 emf, ilim, decay, mean_decay, current, gain, n_sub, use_rk4, rtol, atol,
+                 max_step, max_steps, A, E, h_try, bound, rec_l, rec_ldot, rec_q, rec_v, rec_i,
+                 rec_tau, rec_sat):
+    """measure -> PID -> motor currents -> plant step for samples k0..k1-1 (state carried in
+    y, integral, current, h_try); (k, status) of a failure, (-1, 0) when all went well."""
+    n = t.shape[0]
+    ynext, rack = np.empty(12), np.empty(6)
+    v, torque = np.empty(6), np.empty(6)
+    sat, limited = np.empty(6, np.bool_), np.empty(6, np.bool_)
+    for k in range(k0, k1):
+        l, ldot, _ = _leg_state(p, y[:6], y[6:])
+        pid_voltages(kp, ki, kd, vmax, dt, integral, l_ref[k], ldot_ref[k], l, ldot, v_ff[k], v, sat)
+        advance_currents(R, Kt, emf, ilim, decay, mean_decay, current, v, ldot, torque, limited)
+        for i in range(6):
+            rec_l[k, i], rec_ldot[k, i], rec_q[k, i] = l[i], ldot[i], y[i]
+            rec_v[k, i], rec_i[k, i], rec_tau[k, i] = v[i], current[i], torque[i]
+            rec_sat[k, i] = sat[i] or limited[i]
+            err = abs(l_ref[k, i] - l[i])
+            if not err <= bound:
+                return k, DIVERGED
+        if k + 1 < n:
+            for i in range(6):
+                rack[i] = 0.0 + gain * torque[i]  # the plant's rack force: sigma (0) + zeta/r tau
+            h = t[k + 1] - t[k]
+            if use_rk4:
+                status = rk4_advance(p, y, ynext, rack, h, n_sub)
+            else:
+                status, h_try[0], _, _ = dopri5_advance(p, y, ynext, rack, h, h_try[0], rtol,
+                                                        atol, max_step, max_steps, A, E)
+            if status != 0:
+                return k, status
+            y[:] = ynext
+    return -1, 0
 
 
 def _check_rate(traj: Trajectory, config: ControllerConfig) -> None:
@@ -219,7 +305,8 @@ def _start_at_equilibrium(model, traj, axis, gains, ctrl, motors, v_ff0, plant) 
     motors.current = hold / axis.force_constant
     v_hold = motors.voltage_for(motors.current, np.zeros(6), np.zeros(6))
     ctrl.integral = (v_hold - v_ff0) / gains.ki if gains.ki > 0 else np.zeros(6)
-    plant.start(traj.q[0], traj.qd[0], float(traj.t[0]))
+    if plant is not None:
+        plant.start(traj.q[0], traj.qd[0], float(traj.t[0]))
 
 
 def _stroke_range(model: Model, refs: LegReferences) -> float:
