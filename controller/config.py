@@ -52,13 +52,15 @@ def controller_config(model: Model) -> ControllerConfig:
     if table is None:
         raise SceneError("controller", "the scene has no [controller] table (motor and design "
                                        "targets): see controller/config.py", model.source)
+    if not isinstance(table, Mapping):
+        raise SceneError("controller", f"must be a table, got {table!r}", model.source)
     unknown = sorted(set(table) - _KEYS)
     if unknown:
         raise SceneError(f"controller.{unknown[0]}", f"unknown key (allowed: {sorted(_KEYS)})",
                          model.source)
     if "motor" not in table:
         raise SceneError("controller.motor", "required table is missing", model.source)
-    values: dict[str, Any] = {"motor": motor_from_table(table["motor"])}
+    values: dict[str, Any] = {"motor": motor_from_table(table["motor"], source=model.source)}
     for key in ("rate", "bandwidth", "phase_margin", "load_mass"):
         if key in table:
             values[key] = _positive(table, key, model.source)

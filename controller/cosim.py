@@ -25,7 +25,7 @@ from stewart_fmu.stepper import _WHY, Plant, StepRejected
 
 from .axis import AxisControllers, MotorCurrents, advance_currents, pid_voltages
 from .config import ControllerConfig
-from .design import Analysis, DesignError, PidGains, analyse, tune_pid
+from .design import Analysis, DesignError, PidGains, analyse, sampled_spectral_radius, tune_pid
 from .drive import AxisModel, axis_model
 from .trajectory import LegReferences, Trajectory, leg_references
 
@@ -147,15 +147,18 @@ def design_axis(model: Model, config: ControllerConfig) -> tuple[AxisModel, PidG
     """The constant-load drive, its tuned gains and the loop's analysis; refuses unstable loops."""
     axis = axis_model(model, config.motor, config.load_mass)
     gains = tune_pid(axis, config.bandwidth, config.phase_margin)
-    return axis, gains, check_stable(axis, gains)
+    return axis, gains, check_stable(axis, gains, config.dt)
 
 
-def check_stable(axis: AxisModel, gains: PidGains) -> Analysis:
-    """analyse(), raising UnstableLoopError (with the margins) when the loop is unstable."""
+def check_stable(axis: AxisModel, gains: PidGains, dt: float) -> Analysis:
+    """analyse(), raising UnstableLoopError (with the margins) when the continuous loop or the
+    loop sampled at dt is unstable."""
     a = analyse(axis, gains)
-    if not a.stable:
+    rho = sampled_spectral_radius(axis, gains, dt)
+    if not a.stable or not rho < 1.0:
+        where = "closed loop" if not a.stable else f"loop sampled at {1 / dt:g} Hz (spectral radius {rho:.4g})"
         raise UnstableLoopError(
-            f"closed loop unstable with gains {gains}: gain margin {a.gain_margin_db:.3g} dB, "
+            f"{where} unstable with gains {gains}: gain margin {a.gain_margin_db:.3g} dB, "
             f"phase margin {a.phase_margin_deg:.3g} deg at {a.crossover_hz:.3g} Hz")
     return a
 
@@ -182,7 +185,7 @@ def run_closed_loop(model: Model, config: ControllerConfig, traj: Trajectory,
     """Track traj with the per-axis controllers; raises UnstableLoopError or PlantStepError."""
     axis = axis_model(model, config.motor, config.load_mass)
     gains = gains or tune_pid(axis, config.bandwidth, config.phase_margin)
-    analysis = check_stable(axis, gains)
+    analysis = check_stable(axis, gains, config.dt)
     _check_rate(traj, config)
     refs = leg_references(model, traj)
     v_ff, i_ff = feedforward_voltage(model, config, axis, traj, refs)
@@ -191,10 +194,10 @@ def run_closed_loop(model: Model, config: ControllerConfig, traj: Trajectory,
     bound = DIVERGENCE_FRACTION * _stroke_range(model, refs)
     start = wallclock.perf_counter()
     if plant is None:  # in-process: the whole loop in one compiled call
-        _start_at_equilibrium(model, traj, axis, gains, ctrl, motors, v_ff[0], None)
+        _start_at_equilibrium(model, traj, refs, gains, ctrl, motors, i_ff[0], None)
         _run_compiled(model, traj, refs, v_ff, ctrl, motors, bound, rec, progress)
     else:
-        _start_at_equilibrium(model, traj, axis, gains, ctrl, motors, v_ff[0], plant)
+        _start_at_equilibrium(model, traj, refs, gains, ctrl, motors, i_ff[0], plant)
         _run_ports(plant, traj, refs, v_ff, ctrl, motors, bound, rec, progress)
     wall = wallclock.perf_counter() - start
     table = rec.table(traj, refs, v_ff)
@@ -210,9 +213,9 @@ def _run_ports(plant, traj, refs, v_ff, ctrl, motors, bound, rec, progress) -> N
         rec.add(k, l, ldot, q, v, motors.current, torque, sat | limited)
         err = np.abs(refs.l[k] - l)
         if np.any(err > bound) or not np.all(np.isfinite(err)):
-            raise _diverged(t, err, bound)
+            raise _diverged(float(t), err, bound)
         if k + 1 < len(traj.t):
-            plant.step(t, traj.t[k + 1] - t, torque)
+            plant.step(float(t), float(traj.t[k + 1] - t), torque)
         if progress is not None and k % 1000 == 0:
             progress(k, len(traj.t))
 
@@ -251,8 +254,12 @@ def _run_compiled(model, traj, refs, v_ff, ctrl, motors, bound, rec, progress) -
     if status == DIVERGED:
         raise _diverged(float(traj.t[k]), np.abs(refs.l[k] - rec.data["l"][k]), bound)
     if status:
-        raise PlantStepError(f"plant refused the step at t = {traj.t[k]!r} s: "
-                             f"{_WHY.get(status, f'status {status}')}")
+        raise PlantStepError(
+            f"plant refused the step at t = {float(traj.t[k])!r} s: "
+            f"{_WHY.get(status, f'status {status}')}; state at the start of the step: "
+            f"q = {rec.data['q'][k].tolist()}, leg lengths = {rec.data['l'][k].tolist()} m "
+            f"(stroke [{model.leg_min}, {model.leg_max}]), motor torques = "
+            f"{rec.data['tau'][k].tolist()} N m")
 
 
 @njit(cache=True, error_model="numpy")
@@ -299,12 +306,15 @@ def _check_rate(traj: Trajectory, config: ControllerConfig) -> None:
                            f"at {config.rate:g} Hz: sample the trajectory at the controller rate")
 
 
-def _start_at_equilibrium(model, traj, axis, gains, ctrl, motors, v_ff0, plant) -> None:
-    """The drives hold the platform at the first pose before the move (bumpless start)."""
+def _start_at_equilibrium(model, traj, refs, gains, ctrl, motors, i_ff0, plant) -> None:
+    """The drives hold the platform at the first pose before the move (bumpless start): the
+    integral supplies what the feedforward's resistive and back-EMF parts do not, so the
+    feedforward's inductive part (L di/dt) still reaches the motor from the first sample."""
     hold = inverse_dynamics(model, traj.q[0], traj.qd[0], np.zeros(6))
-    motors.current = hold / axis.force_constant
+    motors.current = hold / motors.axis.force_constant
     v_hold = motors.voltage_for(motors.current, np.zeros(6), np.zeros(6))
-    ctrl.integral = (v_hold - v_ff0) / gains.ki if gains.ki > 0 else np.zeros(6)
+    v_static = motors.voltage_for(i_ff0, np.zeros(6), refs.ldot[0])
+    ctrl.integral = (v_hold - v_static) / gains.ki if gains.ki > 0 else np.zeros(6)
     if plant is not None:
         plant.start(traj.q[0], traj.qd[0], float(traj.t[0]))
 

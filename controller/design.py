@@ -72,6 +72,21 @@ def tune_pid(axis: AxisModel, bandwidth_hz: float, phase_margin_deg: float) -> P
     return PidGains(float(kp), float(ki), 0.0)
 
 
+def sampled_spectral_radius(axis: AxisModel, gains: PidGains, dt: float) -> float:
+    """Largest |eigenvalue| of the loop as it runs: the axis sampled with a zero-order hold at
+    dt, the integral summed per sample and the derivative on the measured rate (axis.py).
+    Below 1 the sampled loop is stable; the continuous margins alone do not show that."""
+    sys = ct.c2d(axis.state_space(), dt, method="zoh")
+    Ad, Bd = np.asarray(sys.A), np.asarray(sys.B)[:, 0]
+    # states (x, v, i, integral); reference 0: e = -x, V = -kp x - kd v + ki integral
+    K = np.array([-gains.kp, -gains.kd, 0.0, gains.ki])
+    M = np.zeros((4, 4))
+    M[:3, :3] = Ad
+    M[:3, :] += np.outer(Bd, K)
+    M[3, 0], M[3, 3] = -dt, 1.0
+    return float(np.max(np.abs(np.linalg.eigvals(M))))
+
+
 def loop(axis: AxisModel, gains: PidGains) -> ct.TransferFunction:
     """The open loop C(s) P(s) on leg position."""
     return gains.tf() * axis.position_tf()

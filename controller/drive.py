@@ -99,19 +99,20 @@ def axis_model(model: Model, motor: Motor, load_mass: float | None = None) -> Ax
                      model.friction.viscous if model.friction is not None else 0.0)
 
 
-def motor_from_table(table: Mapping[str, Any], where: str = "controller.motor") -> Motor:
+def motor_from_table(table: Mapping[str, Any], where: str = "controller.motor",
+                     source: str | None = None) -> Motor:
     """Read and check a motor table: every key present, finite and > 0."""
     if not isinstance(table, Mapping):
-        raise SceneError(where, "must be a table")
+        raise SceneError(where, "must be a table", source)
     unknown = sorted(set(table) - set(_MOTOR_KEYS))
     if unknown:
-        raise SceneError(f"{where}.{unknown[0]}", f"unknown key (allowed: {list(_MOTOR_KEYS)})")
+        raise SceneError(f"{where}.{unknown[0]}", f"unknown key (allowed: {list(_MOTOR_KEYS)})", source)
     values = {}
     for key in _MOTOR_KEYS:
         if key not in table:
-            raise SceneError(f"{where}.{key}", "required key is missing")
+            raise SceneError(f"{where}.{key}", "required key is missing", source)
         x = table[key]
         if isinstance(x, bool) or not isinstance(x, (int, float)) or not np.isfinite(x) or x <= 0:
-            raise SceneError(f"{where}.{key}", f"must be a finite number > 0, got {x!r}")
+            raise SceneError(f"{where}.{key}", f"must be a finite number > 0, got {x!r}", source)
         values[key] = float(x)
     return Motor(**values)
