@@ -25,13 +25,22 @@ PARTS = ("platform", "lower_legs", "upper_legs", "drives", "gravity", "friction"
 
 
 @njit(cache=True, error_model="numpy")
+def _identity_order():
+    order = np.empty((2, 6), np.int64)
+    for k in range(6):
+        order[0, k] = order[1, k] = k
+    return order
+
+
+@njit(cache=True, error_model="numpy")
 def _workspace():
     """Scratch for one sample, as views of one buffer (one allocation per kernel call):
-    R, omega, alpha, U, R p_i, (l, ldot, lddot), J^T, gen, pivots, rhs, M_nu."""
+    R, omega, alpha, U, R p_i, (l, ldot, lddot), J^T, gen, order, rhs, M_nu. order, where J^T's
+    rows are stored for its LU, carries from sample to sample (see linalg.lu_factor)."""
     buf = np.empty(171)
     return (buf[0:9].reshape((3, 3)), buf[9:12], buf[12:15], buf[15:33].reshape((6, 3)),
             buf[33:51].reshape((6, 3)), buf[51:69].reshape((6, 3)), buf[69:105].reshape((6, 6)),
-            buf[105:129].reshape((4, 6)), np.empty(6, np.int64), buf[129:135],
+            buf[105:129].reshape((4, 6)), _identity_order(), buf[129:135],
             buf[135:171].reshape((6, 6)))
 
 
@@ -68,18 +77,20 @@ def _drive_mass(p) -> float:
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _factor_jacobian(JT, piv) -> bool:
+def _factor_jacobian(JT, order) -> bool:
     """LU of the scaled J^T written by twist_forces; False if singular."""
-    return lu_factor(JT, piv) >= SINGULAR_PIVOT
+    return lu_factor(JT, order) >= SINGULAR_PIVOT
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _solve_jt(p, JT, piv, rhs) -> None:
-    """rhs <- J^-T rhs with the factors of _factor_jacobian (rhs moments scaled like J^T)."""
+def _solve_jt(p, JT, order, rhs) -> None:
+    """rhs <- J^-T rhs with the factors of _factor_jacobian; rhs comes in their row order
+    (rhs[k] the entry order[0, k]) and has its moments scaled like J^T here."""
     ic = 1.0 / p[M.P_CHAR_LENGTH]
-    for k in range(3, 6):
-        rhs[k] *= ic
-    lu_solve(JT, piv, rhs)
+    for k in range(6):
+        if order[0, k] >= 3:
+            rhs[k] *= ic
+    lu_solve(JT, rhs)
 
 
 # Samples travel as tuples of six floats, not array views: a view costs an atomic reference
@@ -92,17 +103,18 @@ def _row(A, n):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _inverse_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, piv, rhs, out, n) -> int:
+def _inverse_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, order, rhs, out, n) -> int:
     """sigma = J^-T (-K*_nu - K_g,nu) + mu + m_d lddot for one sample into out[n]."""
     orientation(q, qd, qdd, R, om, al)
-    status = twist_forces(p, q, R, qd, om, qdd, al, U, Rr, leg, JT, gen)
+    status = twist_forces(p, q, R, qd, om, qdd, al, U, Rr, leg, JT, order, gen)
     if status != OK:
         return status
-    if not _factor_jacobian(JT, piv):
+    if not _factor_jacobian(JT, order):
         return SINGULAR
-    for j in range(6):
-        rhs[j] = -(gen[0, j] + gen[1, j] + gen[2, j] + gen[3, j])
-    _solve_jt(p, JT, piv, rhs)
+    for k in range(6):
+        j = order[0, k]
+        rhs[k] = -(gen[0, j] + gen[1, j] + gen[2, j] + gen[3, j])
+    _solve_jt(p, JT, order, rhs)
     md = _drive_mass(p)
     ok = True
     for i in range(6):
@@ -113,15 +125,15 @@ def _inverse_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, piv, rhs, out
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _parts_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, piv, rhs, total, out, n) -> int:
+def _parts_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, order, rhs, total, out, n) -> int:
     """The contributions of PARTS for one sample into out[n] (6 parts, 6 legs)."""
-    status = _inverse_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, piv, rhs, total, 0)
+    status = _inverse_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, order, rhs, total, 0)
     if status != OK:
         return status
     for k, slot in ((0, 0), (1, 1), (2, 2), (3, 4)):   # reuse the LU of J^T
         for j in range(6):
-            rhs[j] = -gen[k, j]
-        _solve_jt(p, JT, piv, rhs)
+            rhs[j] = -gen[k, order[0, j]]
+        _solve_jt(p, JT, order, rhs)
         for j in range(6):
             out[n, slot, j] = rhs[j]
     md = _drive_mass(p)
@@ -135,23 +147,24 @@ def _parts_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, piv, rhs, total
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, out, n) -> int:
+def _forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt, out, n) -> int:
     """(M_nu + m_d J^T J) nudot = J^T (sigma - mu - m_d lddot_0) + K*_0 + K_g, then Euler rates."""
     zero = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     orientation(q, qd, zero, R, om, al)        # al = Edot thd, the Euler-rate part
-    status = twist_forces(p, q, R, qd, om, zero, zero, U, Rr, leg, JT, gen)
+    status = twist_forces(p, q, R, qd, om, zero, zero, U, Rr, leg, JT, order, gen)
     if status != OK:
         return status
     twist_mass_matrix(p, R, U, Rr, leg, Mt)
     md = _drive_mass(p)
     c = p[M.P_CHAR_LENGTH]
-    for j in range(6):
+    for k in range(6):
         s = 0.0
         for i in range(6):
-            s += JT[j, i] * (sigma[i] - _friction(p, leg[i, 1]) - md * leg[i, 2])
-        # JT's moment rows are scaled by 1/c: undo that for J^T sigma.
+            s += JT[k, i] * (sigma[i] - _friction(p, leg[i, 1]) - md * leg[i, 2])
+        # Row k of JT is row order[0, k] of J^T, its moment rows scaled by 1/c: undo that.
+        j = order[0, k]
         rhs[j] = gen[0, j] + gen[1, j] + gen[2, j] + gen[3, j] + (s if j < 3 else s * c)
-    if not _factor_jacobian(JT, piv):
+    if not _factor_jacobian(JT, order):
         return SINGULAR
     if not cholesky_solve(Mt, rhs):
         return SINGULAR
@@ -166,10 +179,10 @@ def _forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, piv, rhs, M
 
 @njit(cache=True, error_model="numpy")
 def _inverse_batch(p, Q, QD, QDD, out):
-    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt = _workspace()
+    R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt = _workspace()
     for n in range(Q.shape[0]):
         q, qd, qdd = _row(Q, n), _row(QD, n), _row(QDD, n)
-        status = _inverse_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, piv, rhs, out, n)
+        status = _inverse_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, order, rhs, out, n)
         if status != OK:
             return n, _classify(status, q, qd, qdd)
     return -1, OK
@@ -178,18 +191,18 @@ def _inverse_batch(p, Q, QD, QDD, out):
 @njit(cache=True, error_model="numpy")
 def _inverse_one(p, q, qd, qdd):
     out = np.empty((1, 6))
-    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt = _workspace()
-    status = _inverse_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, piv, rhs, out, 0)
+    R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt = _workspace()
+    status = _inverse_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, order, rhs, out, 0)
     return out[0], (OK if status == OK else _classify(status, q, qd, qdd))
 
 
 @njit(cache=True, error_model="numpy")
 def _parts_batch(p, Q, QD, QDD, out):
-    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt = _workspace()
+    R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt = _workspace()
     total = np.empty((1, 6))
     for n in range(Q.shape[0]):
         q, qd, qdd = _row(Q, n), _row(QD, n), _row(QDD, n)
-        status = _parts_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, piv, rhs, total,
+        status = _parts_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, order, rhs, total,
                                out, n)
         if status != OK:
             return n, _classify(status, q, qd, qdd)
@@ -198,10 +211,10 @@ def _parts_batch(p, Q, QD, QDD, out):
 
 @njit(cache=True, error_model="numpy")
 def _forward_batch(p, Q, QD, F, out):
-    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt = _workspace()
+    R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt = _workspace()
     for n in range(Q.shape[0]):
         q, qd, sigma = _row(Q, n), _row(QD, n), _row(F, n)
-        status = _forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt,
+        status = _forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt,
                                  out, n)
         if status != OK:
             return n, _classify(status, q, qd, sigma)
@@ -211,8 +224,8 @@ def _forward_batch(p, Q, QD, F, out):
 @njit(cache=True, error_model="numpy")
 def _forward_one(p, q, qd, sigma):
     out = np.empty((1, 6))
-    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt = _workspace()
-    status = _forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, out, 0)
+    R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt = _workspace()
+    status = _forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt, out, 0)
     return out[0], (OK if status == OK else _classify(status, q, qd, sigma))
 
 

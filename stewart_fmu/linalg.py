@@ -7,19 +7,28 @@ from numba import njit
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def lu_factor(A, piv) -> float:
+def lu_factor(A, order) -> float:
     """LU of a 6x6 with partial pivoting in place; returns min |pivot| (0 when singular).
 
+    order[0, k] names the row of the caller's matrix stored in row k of A, order[1, r] is where
+    row r is stored; the swaps of the pivoting update both, so that on return row k of the
+    factors belongs to row order[0, k]. Callers store their rows where order[1] says (the
+    previous factorization's pivot order), so that along a trajectory the pivoting finds its
+    rows in place and swaps nothing: the swaps' memory round trips lie on the serial path of
+    the elimination. Ties of |pivot| go to the smaller row name, which makes the factors
+    independent of the order the rows came in (a batch gives what single calls give).
     Callers scale rows to entries of order one, so the smallest pivot measures singularity."""
     n = 6
     pmin = np.inf
     for k in range(n):
         p, best = k, abs(A[k, k])
         for i in range(k + 1, n):
-            if abs(A[i, k]) > best:
-                p, best = i, abs(A[i, k])
-        piv[k] = p
+            a = abs(A[i, k])
+            if a > best or (a == best and order[0, i] < order[0, p]):
+                p, best = i, a
         if p != k:
+            order[0, k], order[0, p] = order[0, p], order[0, k]
+            order[1, order[0, k]], order[1, order[0, p]] = k, p
             for j in range(n):
                 A[k, j], A[p, j] = A[p, j], A[k, j]
         pmin = min(pmin, best)
@@ -35,13 +44,10 @@ def lu_factor(A, piv) -> float:
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def lu_solve(LU, piv, b) -> None:
-    """Solve a 6x6 in place with the factors of lu_factor."""
+def lu_solve(LU, b) -> None:
+    """Solve a 6x6 in place with the factors of lu_factor; b[k] is the entry of row order[0, k]
+    (the order lu_factor returned), the solution comes in the natural order."""
     n = 6
-    for k in range(n):
-        p = piv[k]
-        if p != k:
-            b[k], b[p] = b[p], b[k]
     for i in range(n):
         s = b[i]
         for j in range(i):
