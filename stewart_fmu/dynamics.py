@@ -233,10 +233,10 @@ def _forward_one(p, q, qd, sigma):
 def _leg_state(p, q, qd):
     """Leg lengths, rates and the platform's angular velocity at one pose (the kinematics part
     of the inverse kernel, at zero acceleration)."""
-    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt = _workspace()
+    R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt = _workspace()
     zero = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     orientation(q, qd, zero, R, om, al)
-    twist_forces(p, q, R, qd, om, zero, al, U, Rr, leg, JT, gen)
+    twist_forces(p, q, R, qd, om, zero, al, U, Rr, leg, JT, order, gen)
     return leg[:, 0].copy(), leg[:, 1].copy(), om.copy()
 
 

@@ -45,11 +45,11 @@ class IntegratorOptions:
 @njit(cache=True, error_model="numpy", inline="always")
 def _derivative(p, y, F, ws, dy) -> int:
     """dy = (qd, qdd) at y with the force F; returns the forward kernel's status."""
-    R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt = ws
+    R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt = ws
     q = (y[0], y[1], y[2], y[3], y[4], y[5])
     qd = (y[6], y[7], y[8], y[9], y[10], y[11])
     out = dy[6:].reshape((1, 6))
-    status = _forward_sample(p, q, qd, F, R, om, al, U, Rr, leg, JT, gen, piv, rhs, Mt, out, 0)
+    status = _forward_sample(p, q, qd, F, R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt, out, 0)
     for k in range(6):
         dy[k] = y[6 + k]
     return status
