@@ -14,6 +14,7 @@ $(STAMP): pyproject.toml
 
 demo: $(STAMP)
 	$(VENV)/bin/stewart-sim demo scenes/micro_manipulator.toml --out results
+	$(VENV)/bin/stewart-sim run scenes/micro_manipulator.toml --out results/run
 
 test: $(STAMP)
 	$(PY) -m pytest -q

@@ -21,7 +21,8 @@ current, saturation time) and what the constant-load design leaves out:
   modal PM      frozen at a pose, the six loops (same controller on every leg, m_d and viscous
                 friction the same on every leg) decouple exactly along the eigenvectors of [m](q),
                 into loops with load masses lambda_k: the phase margin and crossover at the
-                smallest and largest lambda along the move bound what the design really gets;
+                smallest and largest lambda along the move are what the design really gets
+                (NaN: that loop, continuous or sampled at the controller rate, is unstable);
   predicted     the leg error the constant-load design predicts for "none" (the linear loop
                 S = 1 / (1 + C P) driven by each leg's reference), to hold against the measured.
 
@@ -43,7 +44,7 @@ from stewart_fmu.model import Model
 
 from .config import FEEDFORWARD, ControllerConfig
 from .cosim import design_axis, run_closed_loop
-from .design import PidGains, loop
+from .design import PidGains, loop, sampled_spectral_radius
 from .drive import AxisModel, axis_model
 from .trajectory import Trajectory, leg_references, quintic, sample_times
 
@@ -277,7 +278,7 @@ def _point(model: Model, config: ControllerConfig, traj: Trajectory, refs, modes
         axis, gains, analysis = design_axis(model, config)
     except StewartError as exc:  # DesignError, UnstableLoopError
         return SweepPoint(status="infeasible", message=f"{type(exc).__name__}: {exc}", **base)
-    pm, fc = zip(*(_margins(replace(axis, load_mass=lam), gains) for lam in eig))
+    pm, fc = zip(*(_margins(replace(axis, load_mass=lam), gains, config.dt) for lam in eig))
     runs = {mode: run_mode(model, config, traj, gains, mode) for mode in modes}
     return SweepPoint(status="ok", gains=gains, phase_margin=analysis.phase_margin_deg,
                       crossover_hz=analysis.crossover_hz, gain_margin_db=analysis.gain_margin_db,
@@ -299,11 +300,13 @@ def run_mode(model: Model, config: ControllerConfig, traj: Trajectory, gains: Pi
                    s.wall_time)
 
 
-def _margins(axis: AxisModel, gains: PidGains) -> tuple[float, float]:
-    """Phase margin (deg; NaN when the loop is unstable) and crossover (Hz) of the loop."""
+def _margins(axis: AxisModel, gains: PidGains, dt: float) -> tuple[float, float]:
+    """Phase margin (deg; NaN when the loop, continuous or sampled at dt, is unstable) and
+    crossover (Hz) of the loop."""
     L = loop(axis, gains)
     _, pm, _, wc = ct.margin(L)
-    stable = bool(np.all(np.real(ct.poles(ct.feedback(L, 1))) < 0))
+    stable = (bool(np.all(np.real(ct.poles(ct.feedback(L, 1))) < 0))
+              and sampled_spectral_radius(axis, gains, dt) < 1.0)
     return (float(pm) if stable else np.nan), float(wc / (2 * np.pi))
 
 

@@ -55,8 +55,9 @@ def comparison_figure(comparisons: Sequence[Comparison]) -> Figure:
     """Left: max leg error over the move's leg excursion against m_d / m_load, one curve per
     scene and mode (saturated points ringed, the scene's own gear ratio starred). Right: the
     coupling measure against m_d / m_load with the HOLDS line."""
-    fig = Figure(figsize=(13, 5.2), layout="constrained")
+    fig = Figure(figsize=(13, 6.4), layout="constrained")
     ax, bx = fig.subplots(1, 2, gridspec_kw={"width_ratios": [1.6, 1]})
+    have_data = False
     for k, c in enumerate(comparisons):
         marker, line = SCENE_MARKERS[k % len(SCENE_MARKERS)], SCENE_LINES[k % len(SCENE_LINES)]
         ok = [p for p in c.points if p.status == "ok"]
@@ -68,9 +69,10 @@ def comparison_figure(comparisons: Sequence[Comparison]) -> Figure:
                           for r in runs])
             ax.plot(x, y, line, marker=marker, color=colour, ms=5, lw=1.4,
                     label=f"{c.scene}: {label}")
-            sat = np.array([r.status == "ok" and r.saturated_time > 0 for r in runs])
+            have_data = have_data or bool(np.any(np.isfinite(y) & (y > 0)))
+            sat = np.array([r.status == "ok" and r.saturated_time > 0 for r in runs], dtype=bool)
             ax.plot(x[sat], y[sat], "o", ms=11, mfc="none", mec=colour, alpha=0.6)
-            nom = np.array([p.nominal for p in ok])
+            nom = np.array([p.nominal for p in ok], dtype=bool)
             ax.plot(x[nom], y[nom], "*", ms=15, color=colour, mec="k", mew=0.6)
         nominal = c.nominal()
         if c.without_coulomb and nominal is not None:
@@ -80,7 +82,7 @@ def comparison_figure(comparisons: Sequence[Comparison]) -> Figure:
                             mfc="none", mec=MODE_STYLE[mode][0], mew=1.5,
                             label=(f"{c.scene}: own gear ratio without Coulomb friction"
                                    if mode == c.modes[-1] else None))
-        bad = [p for p in c.points if p.status != "ok"]
+        bad = [p for p in c.points if p.status != "ok" or regime(p) == "failed"]
         for p in bad:
             ax.axvline(p.mass_ratio, color="grey", ls=":", lw=1)
         xs = np.array([p.mass_ratio for p in c.points])
@@ -89,12 +91,19 @@ def comparison_figure(comparisons: Sequence[Comparison]) -> Figure:
         nom = [p for p in c.points if p.nominal]
         bx.plot([p.mass_ratio for p in nom], [p.coupling for p in nom], "*", ms=15, color="gold",
                 mec="k", mew=0.6)
+    if not have_data:
+        ax.text(0.5, 0.5, "no run completed", transform=ax.transAxes, ha="center")
+        ax.plot([min(p.mass_ratio for c in comparisons for p in c.points)] * 2, [1e-6, 1.0],
+                alpha=0)  # keeps the log axes valid
     ax.set(xscale="log", yscale="log", xlabel="drive inertia over constant load  m_d / m_load",
            ylabel="max leg error / leg excursion of the move",
            title="closed-loop tracking (★ scene's own gear ratio, ○ drive saturates, "
-                 "◇ own ratio without Coulomb)")
+                 "◇ own ratio without Coulomb"
+                 + (", dotted line: design infeasible or run failed)"
+                    if any(p.status != "ok" or regime(p) == "failed"
+                           for c in comparisons for p in c.points) else ")"))
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize="x-small", loc="best")
+    ax.legend(fontsize="x-small", loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2)
     bx.axhline(HOLDS, color="tab:red", ls="--", lw=1, label=f"assumption holds below {HOLDS:g}")
     bx.set(xscale="log", yscale="log", xlabel="m_d / m_load",
            ylabel="coupling  max ||[m](q) − m_load·1|| / (m_load + m_d)",
@@ -260,8 +269,12 @@ def _scene_findings(c: Comparison) -> list[str]:
     if ok:
         worst = min(ok, key=lambda p: np.nanmin(p.modal_pm) if np.any(np.isfinite(p.modal_pm))
                     else -np.inf)
+        unstable = [p for p in ok if not np.all(np.isfinite(p.modal_pm))]
+        lead = ("the constant-load design stays stable at every point"
+                if not unstable else "the loop along some eigenvector of [m](q) is unstable at "
+                "m_d / m_load = " + ", ".join(f"{p.mass_ratio:.3g}" for p in unstable))
         out.append(
-            f"- Robustness: the constant-load design stays stable throughout; the smallest modal "
+            f"- Robustness: {lead}; the smallest modal "
             f"phase margin is {_f(np.nanmin(worst.modal_pm))}° at m_d / m_load = "
             f"{worst.mass_ratio:.3g} (designed {worst.phase_margin:.3g}°; crossover "
             f"{_f(worst.modal_crossover[0])} to {_f(worst.modal_crossover[1])} Hz instead of "
@@ -283,8 +296,8 @@ def _scene_findings(c: Comparison) -> list[str]:
             out.append(
                 f"- Feedback alone (`none`): the measured max leg error is {min(ratios):.3g} to "
                 f"{max(ratios):.3g} times what the constant-load design predicts (unsaturated "
-                "points): the feedback error is set by the loop's lag, and the coupling only "
-                "moves it by the change of the modal crossovers.")
+                "points): the feedback-only error is set by the loop's lag, which the "
+                "constant-load design predicts well even where the coupling is large.")
         sat = [p for p in ok if saturates(p)]
         if sat:
             first = sat[0]
@@ -313,11 +326,22 @@ def _scene_findings(c: Comparison) -> list[str]:
         out.append(
             f"- Coulomb friction ({c.coulomb:g} N): at the scene's own ζ with it removed the max "
             f"leg errors are {parts}" + _coulomb_ratio(c) + ". The Kane feedforward's Coulomb "
-            "term ±F_c follows the sign of the reference leg rate, the plant's friction the sign "
-            "of the actual one; at the start of the move a leg can briefly move the other way "
-            "(pushed through the platform by the others), and that mismatch, not the coupling, "
-            "sets the Kane feedforward's residual in this scene.")
+            "term ±F_c follows the sign of the reference leg rate, the plant's friction the "
+            "sign of the actual one" + _coulomb_share(c) + ".")
     return out
+
+
+def _coulomb_share(c: Comparison) -> str:
+    nom, w = c.nominal(), c.without_coulomb
+    if nom is None or "kane" not in nom.runs or "kane" not in w:
+        return ""
+    with_, without = nom.runs["kane"], w["kane"]
+    if with_.status != "ok" or without.status != "ok" or with_.leg_max <= 0:
+        return ""
+    share = 1.0 - without.leg_max / with_.leg_max
+    return (f"; that mismatch accounts for {max(share, 0.0):.0%} of the Kane feedforward's "
+            f"max leg error here ({with_.leg_max * 1e3:.3g} mm with, {without.leg_max * 1e3:.3g} "
+            "mm without Coulomb friction)")
 
 
 def _coulomb_ratio(c: Comparison) -> str:
@@ -344,9 +368,7 @@ def _conclusion(comparisons: Sequence[Comparison]) -> list[str]:
         nom = c.nominal()
         if nom is None:
             continue
-        verdict = ("holds" if regime(nom) == "holds"
-                   else f"breaks (coupling {nom.coupling:.3g} > {HOLDS:g})"
-                   if nom.coupling > HOLDS else f"breaks ({regime(nom)})")
+        verdict = _verdict(nom)
         text = (f"- **{c.scene}**, as built (m_d / m_load = {nom.mass_ratio:.3g}): the claim "
                 f"{verdict}. The true leg-space inertia along the move has eigenvalues "
                 f"{c.mass_eigen_range[0] / c.load_mass:.2g} to "
@@ -368,6 +390,21 @@ def _conclusion(comparisons: Sequence[Comparison]) -> list[str]:
         + "and with the motor kept, the gear ratio that would make the drive inertia dominate "
           "also raises the back-EMF until the motor saturates on the same move.")
     return lines
+
+
+def _verdict(p: SweepPoint) -> str:
+    """The paper's claim at one point, in words."""
+    reg = regime(p)
+    if reg == "holds":
+        return f"holds (coupling {p.coupling:.3g} ≤ {HOLDS:g})"
+    if reg in ("infeasible", "failed"):
+        return f"cannot be tested there ({reg}: {_short(p.message or _first_failure(p), 120)})"
+    if p.coupling > HOLDS:
+        return (f"breaks (coupling {p.coupling:.3g} > {HOLDS:g}"
+                + (", and the drive saturates on this move)" if saturates(p) else ")"))
+    return (f"holds for the inertia (coupling {p.coupling:.3g} ≤ {HOLDS:g}), but the drive "
+            "saturates on this move, so the linear constant-load design does not describe the "
+            "loop")
 
 
 def _nominal_consequence(c: Comparison, nom: SweepPoint) -> str:
