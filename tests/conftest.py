@@ -192,6 +192,28 @@ def leg_geometry(data: dict, q):
 _RESIDUALS: dict[str, tuple[float, float]] = {}
 
 
+def setting(path: str, value):
+    """A mutation that sets the dotted key `path` of the scene dict to `value`."""
+    def apply(d):
+        *tables, key = path.split(".")
+        node = d
+        for t in tables:
+            node = node[t]
+        node[key] = value
+    return apply
+
+
+def deleting(path: str):
+    """A mutation that removes the dotted key (or table) `path`."""
+    def apply(d):
+        *tables, key = path.split(".")
+        node = d
+        for t in tables:
+            node = node[t]
+        del node[key]
+    return apply
+
+
 def record(name: str, worst: float, tol: float) -> None:
     """Keep the worst residual of check `name` (and its tolerance) for the session summary."""
     prev = _RESIDUALS.get(name, (0.0, tol))[0]

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from conftest import SCENE_FILES, level_model, scene_dict
+from conftest import SCENE_FILES, deleting, level_model, scene_dict, setting
 from controller.axis import AxisControllers
 from controller.config import FEEDFORWARD, controller_config
 from controller.cosim import (FmuPlant, InProcessPlant, PlantStepError, UnstableLoopError,
@@ -526,48 +526,30 @@ def _controller_error(mutate) -> SceneError:
     return info.value
 
 
-def _set(path: str, value):
-    def mutate(data):
-        *tables, key = path.split(".")
-        node = data
-        for t in tables:
-            node = node[t]
-        node[key] = value
-    return mutate
-
-
-def _delete(path: str):
-    def mutate(data):
-        *tables, key = path.split(".")
-        node = data
-        for t in tables:
-            node = node[t]
-        del node[key]
-    return mutate
 
 
 CONFIG_ERRORS = [
-    ("missing_table", _delete("controller"), "controller"),
-    ("unknown_key", _set("controller.gain", 3.0), "controller.gain"),
-    ("missing_motor", _delete("controller.motor"), "controller.motor"),
-    ("motor_not_table", _set("controller.motor", 5.0), "controller.motor"),
-    ("missing_motor_key", _delete("controller.motor.inductance"), "controller.motor.inductance"),
-    ("unknown_motor_key", _set("controller.motor.friction", 1.0), "controller.motor.friction"),
-    ("zero_rate", _set("controller.rate", 0.0), "controller.rate"),
-    ("negative_bandwidth", _set("controller.bandwidth", -20.0), "controller.bandwidth"),
-    ("infinite_bandwidth", _set("controller.bandwidth", float("inf")), "controller.bandwidth"),
-    ("string_bandwidth", _set("controller.bandwidth", "20"), "controller.bandwidth"),
-    ("bool_rate", _set("controller.rate", True), "controller.rate"),
-    ("zero_phase_margin", _set("controller.phase_margin", 0.0), "controller.phase_margin"),
-    ("phase_margin_90", _set("controller.phase_margin", 90.0), "controller.phase_margin"),
-    ("zero_load_mass", _set("controller.load_mass", 0.0), "controller.load_mass"),
-    ("zero_resistance", _set("controller.motor.resistance", 0.0), "controller.motor.resistance"),
-    ("negative_voltage_limit", _set("controller.motor.voltage_limit", -24.0),
+    ("missing_table", deleting("controller"), "controller"),
+    ("unknown_key", setting("controller.gain", 3.0), "controller.gain"),
+    ("missing_motor", deleting("controller.motor"), "controller.motor"),
+    ("motor_not_table", setting("controller.motor", 5.0), "controller.motor"),
+    ("missing_motor_key", deleting("controller.motor.inductance"), "controller.motor.inductance"),
+    ("unknown_motor_key", setting("controller.motor.friction", 1.0), "controller.motor.friction"),
+    ("zero_rate", setting("controller.rate", 0.0), "controller.rate"),
+    ("negative_bandwidth", setting("controller.bandwidth", -20.0), "controller.bandwidth"),
+    ("infinite_bandwidth", setting("controller.bandwidth", float("inf")), "controller.bandwidth"),
+    ("string_bandwidth", setting("controller.bandwidth", "20"), "controller.bandwidth"),
+    ("bool_rate", setting("controller.rate", True), "controller.rate"),
+    ("zero_phase_margin", setting("controller.phase_margin", 0.0), "controller.phase_margin"),
+    ("phase_margin_90", setting("controller.phase_margin", 90.0), "controller.phase_margin"),
+    ("zero_load_mass", setting("controller.load_mass", 0.0), "controller.load_mass"),
+    ("zero_resistance", setting("controller.motor.resistance", 0.0), "controller.motor.resistance"),
+    ("negative_voltage_limit", setting("controller.motor.voltage_limit", -24.0),
      "controller.motor.voltage_limit"),
-    ("nan_current_limit", _set("controller.motor.current_limit", float("nan")),
+    ("nan_current_limit", setting("controller.motor.current_limit", float("nan")),
      "controller.motor.current_limit"),
-    ("bad_feedforward", _set("controller.feedforward", "computed_torque"), "controller.feedforward"),
-    ("feedforward_not_string", _set("controller.feedforward", 1), "controller.feedforward"),
+    ("bad_feedforward", setting("controller.feedforward", "computed_torque"), "controller.feedforward"),
+    ("feedforward_not_string", setting("controller.feedforward", 1), "controller.feedforward"),
 ]
 
 
@@ -592,5 +574,5 @@ def test_scene_controller_tables_are_valid():
 
 
 def test_controller_not_a_table():
-    exc = _controller_error(_set("controller", 5))
+    exc = _controller_error(setting("controller", 5))
     assert exc.key == "controller"

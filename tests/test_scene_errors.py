@@ -7,32 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from conftest import SCENE_FILES, scene_dict
+from conftest import SCENE_FILES, deleting, scene_dict, setting
 from stewart_fmu import SceneError, inverse_dynamics_parts, load_scene, scene_from_dict
 from stewart_fmu.model import (P_DRIVE_MASS, P_HAS_DRIVE, P_HAS_FRICTION, P_HAS_LEGS, P_LOWER,
                                P_UPPER, P_VISCOUS)
 
 
-def setting(path: str, value):
-    """A mutation that sets the dotted key `path` of the scene dict to `value`."""
-    def apply(d):
-        *tables, key = path.split(".")
-        node = d
-        for t in tables:
-            node = node[t]
-        node[key] = value
-    return apply
-
-
-def deleting(path: str):
-    """A mutation that removes the dotted key (or table) `path`."""
-    def apply(d):
-        *tables, key = path.split(".")
-        node = d
-        for t in tables:
-            node = node[t]
-        del node[key]
-    return apply
 
 
 def element(path: str, index, value):
