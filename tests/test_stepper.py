@@ -1,7 +1,6 @@
 """The in-process FMI co-simulation component: life cycle, rollback, integrators, energy."""
 from __future__ import annotations
 
-import dataclasses
 import math
 import sys
 import tomllib
