@@ -1,4 +1,5 @@
-"""The stewart-sim command line: the only module that knows about files, plots and progress.
+"""The stewart-sim command line: arguments, exit statuses, and which pipeline each command runs
+(inverse_files, paper_report, demo, controller.run_files, fmu, scene_info).
 
 Subcommands: `inverse` (the contract's command), `paper` (Section 3 rerun), `demo` (what
 `make demo` runs), `run` (closed loop: the per-axis controllers around the plant or an FMU),
@@ -13,44 +14,30 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from contextlib import contextmanager
+from dataclasses import replace
 from pathlib import Path
-from typing import Iterator, Mapping, Sequence
+from typing import Sequence
 
-import numpy as np
+from controller.config import controller_config
+from controller.run_files import RUN_FILES, RUN_HOLD, RUN_MOVE, run_closed_loop_files, run_compare
 
 from . import io
 from .demo import DEMO_DURATION, DEMO_RATE, demo_trajectory
-from .dynamics import inverse_dynamics, inverse_dynamics_parts, present_parts
-from .errors import KinematicsError, SceneError, StewartError, TrajectoryError
+from .dynamics import present_parts
+from .errors import SceneError, StewartError
 from .fmu import export_fmu
-from .kinematics import check_poses, inverse_kinematics
+from .inverse_files import run_inverse
+from .io import OutputError, writing
 from .model import Model
 from .paper import PaperResults, run_paper_experiments
 from .paper_report import write_paper_report
-from .plots import drive_figure, forces_figure, leg_errors_figure, save_figure, tracking_figure
+from .plots import forces_figure, save_figure
 from .progress import Progress
 from .scene import load_scene
+from .scene_info import describe_model
 
 PROG = "stewart-sim"
 DEFAULT_SCENE = Path("scenes") / "micro_manipulator.toml"
-CHUNK_SAMPLES = 50_000       # samples per block of the pose check and of the dynamics
-RUN_MOVE = 0.3               # `run`: each quintic move (out, back) takes this share of the run
-RUN_HOLD = 0.2               # ... and each hold after a move this share
-RUN_MIN_MOVE_SAMPLES = 10    # ... and has at least this many controller samples
-
-
-class OutputError(Exception):
-    """An output file or directory cannot be written (exit status 1)."""
-
-
-@contextmanager
-def writing(path: Path) -> Iterator[None]:
-    """Turn an OSError while writing `path` into an OutputError naming it (not a temporary)."""
-    try:
-        yield
-    except OSError as exc:
-        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -196,81 +183,6 @@ def cmd_inverse(args: argparse.Namespace) -> None:
     print(f"wrote {args.out}: {n} samples" + (" with the breakdown by part" if args.parts else ""))
 
 
-def run_inverse(model: Model, trajectory: Path, out: Path, parts: bool, progress: Progress,
-                keep: bool = False) -> tuple[int, np.ndarray | None]:
-    """Read, check every pose, compute and write the forces; the table too if `keep`."""
-    t, q, qd, qdd = io.read_trajectory(
-        trajectory, progress=lambda rows: progress.update(f"reading {trajectory}", rows))
-    cond = check_trajectory(model, t, q, trajectory, progress)
-    kept: list[np.ndarray] = []
-    chunks = force_chunks(model, (t, q, qd, qdd), cond, parts, trajectory, progress)
-    with writing(out):
-        io.write_csv_chunks(out, _keep(chunks, kept) if keep else chunks)
-    return t.size, (np.concatenate(kept) if keep else None)
-
-
-def _chunks(n: int) -> Iterator[slice]:
-    """Consecutive slices of at most CHUNK_SAMPLES samples covering range(n)."""
-    for start in range(0, n, CHUNK_SAMPLES):
-        yield slice(start, min(start + CHUNK_SAMPLES, n))
-
-
-def check_trajectory(model: Model, t: np.ndarray, q: np.ndarray, source: Path,
-                     progress: Progress) -> np.ndarray:
-    """check_poses on every sample (stroke, singularity), block by block; returns cond(J)."""
-    cond = np.empty(t.size)
-    for s in _chunks(t.size):
-        try:
-            cond[s] = check_poses(model, q[s], t[s]).cond
-        except KinematicsError as exc:
-            raise _relocated(exc, s.start, t, source) from None
-        progress.update("checking poses", s.stop, t.size)
-    return cond
-
-
-def force_chunks(model: Model, traj: tuple[np.ndarray, ...], cond: np.ndarray, parts: bool,
-                 source: Path, progress: Progress) -> Iterator[np.ndarray]:
-    """The force table block by block: inverse_dynamics (and its parts) per block of samples."""
-    t, q, qd, qdd = traj
-    names = present_parts(model) if parts else ()
-    for s in _chunks(t.size):
-        try:
-            sigma = inverse_dynamics(model, q[s], qd[s], qdd[s])
-            breakdown = inverse_dynamics_parts(model, q[s], qd[s], qdd[s]) if parts else {}
-        except KinematicsError as exc:
-            raise _relocated(exc, s.start, t, source) from None
-        yield force_table(t[s], sigma, cond[s], {k: breakdown[k] for k in names})
-        progress.update("computing and writing forces", s.stop, t.size)
-
-
-def force_table(t: np.ndarray, sigma: np.ndarray, cond: np.ndarray,
-                parts: Mapping[str, np.ndarray]) -> np.ndarray:
-    """Columns t, sigma1..6, cond, then <part>1..6 for each part given."""
-    cols = {"t": t, **{f"sigma{i + 1}": sigma[:, i] for i in range(6)}, "cond": cond}
-    for name, values in parts.items():
-        cols.update({f"{name}{i + 1}": values[:, i] for i in range(6)})
-    return io.named_array(cols)
-
-
-def _keep(chunks: Iterator[np.ndarray], store: list[np.ndarray]) -> Iterator[np.ndarray]:
-    """Pass the chunks through, keeping a reference to each."""
-    for chunk in chunks:
-        store.append(chunk)
-        yield chunk
-
-
-def _relocated(exc: KinematicsError, offset: int, t: np.ndarray, source: Path) -> KinematicsError:
-    """The same error for the whole trajectory: its sample index, time and file line."""
-    if exc.index is None:
-        return exc
-    message = str(exc)
-    suffix = str(KinematicsError("", exc.index, exc.time))  # the location the error appended
-    if message.endswith(suffix):
-        message = message[:-len(suffix)]
-    index = exc.index + offset
-    return type(exc)(f"{source}, line {index + 2}: {message}", index=index, time=float(t[index]))
-
-
 # --- paper -----------------------------------------------------------------------------------
 
 def cmd_paper(args: argparse.Namespace) -> None:
@@ -347,10 +259,6 @@ def run_demo(model: Model, out: Path, duration: float) -> list[Path]:
 
 def cmd_run(args: argparse.Namespace) -> None:
     """`stewart-sim run SCENE [--fmu PLANT.fmu] --out DIR [--duration S] [--feedforward F]`."""
-    from dataclasses import replace
-
-    from controller.config import controller_config
-
     model = load_scene(args.scene)
     config = controller_config(model)
     if args.feedforward is not None:
@@ -363,145 +271,6 @@ def cmd_run(args: argparse.Namespace) -> None:
         print(f"wrote {out / name}")
 
 
-RUN_FILES = ("run.csv", "run_tracking.png", "run_errors.png", "run_forces.png", "summary.md")
-
-
-def run_reference(model: Model, config, duration: float):
-    """The demonstration reference of `run`: from rest at home a quintic six-axis move out
-    (RUN_MOVE of the duration), a hold (RUN_HOLD), the move back and a second hold, sampled
-    at the controller rate (controller.comparison.move_and_hold)."""
-    from controller.comparison import move_and_hold
-
-    shortest = RUN_MIN_MOVE_SAMPLES / (RUN_MOVE * config.rate)
-    if duration < shortest:
-        raise TrajectoryError(f"--duration {duration:g} s is too short: each move needs "
-                              f"{RUN_MIN_MOVE_SAMPLES} controller samples ({shortest:.3g} s "
-                              f"or more at {config.rate:g} Hz)")
-    return move_and_hold(model, config.rate, RUN_MOVE * duration, RUN_HOLD * duration, back=True)
-
-
-def run_closed_loop_files(model: Model, config, duration: float, out: Path,
-                          fmu: Path | None = None):
-    """Run the closed loop (in-process plant, or the FMU) and write RUN_FILES into `out`;
-    returns (ClosedLoopResult, reference)."""
-    from controller.cosim import run_closed_loop
-
-    traj = run_reference(model, config, duration)
-    plant = open_fmu(fmu, model) if fmu is not None else None
-    progress = Progress()
-    try:
-        result = run_closed_loop(model, config, traj, plant=plant,
-                                 progress=lambda k, n: progress.update("closed loop", k, n))
-        progress.update("closed loop", len(traj.t), len(traj.t))
-    finally:
-        progress.close()
-        if plant is not None:
-            plant.close()
-    where = f"FMU {fmu}" if fmu is not None else "in-process plant"
-    title = (f"{model.name}: closed loop, feedforward {config.feedforward}, {where} "
-             f"({traj.t[-1]:g} s at {config.rate:g} Hz)")
-    m = config.motor
-    with writing(out):
-        io.write_csv(out / "run.csv", result.table)
-        save_figure(tracking_figure(result.table, f"{title}\npose tracking"),
-                    out / "run_tracking.png")
-        save_figure(leg_errors_figure(result.table, f"{title}\ntracking errors"),
-                    out / "run_errors.png")
-        save_figure(drive_figure(result.table, m.voltage_limit, m.current_limit,
-                                 f"{title}\ndrives"), out / "run_forces.png")
-        io.write_text(out / "summary.md", run_summary(model, result, traj, where))
-    return result, traj
-
-
-def open_fmu(path: Path, model: Model):
-    """controller.cosim.FmuPlant for `path`, after checking that the FMU was exported from a
-    scene with the same physical parameters as `model` (its resources/scene.toml)."""
-    import tomllib
-    import zipfile
-
-    from controller.cosim import FmuPlant
-    from .fmu import SCENE_RESOURCE
-    from .scene import scene_from_dict
-
-    if not path.is_file():
-        raise StewartError(f"no such FMU: {path}")
-    try:
-        with zipfile.ZipFile(path) as zf:
-            names = set(zf.namelist())
-            embedded = (tomllib.loads(zf.read(f"resources/{SCENE_RESOURCE}").decode("utf-8"))
-                        if f"resources/{SCENE_RESOURCE}" in names else None)
-    except (zipfile.BadZipFile, OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise StewartError(f"{path}: not a readable FMU: {exc}") from None
-    if embedded is not None:
-        other = scene_from_dict(embedded, source=f"{path}:resources/{SCENE_RESOURCE}")
-        if not np.array_equal(other.params, model.params):
-            raise StewartError(f"{path} was exported from a scene with other physical "
-                               f"parameters than {model.source}: the controller would be "
-                               "designed for another plant (export-fmu the same scene)")
-    try:
-        return FmuPlant(path)
-    except Exception as exc:  # fmpy raises plain exceptions for foreign or broken FMUs
-        raise StewartError(f"{path}: cannot load the FMU: {type(exc).__name__}: {exc}") from None
-
-
-def run_summary(model: Model, result, traj, where: str) -> str:
-    """summary.md of a run: design, tracking per leg and per pose coordinate, effort, timing."""
-    s, a, g, ax, cfg = result.summary, result.analysis, result.gains, result.axis, result.config
-    duration = float(traj.t[-1] - traj.t[0])
-    units = ("m", "m", "m", "rad", "rad", "rad")
-    lines = [
-        f"# Closed-loop run: {model.name}",
-        "",
-        f"- scene: `{model.source}`; plant: {where}",
-        f"- reference: quintic six-axis move out ({RUN_MOVE * duration:.6g} s), hold "
-        f"({RUN_HOLD * duration:.6g} s), move back, hold; {duration:.6g} s, "
-        f"{len(traj.t)} samples at {cfg.rate:.6g} Hz; goal pose "
-        f"{_vec(traj.q[int(round(RUN_MOVE * duration * cfg.rate))])}",
-        f"- feedforward: {cfg.feedforward}",
-        "",
-        "## Design (each axis, constant load)",
-        "",
-        "| quantity | value |",
-        "|---|---:|",
-        f"| constant load m_load (kg) | {ax.load_mass:.6g} |",
-        f"| reflected drive inertia m_d (kg) | {ax.reflected_mass:.6g} |",
-        f"| force constant Kt zeta / r (N/A) | {ax.force_constant:.6g} |",
-        f"| Kp (V/m) | {g.kp:.6g} |",
-        f"| Ki (V/(m s)) | {g.ki:.6g} |",
-        f"| Kd (V s/m) | {g.kd:.6g} |",
-        f"| target crossover (Hz) | {cfg.bandwidth:.6g} |",
-        f"| crossover (Hz) | {a.crossover_hz:.6g} |",
-        f"| target phase margin (deg) | {cfg.phase_margin:.6g} |",
-        f"| phase margin (deg) | {a.phase_margin_deg:.6g} |",
-        f"| gain margin (dB) | {a.gain_margin_db:.6g} |",
-        f"| step rise time 10-90 % (s) | {a.rise_time:.6g} |",
-        f"| step overshoot (%) | {a.overshoot_pct:.6g} |",
-        f"| step settling time 2 % (s) | {a.settling_time:.6g} |",
-        "",
-        "## Tracking",
-        "",
-        "| leg | RMS error (m) | max error (m) | RMS voltage (V) | peak current (A) |",
-        "|---|---:|---:|---:|---:|",
-    ]
-    for i in range(6):
-        lines.append(f"| {i + 1} | {s.leg_rms[i]:.6g} | {s.leg_max[i]:.6g} | "
-                     f"{s.voltage_rms[i]:.6g} | {s.current_max[i]:.6g} |")
-    lines += ["", "| coordinate | unit | RMS error | max error |", "|---|---|---:|---:|"]
-    for k, name in enumerate(io.POSE):
-        lines.append(f"| {name} | {units[k]} | {s.pose_rms[k]:.6g} | {s.pose_max[k]:.6g} |")
-    lines += [
-        "",
-        "## Effort and timing",
-        "",
-        f"- peak current: {np.max(s.current_max):.6g} A (limit {cfg.motor.current_limit:.6g} A); "
-        f"largest RMS voltage: {np.max(s.voltage_rms):.6g} V (limit "
-        f"{cfg.motor.voltage_limit:.6g} V)",
-        f"- saturated time: {s.saturated_time:.6g} s of {duration:.6g} s (any axis at its "
-        "voltage or current limit)",
-        f"- wall time: {s.wall_time:.6g} s; real-time factor: {s.realtime_factor:.6g}",
-        "",
-    ]
-    return "\n".join(lines)
 
 
 # --- compare ---------------------------------------------------------------------------------
@@ -511,33 +280,6 @@ def cmd_compare(args: argparse.Namespace) -> None:
     out = Path(args.out)
     for path in run_compare([Path(s) for s in args.scenes], out, args.points):
         print(f"wrote {path}")
-
-
-def run_compare(scenes: Sequence[Path], out: Path, points: int = 8) -> list[Path]:
-    """The drive-inertia comparison of each scene (controller.comparison), its files in `out`."""
-    from controller.comparison import compare_drive_inertia, regime
-    from controller.comparison_report import write_comparison_report
-    from controller.config import controller_config
-
-    models = [load_scene(s) for s in scenes]        # every scene checked before any work
-    configs = [controller_config(m) for m in models]
-    results = []
-    progress = Progress()
-    try:
-        for model, config in zip(models, configs):
-            results.append(compare_drive_inertia(
-                model, config, n_points=points,
-                progress=lambda k, n, name=model.name: progress.update(
-                    f"comparison of {name}, closed-loop", k, n)))
-    finally:
-        progress.close()
-    for c in results:
-        nom = c.nominal()
-        if nom is not None:
-            print(f"{c.scene}: m_d / m_load = {nom.mass_ratio:.3g}, coupling {nom.coupling:.3g}: "
-                  f"{regime(nom)}")
-    with writing(out):
-        return write_comparison_report(results, out)
 
 
 # --- export-fmu ------------------------------------------------------------------------------
@@ -557,61 +299,3 @@ def cmd_scene_info(args: argparse.Namespace) -> None:
     print(describe_model(load_scene(args.scene)))
 
 
-def describe_model(model: Model) -> str:
-    """The model as text: name, effects, masses, m_d, home leg lengths, cond(J) at home."""
-    kin = inverse_kinematics(model, model.home)
-    lines = [
-        f"scene: {model.name}" + (f" ({model.source})" if model.source else ""),
-        f"effects: {', '.join(model.effects) or 'none'} (platform and gravity always)",
-        f"gravity: {_vec(model.gravity)} m/s^2",
-        f"platform: mass {model.platform_mass:g} kg, principal inertia "
-        f"{_vec(model.platform_inertia)} kg m^2",
-        _describe_legs(model), _describe_drive(model), _describe_friction(model),
-        f"stroke: [{_opt(model.leg_min)}, {_opt(model.leg_max)}] m",
-        f"home pose: {_vec(model.home)} (m, rad)",
-        f"home leg lengths: {_vec(kin.lengths)} m",
-        f"cond(J) at home: {kin.cond:.6g} (rotational columns scaled by "
-        f"{model.characteristic_length:.6g} m)",
-    ]
-    return "\n".join(lines)
-
-
-def _describe_legs(model: Model) -> str:
-    """Leg part masses, or that the legs are massless."""
-    lg = model.legs
-    if lg is None:
-        return "legs: none (massless)"
-    moving = model.platform_mass + 6 * (lg.lower_mass + lg.upper_mass)
-    return (f"legs: lower part {lg.lower_mass:g} kg (CoM {lg.lower_com:g} m from the base joint, "
-            f"inertia {_vec(lg.lower_inertia)} kg m^2), upper part {lg.upper_mass:g} kg (CoM "
-            f"{lg.upper_com:g} m from the platform joint, inertia {_vec(lg.upper_inertia)} "
-            "kg m^2); "
-            f"platform + 12 leg parts {moving:g} kg")
-
-
-def _describe_drive(model: Model) -> str:
-    """Drive parameters and m_d, or that there is none."""
-    dr = model.drive
-    if dr is None:
-        return "drive: none (m_d = 0, not modelled)"
-    return (f"drive: gear ratio {dr.gear_ratio:g}, rotor inertia {dr.rotor_inertia:g} kg m^2, "
-            f"pinion radius {dr.pinion_radius:g} m; m_d = zeta^2 I / r^2 = "
-            f"{dr.reflected_mass:.6g} kg")
-
-
-def _describe_friction(model: Model) -> str:
-    """Friction coefficients, or that there is none."""
-    fr = model.friction
-    if fr is None:
-        return "friction: none"
-    return f"friction: viscous {fr.viscous:g} N s/m, Coulomb {fr.coulomb:g} N"
-
-
-def _vec(a) -> str:
-    """A vector as [a, b, c] with 6 significant digits."""
-    return "[" + ", ".join(f"{v:.6g}" for v in np.ravel(a)) + "]"
-
-
-def _opt(x: float | None) -> str:
-    """A number, or 'none'."""
-    return "none" if x is None else f"{x:g}"

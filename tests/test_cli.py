@@ -13,7 +13,7 @@ import pytest
 
 from stewart_fmu import (PARTS, check_poses, inverse_dynamics, inverse_dynamics_parts,
                          load_scene)
-from stewart_fmu import cli, progress, io
+from stewart_fmu import cli, inverse_files, io, progress
 
 ROOT = Path(__file__).resolve().parents[1]
 MICRO = ROOT / "scenes" / "micro_manipulator.toml"
@@ -117,7 +117,7 @@ def test_blocks_and_progress(tmp_path, traj_file, monkeypatch, capsys) -> None:
     whole, blocks = tmp_path / "whole.csv", tmp_path / "blocks.csv"
     assert run_inverse(MICRO, traj_file, whole, "--parts") == 0
     capsys.readouterr()
-    monkeypatch.setattr(cli, "CHUNK_SAMPLES", 7)
+    monkeypatch.setattr(inverse_files, "CHUNK_SAMPLES", 7)
     monkeypatch.setattr(progress, "PROGRESS_SAMPLES", 50)  # 120 samples count as a long run
     monkeypatch.setattr(progress, "PROGRESS_INTERVAL", 0.0)
     assert run_inverse(MICRO, traj_file, blocks, "--parts") == 0
@@ -159,11 +159,11 @@ BAD_INPUTS = {
 }
 
 
-@pytest.mark.parametrize("chunk", [cli.CHUNK_SAMPLES, 16])
+@pytest.mark.parametrize("chunk", [inverse_files.CHUNK_SAMPLES, 16])
 @pytest.mark.parametrize("case", sorted(BAD_INPUTS))
 def test_bad_trajectory(tmp_path, traj, traj_file, case, chunk, monkeypatch, capsys) -> None:
     """Each bad input: status 2, one error line naming line/column or sample/time, no output."""
-    monkeypatch.setattr(cli, "CHUNK_SAMPLES", chunk)  # 16: the bad sample lies in a later block
+    monkeypatch.setattr(inverse_files, "CHUNK_SAMPLES", chunk)  # 16: the bad sample lies in a later block
     spoil, expected = BAD_INPUTS[case]
     spoil(traj_file, traj)
     out = tmp_path / "forces.csv"

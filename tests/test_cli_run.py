@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from controller.config import controller_config
+from controller import run_files
 from controller.cosim import run_closed_loop
 from stewart_fmu import cli, load_scene
 from stewart_fmu.fmu import export_fmu
@@ -62,7 +63,7 @@ def test_run_writes_files_and_summary_equals_result(scene, tmp_path, capsys) -> 
     out = tmp_path / "run"
     assert run_cli(scene, out) == 0
     printed = capsys.readouterr().out
-    for name in cli.RUN_FILES:
+    for name in run_files.RUN_FILES:
         assert (out / name).is_file() and (out / name).stat().st_size > 0, name
         assert f"wrote {out / name}" in printed
     for name in PNGS:
@@ -70,7 +71,7 @@ def test_run_writes_files_and_summary_equals_result(scene, tmp_path, capsys) -> 
 
     model = load_scene(scene)
     config = controller_config(model)
-    traj = cli.run_reference(model, config, DURATION[scene])
+    traj = run_files.run_reference(model, config, DURATION[scene])
     result = run_closed_loop(model, config, traj)
 
     header, values = read_csv(out / "run.csv")
