@@ -198,10 +198,10 @@ def run_closed_loop(model: Model, config: ControllerConfig, traj: Trajectory,
     rec = _Recorder(len(traj.t))
     bound = DIVERGENCE_FRACTION * _stroke_range(model, refs)
     if plant is None:  # in-process: the whole loop in one compiled call
-        _start_at_equilibrium(model, traj, refs, gains, ctrl, motors, i_ff[0], None)
+        start_at_equilibrium(model, traj, refs, gains, ctrl, motors, i_ff[0], None)
         wall = _run_compiled(model, traj, refs, v_ff, ctrl, motors, bound, rec, progress)
     else:
-        _start_at_equilibrium(model, traj, refs, gains, ctrl, motors, i_ff[0], plant)
+        start_at_equilibrium(model, traj, refs, gains, ctrl, motors, i_ff[0], plant)
         start = wallclock.perf_counter()
         _run_ports(plant, traj, refs, v_ff, ctrl, motors, bound, rec, progress)
         wall = wallclock.perf_counter() - start
@@ -321,7 +321,7 @@ def _check_rate(traj: Trajectory, config: ControllerConfig) -> None:
                            f"at {config.rate:g} Hz: sample the trajectory at the controller rate")
 
 
-def _start_at_equilibrium(model, traj, refs, gains, ctrl, motors, i_ff0, plant) -> None:
+def start_at_equilibrium(model, traj, refs, gains, ctrl, motors, i_ff0, plant) -> None:
     """The drives hold the platform at the first pose before the move (bumpless start): the
     integral supplies what the feedforward's resistive and back-EMF parts do not, so the
     feedforward's inductive part (L di/dt) still reaches the motor from the first sample."""

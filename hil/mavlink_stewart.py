@@ -365,8 +365,10 @@ STEWART_SETPOINT_FLAG_RATE_VALID = 1
 enums["STEWART_SETPOINT_FLAG"][1] = EnumEntry("STEWART_SETPOINT_FLAG_RATE_VALID", """The rate field is a valid leg-rate feed-forward; without this flag the device ignores rate.""")
 STEWART_SETPOINT_FLAG_HOLD = 2
 enums["STEWART_SETPOINT_FLAG"][2] = EnumEntry("STEWART_SETPOINT_FLAG_HOLD", """Hold the current leg lengths; the length and rate fields are ignored (still keeps the watchdog fed).""")
-STEWART_SETPOINT_FLAG_ENUM_END = 3
-enums["STEWART_SETPOINT_FLAG"][3] = EnumEntry("STEWART_SETPOINT_FLAG_ENUM_END", """""")
+STEWART_SETPOINT_FLAG_FORCE_VALID = 4
+enums["STEWART_SETPOINT_FLAG"][4] = EnumEntry("STEWART_SETPOINT_FLAG_FORCE_VALID", """The force field is a valid leg-force feed-forward: the device adds the voltage that drives that force's current through the armature resistance plus the back-EMF of the commanded rate; without this flag the device ignores force.""")
+STEWART_SETPOINT_FLAG_ENUM_END = 5
+enums["STEWART_SETPOINT_FLAG"][5] = EnumEntry("STEWART_SETPOINT_FLAG_ENUM_END", """""")
 
 # STEWART_WATCHDOG_STATE
 enums["STEWART_WATCHDOG_STATE"] = Enum()
@@ -6565,22 +6567,22 @@ class MAVLink_leg_setpoint_message(MAVLink_message):
 
     id = MAVLINK_MSG_ID_LEG_SETPOINT
     msgname = "LEG_SETPOINT"
-    fieldnames = ["time_usec", "sequence", "length", "rate", "flags"]
-    ordered_fieldnames = ["time_usec", "sequence", "length", "rate", "flags"]
-    fieldtypes = ["uint64_t", "uint32_t", "float", "float", "uint8_t"]
+    fieldnames = ["time_usec", "sequence", "length", "rate", "flags", "force"]
+    ordered_fieldnames = ["time_usec", "length", "rate", "sequence", "flags", "force"]
+    fieldtypes = ["uint64_t", "uint32_t", "double", "double", "uint8_t", "double"]
     fielddisplays_by_name: Dict[str, str] = {"flags": "bitmask"}
     fieldenums_by_name: Dict[str, str] = {"flags": "STEWART_SETPOINT_FLAG"}
-    fieldunits_by_name: Dict[str, str] = {"time_usec": "us", "length": "m", "rate": "m/s"}
-    native_format = bytearray(b"<QIffB")
-    orders = [0, 1, 2, 3, 4]
-    lengths = [1, 1, 6, 6, 1]
-    array_lengths = [0, 0, 6, 6, 0]
-    crc_extra = 149
-    unpacker = struct.Struct("<QI6f6fB")
+    fieldunits_by_name: Dict[str, str] = {"time_usec": "us", "length": "m", "rate": "m/s", "force": "N"}
+    native_format = bytearray(b"<QddIBd")
+    orders = [0, 3, 1, 2, 4, 5]
+    lengths = [1, 6, 6, 1, 1, 6]
+    array_lengths = [0, 6, 6, 0, 0, 6]
+    crc_extra = 113
+    unpacker = struct.Struct("<Q6d6dIB6d")
     instance_field = None
     instance_offset = -1
 
-    def __init__(self, time_usec: int, sequence: int, length: Sequence[float], rate: Sequence[float], flags: int):
+    def __init__(self, time_usec: int, sequence: int, length: Sequence[float], rate: Sequence[float], flags: int, force: Sequence[float] = (0, 0, 0, 0, 0, 0)):
         MAVLink_message.__init__(self, MAVLink_leg_setpoint_message.id, MAVLink_leg_setpoint_message.msgname)
         self._fieldnames = MAVLink_leg_setpoint_message.fieldnames
         self._instance_field = MAVLink_leg_setpoint_message.instance_field
@@ -6590,9 +6592,10 @@ class MAVLink_leg_setpoint_message(MAVLink_message):
         self.length = length
         self.rate = rate
         self.flags = flags
+        self.force = force
 
     def pack(self, mav: "MAVLink", force_mavlink1: bool = False) -> bytes:
-        return self._pack(mav, self.crc_extra, self.unpacker.pack(self.time_usec, self.sequence, self.length[0], self.length[1], self.length[2], self.length[3], self.length[4], self.length[5], self.rate[0], self.rate[1], self.rate[2], self.rate[3], self.rate[4], self.rate[5], self.flags), force_mavlink1=force_mavlink1)
+        return self._pack(mav, self.crc_extra, self.unpacker.pack(self.time_usec, self.length[0], self.length[1], self.length[2], self.length[3], self.length[4], self.length[5], self.rate[0], self.rate[1], self.rate[2], self.rate[3], self.rate[4], self.rate[5], self.sequence, self.flags, self.force[0], self.force[1], self.force[2], self.force[3], self.force[4], self.force[5]), force_mavlink1=force_mavlink1)
 
 
 # Define name on the class for backwards compatibility (it is now msgname).
@@ -6607,22 +6610,22 @@ class MAVLink_leg_state_message(MAVLink_message):
 
     id = MAVLINK_MSG_ID_LEG_STATE
     msgname = "LEG_STATE"
-    fieldnames = ["time_usec", "length", "rate", "force"]
-    ordered_fieldnames = ["time_usec", "length", "rate", "force"]
-    fieldtypes = ["uint64_t", "float", "float", "float"]
+    fieldnames = ["time_usec", "length", "rate", "force", "step"]
+    ordered_fieldnames = ["time_usec", "length", "rate", "force", "step"]
+    fieldtypes = ["uint64_t", "double", "double", "double", "uint32_t"]
     fielddisplays_by_name: Dict[str, str] = {}
     fieldenums_by_name: Dict[str, str] = {}
     fieldunits_by_name: Dict[str, str] = {"time_usec": "us", "length": "m", "rate": "m/s", "force": "N"}
-    native_format = bytearray(b"<Qfff")
-    orders = [0, 1, 2, 3]
-    lengths = [1, 6, 6, 6]
-    array_lengths = [0, 6, 6, 6]
-    crc_extra = 191
-    unpacker = struct.Struct("<Q6f6f6f")
+    native_format = bytearray(b"<QdddI")
+    orders = [0, 1, 2, 3, 4]
+    lengths = [1, 6, 6, 6, 1]
+    array_lengths = [0, 6, 6, 6, 0]
+    crc_extra = 128
+    unpacker = struct.Struct("<Q6d6d6dI")
     instance_field = None
     instance_offset = -1
 
-    def __init__(self, time_usec: int, length: Sequence[float], rate: Sequence[float], force: Sequence[float]):
+    def __init__(self, time_usec: int, length: Sequence[float], rate: Sequence[float], force: Sequence[float], step: int = 0):
         MAVLink_message.__init__(self, MAVLink_leg_state_message.id, MAVLink_leg_state_message.msgname)
         self._fieldnames = MAVLink_leg_state_message.fieldnames
         self._instance_field = MAVLink_leg_state_message.instance_field
@@ -6631,9 +6634,10 @@ class MAVLink_leg_state_message(MAVLink_message):
         self.length = length
         self.rate = rate
         self.force = force
+        self.step = step
 
     def pack(self, mav: "MAVLink", force_mavlink1: bool = False) -> bytes:
-        return self._pack(mav, self.crc_extra, self.unpacker.pack(self.time_usec, self.length[0], self.length[1], self.length[2], self.length[3], self.length[4], self.length[5], self.rate[0], self.rate[1], self.rate[2], self.rate[3], self.rate[4], self.rate[5], self.force[0], self.force[1], self.force[2], self.force[3], self.force[4], self.force[5]), force_mavlink1=force_mavlink1)
+        return self._pack(mav, self.crc_extra, self.unpacker.pack(self.time_usec, self.length[0], self.length[1], self.length[2], self.length[3], self.length[4], self.length[5], self.rate[0], self.rate[1], self.rate[2], self.rate[3], self.rate[4], self.rate[5], self.force[0], self.force[1], self.force[2], self.force[3], self.force[4], self.force[5], self.step), force_mavlink1=force_mavlink1)
 
 
 # Define name on the class for backwards compatibility (it is now msgname).
@@ -17413,7 +17417,7 @@ class MAVLink(object):
         m._header = MAVLink_header(msgId, incompat_flags, compat_flags, mlen, seq, srcSystem, srcComponent)
         return m
 
-    def leg_setpoint_encode(self, time_usec: int, sequence: int, length: Sequence[float], rate: Sequence[float], flags: int) -> MAVLink_leg_setpoint_message:
+    def leg_setpoint_encode(self, time_usec: int, sequence: int, length: Sequence[float], rate: Sequence[float], flags: int, force: Sequence[float] = (0, 0, 0, 0, 0, 0)) -> MAVLink_leg_setpoint_message:
         """
         Leg-length setpoint for the six legs (host to device). A setpoint
         outside the leg stroke or the workspace is refused with a
@@ -17423,14 +17427,15 @@ class MAVLink(object):
 
         time_usec                 : Timestamp of the setpoint (host time, or simulated time in lockstep mode). [us] (type:uint64_t)
         sequence                  : Setpoint sequence number, incremented by one per setpoint sent (wraps at 2^32). (type:uint32_t)
-        length                    : Commanded leg lengths, legs 0..5. [m] (type:float)
-        rate                      : Commanded leg rates (feed-forward), legs 0..5; used only with STEWART_SETPOINT_FLAG_RATE_VALID. [m/s] (type:float)
+        length                    : Commanded leg lengths, legs 0..5 (double: lockstep runs over the link are bit-identical to in-process runs). [m] (type:double)
+        rate                      : Commanded leg rates (feed-forward), legs 0..5; used only with STEWART_SETPOINT_FLAG_RATE_VALID. [m/s] (type:double)
         flags                     : Setpoint flags. (type:uint8_t, values:STEWART_SETPOINT_FLAG)
+        force                     : Leg-force feed-forward, legs 0..5 (positive pushes the platform away from the base); used only with STEWART_SETPOINT_FLAG_FORCE_VALID. An extension field, so senders that omit it send zeros. [N] (type:double)
 
         """
-        return MAVLink_leg_setpoint_message(time_usec, sequence, length, rate, flags)
+        return MAVLink_leg_setpoint_message(time_usec, sequence, length, rate, flags, force)
 
-    def leg_setpoint_send(self, time_usec: int, sequence: int, length: Sequence[float], rate: Sequence[float], flags: int, force_mavlink1: bool = False) -> None:
+    def leg_setpoint_send(self, time_usec: int, sequence: int, length: Sequence[float], rate: Sequence[float], flags: int, force: Sequence[float] = (0, 0, 0, 0, 0, 0), force_mavlink1: bool = False) -> None:
         """
         Leg-length setpoint for the six legs (host to device). A setpoint
         outside the leg stroke or the workspace is refused with a
@@ -17440,36 +17445,39 @@ class MAVLink(object):
 
         time_usec                 : Timestamp of the setpoint (host time, or simulated time in lockstep mode). [us] (type:uint64_t)
         sequence                  : Setpoint sequence number, incremented by one per setpoint sent (wraps at 2^32). (type:uint32_t)
-        length                    : Commanded leg lengths, legs 0..5. [m] (type:float)
-        rate                      : Commanded leg rates (feed-forward), legs 0..5; used only with STEWART_SETPOINT_FLAG_RATE_VALID. [m/s] (type:float)
+        length                    : Commanded leg lengths, legs 0..5 (double: lockstep runs over the link are bit-identical to in-process runs). [m] (type:double)
+        rate                      : Commanded leg rates (feed-forward), legs 0..5; used only with STEWART_SETPOINT_FLAG_RATE_VALID. [m/s] (type:double)
         flags                     : Setpoint flags. (type:uint8_t, values:STEWART_SETPOINT_FLAG)
+        force                     : Leg-force feed-forward, legs 0..5 (positive pushes the platform away from the base); used only with STEWART_SETPOINT_FLAG_FORCE_VALID. An extension field, so senders that omit it send zeros. [N] (type:double)
 
         """
-        self.send(self.leg_setpoint_encode(time_usec, sequence, length, rate, flags), force_mavlink1=force_mavlink1)
+        self.send(self.leg_setpoint_encode(time_usec, sequence, length, rate, flags, force), force_mavlink1=force_mavlink1)
 
-    def leg_state_encode(self, time_usec: int, length: Sequence[float], rate: Sequence[float], force: Sequence[float]) -> MAVLink_leg_state_message:
-        """
-        Measured state of the six legs (device to host).
-
-        time_usec                 : Timestamp of the measurement (device time, or simulated time in lockstep mode). [us] (type:uint64_t)
-        length                    : Measured leg lengths, legs 0..5. [m] (type:float)
-        rate                      : Measured leg rates (extension speeds), legs 0..5. [m/s] (type:float)
-        force                     : Axial leg forces, legs 0..5; positive pushes the platform away from the base. [N] (type:float)
-
-        """
-        return MAVLink_leg_state_message(time_usec, length, rate, force)
-
-    def leg_state_send(self, time_usec: int, length: Sequence[float], rate: Sequence[float], force: Sequence[float], force_mavlink1: bool = False) -> None:
+    def leg_state_encode(self, time_usec: int, length: Sequence[float], rate: Sequence[float], force: Sequence[float], step: int = 0) -> MAVLink_leg_state_message:
         """
         Measured state of the six legs (device to host).
 
         time_usec                 : Timestamp of the measurement (device time, or simulated time in lockstep mode). [us] (type:uint64_t)
-        length                    : Measured leg lengths, legs 0..5. [m] (type:float)
-        rate                      : Measured leg rates (extension speeds), legs 0..5. [m/s] (type:float)
-        force                     : Axial leg forces, legs 0..5; positive pushes the platform away from the base. [N] (type:float)
+        length                    : Measured leg lengths, legs 0..5. [m] (type:double)
+        rate                      : Measured leg rates (extension speeds), legs 0..5. [m/s] (type:double)
+        force                     : Axial leg forces, legs 0..5; positive pushes the platform away from the base. [N] (type:double)
+        step                      : In lockstep mode: the LOCKSTEP step this state answers (the state at the end of that step); 0 in real-time mode. (type:uint32_t)
 
         """
-        self.send(self.leg_state_encode(time_usec, length, rate, force), force_mavlink1=force_mavlink1)
+        return MAVLink_leg_state_message(time_usec, length, rate, force, step)
+
+    def leg_state_send(self, time_usec: int, length: Sequence[float], rate: Sequence[float], force: Sequence[float], step: int = 0, force_mavlink1: bool = False) -> None:
+        """
+        Measured state of the six legs (device to host).
+
+        time_usec                 : Timestamp of the measurement (device time, or simulated time in lockstep mode). [us] (type:uint64_t)
+        length                    : Measured leg lengths, legs 0..5. [m] (type:double)
+        rate                      : Measured leg rates (extension speeds), legs 0..5. [m/s] (type:double)
+        force                     : Axial leg forces, legs 0..5; positive pushes the platform away from the base. [N] (type:double)
+        step                      : In lockstep mode: the LOCKSTEP step this state answers (the state at the end of that step); 0 in real-time mode. (type:uint32_t)
+
+        """
+        self.send(self.leg_state_encode(time_usec, length, rate, force, step), force_mavlink1=force_mavlink1)
 
     def drive_status_encode(self, time_usec: int, voltage: Sequence[float], current: Sequence[float], saturated: int, watchdog: int, setpoints_refused: int, crc_errors: int) -> MAVLink_drive_status_message:
         """

@@ -3,8 +3,8 @@
 
 Subcommands: `inverse` (the contract's command), `paper` (Section 3 rerun), `demo` (what
 `make demo` runs), `run` (closed loop: the per-axis controllers around the plant or an FMU),
-`compare` (constant-load vs Kane control over a drive-inertia sweep), `scene-info` and
-`export-fmu`. Exit status: 0 on success; 2 on a usage error or on an
+`compare` (constant-load vs Kane control over a drive-inertia sweep), `scene-info`,
+`export-fmu` and `device` (the emulated micro-manipulator behind a MAVLink link). Exit status: 0 on success; 2 on a usage error or on an
 error in the inputs (every StewartError: scene, trajectory, pose); 1 when an output cannot be
 written (OutputError); 130 on Ctrl-C. Every output file is written atomically: an error leaves
 an existing file as it was.
@@ -145,6 +145,30 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scene", metavar="SCENE", help="scene file (TOML)")
     p.add_argument("-o", "--out", required=True, metavar="PLANT.fmu", help="the FMU to write")
     p.set_defaults(run=cmd_export_fmu)
+
+    p = sub.add_parser("device", help="run the emulated micro-manipulator behind a MAVLink link",
+                       description="Run the scene's plant and drive servo loops at the "
+                                   "controller rate as an emulated device speaking MAVLink 2 "
+                                   "(our dialect, hil/message_definitions/stewart.xml) over UDP "
+                                   "on loopback or a pseudo-terminal, until interrupted (Ctrl-C "
+                                   "exits 0). The first line printed is the pseudo-terminal's "
+                                   "path, or the UDP address listened on.")
+    p.add_argument("scene", metavar="SCENE", help="scene file (TOML) with a [controller] table")
+    where = p.add_mutually_exclusive_group(required=True)
+    where.add_argument("--udp", metavar="127.0.0.1:PORT",
+                       help="listen on this loopback UDP port (0: any free port) and answer "
+                            "whoever sends to it")
+    where.add_argument("--pty", action="store_true",
+                       help="open a pseudo-terminal and print its path on the first line")
+    p.add_argument("--watchdog", type=_positive_seconds, default=0.2, metavar="SECONDS",
+                   help="safe stop (hold) after this long without a valid setpoint while armed "
+                        "(default 0.2 s)")
+    p.add_argument("--lockstep", action="store_true",
+                   help="advance time only on LOCKSTEP messages (deterministic runs)")
+    p.add_argument("--signing-key", metavar="HEX",
+                   help="MAVLink 2 signing key, 64 hex digits: unsigned or badly signed frames "
+                        "are rejected and counted")
+    p.set_defaults(run=cmd_device)
     return parser
 
 
@@ -290,6 +314,59 @@ def cmd_export_fmu(args: argparse.Namespace) -> None:
     with writing(out):
         export_fmu(args.scene, out)
     print(f"wrote {out}")
+
+
+# --- device ----------------------------------------------------------------------------------
+
+def cmd_device(args: argparse.Namespace) -> None:
+    """`stewart-sim device SCENE (--udp 127.0.0.1:PORT | --pty) [--watchdog S] [--lockstep]
+    [--signing-key HEX]`: serve until SIGINT or SIGTERM, then return (exit status 0)."""
+    import signal
+    import threading
+
+    from hil.device import Device
+    from hil.errors import LinkError
+    from hil.link import pty_pair
+    from hil.serve import UdpServerTransport, loopback_address, serve
+
+    key = None
+    if args.signing_key is not None:
+        try:
+            key = bytes.fromhex(args.signing_key)
+        except ValueError:
+            key = b""
+        if len(key) != 32:
+            raise LinkError("--signing-key must be 64 hex digits (32 bytes)")
+    address = loopback_address(args.udp) if args.udp is not None else None
+    model = load_scene(args.scene)
+    device = Device(model, controller_config(model), watchdog=args.watchdog, signing_key=key,
+                    lockstep=args.lockstep)
+    keep = None  # the pty's slave end, held open so the master never sees a hang-up
+    if address is not None:
+        transport = UdpServerTransport(*address)
+        first = f"udp {transport.address[0]}:{transport.address[1]}"
+    else:
+        transport, keep = pty_pair()
+        first = keep.name
+    stop = threading.Event()
+    handlers = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        print(first, flush=True)
+        print(f"device: {model.name}, {device.rate:g} Hz, "
+              f"{'lockstep' if args.lockstep else 'real time'}, watchdog {args.watchdog:g} s"
+              f"{', signed' if key else ''}; Ctrl-C stops", file=sys.stderr, flush=True)
+        stats = serve(device, transport, not args.lockstep, stop)
+    finally:
+        for sig, old in handlers.items():
+            signal.signal(sig, old)
+        transport.close()
+        if keep is not None:
+            keep.close()
+    c = device.counters
+    print(f"device stopped: {stats.ticks} ticks in {stats.wall:.3g} s, {stats.overruns} overruns, "
+          f"{stats.messages_in} messages in, {stats.messages_out} out, "
+          f"{device.link_errors} bad frames, {c.setpoints_refused} setpoints refused",
+          file=sys.stderr, flush=True)
 
 
 # --- scene-info ------------------------------------------------------------------------------

@@ -129,7 +129,7 @@ def test_common_messages_identical_on_the_wire():
 
 def test_xml_units_and_descriptions():
     expected_units = {
-        "LEG_SETPOINT": {"time_usec": "us", "length": "m", "rate": "m/s"},
+        "LEG_SETPOINT": {"time_usec": "us", "length": "m", "rate": "m/s", "force": "N"},
         "LEG_STATE": {"time_usec": "us", "length": "m", "rate": "m/s", "force": "N"},
         "DRIVE_STATUS": {"time_usec": "us", "voltage": "V", "current": "A"},
         "LOCKSTEP": {"time_usec": "us"},
@@ -178,6 +178,11 @@ def same_f32(decoded: list[float], sent: list[float]) -> bool:
     return [struct.pack("<f", v) for v in decoded] == [struct.pack("<f", v) for v in want]
 
 
+def same_f64(decoded: list[float], sent: list[float]) -> bool:
+    """Bit for bit (so -0.0 and NaN payloads count too)."""
+    return [struct.pack("<d", v) for v in decoded] == [struct.pack("<d", v) for v in sent]
+
+
 def roundtrip(msg):
     buf = msg.pack(sender(ms))
     out = parse_all(ms.MAVLink(None), buf)
@@ -189,14 +194,20 @@ def test_leg_setpoint_and_state_roundtrip():
     for k, vals in enumerate(float_sets(1)):
         rates = list(reversed(vals))
         t = (2**64 - 1) if k == 0 else k * 1_000_003
-        sp, buf = roundtrip(ms.MAVLink_leg_setpoint_message(t, 2**32 - 1 - k, vals, rates, 3))
+        forces = vals[::2] + rates[::2]
+        sp, buf = roundtrip(ms.MAVLink_leg_setpoint_message(t, 2**32 - 1 - k, vals, rates, 7, forces))
         assert buf[0] == 0xFD  # MAVLink 2 frame
-        assert (sp.time_usec, sp.sequence, sp.flags) == (t, 2**32 - 1 - k, 3)
-        assert same_f32(sp.length, vals) and same_f32(sp.rate, rates)
-        st, _ = roundtrip(ms.MAVLink_leg_state_message(t, vals, rates, vals[::2] + rates[::2]))
-        assert st.time_usec == t
-        assert same_f32(st.length, vals) and same_f32(st.rate, rates)
-        assert same_f32(st.force, vals[::2] + rates[::2])
+        assert (sp.time_usec, sp.sequence, sp.flags) == (t, 2**32 - 1 - k, 7)
+        # length, rate and force are double[6]: exact, bit for bit
+        assert same_f64(sp.length, vals) and same_f64(sp.rate, rates) and same_f64(sp.force, forces)
+        st, _ = roundtrip(ms.MAVLink_leg_state_message(t, vals, rates, forces, k))
+        assert (st.time_usec, st.step) == (t, k)
+        assert same_f64(st.length, vals) and same_f64(st.rate, rates) and same_f64(st.force, forces)
+    # the extension fields default to zero, and old five-argument senders still work
+    sp, _ = roundtrip(ms.MAVLink_leg_setpoint_message(1, 2, [0.1] * 6, [0.2] * 6, 1))
+    assert sp.force == [0.0] * 6
+    st, _ = roundtrip(ms.MAVLink_leg_state_message(1, [0.1] * 6, [0.2] * 6, [0.3] * 6))
+    assert st.step == 0
 
 
 def test_drive_status_and_lockstep_roundtrip():
@@ -211,12 +222,14 @@ def test_drive_status_and_lockstep_roundtrip():
     assert (ls.time_usec, ls.step) == (2**63 + 5, 123456789)
 
 
-def test_float32_precision_is_kept_exactly():
-    """A value that is exactly a float32 comes back bit for bit; a double is rounded to nearest."""
+def test_precision_double_legs_float32_drive_status():
+    """Leg arrays are doubles (exact); DRIVE_STATUS floats round to the nearest float32."""
+    sp, _ = roundtrip(ms.MAVLink_leg_setpoint_message(0, 0, [0.1] * 6, [1 / 3] * 6, 0))
+    assert sp.length == [0.1] * 6 and sp.rate == [1 / 3] * 6
     x = f32(0.1)
-    sp, _ = roundtrip(ms.MAVLink_leg_setpoint_message(0, 0, [x] * 6, [0.1] * 6, 0))
-    assert sp.length == [x] * 6
-    assert sp.rate == [x] * 6  # 0.1 rounded to the nearest float32, not truncated
+    ds, _ = roundtrip(ms.MAVLink_drive_status_message(0, [x] * 6, [0.1] * 6, 0, 0, 0, 0))
+    assert ds.voltage == [x] * 6
+    assert ds.current == [x] * 6  # 0.1 rounded to the nearest float32, not truncated
     nan, _ = roundtrip(ms.MAVLink_leg_state_message(0, [float("nan")] * 6, [0.0] * 6, [0.0] * 6))
     assert all(math.isnan(v) for v in nan.length)
 
@@ -317,7 +330,7 @@ def test_connection_over_udp_loopback():
         lengths = [0.3 + 1e-3 * i for i in range(6)]
         host.mav.leg_setpoint_send(42, 7, lengths, [0.0] * 6, ms.STEWART_SETPOINT_FLAG_RATE_VALID)
         msg = dev.recv_match(type="LEG_SETPOINT", blocking=True, timeout=5)
-        assert msg is not None and msg.sequence == 7 and same_f32(msg.length, lengths)
+        assert msg is not None and msg.sequence == 7 and msg.length == lengths
         assert msg.get_srcSystem() == 255 and msg.get_srcComponent() == 190
         # and back to whoever sent (udpin answers the last sender)
         dev.mav.heartbeat_send(ms.MAV_TYPE_GENERIC, ms.MAV_AUTOPILOT_GENERIC, 0, 0, ms.MAV_STATE_STANDBY)
