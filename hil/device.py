@@ -46,7 +46,9 @@ as unsupported: the home pose is the scene's. Other commands: MAV_RESULT_UNSUPPO
 
 Lockstep
 --------
-With `lockstep=True` time advances only on LOCKSTEP(step=k): the device applies what it received
+With `lockstep=True` time advances only on LOCKSTEP(step=k) (when armed, only once the setpoint
+with sequence k has been accepted: a lost setpoint is never replaced silently by the previous
+one): the device applies what it received
 before (the setpoint for step k), ticks once and answers with the telemetry due, one LEG_STATE
 with `step = k` and LOCKSTEP(step=k) echoed, all stamped with the device time after the step.
 Steps are numbered from 0; a repeated step is answered again without ticking (the host may
@@ -211,6 +213,7 @@ class Device:
         self._said: dict[str, int] = {}  # refusal text -> tick it was last sent
         self._statustext_id = 0
         self._next_step = 0
+        self._setpoint_sequence: int | None = None   # sequence of the last accepted setpoint
         self._last_reply: list[Any] | None = None
         self._v = np.zeros(6)
         self._sat = np.zeros(6, dtype=bool)
@@ -355,6 +358,7 @@ class Device:
             out = self._statustext(ms.MAV_SEVERITY_NOTICE, "watchdog: setpoints resumed")
         self.watchdog_state = ms.STEWART_WATCHDOG_OK
         self._last_setpoint_k = self.k
+        self._setpoint_sequence = msg.sequence
         if flags & ms.STEWART_SETPOINT_FLAG_HOLD:
             self._hold()
             return out
@@ -500,6 +504,12 @@ class Device:
             self.counters.lockstep_refused += 1
             return self._say_once(ms.MAV_SEVERITY_WARNING, "LOCKSTEP ignored: real-time mode")
         k = msg.step
+        if k == self._next_step and self.armed and self._setpoint_sequence != k:
+            # Armed, a lockstep step needs its own setpoint (sequence = step): a lost setpoint
+            # must not be replaced silently by the previous one. The host resends both.
+            self.counters.lockstep_refused += 1
+            return self._say_once(ms.MAV_SEVERITY_WARNING,
+                                  f"LOCKSTEP {k} refused: setpoint {k} missing", key="lockstep")
         if k == self._next_step:
             out = self.tick(step=k)
             self._next_step = k + 1

@@ -119,6 +119,13 @@ def build_parser() -> argparse.ArgumentParser:
                         f"{100 * RUN_HOLD:g} %% each")
     p.add_argument("--feedforward", choices=("none", "constant_load", "kane"),
                    help="override the scene's controller.feedforward")
+    p.add_argument("--link", choices=("serial", "udp"),
+                   help="run the controller against the emulated device (hil.device, served "
+                        "in a thread) over a pseudo-terminal (serial) or loopback UDP instead "
+                        "of the in-process plant; writes run.csv and summary.md")
+    p.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep",
+                   help="with --link: lockstep (deterministic, one exchange per controller "
+                        "step; default) or realtime (wall clock, link delays visible)")
     p.set_defaults(run=cmd_run)
 
     p = sub.add_parser("compare", help="constant-load vs Kane control over a gear-ratio sweep",
@@ -282,12 +289,26 @@ def run_demo(model: Model, out: Path, duration: float) -> list[Path]:
 # --- run -------------------------------------------------------------------------------------
 
 def cmd_run(args: argparse.Namespace) -> None:
-    """`stewart-sim run SCENE [--fmu PLANT.fmu] --out DIR [--duration S] [--feedforward F]`."""
+    """`stewart-sim run SCENE [--fmu PLANT.fmu | --link serial|udp [--mode lockstep|realtime]]
+    --out DIR [--duration S] [--feedforward F]`."""
     model = load_scene(args.scene)
     config = controller_config(model)
     if args.feedforward is not None:
         config = replace(config, feedforward=args.feedforward)
     out = Path(args.out)
+    if args.link is not None:
+        from hil.client import LINK_FILES, run_link_files
+
+        if args.fmu:
+            raise StewartError("run: --fmu and --link exclude each other (the device over the "
+                               "link runs its own in-process plant)")
+        run_link_files(model, config, args.duration, out, args.link, args.mode)
+        print((out / "summary.md").read_text(encoding="utf-8"), end="")
+        for name in LINK_FILES:
+            print(f"wrote {out / name}")
+        return
+    if args.mode != "lockstep":
+        raise StewartError("run: --mode needs --link serial|udp")
     result, traj = run_closed_loop_files(model, config, args.duration, out,
                                          Path(args.fmu) if args.fmu else None)
     print((out / "summary.md").read_text(encoding="utf-8"), end="")

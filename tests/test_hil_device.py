@@ -30,6 +30,7 @@ from hil.framing import Receiver  # noqa: E402
 from hil.link import Impairments, LinkEmulator, VirtualClock, queue_pair  # noqa: E402
 from hil.serve import UdpServerTransport, loopback_address, serve_in_thread  # noqa: E402
 from stewart_fmu.dynamics import inverse_dynamics  # noqa: E402
+from stewart_fmu.kinematics import inverse_kinematics  # noqa: E402
 from stewart_fmu.scene import load_scene  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -488,3 +489,21 @@ def test_cli_device_pty_answers_and_stops_on_sigint():
         if proc.poll() is None:
             proc.kill()
             proc.wait(5)
+
+
+def test_lockstep_step_without_its_setpoint_is_refused(model):
+    """Armed in lockstep, LOCKSTEP(k) runs only after setpoint k: a lost setpoint is never
+    replaced by the previous one (the step is refused, counted and said, and no time passes);
+    once setpoint k arrives the same LOCKSTEP(k) runs."""
+    dev = Device(model, lockstep=True)
+    dev.receive(arm())
+    home = inverse_kinematics(model, model.home).lengths
+    dev.receive(setpoint(0, home))
+    assert "LEG_STATE" in types(dev.receive(ms.MAVLink_lockstep_message(0, 0)))
+    k_before, refused = dev.k, dev.counters.lockstep_refused
+    out = dev.receive(ms.MAVLink_lockstep_message(1000, 1))          # setpoint 1 lost
+    assert dev.k == k_before and dev.counters.lockstep_refused == refused + 1
+    assert any("setpoint 1 missing" in t for t in texts(out))
+    dev.receive(setpoint(1, home))
+    assert "LEG_STATE" in types(dev.receive(ms.MAVLink_lockstep_message(1000, 1)))
+    assert dev.k == k_before + 1

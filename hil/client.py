@@ -1,0 +1,564 @@
+"""The host side: a MAVLink client of the emulated device, and the closed loop over the link.
+
+`Client` wraps a transport of `hil.link` (a pseudo-terminal path opened raw and non-blocking,
+or UDP to 127.0.0.1:PORT; see `connect_pty`, `connect_udp`) and speaks our dialect: it packs
+with a host `MAVLink` (system 255, component 190), receives through the robust
+`hil.framing.Receiver` (which drops unknown ids and bad frames), and offers arm / disarm / home
+(COMMAND_LONG -> COMMAND_ACK), parameter read / set, LEG_SETPOINT and LOCKSTEP.
+
+Closed loop over the link
+-------------------------
+The reference is a pose trajectory sampled at the controller rate (`controller.trajectory`);
+the host sends its leg references (`leg_references`: lengths and rates) and the feed-forward
+force of the configured mode (``kane``: `stewart_fmu.dynamics.inverse_dynamics`, as
+`controller.cosim.feedforward_voltage`; ``constant_load``: m lddot + b ldot of the axis model;
+``none``: no force, the FORCE_VALID flag cleared). The device applies R F / Kf + Ke ldot.
+
+* `run_lockstep`: for each sample k, LEG_SETPOINT(k) + LOCKSTEP(k), then wait (bounded) for
+  LEG_STATE(step=k); both go in one transport send (one datagram over UDP, so a lossy link
+  loses both or neither: the device must never tick step k without setpoint k, and it does not
+  check that itself); on a timeout both are sent again (the device answers a repeated step
+  without ticking), up to `retries` times. The state after step k is at device time t_(k+1),
+  so row k compares it with the reference at t_(k+1) (the last sample past the end). The run
+  is deterministic and equals `run_lockstep_direct` (the same device driven in process) bit
+  for bit.
+* `run_realtime`: the device runs on its own clock; the host sends setpoint k at wall time
+  t0 + t_k and records every LEG_STATE as it arrives (the LEG_STATE stream is raised to the
+  controller rate through the parameter SR_LEG_STATE). The device time of a state is mapped
+  to host time by the smallest (host receive time - device time) seen over `sync_time` before
+  and during the run (so it includes the one-way latency of the fastest message), and the error is taken against the
+  reference at that time (linear interpolation, held at the ends). Latency and loss of the
+  link therefore show up in the tracking error.
+
+Both return a `LinkRun`: a structured array (one row per state: time, step, l_ref1..6,
+l1..6, e1..6, ldot1..6, force1..6, rtt) and a `LinkSummary` (RMS / max leg errors, messages
+sent / received / lost, round-trip latency statistics).
+"""
+from __future__ import annotations
+
+import math
+import os
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+from controller.config import ControllerConfig
+from controller.drive import axis_model
+from controller.trajectory import LegReferences, Trajectory, leg_references
+from stewart_fmu.dynamics import inverse_dynamics
+from stewart_fmu.io import named_array
+from stewart_fmu.model import Model
+
+from hil import mavlink_stewart as ms
+from hil.errors import LinkError
+from hil.framing import Receiver
+from hil.link import PtyTransport, UdpTransport
+
+HOST_SYSTEM, HOST_COMPONENT = 255, 190
+TIMEOUT = 0.5        # s: default wait for one reply
+RETRIES = 5          # lockstep resends of one step before giving up
+_FLAGS_RATE = ms.STEWART_SETPOINT_FLAG_RATE_VALID
+_FLAGS_FORCE = ms.STEWART_SETPOINT_FLAG_FORCE_VALID
+
+
+# ---------------------------------------------------------------- connecting
+
+def connect_pty(path: str) -> PtyTransport:
+    """Open the device's pseudo-terminal `path` raw and non-blocking (hil.link.PtyTransport)."""
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+    except OSError as exc:
+        raise LinkError(f"cannot open {path}: {exc}") from exc
+    try:
+        return PtyTransport(fd, path)
+    except Exception:
+        os.close(fd)
+        raise
+
+
+def connect_udp(host: str, port: int) -> UdpTransport:
+    """A UDP socket on loopback sending to the device at host:port (loopback only)."""
+    import ipaddress
+    import socket
+
+    if host == "localhost":
+        host = "127.0.0.1"
+    if not ipaddress.IPv4Address(host).is_loopback:
+        raise LinkError(f"connect_udp: {host} is not a loopback address")
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        sock.bind(("127.0.0.1", 0))
+        sock.connect((host, port))
+    except OSError as exc:
+        sock.close()
+        raise LinkError(f"udp {host}:{port}: {exc}") from exc
+    return UdpTransport(sock)
+
+
+# ---------------------------------------------------------------- the client
+
+@dataclass
+class ClientCounters:
+    sent: int = 0
+    received: int = 0
+    by_type: dict[str, int] = field(default_factory=dict)
+    statustexts: list[str] = field(default_factory=list)
+
+
+class Client:
+    """A host-side MAVLink client of the device over `transport` (see the module doc)."""
+
+    def __init__(self, transport, target_system: int = 1, target_component: int = 1,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.transport = transport
+        self.target = (target_system, target_component)
+        self.mav = ms.MAVLink(None, srcSystem=HOST_SYSTEM, srcComponent=HOST_COMPONENT)
+        self.rx = Receiver(ms, self.mav)
+        self.counters = ClientCounters()
+        self.clock = clock
+        self._inbox: list[Any] = []
+        self.on_message: Callable[[Any, float], None] | None = None
+
+    # --- bytes and messages --------------------------------------------------------------
+
+    def send(self, *msgs: Any) -> None:
+        """Pack and send each message (one transport send per message)."""
+        for m in msgs:
+            self.transport.send(bytes(m.pack(self.mav)))
+            self.counters.sent += 1
+
+    def send_together(self, *msgs: Any) -> None:
+        """Pack the messages into one transport send (one datagram: lost or delivered together)."""
+        self.transport.send(b"".join(bytes(m.pack(self.mav)) for m in msgs))
+        self.counters.sent += len(msgs)
+
+    def poll(self, timeout: float = 0.0) -> list[Any]:
+        """Messages decoded from what arrives within `timeout` s (then whatever else is queued)."""
+        out: list[Any] = []
+        data = self.transport.recv(timeout)
+        while data:
+            now = self.clock()
+            for m in self.rx.feed(data):
+                self._note(m, now)
+                out.append(m)
+            data = self.transport.recv(0.0)
+        return out
+
+    def _note(self, m: Any, now: float) -> None:
+        c = self.counters
+        c.received += 1
+        t = m.get_type()
+        c.by_type[t] = c.by_type.get(t, 0) + 1
+        if t == "STATUSTEXT":
+            c.statustexts.append(m.text)
+        if self.on_message is not None:
+            self.on_message(m, now)
+
+    def wait_for(self, match: Callable[[Any], bool], timeout: float = TIMEOUT) -> Any | None:
+        """The first message (received from now on, or kept from earlier waits) that `match`es,
+        within `timeout` s; None if none came. Other messages are kept for later waits."""
+        for i, m in enumerate(self._inbox):
+            if match(m):
+                return self._inbox.pop(i)
+        deadline = self.clock() + timeout
+        while True:
+            left = deadline - self.clock()
+            if left < 0:
+                return None
+            for j, m in enumerate(got := self.poll(min(left, 0.05))):
+                if match(m):
+                    self._inbox += got[j + 1:]
+                    self._trim()
+                    return m
+            self._inbox += got
+            self._trim()
+
+    def _trim(self) -> None:
+        if len(self._inbox) > 1000:
+            del self._inbox[:-1000]
+
+    def drain(self) -> None:
+        """Forget kept messages and whatever is waiting on the link."""
+        self.poll(0.0)
+        self._inbox.clear()
+
+    # --- commands and parameters --------------------------------------------------------
+
+    def command(self, cmd: int, *params: float, timeout: float = TIMEOUT, retries: int = 20) -> int:
+        """COMMAND_LONG -> the COMMAND_ACK result (LinkError when no ack comes)."""
+        p = list(params) + [0.0] * (7 - len(params))
+        for attempt in range(retries + 1):
+            self.send(ms.MAVLink_command_long_message(*self.target, cmd, attempt, *p))
+            ack = self.wait_for(lambda m: m.get_type() == "COMMAND_ACK" and m.command == cmd, timeout)
+            if ack is not None:
+                return ack.result
+        raise LinkError(f"no COMMAND_ACK for command {cmd} after {retries + 1} tries")
+
+    def arm(self) -> bool:
+        return self.command(ms.MAV_CMD_COMPONENT_ARM_DISARM, 1) == ms.MAV_RESULT_ACCEPTED
+
+    def disarm(self) -> bool:
+        return self.command(ms.MAV_CMD_COMPONENT_ARM_DISARM, 0) == ms.MAV_RESULT_ACCEPTED
+
+    def home(self) -> bool:
+        return self.command(ms.MAV_CMD_NAV_RETURN_TO_LAUNCH) == ms.MAV_RESULT_ACCEPTED
+
+    def _param_reply(self, name: str | None, timeout: float) -> Any | None:
+        def match(m):
+            return m.get_type() == "PARAM_VALUE" and (name is None or _name(m.param_id) == name)
+        return self.wait_for(match, timeout)
+
+    def get_param(self, name: str, timeout: float = TIMEOUT, retries: int = 20) -> float:
+        for _ in range(retries + 1):
+            self.send(ms.MAVLink_param_request_read_message(*self.target, name.encode(), -1))
+            m = self._param_reply(name, timeout)
+            if m is not None:
+                return float(m.param_value)
+        raise LinkError(f"no PARAM_VALUE for {name}")
+
+    def set_param(self, name: str, value: float, timeout: float = TIMEOUT, retries: int = 20) -> float:
+        """PARAM_SET; returns the value the device reports afterwards (unchanged if refused)."""
+        for _ in range(retries + 1):
+            self.send(ms.MAVLink_param_set_message(*self.target, name.encode(), float(value),
+                                                   ms.MAV_PARAM_TYPE_REAL32))
+            m = self._param_reply(name, timeout)
+            if m is not None:
+                return float(m.param_value)
+        raise LinkError(f"no PARAM_VALUE for {name} after PARAM_SET")
+
+    def params(self, timeout: float = 2.0) -> dict[str, float]:
+        """PARAM_REQUEST_LIST: every parameter (name -> value)."""
+        self.send(ms.MAVLink_param_request_list_message(*self.target))
+        out: dict[str, float] = {}
+        count = None
+        deadline = self.clock() + timeout
+        while count is None or len(out) < count:
+            m = self._param_reply(None, max(0.0, deadline - self.clock()))
+            if m is None:
+                break
+            out[_name(m.param_id)] = float(m.param_value)
+            count = m.param_count
+        return out
+
+    def ping(self, timeout: float = TIMEOUT) -> float | None:
+        """Round trip of PARAM_REQUEST_READ(index 0) -> PARAM_VALUE in seconds (None: lost)."""
+        self.drain()
+        t0 = time.perf_counter()
+        self.send(ms.MAVLink_param_request_read_message(*self.target, b"", 0))
+        m = self.wait_for(lambda m: m.get_type() == "PARAM_VALUE", timeout)
+        return None if m is None else time.perf_counter() - t0
+
+    # --- setpoints -------------------------------------------------------------------------
+
+    def setpoint_message(self, seq: int, t: float, l, ldot, force) -> Any:
+        flags = _FLAGS_RATE | (_FLAGS_FORCE if force is not None else 0)
+        f = [0.0] * 6 if force is None else [float(x) for x in force]
+        return ms.MAVLink_leg_setpoint_message(int(round(t * 1e6)), seq & 0xFFFFFFFF,
+                                               [float(x) for x in l], [float(x) for x in ldot],
+                                               flags, f)
+
+    def close(self) -> None:
+        self.transport.close()
+
+
+def _name(param_id: Any) -> str:
+    if isinstance(param_id, bytes):
+        param_id = param_id.decode("ascii", "replace")
+    return str(param_id).rstrip("\x00")
+
+
+# ---------------------------------------------------------------- references
+
+@dataclass(frozen=True)
+class LinkReference:
+    """What the host sends: times, leg references and the feed-forward force (or None)."""
+
+    traj: Trajectory
+    refs: LegReferences
+    force: np.ndarray | None
+    feedforward: str
+
+
+def link_reference(model: Model, config: ControllerConfig, traj: Trajectory) -> LinkReference:
+    """Leg references of `traj` and the feed-forward force of config.feedforward."""
+    refs = leg_references(model, traj)
+    if config.feedforward == "kane":
+        force = inverse_dynamics(model, traj.q, traj.qd, traj.qdd)
+    elif config.feedforward == "constant_load":
+        axis = axis_model(model, config.motor, config.load_mass)
+        force = axis.moving_mass * refs.lddot + axis.viscous * refs.ldot
+    else:
+        force = None
+    return LinkReference(traj, refs, force, config.feedforward)
+
+
+# ---------------------------------------------------------------- results
+
+@dataclass(frozen=True)
+class LinkSummary:
+    mode: str
+    samples: int
+    leg_rms: np.ndarray       # (6,) m
+    leg_max: np.ndarray       # (6,) m
+    sent: int
+    received: int
+    lost: int                 # lockstep: resends after a timeout; real time: LEG_STATEs missing
+    rtt_median: float         # s (nan if not measured)
+    rtt_p99: float
+    rtt_max: float
+    wall_time: float
+    statustexts: tuple[str, ...] = ()
+
+    @property
+    def rms(self) -> float:
+        return float(np.sqrt(np.mean(self.leg_rms ** 2)))
+
+    @property
+    def max(self) -> float:
+        return float(np.max(self.leg_max))
+
+
+@dataclass(frozen=True)
+class LinkRun:
+    table: np.ndarray
+    summary: LinkSummary
+
+
+def _table(time_s, step, l_ref, l, ldot, force, rtt) -> np.ndarray:
+    cols: dict[str, np.ndarray] = {"time": np.asarray(time_s, float), "step": np.asarray(step, float)}
+    for name, arr in (("l_ref", l_ref), ("l", l), ("e", l_ref - l), ("ldot", ldot), ("force", force)):
+        cols.update({f"{name}{i + 1}": arr[:, i] for i in range(6)})
+    cols["rtt"] = np.asarray(rtt, float)
+    return named_array(cols)
+
+
+def _summarise(mode: str, table: np.ndarray, sent: int, received: int, lost: int, wall: float,
+               texts=()) -> LinkSummary:
+    e = np.column_stack([table[f"e{i}"] for i in range(1, 7)]) if len(table) else np.zeros((1, 6))
+    rtt = table["rtt"][np.isfinite(table["rtt"])] if len(table) else np.array([])
+    stats = ((float(np.median(rtt)), float(np.percentile(rtt, 99)), float(np.max(rtt)))
+             if len(rtt) else (math.nan,) * 3)
+    return LinkSummary(mode, len(table), np.sqrt(np.mean(e ** 2, axis=0)), np.max(np.abs(e), axis=0),
+                       sent, received, lost, *stats, wall, tuple(texts))
+
+
+def _state_rows(states: list[Any], ref: LinkReference) -> tuple[np.ndarray, ...]:
+    """Lockstep rows: state k (after step k, at t_(k+1)) against the reference at t_(k+1)."""
+    n = len(ref.refs.t)
+    nxt = np.minimum(np.arange(len(states)) + 1, n - 1)
+    l = np.array([s.length for s in states], float).reshape(-1, 6)
+    ldot = np.array([s.rate for s in states], float).reshape(-1, 6)
+    f = np.array([s.force for s in states], float).reshape(-1, 6)
+    t = np.array([s.time_usec for s in states], float) * 1e-6
+    return t, np.array([s.step for s in states], float), ref.refs.l[nxt], l, ldot, f
+
+
+# ---------------------------------------------------------------- lockstep
+
+def run_lockstep(client: Client, ref: LinkReference, *, timeout: float = TIMEOUT,
+                 retries: int = RETRIES, arm: bool = True) -> LinkRun:
+    """The lockstep closed loop over the link (see the module doc)."""
+    if arm and not client.arm():
+        raise LinkError("the device refused to arm")
+    client.drain()
+    sent0, recv0 = client.counters.sent, client.counters.received
+    n = len(ref.refs.t)
+    states, rtts, resends = [], np.full(n, math.nan), 0
+    start = time.perf_counter()
+    for k in range(n):
+        msgs = (client.setpoint_message(k, ref.refs.t[k], ref.refs.l[k], ref.refs.ldot[k],
+                                        None if ref.force is None else ref.force[k]),
+                ms.MAVLink_lockstep_message(int(round(ref.refs.t[k] * 1e6)), k))
+        for attempt in range(retries + 1):
+            t0 = time.perf_counter()
+            client.send_together(*msgs)
+            st = client.wait_for(lambda m: m.get_type() == "LEG_STATE" and m.step == k, timeout)
+            if st is not None:
+                rtts[k] = time.perf_counter() - t0
+                break
+            resends += 1
+        else:
+            raise LinkError(f"lockstep: no LEG_STATE for step {k} after {retries + 1} tries "
+                            f"of {timeout:g} s")
+        states.append(st)
+    wall = time.perf_counter() - start
+    t, step, l_ref, l, ldot, f = _state_rows(states, ref)
+    table = _table(t, step, l_ref, l, ldot, f, rtts)
+    c = client.counters
+    return LinkRun(table, _summarise("lockstep", table, c.sent - sent0, c.received - recv0,
+                                     resends, wall, c.statustexts))
+
+
+def run_lockstep_direct(device, ref: LinkReference) -> LinkRun:
+    """The same loop driving a lockstep `hil.device.Device` in process (no link, no encoding)."""
+    host = ms.MAVLink(None, srcSystem=HOST_SYSTEM, srcComponent=HOST_COMPONENT)
+    client = Client.__new__(Client)  # only for setpoint_message
+    client.mav = host
+    device.receive(ms.MAVLink_command_long_message(1, 1, ms.MAV_CMD_COMPONENT_ARM_DISARM, 0,
+                                                   1, 0, 0, 0, 0, 0, 0))
+    n, states = len(ref.refs.t), []
+    start = time.perf_counter()
+    for k in range(n):
+        device.receive(client.setpoint_message(k, ref.refs.t[k], ref.refs.l[k], ref.refs.ldot[k],
+                                               None if ref.force is None else ref.force[k]))
+        out = device.receive(ms.MAVLink_lockstep_message(int(round(ref.refs.t[k] * 1e6)), k))
+        states += [m for m in out if m.get_type() == "LEG_STATE" and m.step == k]
+    wall = time.perf_counter() - start
+    t, step, l_ref, l, ldot, f = _state_rows(states, ref)
+    table = _table(t, step, l_ref, l, ldot, f, np.full(len(states), math.nan))
+    return LinkRun(table, _summarise("direct", table, 2 * n, len(states), 0, wall))
+
+
+# ---------------------------------------------------------------- real time
+
+def run_realtime(client: Client, ref: LinkReference, *, tail: float = 0.02,
+                 state_rate: float | None = None, sync_time: float = 0.2,
+                 arm: bool = True, every: int = 1) -> LinkRun:
+    """The real-time closed loop over the link (see the module doc); a setpoint every `every`
+    controller samples (a slower link)."""
+    t_ref, n = ref.refs.t, len(ref.refs.t)
+    dt = float(t_ref[1] - t_ref[0]) if n > 1 else 1e-3
+    rate = state_rate if state_rate is not None else 1.0 / dt
+    if arm and not client.arm():
+        raise LinkError("the device refused to arm")
+    client.set_param("SR_LEG_STATE", rate)
+    client.drain()
+    # device time -> host time: the smallest (receive time - device time) over sync_time
+    end = client.clock() + sync_time
+    records: list[tuple[float, Any]] = []
+    client.on_message = lambda m, now: records.append((now, m)) if m.get_type() == "LEG_STATE" else None
+    while client.clock() < end:
+        client.poll(0.002)
+    if not records:
+        client.on_message = None
+        raise LinkError(f"real time: no LEG_STATE within {sync_time:g} s (is the device in "
+                        "real-time mode?)")
+    sync = list(records)
+    records.clear()
+    sent0, recv0 = client.counters.sent, client.counters.received
+    t0 = client.clock()
+    start = time.perf_counter()
+    try:
+        for k in range(0, n, max(1, int(every))):
+            due = t0 + t_ref[k]
+            while (left := due - client.clock()) > 0:
+                client.poll(left)
+            client.send(client.setpoint_message(k, t_ref[k], ref.refs.l[k], ref.refs.ldot[k],
+                                                None if ref.force is None else ref.force[k]))
+            client.poll(0.0)
+        end = client.clock() + tail
+        while (left := end - client.clock()) > 0:
+            client.poll(left)
+    finally:
+        client.on_message = None
+    wall = time.perf_counter() - start
+    # device time -> host time: the smallest (receive time - device time) of the whole stream
+    offset = min(now - m.time_usec * 1e-6 for now, m in sync + records)
+    tau = np.array([m.time_usec * 1e-6 + offset - t0 for _, m in records], float)
+    keep = (tau >= 0) & (tau <= t_ref[-1])
+    states = [m for (_, m), ok in zip(records, keep) if ok]
+    tau = tau[keep]
+    l_ref = np.column_stack([np.interp(tau, t_ref, ref.refs.l[:, i]) for i in range(6)])
+    l = np.array([s.length for s in states], float).reshape(-1, 6)
+    ldot = np.array([s.rate for s in states], float).reshape(-1, 6)
+    f = np.array([s.force for s in states], float).reshape(-1, 6)
+    table = _table(tau, np.zeros(len(states)), l_ref, l, ldot, f, np.full(len(states), math.nan))
+    # states missing from the stream (by gaps of the device time stamps)
+    if len(states) > 1:
+        us = np.diff(np.array([s.time_usec for s in states], float))
+        period = 1e6 / rate
+        lost = int(np.sum(np.maximum(np.round(us / period) - 1, 0)))
+    else:
+        lost = 0
+    c = client.counters
+    return LinkRun(table, _summarise("realtime", table, c.sent - sent0, c.received - recv0, lost,
+                                     wall, c.statustexts))
+
+
+# ---------------------------------------------------------------- report
+
+def link_summary_text(model: Model, run: LinkRun, ref: LinkReference, link: str) -> str:
+    """summary.md of a run over the link."""
+    s = run.summary
+    t = ref.refs.t
+    lines = [f"# Closed-loop run over the link: {model.name}", "",
+             f"- scene: `{model.source}`; device: hil.device.Device over {link}, mode {s.mode}",
+             f"- reference: {t[-1] - t[0]:.6g} s, {len(t)} samples at "
+             f"{1 / (t[1] - t[0]):.6g} Hz; feedforward {ref.feedforward}",
+             "", "## Tracking (measured leg length vs reference at the state's time)", "",
+             "| leg | RMS error (m) | max error (m) |", "|---|---:|---:|"]
+    for i in range(6):
+        lines.append(f"| {i + 1} | {s.leg_rms[i]:.6g} | {s.leg_max[i]:.6g} |")
+    ms_ = (lambda x: "n/a" if not math.isfinite(x) else f"{1e3 * x:.4g} ms")
+    lines += ["", "## Link", "",
+              f"- states recorded: {s.samples}",
+              f"- messages sent: {s.sent}; received: {s.received}; lost: {s.lost} "
+              f"({'resends after a timeout' if s.mode == 'lockstep' else 'LEG_STATEs missing'})",
+              f"- round trip (setpoint + LOCKSTEP -> LEG_STATE): median {ms_(s.rtt_median)}, "
+              f"p99 {ms_(s.rtt_p99)}, max {ms_(s.rtt_max)}",
+              f"- wall time: {s.wall_time:.4g} s",
+              f"- device messages: {len(s.statustexts)} STATUSTEXT"
+              + (f" (last: {s.statustexts[-1]!r})" if s.statustexts else ""), ""]
+    return "\n".join(lines)
+
+
+# ---------------------------------------------------------------- `stewart-sim run --link`
+
+#: Real time: a setpoint every REALTIME_EVERY controller samples (the device emulator, in
+#: Python, cannot take a checked setpoint and a tick every millisecond without a backlog).
+REALTIME_EVERY = 2
+LINK_FILES = ("run.csv", "summary.md")
+
+
+def run_link_files(model: Model, config: ControllerConfig, duration: float, out, link: str,
+                   mode: str) -> tuple[LinkRun, LinkReference]:
+    """`run --link serial|udp --mode lockstep|realtime`: the device (hil.device.Device) served
+    in a thread over a pseudo-terminal (``serial``) or loopback UDP, the `run` reference
+    (controller.run_files.run_reference) over the link, run.csv and summary.md into `out`."""
+    from pathlib import Path
+
+    from controller.run_files import run_reference
+    from stewart_fmu import io as sio
+
+    from hil.device import Device
+    from hil.link import pty_pair
+    from hil.serve import UdpServerTransport, serve_in_thread
+
+    if link not in ("serial", "udp") or mode not in ("lockstep", "realtime"):
+        raise LinkError(f"run: --link serial|udp and --mode lockstep|realtime, got {link}, {mode}")
+    out = Path(out)
+    ref = link_reference(model, config, run_reference(model, config, duration))
+    device = Device(model, config, lockstep=(mode == "lockstep"))
+    keep = None
+    if link == "udp":
+        dev_end = UdpServerTransport("127.0.0.1", 0)
+        where = f"UDP 127.0.0.1:{dev_end.address[1]}"
+        client = Client(connect_udp(*dev_end.address))
+    else:
+        dev_end, keep = pty_pair()
+        where = f"pseudo-terminal {keep.name}"
+        client = Client(connect_pty(keep.name))
+    thread, stop, _ = serve_in_thread(device, dev_end, poll=0.01)
+    try:
+        if mode == "lockstep":
+            run = run_lockstep(client, ref, timeout=1.0)
+        else:
+            run = run_realtime(client, ref, every=REALTIME_EVERY)
+        client.disarm()
+    finally:
+        stop.set()
+        thread.join(5)
+        client.close()
+        dev_end.close()
+        if keep is not None:
+            keep.close()
+    text = link_summary_text(model, run, ref, where)
+    if mode == "realtime":
+        text += (f"- setpoints every {REALTIME_EVERY} controller samples "
+                 f"({config.rate / REALTIME_EVERY:g} Hz), LEG_STATE at {config.rate:g} Hz\n")
+    with sio.writing(out):
+        sio.write_csv(out / "run.csv", run.table)
+        sio.write_text(out / "summary.md", text)
+    return run, ref

@@ -1,0 +1,227 @@
+"""The link's figures: rates that fit a UART, measured round trips, tracking vs latency and loss.
+
+* `rate_table`: frame sizes of LEG_SETPOINT, LEG_STATE, DRIVE_STATUS, HEARTBEAT and LOCKSTEP
+  from the generated dialect (`hil.framing.max_frame_length`: untruncated payload, unsigned;
+  MAVLink 2 may truncate trailing zero bytes, so these are the worst case) and the messages per
+  second each fills at 115200 and 921600 baud (8N1, 10 bits a byte). The closed-loop rate is the
+  highest f at which both directions fit: host -> device one LEG_SETPOINT per step (plus one
+  LOCKSTEP in lockstep), device -> host one LEG_STATE per step (plus LOCKSTEP in lockstep),
+  DRIVE_STATUS at f / 10 and HEARTBEAT at 1 Hz.
+* `measure_latency`: round trips PARAM_REQUEST_READ -> PARAM_VALUE and (lockstep) setpoint +
+  LOCKSTEP -> LEG_STATE with the device served in a thread over a pseudo-terminal and over UDP.
+* `degradation`: real-time runs (setpoints at half the controller rate) through the link
+  emulator on the wall clock with added latency or loss; RMS / max leg tracking error.
+
+``python -m hil.figures OUT_DIR`` writes figures.md and tracking_vs_link.png.
+"""
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from hil import mavlink_stewart as ms
+from hil.framing import max_frame_length
+from hil.link import BITS_PER_BYTE, message_rates
+
+BAUDS = (115200, 921600)
+MESSAGES = {"LEG_SETPOINT": ms.MAVLink_leg_setpoint_message,
+            "LEG_STATE": ms.MAVLink_leg_state_message,
+            "DRIVE_STATUS": ms.MAVLink_drive_status_message,
+            "HEARTBEAT": ms.MAVLink_heartbeat_message,
+            "LOCKSTEP": ms.MAVLink_lockstep_message}
+
+
+def frame_sizes(signed: bool = False) -> dict[str, int]:
+    """Wire bytes of each message's frame, from the dialect's payload sizes."""
+    return {name: max_frame_length(cls, signed) for name, cls in MESSAGES.items()}
+
+
+def loop_rate(baud: float, sizes: dict[str, int], lockstep: bool = False) -> float:
+    """Highest closed-loop rate (Hz) at which both directions of a `baud` UART fit."""
+    byte_rate = baud / BITS_PER_BYTE
+    up = sizes["LEG_SETPOINT"] + (sizes["LOCKSTEP"] if lockstep else 0)
+    down = sizes["LEG_STATE"] + (sizes["LOCKSTEP"] if lockstep else 0) + sizes["DRIVE_STATUS"] / 10
+    return min(byte_rate / up, (byte_rate - sizes["HEARTBEAT"]) / down)
+
+
+def rate_table(bauds=BAUDS, signed: bool = False) -> dict:
+    """{'sizes': name -> bytes, 'rates': baud -> name -> msg/s, 'loop': baud -> (real time Hz,
+    lockstep Hz)}."""
+    sizes = frame_sizes(signed)
+    return {"sizes": sizes,
+            "rates": {b: message_rates(b, sizes) for b in bauds},
+            "loop": {b: (loop_rate(b, sizes), loop_rate(b, sizes, lockstep=True)) for b in bauds}}
+
+
+# ---------------------------------------------------------------- measured
+
+def _served(model, config, link: str, lockstep: bool = True):
+    from hil.client import Client, connect_pty, connect_udp
+    from hil.device import Device
+    from hil.link import pty_pair
+    from hil.serve import UdpServerTransport, serve_in_thread
+
+    dev = Device(model, config, lockstep=lockstep)
+    if link == "udp":
+        end = UdpServerTransport("127.0.0.1", 0)
+        client, closers = Client(connect_udp(*end.address)), [end]
+    else:
+        end, keep = pty_pair()
+        client, closers = Client(connect_pty(keep.name)), [end, keep]
+    thread, stop, _ = serve_in_thread(dev, end, poll=0.01)
+
+    def close():
+        stop.set()
+        thread.join(5)
+        client.close()
+        for c in closers:
+            c.close()
+    return client, close
+
+
+def _stats(x) -> dict[str, float]:
+    x = np.asarray([v for v in x if v is not None], float)
+    return {"n": len(x), "median": float(np.median(x)), "p99": float(np.percentile(x, 99)),
+            "max": float(np.max(x))}
+
+
+def measure_latency(model, config, n: int = 500) -> dict[str, dict[str, dict[str, float]]]:
+    """link -> {'ping': stats, 'lockstep': stats} in seconds."""
+    from controller.run_files import run_reference
+    from hil.client import link_reference, run_lockstep
+
+    out = {}
+    for link in ("serial", "udp"):
+        client, close = _served(model, config, link)
+        try:
+            pings = [client.ping() for _ in range(n)]
+            ref = link_reference(model, config, run_reference(model, config, n / config.rate))
+            run = run_lockstep(client, ref, timeout=1.0)
+        finally:
+            close()
+        out[link] = {"ping": _stats(pings), "lockstep": _stats(run.table["rtt"])}
+    return out
+
+
+def degradation(model, config, latencies=(0.0, 0.002, 0.005, 0.01, 0.02),
+                losses=(0.1, 0.3, 0.5), every: int = 2, seed: int = 3, repeats: int = 3
+                ) -> list[dict]:
+    """Real-time runs through the link emulator: rows {latency, loss, rms, max, lost,
+    setpoints_lost}, each the median of `repeats` runs (wall-clock runs in one Python process
+    are noisy: an occasional GIL stall delays setpoints by milliseconds)."""
+    from controller.comparison import move_and_hold
+    from hil.client import Client, link_reference, run_realtime
+    from hil.device import Device
+    from hil.link import Impairments, LinkEmulator, WallClock, queue_pair
+    from hil.serve import serve_in_thread
+
+    ref = link_reference(model, config, move_and_hold(model, config.rate, 0.2, 0.05, back=True,
+                                                      fraction=0.2))
+    rows = []
+    cases = [(lat, 0.0) for lat in latencies] + [(0.0, loss) for loss in losses]
+    for (lat, loss), r in ((c, r) for c in cases for r in range(repeats)):
+        h, ea = queue_pair()
+        eb, d = queue_pair()
+        emu = LinkEmulator(ea, eb, Impairments(latency=lat, loss=loss), clock=WallClock(),
+                           seed=seed + r).start()
+        dev = Device(model, config)
+        thread, stop, _ = serve_in_thread(dev, d, poll=0.01)
+        try:
+            s = run_realtime(Client(h), ref, every=every).summary
+        finally:
+            stop.set()
+            thread.join(5)
+            emu.stop()
+        rows.append({"latency": lat, "loss": loss, "rms": s.rms, "max": s.max, "lost": s.lost,
+                     "setpoints_lost": emu.ab.stats.packets_lost})
+    out = []
+    for i in range(0, len(rows), repeats):
+        group = rows[i:i + repeats]
+        out.append({k: (float(np.median([g[k] for g in group])) if k not in ("latency", "loss")
+                        else group[0][k]) for k in group[0]})
+    return out
+
+
+def plot(rows: list[dict], path: Path) -> Path:
+    from matplotlib.figure import Figure
+
+    from stewart_fmu.plots import save_figure
+
+    fig = Figure(figsize=(9, 3.6))
+    a, b = fig.subplots(1, 2)
+    lat = [r for r in rows if r["loss"] == 0]
+    a.plot([1e3 * r["latency"] for r in lat], [1e6 * r["rms"] for r in lat], "o-", label="RMS")
+    a.plot([1e3 * r["latency"] for r in lat], [1e6 * r["max"] for r in lat], "s--", label="max")
+    a.set_xlabel("one-way latency (ms), both directions")
+    a.set_ylabel("leg tracking error (um)")
+    a.legend()
+    a.grid(True)
+    loss = [r for r in rows if r["latency"] == 0]
+    b.plot([100 * r["loss"] for r in loss], [1e6 * r["rms"] for r in loss], "o-", label="RMS")
+    b.plot([100 * r["loss"] for r in loss], [1e6 * r["max"] for r in loss], "s--", label="max")
+    b.set_xlabel("packet loss (%), both directions")
+    b.legend()
+    b.grid(True)
+    fig.suptitle("Real-time closed loop over the emulated link (setpoints 500 Hz, states 1 kHz)")
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def report(out: Path, model, config, n: int = 500) -> Path:
+    """figures.md and tracking_vs_link.png in `out`."""
+    from stewart_fmu.io import write_text
+
+    out.mkdir(parents=True, exist_ok=True)
+    t = rate_table()
+    lines = ["# Link figures", "", "## Frame sizes (MAVLink 2, unsigned, untruncated)", "",
+             "| message | bytes | " + " | ".join(f"msg/s at {b}" for b in BAUDS) + " |",
+             "|---|---:|" + "---:|" * len(BAUDS)]
+    for name, size in t["sizes"].items():
+        lines.append(f"| {name} | {size} | "
+                     + " | ".join(f"{t['rates'][b][name]:.0f}" for b in BAUDS) + " |")
+    lines += ["", "Highest closed-loop rate that fits both directions (LEG_SETPOINT up; LEG_STATE, "
+              "DRIVE_STATUS at a tenth, HEARTBEAT 1 Hz down):", ""]
+    for b in BAUDS:
+        rt, ls = t["loop"][b]
+        lines.append(f"- {b} baud: {rt:.0f} Hz real time, {ls:.0f} Hz lockstep (+ LOCKSTEP both ways)")
+    lat = measure_latency(model, config, n)
+    lines += ["", f"## Round trip, device in a thread ({n} exchanges each)", "",
+              "| link | exchange | median (ms) | p99 (ms) | max (ms) |", "|---|---|---:|---:|---:|"]
+    for link, d in lat.items():
+        for kind, s in d.items():
+            lines.append(f"| {link} | {kind} | {1e3 * s['median']:.3f} | {1e3 * s['p99']:.3f} | "
+                         f"{1e3 * s['max']:.3f} |")
+    rows = degradation(model, config)
+    lines += ["", "## Real-time tracking vs latency and loss (link emulator, wall clock)", "",
+              "Each row the median of 3 runs of 0.5 s; setpoints at 500 Hz, LEG_STATE at 1 kHz.", "",
+              "| latency (ms) | loss | RMS (um) | max (um) | states lost | setpoints lost |",
+              "|---:|---:|---:|---:|---:|---:|"]
+    for r in rows:
+        lines.append(f"| {1e3 * r['latency']:g} | {r['loss']:g} | {1e6 * r['rms']:.1f} | "
+                     f"{1e6 * r['max']:.1f} | {r['lost']:g} | {r['setpoints_lost']:g} |")
+    plot(rows, out / "tracking_vs_link.png")
+    lines += ["", "![tracking vs link](tracking_vs_link.png)", ""]
+    return write_text(out / "figures.md", "\n".join(lines))
+
+
+def main(argv: list[str] | None = None) -> int:
+    from controller.config import controller_config
+    from stewart_fmu.scene import load_scene
+
+    argv = sys.argv[1:] if argv is None else argv
+    out = Path(argv[0] if argv else "hil_figures")
+    scene = argv[1] if len(argv) > 1 else str(Path(__file__).resolve().parents[1] / "scenes"
+                                                 / "micro_manipulator.toml")
+    model = load_scene(scene)
+    t0 = time.perf_counter()
+    path = report(out, model, controller_config(model))
+    print(path.read_text())
+    print(f"({time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
