@@ -524,7 +524,8 @@ def run_link_files(model: Model, config: ControllerConfig, duration: float, out,
 
     from hil.device import Device
     from hil.link import pty_pair
-    from hil.serve import UdpServerTransport, serve_in_thread
+    from hil.link import udp_server
+    from hil.serve import serve_in_thread
 
     if link not in ("serial", "udp") or mode not in ("lockstep", "realtime"):
         raise LinkError(f"run: --link serial|udp and --mode lockstep|realtime, got {link}, {mode}")
@@ -533,7 +534,7 @@ def run_link_files(model: Model, config: ControllerConfig, duration: float, out,
     device = Device(model, config, lockstep=(mode == "lockstep"))
     keep = None
     if link == "udp":
-        dev_end = UdpServerTransport("127.0.0.1", 0)
+        dev_end = udp_server("127.0.0.1", 0)
         where = f"UDP 127.0.0.1:{dev_end.address[1]}"
         client = Client(connect_udp(*dev_end.address))
     else:

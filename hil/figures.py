@@ -62,11 +62,12 @@ def _served(model, config, link: str, lockstep: bool = True):
     from hil.client import Client, connect_pty, connect_udp
     from hil.device import Device
     from hil.link import pty_pair
-    from hil.serve import UdpServerTransport, serve_in_thread
+    from hil.link import udp_server
+    from hil.serve import serve_in_thread
 
     dev = Device(model, config, lockstep=lockstep)
     if link == "udp":
-        end = UdpServerTransport("127.0.0.1", 0)
+        end = udp_server("127.0.0.1", 0)
         client, closers = Client(connect_udp(*end.address)), [end]
     else:
         end, keep = pty_pair()

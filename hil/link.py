@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import collections
 import errno
+import ipaddress
 import math
 import os
 import random
@@ -138,24 +139,30 @@ def pty_pair() -> tuple[PtyTransport, PtyTransport]:
 
 
 class UdpTransport(_Base):
-    """A non-blocking UDP socket on loopback connected to one peer address."""
+    """A non-blocking UDP socket on loopback: connected to one peer, or (a server, see
+    udp_server) answering whoever sent last; before anyone has sent, a server drops (and
+    counts) what it is given."""
 
-    def __init__(self, sock: socket.socket) -> None:
+    def __init__(self, sock: socket.socket, connected: bool = True) -> None:
         super().__init__()
         self.sock = sock
         sock.setblocking(False)
         self.address: tuple[str, int] = sock.getsockname()
+        self.connected = connected
+        self.peer: tuple[str, int] | None = sock.getpeername() if connected else None
 
     def send(self, data: bytes) -> int:
         """Send one datagram; if the socket buffer is full or the peer is gone it is dropped."""
         self._check()
         self.stats.sends += 1
-        try:
-            sent = self.sock.send(data)
-        except (BlockingIOError, ConnectionRefusedError):
-            sent = 0
-        except OSError as exc:
-            raise LinkError(f"udp {self.address}: send failed: {exc}") from exc
+        sent = 0
+        if self.peer is not None:
+            try:
+                sent = self.sock.send(data) if self.connected else self.sock.sendto(data, self.peer)
+            except (BlockingIOError, ConnectionRefusedError):
+                sent = 0
+            except OSError as exc:
+                raise LinkError(f"udp {self.address}: send failed: {exc}") from exc
         self.stats.bytes_sent += sent
         self.stats.bytes_dropped += len(data) - sent
         return sent
@@ -167,9 +174,11 @@ class UdpTransport(_Base):
         if not ready:
             return b""
         try:
-            data = self.sock.recv(READ_SIZE)
+            data, peer = self.sock.recvfrom(READ_SIZE)
         except (BlockingIOError, ConnectionRefusedError):
             return b""
+        if not self.connected:
+            self.peer = peer
         self.stats.recvs += 1
         self.stats.bytes_received += len(data)
         return data
@@ -179,6 +188,19 @@ class UdpTransport(_Base):
         if not self.closed:
             self.closed = True
             self.sock.close()
+
+
+def udp_server(host: str = LOOPBACK, port: int = 0) -> UdpTransport:
+    """A UDP socket listening on a loopback address that answers the last peer it heard from."""
+    if not ipaddress.IPv4Address(host).is_loopback:
+        raise LinkError(f"udp_server: {host} is not a loopback address")
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        sock.bind((host, port))
+    except OSError as exc:
+        sock.close()
+        raise LinkError(f"udp {host}:{port}: cannot listen: {exc}") from exc
+    return UdpTransport(sock, connected=False)
 
 
 def udp_pair(host: str = LOOPBACK) -> tuple[UdpTransport, UdpTransport]:

@@ -12,14 +12,12 @@ for input. The loop ends when `stop` is set (checked at least every `poll` secon
 from __future__ import annotations
 
 import ipaddress
-import socket
 import threading
 import time
 from dataclasses import dataclass
 
 from hil.device import Device, DeviceError
 from hil.errors import LinkError
-from hil.link import READ_SIZE, TransportStats, _Base
 
 IDLE_FLUSH = 0.005   # s without input after which a partial frame is given up (Receiver.flush)
 POLL = 0.05          # s: the longest wait before `stop` is looked at again
@@ -144,63 +142,3 @@ def loopback_address(text: str) -> tuple[str, int]:
     if not 0 <= port <= 65535:
         raise LinkError(f"--udp: port must be 0..65535 (0: any free port), got {port}")
     return str(addr), port
-
-
-class UdpServerTransport(_Base):
-    """A UDP socket bound on loopback that answers the last peer it heard from.
-
-    Before anyone has sent, `send` drops (and counts) what it is given."""
-
-    def __init__(self, host: str = "127.0.0.1", port: int = 0) -> None:
-        super().__init__()
-        if not ipaddress.IPv4Address(host).is_loopback:
-            raise LinkError(f"UdpServerTransport: {host} is not a loopback address")
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        try:
-            self.sock.bind((host, port))
-        except OSError as exc:
-            self.sock.close()
-            raise LinkError(f"udp {host}:{port}: cannot listen: {exc}") from exc
-        self.sock.setblocking(False)
-        self.address: tuple[str, int] = self.sock.getsockname()
-        self.peer: tuple[str, int] | None = None
-        self.stats = TransportStats()
-
-    def send(self, data: bytes) -> int:
-        """One datagram to the last sender (dropped if there is none yet or the buffer is full)."""
-        self._check()
-        self.stats.sends += 1
-        sent = 0
-        if self.peer is not None:
-            try:
-                sent = self.sock.sendto(data, self.peer)
-            except (BlockingIOError, ConnectionRefusedError):
-                sent = 0
-            except OSError as exc:
-                raise LinkError(f"udp {self.address}: send failed: {exc}") from exc
-        self.stats.bytes_sent += sent
-        self.stats.bytes_dropped += len(data) - sent
-        return sent
-
-    def recv(self, timeout: float = 0.0) -> bytes:
-        """One datagram within `timeout` seconds (b"" if none); its sender becomes the peer."""
-        import select
-
-        self._check()
-        ready, _, _ = select.select([self.sock], [], [], max(timeout, 0.0))
-        if not ready:
-            return b""
-        try:
-            data, peer = self.sock.recvfrom(READ_SIZE)
-        except (BlockingIOError, ConnectionRefusedError):
-            return b""
-        self.peer = peer
-        self.stats.recvs += 1
-        self.stats.bytes_received += len(data)
-        return data
-
-    def close(self) -> None:
-        """Close the socket (idempotent)."""
-        if not self.closed:
-            self.closed = True
-            self.sock.close()

@@ -347,8 +347,8 @@ def cmd_device(args: argparse.Namespace) -> None:
 
     from hil.device import Device
     from hil.errors import LinkError
-    from hil.link import pty_pair
-    from hil.serve import UdpServerTransport, loopback_address, serve
+    from hil.link import pty_pair, udp_server
+    from hil.serve import loopback_address, serve
 
     key = None
     if args.signing_key is not None:
@@ -364,7 +364,7 @@ def cmd_device(args: argparse.Namespace) -> None:
                     lockstep=args.lockstep)
     keep = None  # the pty's slave end, held open so the master never sees a hang-up
     if address is not None:
-        transport = UdpServerTransport(*address)
+        transport = udp_server(*address)
         first = f"udp {transport.address[0]}:{transport.address[1]}"
     else:
         transport, keep = pty_pair()

@@ -18,7 +18,8 @@ from hil.client import (Client, connect_pty, connect_udp, link_reference, run_lo
                         run_lockstep_direct, run_realtime)
 from hil.device import Device  # noqa: E402
 from hil.link import Impairments, LinkEmulator, WallClock, pty_pair, queue_pair  # noqa: E402
-from hil.serve import UdpServerTransport, serve_in_thread  # noqa: E402
+from hil.link import udp_server  # noqa: E402
+from hil.serve import serve_in_thread  # noqa: E402
 from stewart_fmu.scene import load_scene  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -66,7 +67,7 @@ class Served:
 
 
 def udp_served(device):
-    server = UdpServerTransport("127.0.0.1", 0)
+    server = udp_server("127.0.0.1", 0)
     return Served(device, server, connect_udp(*server.address))
 
 

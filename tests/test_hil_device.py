@@ -28,7 +28,8 @@ from hil.device import Device, ned_attitude, rotation  # noqa: E402
 from hil.errors import LinkError  # noqa: E402
 from hil.framing import Receiver  # noqa: E402
 from hil.link import Impairments, LinkEmulator, VirtualClock, queue_pair  # noqa: E402
-from hil.serve import UdpServerTransport, loopback_address, serve_in_thread  # noqa: E402
+from hil.link import udp_server  # noqa: E402
+from hil.serve import loopback_address, serve_in_thread  # noqa: E402
 from stewart_fmu.dynamics import inverse_dynamics  # noqa: E402
 from stewart_fmu.kinematics import inverse_kinematics  # noqa: E402
 from stewart_fmu.scene import load_scene  # noqa: E402
@@ -376,7 +377,7 @@ def test_lockstep_step_numbers(model):
 
 def test_common_only_client_over_udp_sees_heartbeat_attitude_and_parameters(model):
     dev = Device(model, telemetry={"LEG_STATE": 50.0})
-    server = UdpServerTransport("127.0.0.1", 0)
+    server = udp_server("127.0.0.1", 0)
     thread, stop, result = serve_in_thread(dev, server)
     client = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     client.bind(("127.0.0.1", 0))
