@@ -81,7 +81,7 @@ from controller.cosim import InProcessPlant, PlantStepError, start_at_equilibriu
 from controller.design import PidGains
 from controller.trajectory import Trajectory, leg_references
 from stewart_fmu.errors import StewartError
-from stewart_fmu.kinematics import forward_kinematics, inverse_kinematics
+from stewart_fmu.kinematics import condition_number, forward_kinematics, inverse_kinematics
 from stewart_fmu.model import Model
 from stewart_fmu.rotations import euler_motion
 
@@ -392,7 +392,7 @@ class Device:
             pose = forward_kinematics(self.model, lengths, guess=self._last_pose)
         except StewartError:
             return "no pose has these lengths", None
-        cond = float(inverse_kinematics(self.model, pose).cond)
+        cond = condition_number(self.model, pose)
         if not cond <= self.cond_max:
             return f"near-singular, cond {cond:.3g} > {self.cond_max:g}", None
         return None, pose

@@ -360,3 +360,16 @@ def test_empty_batch_returns_empty():
     z = np.zeros((0, 6))
     assert inverse_dynamics(model, z, z, z).shape == (0, 6)
     assert forward_dynamics(model, z, z, z).shape == (0, 6)
+
+
+def test_compiled_condition_number_equals_inverse_kinematics():
+    """kinematics.condition_number (compiled, one pose) equals inverse_kinematics' cond(J) to
+    1e-12 relative on random poses near home."""
+    from stewart_fmu.kinematics import condition_number
+
+    model = level_model("micro", "full")
+    rng = np.random.default_rng(12)
+    for _ in range(50):
+        q = model.home + rng.normal(size=6) * np.r_[0.01, 0.01, 0.01, 0.2, 0.2, 0.2]
+        ref = float(inverse_kinematics(model, q).cond)
+        assert abs(condition_number(model, q) - ref) <= 1e-12 * ref
