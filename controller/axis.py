@@ -91,9 +91,3 @@ class MotorCurrents:
         advance_currents(m.resistance, m.torque_constant, self.axis.emf_constant, m.current_limit,
                          self.decay, self.mean_decay, self.current, voltage, ldot, torque, limited)
         return torque, limited
-
-    def voltage_for(self, current: np.ndarray, current_rate: np.ndarray,
-                    ldot: np.ndarray) -> np.ndarray:
-        """The voltage that makes the current follow a given path (for feedforward)."""
-        m = self.axis.motor
-        return m.resistance * current + m.inductance * current_rate + self.axis.emf_constant * ldot

@@ -178,10 +178,7 @@ def feedforward_voltage(model: Model, config: ControllerConfig, axis: AxisModel,
     else:
         return np.zeros_like(refs.l), np.zeros_like(refs.l)
     current = force / axis.force_constant
-    rate = np.gradient(current, traj.t, axis=0)
-    m = axis.motor
-    voltage = m.resistance * current + m.inductance * rate + axis.emf_constant * refs.ldot
-    return voltage, current
+    return axis.voltage(current, np.gradient(current, traj.t, axis=0), refs.ldot), current
 
 
 def run_closed_loop(model: Model, config: ControllerConfig, traj: Trajectory,
@@ -327,8 +324,8 @@ def start_at_equilibrium(model, traj, refs, gains, ctrl, motors, i_ff0, plant) -
     feedforward's inductive part (L di/dt) still reaches the motor from the first sample."""
     hold = inverse_dynamics(model, traj.q[0], traj.qd[0], np.zeros(6))
     motors.current = hold / motors.axis.force_constant
-    v_hold = motors.voltage_for(motors.current, np.zeros(6), np.zeros(6))
-    v_static = motors.voltage_for(i_ff0, np.zeros(6), refs.ldot[0])
+    v_hold = motors.axis.voltage(motors.current, 0.0, 0.0)
+    v_static = motors.axis.voltage(i_ff0, 0.0, refs.ldot[0])
     ctrl.integral = (v_hold - v_static) / gains.ki if gains.ki > 0 else np.zeros(6)
     if plant is not None:
         plant.start(traj.q[0], traj.qd[0], float(traj.t[0]))

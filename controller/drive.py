@@ -68,6 +68,12 @@ class AxisModel:
     def moving_mass(self) -> float:
         return self.load_mass + self.reflected_mass
 
+    def voltage(self, current, current_rate, ldot):
+        """The motor voltage that drives `current` changing at `current_rate` at rack speed
+        `ldot`: R i + L di/dt + (Ke zeta / r) ldot (arrays or numbers)."""
+        m = self.motor
+        return m.resistance * current + m.inductance * current_rate + self.emf_constant * ldot
+
     def state_space(self) -> ct.StateSpace:
         """States (x, v, i), input voltage V, outputs (x, v)."""
         L, R = self.motor.inductance, self.motor.resistance

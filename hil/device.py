@@ -369,8 +369,8 @@ class Device:
                          else np.zeros(6))
         if flags & ms.STEWART_SETPOINT_FLAG_FORCE_VALID:
             ax = self.ctrl.axis
-            self.v_ff = (ax.motor.resistance / ax.force_constant * np.array(msg.force, dtype=float)
-                         + ax.emf_constant * self.ldot_ref)
+            self.v_ff = ax.voltage(np.array(msg.force, dtype=float) / ax.force_constant, 0.0,
+                                   self.ldot_ref)
         else:
             self.v_ff = np.zeros(6)
         return out

@@ -61,6 +61,23 @@ class _Base:
         if self.closed:
             raise LinkError(f"{type(self).__name__} is closed")
 
+    def _readable(self, handle, timeout: float) -> bool:
+        """Checked open, then: does `handle` have input within `timeout` seconds?"""
+        self._check()
+        ready, _, _ = select.select([handle], [], [], max(timeout, 0.0))
+        return bool(ready)
+
+    def _count_send(self, offered: int, sent: int) -> int:
+        self.stats.sends += 1
+        self.stats.bytes_sent += sent
+        self.stats.bytes_dropped += offered - sent
+        return sent
+
+    def _count_recv(self, data: bytes) -> bytes:
+        self.stats.recvs += 1
+        self.stats.bytes_received += len(data)
+        return data
+
     def __enter__(self) -> "_Base":
         return self
 
@@ -95,16 +112,11 @@ class PtyTransport(_Base):
             if k <= 0:
                 break
             sent += k
-        self.stats.sends += 1
-        self.stats.bytes_sent += sent
-        self.stats.bytes_dropped += len(data) - sent
-        return sent
+        return self._count_send(len(data), sent)
 
     def recv(self, timeout: float = 0.0) -> bytes:
         """Read what arrives within `timeout` seconds."""
-        self._check()
-        ready, _, _ = select.select([self.fd], [], [], max(timeout, 0.0))
-        if not ready:
+        if not self._readable(self.fd, timeout):
             return b""
         try:
             data = os.read(self.fd, READ_SIZE)
@@ -115,9 +127,7 @@ class PtyTransport(_Base):
                 raise LinkError(f"pty {self.name}: read failed: {exc}") from exc
             self.peer_closed = True
             return b""
-        self.stats.recvs += 1
-        self.stats.bytes_received += len(data)
-        return data
+        return self._count_recv(data)
 
     def close(self) -> None:
         """Close the fd (idempotent)."""
@@ -154,7 +164,6 @@ class UdpTransport(_Base):
     def send(self, data: bytes) -> int:
         """Send one datagram; if the socket buffer is full or the peer is gone it is dropped."""
         self._check()
-        self.stats.sends += 1
         sent = 0
         if self.peer is not None:
             try:
@@ -163,15 +172,11 @@ class UdpTransport(_Base):
                 sent = 0
             except OSError as exc:
                 raise LinkError(f"udp {self.address}: send failed: {exc}") from exc
-        self.stats.bytes_sent += sent
-        self.stats.bytes_dropped += len(data) - sent
-        return sent
+        return self._count_send(len(data), sent)
 
     def recv(self, timeout: float = 0.0) -> bytes:
         """One datagram received within `timeout` seconds (b"" if none)."""
-        self._check()
-        ready, _, _ = select.select([self.sock], [], [], max(timeout, 0.0))
-        if not ready:
+        if not self._readable(self.sock, timeout):
             return b""
         try:
             data, peer = self.sock.recvfrom(READ_SIZE)
@@ -179,9 +184,7 @@ class UdpTransport(_Base):
             return b""
         if not self.connected:
             self.peer = peer
-        self.stats.recvs += 1
-        self.stats.bytes_received += len(data)
-        return data
+        return self._count_recv(data)
 
     def close(self) -> None:
         """Close the socket (idempotent)."""
@@ -235,17 +238,14 @@ class QueueTransport(_Base):
     def send(self, data: bytes) -> int:
         """Put `data` in the peer's queue; dropped whole if it would exceed the capacity."""
         self._check()
-        self.stats.sends += 1
         peer = self.peer
         if peer is None or peer.closed or peer._queued + len(data) > peer.capacity:
-            self.stats.bytes_dropped += len(data)
-            return 0
+            return self._count_send(len(data), 0)
         with peer._cond:
             peer._inbox.append(bytes(data))
             peer._queued += len(data)
             peer._cond.notify()
-        self.stats.bytes_sent += len(data)
-        return len(data)
+        return self._count_send(len(data), len(data))
 
     def recv(self, timeout: float = 0.0) -> bytes:
         """The oldest queued packet, waiting at most `timeout` seconds."""
@@ -257,9 +257,7 @@ class QueueTransport(_Base):
                 return b""
             data = self._inbox.popleft()
             self._queued -= len(data)
-        self.stats.recvs += 1
-        self.stats.bytes_received += len(data)
-        return data
+        return self._count_recv(data)
 
     def close(self) -> None:
         """Mark closed (idempotent)."""

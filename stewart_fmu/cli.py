@@ -179,26 +179,22 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _positive_seconds(text: str) -> float:
-    """argparse type: a finite duration > 0 s."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"must be a finite number of seconds > 0, got {text!r}")
-    return value
+def _number(convert, what: str, ok, rule: str):
+    """An argparse type: `convert(text)` that must satisfy `ok`, else a message saying `rule`."""
+    def parse(text: str):
+        try:
+            value = convert(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not {what}: {text!r}") from None
+        if not ok(value):
+            raise argparse.ArgumentTypeError(f"must be {rule}, got {text!r}")
+        return value
+    return parse
 
 
-def _sweep_points(text: str) -> int:
-    """argparse type: a sweep size of 1 to 100 points."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if not 1 <= value <= 100:
-        raise argparse.ArgumentTypeError(f"must be 1 to 100, got {value}")
-    return value
+_positive_seconds = _number(float, "a number", lambda v: math.isfinite(v) and v > 0,
+                            "a finite number of seconds > 0")
+_sweep_points = _number(int, "an integer", lambda v: 1 <= v <= 100, "1 to 100")
 
 
 # --- inverse ---------------------------------------------------------------------------------
