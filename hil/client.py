@@ -1,7 +1,8 @@
 """The host side: a MAVLink client of the emulated device, and the closed loop over the link.
 
-`Client` wraps a transport of `hil.link` (a pseudo-terminal path opened raw and non-blocking,
-or UDP to 127.0.0.1:PORT; see `connect_pty`, `connect_udp`) and speaks our dialect: it packs
+`Client` wraps a transport of `hil.link`; `connect_pty` and `connect_udp` open the device's
+serial port (its pseudo-terminal) or UDP 127.0.0.1:PORT with `pymavlink.mavutil`
+(`hil.link.MavutilTransport`), and the client speaks our dialect: it packs
 with a host `MAVLink` (system 255, component 190), receives through the robust
 `hil.framing.Receiver` (which drops unknown ids and bad frames), and offers arm / disarm / home
 (COMMAND_LONG -> COMMAND_ACK), parameter read / set, LEG_SETPOINT and LOCKSTEP.
@@ -54,7 +55,7 @@ from stewart_fmu.model import Model
 from hil import mavlink_stewart as ms
 from hil.errors import LinkError
 from hil.framing import Receiver
-from hil.link import PtyTransport, UdpTransport
+from hil.link import MavutilTransport
 
 HOST_SYSTEM, HOST_COMPONENT = 255, 190
 TIMEOUT = 0.5        # s: default wait for one reply
@@ -65,36 +66,35 @@ _FLAGS_FORCE = ms.STEWART_SETPOINT_FLAG_FORCE_VALID
 
 # ---------------------------------------------------------------- connecting
 
-def connect_pty(path: str) -> PtyTransport:
-    """Open the device's pseudo-terminal `path` raw and non-blocking (hil.link.PtyTransport)."""
+def connect_pty(path: str, baud: int = 921600) -> MavutilTransport:
+    """Open the device's serial port (here its pseudo-terminal `path`) with
+    pymavlink.mavutil (mavserial over pyserial: raw mode, `baud`, non-blocking)."""
+    from hil.dialect import connection
+
     try:
-        fd = os.open(path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
-    except OSError as exc:
+        mf = connection(path, baud=baud, source_system=HOST_SYSTEM,
+                        source_component=HOST_COMPONENT)
+    except OSError as exc:          # pyserial's SerialException is an OSError
         raise LinkError(f"cannot open {path}: {exc}") from exc
-    try:
-        return PtyTransport(fd, path)
-    except Exception:
-        os.close(fd)
-        raise
+    return MavutilTransport(mf, f"serial {path}")
 
 
-def connect_udp(host: str, port: int) -> UdpTransport:
-    """A UDP socket on loopback sending to the device at host:port (loopback only)."""
+def connect_udp(host: str, port: int) -> MavutilTransport:
+    """pymavlink.mavutil's `udpout` connection to the device at host:port (loopback only)."""
     import ipaddress
-    import socket
+
+    from hil.dialect import connection
 
     if host == "localhost":
         host = "127.0.0.1"
     if not ipaddress.IPv4Address(host).is_loopback:
         raise LinkError(f"connect_udp: {host} is not a loopback address")
-    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     try:
-        sock.bind(("127.0.0.1", 0))
-        sock.connect((host, port))
+        mf = connection(f"udpout:{host}:{port}", source_system=HOST_SYSTEM,
+                        source_component=HOST_COMPONENT)
     except OSError as exc:
-        sock.close()
         raise LinkError(f"udp {host}:{port}: {exc}") from exc
-    return UdpTransport(sock)
+    return MavutilTransport(mf, f"udp {host}:{port}")
 
 
 # ---------------------------------------------------------------- the client
@@ -509,7 +509,7 @@ def link_summary_text(model: Model, run: LinkRun, ref: LinkReference, link: str)
 #: Real time: a setpoint every REALTIME_EVERY controller samples (the device emulator, in
 #: Python, cannot take a checked setpoint and a tick every millisecond without a backlog).
 REALTIME_EVERY = 2
-LINK_FILES = ("run.csv", "summary.md")
+LINK_FILES = ("run.csv", "run_link.png", "summary.md")
 
 
 def run_link_files(model: Model, config: ControllerConfig, duration: float, out, link: str,
@@ -523,6 +523,7 @@ def run_link_files(model: Model, config: ControllerConfig, duration: float, out,
     from stewart_fmu import io as sio
 
     from hil.device import Device
+    from hil.figures import run_figure
     from hil.link import pty_pair
     from hil.link import udp_server
     from hil.serve import serve_in_thread
@@ -561,5 +562,7 @@ def run_link_files(model: Model, config: ControllerConfig, duration: float, out,
                  f"({config.rate / REALTIME_EVERY:g} Hz), LEG_STATE at {config.rate:g} Hz\n")
     with sio.writing(out):
         sio.write_csv(out / "run.csv", run.table)
+        run_figure(run.table, f"{model.name}: closed loop over {where}, {mode}",
+                   out / "run_link.png")
         sio.write_text(out / "summary.md", text)
     return run, ref

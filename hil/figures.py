@@ -171,6 +171,30 @@ def plot(rows: list[dict], path: Path) -> Path:
     return save_figure(fig, path)
 
 
+def run_figure(table: np.ndarray, title: str, path: Path) -> Path:
+    """A run over the link (hil.client.LinkRun.table): leg lengths against their references,
+    leg errors, and the forces the device reports."""
+    from matplotlib.figure import Figure
+
+    from stewart_fmu.plots import plot_leg_forces, save_figure
+
+    def legs(prefix: str) -> np.ndarray:
+        return np.column_stack([table[f"{prefix}{i}"] for i in range(1, 7)])
+
+    fig = Figure(figsize=(11, 8.5), layout="constrained")
+    axes = fig.subplots(3, 1, sharex=True)
+    t = table["time"]
+    plot_leg_forces(axes[0], t, legs("l"), "leg lengths l_i (reference dashed)",
+                    ylabel="leg length (m)")
+    for i, ref in enumerate(legs("l_ref").T):
+        axes[0].plot(t, ref, "k--", lw=0.7)
+    plot_leg_forces(axes[1], t, legs("e"), "leg errors e_i = l_ref,i - l_i", ylabel="error (m)")
+    axes[1].legend([f"leg {i}" for i in range(1, 7)], ncol=6, fontsize="small", loc="best")
+    plot_leg_forces(axes[2], t, legs("force"), "rack forces reported in LEG_STATE")
+    fig.suptitle(title)
+    return save_figure(fig, path)
+
+
 def report(out: Path, model, config, n: int = 500) -> Path:
     """figures.md and tracking_vs_link.png in `out`."""
     from stewart_fmu.io import write_text

@@ -224,6 +224,52 @@ def udp_pair(host: str = LOOPBACK) -> tuple[UdpTransport, UdpTransport]:
     return UdpTransport(a), UdpTransport(b)
 
 
+class MavutilTransport(_Base):
+    """A byte end over a `pymavlink.mavutil` connection: `mavserial` (pyserial, e.g. on the
+    device's pseudo-terminal) or `mavudp`. mavutil opens the port and moves the bytes; parsing
+    is left to hil.framing.Receiver, because mavutil's parser does not backtrack after garbage.
+    Writes never block: pyserial with a zero write timeout spins on a full buffer, so a serial
+    write happens only when select says the port takes bytes, and what does not fit is dropped
+    like a UART overrun."""
+
+    def __init__(self, mf, name: str) -> None:
+        super().__init__()
+        self.mf, self.name = mf, name
+        self.serial = hasattr(mf.port, "baudrate")
+        if self.serial:
+            mf.port.write_timeout = 0
+        self.peer_closed = False
+
+    def send(self, data: bytes) -> int:
+        """Write `data` (one datagram over UDP); return the bytes accepted."""
+        self._check()
+        if not self.serial:
+            self.mf.write(data)     # mavudp drops a datagram it cannot send and returns None
+            return self._count_send(len(data), len(data))
+        _, writable, _ = select.select([], [self.mf.fd], [], 0.0)
+        sent = self.mf.write(data) if writable else 0
+        return self._count_send(len(data), max(sent or 0, 0))
+
+    def recv(self, timeout: float = 0.0) -> bytes:
+        """Bytes (a datagram over UDP) received within `timeout` seconds."""
+        if not self._readable(self.mf.fd, timeout):
+            return b""
+        try:
+            data = self.mf.recv(READ_SIZE)
+        except OSError as exc:       # pyserial's SerialException is an OSError
+            self.peer_closed = True  # a pty whose other side has closed reads as "no data"
+            if self.serial:
+                return b""
+            raise LinkError(f"{self.name}: read failed: {exc}") from exc
+        return self._count_recv(bytes(data or b""))
+
+    def close(self) -> None:
+        """Close the connection (idempotent)."""
+        if not self.closed:
+            self.closed = True
+            self.mf.close()
+
+
 class QueueTransport(_Base):
     """In-process end: every send is one packet in the peer's queue (deterministic, no OS)."""
 

@@ -152,6 +152,12 @@ class StewartPlant(Fmi2Slave):
     def _error(self, message: str) -> None:
         self.log(message, Fmi2Status.error)
 
+    def log(self, msg: str, status: Fmi2Status = Fmi2Status.ok, category=None, debug=None) -> None:
+        """FMI 2.0 (2.1.5): the importer's logger takes the message as a printf format (fmpy
+        passes it to vsnprintf), so a literal '%' is written '%%'; pythonfmu does not escape it,
+        and a '%s' in a value we quote (e.g. a solver name) would crash the importer."""
+        super().log(msg.replace("%", "%%"), status, category)
+
     # --- never raise into pythonfmu (see the module doc) ------------------------------------
 
     def set_real(self, vrs, values):

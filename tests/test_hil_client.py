@@ -185,6 +185,7 @@ def test_cli_run_over_the_link(tmp_path, capsys, link, mode):
     assert "## Tracking" in text and f"mode {mode}" in text and (out / "summary.md").is_file()
     header = (out / "run.csv").read_text().splitlines()[0].split(",")
     assert header[:3] == ["time", "step", "l_ref1"] and "e6" in header
+    assert (out / "run_link.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_cli_run_mode_needs_link(tmp_path, capsys):
