@@ -97,6 +97,17 @@ def connect_udp(host: str, port: int) -> MavutilTransport:
     return MavutilTransport(mf, f"udp {host}:{port}")
 
 
+def connect_device(link: str, first: str) -> tuple[MavutilTransport, str]:
+    """(transport, description) to a device process whose first line is `first` (hil.spawn):
+    ``udp 127.0.0.1:PORT`` over UDP, the pseudo-terminal's path over ``serial``."""
+    from hil.spawn import parse_udp
+
+    if link == "udp":
+        host, port = parse_udp(first)
+        return connect_udp(host, port), f"UDP {host}:{port}"
+    return connect_pty(first), f"pseudo-terminal {first}"
+
+
 # ---------------------------------------------------------------- the client
 
 @dataclass
@@ -484,7 +495,8 @@ def link_summary_text(model: Model, run: LinkRun, ref: LinkReference, link: str)
     s = run.summary
     t = ref.refs.t
     lines = [f"# Closed-loop run over the link: {model.name}", "",
-             f"- scene: `{model.source}`; device: hil.device.Device over {link}, mode {s.mode}",
+             f"- scene: `{model.source}`; device: `stewart-sim device` (its own process) over "
+             f"{link}, mode {s.mode}",
              f"- reference: {t[-1] - t[0]:.6g} s, {len(t)} samples at "
              f"{1 / (t[1] - t[0]):.6g} Hz; feedforward {ref.feedforward}",
              "", "## Tracking (measured leg length vs reference at the state's time)", "",
@@ -506,60 +518,60 @@ def link_summary_text(model: Model, run: LinkRun, ref: LinkReference, link: str)
 
 # ---------------------------------------------------------------- `stewart-sim run --link`
 
-#: Real time: a setpoint every REALTIME_EVERY controller samples (the device emulator, in
-#: Python, cannot take a checked setpoint and a tick every millisecond without a backlog).
-REALTIME_EVERY = 2
+#: The serial line the host assumes (connect_pty's default; a pseudo-terminal ignores it).
+SERIAL_BAUD = 921600
+
+
+def realtime_rates(link: str, rate: float, baud: float = SERIAL_BAUD) -> tuple[int, float]:
+    """(setpoint every k controller samples, LEG_STATE rate in Hz) for a real-time run: every
+    sample over UDP; over a serial line the smallest k at which setpoints up and states down
+    fit the UART (hil.figures.loop_rate: 524 Hz at 921600 baud, so k = 2 at 1 kHz)."""
+    if link != "serial":
+        return 1, rate
+    from hil.figures import frame_sizes, loop_rate
+
+    every = max(1, math.ceil(rate / loop_rate(baud, frame_sizes())))
+    return every, rate / every
 LINK_FILES = ("run.csv", "run_link.png", "summary.md")
 
 
 def run_link_files(model: Model, config: ControllerConfig, duration: float, out, link: str,
                    mode: str) -> tuple[LinkRun, LinkReference]:
-    """`run --link serial|udp --mode lockstep|realtime`: the device (hil.device.Device) served
-    in a thread over a pseudo-terminal (``serial``) or loopback UDP, the `run` reference
-    (controller.run_files.run_reference) over the link, run.csv and summary.md into `out`."""
+    """`run --link serial|udp --mode lockstep|realtime`: the device run as its own process
+    (`stewart-sim device`, see hil.spawn) over a pseudo-terminal (``serial``) or loopback UDP,
+    the `run` reference (controller.run_files.run_reference) over the link; run.csv,
+    run_link.png and summary.md into `out`."""
     from pathlib import Path
 
     from controller.run_files import run_reference
     from stewart_fmu import io as sio
 
-    from hil.device import Device
     from hil.figures import run_figure
-    from hil.link import pty_pair
-    from hil.link import udp_server
-    from hil.serve import serve_in_thread
+    from hil.spawn import device_process
 
     if link not in ("serial", "udp") or mode not in ("lockstep", "realtime"):
         raise LinkError(f"run: --link serial|udp and --mode lockstep|realtime, got {link}, {mode}")
+    if model.source is None:
+        raise LinkError("run --link: the device process needs the scene as a file")
     out = Path(out)
     ref = link_reference(model, config, run_reference(model, config, duration))
-    device = Device(model, config, lockstep=(mode == "lockstep"))
-    keep = None
-    if link == "udp":
-        dev_end = udp_server("127.0.0.1", 0)
-        where = f"UDP 127.0.0.1:{dev_end.address[1]}"
-        client = Client(connect_udp(*dev_end.address))
-    else:
-        dev_end, keep = pty_pair()
-        where = f"pseudo-terminal {keep.name}"
-        client = Client(connect_pty(keep.name))
-    thread, stop, _ = serve_in_thread(device, dev_end, poll=0.01)
-    try:
-        if mode == "lockstep":
-            run = run_lockstep(client, ref, timeout=1.0)
-        else:
-            run = run_realtime(client, ref, every=REALTIME_EVERY)
-        client.disarm()
-    finally:
-        stop.set()
-        thread.join(5)
-        client.close()
-        dev_end.close()
-        if keep is not None:
-            keep.close()
+    every, state_rate = realtime_rates(link, config.rate)
+    with device_process(model.source, link, lockstep=(mode == "lockstep")) as first:
+        transport, where = connect_device(link, first)
+        client = Client(transport)
+        try:
+            if mode == "lockstep":
+                run = run_lockstep(client, ref, timeout=1.0)
+            else:
+                run = run_realtime(client, ref, every=every, state_rate=state_rate)
+            client.disarm()
+        finally:
+            client.close()
     text = link_summary_text(model, run, ref, where)
     if mode == "realtime":
-        text += (f"- setpoints every {REALTIME_EVERY} controller samples "
-                 f"({config.rate / REALTIME_EVERY:g} Hz), LEG_STATE at {config.rate:g} Hz\n")
+        text += (f"- setpoints every {every} controller samples ({config.rate / every:g} Hz), "
+                 f"LEG_STATE at {state_rate:g} Hz"
+                 + (f" (what fits a {SERIAL_BAUD} baud UART)" if link == "serial" else "") + "\n")
     with sio.writing(out):
         sio.write_csv(out / "run.csv", run.table)
         run_figure(run.table, f"{model.name}: closed loop over {where}, {mode}",

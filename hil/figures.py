@@ -9,7 +9,7 @@
   DRIVE_STATUS at f / 10 and HEARTBEAT at 1 Hz.
 * `measure_latency`: round trips PARAM_REQUEST_READ -> PARAM_VALUE and (lockstep) setpoint +
   LOCKSTEP -> LEG_STATE with the device served in a thread over a pseudo-terminal and over UDP.
-* `degradation`: real-time runs (setpoints at half the controller rate) through the link
+* `degradation`: real-time runs (setpoints at the controller rate) through the link
   emulator on the wall clock with added latency or loss; RMS / max leg tracking error.
 
 ``python -m hil.figures OUT_DIR`` writes figures.md and tracking_vs_link.png.
@@ -58,31 +58,6 @@ def rate_table(bauds=BAUDS, signed: bool = False) -> dict:
 
 # ---------------------------------------------------------------- measured
 
-def _served(model, config, link: str, lockstep: bool = True):
-    from hil.client import Client, connect_pty, connect_udp
-    from hil.device import Device
-    from hil.link import pty_pair
-    from hil.link import udp_server
-    from hil.serve import serve_in_thread
-
-    dev = Device(model, config, lockstep=lockstep)
-    if link == "udp":
-        end = udp_server("127.0.0.1", 0)
-        client, closers = Client(connect_udp(*end.address)), [end]
-    else:
-        end, keep = pty_pair()
-        client, closers = Client(connect_pty(keep.name)), [end, keep]
-    thread, stop, _ = serve_in_thread(dev, end, poll=0.01)
-
-    def close():
-        stop.set()
-        thread.join(5)
-        client.close()
-        for c in closers:
-            c.close()
-    return client, close
-
-
 def _stats(x) -> dict[str, float]:
     x = np.asarray([v for v in x if v is not None], float)
     return {"n": len(x), "median": float(np.median(x)), "p99": float(np.percentile(x, 99)),
@@ -90,25 +65,28 @@ def _stats(x) -> dict[str, float]:
 
 
 def measure_latency(model, config, n: int = 500) -> dict[str, dict[str, dict[str, float]]]:
-    """link -> {'ping': stats, 'lockstep': stats} in seconds."""
+    """link -> {'ping': stats, 'lockstep': stats} in seconds, the device in its own process
+    (`stewart-sim device`, hil.spawn) as the hardware would be."""
     from controller.run_files import run_reference
-    from hil.client import link_reference, run_lockstep
+    from hil.client import Client, connect_device, link_reference, run_lockstep
+    from hil.spawn import device_process
 
+    ref = link_reference(model, config, run_reference(model, config, max(n, 100) / config.rate))
     out = {}
     for link in ("serial", "udp"):
-        client, close = _served(model, config, link)
-        try:
-            pings = [client.ping() for _ in range(n)]
-            ref = link_reference(model, config, run_reference(model, config, n / config.rate))
-            run = run_lockstep(client, ref, timeout=1.0)
-        finally:
-            close()
+        with device_process(model.source, link, lockstep=True) as first:
+            client = Client(connect_device(link, first)[0])
+            try:
+                pings = [client.ping() for _ in range(n)]
+                run = run_lockstep(client, ref, timeout=1.0)
+            finally:
+                client.close()
         out[link] = {"ping": _stats(pings), "lockstep": _stats(run.table["rtt"])}
     return out
 
 
 def degradation(model, config, latencies=(0.0, 0.002, 0.005, 0.01, 0.02),
-                losses=(0.1, 0.3, 0.5), every: int = 2, seed: int = 3, repeats: int = 3
+                losses=(0.1, 0.3, 0.5), every: int = 1, seed: int = 3, repeats: int = 3
                 ) -> list[dict]:
     """Real-time runs through the link emulator: rows {latency, loss, rms, max, lost,
     setpoints_lost}, each the median of `repeats` runs (wall-clock runs in one Python process
@@ -166,7 +144,7 @@ def plot(rows: list[dict], path: Path) -> Path:
     b.set_xlabel("packet loss (%), both directions")
     b.legend()
     b.grid(True)
-    fig.suptitle("Real-time closed loop over the emulated link (setpoints 500 Hz, states 1 kHz)")
+    fig.suptitle("Real-time closed loop over the emulated link (setpoints and states at 1 kHz)")
     fig.tight_layout()
     return save_figure(fig, path)
 
@@ -195,8 +173,8 @@ def run_figure(table: np.ndarray, title: str, path: Path) -> Path:
     return save_figure(fig, path)
 
 
-def report(out: Path, model, config, n: int = 500) -> Path:
-    """figures.md and tracking_vs_link.png in `out`."""
+def report(out: Path, model, config, n: int = 500, **cases) -> Path:
+    """figures.md and tracking_vs_link.png in `out`; `cases` go to `degradation`."""
     from stewart_fmu.io import write_text
 
     out.mkdir(parents=True, exist_ok=True)
@@ -213,15 +191,17 @@ def report(out: Path, model, config, n: int = 500) -> Path:
         rt, ls = t["loop"][b]
         lines.append(f"- {b} baud: {rt:.0f} Hz real time, {ls:.0f} Hz lockstep (+ LOCKSTEP both ways)")
     lat = measure_latency(model, config, n)
-    lines += ["", f"## Round trip, device in a thread ({n} exchanges each)", "",
+    lines += ["", f"## Round trip, device in its own process ({n} pings, "
+              f"{max(n, 100)} lockstep steps each)", "",
               "| link | exchange | median (ms) | p99 (ms) | max (ms) |", "|---|---|---:|---:|---:|"]
     for link, d in lat.items():
         for kind, s in d.items():
             lines.append(f"| {link} | {kind} | {1e3 * s['median']:.3f} | {1e3 * s['p99']:.3f} | "
                          f"{1e3 * s['max']:.3f} |")
-    rows = degradation(model, config)
+    rows = degradation(model, config, **cases)
     lines += ["", "## Real-time tracking vs latency and loss (link emulator, wall clock)", "",
-              "Each row the median of 3 runs of 0.5 s; setpoints at 500 Hz, LEG_STATE at 1 kHz.", "",
+              f"Each row the median of {cases.get('repeats', 3)} runs of 0.5 s; setpoints and "
+              "LEG_STATE at 1 kHz.", "",
               "| latency (ms) | loss | RMS (um) | max (um) | states lost | setpoints lost |",
               "|---:|---:|---:|---:|---:|---:|"]
     for r in rows:

@@ -219,3 +219,36 @@ def test_rate_table_is_computed_from_the_dialect_sizes():
             <= baud * (1 + 1e-12)
     assert t["loop"][115200][0] == pytest.approx(65.4, abs=0.5)
     assert t["loop"][921600][0] == pytest.approx(523.6, abs=1)
+
+
+def test_realtime_rates_fit_the_line():
+    """UDP runs at the controller rate; a 921600 baud UART carries 524 setpoint/state pairs a
+    second (frame sizes from the dialect), so a 1 kHz loop sends every second sample."""
+    from hil.client import SERIAL_BAUD, realtime_rates
+    from hil.figures import frame_sizes, loop_rate
+
+    assert realtime_rates("udp", 1000.0) == (1, 1000.0)
+    every, state_rate = realtime_rates("serial", 1000.0)
+    fits = loop_rate(SERIAL_BAUD, frame_sizes())
+    assert (every, state_rate) == (2, 500.0) and 500.0 <= fits < 1000.0
+    assert realtime_rates("serial", 1000.0, baud=115200)[0] == math.ceil(
+        1000.0 / loop_rate(115200, frame_sizes()))
+
+
+def test_link_figures_report_end_to_end(tmp_path, model, config):
+    """`python -m hil.figures` on a small grid: the rate table, measured round trips over the
+    pty and UDP, and tracking against latency and loss, all finite, with the plot."""
+    from hil.figures import report
+
+    path = report(tmp_path, model, config, n=30, latencies=(0.0, 0.005), losses=(0.3,),
+                  repeats=1)
+    text = path.read_text()
+    assert "| LEG_SETPOINT |" in text and "921600 baud:" in text
+    rows = [ln for ln in text.splitlines() if ln.startswith("| ") and "---" not in ln]
+    latency_rows = [r for r in rows if r.split("|")[1].strip() in ("serial", "udp")]
+    assert len(latency_rows) >= 4
+    numbers = [float(x) for r in latency_rows for x in r.split("|")[3:6]]
+    assert all(math.isfinite(x) and x > 0 for x in numbers)
+    tracking = [r for r in rows if r.split("|")[1].strip() in ("0", "5")]
+    assert len(tracking) == 3 and all(math.isfinite(float(r.split("|")[3])) for r in tracking)
+    assert (tmp_path / "tracking_vs_link.png").read_bytes()[:4] == b"\x89PNG"
