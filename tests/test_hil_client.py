@@ -135,9 +135,9 @@ def realtime_ref(model, config):
                                                        fraction=0.2))
 
 
-# Setpoints at half the controller rate (every=2): the emulated device, in Python, cannot take a
-# setpoint (with its forward-kinematics check) and a tick every millisecond, and a backlog of
-# input then delays the setpoints by 5-20 ms (measured; see hil.figures).
+# Here the device is served in a thread of the test process, so host and device share the GIL;
+# setpoints at half the controller rate (every=2) keep that contention low. `run --link` runs
+# the device as its own process at the full rate (see test_cli_run_over_the_link).
 
 def test_realtime_over_udp_tracks(model, config, realtime_ref):
     with udp_served(Device(model, config)) as s:
