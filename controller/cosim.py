@@ -168,17 +168,26 @@ def check_stable(axis: AxisModel, gains: PidGains, dt: float) -> Analysis:
     return a
 
 
+def feedforward_force(model: Model, config: ControllerConfig, axis: AxisModel,
+                      traj: Trajectory, refs: LegReferences) -> np.ndarray | None:
+    """Leg forces the feedforward of config.feedforward supplies (None: no feedforward)."""
+    if config.feedforward == "kane":
+        return inverse_dynamics(model, traj.q, traj.qd, traj.qdd)
+    if config.feedforward == "constant_load":
+        return axis.moving_mass * refs.lddot + axis.viscous * refs.ldot
+    return None
+
+
 def feedforward_voltage(model: Model, config: ControllerConfig, axis: AxisModel,
                         traj: Trajectory, refs: LegReferences) -> tuple[np.ndarray, np.ndarray]:
-    """(voltage, current) feedforward per sample for the configured mode."""
-    if config.feedforward == "kane":
-        force = inverse_dynamics(model, traj.q, traj.qd, traj.qdd)
-    elif config.feedforward == "constant_load":
-        force = axis.moving_mass * refs.lddot + axis.viscous * refs.ldot
-    else:
+    """(voltage, current) feedforward per sample: R i + L di/dt + Ke' ldot_ref for the
+    feedforward force's current i = F / Kf (the device computes the same from F and dF/dt)."""
+    force = feedforward_force(model, config, axis, traj, refs)
+    if force is None:
         return np.zeros_like(refs.l), np.zeros_like(refs.l)
     current = force / axis.force_constant
-    return axis.voltage(current, np.gradient(current, traj.t, axis=0), refs.ldot), current
+    di = np.gradient(force, traj.t, axis=0) / axis.force_constant
+    return axis.voltage(current, di, refs.ldot), current
 
 
 def run_closed_loop(model: Model, config: ControllerConfig, traj: Trajectory,

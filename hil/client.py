@@ -11,9 +11,11 @@ Closed loop over the link
 -------------------------
 The reference is a pose trajectory sampled at the controller rate (`controller.trajectory`);
 the host sends its leg references (`leg_references`: lengths and rates) and the feed-forward
-force of the configured mode (``kane``: `stewart_fmu.dynamics.inverse_dynamics`, as
-`controller.cosim.feedforward_voltage`; ``constant_load``: m lddot + b ldot of the axis model;
-``none``: no force, the FORCE_VALID flag cleared). The device applies R F / Kf + Ke ldot.
+force F of the configured mode with its rate dF/dt (`controller.cosim.feedforward_force`:
+``kane``, the Kane inverse dynamics; ``constant_load``, m lddot + b ldot of the axis model;
+``none``: no force, the FORCE_VALID flag cleared). The device applies R i + L di/dt + Ke ldot
+with i = F / Kf, as the in-process loop does, so lockstep over the link equals
+`controller.cosim.run_closed_loop` (test_hil_client).
 
 * `run_lockstep`: for each sample k, LEG_SETPOINT(k) + LOCKSTEP(k), then wait (bounded) for
   LEG_STATE(step=k); both go in one transport send (one datagram over UDP, so a lossy link
@@ -38,7 +40,6 @@ sent / received / lost, round-trip latency statistics).
 from __future__ import annotations
 
 import math
-import os
 import time
 from dataclasses import dataclass, field
 from typing import Any, Callable
@@ -46,9 +47,9 @@ from typing import Any, Callable
 import numpy as np
 
 from controller.config import ControllerConfig
+from controller.cosim import feedforward_force
 from controller.drive import axis_model
 from controller.trajectory import LegReferences, Trajectory, leg_references
-from stewart_fmu.dynamics import inverse_dynamics
 from stewart_fmu.io import named_array
 from stewart_fmu.model import Model
 
@@ -62,6 +63,7 @@ TIMEOUT = 0.5        # s: default wait for one reply
 RETRIES = 5          # lockstep resends of one step before giving up
 _FLAGS_RATE = ms.STEWART_SETPOINT_FLAG_RATE_VALID
 _FLAGS_FORCE = ms.STEWART_SETPOINT_FLAG_FORCE_VALID
+_FLAGS_FORCE_RATE = ms.STEWART_SETPOINT_FLAG_FORCE_RATE_VALID
 
 
 # ---------------------------------------------------------------- connecting
@@ -263,12 +265,22 @@ class Client:
 
     # --- setpoints -------------------------------------------------------------------------
 
-    def setpoint_message(self, seq: int, t: float, l, ldot, force) -> Any:
-        flags = _FLAGS_RATE | (_FLAGS_FORCE if force is not None else 0)
+    def setpoint_message(self, seq: int, t: float, l, ldot, force=None, force_rate=None) -> Any:
+        """LEG_SETPOINT with the rate, and the force (and its rate) feed-forward when given."""
+        flags = (_FLAGS_RATE | (_FLAGS_FORCE if force is not None else 0)
+                 | (_FLAGS_FORCE_RATE if force is not None and force_rate is not None else 0))
         f = [0.0] * 6 if force is None else [float(x) for x in force]
+        fr = [0.0] * 6 if force_rate is None else [float(x) for x in force_rate]
         return ms.MAVLink_leg_setpoint_message(int(round(t * 1e6)), seq & 0xFFFFFFFF,
                                                [float(x) for x in l], [float(x) for x in ldot],
-                                               flags, f)
+                                               flags, f, fr)
+
+    def reference_setpoint(self, ref: "LinkReference", k: int) -> Any:
+        """LEG_SETPOINT k of a LinkReference (sequence k, its time, lengths, rates, feedforward)."""
+        r = ref.refs
+        return self.setpoint_message(k, r.t[k], r.l[k], r.ldot[k],
+                                     None if ref.force is None else ref.force[k],
+                                     None if ref.force_rate is None else ref.force_rate[k])
 
     def close(self) -> None:
         self.transport.close()
@@ -289,20 +301,18 @@ class LinkReference:
     traj: Trajectory
     refs: LegReferences
     force: np.ndarray | None
+    force_rate: np.ndarray | None
     feedforward: str
 
 
 def link_reference(model: Model, config: ControllerConfig, traj: Trajectory) -> LinkReference:
-    """Leg references of `traj` and the feed-forward force of config.feedforward."""
+    """Leg references of `traj`, the feed-forward force of config.feedforward and its rate
+    (controller.cosim.feedforward_force: the in-process loop's feedforward)."""
     refs = leg_references(model, traj)
-    if config.feedforward == "kane":
-        force = inverse_dynamics(model, traj.q, traj.qd, traj.qdd)
-    elif config.feedforward == "constant_load":
-        axis = axis_model(model, config.motor, config.load_mass)
-        force = axis.moving_mass * refs.lddot + axis.viscous * refs.ldot
-    else:
-        force = None
-    return LinkReference(traj, refs, force, config.feedforward)
+    force = feedforward_force(model, config, axis_model(model, config.motor, config.load_mass),
+                              traj, refs)
+    rate = None if force is None else np.gradient(force, traj.t, axis=0)
+    return LinkReference(traj, refs, force, rate, config.feedforward)
 
 
 # ---------------------------------------------------------------- results
@@ -379,8 +389,7 @@ def run_lockstep(client: Client, ref: LinkReference, *, timeout: float = TIMEOUT
     states, rtts, resends = [], np.full(n, math.nan), 0
     start = time.perf_counter()
     for k in range(n):
-        msgs = (client.setpoint_message(k, ref.refs.t[k], ref.refs.l[k], ref.refs.ldot[k],
-                                        None if ref.force is None else ref.force[k]),
+        msgs = (client.reference_setpoint(ref, k),
                 ms.MAVLink_lockstep_message(int(round(ref.refs.t[k] * 1e6)), k))
         for attempt in range(retries + 1):
             t0 = time.perf_counter()
@@ -412,8 +421,7 @@ def run_lockstep_direct(device, ref: LinkReference) -> LinkRun:
     n, states = len(ref.refs.t), []
     start = time.perf_counter()
     for k in range(n):
-        device.receive(client.setpoint_message(k, ref.refs.t[k], ref.refs.l[k], ref.refs.ldot[k],
-                                               None if ref.force is None else ref.force[k]))
+        device.receive(client.reference_setpoint(ref, k))
         out = device.receive(ms.MAVLink_lockstep_message(int(round(ref.refs.t[k] * 1e6)), k))
         states += [m for m in out if m.get_type() == "LEG_STATE" and m.step == k]
     wall = time.perf_counter() - start
@@ -456,8 +464,7 @@ def run_realtime(client: Client, ref: LinkReference, *, tail: float = 0.02,
             due = t0 + t_ref[k]
             while (left := due - client.clock()) > 0:
                 client.poll(left)
-            client.send(client.setpoint_message(k, t_ref[k], ref.refs.l[k], ref.refs.ldot[k],
-                                                None if ref.force is None else ref.force[k]))
+            client.send(client.reference_setpoint(ref, k))
             client.poll(0.0)
         end = client.clock() + tail
         while (left := end - client.clock()) > 0:
@@ -525,7 +532,7 @@ SERIAL_BAUD = 921600
 def realtime_rates(link: str, rate: float, baud: float = SERIAL_BAUD) -> tuple[int, float]:
     """(setpoint every k controller samples, LEG_STATE rate in Hz) for a real-time run: every
     sample over UDP; over a serial line the smallest k at which setpoints up and states down
-    fit the UART (hil.figures.loop_rate: 524 Hz at 921600 baud, so k = 2 at 1 kHz)."""
+    fit the UART (hil.figures.loop_rate: 425 Hz at 921600 baud, so k = 3 at 1 kHz)."""
     if link != "serial":
         return 1, rate
     from hil.figures import frame_sizes, loop_rate

@@ -24,9 +24,11 @@ finite, a length is outside [leg_min, leg_max], forward kinematics finds no pose
 (Newton from the last accepted pose), or cond(J) at that pose exceeds the parameter SP_COND_MAX.
 A valid setpoint feeds the watchdog; it is applied only while armed (while disarmed it is
 ignored, counted, with one STATUSTEXT per disarmed period). Rates are used with
-STEWART_SETPOINT_FLAG_RATE_VALID, forces with STEWART_SETPOINT_FLAG_FORCE_VALID (as the voltage
-R F / Kf + Ke' ldot_ref, the static part of the master's feed-forward), HOLD holds the current
-leg lengths.
+STEWART_SETPOINT_FLAG_RATE_VALID, forces with STEWART_SETPOINT_FLAG_FORCE_VALID as the voltage
+R i + L di/dt + Ke' ldot_ref with i = F / Kf (di/dt from the force rate with
+STEWART_SETPOINT_FLAG_FORCE_RATE_VALID, else 0): the master's feed-forward. When a feed-forward
+stream begins or ends the integral takes over its static part (bumpless transfer). HOLD holds
+the current leg lengths.
 
 Watchdog and safe states
 ------------------------
@@ -201,6 +203,7 @@ class Device:
         self.leg_max = model.leg_max if model.leg_max is not None else math.inf
         self.home_lengths = inverse_kinematics(model, model.home, with_cond=False).lengths.copy()
         self.cond_max = COND_MAX
+        self._ff_static: np.ndarray | None = None   # R i + Ke ldot_ref of the feed-forward in use
         self._start_holding(np.asarray(model.home, dtype=float), 0.0)
 
         self.k = 0                       # ticks done; device time = k / rate
@@ -244,14 +247,26 @@ class Device:
         self.plant.reset()
         start_at_equilibrium(self.model, traj, leg_references(self.model, traj),
                               self.ctrl.gains, self.ctrl, self.motors, np.zeros(6), self.port)
+        self._ff_static = None
         self._hold()
 
     def _hold(self) -> None:
         """References: the leg lengths measured now, at rest, no feed-forward."""
         self.l_ref = self.plant.outputs.lengths.copy()
         self.ldot_ref = np.zeros(6)
-        self.v_ff = np.zeros(6)
+        self._set_feedforward(None, None)
         self._homing = None
+
+    def _set_feedforward(self, v_ff: np.ndarray | None, static: np.ndarray | None) -> None:
+        """Bumpless transfer: when a feed-forward stream begins (or ends: hold, watchdog, homing,
+        a setpoint without force) the integral hands its static part R i + Ke ldot_ref over (or
+        takes it back), as controller.cosim.start_at_equilibrium does at the start of a run."""
+        ki = self.ctrl.gains.ki
+        if ki > 0 and (static is None) != (self._ff_static is None):
+            old = 0.0 if self._ff_static is None else self._ff_static
+            self.ctrl.integral += (old - (0.0 if static is None else static)) / ki
+        self.v_ff = np.zeros(6) if v_ff is None else v_ff
+        self._ff_static = static
 
     @staticmethod
     def _check_rate(hz: float) -> str | None:
@@ -369,10 +384,13 @@ class Device:
                          else np.zeros(6))
         if flags & ms.STEWART_SETPOINT_FLAG_FORCE_VALID:
             ax = self.ctrl.axis
-            self.v_ff = ax.voltage(np.array(msg.force, dtype=float) / ax.force_constant, 0.0,
-                                   self.ldot_ref)
+            i = np.array(msg.force, dtype=float) / ax.force_constant
+            di = (np.array(msg.force_rate, dtype=float) / ax.force_constant
+                  if flags & ms.STEWART_SETPOINT_FLAG_FORCE_RATE_VALID else 0.0)
+            self._set_feedforward(ax.voltage(i, di, self.ldot_ref),
+                                  ax.voltage(i, 0.0, self.ldot_ref))
         else:
-            self.v_ff = np.zeros(6)
+            self._set_feedforward(None, None)
         return out
 
     def _validate(self, msg: Any, flags: int) -> tuple[str | None, np.ndarray | None]:
@@ -384,6 +402,9 @@ class Device:
             return "non-finite rate", None
         if flags & ms.STEWART_SETPOINT_FLAG_FORCE_VALID and not np.all(np.isfinite(msg.force)):
             return "non-finite force", None
+        if (flags & ms.STEWART_SETPOINT_FLAG_FORCE_RATE_VALID
+                and not np.all(np.isfinite(msg.force_rate))):
+            return "non-finite force rate", None
         bad = [i for i in range(6) if not self.leg_min <= lengths[i] <= self.leg_max]
         if bad:
             i = bad[0]
@@ -446,7 +467,7 @@ class Device:
         duration = max(HOMING_MIN_TIME, 1.875 * d / (HOMING_SPEED * stroke))
         self._homing = (l0, self.home_lengths.copy(), self.k, max(1, round(duration * self.rate)))
         self.watchdog_state = ms.STEWART_WATCHDOG_IDLE
-        self.v_ff = np.zeros(6)
+        self._set_feedforward(None, None)
 
     def _homing_reference(self) -> None:
         l0, l1, k0, n = self._homing

@@ -367,8 +367,10 @@ STEWART_SETPOINT_FLAG_HOLD = 2
 enums["STEWART_SETPOINT_FLAG"][2] = EnumEntry("STEWART_SETPOINT_FLAG_HOLD", """Hold the current leg lengths; the length and rate fields are ignored (still keeps the watchdog fed).""")
 STEWART_SETPOINT_FLAG_FORCE_VALID = 4
 enums["STEWART_SETPOINT_FLAG"][4] = EnumEntry("STEWART_SETPOINT_FLAG_FORCE_VALID", """The force field is a valid leg-force feed-forward: the device adds the voltage that drives that force's current through the armature resistance plus the back-EMF of the commanded rate; without this flag the device ignores force.""")
-STEWART_SETPOINT_FLAG_ENUM_END = 5
-enums["STEWART_SETPOINT_FLAG"][5] = EnumEntry("STEWART_SETPOINT_FLAG_ENUM_END", """""")
+STEWART_SETPOINT_FLAG_FORCE_RATE_VALID = 8
+enums["STEWART_SETPOINT_FLAG"][8] = EnumEntry("STEWART_SETPOINT_FLAG_FORCE_RATE_VALID", """With STEWART_SETPOINT_FLAG_FORCE_VALID: the force_rate field is valid and the device also adds the inductive voltage of that force's rate of change (L di/dt), as the host's in-process loop does.""")
+STEWART_SETPOINT_FLAG_ENUM_END = 9
+enums["STEWART_SETPOINT_FLAG"][9] = EnumEntry("STEWART_SETPOINT_FLAG_ENUM_END", """""")
 
 # STEWART_WATCHDOG_STATE
 enums["STEWART_WATCHDOG_STATE"] = Enum()
@@ -6567,22 +6569,22 @@ class MAVLink_leg_setpoint_message(MAVLink_message):
 
     id = MAVLINK_MSG_ID_LEG_SETPOINT
     msgname = "LEG_SETPOINT"
-    fieldnames = ["time_usec", "sequence", "length", "rate", "flags", "force"]
-    ordered_fieldnames = ["time_usec", "length", "rate", "sequence", "flags", "force"]
-    fieldtypes = ["uint64_t", "uint32_t", "double", "double", "uint8_t", "double"]
+    fieldnames = ["time_usec", "sequence", "length", "rate", "flags", "force", "force_rate"]
+    ordered_fieldnames = ["time_usec", "length", "rate", "sequence", "flags", "force", "force_rate"]
+    fieldtypes = ["uint64_t", "uint32_t", "double", "double", "uint8_t", "double", "double"]
     fielddisplays_by_name: Dict[str, str] = {"flags": "bitmask"}
     fieldenums_by_name: Dict[str, str] = {"flags": "STEWART_SETPOINT_FLAG"}
-    fieldunits_by_name: Dict[str, str] = {"time_usec": "us", "length": "m", "rate": "m/s", "force": "N"}
-    native_format = bytearray(b"<QddIBd")
-    orders = [0, 3, 1, 2, 4, 5]
-    lengths = [1, 6, 6, 1, 1, 6]
-    array_lengths = [0, 6, 6, 0, 0, 6]
+    fieldunits_by_name: Dict[str, str] = {"time_usec": "us", "length": "m", "rate": "m/s", "force": "N", "force_rate": "N/s"}
+    native_format = bytearray(b"<QddIBdd")
+    orders = [0, 3, 1, 2, 4, 5, 6]
+    lengths = [1, 6, 6, 1, 1, 6, 6]
+    array_lengths = [0, 6, 6, 0, 0, 6, 6]
     crc_extra = 113
-    unpacker = struct.Struct("<Q6d6dIB6d")
+    unpacker = struct.Struct("<Q6d6dIB6d6d")
     instance_field = None
     instance_offset = -1
 
-    def __init__(self, time_usec: int, sequence: int, length: Sequence[float], rate: Sequence[float], flags: int, force: Sequence[float] = (0, 0, 0, 0, 0, 0)):
+    def __init__(self, time_usec: int, sequence: int, length: Sequence[float], rate: Sequence[float], flags: int, force: Sequence[float] = (0, 0, 0, 0, 0, 0), force_rate: Sequence[float] = (0, 0, 0, 0, 0, 0)):
         MAVLink_message.__init__(self, MAVLink_leg_setpoint_message.id, MAVLink_leg_setpoint_message.msgname)
         self._fieldnames = MAVLink_leg_setpoint_message.fieldnames
         self._instance_field = MAVLink_leg_setpoint_message.instance_field
@@ -6593,9 +6595,10 @@ class MAVLink_leg_setpoint_message(MAVLink_message):
         self.rate = rate
         self.flags = flags
         self.force = force
+        self.force_rate = force_rate
 
     def pack(self, mav: "MAVLink", force_mavlink1: bool = False) -> bytes:
-        return self._pack(mav, self.crc_extra, self.unpacker.pack(self.time_usec, self.length[0], self.length[1], self.length[2], self.length[3], self.length[4], self.length[5], self.rate[0], self.rate[1], self.rate[2], self.rate[3], self.rate[4], self.rate[5], self.sequence, self.flags, self.force[0], self.force[1], self.force[2], self.force[3], self.force[4], self.force[5]), force_mavlink1=force_mavlink1)
+        return self._pack(mav, self.crc_extra, self.unpacker.pack(self.time_usec, self.length[0], self.length[1], self.length[2], self.length[3], self.length[4], self.length[5], self.rate[0], self.rate[1], self.rate[2], self.rate[3], self.rate[4], self.rate[5], self.sequence, self.flags, self.force[0], self.force[1], self.force[2], self.force[3], self.force[4], self.force[5], self.force_rate[0], self.force_rate[1], self.force_rate[2], self.force_rate[3], self.force_rate[4], self.force_rate[5]), force_mavlink1=force_mavlink1)
 
 
 # Define name on the class for backwards compatibility (it is now msgname).
@@ -17417,7 +17420,7 @@ class MAVLink(object):
         m._header = MAVLink_header(msgId, incompat_flags, compat_flags, mlen, seq, srcSystem, srcComponent)
         return m
 
-    def leg_setpoint_encode(self, time_usec: int, sequence: int, length: Sequence[float], rate: Sequence[float], flags: int, force: Sequence[float] = (0, 0, 0, 0, 0, 0)) -> MAVLink_leg_setpoint_message:
+    def leg_setpoint_encode(self, time_usec: int, sequence: int, length: Sequence[float], rate: Sequence[float], flags: int, force: Sequence[float] = (0, 0, 0, 0, 0, 0), force_rate: Sequence[float] = (0, 0, 0, 0, 0, 0)) -> MAVLink_leg_setpoint_message:
         """
         Leg-length setpoint for the six legs (host to device). A setpoint
         outside the leg stroke or the workspace is refused with a
@@ -17431,11 +17434,12 @@ class MAVLink(object):
         rate                      : Commanded leg rates (feed-forward), legs 0..5; used only with STEWART_SETPOINT_FLAG_RATE_VALID. [m/s] (type:double)
         flags                     : Setpoint flags. (type:uint8_t, values:STEWART_SETPOINT_FLAG)
         force                     : Leg-force feed-forward, legs 0..5 (positive pushes the platform away from the base); used only with STEWART_SETPOINT_FLAG_FORCE_VALID. An extension field, so senders that omit it send zeros. [N] (type:double)
+        force_rate                : Rate of change of the leg-force feed-forward, legs 0..5; used only with STEWART_SETPOINT_FLAG_FORCE_RATE_VALID (extension field). [N/s] (type:double)
 
         """
-        return MAVLink_leg_setpoint_message(time_usec, sequence, length, rate, flags, force)
+        return MAVLink_leg_setpoint_message(time_usec, sequence, length, rate, flags, force, force_rate)
 
-    def leg_setpoint_send(self, time_usec: int, sequence: int, length: Sequence[float], rate: Sequence[float], flags: int, force: Sequence[float] = (0, 0, 0, 0, 0, 0), force_mavlink1: bool = False) -> None:
+    def leg_setpoint_send(self, time_usec: int, sequence: int, length: Sequence[float], rate: Sequence[float], flags: int, force: Sequence[float] = (0, 0, 0, 0, 0, 0), force_rate: Sequence[float] = (0, 0, 0, 0, 0, 0), force_mavlink1: bool = False) -> None:
         """
         Leg-length setpoint for the six legs (host to device). A setpoint
         outside the leg stroke or the workspace is refused with a
@@ -17449,9 +17453,10 @@ class MAVLink(object):
         rate                      : Commanded leg rates (feed-forward), legs 0..5; used only with STEWART_SETPOINT_FLAG_RATE_VALID. [m/s] (type:double)
         flags                     : Setpoint flags. (type:uint8_t, values:STEWART_SETPOINT_FLAG)
         force                     : Leg-force feed-forward, legs 0..5 (positive pushes the platform away from the base); used only with STEWART_SETPOINT_FLAG_FORCE_VALID. An extension field, so senders that omit it send zeros. [N] (type:double)
+        force_rate                : Rate of change of the leg-force feed-forward, legs 0..5; used only with STEWART_SETPOINT_FLAG_FORCE_RATE_VALID (extension field). [N/s] (type:double)
 
         """
-        self.send(self.leg_setpoint_encode(time_usec, sequence, length, rate, flags, force), force_mavlink1=force_mavlink1)
+        self.send(self.leg_setpoint_encode(time_usec, sequence, length, rate, flags, force, force_rate), force_mavlink1=force_mavlink1)
 
     def leg_state_encode(self, time_usec: int, length: Sequence[float], rate: Sequence[float], force: Sequence[float], step: int = 0) -> MAVLink_leg_state_message:
         """

@@ -2,6 +2,7 @@
 pseudo-terminal, or in-process queues through the link emulator. Every wait is bounded."""
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -12,6 +13,7 @@ pytest.importorskip("pymavlink")
 
 from controller.comparison import move_and_hold  # noqa: E402
 from controller.config import controller_config  # noqa: E402
+from controller.cosim import run_closed_loop  # noqa: E402
 from controller.run_files import run_reference  # noqa: E402
 from hil import mavlink_stewart as ms  # noqa: E402
 from hil.client import (Client, connect_pty, connect_udp, link_reference, run_lockstep,  # noqa: E402
@@ -109,6 +111,26 @@ def test_lockstep_resends_after_loss(model, config, direct, lockstep_ref):
     assert_same(run, direct)
 
 
+@pytest.mark.parametrize("feedforward", ["kane", "constant_load", "none"])
+def test_lockstep_over_udp_equals_the_in_process_loop(model, config, feedforward):
+    """The controller of controller.cosim run in process, and its references sent over UDP to
+    the device in lockstep (the device runs the same servo loops): the same leg lengths to
+    1e-12, for every feedforward (the device adds R i + L di/dt + Ke ldot from F and dF/dt, and
+    hands the integral over bumplessly when the feedforward stream begins). Row k of the link
+    run is the state after step k, i.e. row k + 1 of the in-process table."""
+    cfg = dataclasses.replace(config, feedforward=feedforward)
+    traj = run_reference(model, cfg, 0.2)
+    loop = run_closed_loop(model, cfg, traj).table
+    with udp_served(Device(model, cfg, lockstep=True)) as s:
+        run = run_lockstep(s.client, link_reference(model, cfg, traj), timeout=1.0).table
+    n = len(traj.t)
+    assert len(run) == n
+    for i in range(1, 7):
+        a, b = loop[f"l{i}"][1:], run[f"l{i}"][:n - 1]
+        assert np.ptp(a) > 1e-3                                   # the legs move millimetres
+        assert np.max(np.abs(a - b)) <= 1e-12 * np.max(np.abs(a)), (i, np.max(np.abs(a - b)))
+
+
 def test_commands_and_parameters_over_udp(model, config):
     with udp_served(Device(model, config)) as s:
         c = s.client
@@ -204,7 +226,7 @@ def test_rate_table_is_computed_from_the_dialect_sizes():
     t = rate_table()
     sizes = t["sizes"]
     # header 10 + payload + CRC 2, the payloads from the generated classes
-    assert sizes["LEG_SETPOINT"] == frame_length(ms.MAVLink_leg_setpoint_message.unpacker.size) == 169
+    assert sizes["LEG_SETPOINT"] == frame_length(ms.MAVLink_leg_setpoint_message.unpacker.size) == 217
     assert sizes["LEG_STATE"] == frame_length(ms.MAVLink_leg_state_message.unpacker.size) == 168
     assert sizes["DRIVE_STATUS"] == frame_length(ms.MAVLink_drive_status_message.unpacker.size)
     assert sizes["HEARTBEAT"] == 21 and frame_sizes(signed=True)["HEARTBEAT"] == 34
@@ -217,20 +239,20 @@ def test_rate_table_is_computed_from_the_dialect_sizes():
         assert rt * sizes["LEG_SETPOINT"] * 10 <= baud * (1 + 1e-12)
         assert (rt * (sizes["LEG_STATE"] + sizes["DRIVE_STATUS"] / 10) + sizes["HEARTBEAT"]) * 10 \
             <= baud * (1 + 1e-12)
-    assert t["loop"][115200][0] == pytest.approx(65.4, abs=0.5)
-    assert t["loop"][921600][0] == pytest.approx(523.6, abs=1)
+    assert t["loop"][115200][0] == pytest.approx(53.1, abs=0.5)   # the setpoint direction limits
+    assert t["loop"][921600][0] == pytest.approx(424.7, abs=1)
 
 
 def test_realtime_rates_fit_the_line():
-    """UDP runs at the controller rate; a 921600 baud UART carries 524 setpoint/state pairs a
-    second (frame sizes from the dialect), so a 1 kHz loop sends every second sample."""
+    """UDP runs at the controller rate; a 921600 baud UART carries 424 setpoints a second (217 B
+    frames with force and force rate), so a 1 kHz loop sends every third sample."""
     from hil.client import SERIAL_BAUD, realtime_rates
     from hil.figures import frame_sizes, loop_rate
 
     assert realtime_rates("udp", 1000.0) == (1, 1000.0)
     every, state_rate = realtime_rates("serial", 1000.0)
     fits = loop_rate(SERIAL_BAUD, frame_sizes())
-    assert (every, state_rate) == (2, 500.0) and 500.0 <= fits < 1000.0
+    assert (every, state_rate) == (3, 1000.0 / 3) and 1000.0 / 3 <= fits < 500.0
     assert realtime_rates("serial", 1000.0, baud=115200)[0] == math.ceil(
         1000.0 / loop_rate(115200, frame_sizes()))
 
