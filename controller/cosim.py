@@ -21,7 +21,9 @@ from stewart_fmu.errors import StewartError
 from stewart_fmu.integrators import _A, _E, IntegratorOptions, dopri5_advance, rk4_advance
 from stewart_fmu.io import POSE, named_array
 from stewart_fmu.model import Model
+from stewart_fmu.stability import default_options
 from stewart_fmu.stepper import _WHY, Plant, StepRejected
+from stewart_fmu.transmission import initial_state
 
 from .axis import AxisControllers, MotorCurrents, advance_currents, pid_voltages
 from .config import ControllerConfig
@@ -44,7 +46,8 @@ class PlantStepError(StewartError):
 class PlantPort(Protocol):
     """What the master needs of a plant."""
 
-    def start(self, q0: np.ndarray, qd0: np.ndarray, t0: float) -> None: ...
+    def start(self, q0: np.ndarray, qd0: np.ndarray, t0: float,
+              torque0: np.ndarray) -> None: ...  # torque0: held from the start
     def step(self, t: float, h: float, torque: np.ndarray) -> None: ...
     def measure(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...  # l, ldot, q
 
@@ -52,13 +55,14 @@ class PlantPort(Protocol):
 class InProcessPlant:
     """stewart_fmu.stepper.Plant behind the PlantPort calls."""
 
-    def __init__(self, model: Model):
-        self.plant = Plant(model)
+    def __init__(self, model: Model, options: IntegratorOptions | None = None):
+        self.plant = Plant(model, options)
 
-    def start(self, q0, qd0, t0) -> None:
+    def start(self, q0, qd0, t0, torque0) -> None:
         self.plant.setup_experiment(t0)
         self.plant.enter_initialization_mode()
         self.plant.set_initial(q0, qd0)
+        self.plant.set_torque(torque0)
         self.plant.exit_initialization_mode()
 
     def step(self, t, h, torque) -> None:
@@ -90,13 +94,14 @@ class FmuPlant:
         names = [f"l[{i}]" for i in range(1, 7)] + [f"ldot[{i}]" for i in range(1, 7)] + list(POSE)
         self.vr_out = [self.vr[n] for n in names]
 
-    def start(self, q0, qd0, t0) -> None:
+    def start(self, q0, qd0, t0, torque0) -> None:
         f = self.fmu
         f.instantiate()
         f.setupExperiment(startTime=t0)
         f.enterInitializationMode()
         f.setReal([self.vr[f"q0[{k}]"] for k in range(1, 7)], list(map(float, q0)))
         f.setReal([self.vr[f"qd0[{k}]"] for k in range(1, 7)], list(map(float, qd0)))
+        f.setReal(self.vr_tau, list(map(float, torque0)))
         f.exitInitializationMode()
 
     def step(self, t, h, torque) -> None:
@@ -244,12 +249,12 @@ def _run_compiled(model, traj, refs, v_ff, ctrl, motors, bound, rec, progress) -
     InProcessPlant (the default integrator options of stewart_fmu.stepper.Plant). Returns the
     loop's wall time, after a zero-sample call has loaded the compiled kernel (the one-time
     cost of a fresh process is not the loop's)."""
-    o = IntegratorOptions()
+    o = default_options(model)
     h = float(traj.t[1] - traj.t[0])
     n_sub = max(1, math.ceil(h / o.max_step - 1e-9))
     g, m, ax = ctrl.gains, motors.axis.motor, motors.axis
-    y = np.r_[traj.q[0], traj.qd[0]]
     gain = model.drive.gear_ratio / model.drive.pinion_radius
+    y = initial_state(model, traj.q[0], traj.qd[0], motors.current * ax.force_constant)
     h_try = np.array([o.max_step])
     n = len(traj.t)
 
@@ -291,11 +296,11 @@ def _loop_kernel(p, y, t, k0, k1, l_ref, ldot_ref, v_ff, kp, ki, kd, vmax, dt, i
     """measure -> PID -> motor currents -> plant step for samples k0..k1-1 (state carried in
     y, integral, current, h_try); (k, status) of a failure, (-1, 0) when all went well."""
     n = t.shape[0]
-    ynext, rack = np.empty(12), np.empty(6)
+    ynext, rack = np.empty(y.shape[0]), np.empty(6)
     v, torque = np.empty(6), np.empty(6)
     sat, limited = np.empty(6, np.bool_), np.empty(6, np.bool_)
     for k in range(k0, k1):
-        l, ldot, _ = _leg_state(p, y[:6], y[6:])
+        l, ldot, _ = _leg_state(p, y[:6], y[6:12])
         pid_voltages(kp, ki, kd, vmax, dt, integral, l_ref[k], ldot_ref[k], l, ldot, v_ff[k], v, sat)
         advance_currents(R, Kt, emf, ilim, decay, mean_decay, current, v, ldot, torque, limited)
         for i in range(6):
@@ -337,7 +342,8 @@ def start_at_equilibrium(model, traj, refs, gains, ctrl, motors, i_ff0, plant) -
     v_static = motors.axis.voltage(i_ff0, 0.0, refs.ldot[0])
     ctrl.integral = (v_hold - v_static) / gains.ki if gains.ki > 0 else np.zeros(6)
     if plant is not None:
-        plant.start(traj.q[0], traj.qd[0], float(traj.t[0]))
+        plant.start(traj.q[0], traj.qd[0], float(traj.t[0]),
+                    motors.current * motors.axis.motor.torque_constant)
 
 
 def _stroke_range(model: Model, refs: LegReferences) -> float:

@@ -50,3 +50,14 @@ class StrokeLimitError(KinematicsError):
 
 class SingularityError(KinematicsError):
     """The leg Jacobian (or the Euler-rate matrix) is singular or nearly so at a pose."""
+
+
+class IntegrationError(StewartError):
+    """A step went numerically unstable (non-finite state, or energy growing beyond what the
+    inputs supply); the state stays at the start of the step. `time`, `method`, `step` (the
+    internal step, s) and `stable_step` (the explicit stability limit there, s) locate it."""
+
+    def __init__(self, message: str, time: float, method: str, step: float,
+                 stable_step: float | None = None):
+        self.time, self.method, self.step, self.stable_step = time, method, step, stable_step
+        super().__init__(message)

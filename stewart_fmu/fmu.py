@@ -22,7 +22,7 @@ UNITS: dict[str, dict[str, int]] = {
     "m": {"m": 1}, "rad": {"rad": 1}, "m/s": {"m": 1, "s": -1}, "rad/s": {"rad": 1, "s": -1},
     "kg": {"kg": 1}, "kg.m2": {"kg": 1, "m": 2}, "N": {"kg": 1, "m": 1, "s": -2},
     "N.m": {"kg": 1, "m": 2, "s": -2}, "N.s/m": {"kg": 1, "s": -1}, "s": {"s": 1},
-    "m/s2": {"m": 1, "s": -2}, "1": {},
+    "m/s2": {"m": 1, "s": -2}, "N/m": {"kg": 1, "s": -2}, "1": {},
 }
 _POSE_UNITS = ("m", "m", "m", "rad", "rad", "rad")
 _RATE_UNITS = ("m/s", "m/s", "m/s", "rad/s", "rad/s", "rad/s")
@@ -47,6 +47,8 @@ _SCENE_KEYS = {
     "drive.pinion_radius": ((), "m", "rack-and-pinion radius"),
     "friction.viscous": ((), "N.s/m", "viscous friction of each prismatic joint"),
     "friction.coulomb": ((), "N", "Coulomb friction of each prismatic joint"),
+    "transmission.stiffness": ((), "N/m", "transmission stiffness, motor to leg (leg axis)"),
+    "transmission.damping": ((), "N.s/m", "transmission damping, motor to leg (leg axis)"),
 }
 
 

@@ -23,6 +23,7 @@ from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real, String
 from pythonfmu.enums import Fmi2Initial, Fmi2Status
 
 from stewart_fmu import fmu
+from stewart_fmu.errors import IntegrationError
 from stewart_fmu.integrators import INTEGRATORS, IntegratorOptions
 from stewart_fmu.scene import DEFAULT_GRAVITY, apply_overrides, scene_from_dict
 from stewart_fmu.stepper import Plant, StepRejected
@@ -40,7 +41,7 @@ class StewartPlant(Fmi2Slave):
         self.units: dict[str, str | None] = {}
         self.values = {"sigma": np.zeros(6), "tau": np.zeros(6),
                        "q0": self.model.home.copy(), "qd0": np.zeros(6)}
-        defaults = IntegratorOptions()
+        defaults = IntegratorOptions()  # stiff scenes: set solver.max_step (see README)
         self.solver = {"method": defaults.method, "rtol": defaults.rtol, "atol": defaults.atol,
                        "max_step": defaults.max_step}
         self.start_time = 0.0
@@ -213,6 +214,7 @@ class StewartPlant(Fmi2Slave):
             plant.setup_experiment(self.start_time, self.tolerance)
             plant.enter_initialization_mode()
             plant.set_initial(self.values["q0"], self.values["qd0"])
+            plant.hold_inputs(self.values["sigma"], self.values["tau"])  # a spring's preload
             plant.exit_initialization_mode()
         except Exception as exc:  # a bad parameter or initial pose: refuse to step, say why
             self.init_error = f"exitInitializationMode failed: {type(exc).__name__}: {exc}"
@@ -229,7 +231,7 @@ class StewartPlant(Fmi2Slave):
             return False
         try:
             self._synced().do_step(current_time, step_size)
-        except StepRejected as exc:
+        except (StepRejected, IntegrationError) as exc:
             self.log(str(exc), Fmi2Status.discard)
             return False
         except Exception as exc:  # call out of sequence, bad step: logged as an error, discarded

@@ -1,5 +1,8 @@
 """Time integration of the plant: y = (q, qd), y' = (qd, forward_dynamics(q, qd, sigma)).
 
+With a compliant transmission y = (q, qd, s, sd) has 24 entries (see transmission.py); every
+method works on y of either length.
+
 Compiled one-step methods advance a whole communication step in one call (the per-step Python
 overhead is what limits a co-simulation at 1 ms): "rk4" (classic Runge-Kutta, fixed internal
 step) and "dopri5" (Dormand-Prince 5(4) with error control, FSAL). scipy's solve_ivp methods
@@ -14,7 +17,9 @@ import numpy as np
 from numba import njit
 from scipy.integrate import solve_ivp
 
+from . import model as M
 from .dynamics import OK, _forward_sample, _workspace  # the compiled per-sample forward kernel
+from .transmission import compliant_derivative, leg_side_params
 
 COMPILED = ("rk4", "dopri5")
 SCIPY = ("RK45", "DOP853", "Radau", "BDF", "LSODA")
@@ -43,12 +48,14 @@ class IntegratorOptions:
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _derivative(p, y, F, ws, dy) -> int:
-    """dy = (qd, qdd) at y with the force F; returns the forward kernel's status."""
+def _derivative(p, pl, y, F, ws, dy) -> int:
+    """dy = y' at y with the rack force F; the forward kernel's status. pl: leg_side_params(p)."""
+    if p[M.P_HAS_TRANSMISSION] != 0.0:
+        return compliant_derivative(p, pl, y, F, ws, dy)
     R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt = ws
     q = (y[0], y[1], y[2], y[3], y[4], y[5])
     qd = (y[6], y[7], y[8], y[9], y[10], y[11])
-    out = dy[6:].reshape((1, 6))
+    out = dy[6:12].reshape((1, 6))
     status = _forward_sample(p, q, qd, F, R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt, out, 0)
     for k in range(6):
         dy[k] = y[6 + k]
@@ -57,8 +64,8 @@ def _derivative(p, y, F, ws, dy) -> int:
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _axpy(out, y, a, x) -> None:
-    """out = y + a x for 12-vectors, without temporaries."""
-    for j in range(12):
+    """out = y + a x, without temporaries."""
+    for j in range(y.shape[0]):
         out[j] = y[j] + a * x[j]
 
 
@@ -66,21 +73,21 @@ def _axpy(out, y, a, x) -> None:
 def rk4_advance(p, y0, y, F, h, n) -> int:
     """y = y0 advanced over h with n classic RK4 steps; status of the first failure or OK
     (y0 is left as it was, so a failed step needs no rollback)."""
-    ws = _workspace()
-    k = np.empty((4, 12))
-    tmp = np.empty(12)
+    ws, pl, ny = _workspace(), leg_side_params(p), y0.shape[0]
+    k = np.empty((4, ny))
+    tmp = np.empty(ny)
     F = (F[0], F[1], F[2], F[3], F[4], F[5])
     dt = h / n
     y[:] = y0
     for _ in range(n):
-        status = _derivative(p, y, F, ws, k[0])
+        status = _derivative(p, pl, y, F, ws, k[0])
         for s, c in ((1, 0.5), (2, 0.5), (3, 1.0)):
             if status == OK:
                 _axpy(tmp, y, c * dt, k[s - 1])
-                status = _derivative(p, tmp, F, ws, k[s])
+                status = _derivative(p, pl, tmp, F, ws, k[s])
         if status != OK:
             return status
-        for j in range(12):
+        for j in range(ny):
             y[j] += dt / 6.0 * (k[0, j] + 2.0 * k[1, j] + 2.0 * k[2, j] + k[3, j])
     return OK
 
@@ -106,15 +113,15 @@ def dopri5_advance(p, y0, y, F, h, h_try, rtol, atol, max_step, max_steps, A, E)
     Returns (status, next step size to try, internal steps taken, rejected steps). A stage
     that leaves the valid region (stroke, singularity) shrinks the step; if the step cannot
     complete, that stage's status is the reported cause."""
-    ws = _workspace()
+    ws, pl, ny = _workspace(), leg_side_params(p), y0.shape[0]
     y[:] = y0
     cause = OK
-    K = np.empty((7, 12))
-    ytmp = np.empty(12)
-    ynew = np.empty(12)
+    K = np.empty((7, ny))
+    ytmp = np.empty(ny)
+    ynew = np.empty(ny)
     F = (F[0], F[1], F[2], F[3], F[4], F[5])
     t, dt = 0.0, min(h_try, max_step, h)
-    status = _derivative(p, y, F, ws, K[0])
+    status = _derivative(p, pl, y, F, ws, K[0])
     steps = rejected = 0
     while status == OK and t < h:
         if steps + rejected >= max_steps:
@@ -122,29 +129,29 @@ def dopri5_advance(p, y0, y, F, h, h_try, rtol, atol, max_step, max_steps, A, E)
         last = t + dt >= h * (1.0 - 1e-12)
         step = h - t if last else dt
         for s in range(1, 7):
-            for j in range(12):
+            for j in range(ny):
                 acc = 0.0
                 for m in range(s):
                     acc += A[s, m] * K[m, j]
                 ytmp[j] = y[j] + step * acc
-            status = _derivative(p, ytmp, F, ws, K[s])
+            status = _derivative(p, pl, ytmp, F, ws, K[s])
             if status != OK:
                 break
         if status != OK:  # a stage left the workspace: retry smaller before giving up
             if step < 1e-14 * h:
                 return status, dt, steps, rejected
             cause, dt, status, rejected = status, 0.25 * step, OK, rejected + 1
-            status = _derivative(p, y, F, ws, K[0])
+            status = _derivative(p, pl, y, F, ws, K[0])
             continue
         err = 0.0
-        for j in range(12):
+        for j in range(ny):
             ynew[j] = ytmp[j]  # stage 7 is the 5th-order solution (FSAL)
             e = 0.0
             for s in range(7):
                 e += E[s] * K[s, j]
             scale = atol + rtol * max(abs(y[j]), abs(ynew[j]))
             err += (step * e / scale) ** 2
-        err = np.sqrt(err / 12.0)
+        err = np.sqrt(err / ny)
         factor = min(5.0, max(0.2, 0.9 * err ** -0.2)) if err > 0 else 5.0
         if err <= 1.0:
             y[:] = ynew
@@ -174,7 +181,7 @@ def scipy_advance(model_params: np.ndarray, y0: np.ndarray, y: np.ndarray, F: np
 
     def rhs(_t: float, state: np.ndarray) -> np.ndarray:
         calls[0] += 1
-        dy = np.empty(12)
+        dy = np.empty(state.shape[0])
         status = _scipy_derivative(model_params, state, F, dy)
         if status != OK:
             raise _StageFailed(status)
@@ -193,4 +200,12 @@ def scipy_advance(model_params: np.ndarray, y0: np.ndarray, y: np.ndarray, F: np
 
 @njit(cache=True, error_model="numpy")
 def _scipy_derivative(p, y, F, dy) -> int:
-    return _derivative(p, y, (F[0], F[1], F[2], F[3], F[4], F[5]), _workspace(), dy)
+    return _derivative(p, leg_side_params(p), y, (F[0], F[1], F[2], F[3], F[4], F[5]),
+                       _workspace(), dy)
+
+
+def derivative(params: np.ndarray, y: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, int]:
+    """(y', status) of the plant at state y (12 or 24 entries) with the rack force F."""
+    dy = np.empty(y.shape[0])
+    return dy, _scipy_derivative(params, np.ascontiguousarray(y, dtype=float),
+                                 np.ascontiguousarray(F, dtype=float), dy)

@@ -1,7 +1,8 @@
 """The immutable model: parameters built once from a scene (MuJoCo's mjModel, Pinocchio's Model).
 
-Only the bodies and effects the scene declares are present: `legs`, `drive` and `friction` are
-None when their table is absent, and the compiled kernels then skip that work entirely.
+Only the bodies and effects the scene declares are present: `legs`, `drive`, `friction` and
+`transmission` are None when their table is absent, and the compiled kernels then skip that
+work entirely.
 """
 from __future__ import annotations
 
@@ -23,7 +24,9 @@ P_LEG_MIN, P_LEG_MAX = 21, 22
 P_CHAR_LENGTH = 23       # scales rotational Jacobian columns for cond(J)
 P_BASE = 24              # 18 values: a_i rows
 P_PLATFORM = 42          # 18 values: p_i rows
-N_PARAMS = 60
+P_HAS_TRANSMISSION = 60  # compliant transmission: the drive inertia on its own coordinate
+P_STIFFNESS, P_DAMPING = 61, 62
+N_PARAMS = 63
 
 
 @dataclass(frozen=True)
@@ -61,6 +64,14 @@ class FrictionParams:
 
 
 @dataclass(frozen=True)
+class TransmissionParams:
+    """Compliant transmission between each motor and its leg, reflected to the leg axis."""
+
+    stiffness: float   # N / m
+    damping: float     # N s / m
+
+
+@dataclass(frozen=True)
 class Model:
     """Immutable parameters of one Stewart mechanism."""
 
@@ -78,6 +89,7 @@ class Model:
     friction: FrictionParams | None
     extra: Mapping[str, Any] = field(default_factory=dict)  # project tables (controller, ...)
     source: str | None = None
+    transmission: TransmissionParams | None = None   # project table [transmission]
     params: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -96,7 +108,13 @@ class Model:
     @property
     def effects(self) -> tuple[str, ...]:
         """The optional effects this model computes."""
-        return tuple(n for n in ("legs", "drive", "friction") if getattr(self, n) is not None)
+        return tuple(n for n in ("legs", "drive", "friction", "transmission")
+                     if getattr(self, n) is not None)
+
+    @property
+    def state_size(self) -> int:
+        """Length of the plant's state: (q, qd), plus the motor side (s, sd) with a transmission."""
+        return 24 if self.transmission is not None else 12
 
 
 def _pack(m: Model) -> np.ndarray:
@@ -116,6 +134,9 @@ def _pack(m: Model) -> np.ndarray:
         p[P_DRIVE_MASS] = m.drive.reflected_mass
     if m.friction is not None:
         p[P_VISCOUS], p[P_COULOMB] = m.friction.viscous, m.friction.coulomb
+    if m.transmission is not None:
+        p[P_HAS_TRANSMISSION] = 1.0
+        p[P_STIFFNESS], p[P_DAMPING] = m.transmission.stiffness, m.transmission.damping
     p[P_LEG_MIN] = m.leg_min if m.leg_min is not None else 0.0
     p[P_LEG_MAX] = m.leg_max if m.leg_max is not None else np.inf
     p[P_CHAR_LENGTH] = m.characteristic_length

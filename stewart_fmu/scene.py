@@ -9,12 +9,13 @@ from typing import Any, Mapping
 import numpy as np
 
 from .errors import KinematicsError, SceneError
-from .model import DriveParams, FrictionParams, LegParams, Model
+from .model import DriveParams, FrictionParams, LegParams, Model, TransmissionParams
 
 DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
 # Tables the project defines on top of the contract; each owner module validates its own.
-PROJECT_TABLES = frozenset({"trajectory", "controller", "link", "solver", "device"})
-_TOP_KEYS = {"name", "gravity", "geometry", "platform", "legs", "drive", "friction"}
+PROJECT_TABLES = frozenset({"trajectory", "controller", "link", "solver", "device", "case"})
+_TOP_KEYS = {"name", "gravity", "geometry", "platform", "legs", "drive", "friction",
+             "transmission"}
 _TABLE_KEYS = {
     "geometry": ({"base_joints", "platform_joints", "home"}, {"leg_min", "leg_max"}),
     "platform": ({"mass", "inertia"}, set()),
@@ -22,7 +23,15 @@ _TABLE_KEYS = {
               "upper_mass", "upper_com", "upper_inertia"}, set()),
     "drive": ({"gear_ratio", "rotor_inertia", "pinion_radius"}, set()),
     "friction": ({"viscous", "coulomb"}, set()),
+    "transmission": ({"stiffness", "damping"}, set()),
+    "case": ({"kind", "description", "motion", "duration", "expect"},
+             {"step", "force_scale", "start_rates", "acceleration", "target"}),
 }
+# The [case] table of the shipped stiff and extreme scenes (see stewart_fmu/cases.py).
+CASE_CHOICES = {"kind": ("stiff", "extreme"),
+                "motion": ("hold", "accelerate", "ramp", "closed_loop"),
+                "expect": ("ok", "StrokeLimitError", "SingularityError")}
+_CASE_VECTORS = {"accelerate": "acceleration", "ramp": "target"}  # motion -> required key
 
 
 def load_scene(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Model:
@@ -80,8 +89,10 @@ def scene_from_dict(data: Mapping[str, Any], source: str | None = None) -> Model
         leg_min=leg_min, leg_max=leg_max, platform_mass=mass, platform_inertia=inertia,
         legs=_legs(v, data), drive=_drive(v, data), friction=_friction(v, data),
         extra={k: data[k] for k in PROJECT_TABLES if k in data}, source=source,
+        transmission=_transmission(v, data),
     )
     _check_home(v, model)
+    _check_case(v, data)
     return model
 
 
@@ -117,6 +128,40 @@ def _friction(v: "_Validator", data: Mapping[str, Any]) -> FrictionParams | None
         return None
     return FrictionParams(**{k: v.number(t, f"friction.{k}", nonnegative=True)
                              for k in ("viscous", "coulomb")})
+
+
+def _transmission(v: "_Validator", data: Mapping[str, Any]) -> TransmissionParams | None:
+    """[transmission]: a spring-damper between each motor and its leg (needs the [drive])."""
+    t = v.table(data, "transmission")
+    if t is None:
+        return None
+    if data.get("drive") is None:
+        v.fail("transmission", "needs the [drive] table: the motor side moves the drive inertia")
+    return TransmissionParams(v.number(t, "transmission.stiffness", positive=True),
+                              v.number(t, "transmission.damping", nonnegative=True))
+
+
+def _check_case(v: "_Validator", data: Mapping[str, Any]) -> None:
+    """[case]: what a stiff or extreme scene exercises and the outcome it must have."""
+    t = v.table(data, "case")
+    if t is None:
+        return
+    for key, choices in CASE_CHOICES.items():
+        if t[key] not in choices:
+            v.fail(f"case.{key}", f"must be one of {list(choices)}, got {t[key]!r}")
+    if not isinstance(t["description"], str):
+        v.fail("case.description", "must be a string")
+    v.number(t, "case.duration", positive=True)
+    v.number(t, "case.step", positive=True, optional=True)
+    v.number(t, "case.force_scale", optional=True)
+    for key in ("start_rates", "acceleration", "target"):
+        if key in t:
+            v.vector(t, f"case.{key}", 6)
+    need = _CASE_VECTORS.get(t["motion"])
+    if need is not None and need not in t:
+        v.fail(f"case.{need}", f"required for motion '{t['motion']}'")
+    if t["motion"] == "closed_loop" and "controller" not in data:
+        v.fail("case.motion", "'closed_loop' needs the scene's [controller] table")
 
 
 def _check_home(v: "_Validator", model: Model) -> None:

@@ -5,8 +5,13 @@ inputs, do_step, get outputs, get/set/serialize state, reset, terminate) and che
 sequence itself, as the FMI Reference FMUs do. The pythonfmu adapter (`fmu_slave.py`) only
 translates names; the physics and every check live here, so they run without an importer.
 
-State is (t, q, qd) plus the held inputs and the adaptive step guess: everything a master needs
-to roll back exactly (`get_state` / `set_state`, `serialize_state` / `deserialize_state`).
+State is (t, y) plus the held inputs and the adaptive step guess: everything a master needs
+to roll back exactly (`get_state` / `set_state`, `serialize_state` / `deserialize_state`);
+y = (q, qd), and with a compliant transmission (q, qd, s, sd) (see transmission.py).
+
+Every step is checked for numerical instability (stability.py): a non-finite state, or energy
+growing beyond the work of the held rack forces (power balance), raises IntegrationError with
+the time, the integrator, its step and advice, and leaves the state at the start of the step.
 """
 from __future__ import annotations
 
@@ -18,12 +23,15 @@ import numpy as np
 
 from .dynamics import GIMBAL, NONFINITE, OVERFLOW, SINGULAR, inverse_dynamics_parts, present_parts
 from .dynamics import forward_dynamics, leg_state
-from .errors import StewartError, TrajectoryError
-from .integrators import (_A, _E, STEP_TOO_SMALL, TOO_MANY_STEPS, IntegratorOptions,
+from .energy import energy_terms
+from .errors import IntegrationError, StewartError, TrajectoryError
+from .integrators import (_A, _E, STEP_TOO_SMALL, TOO_MANY_STEPS, IntegratorOptions, derivative,
                           dopri5_advance, rk4_advance, scipy_advance)
 from .kane import STROKE
 from .kinematics import check_poses, inverse_kinematics
 from .model import Model
+from .stability import advice, default_options, internal_step, power_excess
+from .transmission import initial_state, spring_forces
 
 STATE_VERSION = 1
 PHASES = ("instantiated", "initialization", "stepping", "terminated")
@@ -54,7 +62,7 @@ class PlantState:
 
     phase: str
     time: float
-    y: np.ndarray            # (12,) q then qd
+    y: np.ndarray            # (12,) q then qd; (24,) then s, sd with a transmission
     force: np.ndarray        # (6,) rack forces sigma_i (N), held over a step
     torque: np.ndarray       # (6,) motor torques (N m), held over a step
     step_guess: float        # next internal step of the adaptive method (s)
@@ -80,11 +88,19 @@ class Outputs:
 
     @property
     def qd(self) -> np.ndarray:
-        return self.plant._y[6:].copy()
+        return self.plant._y[6:12].copy()
 
     def _legs(self):
         y = self.plant._y
-        return self._get("legs", lambda: leg_state(self.plant.model, y[:6], y[6:]))
+        return self._get("legs", lambda: leg_state(self.plant.model, y[:6], y[6:12]))
+
+    @property
+    def spring_force(self) -> np.ndarray | None:
+        """The transmission forces on the legs (N), None without a [transmission]."""
+        p = self.plant
+        if p.model.transmission is None:
+            return None
+        return self._get("spring", lambda: spring_forces(p.model, p._y))
 
     @property
     def lengths(self) -> np.ndarray:
@@ -108,14 +124,28 @@ class Outputs:
     @property
     def qdd(self) -> np.ndarray:
         p = self.plant
-        return self._get("qdd", lambda: forward_dynamics(p.model, p._y[:6], p._y[6:], p._rack))
+        return self._get("qdd", lambda: self._ydot()[6:12].copy())
+
+    def _ydot(self) -> np.ndarray:
+        p = self.plant
+        if p.model.transmission is None:
+            return np.r_[p._y[6:], forward_dynamics(p.model, p._y[:6], p._y[6:], p._rack)]
+        return self._get("ydot", lambda: derivative(p.model.params, p._y, p._rack)[0])
 
     @property
     def parts(self) -> dict[str, np.ndarray]:
-        """How the rack force splits: platform, legs, drives, gravity, friction (sums to it)."""
+        """How the rack force splits: platform, legs, drives, gravity, friction (sums to it).
+        With a transmission: the leg-side parts sum to the spring force, and drives = m_d sdd."""
         p = self.plant
-        return self._get("parts", lambda: {k: v[0] for k, v in inverse_dynamics_parts(
-            p.model, p._y[:6], p._y[6:], self.qdd).items()})
+        return self._get("parts", self._parts)
+
+    def _parts(self) -> dict[str, np.ndarray]:
+        p = self.plant
+        out = {k: v[0] for k, v in inverse_dynamics_parts(
+            p._leg_model, p._y[:6], p._y[6:12], self.qdd).items()}
+        if p.model.transmission is not None:
+            out["drives"] = p.model.drive.reflected_mass * self._ydot()[18:]
+        return {k: out[k] for k in present_parts(p.model)}
 
 
 class Plant:
@@ -123,7 +153,10 @@ class Plant:
 
     def __init__(self, model: Model, options: IntegratorOptions | None = None):
         self.model = model
-        self.options = options or IntegratorOptions()
+        self.options = options or default_options(model)
+        # The leg side of a compliant transmission: the model without the drive inertia.
+        self._leg_model = (model if model.transmission is None
+                           else replace(model, drive=None, transmission=None))
         self._drive_gain = (model.drive.gear_ratio / model.drive.pinion_radius
                             if model.drive is not None else 0.0)
         self._initial = np.r_[model.home, np.zeros(6)]
@@ -140,7 +173,9 @@ class Plant:
         self._torque = np.zeros(6)
         self._rack = np.zeros(6)
         self._step_guess = self.options.max_step
-        self._next = np.empty(12)     # the step's result; swapped with _y on success
+        self._next = np.empty(self.model.state_size)  # the step's result; swapped on success
+        self._energy: np.ndarray | None = None        # energy_terms of _y (power balance)
+        self.evaluations = 0          # right-hand-side evaluations so far
         self._cache: dict = {}
         self._outputs = Outputs(self)
 
@@ -172,12 +207,18 @@ class Plant:
         for name, value, sl in (("q", q, slice(0, 6)), ("qd", qd, slice(6, 12))):
             if value is not None:
                 self._initial[sl] = _finite_vector(name, value)
-        self._y = self._initial.copy()
+        self._y = self._initial_state()
+
+    def _initial_state(self) -> np.ndarray:
+        """y at the initial q, qd; a transmission starts preloaded with the held rack force."""
+        return initial_state(self.model, self._initial[:6], self._initial[6:], self._rack)
 
     def exit_initialization_mode(self) -> None:
         """Check the initial pose (stroke, singularity) and start stepping."""
         self._require("exit_initialization_mode", "initialization")
         check_poses(self.model, self._y[:6])
+        self._y = self._initial_state()
+        self._energy = None
         self._phase = "stepping"
         self._cache.clear()
 
@@ -242,8 +283,10 @@ class Plant:
                                     f"component's time {t!r}")
         status = self._advance(step_size)
         if status:
+            self._check_stiff(current_time, step_size, _WHY.get(status, f"status {status}"))
             raise StepRejected(self._rejection(status, current_time, step_size), current_time,
                                status)
+        self._check_power(current_time, step_size)
         self._y, self._next = self._next, self._y
         self._t = current_time + step_size
         self._cache.clear()
@@ -253,16 +296,50 @@ class Plant:
         o, p = self.options, self.model.params
         if o.method == "rk4":
             n = max(1, math.ceil(h / o.max_step - 1e-9))
+            self.evaluations += 4 * n
             return rk4_advance(p, self._y, self._next, self._rack, h, n)
         if o.method == "dopri5":
-            status, self._step_guess, _, _ = dopri5_advance(
+            status, self._step_guess, steps, rejected = dopri5_advance(
                 p, self._y, self._next, self._rack, h, self._step_guess, o.rtol, o.atol,
                 o.max_step, o.max_steps, _A, _E)
+            self.evaluations += 1 + 6 * (steps + rejected)
             return status
-        return scipy_advance(p, self._y, self._next, self._rack, h, o)[0]
+        status, calls = scipy_advance(p, self._y, self._next, self._rack, h, o)
+        self.evaluations += calls
+        return status
+
+    def _check_power(self, t: float, h: float) -> None:
+        """Raise IntegrationError if the step's result is non-finite or gained more energy than
+        the held rack forces supplied (stability.power_excess); else keep its energy terms."""
+        if not np.all(np.isfinite(self._next)):
+            self._unstable(t, h, "the state became non-finite")
+        if self._energy is None:
+            self._energy = energy_terms(self.model, self._y)
+        after = energy_terms(self.model, self._next)
+        excess, allowed = power_excess(self.model, self._energy, after, self._rack)
+        if not excess <= allowed:
+            self._unstable(t, h, f"the energy grew by {excess:.3g} J more than the rack forces "
+                                 f"supplied (allowed {allowed:.3g} J)", always=True)
+        self._energy = after
+
+    def _check_stiff(self, t: float, h: float, why: str) -> None:
+        """A fixed-step method past its stability limit explains a failed step: say so."""
+        if self.options.method == "rk4":
+            self._unstable(t, h, why, always=False)
+
+    def _unstable(self, t: float, h: float, why: str, always: bool = True) -> None:
+        """Raise IntegrationError naming time, method, step and advice (when `always` is
+        False, only if the internal step exceeds the stable RK4 step at the state)."""
+        step = internal_step(self.options, h)
+        stable, text = advice(self.model, self._y, self._rack)
+        if always or step > stable:  # stable is inf where the Jacobian cannot be evaluated
+            raise IntegrationError(
+                f"integration unstable in the step from t = {t!r} s by {h!r} s "
+                f"({self.options.method}, internal step {step:.3g} s): {why}; {text}",
+                t, self.options.method, step, stable)
 
     def _rejection(self, status: int, t: float, h: float) -> str:
-        q, qd = self._y[:6], self._y[6:]
+        q, qd = self._y[:6], self._y[6:12]
         lengths = inverse_kinematics(self.model, q, with_cond=False).lengths
         return (f"step from t = {t!r} s by {h!r} s rejected ({self.options.method}): "
                 f"{_WHY.get(status, f'status {status}')}; state at the start of the step: "
@@ -283,6 +360,7 @@ class Plant:
         self._phase, self._t, self._start = state.phase, state.time, state.start_time
         self._y, self._force, self._torque = state.y.copy(), state.force.copy(), state.torque.copy()
         self._step_guess, self._initial = state.step_guess, state.initial.copy()
+        self._energy = None
         self._inputs_changed()
 
     @staticmethod

@@ -1,0 +1,97 @@
+"""Stiffness and instability: the linearised plant's spectral radius, the explicit stability
+limit it sets, the default integrator that respects it, and the power-balance check of a step.
+
+The stiff modes of this plant are linear in the state near any point (viscous friction c / m,
+transmission springs sqrt(k / m), damper c / m), so the spectral radius rho of the Jacobian of
+y' = f(y) bounds the step of an explicit method: RK4 is stable for |h lambda| below ~2.78 on the
+negative real axis (2.785) and the imaginary axis (2.828). Coulomb friction is left out of the
+Jacobian (a jump, not a stiffness).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import model as M
+from .dynamics import OK, inverse_dynamics
+from .energy import KINETIC, POTENTIAL, SPRING, DRIVEN, energy_terms, total_energy
+from .integrators import IntegratorOptions, derivative
+from .model import Model
+from .transmission import initial_state
+
+RK4_LIMIT = 2.78          # |h lambda| at RK4's stability boundary (real and imaginary axes)
+DEFAULT_H_RHO = 0.5       # the default RK4 step keeps h rho <= 0.5: stiff modes resolved, not just stable
+DEFAULT_MAX_STEP = IntegratorOptions().max_step
+ENERGY_TOL = 1e-3         # energy gained beyond the input work, relative to the energy exchanged
+_FD = 1e-7                # relative finite-difference step of the Jacobian
+
+
+def hold_state(model: Model) -> tuple[np.ndarray, np.ndarray]:
+    """(y, F): home at rest with the rack forces that hold it (the spring preloaded)."""
+    F = inverse_dynamics(model, model.home, np.zeros(6), np.zeros(6))
+    return initial_state(model, model.home, np.zeros(6), F), F
+
+
+def spectral_radius(model: Model, y: np.ndarray, F: np.ndarray) -> float:
+    """max |lambda| of the Jacobian of y' = f(y, F) (central differences, Coulomb left out);
+    NaN when a neighbouring state cannot be evaluated (stroke, singularity)."""
+    p = model.params.copy()
+    p[M.P_COULOMB] = 0.0
+    scale = np.maximum(np.abs(y), model.characteristic_length)
+    cols = []
+    for j in range(y.shape[0]):
+        e = np.zeros_like(y)
+        e[j] = _FD * scale[j]
+        hi, s1 = derivative(p, y + e, F)
+        lo, s2 = derivative(p, y - e, F)
+        if s1 != OK or s2 != OK:  # a neighbour leaves the valid region: no estimate
+            return math.nan
+        cols.append((hi - lo) / (2.0 * e[j]))
+    return float(np.max(np.abs(np.linalg.eigvals(np.column_stack(cols)))))
+
+
+def stable_step(model: Model, y: np.ndarray | None = None, F: np.ndarray | None = None) -> float:
+    """The largest stable RK4 step (s) at y (default: the hold at home): RK4_LIMIT / rho."""
+    if y is None or F is None:
+        y, F = hold_state(model)
+    rho = spectral_radius(model, y, F)
+    return RK4_LIMIT / rho if rho > 0 else math.inf   # NaN or 0: no limit known
+
+
+def default_options(model: Model) -> IntegratorOptions:
+    """RK4 with its step capped at 1 ms and at h rho <= DEFAULT_H_RHO at the hold (stiff scenes)."""
+    h = stable_step(model) * DEFAULT_H_RHO / RK4_LIMIT
+    return IntegratorOptions(method="rk4", max_step=min(DEFAULT_MAX_STEP, h))
+
+
+def internal_step(options: IntegratorOptions, h: float) -> float:
+    """The step the method takes inside a communication step h (its cap for adaptive ones)."""
+    if options.method == "rk4":
+        return h / max(1, math.ceil(h / options.max_step - 1e-9))
+    return min(h, options.max_step)
+
+
+def power_excess(model: Model, e0: np.ndarray, e1: np.ndarray, F: np.ndarray
+                 ) -> tuple[float, float]:
+    """(dE - W, allowed) over a step with the rack forces F held: W = F . (d1 - d0) (energy.py).
+    dE - W = -(dissipation) <= 0 for an accurate step; allowed: ENERGY_TOL of the energy
+    exchanged, plus the Coulomb work bound coulomb sum |dd| (a sign change inside a step is
+    integrated to O(1) of that work, and only the bound is known)."""
+    moved = e1[DRIVEN:] - e0[DRIVEN:]
+    work = float(F @ moved)
+    excess = total_energy(e1) - total_energy(e0) - work
+    scale = (e0[KINETIC] + e1[KINETIC] + e0[SPRING] + e1[SPRING] + abs(work)
+             + 1e-9 * (abs(e0[POTENTIAL]) + abs(e1[POTENTIAL])))
+    coulomb = model.friction.coulomb if model.friction is not None else 0.0
+    return excess, float(ENERGY_TOL * scale + coulomb * np.sum(np.abs(moved)))
+
+
+def advice(model: Model, y: np.ndarray, F: np.ndarray) -> tuple[float, str]:
+    """(stable RK4 step at y, advice text) for an integration that went unstable."""
+    h = stable_step(model, y, F)
+    if not math.isfinite(h):
+        return h, "use 'Radau' or 'BDF', or a smaller max_step"
+    return h, (f"the plant is stiff here (RK4 stability limit {h:.3g} s): use 'Radau' or "
+               f"'BDF', or 'rk4' with max_step below {h:.3g} s")
+
