@@ -26,8 +26,8 @@ from typing import Callable, Sequence
 import numpy as np
 
 from .demo import demo_trajectory
-from .errors import TrajectoryError
 from .dynamics import forward_dynamics, inverse_dynamics, inverse_dynamics_parts
+from .errors import TrajectoryError
 from .integrators import FIXED_STEP, INTEGRATORS, IntegratorOptions
 from .model import Model
 from .stepper import Plant

@@ -115,8 +115,10 @@ def summary_text(res: AccuracyResults) -> str:
     if not resolved and res.case.model.friction is not None and res.case.model.friction.coulomb:
         lines += ["", f"Why: Coulomb friction ({res.case.model.friction.coulomb:g} N, "
                   "`sign(ldot)`) makes the right-hand side discontinuous wherever a leg stops or "
-                  "reverses; no method keeps its order across those points and the solution "
-                  "there depends on how the switch is resolved."]
+                  "reverses: fixed-step methods lose their order across those points, "
+                  "error-controlled ones pay in rejected steps, and implicit ones (Newton "
+                  "iterations across the switch) may settle on another motion; below the "
+                  "agreement above, errors are consistency among methods, not checked errors."]
     lines += ["", "| method | setting | pose error | force error | run time (ms) | x real time |",
               "|---|---|---|---|---|---|"]
     span = case.times[-1]
