@@ -4,7 +4,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test bench clean
+.PHONY: demo test bench accuracy clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -21,6 +21,9 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) benchmarks/bench_dynamics.py
+
+accuracy: $(STAMP)
+	for s in scenes/*.toml; do $(VENV)/bin/stewart-sim accuracy $$s --out results/accuracy/$$(basename $$s .toml) || exit 1; done
 
 clean:
 	rm -rf $(VENV) results build *.egg-info

@@ -3,7 +3,8 @@
 
 Subcommands: `inverse` (the contract's command), `paper` (Section 3 rerun), `demo` (what
 `make demo` runs), `run` (closed loop: the per-axis controllers around the plant or an FMU),
-`compare` (constant-load vs Kane control over a drive-inertia sweep), `scene-info`,
+`compare` (constant-load vs Kane control over a drive-inertia sweep), `accuracy` (error
+against run time of every integrator and of the co-simulation step), `scene-info`,
 `export-fmu` and `device` (the emulated micro-manipulator behind a MAVLink link). Exit status: 0 on success; 2 on a usage error or on an
 error in the inputs (every StewartError: scene, trajectory, pose); 1 when an output cannot be
 written (OutputError); 130 on Ctrl-C. Every output file is written atomically: an error leaves
@@ -22,6 +23,8 @@ from controller.config import controller_config
 from controller.run_files import RUN_FILES, RUN_HOLD, RUN_MOVE, run_closed_loop_files, run_compare
 
 from . import io
+from .accuracy import CLOSED_LOOP_DURATION, COMM_STEP, HORIZON, accuracy_study
+from .accuracy_report import write_accuracy_report
 from .demo import DEMO_DURATION, DEMO_RATE, demo_trajectory
 from .dynamics import present_parts
 from .errors import SceneError, StewartError
@@ -140,6 +143,34 @@ def build_parser() -> argparse.ArgumentParser:
                         "ratio is added)")
     p.set_defaults(run=cmd_compare)
 
+    p = sub.add_parser("accuracy", help="error against run time: integrators and the "
+                                        "co-simulation step",
+                       description="Work-precision report: forward simulations of the scene "
+                                   "with every integrator over a range of steps or tolerances "
+                                   "against a DOP853 reference at rtol 1e-13 (checked by "
+                                   "Radau), the convergence order of the fixed-step methods, "
+                                   "and the closed loop at several communication steps; "
+                                   "writes open_loop.csv, closed_loop.csv, work_precision.png "
+                                   "and summary.md into DIR.")
+    p.add_argument("scene", metavar="SCENE", help="scene file (TOML)")
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    p.add_argument("--horizon", type=_positive_seconds, default=HORIZON, metavar="SECONDS",
+                   help=f"open-loop simulated time (default {HORIZON:g} s)")
+    p.add_argument("--comm-step", type=_positive_seconds, default=COMM_STEP, metavar="SECONDS",
+                   help=f"open-loop communication step: the forces are held over it and the "
+                        f"fixed-step methods divide it (default {COMM_STEP:g} s)")
+    p.add_argument("--fine", action="store_true",
+                   help="finer sweep: every decade of rtol from 1e-3 to 1e-12, more steps")
+    p.add_argument("--repeats", type=_repeats, default=3, metavar="N",
+                   help="time each run N times or more (runs under 0.2 s repeat until then), keep "
+                        "the best; 1: a single timing (default 3)")
+    p.add_argument("--closed-loop-duration", type=_positive_seconds,
+                   default=CLOSED_LOOP_DURATION, metavar="SECONDS",
+                   help=f"length of the closed-loop runs (default {CLOSED_LOOP_DURATION:g} s)")
+    p.add_argument("--no-closed-loop", action="store_true",
+                   help="skip the closed loop (it needs the scene's [controller] table)")
+    p.set_defaults(run=cmd_accuracy)
+
     p = sub.add_parser("scene-info", help="print the model a scene builds",
                        description="Print the model a scene file builds.")
     p.add_argument("scene", metavar="SCENE", help="scene file (TOML)")
@@ -195,6 +226,7 @@ def _number(convert, what: str, ok, rule: str):
 _positive_seconds = _number(float, "a number", lambda v: math.isfinite(v) and v > 0,
                             "a finite number of seconds > 0")
 _sweep_points = _number(int, "an integer", lambda v: 1 <= v <= 100, "1 to 100")
+_repeats = _number(int, "an integer", lambda v: 1 <= v <= 20, "1 to 20")
 
 
 # --- inverse ---------------------------------------------------------------------------------
@@ -320,6 +352,27 @@ def cmd_compare(args: argparse.Namespace) -> None:
     """`stewart-sim compare SCENE... --out DIR [--points N]`."""
     out = Path(args.out)
     for path in run_compare([Path(s) for s in args.scenes], out, args.points):
+        print(f"wrote {path}")
+
+
+# --- accuracy --------------------------------------------------------------------------------
+
+def cmd_accuracy(args: argparse.Namespace) -> None:
+    """`stewart-sim accuracy SCENE --out DIR [--horizon S] [--comm-step S] [--fine]
+    [--repeats N] [--closed-loop-duration S | --no-closed-loop]`."""
+    model = load_scene(args.scene)
+    out = Path(args.out)
+    progress = Progress()
+    try:
+        results = accuracy_study(
+            model, args.horizon, args.comm_step, "fine" if args.fine else "default",
+            args.repeats, None if args.no_closed_loop else args.closed_loop_duration,
+            lambda stage, done, total: progress.update(stage, done, total, unit="runs"))
+    finally:
+        progress.close()
+    with writing(out):
+        paths = write_accuracy_report(results, out)
+    for path in paths:
         print(f"wrote {path}")
 
 

@@ -72,8 +72,17 @@ def _friction(p, ld) -> float:
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _drive_mass(p) -> float:
-    return p[M.P_DRIVE_MASS] if p[M.P_HAS_DRIVE] != 0.0 else 0.0
+def _drive_force(p, ldd) -> float:
+    """m_d lddot_i of Eq. 12, the force the drive's inertia takes (absent: not computed)."""
+    if p[M.P_HAS_DRIVE] == 0.0:
+        return 0.0
+    return p[M.P_DRIVE_MASS] * ldd
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _net_force(p, sigma, leg, i) -> float:
+    """sigma_i - mu_i - m_d lddot_0,i: the rack force left to move the mechanism (Eq. 12)."""
+    return sigma[i] - _friction(p, leg[i, 1]) - _drive_force(p, leg[i, 2])
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -115,10 +124,9 @@ def _inverse_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, order, rhs, o
         j = order[0, k]
         rhs[k] = -(gen[0, j] + gen[1, j] + gen[2, j] + gen[3, j])
     _solve_jt(p, JT, order, rhs)
-    md = _drive_mass(p)
     ok = True
     for i in range(6):
-        s = rhs[i] + _friction(p, leg[i, 1]) + md * leg[i, 2]
+        s = rhs[i] + _friction(p, leg[i, 1]) + _drive_force(p, leg[i, 2])
         out[n, i] = s
         ok = ok and np.isfinite(s)
     return OK if ok else OVERFLOW
@@ -130,16 +138,20 @@ def _parts_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, order, rhs, tot
     status = _inverse_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, order, rhs, total, 0)
     if status != OK:
         return status
+    has_legs = p[M.P_HAS_LEGS] != 0.0
     for k, slot in ((0, 0), (1, 1), (2, 2), (3, 4)):   # reuse the LU of J^T
+        if slot in (1, 2) and not has_legs:             # absent: no solve (slot is dropped)
+            for j in range(6):
+                out[n, slot, j] = 0.0
+            continue
         for j in range(6):
             rhs[j] = -gen[k, order[0, j]]
         _solve_jt(p, JT, order, rhs)
         for j in range(6):
             out[n, slot, j] = rhs[j]
-    md = _drive_mass(p)
     ok = True
     for i in range(6):
-        out[n, 3, i] = md * leg[i, 2]
+        out[n, 3, i] = _drive_force(p, leg[i, 2])
         out[n, 5, i] = _friction(p, leg[i, 1])
         for k in range(6):
             ok = ok and np.isfinite(out[n, k, i])
@@ -155,12 +167,14 @@ def _forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, order, rhs,
     if status != OK:
         return status
     twist_mass_matrix(p, R, U, Rr, leg, Mt)
-    md = _drive_mass(p)
     c = p[M.P_CHAR_LENGTH]
+    net = (_net_force(p, sigma, leg, 0), _net_force(p, sigma, leg, 1),
+           _net_force(p, sigma, leg, 2), _net_force(p, sigma, leg, 3),
+           _net_force(p, sigma, leg, 4), _net_force(p, sigma, leg, 5))
     for k in range(6):
         s = 0.0
         for i in range(6):
-            s += JT[k, i] * (sigma[i] - _friction(p, leg[i, 1]) - md * leg[i, 2])
+            s += JT[k, i] * net[i]
         # Row k of JT is row order[0, k] of J^T, its moment rows scaled by 1/c: undo that.
         j = order[0, k]
         rhs[j] = gen[0, j] + gen[1, j] + gen[2, j] + gen[3, j] + (s if j < 3 else s * c)

@@ -5,7 +5,8 @@ method works on y of either length.
 
 Compiled one-step methods advance a whole communication step in one call (the per-step Python
 overhead is what limits a co-simulation at 1 ms): "rk4" (classic Runge-Kutta, fixed internal
-step) and "dopri5" (Dormand-Prince 5(4) with error control, FSAL). scipy's solve_ivp methods
+step), "euler" (semi-implicit, symplectic Euler, fixed internal step, order 1) and "dopri5"
+(Dormand-Prince 5(4) with error control, FSAL). scipy's solve_ivp methods
 ("RK45", "DOP853", "Radau", "BDF", "LSODA") are offered too, for stiff cases and as references.
 The input force is held constant over a communication step (zero-order hold).
 """
@@ -21,7 +22,8 @@ from . import model as M
 from .dynamics import OK, _forward_sample, _workspace  # the compiled per-sample forward kernel
 from .transmission import compliant_derivative, leg_side_params
 
-COMPILED = ("rk4", "dopri5")
+COMPILED = ("rk4", "euler", "dopri5")
+FIXED_STEP = {"rk4": 4, "euler": 1}  # the fixed-step methods and their theoretical order
 SCIPY = ("RK45", "DOP853", "Radau", "BDF", "LSODA")
 INTEGRATORS = COMPILED + SCIPY
 TOO_MANY_STEPS = 100  # status: the adaptive method needed more than max_steps internal steps
@@ -89,6 +91,27 @@ def rk4_advance(p, y0, y, F, h, n) -> int:
             return status
         for j in range(ny):
             y[j] += dt / 6.0 * (k[0, j] + 2.0 * k[1, j] + 2.0 * k[2, j] + k[3, j])
+    return OK
+
+
+@njit(cache=True, error_model="numpy")
+def euler_advance(p, y0, y, F, h, n) -> int:
+    """y = y0 advanced over h with n semi-implicit Euler steps: velocities += dt accelerations,
+    then positions += dt new velocities (symplectic Euler, order 1); y holds (q, qd) or
+    (q, qd, s, sd); y0 kept, status as rk4_advance."""
+    ws, pl, ny = _workspace(), leg_side_params(p), y0.shape[0]
+    dy = np.empty(ny)
+    F = (F[0], F[1], F[2], F[3], F[4], F[5])
+    dt = h / n
+    y[:] = y0
+    for _ in range(n):
+        status = _derivative(p, pl, y, F, ws, dy)
+        if status != OK:
+            return status
+        for b in range(0, ny, 12):          # (q, qd), then (s, sd) with a transmission
+            for j in range(6):
+                y[b + 6 + j] += dt * dy[b + 6 + j]
+                y[b + j] += dt * y[b + 6 + j]
     return OK
 
 

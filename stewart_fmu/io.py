@@ -28,7 +28,8 @@ def named_array(columns: dict[str, np.ndarray]) -> np.ndarray:
 
 
 def write_csv(path: str | Path, table: np.ndarray) -> Path:
-    """Write a structured array as CSV with repr-exact floats; the old file survives a failure."""
+    """Write a structured array as CSV with repr-exact floats (and text fields, e.g. a method
+    name, as they are); the old file survives a failure."""
     starts = range(0, max(len(table), 1), CHUNK_ROWS)  # an empty table still gets its header
     return write_csv_chunks(path, (table[i:i + CHUNK_ROWS] for i in starts))
 
@@ -47,11 +48,16 @@ def write_csv_chunks(path: str | Path, chunks: Iterable[np.ndarray]) -> Path:
                 csv.writer(fh).writerow(names)
             elif chunk.dtype.names != names:
                 raise ValueError(f"chunk columns {chunk.dtype.names} differ from {names}")
-            fh.write("".join(",".join(map(repr, row)) + "\r\n" for row in chunk.tolist()))
+            fh.write("".join(",".join(map(_cell, row)) + "\r\n" for row in chunk.tolist()))
         if names is None:
             raise ValueError(f"{path}: nothing to write (no chunks)")
 
     return atomic_write(path, write)
+
+
+def _cell(value) -> str:
+    """A CSV cell: numbers repr-exact, text (a label column) as it is."""
+    return value if isinstance(value, str) else repr(value)
 
 
 def atomic_write(path: str | Path, write: Callable[[IO], object], binary: bool = False) -> Path:

@@ -174,49 +174,61 @@ def twist_mass_matrix(p, R, U, Rr, leg, Mt) -> None:
     inertia about its base joint), P = I - uu^T. Writing M_leg + m_d uu^T = kp I + ax uu^T,
     S^T S = [[I, -[r]x], [[r]x, |r|^2 I - r r^T]] and S^T u = j_i, the Jacobian row [u; r x u].
     """
-    mp = p[M.P_MASS]
     has_legs = p[M.P_HAS_LEGS] != 0.0
-    md = p[M.P_DRIVE_MASS] if p[M.P_HAS_DRIVE] != 0.0 else 0.0
+    has_drive = p[M.P_HAS_DRIVE] != 0.0
     for i in range(6):
         for j in range(6):
             Mt[i, j] = 0.0
-    s0 = 0.0
-    s1x = s1y = s1z = 0.0
-    for n in range(6):
-        l = leg[n, 0]
-        u0, u1, u2 = U[n, 0], U[n, 1], U[n, 2]
-        r0, r1, r2 = Rr[n, 0], Rr[n, 1], Rr[n, 2]
-        kp = 0.0
-        ax = md
-        if has_legs:
-            mA, cA, ItA = p[M.P_LOWER], p[M.P_LOWER + 1], p[M.P_LOWER + 2]
-            mB, cB, ItB = p[M.P_UPPER], p[M.P_UPPER + 1], p[M.P_UPPER + 2]
-            kp = (mA * cA * cA + mB * (l - cB) ** 2 + ItA + ItB) / (l * l)
-            ax += mB - kp
-        # kp S^T S: translational trace, coupling [kp r]x, rotational kp (|r|^2 I - r r^T).
-        s0 += kp
-        s1x += kp * r0
-        s1y += kp * r1
-        s1z += kp * r2
-        rr = r0 * r0 + r1 * r1 + r2 * r2
-        rv = (r0, r1, r2)
-        for a in range(3):
-            for b in range(3):
-                Mt[3 + a, 3 + b] += kp * ((rr if a == b else 0.0) - rv[a] * rv[b])
-        # ax j j^T
-        j = (u0, u1, u2, r1 * u2 - r2 * u1, r2 * u0 - r0 * u2, r0 * u1 - r1 * u0)
-        for a in range(6):
-            for b in range(6):
-                Mt[a, b] += ax * j[a] * j[b]
+    mp = p[M.P_MASS]
     for a in range(3):
-        Mt[a, a] += mp + s0
-    # -[s1]x in the upper right block, its transpose [s1]x in the lower left.
-    for a, b, v in ((0, 4, s1z), (0, 5, -s1y), (1, 3, -s1z), (1, 5, s1x), (2, 3, s1y), (2, 4, -s1x)):
-        Mt[a, b] += v
-        Mt[b, a] += v
+        Mt[a, a] = mp
+    if has_legs or has_drive:  # a platform-only model has no per-leg mass at all
+        _leg_masses(p, has_legs, has_drive, U, Rr, leg, Mt)
     for a in range(3):
         for b in range(3):
             s = 0.0
             for k in range(3):
                 s += R[a, k] * p[M.P_INERTIA + k] * R[b, k]
             Mt[3 + a, 3 + b] += s
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _leg_masses(p, has_legs, has_drive, U, Rr, leg, Mt) -> None:
+    """Add sum_i S_i^T (M_leg,i + m_d u u^T) S_i to Mt: the legs' part only with [legs], the
+    drive's only with [drive] (see twist_mass_matrix)."""
+    md = p[M.P_DRIVE_MASS] if has_drive else 0.0
+    s0 = 0.0
+    s1x = s1y = s1z = 0.0
+    for n in range(6):
+        u0, u1, u2 = U[n, 0], U[n, 1], U[n, 2]
+        r0, r1, r2 = Rr[n, 0], Rr[n, 1], Rr[n, 2]
+        ax = md
+        if has_legs:
+            l = leg[n, 0]
+            mA, cA, ItA = p[M.P_LOWER], p[M.P_LOWER + 1], p[M.P_LOWER + 2]
+            mB, cB, ItB = p[M.P_UPPER], p[M.P_UPPER + 1], p[M.P_UPPER + 2]
+            kp = (mA * cA * cA + mB * (l - cB) ** 2 + ItA + ItB) / (l * l)
+            ax += mB - kp
+            # kp S^T S: translational trace, coupling [kp r]x, rotational kp (|r|^2 I - r r^T).
+            s0 += kp
+            s1x += kp * r0
+            s1y += kp * r1
+            s1z += kp * r2
+            rr = r0 * r0 + r1 * r1 + r2 * r2
+            rv = (r0, r1, r2)
+            for a in range(3):
+                for b in range(3):
+                    Mt[3 + a, 3 + b] += kp * ((rr if a == b else 0.0) - rv[a] * rv[b])
+        # ax j j^T
+        j = (u0, u1, u2, r1 * u2 - r2 * u1, r2 * u0 - r0 * u2, r0 * u1 - r1 * u0)
+        for a in range(6):
+            for b in range(6):
+                Mt[a, b] += ax * j[a] * j[b]
+    if has_legs:
+        for a in range(3):
+            Mt[a, a] += s0
+        # -[s1]x in the upper right block, its transpose [s1]x in the lower left.
+        for a, b, v in ((0, 4, s1z), (0, 5, -s1y), (1, 3, -s1z), (1, 5, s1x), (2, 3, s1y),
+                        (2, 4, -s1x)):
+            Mt[a, b] += v
+            Mt[b, a] += v

@@ -26,7 +26,7 @@ from .dynamics import forward_dynamics, leg_state
 from .energy import energy_terms
 from .errors import IntegrationError, StewartError, TrajectoryError
 from .integrators import (_A, _E, STEP_TOO_SMALL, TOO_MANY_STEPS, IntegratorOptions, derivative,
-                          dopri5_advance, rk4_advance, scipy_advance)
+                          dopri5_advance, euler_advance, rk4_advance, scipy_advance)
 from .kane import STROKE
 from .kinematics import check_poses, inverse_kinematics
 from .model import Model
@@ -294,10 +294,11 @@ class Plant:
     def _advance(self, h: float) -> int:
         """self._next = self._y advanced by h; the integrator's status."""
         o, p = self.options, self.model.params
-        if o.method == "rk4":
+        if o.method in ("rk4", "euler"):
             n = max(1, math.ceil(h / o.max_step - 1e-9))
-            self.evaluations += 4 * n
-            return rk4_advance(p, self._y, self._next, self._rack, h, n)
+            fixed, stages = (rk4_advance, 4) if o.method == "rk4" else (euler_advance, 1)
+            self.evaluations += stages * n
+            return fixed(p, self._y, self._next, self._rack, h, n)
         if o.method == "dopri5":
             status, self._step_guess, steps, rejected = dopri5_advance(
                 p, self._y, self._next, self._rack, h, self._step_guess, o.rtol, o.atol,

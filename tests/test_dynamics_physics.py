@@ -453,3 +453,34 @@ def test_euler_rate_conversion_at_large_angles(name):
     for label, worst in (("omega", worst_om), ("alpha", worst_al), ("J^T sigma wrench", worst_dyn)):
         record(f"4 Euler rates at 1 rad: {label} [{name}]", worst, tol)
         assert worst <= tol, (label, worst)
+
+
+@pytest.mark.parametrize("level", ["platform_only", "no_drive_no_friction", "no_drive",
+                                   "platform_friction"])
+def test_absent_effects_are_not_computed(level):
+    """A table the scene leaves out is skipped, not computed as zeros: with NaN written into the
+    absent effects' parameter slots, inverse, forward and parts kernels still return the same
+    finite forces and accelerations bit for bit (a NaN read anywhere would reach the result)."""
+    from stewart_fmu import dynamics as D
+    from stewart_fmu import model as M
+
+    model = level_model("micro", level)
+    q, qd, qdd = trajectory_samples("micro", [11], 50)
+    poisoned = model.params.copy()
+    slots = {"legs": [*range(M.P_LOWER, M.P_LOWER + 4), *range(M.P_UPPER, M.P_UPPER + 4)],
+             "drive": [M.P_DRIVE_MASS], "friction": [M.P_VISCOUS, M.P_COULOMB]}
+    for effect, where in slots.items():
+        if getattr(model, effect) is None:
+            poisoned[where] = np.nan
+    sigma = inverse_dynamics(model, q, qd, qdd)
+    for p, expect in ((model.params, sigma), (poisoned, sigma)):
+        out = np.empty_like(q)
+        assert D._inverse_batch(p, q, qd, qdd, out) == (-1, D.OK)
+        assert np.array_equal(out, expect)
+        acc = np.empty_like(q)
+        assert D._forward_batch(p, q, qd, sigma, acc) == (-1, D.OK)
+        assert np.array_equal(acc, forward_dynamics(model, q, qd, sigma))
+        parts = np.empty((len(q), len(D.PARTS), 6))
+        assert D._parts_batch(p, q, qd, qdd, parts) == (-1, D.OK)
+        for name, value in inverse_dynamics_parts(model, q, qd, qdd).items():
+            assert np.array_equal(parts[:, D.PARTS.index(name)], value)
