@@ -50,3 +50,14 @@ class StrokeLimitError(KinematicsError):
 
 class SingularityError(KinematicsError):
     """The leg Jacobian (or the Euler-rate matrix) is singular or nearly so at a pose."""
+
+
+class SweepError(StewartError, ValueError):
+    """A design sweep (GRID.toml, its output directory, its cluster) is at fault; `key` names the
+    grid key when one is."""
+
+    def __init__(self, key: str | None, reason: str, source: str | None = None):
+        self.key, self.reason, self.source = key, reason, source
+        where = f"{source}: " if source else ""
+        what = "" if key is None else f"grid key '{key}': "
+        super().__init__(f"{where}{what}{reason}")

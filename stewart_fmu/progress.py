@@ -22,8 +22,8 @@ class Progress:
         self.shown = False
         self.width = 0
 
-    def update(self, stage: str, done: int, total: int | None = None) -> None:
-        """Report `done` of `total` samples (total None: unknown) of the current stage."""
+    def update(self, stage: str, done: int, total: int | None = None, unit: str = "samples") -> None:
+        """Report `done` of `total` samples (or other `unit`; total None: unknown) of the stage."""
         now = time.monotonic()
         finished = total is not None and done >= total
         if not self.shown:
@@ -35,7 +35,7 @@ class Progress:
             return
         self.last = now
         count = f"{done:,}" if total is None else f"{done:,}/{total:,} ({100 * done / total:.0f}%)"
-        self._write(f"{stage}: {count} samples, {now - self.start:.1f} s")
+        self._write(f"{stage}: {count} {unit}, {now - self.start:.1f} s")
 
     def close(self) -> None:
         """End the status line so that later output starts on a fresh line."""
