@@ -27,7 +27,8 @@ from stewart_fmu.model import Model
 from .drive import Motor, motor_from_table
 
 FEEDFORWARD = ("none", "constant_load", "kane")
-_KEYS = {"rate", "bandwidth", "phase_margin", "feedforward", "load_mass", "motor"}
+NUMBER_KEYS = ("rate", "bandwidth", "phase_margin", "load_mass")  # the table's numbers
+_KEYS = {*NUMBER_KEYS, "feedforward", "motor"}
 
 
 @dataclass(frozen=True)
@@ -61,7 +62,7 @@ def controller_config(model: Model) -> ControllerConfig:
     if "motor" not in table:
         raise SceneError("controller.motor", "required table is missing", model.source)
     values: dict[str, Any] = {"motor": motor_from_table(table["motor"], source=model.source)}
-    for key in ("rate", "bandwidth", "phase_margin", "load_mass"):
+    for key in NUMBER_KEYS:
         if key in table:
             values[key] = _positive(table, key, model.source)
     if not values.get("phase_margin", 60.0) < 90:

@@ -22,7 +22,7 @@ from stewart_fmu.errors import SceneError
 from stewart_fmu.kane_terms import mass_matrix
 from stewart_fmu.model import Model
 
-_MOTOR_KEYS = ("resistance", "inductance", "torque_constant", "back_emf", "current_limit",
+MOTOR_KEYS = ("resistance", "inductance", "torque_constant", "back_emf", "current_limit",
                "voltage_limit")
 
 
@@ -110,11 +110,11 @@ def motor_from_table(table: Mapping[str, Any], where: str = "controller.motor",
     """Read and check a motor table: every key present, finite and > 0."""
     if not isinstance(table, Mapping):
         raise SceneError(where, "must be a table", source)
-    unknown = sorted(set(table) - set(_MOTOR_KEYS))
+    unknown = sorted(set(table) - set(MOTOR_KEYS))
     if unknown:
-        raise SceneError(f"{where}.{unknown[0]}", f"unknown key (allowed: {list(_MOTOR_KEYS)})", source)
+        raise SceneError(f"{where}.{unknown[0]}", f"unknown key (allowed: {list(MOTOR_KEYS)})", source)
     values = {}
-    for key in _MOTOR_KEYS:
+    for key in MOTOR_KEYS:
         if key not in table:
             raise SceneError(f"{where}.{key}", "required key is missing", source)
         x = table[key]

@@ -4,7 +4,8 @@
 Subcommands: `inverse` (the contract's command), `paper` (Section 3 rerun), `demo` (what
 `make demo` runs), `run` (closed loop: the per-axis controllers around the plant or an FMU),
 `compare` (constant-load vs Kane control over a drive-inertia sweep), `accuracy` (error
-against run time of every integrator and of the co-simulation step), `scene-info`,
+against run time of every integrator and of the co-simulation step), `sweep` (design sweeps
+on Dask), `scene-info`,
 `export-fmu` and `device` (the emulated micro-manipulator behind a MAVLink link). Exit status: 0 on success; 2 on a usage error or on an
 error in the inputs (every StewartError: scene, trajectory, pose); 1 when an output cannot be
 written (OutputError); 130 on Ctrl-C. Every output file is written atomically: an error leaves
@@ -170,6 +171,24 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-closed-loop", action="store_true",
                    help="skip the closed loop (it needs the scene's [controller] table)")
     p.set_defaults(run=cmd_accuracy)
+    p = sub.add_parser("sweep", help="design sweep (grid or Latin hypercube) on Dask",
+                       description="Evaluate every point of GRID.toml (inverse dynamics, closed "
+                                   "loop or workspace force envelope at scene and controller "
+                                   "values) on all local cores, or on a Dask cluster with "
+                                   "--scheduler; one row per point in DIR/sweep.csv, plots "
+                                   "beside it. A rerun into the same DIR resumes where the last "
+                                   "one stopped.")
+    p.add_argument("scene", metavar="SCENE", help="the base scene file (TOML)")
+    p.add_argument("--grid", required=True, metavar="GRID.toml",
+                   help="evaluation, trajectory or pose grid, and the [axes] to vary (README)")
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory (resumable)")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--scheduler", metavar="tcp://HOST:PORT",
+                       help="run on this Dask distributed scheduler's workers")
+    where.add_argument("--workers", type=_workers, metavar="N",
+                       help="local worker processes (default: one per core)")
+    p.add_argument("--no-plots", action="store_true", help="write the table only")
+    p.set_defaults(run=cmd_sweep)
 
     p = sub.add_parser("scene-info", help="print the model a scene builds",
                        description="Print the model a scene file builds.")
@@ -227,6 +246,7 @@ _positive_seconds = _number(float, "a number", lambda v: math.isfinite(v) and v 
                             "a finite number of seconds > 0")
 _sweep_points = _number(int, "an integer", lambda v: 1 <= v <= 100, "1 to 100")
 _repeats = _number(int, "an integer", lambda v: 1 <= v <= 20, "1 to 20")
+_workers = _number(int, "an integer", lambda v: 1 <= v <= 1024, "1 to 1024")
 
 
 # --- inverse ---------------------------------------------------------------------------------
@@ -373,6 +393,23 @@ def cmd_accuracy(args: argparse.Namespace) -> None:
     with writing(out):
         paths = write_accuracy_report(results, out)
     for path in paths:
+        print(f"wrote {path}")
+
+
+# --- sweep -----------------------------------------------------------------------------------
+
+def cmd_sweep(args: argparse.Namespace) -> None:
+    """`stewart-sim sweep SCENE --grid GRID.toml --out DIR [--scheduler tcp://HOST:PORT |
+    --workers N] [--no-plots]`."""
+    from .sweep_files import run_sweep_files  # imports dask: only for this command
+
+    summary, written = run_sweep_files(Path(args.scene), Path(args.grid), Path(args.out),
+                                       args.scheduler, args.workers, not args.no_plots)
+    where = args.scheduler or "local cluster"
+    print(f"sweep: {summary.points} points, {summary.resumed} already done, {summary.computed} "
+          f"computed on {summary.workers} workers ({where}) in {summary.wall:.3g} s "
+          f"({summary.rate:.4g} points/s); {summary.failed} failed")
+    for path in written:
         print(f"wrote {path}")
 
 

@@ -61,3 +61,14 @@ class IntegrationError(StewartError):
                  stable_step: float | None = None):
         self.time, self.method, self.step, self.stable_step = time, method, step, stable_step
         super().__init__(message)
+
+
+class SweepError(StewartError, ValueError):
+    """A design sweep (GRID.toml, its output directory, its cluster) is at fault; `key` names the
+    grid key when one is."""
+
+    def __init__(self, key: str | None, reason: str, source: str | None = None):
+        self.key, self.reason, self.source = key, reason, source
+        where = f"{source}: " if source else ""
+        what = "" if key is None else f"grid key '{key}': "
+        super().__init__(f"{where}{what}{reason}")

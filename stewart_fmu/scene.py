@@ -32,26 +32,36 @@ CASE_CHOICES = {"kind": ("stiff", "extreme"),
                 "motion": ("hold", "accelerate", "ramp", "closed_loop"),
                 "expect": ("ok", "StrokeLimitError", "SingularityError")}
 _CASE_VECTORS = {"accelerate": "acceleration", "ramp": "target"}  # motion -> required key
+_VECTOR_KEYS = {"geometry.base_joints", "geometry.platform_joints", "geometry.home",
+                "platform.inertia", "legs.lower_inertia", "legs.upper_inertia"}
+# Dotted keys of the contract's tables that hold a single number (what a sweep may vary).
+NUMBER_KEYS = frozenset(f"{t}.{k}" for t, (need, opt) in _TABLE_KEYS.items()
+                        for k in need | opt) - _VECTOR_KEYS
 
 
 def load_scene(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Model:
     """Read a scene file and build its Model; `overrides` maps 'table.key' to a new value."""
-    path = Path(path)
-    try:
-        with path.open("rb") as fh:
-            data = tomllib.load(fh)
-    except FileNotFoundError:
-        raise SceneError("<file>", f"no such scene file: {path}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError("<file>", f"not valid TOML: {exc}", str(path)) from None
+    data = read_scene_dict(path)
     if overrides:
         data = apply_overrides(data, overrides)
     return scene_from_dict(data, source=str(path))
 
 
+def read_scene_dict(path: str | Path) -> dict[str, Any]:
+    """The parsed TOML of a scene file, not yet checked (SceneError: missing, not TOML)."""
+    path = Path(path)
+    try:
+        with path.open("rb") as fh:
+            return tomllib.load(fh)
+    except FileNotFoundError:
+        raise SceneError("<file>", f"no such scene file: {path}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError("<file>", f"not valid TOML: {exc}", str(path)) from None
+
+
 def apply_overrides(data: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
     """Return a copy of a scene dict with dotted keys ('drive.gear_ratio') replaced."""
-    out = {k: (dict(v) if isinstance(v, Mapping) else v) for k, v in data.items()}
+    out = _copy_tables(data)
     for dotted, value in overrides.items():
         *tables, key = dotted.split(".")
         node = out
@@ -61,6 +71,11 @@ def apply_overrides(data: Mapping[str, Any], overrides: Mapping[str, Any]) -> di
                 raise SceneError(dotted, "override path runs through a non-table value")
         node[key] = value
     return out
+
+
+def _copy_tables(data: Mapping[str, Any]) -> dict[str, Any]:
+    """A copy of nested tables (values other than tables are shared, as they are replaced)."""
+    return {k: (_copy_tables(v) if isinstance(v, Mapping) else v) for k, v in data.items()}
 
 
 def scene_from_dict(data: Mapping[str, Any], source: str | None = None) -> Model:
