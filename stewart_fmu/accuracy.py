@@ -27,10 +27,11 @@ import numpy as np
 
 from .demo import demo_trajectory
 from .dynamics import forward_dynamics, inverse_dynamics, inverse_dynamics_parts
-from .errors import TrajectoryError
+from .errors import IntegrationError, TrajectoryError
 from .integrators import FIXED_STEP, INTEGRATORS, IntegratorOptions
 from .model import Model
-from .stepper import Plant
+from .stability import default_options
+from .stepper import Plant, StepRejected
 
 COMM_STEP = 0.05          # s: open-loop communication step (forces held over it)
 HORIZON = 1.0             # s: open-loop horizon
@@ -106,6 +107,7 @@ def simulate(case: OpenLoopCase, options: IntegratorOptions) -> np.ndarray:
     plant = Plant(case.model, options)
     plant.setup_experiment(0.0)
     plant.enter_initialization_mode()
+    plant.set_force(case.forces[0])      # a [transmission] starts preloaded with it
     plant.exit_initialization_mode()
     states = np.empty((len(case.forces) + 1, 12))
     states[0] = np.r_[plant.outputs.q, plant.outputs.qd]
@@ -180,19 +182,24 @@ def settings_for(sweep: dict, comm_step: float) -> list[IntegratorOptions]:
 
 
 OPEN_LOOP_FIELDS = [("method", "U12"), ("step", "f8"), ("rtol", "f8"), ("pose_error", "f8"),
-                    ("force_error", "f8"), ("run_time", "f8")]
+                    ("force_error", "f8"), ("run_time", "f8"), ("outcome", "U80")]
 
 
 def open_loop_sweep(case: OpenLoopCase, ref: Reference, settings: Sequence[IntegratorOptions],
                     repeats: int = 3, progress: ProgressFn | None = None) -> np.ndarray:
     """One row per setting: method, step (fixed-step methods) or rtol, errors, run time (s)."""
     rows = np.zeros(len(settings), dtype=OPEN_LOOP_FIELDS)
-    simulate(case, IntegratorOptions("rk4"))   # load the compiled kernels before timing
+    simulate(case, default_options(case.model))   # load the compiled kernels before timing
     for k, o in enumerate(settings):
-        states, seconds = timed(lambda: simulate(case, o), repeats)
         fixed = o.method in FIXED_STEP
+        try:
+            states, seconds = timed(lambda: simulate(case, o), repeats)
+            errs, outcome = errors(case, ref, states), "ok"
+        except (IntegrationError, StepRejected) as exc:  # caught and reported, never garbage
+            errs, seconds = (np.inf, np.inf), np.nan
+            outcome = f"{type(exc).__name__} at t = {exc.time:g} s"
         rows[k] = (o.method, o.max_step if fixed else np.nan, np.nan if fixed else o.rtol,
-                   *errors(case, ref, states), seconds)
+                   *errs, seconds, outcome)
         if progress is not None:
             progress(k + 1, len(settings))
     return rows
@@ -213,7 +220,8 @@ def convergence_orders(rows: np.ndarray, floor: float, column: str = "pose_error
     ORDER_POINTS errors above ORDER_FLOOR * floor (below it the reference's error shows)."""
     out = []
     for method, theory in FIXED_STEP.items():
-        sel = rows[(rows["method"] == method) & (rows[column] > ORDER_FLOOR * floor)]
+        sel = rows[(rows["method"] == method) & (rows[column] > ORDER_FLOOR * floor)
+                   & np.isfinite(rows[column])]
         sel = np.sort(sel, order="step")[:ORDER_POINTS]
         measured = (float(np.polyfit(np.log(sel["step"]), np.log(sel[column]), 1)[0])
                     if len(sel) >= ORDER_MIN_POINTS else np.nan)

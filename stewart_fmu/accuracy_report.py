@@ -44,7 +44,7 @@ def work_precision_figure(res: AccuracyResults) -> Figure:
     rows = res.open_loop
     ax = axes[0]
     for method in INTEGRATORS:
-        r = rows[rows["method"] == method]   # in sweep order: coarse to fine
+        r = rows[(rows["method"] == method) & (rows["outcome"] == "ok")]  # coarse to fine
         ax.loglog(r["run_time"], np.maximum(r["pose_error"], 1e-17), marker=MARKERS[method],
                   ms=4, lw=1, label=method)
     _floor(ax, res.floor)
@@ -53,7 +53,8 @@ def work_precision_figure(res: AccuracyResults) -> Figure:
     ax.legend(fontsize="small", ncol=2)
     ax = axes[1]
     for order in res.orders:
-        r = np.sort(rows[rows["method"] == order.method], order="step")
+        r = np.sort(rows[(rows["method"] == order.method) & (rows["outcome"] == "ok")],
+                    order="step")
         ax.loglog(r["step"], np.maximum(r["pose_error"], 1e-17), marker=MARKERS[order.method],
                   label=f"{order.method}: order {order.measured:.2f} (theory {order.theory})"
                   if np.isfinite(order.measured) else f"{order.method}: order not measurable")
@@ -123,6 +124,9 @@ def summary_text(res: AccuracyResults) -> str:
               "|---|---|---|---|---|---|"]
     span = case.times[-1]
     for r in res.open_loop:
+        if r["outcome"] != "ok":   # caught by the plant's checks (stability, stroke)
+            lines.append(f"| {r['method']} | {setting(r)} | {r['outcome']} | - | - | - |")
+            continue
         lines.append(f"| {r['method']} | {setting(r)} | {r['pose_error']:.2e} | "
                      f"{r['force_error']:.2e} | {r['run_time'] * 1e3:.3g} | "
                      f"{span / r['run_time']:,.0f} |")

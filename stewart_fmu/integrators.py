@@ -190,6 +190,9 @@ def dopri5_advance(p, y0, y, F, h, h_try, rtol, atol, max_step, max_steps, A, E)
     return status, dt, steps, rejected
 
 
+SCIPY_STAGE_RETRIES = 4   # a failed stage: retry with max_step / 8 each time (down to h / 4096)
+
+
 class _StageFailed(Exception):
     """Raised inside solve_ivp's right-hand side to stop it at a bad state."""
 
@@ -210,15 +213,21 @@ def scipy_advance(model_params: np.ndarray, y0: np.ndarray, y: np.ndarray, F: np
             raise _StageFailed(status)
         return dy
 
-    try:
-        sol = solve_ivp(rhs, (0.0, h), y0, method=opts.method, rtol=opts.rtol, atol=opts.atol,
-                        max_step=opts.max_step)
-    except _StageFailed as exc:
-        return exc.status, calls[0]
-    if not sol.success:
-        return STEP_TOO_SMALL, calls[0]
-    y[:] = sol.y[:, -1]
-    return OK, calls[0]
+    max_step = opts.max_step
+    for _ in range(SCIPY_STAGE_RETRIES + 1):
+        try:
+            sol = solve_ivp(rhs, (0.0, h), y0, method=opts.method, rtol=opts.rtol,
+                            atol=opts.atol, max_step=max_step)
+        except _StageFailed as exc:
+            # A trial stage left the valid region (stroke, singularity): solve_ivp cannot
+            # shrink the step for that, so retry with smaller steps, as dopri5_advance does.
+            status, max_step = exc.status, min(max_step, h) / 8
+            continue
+        if not sol.success:
+            return STEP_TOO_SMALL, calls[0]
+        y[:] = sol.y[:, -1]
+        return OK, calls[0]
+    return status, calls[0]
 
 
 @njit(cache=True, error_model="numpy")
