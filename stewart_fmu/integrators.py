@@ -49,7 +49,9 @@ class IntegratorOptions:
                 raise ValueError(f"integrator option {name} must be finite and > 0, got {value}")
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+# Not inlined: a call costs nanoseconds, while inlining the whole forward kernel (and the
+# compliant one) at every stage of every integrator made a cold compile take minutes.
+@njit(cache=True, error_model="numpy")
 def _derivative(p, pl, y, F, ws, dy) -> int:
     """dy = y' at y with the rack force F; the forward kernel's status. pl: leg_side_params(p)."""
     if p[M.P_HAS_TRANSMISSION] != 0.0:
