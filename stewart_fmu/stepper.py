@@ -23,14 +23,15 @@ import numpy as np
 
 from .dynamics import GIMBAL, NONFINITE, OVERFLOW, SINGULAR, inverse_dynamics_parts, present_parts
 from .dynamics import forward_dynamics, leg_state
-from .energy import energy_terms
+from .energy import DRIVEN, energy_terms
 from .errors import IntegrationError, StewartError, TrajectoryError
 from .integrators import (_A, _E, STEP_TOO_SMALL, TOO_MANY_STEPS, IntegratorOptions, derivative,
                           dopri5_advance, euler_advance, rk4_advance, scipy_advance)
 from .kane import STROKE
 from .kinematics import check_poses, inverse_kinematics
 from .model import Model
-from .stability import advice, default_options, internal_step, power_excess
+from .stability import (ENERGY_TOL, advice, coulomb, default_options, internal_step,
+                        step_energy)
 from .transmission import initial_state, spring_forces
 
 STATE_VERSION = 1
@@ -175,6 +176,8 @@ class Plant:
         self._step_guess = self.options.max_step
         self._next = np.empty(self.model.state_size)  # the step's result; swapped on success
         self._energy: np.ndarray | None = None        # energy_terms of _y (power balance)
+        self._energy_next = np.empty(DRIVEN + 6)      # ... of _next (swapped on success)
+        self._coulomb = coulomb(self.model)
         self.evaluations = 0          # right-hand-side evaluations so far
         self._cache: dict = {}
         self._outputs = Outputs(self)
@@ -312,16 +315,17 @@ class Plant:
     def _check_power(self, t: float, h: float) -> None:
         """Raise IntegrationError if the step's result is non-finite or gained more energy than
         the held rack forces supplied (stability.power_excess); else keep its energy terms."""
-        if not np.all(np.isfinite(self._next)):
-            self._unstable(t, h, "the state became non-finite")
         if self._energy is None:
             self._energy = energy_terms(self.model, self._y)
-        after = energy_terms(self.model, self._next)
-        excess, allowed = power_excess(self.model, self._energy, after, self._rack)
+        after = self._energy_next
+        finite, excess, allowed = step_energy(self.model.params, self._next, self._energy,
+                                              after, self._rack, self._coulomb, ENERGY_TOL)
+        if not finite:
+            self._unstable(t, h, "the state became non-finite")
         if not excess <= allowed:
             self._unstable(t, h, f"the energy grew by {excess:.3g} J more than the rack forces "
                                  f"supplied (allowed {allowed:.3g} J)", always=True)
-        self._energy = after
+        self._energy, self._energy_next = after, self._energy
 
     def _check_stiff(self, t: float, h: float, why: str) -> None:
         """A fixed-step method past its stability limit explains a failed step: say so."""
