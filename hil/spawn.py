@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Iterator
 
 from hil.errors import LinkError
+from hil.serve import loopback_address
 
 START_TIMEOUT = 60.0   # s: a first run after install compiles the kernels
 STOP_TIMEOUT = 5.0
@@ -74,7 +75,6 @@ def _stop(proc: subprocess.Popen) -> None:
 def parse_udp(line: str) -> tuple[str, int]:
     """("127.0.0.1", PORT) from the device's first line ``udp 127.0.0.1:PORT``."""
     kind, _, address = line.partition(" ")
-    host, _, port = address.rpartition(":")
-    if kind != "udp" or not port.isdigit():
+    if kind != "udp":
         raise LinkError(f"expected 'udp HOST:PORT' from the device, got {line!r}")
-    return host, int(port)
+    return loopback_address(address)

@@ -16,7 +16,7 @@ from numba import njit
 
 from . import model as M
 from .dynamics import OK, inverse_dynamics
-from .energy import DRIVEN, KINETIC, POTENTIAL, SPRING, _energy_terms, energy_terms
+from .energy import DRIVEN, KINETIC, POTENTIAL, SPRING, _energy_terms
 from .integrators import IntegratorOptions, derivative
 from .model import Model
 from .transmission import initial_state
@@ -74,8 +74,16 @@ def internal_step(options: IntegratorOptions, h: float) -> float:
 
 
 @njit(cache=True, error_model="numpy")
-def _excess(e0, e1, F, coulomb, tol) -> tuple[float, float]:
-    """(dE - W, allowed) from two energy_terms outputs (see power_excess)."""
+def step_energy(p, y1, e0, e1, F, tol) -> tuple[bool, float, float]:
+    """The per-step power balance in one compiled call: (y1 finite, dE - W, allowed), with
+    e1 = energy_terms of y1 written in place (e0: those of the step's start). With the rack
+    forces F held, W = F . (d1 - d0) (energy.py) and dE - W = -(dissipation) <= 0 for an
+    accurate step; allowed: tol of the energy exchanged, plus the Coulomb work bound
+    coulomb sum |dd| (a sign change inside a step is integrated to O(1) of that work)."""
+    for v in y1:
+        if not np.isfinite(v):
+            return False, 0.0, 0.0
+    _energy_terms(p, y1, e1)
     work, moved = 0.0, 0.0
     for i in range(6):
         d = e1[DRIVEN + i] - e0[DRIVEN + i]
@@ -85,33 +93,7 @@ def _excess(e0, e1, F, coulomb, tol) -> tuple[float, float]:
               - (e0[KINETIC] + e0[POTENTIAL] + e0[SPRING]) - work)
     scale = (e0[KINETIC] + e1[KINETIC] + e0[SPRING] + e1[SPRING] + abs(work)
              + 1e-9 * (abs(e0[POTENTIAL]) + abs(e1[POTENTIAL])))
-    return excess, tol * scale + coulomb * moved
-
-
-def power_excess(model: Model, e0: np.ndarray, e1: np.ndarray, F: np.ndarray
-                 ) -> tuple[float, float]:
-    """(dE - W, allowed) over a step with the rack forces F held: W = F . (d1 - d0) (energy.py).
-    dE - W = -(dissipation) <= 0 for an accurate step; allowed: ENERGY_TOL of the energy
-    exchanged, plus the Coulomb work bound coulomb sum |dd| (a sign change inside a step is
-    integrated to O(1) of that work, and only the bound is known)."""
-    return _excess(e0, e1, np.asarray(F, dtype=float), coulomb(model), ENERGY_TOL)
-
-
-def coulomb(model: Model) -> float:
-    """The scene's Coulomb friction force (N), 0 without [friction]."""
-    return model.friction.coulomb if model.friction is not None else 0.0
-
-
-@njit(cache=True, error_model="numpy")
-def step_energy(p, y1, e0, e1, F, coulomb, tol) -> tuple[bool, float, float]:
-    """The per-step check in one compiled call: (y1 finite, dE - W, allowed), with
-    e1 = energy_terms of y1 written in place (e0: those of the step's start)."""
-    for v in y1:
-        if not np.isfinite(v):
-            return False, 0.0, 0.0
-    _energy_terms(p, y1, e1)
-    excess, allowed = _excess(e0, e1, F, coulomb, tol)
-    return True, excess, allowed
+    return True, excess, tol * scale + p[M.P_COULOMB] * moved
 
 
 def advice(model: Model, y: np.ndarray, F: np.ndarray) -> tuple[float, str]:

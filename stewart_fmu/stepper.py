@@ -30,8 +30,7 @@ from .integrators import (_A, _E, STEP_TOO_SMALL, TOO_MANY_STEPS, IntegratorOpti
 from .kane import STROKE
 from .kinematics import check_poses, inverse_kinematics
 from .model import Model
-from .stability import (ENERGY_TOL, advice, coulomb, default_options, internal_step,
-                        step_energy)
+from .stability import ENERGY_TOL, advice, default_options, internal_step, step_energy
 from .transmission import initial_state, spring_forces
 
 STATE_VERSION = 1
@@ -124,7 +123,6 @@ class Outputs:
 
     @property
     def qdd(self) -> np.ndarray:
-        p = self.plant
         return self._get("qdd", lambda: self._ydot()[6:12].copy())
 
     def _ydot(self) -> np.ndarray:
@@ -137,7 +135,6 @@ class Outputs:
     def parts(self) -> dict[str, np.ndarray]:
         """How the rack force splits: platform, legs, drives, gravity, friction (sums to it).
         With a transmission: the leg-side parts sum to the spring force, and drives = m_d sdd."""
-        p = self.plant
         return self._get("parts", self._parts)
 
     def _parts(self) -> dict[str, np.ndarray]:
@@ -177,7 +174,6 @@ class Plant:
         self._next = np.empty(self.model.state_size)  # the step's result; swapped on success
         self._energy: np.ndarray | None = None        # energy_terms of _y (power balance)
         self._energy_next = np.empty(DRIVEN + 6)      # ... of _next (swapped on success)
-        self._coulomb = coulomb(self.model)
         self.evaluations = 0          # right-hand-side evaluations so far
         self._cache: dict = {}
         self._outputs = Outputs(self)
@@ -314,12 +310,12 @@ class Plant:
 
     def _check_power(self, t: float, h: float) -> None:
         """Raise IntegrationError if the step's result is non-finite or gained more energy than
-        the held rack forces supplied (stability.power_excess); else keep its energy terms."""
+        the held rack forces supplied (stability.step_energy); else keep its energy terms."""
         if self._energy is None:
             self._energy = energy_terms(self.model, self._y)
         after = self._energy_next
         finite, excess, allowed = step_energy(self.model.params, self._next, self._energy,
-                                              after, self._rack, self._coulomb, ENERGY_TOL)
+                                              after, self._rack, ENERGY_TOL)
         if not finite:
             self._unstable(t, h, "the state became non-finite")
         if not excess <= allowed:
