@@ -13,8 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from stewart_fmu import forward_dynamics, inverse_dynamics, load_scene
-from stewart_fmu import kane_terms
+from stewart_fmu import forward_dynamics, inverse_dynamics, kane_terms, load_scene
 
 SCENE = Path(__file__).resolve().parents[1] / "scenes" / "micro_manipulator.toml"
 

@@ -1,6 +1,6 @@
 """Cost of one 1 ms co-simulation step of the full micro-manipulator, in-process and as an FMU.
 
-(a) the in-process Plant (stewart_fmu.stepper): do_step alone, with 'rk4' (the default) and
+(a) the in-process Plant (stewart_fmu.plant): do_step alone, with 'rk4' (the default) and
     'dopri5'; and set_force + do_step + the six leg lengths, the same work an importer asks for;
 (b) the exported FMU through fmpy's FMU2Slave: setReal of the six sigma inputs, doStep,
     getReal of the six leg lengths, with 'rk4' and 'dopri5' (solver.method), and where that
@@ -28,7 +28,7 @@ import numpy as np
 from stewart_fmu import inverse_dynamics, load_scene
 from stewart_fmu.fmu import export_fmu
 from stewart_fmu.integrators import IntegratorOptions
-from stewart_fmu.stepper import Plant
+from stewart_fmu.plant import Plant
 
 SCENE = Path(__file__).resolve().parents[1] / "scenes" / "micro_manipulator.toml"
 H = 1e-3

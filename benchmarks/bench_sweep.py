@@ -14,12 +14,11 @@ import shutil
 import subprocess
 import sys
 import tempfile
-import time
 import tomllib
 from pathlib import Path
 
-from stewart_fmu.sweep_grid import grid_from_dict
-from stewart_fmu.sweep_run import run_sweep
+from stewart_sim.sweep.grid import grid_from_dict
+from stewart_sim.sweep.run import run_sweep
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "scenes" / "micro_manipulator.toml"

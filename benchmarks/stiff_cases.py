@@ -7,8 +7,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from controller.stiff_study import hour_drift, integrator_study
 from stewart_fmu import load_scene
+from stewart_sim.stiff_study import hour_drift, integrator_study
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
 

@@ -2,128 +2,39 @@
 
 At each communication step (the controller period): measure leg lengths and rates, compute the
 voltages (PID + feedforward), advance the motor currents, hand the mean motor torques to the
-plant, step the plant. The plant is the in-process component (stewart_fmu.stepper.Plant) or the
+plant, step the plant. The plant is the in-process component (stewart_fmu.plant.Plant) or the
 exported FMU driven through fmpy; both see the same calls, so their results are equal.
 """
 from __future__ import annotations
 
-import math
 import time as wallclock
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Callable, Protocol
+from typing import Callable
 
 import numpy as np
 from numba import njit
 
-from stewart_fmu.dynamics import _leg_state, inverse_dynamics
-from stewart_fmu.errors import StewartError
-from stewart_fmu.integrators import _A, _E, IntegratorOptions, dopri5_advance, rk4_advance
+from stewart_fmu.dynamics import leg_state_kernel
+from stewart_fmu.energy import DRIVEN, energy_terms
+from stewart_fmu.errors import IntegrationError, StewartError
+from stewart_fmu.integrators import IntegratorOptions
 from stewart_fmu.io import POSE, named_array
 from stewart_fmu.model import Model
-from stewart_fmu.stability import default_options
-from stewart_fmu.stepper import _WHY, Plant, StepRejected
+from stewart_fmu.stability import ENERGY_TOL, default_options, internal_step
+from stewart_fmu.status import ENERGY_GAIN, STATE_NONFINITE, why
+from stewart_fmu.step import INFO_SIZE, METHODS, STEP_GUESS, fixed_substeps, plant_step
 from stewart_fmu.transmission import initial_state
 
 from .axis import AxisControllers, MotorCurrents, advance_currents, pid_voltages
 from .config import ControllerConfig
-from .design import Analysis, DesignError, PidGains, analyse, sampled_spectral_radius, tune_pid
+from .design import Analysis, PidGains, UnstableLoopError, check_stable, tune_pid
 from .drive import AxisModel, axis_model
+from .feedforward import feedforward_voltage, start_at_equilibrium
+from .plants import PlantPort, PlantStepError
 from .trajectory import LegReferences, Trajectory, leg_references
 
 DIVERGENCE_FRACTION = 0.5  # a leg error beyond this fraction of the stroke range means unstable
 DIVERGED = -1              # status of the compiled loop: tracking error beyond the bound
-
-
-class UnstableLoopError(DesignError):
-    """The closed loop is unstable (by analysis before the run, or diverging during it)."""
-
-
-class PlantStepError(StewartError):
-    """The plant refused a step (stroke, singularity) during a closed-loop run."""
-
-
-class PlantPort(Protocol):
-    """What the master needs of a plant."""
-
-    def start(self, q0: np.ndarray, qd0: np.ndarray, t0: float,
-              torque0: np.ndarray) -> None: ...  # torque0: held from the start
-    def step(self, t: float, h: float, torque: np.ndarray) -> None: ...
-    def measure(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...  # l, ldot, q
-
-
-class InProcessPlant:
-    """stewart_fmu.stepper.Plant behind the PlantPort calls."""
-
-    def __init__(self, model: Model, options: IntegratorOptions | None = None):
-        self.plant = Plant(model, options)
-
-    def start(self, q0, qd0, t0, torque0) -> None:
-        self.plant.setup_experiment(t0)
-        self.plant.enter_initialization_mode()
-        self.plant.set_initial(q0, qd0)
-        self.plant.set_torque(torque0)
-        self.plant.exit_initialization_mode()
-
-    def step(self, t, h, torque) -> None:
-        self.plant.set_torque(torque)
-        try:
-            self.plant.do_step(t, h)
-        except StepRejected as exc:
-            raise PlantStepError(str(exc)) from None
-
-    def measure(self):
-        out = self.plant.outputs
-        return out.lengths, out.rates, out.q
-
-
-class FmuPlant:
-    """The exported FMU driven through fmpy's FMU2Slave."""
-
-    def __init__(self, path: str | Path):
-        from fmpy import extract, read_model_description
-        from fmpy.fmi2 import FMU2Slave
-
-        self.md = read_model_description(str(path))
-        self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
-        self.unzipdir = extract(str(path))
-        self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=self.unzipdir,
-                             modelIdentifier=self.md.coSimulation.modelIdentifier,
-                             instanceName="plant")
-        self.vr_tau = [self.vr[f"tau[{i}]"] for i in range(1, 7)]
-        names = [f"l[{i}]" for i in range(1, 7)] + [f"ldot[{i}]" for i in range(1, 7)] + list(POSE)
-        self.vr_out = [self.vr[n] for n in names]
-
-    def start(self, q0, qd0, t0, torque0) -> None:
-        f = self.fmu
-        f.instantiate()
-        f.setupExperiment(startTime=t0)
-        f.enterInitializationMode()
-        f.setReal([self.vr[f"q0[{k}]"] for k in range(1, 7)], list(map(float, q0)))
-        f.setReal([self.vr[f"qd0[{k}]"] for k in range(1, 7)], list(map(float, qd0)))
-        f.setReal(self.vr_tau, list(map(float, torque0)))
-        f.exitInitializationMode()
-
-    def step(self, t, h, torque) -> None:
-        from fmpy.fmi1 import FMICallException
-
-        self.fmu.setReal(self.vr_tau, list(map(float, torque)))
-        try:
-            self.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=h)
-        except FMICallException as exc:
-            raise PlantStepError(f"FMU refused the step at t = {t!r} s: {exc}") from None
-
-    def measure(self):
-        v = np.array(self.fmu.getReal(self.vr_out))
-        return v[:6], v[6:12], v[12:18]
-
-    def close(self) -> None:
-        """Terminate, free the instance and delete the unzipped FMU."""
-        import shutil
-
-        self.fmu.terminate()
-        self.fmu.freeInstance()
-        shutil.rmtree(self.unzipdir, ignore_errors=True)
 
 
 @dataclass(frozen=True)
@@ -153,52 +64,13 @@ class ClosedLoopResult:
     config: ControllerConfig
 
 
-def design_axis(model: Model, config: ControllerConfig) -> tuple[AxisModel, PidGains, Analysis]:
-    """The constant-load drive, its tuned gains and the loop's analysis; refuses unstable loops."""
-    axis = axis_model(model, config.motor, config.load_mass)
-    gains = tune_pid(axis, config.bandwidth, config.phase_margin)
-    return axis, gains, check_stable(axis, gains, config.dt)
-
-
-def check_stable(axis: AxisModel, gains: PidGains, dt: float) -> Analysis:
-    """analyse(), raising UnstableLoopError (with the margins) when the continuous loop or the
-    loop sampled at dt is unstable."""
-    a = analyse(axis, gains)
-    rho = sampled_spectral_radius(axis, gains, dt)
-    if not a.stable or not rho < 1.0:
-        where = "closed loop" if not a.stable else f"loop sampled at {1 / dt:g} Hz (spectral radius {rho:.4g})"
-        raise UnstableLoopError(
-            f"{where} unstable with gains {gains}: gain margin {a.gain_margin_db:.3g} dB, "
-            f"phase margin {a.phase_margin_deg:.3g} deg at {a.crossover_hz:.3g} Hz")
-    return a
-
-
-def feedforward_force(model: Model, config: ControllerConfig, axis: AxisModel,
-                      traj: Trajectory, refs: LegReferences) -> np.ndarray | None:
-    """Leg forces the feedforward of config.feedforward supplies (None: no feedforward)."""
-    if config.feedforward == "kane":
-        return inverse_dynamics(model, traj.q, traj.qd, traj.qdd)
-    if config.feedforward == "constant_load":
-        return axis.moving_mass * refs.lddot + axis.viscous * refs.ldot
-    return None
-
-
-def feedforward_voltage(model: Model, config: ControllerConfig, axis: AxisModel,
-                        traj: Trajectory, refs: LegReferences) -> tuple[np.ndarray, np.ndarray]:
-    """(voltage, current) feedforward per sample: R i + L di/dt + Ke' ldot_ref for the
-    feedforward force's current i = F / Kf (the device computes the same from F and dF/dt)."""
-    force = feedforward_force(model, config, axis, traj, refs)
-    if force is None:
-        return np.zeros_like(refs.l), np.zeros_like(refs.l)
-    current = force / axis.force_constant
-    di = np.gradient(force, traj.t, axis=0) / axis.force_constant
-    return axis.voltage(current, di, refs.ldot), current
-
-
 def run_closed_loop(model: Model, config: ControllerConfig, traj: Trajectory,
                     plant: PlantPort | None = None, gains: PidGains | None = None,
-                    progress: Callable[[int, int], None] | None = None) -> ClosedLoopResult:
-    """Track traj with the per-axis controllers; raises UnstableLoopError or PlantStepError."""
+                    progress: Callable[[int, int], None] | None = None,
+                    options: IntegratorOptions | None = None) -> ClosedLoopResult:
+    """Track traj with the per-axis controllers; raises UnstableLoopError, PlantStepError, or
+    IntegrationError (a numerically unstable plant step, as Plant.do_step raises it).
+    `options`: the in-process plant's integrator (default: stability.default_options, as Plant)."""
     axis = axis_model(model, config.motor, config.load_mass)
     gains = gains or tune_pid(axis, config.bandwidth, config.phase_margin)
     analysis = check_stable(axis, gains, config.dt)
@@ -210,7 +82,8 @@ def run_closed_loop(model: Model, config: ControllerConfig, traj: Trajectory,
     bound = DIVERGENCE_FRACTION * _stroke_range(model, refs)
     if plant is None:  # in-process: the whole loop in one compiled call
         start_at_equilibrium(model, traj, refs, gains, ctrl, motors, i_ff[0], None)
-        wall = _run_compiled(model, traj, refs, v_ff, ctrl, motors, bound, rec, progress)
+        wall = _run_compiled(model, traj, refs, v_ff, ctrl, motors, bound, rec, progress,
+                             options or default_options(model))
     else:
         start_at_equilibrium(model, traj, refs, gains, ctrl, motors, i_ff[0], plant)
         start = wallclock.perf_counter()
@@ -244,18 +117,18 @@ def _diverged(t: float, err: np.ndarray, bound: float) -> UnstableLoopError:
 CHUNK = 20_000  # samples per compiled call, so that long runs can report progress
 
 
-def _run_compiled(model, traj, refs, v_ff, ctrl, motors, bound, rec, progress) -> float:
+def _run_compiled(model, traj, refs, v_ff, ctrl, motors, bound, rec, progress, o) -> float:
     """The in-process loop as compiled calls; the same arithmetic as _run_ports with
-    InProcessPlant (the default integrator options of stewart_fmu.stepper.Plant). Returns the
+    InProcessPlant (the default integrator options of stewart_fmu.plant.Plant). Returns the
     loop's wall time, after a zero-sample call has loaded the compiled kernel (the one-time
     cost of a fresh process is not the loop's)."""
-    o = default_options(model)
     h = float(traj.t[1] - traj.t[0])
-    n_sub = max(1, math.ceil(h / o.max_step - 1e-9))
     g, m, ax = ctrl.gains, motors.axis.motor, motors.axis
-    gain = model.drive.gear_ratio / model.drive.pinion_radius
+    gain = model.drive.force_per_torque
     y = initial_state(model, traj.q[0], traj.qd[0], motors.current * ax.force_constant)
-    h_try = np.array([o.max_step])
+    energy = np.stack([energy_terms(model, y), np.empty(DRIVEN + 6)])  # step start, step end
+    info = np.zeros(INFO_SIZE)
+    info[STEP_GUESS] = o.max_step
     n = len(traj.t)
 
     def chunk(k0: int, k1: int):
@@ -263,9 +136,9 @@ def _run_compiled(model, traj, refs, v_ff, ctrl, motors, bound, rec, progress) -
             model.params, y, traj.t, k0, k1, refs.l, refs.ldot, v_ff, g.kp, g.ki, g.kd,
             m.voltage_limit, ctrl.dt, ctrl.integral, m.resistance, m.torque_constant,
             ax.emf_constant, m.current_limit, motors.decay, motors.mean_decay, motors.current,
-            gain, n_sub, o.method == "rk4", o.rtol, o.atol, o.max_step, o.max_steps, _A, _E,
-            h_try, bound, rec.data["l"], rec.data["ldot"], rec.data["q"], rec.data["v"],
-            rec.data["i"], rec.data["tau"], rec.sat)
+            gain, METHODS[o.method], fixed_substeps(h, o.max_step), o.rtol, o.atol, o.max_step,
+            o.max_steps, energy, info, bound, rec.data["l"], rec.data["ldot"], rec.data["q"],
+            rec.data["v"], rec.data["i"], rec.data["tau"], rec.sat)
 
     chunk(0, 0)  # load the compiled kernel: no samples, no state change
     start = wallclock.perf_counter()
@@ -278,10 +151,15 @@ def _run_compiled(model, traj, refs, v_ff, ctrl, motors, bound, rec, progress) -
     wall = wallclock.perf_counter() - start
     if status == DIVERGED:
         raise _diverged(float(traj.t[k]), np.abs(refs.l[k] - rec.data["l"][k]), bound)
+    if status in (ENERGY_GAIN, STATE_NONFINITE):  # numerically unstable: as Plant.do_step says
+        step = internal_step(o, float(traj.t[k + 1] - traj.t[k]))
+        raise IntegrationError(
+            f"integration unstable in the step from t = {float(traj.t[k])!r} s ({o.method}, "
+            f"internal step {step:.3g} s): {why(status)}", float(traj.t[k]), o.method, step)
     if status:
         raise PlantStepError(
             f"plant refused the step at t = {float(traj.t[k])!r} s: "
-            f"{_WHY.get(status, f'status {status}')}; state at the start of the step: "
+            f"{why(status)}; state at the start of the step: "
             f"q = {rec.data['q'][k].tolist()}, leg lengths = {rec.data['l'][k].tolist()} m "
             f"(stroke [{model.leg_min}, {model.leg_max}]), motor torques = "
             f"{rec.data['tau'][k].tolist()} N m")
@@ -290,17 +168,19 @@ def _run_compiled(model, traj, refs, v_ff, ctrl, motors, bound, rec, progress) -
 
 @njit(cache=True, error_model="numpy")
 def _loop_kernel(p, y, t, k0, k1, l_ref, ldot_ref, v_ff, kp, ki, kd, vmax, dt, integral, R, Kt,
-                 emf, ilim, decay, mean_decay, current, gain, n_sub, use_rk4, rtol, atol,
-                 max_step, max_steps, A, E, h_try, bound, rec_l, rec_ldot, rec_q, rec_v, rec_i,
+                 emf, ilim, decay, mean_decay, current, gain, method, n_sub, rtol, atol,
+                 max_step, max_steps, energy, info, bound, rec_l, rec_ldot, rec_q, rec_v, rec_i,
                  rec_tau, rec_sat):
-    """measure -> PID -> motor currents -> plant step for samples k0..k1-1 (state carried in
-    y, integral, current, h_try); (k, status) of a failure, (-1, 0) when all went well."""
+    """measure -> PID -> motor currents -> plant step (stewart_fmu.step.plant_step, the step
+    Plant takes, with its check) for samples k0..k1-1 (state carried in y, integral, current,
+    energy[0] (the energy terms of y) and info); (k, status) of a failure, (-1, 0) when all
+    went well."""
     n = t.shape[0]
     ynext, rack = np.empty(y.shape[0]), np.empty(6)
     v, torque = np.empty(6), np.empty(6)
     sat, limited = np.empty(6, np.bool_), np.empty(6, np.bool_)
     for k in range(k0, k1):
-        l, ldot, _ = _leg_state(p, y[:6], y[6:12])
+        l, ldot, _ = leg_state_kernel(p, y[:6], y[6:12])
         pid_voltages(kp, ki, kd, vmax, dt, integral, l_ref[k], ldot_ref[k], l, ldot, v_ff[k], v, sat)
         advance_currents(R, Kt, emf, ilim, decay, mean_decay, current, v, ldot, torque, limited)
         for i in range(6):
@@ -313,15 +193,12 @@ def _loop_kernel(p, y, t, k0, k1, l_ref, ldot_ref, v_ff, kp, ki, kd, vmax, dt, i
         if k + 1 < n:
             for i in range(6):
                 rack[i] = 0.0 + gain * torque[i]  # the plant's rack force: sigma (0) + zeta/r tau
-            h = t[k + 1] - t[k]
-            if use_rk4:
-                status = rk4_advance(p, y, ynext, rack, h, n_sub)
-            else:
-                status, h_try[0], _, _ = dopri5_advance(p, y, ynext, rack, h, h_try[0], rtol,
-                                                        atol, max_step, max_steps, A, E)
+            status = plant_step(p, method, y, ynext, rack, t[k + 1] - t[k], n_sub, rtol, atol,
+                                max_step, max_steps, energy[0], energy[1], ENERGY_TOL, info)
             if status != 0:
                 return k, status
             y[:] = ynext
+            energy[0, :] = energy[1]
     return -1, 0
 
 
@@ -330,20 +207,6 @@ def _check_rate(traj: Trajectory, config: ControllerConfig) -> None:
     if not np.allclose(steps, config.dt, rtol=1e-9, atol=0):
         raise StewartError(f"trajectory sampled at {1 / np.mean(steps):.6g} Hz; the controller runs "
                            f"at {config.rate:g} Hz: sample the trajectory at the controller rate")
-
-
-def start_at_equilibrium(model, traj, refs, gains, ctrl, motors, i_ff0, plant) -> None:
-    """The drives hold the platform at the first pose before the move (bumpless start): the
-    integral supplies what the feedforward's resistive and back-EMF parts do not, so the
-    feedforward's inductive part (L di/dt) still reaches the motor from the first sample."""
-    hold = inverse_dynamics(model, traj.q[0], traj.qd[0], np.zeros(6))
-    motors.current = hold / motors.axis.force_constant
-    v_hold = motors.axis.voltage(motors.current, 0.0, 0.0)
-    v_static = motors.axis.voltage(i_ff0, 0.0, refs.ldot[0])
-    ctrl.integral = (v_hold - v_static) / gains.ki if gains.ki > 0 else np.zeros(6)
-    if plant is not None:
-        plant.start(traj.q[0], traj.qd[0], float(traj.t[0]),
-                    motors.current * motors.axis.motor.torque_constant)
 
 
 def _stroke_range(model: Model, refs: LegReferences) -> float:

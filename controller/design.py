@@ -15,8 +15,10 @@ import control as ct
 import numpy as np
 
 from stewart_fmu.errors import StewartError
+from stewart_fmu.model import Model
 
-from .drive import AxisModel
+from .config import ControllerConfig
+from .drive import AxisModel, axis_model
 
 INTEGRAL_RATIO = 10.0
 
@@ -102,3 +104,27 @@ def analyse(axis: AxisModel, gains: PidGains) -> Analysis:
     return Analysis(float(20 * np.log10(gm)) if np.isfinite(gm) else float("inf"), float(pm),
                     float(wc / (2 * np.pi)), stable, float(info.get("RiseTime", np.nan)),
                     float(info.get("Overshoot", np.nan)), float(info.get("SettlingTime", np.nan)))
+
+
+class UnstableLoopError(DesignError):
+    """The closed loop is unstable (by analysis before the run, or diverging during it)."""
+
+
+def design_axis(model: Model, config: ControllerConfig) -> tuple[AxisModel, PidGains, Analysis]:
+    """The constant-load drive, its tuned gains and the loop's analysis; refuses unstable loops."""
+    axis = axis_model(model, config.motor, config.load_mass)
+    gains = tune_pid(axis, config.bandwidth, config.phase_margin)
+    return axis, gains, check_stable(axis, gains, config.dt)
+
+
+def check_stable(axis: AxisModel, gains: PidGains, dt: float) -> Analysis:
+    """analyse(), raising UnstableLoopError (with the margins) when the continuous loop or the
+    loop sampled at dt is unstable."""
+    a = analyse(axis, gains)
+    rho = sampled_spectral_radius(axis, gains, dt)
+    if not a.stable or not rho < 1.0:
+        where = "closed loop" if not a.stable else f"loop sampled at {1 / dt:g} Hz (spectral radius {rho:.4g})"
+        raise UnstableLoopError(
+            f"{where} unstable with gains {gains}: gain margin {a.gain_margin_db:.3g} dB, "
+            f"phase margin {a.phase_margin_deg:.3g} deg at {a.crossover_hz:.3g} Hz")
+    return a

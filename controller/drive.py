@@ -20,7 +20,7 @@ import numpy as np
 
 from stewart_fmu.errors import SceneError
 from stewart_fmu.kane_terms import mass_matrix
-from stewart_fmu.model import Model
+from stewart_fmu.model import Model, rack_ratio
 
 MOTOR_KEYS = ("resistance", "inductance", "torque_constant", "back_emf", "current_limit",
                "voltage_limit")
@@ -52,12 +52,12 @@ class AxisModel:
     @property
     def force_constant(self) -> float:
         """Rack force per ampere, N / A: Kt zeta / r."""
-        return self.motor.torque_constant * self.gear_ratio / self.pinion_radius
+        return self.motor.torque_constant * rack_ratio(self.gear_ratio, self.pinion_radius)
 
     @property
     def emf_constant(self) -> float:
         """Back-EMF per rack speed, V s / m: Ke zeta / r."""
-        return self.motor.back_emf * self.gear_ratio / self.pinion_radius
+        return self.motor.back_emf * rack_ratio(self.gear_ratio, self.pinion_radius)
 
     @property
     def reflected_mass(self) -> float:

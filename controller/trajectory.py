@@ -78,11 +78,17 @@ def quintic(start: np.ndarray, goal: np.ndarray, rate: float = 1000.0, duration:
     if duration is None:
         duration = quintic_duration(d, max_rate, max_acceleration)
     t = sample_times(duration, rate)
-    u = (t / duration)[:, None]
+    s, sd, sdd = minimum_jerk((t / duration)[:, None], duration)
+    return Trajectory(t, start + d * s, d * sd, d * sdd)
+
+
+def minimum_jerk(u, duration: float):
+    """The quintic profile s(u) = 10u^3 - 15u^4 + 6u^5 from rest to rest and its first and
+    second time derivatives, at u = t / duration in [0, 1] (numbers or arrays)."""
     s = u**3 * (10 - 15 * u + 6 * u**2)
     sd = 30 * u**2 * (1 - u) ** 2 / duration
     sdd = 60 * u * (1 - u) * (1 - 2 * u) / duration**2
-    return Trajectory(t, start + d * s, d * sd, d * sdd)
+    return s, sd, sdd
 
 
 def quintic_duration(d: np.ndarray, max_rate, max_acceleration) -> float:

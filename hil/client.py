@@ -39,6 +39,7 @@ sent / received / lost, round-trip latency statistics).
 """
 from __future__ import annotations
 
+import ipaddress
 import math
 import time
 from dataclasses import dataclass, field
@@ -47,16 +48,17 @@ from typing import Any, Callable
 import numpy as np
 
 from controller.config import ControllerConfig
-from controller.cosim import feedforward_force
 from controller.drive import axis_model
+from controller.feedforward import feedforward_force
 from controller.trajectory import LegReferences, Trajectory, leg_references
-from stewart_fmu.io import named_array
-from stewart_fmu.model import Model
-
 from hil import mavlink_stewart as ms
+from hil.dialect import connection
 from hil.errors import LinkError
 from hil.framing import Receiver
 from hil.link import MavutilTransport
+from hil.spawn import parse_udp
+from stewart_fmu.io import named_array
+from stewart_fmu.model import Model
 
 HOST_SYSTEM, HOST_COMPONENT = 255, 190
 TIMEOUT = 0.5        # s: default wait for one reply
@@ -71,7 +73,6 @@ _FLAGS_FORCE_RATE = ms.STEWART_SETPOINT_FLAG_FORCE_RATE_VALID
 def connect_pty(path: str, baud: int = 921600) -> MavutilTransport:
     """Open the device's serial port (here its pseudo-terminal `path`) with
     pymavlink.mavutil (mavserial over pyserial: raw mode, `baud`, non-blocking)."""
-    from hil.dialect import connection
 
     try:
         mf = connection(path, baud=baud, source_system=HOST_SYSTEM,
@@ -83,9 +84,7 @@ def connect_pty(path: str, baud: int = 921600) -> MavutilTransport:
 
 def connect_udp(host: str, port: int) -> MavutilTransport:
     """pymavlink.mavutil's `udpout` connection to the device at host:port (loopback only)."""
-    import ipaddress
 
-    from hil.dialect import connection
 
     if host == "localhost":
         host = "127.0.0.1"
@@ -102,7 +101,6 @@ def connect_udp(host: str, port: int) -> MavutilTransport:
 def connect_device(link: str, first: str) -> tuple[MavutilTransport, str]:
     """(transport, description) to a device process whose first line is `first` (hil.spawn):
     ``udp 127.0.0.1:PORT`` over UDP, the pseudo-terminal's path over ``serial``."""
-    from hil.spawn import parse_udp
 
     if link == "udp":
         host, port = parse_udp(first)
@@ -493,95 +491,3 @@ def run_realtime(client: Client, ref: LinkReference, *, tail: float = 0.02,
     c = client.counters
     return LinkRun(table, _summarise("realtime", table, c.sent - sent0, c.received - recv0, lost,
                                      wall, c.statustexts))
-
-
-# ---------------------------------------------------------------- report
-
-def link_summary_text(model: Model, run: LinkRun, ref: LinkReference, link: str) -> str:
-    """summary.md of a run over the link."""
-    s = run.summary
-    t = ref.refs.t
-    lines = [f"# Closed-loop run over the link: {model.name}", "",
-             f"- scene: `{model.source}`; device: `stewart-sim device` (its own process) over "
-             f"{link}, mode {s.mode}",
-             f"- reference: {t[-1] - t[0]:.6g} s, {len(t)} samples at "
-             f"{1 / (t[1] - t[0]):.6g} Hz; feedforward {ref.feedforward}",
-             "", "## Tracking (measured leg length vs reference at the state's time)", "",
-             "| leg | RMS error (m) | max error (m) |", "|---|---:|---:|"]
-    for i in range(6):
-        lines.append(f"| {i + 1} | {s.leg_rms[i]:.6g} | {s.leg_max[i]:.6g} |")
-    ms_ = (lambda x: "n/a" if not math.isfinite(x) else f"{1e3 * x:.4g} ms")
-    lines += ["", "## Link", "",
-              f"- states recorded: {s.samples}",
-              f"- messages sent: {s.sent}; received: {s.received}; lost: {s.lost} "
-              f"({'resends after a timeout' if s.mode == 'lockstep' else 'LEG_STATEs missing'})",
-              f"- round trip (setpoint + LOCKSTEP -> LEG_STATE): median {ms_(s.rtt_median)}, "
-              f"p99 {ms_(s.rtt_p99)}, max {ms_(s.rtt_max)}",
-              f"- wall time: {s.wall_time:.4g} s",
-              f"- device messages: {len(s.statustexts)} STATUSTEXT"
-              + (f" (last: {s.statustexts[-1]!r})" if s.statustexts else ""), ""]
-    return "\n".join(lines)
-
-
-# ---------------------------------------------------------------- `stewart-sim run --link`
-
-#: The serial line the host assumes (connect_pty's default; a pseudo-terminal ignores it).
-SERIAL_BAUD = 921600
-
-
-def realtime_rates(link: str, rate: float, baud: float = SERIAL_BAUD) -> tuple[int, float]:
-    """(setpoint every k controller samples, LEG_STATE rate in Hz) for a real-time run: every
-    sample over UDP; over a serial line the smallest k at which setpoints up and states down
-    fit the UART (hil.figures.loop_rate: 425 Hz at 921600 baud, so k = 3 at 1 kHz)."""
-    if link != "serial":
-        return 1, rate
-    from hil.figures import frame_sizes, loop_rate
-
-    every = max(1, math.ceil(rate / loop_rate(baud, frame_sizes())))
-    return every, rate / every
-LINK_FILES = ("run.csv", "run_link.png", "summary.md")
-
-
-def run_link_files(model: Model, config: ControllerConfig, duration: float, out, link: str,
-                   mode: str) -> tuple[LinkRun, LinkReference]:
-    """`run --link serial|udp --mode lockstep|realtime`: the device run as its own process
-    (`stewart-sim device`, see hil.spawn) over a pseudo-terminal (``serial``) or loopback UDP,
-    the `run` reference (controller.run_files.run_reference) over the link; run.csv,
-    run_link.png and summary.md into `out`."""
-    from pathlib import Path
-
-    from controller.run_files import run_reference
-    from stewart_fmu import io as sio
-
-    from hil.figures import run_figure
-    from hil.spawn import device_process
-
-    if link not in ("serial", "udp") or mode not in ("lockstep", "realtime"):
-        raise LinkError(f"run: --link serial|udp and --mode lockstep|realtime, got {link}, {mode}")
-    if model.source is None:
-        raise LinkError("run --link: the device process needs the scene as a file")
-    out = Path(out)
-    ref = link_reference(model, config, run_reference(model, config, duration))
-    every, state_rate = realtime_rates(link, config.rate)
-    with device_process(model.source, link, lockstep=(mode == "lockstep")) as first:
-        transport, where = connect_device(link, first)
-        client = Client(transport)
-        try:
-            if mode == "lockstep":
-                run = run_lockstep(client, ref, timeout=1.0)
-            else:
-                run = run_realtime(client, ref, every=every, state_rate=state_rate)
-            client.disarm()
-        finally:
-            client.close()
-    text = link_summary_text(model, run, ref, where)
-    if mode == "realtime":
-        text += (f"- setpoints every {every} controller samples ({config.rate / every:g} Hz), "
-                 f"LEG_STATE at {state_rate:g} Hz"
-                 + (f" (what fits a {SERIAL_BAUD} baud UART)" if link == "serial" else "") + "\n")
-    with sio.writing(out):
-        sio.write_csv(out / "run.csv", run.table)
-        run_figure(run.table, f"{model.name}: closed loop over {where}, {mode}",
-                   out / "run_link.png")
-        sio.write_text(out / "summary.md", text)
-    return run, ref

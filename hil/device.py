@@ -7,7 +7,7 @@ one controller period per `tick()`, and returns the messages it wants to send (p
 
 Physics and servo loops
 -----------------------
-The plant is `stewart_fmu.stepper.Plant` (behind `controller.cosim.InProcessPlant`), the drive
+The plant is `stewart_fmu.plant.Plant` (behind `controller.cosim.InProcessPlant`), the drive
 controllers are `controller.axis.AxisControllers` and `MotorCurrents` with the gains that
 `controller.design.tune_pid` gives for the scene's [controller] table (through
 `controller.cosim.design_axis`, which also refuses an unstable sampled loop). The device starts at
@@ -79,16 +79,16 @@ import numpy as np
 
 from controller.axis import AxisControllers, MotorCurrents
 from controller.config import ControllerConfig, controller_config
-from controller.cosim import InProcessPlant, PlantStepError, start_at_equilibrium, design_axis
-from controller.design import PidGains
-from controller.trajectory import Trajectory, leg_references
+from controller.design import PidGains, design_axis
+from controller.feedforward import start_at_equilibrium
+from controller.plants import InProcessPlant, PlantStepError
+from controller.trajectory import QUINTIC_PEAK_RATE, Trajectory, leg_references, minimum_jerk
+from hil import mavlink_stewart as ms
+from hil.framing import Receiver
 from stewart_fmu.errors import StewartError
 from stewart_fmu.kinematics import condition_number, forward_kinematics, inverse_kinematics
 from stewart_fmu.model import Model
 from stewart_fmu.rotations import euler_motion
-
-from hil import mavlink_stewart as ms
-from hil.framing import Receiver
 
 #: Default telemetry rates (Hz); HEARTBEAT is always 1 Hz.
 TELEMETRY = {"SYS_STATUS": 1.0, "LEG_STATE": 100.0, "DRIVE_STATUS": 10.0,
@@ -464,7 +464,7 @@ class Device:
         l0 = self.plant.outputs.lengths.copy()
         d = float(np.max(np.abs(self.home_lengths - l0)))
         stroke = (self.leg_max - self.leg_min) if math.isfinite(self.leg_max) else 1.0
-        duration = max(HOMING_MIN_TIME, 1.875 * d / (HOMING_SPEED * stroke))
+        duration = max(HOMING_MIN_TIME, QUINTIC_PEAK_RATE * d / (HOMING_SPEED * stroke))
         self._homing = (l0, self.home_lengths.copy(), self.k, max(1, round(duration * self.rate)))
         self.watchdog_state = ms.STEWART_WATCHDOG_IDLE
         self._set_feedforward(None, None)
@@ -472,9 +472,7 @@ class Device:
     def _homing_reference(self) -> None:
         l0, l1, k0, n = self._homing
         u = min(1.0, (self.k - k0) / n)
-        T = n / self.rate
-        s = u**3 * (10 - 15 * u + 6 * u**2)
-        sd = 30 * u**2 * (1 - u) ** 2 / T
+        s, sd, _ = minimum_jerk(u, n / self.rate)
         self.l_ref = l0 + (l1 - l0) * s
         self.ldot_ref = (l1 - l0) * sd
         if u >= 1.0:

@@ -8,26 +8,35 @@ yields it, and stops the device with SIGINT (then SIGKILL) when the block ends.
 """
 from __future__ import annotations
 
+import argparse
 import contextlib
 import select
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import Iterator
 
+from controller.config import controller_config
+from hil.device import Device
 from hil.errors import LinkError
-from hil.serve import loopback_address
+from hil.link import pty_pair, udp_server
+from hil.serve import loopback_address, serve
+from stewart_fmu.errors import StewartError
+from stewart_fmu.model import Model
+from stewart_fmu.scene import load_scene
 
 START_TIMEOUT = 60.0   # s: a first run after install compiles the kernels
 STOP_TIMEOUT = 5.0
+WATCHDOG = 0.2       # s: default safe-stop time without a valid setpoint while armed
 
 
 def device_command(scene: str | Path, link: str, lockstep: bool) -> list[str]:
-    """argv of `stewart-sim device SCENE (--udp 127.0.0.1:0 | --pty) [--lockstep]`."""
-    argv = [sys.executable, "-c", "import sys; from stewart_fmu.cli import main; sys.exit(main())",
-            "device", str(scene)]
+    """argv of `python -m hil.spawn SCENE (--udp 127.0.0.1:0 | --pty) [--lockstep]` (what
+    `stewart-sim device` runs)."""
+    argv = [sys.executable, "-m", "hil.spawn", str(scene)]
     argv += ["--udp", "127.0.0.1:0"] if link == "udp" else ["--pty"]
     return argv + (["--lockstep"] if lockstep else [])
 
@@ -78,3 +87,78 @@ def parse_udp(line: str) -> tuple[str, int]:
     if kind != "udp":
         raise LinkError(f"expected 'udp HOST:PORT' from the device, got {line!r}")
     return loopback_address(address)
+
+
+def signing_key(text: str | None) -> bytes | None:
+    """The 32-byte MAVLink 2 signing key from 64 hex digits (None: unsigned)."""
+    if text is None:
+        return None
+    try:
+        key = bytes.fromhex(text)
+    except ValueError:
+        key = b""
+    if len(key) != 32:
+        raise LinkError("--signing-key must be 64 hex digits (32 bytes)")
+    return key
+
+
+def serve_device(model: Model, udp: str | None, watchdog: float = WATCHDOG,
+                 lockstep: bool = False, key_hex: str | None = None) -> None:
+    """Serve the emulated device for `model` on loopback UDP (`udp`, "127.0.0.1:PORT") or, with
+    udp None, a pseudo-terminal, until SIGINT or SIGTERM. The first line on stdout says where it
+    listens; a summary goes to stderr when it stops."""
+    key = signing_key(key_hex)
+    address = loopback_address(udp) if udp is not None else None
+    device = Device(model, controller_config(model), watchdog=watchdog, signing_key=key,
+                    lockstep=lockstep)
+    keep = None  # the pty's slave end, held open so the master never sees a hang-up
+    if address is not None:
+        transport = udp_server(*address)
+        first = f"udp {transport.address[0]}:{transport.address[1]}"
+    else:
+        transport, keep = pty_pair()
+        first = keep.name
+    stop = threading.Event()
+    handlers = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        print(first, flush=True)
+        print(f"device: {model.name}, {device.rate:g} Hz, "
+              f"{'lockstep' if lockstep else 'real time'}, watchdog {watchdog:g} s"
+              f"{', signed' if key else ''}; Ctrl-C stops", file=sys.stderr, flush=True)
+        stats = serve(device, transport, not lockstep, stop)
+    finally:
+        for sig, old in handlers.items():
+            signal.signal(sig, old)
+        transport.close()
+        if keep is not None:
+            keep.close()
+    c = device.counters
+    print(f"device stopped: {stats.ticks} ticks in {stats.wall:.3g} s, {stats.overruns} overruns, "
+          f"{stats.messages_in} messages in, {stats.messages_out} out, "
+          f"{device.link_errors} bad frames, {c.setpoints_refused} setpoints refused",
+          file=sys.stderr, flush=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The device process: `python -m hil.spawn SCENE (--udp 127.0.0.1:PORT | --pty)
+    [--watchdog S] [--lockstep] [--signing-key HEX]` (`stewart-sim device` with its help)."""
+    parser = argparse.ArgumentParser(prog="python -m hil.spawn")
+    parser.add_argument("scene")
+    where = parser.add_mutually_exclusive_group(required=True)
+    where.add_argument("--udp")
+    where.add_argument("--pty", action="store_true")
+    parser.add_argument("--watchdog", type=float, default=WATCHDOG)
+    parser.add_argument("--lockstep", action="store_true")
+    parser.add_argument("--signing-key")
+    args = parser.parse_args(argv)
+    try:
+        serve_device(load_scene(args.scene), args.udp, args.watchdog, args.lockstep,
+                     args.signing_key)
+    except StewartError as exc:
+        print(f"device: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,8 +1,14 @@
 """The Stewart platform plant: scenes, kinematics, Kane's equations, dynamics."""
-from .dynamics import (PARTS, forward_dynamics, inverse_dynamics, inverse_dynamics_parts,
-                       present_parts)
-from .errors import (ForwardKinematicsError, KinematicsError, SceneError, SingularityError,
-                     StewartError, StrokeLimitError, TrajectoryError)
+from .dynamics import PARTS, forward_dynamics, inverse_dynamics, inverse_dynamics_parts, present_parts
+from .errors import (
+                       ForwardKinematicsError,
+                       KinematicsError,
+                       SceneError,
+                       SingularityError,
+                       StewartError,
+                       StrokeLimitError,
+                       TrajectoryError,
+)
 from .kinematics import check_poses, forward_kinematics, inverse_kinematics
 from .model import Model
 from .scene import load_scene, scene_from_dict

@@ -9,15 +9,16 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from stewart_fmu.kinematics import inverse_kinematics
 
 from . import model as M
 from .errors import SingularityError, StrokeLimitError, TrajectoryError
-from .kane import STROKE, twist_forces, twist_mass_matrix
+from .kane import twist_forces, twist_mass_matrix
 from .linalg import cholesky_solve, lu_factor, lu_solve
 from .model import Model
 from .rotations import orientation, solve_rate_matrix
+from .status import GIMBAL, NONFINITE, OK, OVERFLOW, SINGULAR, STROKE
 
-OK, NONFINITE, SINGULAR, GIMBAL, OVERFLOW = 0, 1, 3, 4, 5
 # Smallest pivot of the LU of the scaled J^T (entries of order one) below which a pose counts as
 # singular (cond(J) then exceeds ~1e10 and the forces would carry fewer than ~6 good digits).
 SINGULAR_PIVOT = 1e-10
@@ -33,7 +34,7 @@ def _identity_order():
 
 
 @njit(cache=True, error_model="numpy")
-def _workspace():
+def workspace():
     """Scratch for one sample, as views of one buffer (one allocation per kernel call):
     R, omega, alpha, U, R p_i, (l, ldot, lddot), J^T, gen, order, rhs, M_nu. order, where J^T's
     rows are stored for its LU, carries from sample to sample (see linalg.lu_factor)."""
@@ -159,7 +160,7 @@ def _parts_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, order, rhs, tot
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt, out, n) -> int:
+def forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt, out, n) -> int:
     """(M_nu + m_d J^T J) nudot = J^T (sigma - mu - m_d lddot_0) + K*_0 + K_g, then Euler rates."""
     zero = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     orientation(q, qd, zero, R, om, al)        # al = Edot thd, the Euler-rate part
@@ -193,7 +194,7 @@ def _forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, order, rhs,
 
 @njit(cache=True, error_model="numpy")
 def _inverse_batch(p, Q, QD, QDD, out):
-    R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt = _workspace()
+    R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt = workspace()
     for n in range(Q.shape[0]):
         q, qd, qdd = _row(Q, n), _row(QD, n), _row(QDD, n)
         status = _inverse_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, order, rhs, out, n)
@@ -205,14 +206,14 @@ def _inverse_batch(p, Q, QD, QDD, out):
 @njit(cache=True, error_model="numpy")
 def _inverse_one(p, q, qd, qdd):
     out = np.empty((1, 6))
-    R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt = _workspace()
+    R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt = workspace()
     status = _inverse_sample(p, q, qd, qdd, R, om, al, U, Rr, leg, JT, gen, order, rhs, out, 0)
     return out[0], (OK if status == OK else _classify(status, q, qd, qdd))
 
 
 @njit(cache=True, error_model="numpy")
 def _parts_batch(p, Q, QD, QDD, out):
-    R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt = _workspace()
+    R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt = workspace()
     total = np.empty((1, 6))
     for n in range(Q.shape[0]):
         q, qd, qdd = _row(Q, n), _row(QD, n), _row(QDD, n)
@@ -225,10 +226,10 @@ def _parts_batch(p, Q, QD, QDD, out):
 
 @njit(cache=True, error_model="numpy")
 def _forward_batch(p, Q, QD, F, out):
-    R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt = _workspace()
+    R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt = workspace()
     for n in range(Q.shape[0]):
         q, qd, sigma = _row(Q, n), _row(QD, n), _row(F, n)
-        status = _forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt,
+        status = forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt,
                                  out, n)
         if status != OK:
             return n, _classify(status, q, qd, sigma)
@@ -238,16 +239,16 @@ def _forward_batch(p, Q, QD, F, out):
 @njit(cache=True, error_model="numpy")
 def _forward_one(p, q, qd, sigma):
     out = np.empty((1, 6))
-    R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt = _workspace()
-    status = _forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt, out, 0)
+    R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt = workspace()
+    status = forward_sample(p, q, qd, sigma, R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt, out, 0)
     return out[0], (OK if status == OK else _classify(status, q, qd, sigma))
 
 
 @njit(cache=True, error_model="numpy")
-def _leg_state(p, q, qd):
+def leg_state_kernel(p, q, qd):
     """Leg lengths, rates and the platform's angular velocity at one pose (the kinematics part
     of the inverse kernel, at zero acceleration)."""
-    R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt = _workspace()
+    R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt = workspace()
     zero = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     orientation(q, qd, zero, R, om, al)
     twist_forces(p, q, R, qd, om, zero, al, U, Rr, leg, JT, order, gen)
@@ -256,7 +257,7 @@ def _leg_state(p, q, qd):
 
 def leg_state(model: Model, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(lengths, rates, omega) of one pose and its rates: compiled, for per-step outputs."""
-    return _leg_state(model.params, q, qd)
+    return leg_state_kernel(model.params, q, qd)
 
 
 def inverse_dynamics(model: Model, q, qd, qdd) -> np.ndarray:
@@ -328,7 +329,6 @@ def _check_shapes(names, arrays) -> None:
 
 def _raise(model: Model, status: int, index: int, names, rows) -> None:
     """Turn a kernel status into the typed error, naming the sample and the values."""
-    from .kinematics import inverse_kinematics  # error path only
 
     q = rows[0]
     if status == NONFINITE:

@@ -13,7 +13,7 @@ import numpy as np
 from numba import njit
 
 from . import model as M
-from .dynamics import _workspace
+from .dynamics import workspace
 from .kane import twist_mass_matrix
 from .model import Model
 from .transmission import leg_kinematics, leg_side_params
@@ -22,9 +22,9 @@ KINETIC, POTENTIAL, SPRING, DRIVEN = 0, 1, 2, 3   # layout of energy_terms' outp
 
 
 @njit(cache=True, error_model="numpy")
-def _energy_terms(p, y, out) -> None:
+def energy_terms_kernel(p, y, out) -> None:
     """out = (T, V_g, V_s, d_1..d_6) at y (see the module doc)."""
-    ws, pl = _workspace(), leg_side_params(p)
+    ws, pl = workspace(), leg_side_params(p)
     R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt = ws
     leg_kinematics(pl, y, ws)
     twist_mass_matrix(pl, R, U, Rr, leg, Mt)
@@ -58,7 +58,7 @@ def _energy_terms(p, y, out) -> None:
 def energy_terms(model: Model, y: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     """(T, V_g, V_s, d_1..d_6) of the plant state y (12 or 24 entries), compiled."""
     out = np.empty(DRIVEN + 6) if out is None else out
-    _energy_terms(model.params, np.ascontiguousarray(y, dtype=float), out)
+    energy_terms_kernel(model.params, np.ascontiguousarray(y, dtype=float), out)
     return out
 
 

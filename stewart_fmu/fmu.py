@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from .io import POSE
+from .scene import load_scene
 
 SCENE_RESOURCE = "scene.toml"
 # Base-unit exponents (kg, m, s, rad) of every unit the FMU uses.
@@ -61,6 +62,11 @@ class Variable:
     description: str
     key: str = ""                 # scene key (parameters) or output/input group
     index: tuple[int, ...] = ()   # element of that key
+
+
+def names(variables: list[Variable], key: str) -> list[str]:
+    """The names of the variables of one group (e.g. "tau", "l", "q0"), in order."""
+    return [v.name for v in variables if v.key == key]
 
 
 def scene_parameters(data: Mapping[str, Any]) -> list[Variable]:
@@ -127,7 +133,7 @@ def export_fmu(scene: str | Path, out: str | Path) -> Path:
     """Build an FMI 2.0 co-simulation FMU of the scene with pythonfmu; returns its path."""
     from pythonfmu import FmuBuilder  # the export tool only; not needed to simulate
 
-    from .scene import load_scene
+
 
     load_scene(scene)  # a bad scene fails here with its SceneError, before any file is written
     out = Path(out)

@@ -1,4 +1,4 @@
-"""pythonfmu slave of the Stewart platform plant: a thin adapter over stewart_fmu.stepper.Plant.
+"""pythonfmu slave of the Stewart platform plant: a thin adapter over stewart_fmu.plant.Plant.
 
 pythonfmu copies this file into the FMU and finds the slave class by its literal header line.
 Every name it registers comes from stewart_fmu.fmu; every check and all physics run in Plant.
@@ -25,8 +25,9 @@ from pythonfmu.enums import Fmi2Initial, Fmi2Status
 from stewart_fmu import fmu
 from stewart_fmu.errors import IntegrationError
 from stewart_fmu.integrators import INTEGRATORS, IntegratorOptions
+from stewart_fmu.plant import Plant, StepRejected
 from stewart_fmu.scene import DEFAULT_GRAVITY, apply_overrides, scene_from_dict
-from stewart_fmu.stepper import Plant, StepRejected
+from stewart_fmu.stability import default_options
 
 
 class StewartPlant(Fmi2Slave):
@@ -41,7 +42,7 @@ class StewartPlant(Fmi2Slave):
         self.units: dict[str, str | None] = {}
         self.values = {"sigma": np.zeros(6), "tau": np.zeros(6),
                        "q0": self.model.home.copy(), "qd0": np.zeros(6)}
-        defaults = IntegratorOptions()  # stiff scenes: set solver.max_step (see README)
+        defaults = default_options(self.model)  # as Plant(model) and the closed loop
         self.solver = {"method": defaults.method, "rtol": defaults.rtol, "atol": defaults.atol,
                        "max_step": defaults.max_step}
         self.start_time = 0.0

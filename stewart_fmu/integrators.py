@@ -19,15 +19,14 @@ from numba import njit
 from scipy.integrate import solve_ivp
 
 from . import model as M
-from .dynamics import OK, _forward_sample, _workspace  # the compiled per-sample forward kernel
+from .dynamics import forward_sample, workspace  # the compiled per-sample forward kernel
+from .status import OK, STEP_TOO_SMALL, TOO_MANY_STEPS
 from .transmission import compliant_derivative, leg_side_params
 
 COMPILED = ("rk4", "euler", "dopri5")
 FIXED_STEP = {"rk4": 4, "euler": 1}  # the fixed-step methods and their theoretical order
 SCIPY = ("RK45", "DOP853", "Radau", "BDF", "LSODA")
 INTEGRATORS = COMPILED + SCIPY
-TOO_MANY_STEPS = 100  # status: the adaptive method needed more than max_steps internal steps
-STEP_TOO_SMALL = 101  # status: the adaptive step fell below 1e-14 of the time scale
 
 
 @dataclass(frozen=True)
@@ -60,7 +59,7 @@ def _derivative(p, pl, y, F, ws, dy) -> int:
     q = (y[0], y[1], y[2], y[3], y[4], y[5])
     qd = (y[6], y[7], y[8], y[9], y[10], y[11])
     out = dy[6:12].reshape((1, 6))
-    status = _forward_sample(p, q, qd, F, R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt, out, 0)
+    status = forward_sample(p, q, qd, F, R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt, out, 0)
     for k in range(6):
         dy[k] = y[6 + k]
     return status
@@ -77,7 +76,7 @@ def _axpy(out, y, a, x) -> None:
 def rk4_advance(p, y0, y, F, h, n) -> int:
     """y = y0 advanced over h with n classic RK4 steps; status of the first failure or OK
     (y0 is left as it was, so a failed step needs no rollback)."""
-    ws, pl, ny = _workspace(), leg_side_params(p), y0.shape[0]
+    ws, pl, ny = workspace(), leg_side_params(p), y0.shape[0]
     k = np.empty((4, ny))
     tmp = np.empty(ny)
     F = (F[0], F[1], F[2], F[3], F[4], F[5])
@@ -101,7 +100,7 @@ def euler_advance(p, y0, y, F, h, n) -> int:
     """y = y0 advanced over h with n semi-implicit Euler steps: velocities += dt accelerations,
     then positions += dt new velocities (symplectic Euler, order 1); y holds (q, qd) or
     (q, qd, s, sd); y0 kept, status as rk4_advance."""
-    ws, pl, ny = _workspace(), leg_side_params(p), y0.shape[0]
+    ws, pl, ny = workspace(), leg_side_params(p), y0.shape[0]
     dy = np.empty(ny)
     F = (F[0], F[1], F[2], F[3], F[4], F[5])
     dt = h / n
@@ -118,8 +117,8 @@ def euler_advance(p, y0, y, F, h, n) -> int:
 
 
 # Dormand-Prince 5(4) tableau (Hairer, Norsett, Wanner: Solving ODEs I, Table 5.2).
-_C = np.array([0.0, 1 / 5, 3 / 10, 4 / 5, 8 / 9, 1.0, 1.0])
-_A = np.array([
+DOPRI5_C = np.array([0.0, 1 / 5, 3 / 10, 4 / 5, 8 / 9, 1.0, 1.0])
+DOPRI5_A = np.array([
     [0, 0, 0, 0, 0, 0],
     [1 / 5, 0, 0, 0, 0, 0],
     [3 / 40, 9 / 40, 0, 0, 0, 0],
@@ -128,7 +127,7 @@ _A = np.array([
     [9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656, 0],
     [35 / 384, 0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84],
 ])
-_E = np.array([71 / 57600, 0, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40])
+DOPRI5_E = np.array([71 / 57600, 0, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40])
 
 
 @njit(cache=True, error_model="numpy")
@@ -138,7 +137,7 @@ def dopri5_advance(p, y0, y, F, h, h_try, rtol, atol, max_step, max_steps, A, E)
     Returns (status, next step size to try, internal steps taken, rejected steps). A stage
     that leaves the valid region (stroke, singularity) shrinks the step; if the step cannot
     complete, that stage's status is the reported cause."""
-    ws, pl, ny = _workspace(), leg_side_params(p), y0.shape[0]
+    ws, pl, ny = workspace(), leg_side_params(p), y0.shape[0]
     y[:] = y0
     cause = OK
     K = np.empty((7, ny))
@@ -235,7 +234,7 @@ def scipy_advance(model_params: np.ndarray, y0: np.ndarray, y: np.ndarray, F: np
 @njit(cache=True, error_model="numpy")
 def _scipy_derivative(p, y, F, dy) -> int:
     return _derivative(p, leg_side_params(p), y, (F[0], F[1], F[2], F[3], F[4], F[5]),
-                       _workspace(), dy)
+                       workspace(), dy)
 
 
 def derivative(params: np.ndarray, y: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, int]:

@@ -28,10 +28,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-
 from . import model as M
-
-STROKE = 2  # status code: a leg is outside [leg_min, leg_max]
+from .status import STROKE
 
 
 # Inlined at the numba IR level: as a real call, the dozen scratch arrays it takes each cost an

@@ -5,7 +5,6 @@ import numpy as np
 from numba import njit
 
 
-
 @njit(cache=True, error_model="numpy", inline="always")
 def lu_factor(A, order) -> float:
     """LU of a 6x6 with partial pivoting in place; returns min |pivot| (0 when singular).

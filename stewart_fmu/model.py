@@ -41,6 +41,11 @@ class LegParams:
     upper_inertia: tuple[float, float]
 
 
+def rack_ratio(gear_ratio: float, pinion_radius: float) -> float:
+    """zeta / r (1/m): rack force per motor torque, and motor speed per rack speed."""
+    return gear_ratio / pinion_radius
+
+
 @dataclass(frozen=True)
 class DriveParams:
     """Servomotor, gearbox and rack-and-pinion of every leg."""
@@ -48,6 +53,11 @@ class DriveParams:
     gear_ratio: float
     rotor_inertia: float
     pinion_radius: float
+
+    @property
+    def force_per_torque(self) -> float:
+        """zeta / r: the rack force a motor torque gives (N per N m)."""
+        return rack_ratio(self.gear_ratio, self.pinion_radius)
 
     @property
     def reflected_mass(self) -> float:

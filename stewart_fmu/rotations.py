@@ -8,7 +8,6 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-
 GIMBAL_LIMIT = 1e-9  # |cos(thy)| below this: E cannot be inverted
 
 

@@ -8,6 +8,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from stewart_fmu.kinematics import check_poses
+
 from .errors import KinematicsError, SceneError
 from .model import DriveParams, FrictionParams, LegParams, Model, TransmissionParams
 
@@ -181,7 +183,6 @@ def _check_case(v: "_Validator", data: Mapping[str, Any]) -> None:
 
 def _check_home(v: "_Validator", model: Model) -> None:
     """The home pose must be reachable: within stroke and away from singularities."""
-    from .kinematics import check_poses  # kinematics needs a Model; import here, not at top
 
     try:
         check_poses(model, model.home[None, :])

@@ -14,11 +14,15 @@ forward_dynamics keep the rigid drive: they are that limit.
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 from numba import njit
 
+from stewart_fmu.kane_terms import mass_matrix
+
 from . import model as M
-from .dynamics import _forward_sample, _workspace, leg_state
+from .dynamics import forward_sample, leg_state, workspace
 from .kane import twist_forces
 from .model import Model
 from .rotations import orientation
@@ -63,7 +67,7 @@ def compliant_derivative(p, pl, y, F, ws, dy) -> int:
     q = (y[0], y[1], y[2], y[3], y[4], y[5])
     qd = (y[6], y[7], y[8], y[9], y[10], y[11])
     out = dy[6:12].reshape((1, 6))
-    status = _forward_sample(pl, q, qd, f, R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt, out, 0)
+    status = forward_sample(pl, q, qd, f, R, om, al, U, Rr, leg, JT, gen, order, rhs, Mt, out, 0)
     md = p[M.P_DRIVE_MASS]
     for i in range(6):
         dy[i] = y[6 + i]
@@ -74,7 +78,7 @@ def compliant_derivative(p, pl, y, F, ws, dy) -> int:
 
 @njit(cache=True, error_model="numpy")
 def _spring_forces(p, y):
-    ws = _workspace()
+    ws = workspace()
     pl = leg_side_params(p)
     leg_kinematics(pl, y, ws)
     out = np.empty(6)
@@ -104,9 +108,7 @@ def natural_frequencies(model: Model, q: np.ndarray) -> np.ndarray:
     """Linearised transmission modes at pose q (rad/s, ascending): the springs k between the
     drive inertias m_d and the leg side's leg-space mass [m], omega^2 = eig(k (I / m_d +
     [m]^-1)); gravity's geometric stiffness and the damping left out."""
-    from dataclasses import replace
 
-    from .kane_terms import mass_matrix
 
     m = mass_matrix(replace(model, drive=None, transmission=None), q)
     k, md = model.transmission.stiffness, model.drive.reflected_mass

@@ -1,91 +1,13 @@
-"""Shared fixtures of the physics tests: the two scenes as TOML dicts and Models, their model
-levels (tables dropped from the dict), and smooth random trajectories near home."""
+"""pytest fixtures and the session summary of worst residuals; the helpers themselves live in
+tests/helpers.py (tests import them from there, never from this file)."""
 from __future__ import annotations
 
-import copy
-import functools
-import tomllib
-from pathlib import Path
+import os
 
-import numpy as np
 import pytest
+from helpers import RESIDUALS, level_dict, level_model, scene_dict
 
 from stewart_fmu import Model, scene_from_dict
-
-SCENES_DIR = Path(__file__).resolve().parents[1] / "scenes"
-SCENE_FILES = {"micro": SCENES_DIR / "micro_manipulator.toml",
-               "sim": SCENES_DIR / "motion_simulator.toml"}
-
-# Model levels: the tables dropped from the scene dict. "platform_friction" is the variant with
-# friction but no drive (and no legs), so friction is seen without any leg or drive inertia.
-LEVELS = {
-    "full": (),
-    "no_drive": ("drive",),
-    "no_drive_no_friction": ("drive", "friction"),
-    "platform_only": ("legs", "drive", "friction"),
-    "platform_friction": ("legs", "drive"),
-}
-
-# Per-scene amplitude bound of the smooth trajectories about home: metres for x, y, z, radians
-# for the angles (roll, pitch and yaw peak together at 0.3-0.5 rad). The tests check that the
-# trajectories they use stay inside the stroke.
-TRAJ_SCALE = {
-    "micro": np.array([0.006, 0.006, 0.008, 0.5, 0.5, 0.5]),
-    "sim": np.array([0.08, 0.08, 0.08, 0.4, 0.4, 0.4]),
-}
-
-
-@functools.lru_cache(maxsize=None)
-def _parsed(name: str) -> dict:
-    with SCENE_FILES[name].open("rb") as fh:
-        return tomllib.load(fh)
-
-
-def scene_dict(name: str) -> dict:
-    """A fresh deep copy of the parsed TOML of scene `name` ("micro" or "sim")."""
-    return copy.deepcopy(_parsed(name))
-
-
-def level_dict(data: dict, level: str) -> dict:
-    """A deep copy of a scene dict with the tables of `level` (a key of LEVELS) dropped."""
-    out = copy.deepcopy(data)
-    for table in LEVELS[level]:
-        out.pop(table, None)
-    return out
-
-
-@functools.lru_cache(maxsize=None)
-def level_model(name: str, level: str) -> Model:
-    """The Model of scene `name` at `level` (built once; Models are immutable)."""
-    return scene_from_dict(level_dict(_parsed(name), level), source=f"{name}:{level}")
-
-
-def smooth_trajectory(name: str, seed: int, n_terms: int = 3, scale: np.ndarray | None = None):
-    """A random smooth trajectory near home as analytic functions of t.
-
-    Each coordinate is home + sum_k A_k sin(w_k t + phi_k), k < n_terms (at most 3), with
-    random signs and phases: one dominant slow term and smaller faster ones (below). Returns a
-    function t -> (q, qd, qdd) that accepts a scalar or an array of times ((6,) or (N, 6)).
-    """
-    rng = np.random.default_rng(seed)
-    home = level_model(name, "full").home
-    scale = TRAJ_SCALE[name] if scale is None else np.asarray(scale, dtype=float)
-    # One dominant slow term (0.7-0.8 of scale) and smaller faster ones (0.05-0.1 of scale each),
-    # so each coordinate peaks near `scale` and stays below it.
-    rel = np.vstack([rng.uniform(0.7, 0.8, (1, 6)), rng.uniform(0.05, 0.1, (n_terms - 1, 6))])
-    amp = rel * rng.choice([-1.0, 1.0], (n_terms, 6)) * scale
-    omega = np.vstack([rng.uniform(2.0, 6.0, (1, 6)), rng.uniform(6.0, 15.0, (n_terms - 1, 6))])
-    phase = rng.uniform(0.0, 2.0 * np.pi, (n_terms, 6))
-
-    def at(t):
-        t = np.asarray(t, dtype=float)
-        arg = omega * t[..., None, None] + phase                        # (..., n_terms, 6)
-        q = home + np.sum(amp * np.sin(arg), axis=-2)
-        qd = np.sum(amp * omega * np.cos(arg), axis=-2)
-        qdd = -np.sum(amp * omega**2 * np.sin(arg), axis=-2)
-        return q, qd, qdd
-
-    return at
 
 
 @pytest.fixture
@@ -121,112 +43,11 @@ def make_level():
     return make
 
 
-RATE_SCALE = {"micro": np.array([0.1, 0.1, 0.1, 2.0, 2.0, 2.0]),
-              "sim": np.array([0.5, 0.5, 0.5, 0.8, 0.8, 0.8])}
-ACC_SCALE = {"micro": np.array([3.0, 3.0, 3.0, 40.0, 40.0, 40.0]),
-             "sim": np.array([4.0, 4.0, 4.0, 4.0, 4.0, 4.0])}
-
-
-def random_states(name: str, n: int, seed: int, max_cond: float = 50.0):
-    """n random (q, qd, qdd) rows: poses uniform within TRAJ_SCALE of home (kept only inside the
-    stroke and with cond(J) < max_cond), rates and accelerations uniform within RATE_SCALE and
-    ACC_SCALE. Returns three (n, 6) arrays."""
-    from stewart_fmu import inverse_kinematics
-
-    rng = np.random.default_rng(seed)
-    model = level_model(name, "full")
-    rows = []
-    while len(rows) < n:
-        q = model.home + TRAJ_SCALE[name] * rng.uniform(-1.0, 1.0, 6)
-        kin = inverse_kinematics(model, q)
-        if (np.all((kin.lengths > model.leg_min) & (kin.lengths < model.leg_max))
-                and kin.cond < max_cond):
-            rows.append((q, RATE_SCALE[name] * rng.uniform(-1.0, 1.0, 6),
-                         ACC_SCALE[name] * rng.uniform(-1.0, 1.0, 6)))
-    q, qd, qdd = (np.array(c) for c in zip(*rows))
-    return q, qd, qdd
-
-
-# --- independent numpy geometry (the contract's conventions, not the plant's code) ------------
-
-def rotation(th) -> np.ndarray:
-    """R = Rz(thz) @ Ry(thy) @ Rx(thx) for th = (thx, thy, thz)."""
-    cx, sx = np.cos(th[0]), np.sin(th[0])
-    cy, sy = np.cos(th[1]), np.sin(th[1])
-    cz, sz = np.cos(th[2]), np.sin(th[2])
-    rx = np.array([[1.0, 0.0, 0.0], [0.0, cx, -sx], [0.0, sx, cx]])
-    ry = np.array([[cy, 0.0, sy], [0.0, 1.0, 0.0], [-sy, 0.0, cy]])
-    rz = np.array([[cz, -sz, 0.0], [sz, cz, 0.0], [0.0, 0.0, 1.0]])
-    return rz @ ry @ rx
-
-
-def rate_matrix(th) -> np.ndarray:
-    """E(theta): omega = E thetadot; columns Rz Ry e_x, Rz e_y, e_z."""
-    cy, sy, cz, sz = np.cos(th[1]), np.sin(th[1]), np.cos(th[2]), np.sin(th[2])
-    return np.array([[cz * cy, -sz, 0.0], [sz * cy, cz, 0.0], [-sy, 0.0, 1.0]])
-
-
-def rate_matrix_dot(th, thd) -> np.ndarray:
-    """dE/dt along thetadot (analytic)."""
-    cy, sy, cz, sz = np.cos(th[1]), np.sin(th[1]), np.cos(th[2]), np.sin(th[2])
-    dy, dz = thd[1], thd[2]
-    return np.array([[-sz * dz * cy - cz * sy * dy, -cz * dz, 0.0],
-                     [cz * dz * cy - sz * sy * dy, -sz * dz, 0.0],
-                     [-cy * dy, 0.0, 0.0]])
-
-
-def leg_geometry(data: dict, q):
-    """Independent leg geometry of pose q from a scene dict: r_i = R p_i, L_i, l_i, u_i and the
-    Jacobian J (rows [u_i, r_i x u_i], ldot = J (v, omega))."""
-    a = np.asarray(data["geometry"]["base_joints"], dtype=float)
-    p = np.asarray(data["geometry"]["platform_joints"], dtype=float)
-    r = p @ rotation(q[3:]).T
-    L = q[:3] + r - a
-    l = np.linalg.norm(L, axis=1)
-    u = L / l[:, None]
-    return r, L, l, u, np.hstack([u, np.cross(r, u)])
-
-
-# --- residual log: every physics test records its worst residual and tolerance ----------------
-# Run with STEWART_RESIDUALS=1 to print the table at the end of the session.
-_RESIDUALS: dict[str, tuple[float, float]] = {}
-
-
-def setting(path: str, value):
-    """A mutation that sets the dotted key `path` of the scene dict to `value`."""
-    def apply(d):
-        *tables, key = path.split(".")
-        node = d
-        for t in tables:
-            node = node[t]
-        node[key] = value
-    return apply
-
-
-def deleting(path: str):
-    """A mutation that removes the dotted key (or table) `path`."""
-    def apply(d):
-        *tables, key = path.split(".")
-        node = d
-        for t in tables:
-            node = node[t]
-        del node[key]
-    return apply
-
-
-def record(name: str, worst: float, tol: float) -> None:
-    """Keep the worst residual of check `name` (and its tolerance) for the session summary."""
-    prev = _RESIDUALS.get(name, (0.0, tol))[0]
-    _RESIDUALS[name] = (max(prev, float(worst)), tol)
-
-
 def pytest_terminal_summary(terminalreporter, exitstatus, config):
-    import os
-
-    if not os.environ.get("STEWART_RESIDUALS") or not _RESIDUALS:
+    if not os.environ.get("STEWART_RESIDUALS") or not RESIDUALS:
         return
     tr = terminalreporter
     tr.section("worst residuals (value / tolerance)")
-    for name in sorted(_RESIDUALS):
-        worst, tol = _RESIDUALS[name]
+    for name in sorted(RESIDUALS):
+        worst, tol = RESIDUALS[name]
         tr.write_line(f"{name:72s} {worst:9.2e} / {tol:7.0e}")

@@ -1,0 +1,48 @@
+"""Feedforward of the axis controllers: the force the drives should supply (Kane inverse
+dynamics or the constant load), its voltage, and the bumpless start at the first pose."""
+from __future__ import annotations
+
+import numpy as np
+
+from stewart_fmu.dynamics import inverse_dynamics
+from stewart_fmu.model import Model
+
+from .config import ControllerConfig
+from .drive import AxisModel
+from .trajectory import LegReferences, Trajectory
+
+
+def feedforward_force(model: Model, config: ControllerConfig, axis: AxisModel,
+                      traj: Trajectory, refs: LegReferences) -> np.ndarray | None:
+    """Leg forces the feedforward of config.feedforward supplies (None: no feedforward)."""
+    if config.feedforward == "kane":
+        return inverse_dynamics(model, traj.q, traj.qd, traj.qdd)
+    if config.feedforward == "constant_load":
+        return axis.moving_mass * refs.lddot + axis.viscous * refs.ldot
+    return None
+
+
+def feedforward_voltage(model: Model, config: ControllerConfig, axis: AxisModel,
+                        traj: Trajectory, refs: LegReferences) -> tuple[np.ndarray, np.ndarray]:
+    """(voltage, current) feedforward per sample: R i + L di/dt + Ke' ldot_ref for the
+    feedforward force's current i = F / Kf (the device computes the same from F and dF/dt)."""
+    force = feedforward_force(model, config, axis, traj, refs)
+    if force is None:
+        return np.zeros_like(refs.l), np.zeros_like(refs.l)
+    current = force / axis.force_constant
+    di = np.gradient(force, traj.t, axis=0) / axis.force_constant
+    return axis.voltage(current, di, refs.ldot), current
+
+
+def start_at_equilibrium(model, traj, refs, gains, ctrl, motors, i_ff0, plant) -> None:
+    """The drives hold the platform at the first pose before the move (bumpless start): the
+    integral supplies what the feedforward's resistive and back-EMF parts do not, so the
+    feedforward's inductive part (L di/dt) still reaches the motor from the first sample."""
+    hold = inverse_dynamics(model, traj.q[0], traj.qd[0], np.zeros(6))
+    motors.current = hold / motors.axis.force_constant
+    v_hold = motors.axis.voltage(motors.current, 0.0, 0.0)
+    v_static = motors.axis.voltage(i_ff0, 0.0, refs.ldot[0])
+    ctrl.integral = (v_hold - v_static) / gains.ki if gains.ki > 0 else np.zeros(6)
+    if plant is not None:
+        plant.start(traj.q[0], traj.qd[0], float(traj.t[0]),
+                    motors.current * motors.axis.motor.torque_constant)

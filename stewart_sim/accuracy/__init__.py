@@ -1,0 +1,1 @@
+"""Work-precision of the integrators: `study` returns the data, `report` writes its files."""

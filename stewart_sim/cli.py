@@ -1,0 +1,441 @@
+"""The stewart-sim command line: arguments, exit statuses, and which pipeline each command runs
+(inverse_files, paper_report, demo, stewart_sim.run, fmu, scene_info).
+
+Subcommands: `inverse` (the contract's command), `paper` (Section 3 rerun), `demo` (what
+`make demo` runs), `run` (closed loop: the per-axis controllers around the plant or an FMU),
+`compare` (constant-load vs Kane control over a drive-inertia sweep), `accuracy` (error
+against run time of every integrator and of the co-simulation step), `sweep` (design sweeps
+on Dask), `scene-info`,
+`export-fmu` and `device` (the emulated micro-manipulator behind a MAVLink link). Exit status: 0 on success; 2 on a usage error or on an
+error in the inputs (every StewartError: scene, trajectory, pose); 1 when an output cannot be
+written (OutputError); 130 on Ctrl-C. Every output file is written atomically: an error leaves
+an existing file as it was.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from dataclasses import replace
+from pathlib import Path
+from typing import Sequence
+
+from controller.config import controller_config
+from controller.moves import DEMO_DURATION, DEMO_RATE, RUN_HOLD, RUN_MOVE, demo_trajectory
+from hil.spawn import serve_device
+from stewart_fmu import io
+from stewart_fmu.dynamics import present_parts
+from stewart_fmu.errors import SceneError, StewartError
+from stewart_fmu.fmu import export_fmu
+from stewart_fmu.io import OutputError, writing
+from stewart_fmu.model import Model
+from stewart_fmu.scene import load_scene
+from stewart_sim.accuracy.report import write_accuracy_report
+from stewart_sim.accuracy.study import CLOSED_LOOP_DURATION, COMM_STEP, HORIZON, accuracy_study
+from stewart_sim.inverse import run_inverse
+from stewart_sim.link_run import LINK_FILES, run_link_files
+from stewart_sim.paper.report import write_paper_report
+from stewart_sim.paper.study import PaperResults, run_paper_experiments
+from stewart_sim.plots import forces_figure, save_figure
+from stewart_sim.progress import Progress
+from stewart_sim.run import RUN_FILES, run_closed_loop_files, run_compare
+from stewart_sim.scene_info import describe_model
+
+PROG = "stewart-sim"
+DEFAULT_SCENE = Path("scenes") / "micro_manipulator.toml"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit status (0 ok, 1 I/O failure, 2 bad input)."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help, usage errors: argparse has printed the message
+        return exc.code if isinstance(exc.code, int) else 2
+    try:
+        args.run(args)
+    except StewartError as exc:
+        return _fail(str(exc), 2)
+    except OutputError as exc:
+        return _fail(str(exc), 1)
+    except KeyboardInterrupt:
+        return _fail("interrupted", 130)
+    return 0
+
+
+def _fail(message: str, status: int) -> int:
+    """Print `stewart-sim: error: message` on stderr and return the status."""
+    print(f"{PROG}: error: {message}", file=sys.stderr)
+    return status
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser with its subcommands."""
+    parser = argparse.ArgumentParser(
+        prog=PROG, description="Dynamics of Stewart platforms (Kane's method).",
+        epilog="Exit status: 0 ok, 2 usage error or bad scene/trajectory/pose, 1 a file could "
+               "not be written.")
+    sub = parser.add_subparsers(title="commands", required=True, metavar="COMMAND")
+
+    p = sub.add_parser("inverse", help="actuator forces along a trajectory",
+                       description="Actuator (rack) forces for a trajectory CSV, with exactly "
+                                   "the effects the scene declares.")
+    p.add_argument("scene", metavar="SCENE", help="scene file (TOML)")
+    p.add_argument("--trajectory", required=True, metavar="TRAJ.csv",
+                   help="columns t,x,y,z,thx,thy,thz, their rates d*, accelerations dd*")
+    p.add_argument("--out", required=True, metavar="FORCES.csv",
+                   help="written atomically: t,sigma1..sigma6,cond[,<part>1..<part>6 ...]")
+    p.add_argument("--parts", action="store_true",
+                   help="add the breakdown of sigma by contribution (the parts the scene has)")
+    p.set_defaults(run=cmd_inverse)
+
+    p = sub.add_parser("paper", help="rerun the paper's Section 3 experiments",
+                       description="Rerun the paper's Section 3 experiments and write the report.")
+    p.add_argument("scene", metavar="SCENE", nargs="?",
+                   help=f"scene file (default: {DEFAULT_SCENE}, from the current directory or "
+                        "the source checkout)")
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    p.set_defaults(run=cmd_paper)
+
+    p = sub.add_parser("demo", help="demonstration run (what `make demo` does)",
+                       description="A smooth six-axis demonstration move, its forces and plot, "
+                                   "and the paper rerun into DIR/paper/.")
+    p.add_argument("scene", metavar="SCENE", help="scene file (TOML)")
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    p.add_argument("--duration", type=_positive_seconds, default=DEMO_DURATION, metavar="SECONDS",
+                   help=f"length of the demonstration move (default {DEMO_DURATION:g} s, "
+                        f"sampled at {DEMO_RATE:g} Hz)")
+    p.set_defaults(run=cmd_demo)
+
+    p = sub.add_parser("run", help="closed-loop run: per-axis controllers around the plant",
+                       description="Track a demonstration reference (a quintic six-axis move "
+                                   "out and back, with holds) with the scene's per-axis "
+                                   "controllers ([controller] table) around the in-process plant "
+                                   "or an exported FMU; writes run.csv, three plots and "
+                                   "summary.md into DIR and prints the summary.")
+    p.add_argument("scene", metavar="SCENE", help="scene file (TOML) with a [controller] table")
+    p.add_argument("--fmu", metavar="PLANT.fmu",
+                   help="drive this FMU (export-fmu of the same scene) through fmpy instead of "
+                        "the in-process plant")
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    p.add_argument("--duration", type=_positive_seconds, default=DEMO_DURATION, metavar="SECONDS",
+                   help=f"length of the run (default {DEMO_DURATION:g} s): the move out and "
+                        f"back take {100 * RUN_MOVE:g} %% of it each, the holds after them "
+                        f"{100 * RUN_HOLD:g} %% each")
+    p.add_argument("--feedforward", choices=("none", "constant_load", "kane"),
+                   help="override the scene's controller.feedforward")
+    p.add_argument("--link", choices=("serial", "udp"),
+                   help="run the controller against the emulated device (hil.device, served "
+                        "in a thread) over a pseudo-terminal (serial) or loopback UDP instead "
+                        "of the in-process plant; writes run.csv and summary.md")
+    p.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep",
+                   help="with --link: lockstep (deterministic, one exchange per controller "
+                        "step; default) or realtime (wall clock, link delays visible)")
+    p.set_defaults(run=cmd_run)
+
+    p = sub.add_parser("compare", help="constant-load vs Kane control over a gear-ratio sweep",
+                       description="Sweep each scene's gear ratio (m_d / m_load over "
+                                   "0.1-100), re-tune the per-axis PID at every point and track "
+                                   "one reference with feedforward none, constant_load and "
+                                   "kane; writes comparison.csv, comparison.png and report.md.")
+    p.add_argument("scenes", metavar="SCENE", nargs="+", help="scene files (TOML)")
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    p.add_argument("--points", type=_sweep_points, default=8, metavar="N",
+                   help="log-spaced sweep points per scene (default 8; the scene's own gear "
+                        "ratio is added)")
+    p.set_defaults(run=cmd_compare)
+
+    p = sub.add_parser("accuracy", help="error against run time: integrators and the "
+                                        "co-simulation step",
+                       description="Work-precision report: forward simulations of the scene "
+                                   "with every integrator over a range of steps or tolerances "
+                                   "against a DOP853 reference at rtol 1e-13 (checked by "
+                                   "Radau), the convergence order of the fixed-step methods, "
+                                   "and the closed loop at several communication steps; "
+                                   "writes open_loop.csv, closed_loop.csv, work_precision.png "
+                                   "and summary.md into DIR.")
+    p.add_argument("scene", metavar="SCENE", help="scene file (TOML)")
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    p.add_argument("--horizon", type=_positive_seconds, default=HORIZON, metavar="SECONDS",
+                   help=f"open-loop simulated time (default {HORIZON:g} s)")
+    p.add_argument("--comm-step", type=_positive_seconds, default=COMM_STEP, metavar="SECONDS",
+                   help=f"open-loop communication step: the forces are held over it and the "
+                        f"fixed-step methods divide it (default {COMM_STEP:g} s)")
+    p.add_argument("--fine", action="store_true",
+                   help="finer sweep: every decade of rtol from 1e-3 to 1e-12, more steps")
+    p.add_argument("--repeats", type=_repeats, default=3, metavar="N",
+                   help="time each run N times or more (runs under 0.2 s repeat until then), keep "
+                        "the best; 1: a single timing (default 3)")
+    p.add_argument("--closed-loop-duration", type=_positive_seconds,
+                   default=CLOSED_LOOP_DURATION, metavar="SECONDS",
+                   help=f"length of the closed-loop runs (default {CLOSED_LOOP_DURATION:g} s)")
+    p.add_argument("--no-closed-loop", action="store_true",
+                   help="skip the closed loop (it needs the scene's [controller] table)")
+    p.set_defaults(run=cmd_accuracy)
+    p = sub.add_parser("sweep", help="design sweep (grid or Latin hypercube) on Dask",
+                       description="Evaluate every point of GRID.toml (inverse dynamics, closed "
+                                   "loop or workspace force envelope at scene and controller "
+                                   "values) on all local cores, or on a Dask cluster with "
+                                   "--scheduler; one row per point in DIR/sweep.csv, plots "
+                                   "beside it. A rerun into the same DIR resumes where the last "
+                                   "one stopped.")
+    p.add_argument("scene", metavar="SCENE", help="the base scene file (TOML)")
+    p.add_argument("--grid", required=True, metavar="GRID.toml",
+                   help="evaluation, trajectory or pose grid, and the [axes] to vary (README)")
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory (resumable)")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--scheduler", metavar="tcp://HOST:PORT",
+                       help="run on this Dask distributed scheduler's workers")
+    where.add_argument("--workers", type=_workers, metavar="N",
+                       help="local worker processes (default: one per core)")
+    p.add_argument("--no-plots", action="store_true", help="write the table only")
+    p.set_defaults(run=cmd_sweep)
+
+    p = sub.add_parser("scene-info", help="print the model a scene builds",
+                       description="Print the model a scene file builds.")
+    p.add_argument("scene", metavar="SCENE", help="scene file (TOML)")
+    p.set_defaults(run=cmd_scene_info)
+
+    p = sub.add_parser("export-fmu", help="export the plant as an FMI 2.0 co-simulation FMU",
+                       description="Build an FMI 2.0 co-simulation FMU of the scene's plant "
+                                   "(pythonfmu). It runs in the importer's Python, which needs "
+                                   "stewart-sim installed.")
+    p.add_argument("scene", metavar="SCENE", help="scene file (TOML)")
+    p.add_argument("-o", "--out", required=True, metavar="PLANT.fmu", help="the FMU to write")
+    p.set_defaults(run=cmd_export_fmu)
+
+    p = sub.add_parser("device", help="run the emulated micro-manipulator behind a MAVLink link",
+                       description="Run the scene's plant and drive servo loops at the "
+                                   "controller rate as an emulated device speaking MAVLink 2 "
+                                   "(our dialect, hil/message_definitions/stewart.xml) over UDP "
+                                   "on loopback or a pseudo-terminal, until interrupted (Ctrl-C "
+                                   "exits 0). The first line printed is the pseudo-terminal's "
+                                   "path, or the UDP address listened on.")
+    p.add_argument("scene", metavar="SCENE", help="scene file (TOML) with a [controller] table")
+    where = p.add_mutually_exclusive_group(required=True)
+    where.add_argument("--udp", metavar="127.0.0.1:PORT",
+                       help="listen on this loopback UDP port (0: any free port) and answer "
+                            "whoever sends to it")
+    where.add_argument("--pty", action="store_true",
+                       help="open a pseudo-terminal and print its path on the first line")
+    p.add_argument("--watchdog", type=_positive_seconds, default=0.2, metavar="SECONDS",
+                   help="safe stop (hold) after this long without a valid setpoint while armed "
+                        "(default 0.2 s)")
+    p.add_argument("--lockstep", action="store_true",
+                   help="advance time only on LOCKSTEP messages (deterministic runs)")
+    p.add_argument("--signing-key", metavar="HEX",
+                   help="MAVLink 2 signing key, 64 hex digits: unsigned or badly signed frames "
+                        "are rejected and counted")
+    p.set_defaults(run=cmd_device)
+    return parser
+
+
+def _number(convert, what: str, ok, rule: str):
+    """An argparse type: `convert(text)` that must satisfy `ok`, else a message saying `rule`."""
+    def parse(text: str):
+        try:
+            value = convert(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not {what}: {text!r}") from None
+        if not ok(value):
+            raise argparse.ArgumentTypeError(f"must be {rule}, got {text!r}")
+        return value
+    return parse
+
+
+_positive_seconds = _number(float, "a number", lambda v: math.isfinite(v) and v > 0,
+                            "a finite number of seconds > 0")
+_sweep_points = _number(int, "an integer", lambda v: 1 <= v <= 100, "1 to 100")
+_repeats = _number(int, "an integer", lambda v: 1 <= v <= 20, "1 to 20")
+_workers = _number(int, "an integer", lambda v: 1 <= v <= 1024, "1 to 1024")
+
+
+# --- inverse ---------------------------------------------------------------------------------
+
+def cmd_inverse(args: argparse.Namespace) -> None:
+    """`stewart-sim inverse SCENE --trajectory TRAJ.csv --out FORCES.csv [--parts]`."""
+    model = load_scene(args.scene)
+    progress = Progress()
+    try:
+        n, _ = run_inverse(model, Path(args.trajectory), Path(args.out), args.parts, progress)
+    finally:
+        progress.close()
+    print(f"wrote {args.out}: {n} samples" + (" with the breakdown by part" if args.parts else ""))
+
+
+# --- paper -----------------------------------------------------------------------------------
+
+def cmd_paper(args: argparse.Namespace) -> None:
+    """`stewart-sim paper [SCENE] --out DIR`."""
+    model = load_scene(resolve_scene(args.scene))
+    report = run_paper(model, Path(args.out))
+    print(f"wrote {report}")
+
+
+def resolve_scene(scene: str | None) -> Path:
+    """The scene given, else DEFAULT_SCENE here, else the one in the source checkout."""
+    if scene is not None:
+        return Path(scene)
+    if DEFAULT_SCENE.is_file():
+        return DEFAULT_SCENE
+    checkout = Path(__file__).resolve().parents[1] / DEFAULT_SCENE
+    if checkout.is_file():
+        return checkout
+    raise SceneError("<file>", f"no scene given, and no {DEFAULT_SCENE} in the current directory "
+                               f"({Path.cwd()}) or at {checkout}")
+
+
+def run_paper(model: Model, out: Path) -> Path:
+    """Rerun the paper's experiments into `out`, print the verdicts; returns report.md."""
+    results = run_paper_experiments(model)
+    with writing(out):
+        paths = write_paper_report(results, out)
+    print_verdicts(results)
+    return next(p for p in paths if p.name == "report.md")
+
+
+def print_verdicts(results: PaperResults) -> None:
+    """One line per claim of the paper: agrees / does not agree."""
+    print(f"paper rerun on '{results.scene}':")
+    for v in results.verdicts:
+        print(f"  {'agrees' if v.agrees else 'does not agree'}: {v.claim}")
+
+
+# --- demo ------------------------------------------------------------------------------------
+
+def cmd_demo(args: argparse.Namespace) -> None:
+    """`stewart-sim demo SCENE --out DIR [--duration S]`."""
+    model = load_scene(args.scene)
+    out = Path(args.out)
+    for path in run_demo(model, out, args.duration):
+        print(f"wrote {path}")
+
+
+def run_demo(model: Model, out: Path, duration: float) -> list[Path]:
+    """Demonstration trajectory, its forces (the `inverse` path), their plot, the paper rerun."""
+    t, q, qd, qdd = demo_trajectory(model, duration)
+    traj = out / "demo_trajectory.csv"
+    with writing(traj):
+        io.write_csv(traj, io.trajectory_table(t, q, qd, qdd))
+    forces = out / "demo_forces.csv"
+    progress = Progress()
+    try:
+        _, table = run_inverse(model, traj, forces, True, progress, keep=True)
+    finally:
+        progress.close()
+    title = f"{model.name}: demonstration move ({duration:g} s, {DEMO_RATE:g} Hz)"
+    png = out / "demo_forces.png"
+    with writing(png):
+        save_figure(forces_figure(table, present_parts(model), title), png)
+    written = [traj, forces, png]
+    if model.legs is None or model.drive is None:
+        print("paper rerun skipped: it needs the scene's [legs] and [drive]", file=sys.stderr)
+    else:
+        written.append(run_paper(model, out / "paper"))
+    return written
+
+
+# --- run -------------------------------------------------------------------------------------
+
+def cmd_run(args: argparse.Namespace) -> None:
+    """`stewart-sim run SCENE [--fmu PLANT.fmu | --link serial|udp [--mode lockstep|realtime]]
+    --out DIR [--duration S] [--feedforward F]`."""
+    model = load_scene(args.scene)
+    config = controller_config(model)
+    if args.feedforward is not None:
+        config = replace(config, feedforward=args.feedforward)
+    out = Path(args.out)
+    if args.link is not None:
+
+        if args.fmu:
+            raise StewartError("run: --fmu and --link exclude each other (the device over the "
+                               "link runs its own in-process plant)")
+        run_link_files(model, config, args.duration, out, args.link, args.mode)
+        print((out / "summary.md").read_text(encoding="utf-8"), end="")
+        for name in LINK_FILES:
+            print(f"wrote {out / name}")
+        return
+    if args.mode != "lockstep":
+        raise StewartError("run: --mode needs --link serial|udp")
+    result, traj = run_closed_loop_files(model, config, args.duration, out,
+                                         Path(args.fmu) if args.fmu else None)
+    print((out / "summary.md").read_text(encoding="utf-8"), end="")
+    for name in RUN_FILES:
+        print(f"wrote {out / name}")
+
+
+
+
+# --- compare ---------------------------------------------------------------------------------
+
+def cmd_compare(args: argparse.Namespace) -> None:
+    """`stewart-sim compare SCENE... --out DIR [--points N]`."""
+    out = Path(args.out)
+    for path in run_compare([Path(s) for s in args.scenes], out, args.points):
+        print(f"wrote {path}")
+
+
+# --- accuracy --------------------------------------------------------------------------------
+
+def cmd_accuracy(args: argparse.Namespace) -> None:
+    """`stewart-sim accuracy SCENE --out DIR [--horizon S] [--comm-step S] [--fine]
+    [--repeats N] [--closed-loop-duration S | --no-closed-loop]`."""
+    model = load_scene(args.scene)
+    out = Path(args.out)
+    progress = Progress()
+    try:
+        results = accuracy_study(
+            model, args.horizon, args.comm_step, "fine" if args.fine else "default",
+            args.repeats, None if args.no_closed_loop else args.closed_loop_duration,
+            lambda stage, done, total: progress.update(stage, done, total, unit="runs"))
+    finally:
+        progress.close()
+    with writing(out):
+        paths = write_accuracy_report(results, out)
+    for path in paths:
+        print(f"wrote {path}")
+
+
+# --- sweep -----------------------------------------------------------------------------------
+
+def cmd_sweep(args: argparse.Namespace) -> None:
+    """`stewart-sim sweep SCENE --grid GRID.toml --out DIR [--scheduler tcp://HOST:PORT |
+    --workers N] [--no-plots]`."""
+    from stewart_sim.sweep.files import run_sweep_files  # imports dask: only for this command
+
+    summary, written = run_sweep_files(Path(args.scene), Path(args.grid), Path(args.out),
+                                       args.scheduler, args.workers, not args.no_plots)
+    where = args.scheduler or "local cluster"
+    print(f"sweep: {summary.points} points, {summary.resumed} already done, {summary.computed} "
+          f"computed on {summary.workers} workers ({where}) in {summary.wall:.3g} s "
+          f"({summary.rate:.4g} points/s); {summary.failed} failed")
+    for path in written:
+        print(f"wrote {path}")
+
+
+# --- export-fmu ------------------------------------------------------------------------------
+
+def cmd_export_fmu(args: argparse.Namespace) -> None:
+    """`stewart-sim export-fmu SCENE -o PLANT.fmu`."""
+    out = Path(args.out)
+    with writing(out):
+        export_fmu(args.scene, out)
+    print(f"wrote {out}")
+
+
+# --- device ----------------------------------------------------------------------------------
+
+def cmd_device(args: argparse.Namespace) -> None:
+    """`stewart-sim device SCENE (--udp 127.0.0.1:PORT | --pty) [--watchdog S] [--lockstep]
+    [--signing-key HEX]`: serve until SIGINT or SIGTERM, then return (exit status 0)."""
+    serve_device(load_scene(args.scene), args.udp, args.watchdog, args.lockstep,
+                 args.signing_key)
+
+
+# --- scene-info ------------------------------------------------------------------------------
+
+def cmd_scene_info(args: argparse.Namespace) -> None:
+    """`stewart-sim scene-info SCENE`."""
+    print(describe_model(load_scene(args.scene)))
+
+

@@ -1,0 +1,1 @@
+"""Constant-load control against Kane feedforward over gear ratios: `study` and `report`."""

@@ -1,0 +1,168 @@
+"""Files of `stewart-sim run` and `compare`: the closed-loop run (CSV, plots, summary.md) on
+the in-process plant or an exported FMU, and the drive-inertia comparison report."""
+from __future__ import annotations
+
+import tomllib
+import zipfile
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from controller.config import controller_config
+from controller.cosim import run_closed_loop
+from controller.moves import RUN_HOLD, RUN_MOVE, run_reference
+from controller.plants import FmuPlant
+from stewart_fmu import io
+from stewart_fmu.errors import StewartError
+from stewart_fmu.fmu import SCENE_RESOURCE
+from stewart_fmu.io import writing
+from stewart_fmu.model import Model
+from stewart_fmu.scene import load_scene, scene_from_dict
+from stewart_sim.compare.report import write_comparison_report
+from stewart_sim.compare.study import compare_drive_inertia, regime
+from stewart_sim.plots import drive_figure, leg_errors_figure, save_figure, tracking_figure
+from stewart_sim.progress import Progress
+from stewart_sim.scene_info import format_vector
+
+RUN_FILES = ("run.csv", "run_tracking.png", "run_errors.png", "run_forces.png", "summary.md")
+
+def run_closed_loop_files(model: Model, config, duration: float, out: Path,
+                          fmu: Path | None = None):
+    """Run the closed loop (in-process plant, or the FMU) and write RUN_FILES into `out`;
+    returns (ClosedLoopResult, reference)."""
+
+    traj = run_reference(model, config, duration)
+    plant = open_fmu(fmu, model) if fmu is not None else None
+    progress = Progress()
+    try:
+        result = run_closed_loop(model, config, traj, plant=plant,
+                                 progress=lambda k, n: progress.update("closed loop", k, n))
+        progress.update("closed loop", len(traj.t), len(traj.t))
+    finally:
+        progress.close()
+        if plant is not None:
+            plant.close()
+    where = f"FMU {fmu}" if fmu is not None else "in-process plant"
+    title = (f"{model.name}: closed loop, feedforward {config.feedforward}, {where} "
+             f"({traj.t[-1]:g} s at {config.rate:g} Hz)")
+    m = config.motor
+    with writing(out):
+        io.write_csv(out / "run.csv", result.table)
+        save_figure(tracking_figure(result.table, f"{title}\npose tracking"),
+                    out / "run_tracking.png")
+        save_figure(leg_errors_figure(result.table, f"{title}\ntracking errors"),
+                    out / "run_errors.png")
+        save_figure(drive_figure(result.table, m.voltage_limit, m.current_limit,
+                                 f"{title}\ndrives"), out / "run_forces.png")
+        io.write_text(out / "summary.md", run_summary(model, result, traj, where))
+    return result, traj
+
+
+def open_fmu(path: Path, model: Model):
+    """controller.cosim.FmuPlant for `path`, after checking that the FMU was exported from a
+    scene with the same physical parameters as `model` (its resources/scene.toml)."""
+
+    if not path.is_file():
+        raise StewartError(f"no such FMU: {path}")
+    try:
+        with zipfile.ZipFile(path) as zf:
+            names = set(zf.namelist())
+            embedded = (tomllib.loads(zf.read(f"resources/{SCENE_RESOURCE}").decode("utf-8"))
+                        if f"resources/{SCENE_RESOURCE}" in names else None)
+    except (zipfile.BadZipFile, OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise StewartError(f"{path}: not a readable FMU: {exc}") from None
+    if embedded is not None:
+        other = scene_from_dict(embedded, source=f"{path}:resources/{SCENE_RESOURCE}")
+        if not np.array_equal(other.params, model.params):
+            raise StewartError(f"{path} was exported from a scene with other physical "
+                               f"parameters than {model.source}: the controller would be "
+                               "designed for another plant (export-fmu the same scene)")
+    try:
+        return FmuPlant(path)
+    except Exception as exc:  # fmpy raises plain exceptions for foreign or broken FMUs
+        raise StewartError(f"{path}: cannot load the FMU: {type(exc).__name__}: {exc}") from None
+
+
+def run_summary(model: Model, result, traj, where: str) -> str:
+    """summary.md of a run: design, tracking per leg and per pose coordinate, effort, timing."""
+    s, a, g, ax, cfg = result.summary, result.analysis, result.gains, result.axis, result.config
+    duration = float(traj.t[-1] - traj.t[0])
+    units = ("m", "m", "m", "rad", "rad", "rad")
+    lines = [
+        f"# Closed-loop run: {model.name}",
+        "",
+        f"- scene: `{model.source}`; plant: {where}",
+        f"- reference: quintic six-axis move out ({RUN_MOVE * duration:.6g} s), hold "
+        f"({RUN_HOLD * duration:.6g} s), move back, hold; {duration:.6g} s, "
+        f"{len(traj.t)} samples at {cfg.rate:.6g} Hz; goal pose "
+        f"{format_vector(traj.q[int(round(RUN_MOVE * duration * cfg.rate))])}",
+        f"- feedforward: {cfg.feedforward}",
+        "",
+        "## Design (each axis, constant load)",
+        "",
+        "| quantity | value |",
+        "|---|---:|",
+        f"| constant load m_load (kg) | {ax.load_mass:.6g} |",
+        f"| reflected drive inertia m_d (kg) | {ax.reflected_mass:.6g} |",
+        f"| force constant Kt zeta / r (N/A) | {ax.force_constant:.6g} |",
+        f"| Kp (V/m) | {g.kp:.6g} |",
+        f"| Ki (V/(m s)) | {g.ki:.6g} |",
+        f"| Kd (V s/m) | {g.kd:.6g} |",
+        f"| target crossover (Hz) | {cfg.bandwidth:.6g} |",
+        f"| crossover (Hz) | {a.crossover_hz:.6g} |",
+        f"| target phase margin (deg) | {cfg.phase_margin:.6g} |",
+        f"| phase margin (deg) | {a.phase_margin_deg:.6g} |",
+        f"| gain margin (dB) | {a.gain_margin_db:.6g} |",
+        f"| step rise time 10-90 % (s) | {a.rise_time:.6g} |",
+        f"| step overshoot (%) | {a.overshoot_pct:.6g} |",
+        f"| step settling time 2 % (s) | {a.settling_time:.6g} |",
+        "",
+        "## Tracking",
+        "",
+        "| leg | RMS error (m) | max error (m) | RMS voltage (V) | peak current (A) |",
+        "|---|---:|---:|---:|---:|",
+    ]
+    for i in range(6):
+        lines.append(f"| {i + 1} | {s.leg_rms[i]:.6g} | {s.leg_max[i]:.6g} | "
+                     f"{s.voltage_rms[i]:.6g} | {s.current_max[i]:.6g} |")
+    lines += ["", "| coordinate | unit | RMS error | max error |", "|---|---|---:|---:|"]
+    for k, name in enumerate(io.POSE):
+        lines.append(f"| {name} | {units[k]} | {s.pose_rms[k]:.6g} | {s.pose_max[k]:.6g} |")
+    lines += [
+        "",
+        "## Effort and timing",
+        "",
+        f"- peak current: {np.max(s.current_max):.6g} A (limit {cfg.motor.current_limit:.6g} A); "
+        f"largest RMS voltage: {np.max(s.voltage_rms):.6g} V (limit "
+        f"{cfg.motor.voltage_limit:.6g} V)",
+        f"- saturated time: {s.saturated_time:.6g} s of {duration:.6g} s (any axis at its "
+        "voltage or current limit)",
+        f"- wall time: {s.wall_time:.6g} s; real-time factor: {s.realtime_factor:.6g}",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def run_compare(scenes: Sequence[Path], out: Path, points: int = 8) -> list[Path]:
+    """The drive-inertia comparison of each scene (stewart_sim.compare.study), its files in `out`."""
+
+    models = [load_scene(s) for s in scenes]        # every scene checked before any work
+    configs = [controller_config(m) for m in models]
+    results = []
+    progress = Progress()
+    try:
+        for model, config in zip(models, configs):
+            results.append(compare_drive_inertia(
+                model, config, n_points=points,
+                progress=lambda k, n, name=model.name: progress.update(
+                    f"comparison of {name}, closed-loop", k, n)))
+    finally:
+        progress.close()
+    for c in results:
+        nom = c.nominal()
+        if nom is not None:
+            print(f"{c.scene}: m_d / m_load = {nom.mass_ratio:.3g}, coupling {nom.coupling:.3g}: "
+                  f"{regime(nom)}")
+    with writing(out):
+        return write_comparison_report(results, out)

@@ -1,0 +1,67 @@
+"""`scene-info`: the model a scene builds, as text."""
+from __future__ import annotations
+
+import numpy as np
+
+from stewart_fmu.kinematics import inverse_kinematics
+from stewart_fmu.model import Model
+
+
+def describe_model(model: Model) -> str:
+    """The model as text: name, effects, masses, m_d, home leg lengths, cond(J) at home."""
+    kin = inverse_kinematics(model, model.home)
+    lines = [
+        f"scene: {model.name}" + (f" ({model.source})" if model.source else ""),
+        f"effects: {', '.join(model.effects) or 'none'} (platform and gravity always)",
+        f"gravity: {format_vector(model.gravity)} m/s^2",
+        f"platform: mass {model.platform_mass:g} kg, principal inertia "
+        f"{format_vector(model.platform_inertia)} kg m^2",
+        _describe_legs(model), _describe_drive(model), _describe_friction(model),
+        f"stroke: [{_opt(model.leg_min)}, {_opt(model.leg_max)}] m",
+        f"home pose: {format_vector(model.home)} (m, rad)",
+        f"home leg lengths: {format_vector(kin.lengths)} m",
+        f"cond(J) at home: {kin.cond:.6g} (rotational columns scaled by "
+        f"{model.characteristic_length:.6g} m)",
+    ]
+    return "\n".join(lines)
+
+
+def _describe_legs(model: Model) -> str:
+    """Leg part masses, or that the legs are massless."""
+    lg = model.legs
+    if lg is None:
+        return "legs: none (massless)"
+    moving = model.platform_mass + 6 * (lg.lower_mass + lg.upper_mass)
+    return (f"legs: lower part {lg.lower_mass:g} kg (CoM {lg.lower_com:g} m from the base joint, "
+            f"inertia {format_vector(lg.lower_inertia)} kg m^2), upper part {lg.upper_mass:g} kg (CoM "
+            f"{lg.upper_com:g} m from the platform joint, inertia {format_vector(lg.upper_inertia)} "
+            "kg m^2); "
+            f"platform + 12 leg parts {moving:g} kg")
+
+
+def _describe_drive(model: Model) -> str:
+    """Drive parameters and m_d, or that there is none."""
+    dr = model.drive
+    if dr is None:
+        return "drive: none (m_d = 0, not modelled)"
+    return (f"drive: gear ratio {dr.gear_ratio:g}, rotor inertia {dr.rotor_inertia:g} kg m^2, "
+            f"pinion radius {dr.pinion_radius:g} m; m_d = zeta^2 I / r^2 = "
+            f"{dr.reflected_mass:.6g} kg")
+
+
+def _describe_friction(model: Model) -> str:
+    """Friction coefficients, or that there is none."""
+    fr = model.friction
+    if fr is None:
+        return "friction: none"
+    return f"friction: viscous {fr.viscous:g} N s/m, Coulomb {fr.coulomb:g} N"
+
+
+def format_vector(a) -> str:
+    """A vector as [a, b, c] with 6 significant digits."""
+    return "[" + ", ".join(f"{v:.6g}" for v in np.ravel(a)) + "]"
+
+
+def _opt(x: float | None) -> str:
+    """A number, or 'none'."""
+    return "none" if x is None else f"{x:g}"

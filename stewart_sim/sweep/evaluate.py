@@ -1,0 +1,189 @@
+"""The evaluation of sweep points: pure functions of (EvalSpec, points) -> one flat row per point.
+
+Each point is the base scene with the point's values put in (stewart_fmu.scene.apply_overrides)
+and one of:
+
+  inverse      the inverse dynamics along the point's trajectory: peak |sigma_i| per leg and
+               overall (rack force, drive included), peak motor torque sigma r / zeta, peak leg
+               power |sigma_i ldot_i|, worst cond(J);
+  closed_loop  the PID design at the point (controller.cosim.design_axis) and the closed loop
+               tracking the trajectory (stewart_sim.compare.study.run_mode): gains, margins,
+               tracking errors, effort;
+  envelope     the static (and load-case) forces over a pose grid about home: peak |sigma|,
+               worst cond(J) over the reachable poses, the reachable share.
+
+Trajectories (TrajectorySettings.kind): "demo" (controller.moves's six-axis raised-cosine move,
+fitted to the point's workspace), "run" (the `run` command's move out and back), "file" (a
+trajectory CSV read once by the caller). A point that fails (a bad scene value, a pose past the
+stroke or near a singularity, an infeasible design, a diverging loop) is a row with status
+"error" and the error's text; its results are NaN.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from controller.config import controller_config
+from controller.design import design_axis
+from controller.moves import demo_trajectory, run_reference
+from controller.trajectory import Trajectory
+from stewart_fmu.dynamics import inverse_dynamics
+from stewart_fmu.errors import StewartError
+from stewart_fmu.kinematics import COND_LIMIT, check_poses, inverse_kinematics
+from stewart_fmu.model import Model
+from stewart_fmu.scene import apply_overrides, scene_from_dict
+from stewart_sim.compare.study import run_mode
+from stewart_sim.sweep.grid import EnvelopeSettings, TrajectorySettings
+
+LEGS = tuple(f"sigma{i}_max" for i in range(1, 7))
+RESULTS = {
+    "inverse": (*LEGS, "sigma_max", "torque_max", "power_max", "cond_max"),
+    "closed_loop": ("kp", "ki", "kd", "phase_margin", "crossover_hz", "leg_err_rms",
+                    "leg_err_max", "pose_err_max_linear", "pose_err_max_angular", "current_max",
+                    "voltage_rms", "saturated_time"),
+    "envelope": (*LEGS, "sigma_max", "torque_max", "cond_max", "reachable"),
+}
+# Failures that make a point a row with its error: the package's typed errors, and numerical
+# failures inside third-party code (python-control's design, LAPACK).
+POINT_ERRORS = (StewartError, ArithmeticError, ValueError, np.linalg.LinAlgError)
+
+
+@dataclass(frozen=True)
+class EvalSpec:
+    """What every point of a sweep shares: sent once per task to wherever it runs."""
+
+    evaluation: str
+    scene: Mapping[str, Any]                 # the base scene (parsed TOML)
+    trajectory: TrajectorySettings = TrajectorySettings()
+    envelope: EnvelopeSettings = EnvelopeSettings()
+    files: Mapping[str, tuple[np.ndarray, ...]] = field(default_factory=dict)  # path -> t, q, qd, qdd
+    source: str | None = None                # the scene file (for messages)
+
+
+def columns(evaluation: str, keys: Sequence[str]) -> tuple[str, ...]:
+    """The table's columns: point id, the axes, status, error text, the results."""
+    return ("point", *keys, "status", "error", *RESULTS[evaluation])
+
+
+def evaluate_batch(spec: EvalSpec, points: Sequence[tuple[int, Mapping[str, Any]]]
+                   ) -> list[dict[str, Any]]:
+    """Rows of several points (a task); trajectories shared by points of one geometry are
+    computed once."""
+    cache: dict[str, Any] = {}
+    return [evaluate_point(spec, pid, values, cache) for pid, values in points]
+
+
+def evaluate_point(spec: EvalSpec, pid: int, values: Mapping[str, Any],
+                   cache: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The row of one point; failures become a row with status "error"."""
+    row: dict[str, Any] = {"point": pid, **values, "status": "ok", "error": ""}
+    nan = dict.fromkeys(RESULTS[spec.evaluation], np.nan)
+    try:
+        results = _EVALUATE[spec.evaluation](spec, values, {} if cache is None else cache)
+    except POINT_ERRORS as exc:
+        text = str(exc) if isinstance(exc, _RunFailed) else f"{type(exc).__name__}: {exc}"
+        return {**row, "status": "error", "error": text, **nan}
+    return {**row, **nan, **results}
+
+
+def point_scene(spec: EvalSpec, values: Mapping[str, Any]) -> dict[str, Any]:
+    """The point's scene dict: the base scene with the point's scene and controller values."""
+    overrides = {k: v for k, v in values.items() if not k.startswith("trajectory.")}
+    return apply_overrides(spec.scene, overrides)
+
+
+def point_model(spec: EvalSpec, values: Mapping[str, Any]) -> Model:
+    """The point's Model (SceneError for a value the scene rejects)."""
+    return scene_from_dict(point_scene(spec, values), spec.source)
+
+
+def point_trajectory(spec: EvalSpec, values: Mapping[str, Any]) -> TrajectorySettings:
+    """The trajectory settings with the point's trajectory.* values."""
+    t = {k.split(".", 1)[1]: v for k, v in values.items() if k.startswith("trajectory.")}
+    return replace(spec.trajectory, **t)
+
+
+def trajectory(spec: EvalSpec, model: Model, settings: TrajectorySettings,
+               rate: float) -> Trajectory:
+    """The point's trajectory (closed loop: sampled at the controller `rate`)."""
+    if settings.kind == "file":
+        return Trajectory(*spec.files[settings.file])
+    if settings.kind == "run":
+        return run_reference(model, replace(controller_config(model), rate=rate),
+                             settings.duration)
+    return Trajectory(*demo_trajectory(model, settings.duration, rate))
+
+
+def _inverse(spec: EvalSpec, values: Mapping[str, Any], cache: dict[str, Any]) -> dict[str, float]:
+    data = point_scene(spec, values)
+    model = scene_from_dict(data, spec.source)
+    settings = point_trajectory(spec, values)
+    rate = controller_config(model).rate if settings.kind == "run" else settings.rate
+    key = repr((sorted(data["geometry"].items()), settings, rate))
+    if key not in cache:  # the trajectory and its kinematics depend on the geometry only
+        traj = trajectory(spec, model, settings, rate)
+        kin = check_poses(model, traj.q, traj.t, traj.qd, traj.qdd)
+        cache[key] = (traj, kin.rates, float(kin.cond.max()))
+    traj, rates, cond = cache[key]
+    sigma = inverse_dynamics(model, traj.q, traj.qd, traj.qdd)
+    return {**_peaks(model, sigma), "power_max": float(np.max(np.abs(sigma * rates))),
+            "cond_max": cond}
+
+
+def _peaks(model: Model, sigma: np.ndarray) -> dict[str, float]:
+    """Peak |sigma| per leg and overall, and the peak motor torque it takes (NaN: no drive)."""
+    peak = np.max(np.abs(sigma), axis=0)
+    d = model.drive
+    torque = np.nan if d is None else float(peak.max()) * d.pinion_radius / d.gear_ratio
+    return {**dict(zip(LEGS, map(float, peak))), "sigma_max": float(peak.max()),
+            "torque_max": torque}
+
+
+def _closed_loop(spec: EvalSpec, values: Mapping[str, Any], cache: dict[str, Any]
+                 ) -> dict[str, float]:
+    model = point_model(spec, values)
+    config = controller_config(model)
+    traj = trajectory(spec, model, point_trajectory(spec, values), config.rate)
+    _, gains, analysis = design_axis(model, config)
+    run = run_mode(model, config, traj, gains, config.feedforward)
+    if run.status != "ok":
+        raise _RunFailed(run.message)
+    return {"kp": gains.kp, "ki": gains.ki, "kd": gains.kd,
+            "phase_margin": analysis.phase_margin_deg, "crossover_hz": analysis.crossover_hz,
+            "leg_err_rms": run.leg_rms, "leg_err_max": run.leg_max,
+            "pose_err_max_linear": run.pose_max_linear,
+            "pose_err_max_angular": run.pose_max_angular, "current_max": run.current_max,
+            "voltage_rms": run.voltage_rms, "saturated_time": run.saturated_time}
+
+
+class _RunFailed(StewartError):
+    """The closed loop failed; the message already names the error (diverged, step refused)."""
+
+
+def _envelope(spec: EvalSpec, values: Mapping[str, Any], cache: dict[str, Any]) -> dict[str, float]:
+    model = point_model(spec, values)
+    poses = model.home + spec.envelope.offsets()
+    ok, cond = reachable(model, poses)
+    if not ok.any():
+        raise StewartError(f"no pose of the envelope's {len(poses)} is reachable (stroke, "
+                           f"singularity)")
+    acc = np.array(spec.envelope.accelerations)
+    q = np.repeat(poses[ok], len(acc), axis=0)
+    qdd = np.tile(acc, (int(ok.sum()), 1))
+    sigma = inverse_dynamics(model, q, np.zeros_like(q), qdd)
+    return {**_peaks(model, sigma), "cond_max": float(cond[ok].max()),
+            "reachable": float(ok.mean())}
+
+
+def reachable(model: Model, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Which poses lie within the stroke and away from singularities, and cond(J) of each."""
+    kin = inverse_kinematics(model, poses)
+    lo = model.leg_min if model.leg_min is not None else 0.0
+    hi = model.leg_max if model.leg_max is not None else np.inf
+    inside = np.all((kin.lengths >= lo) & (kin.lengths <= hi) & (kin.lengths > 0), axis=1)
+    return inside & (kin.cond < COND_LIMIT), kin.cond
+
+
+_EVALUATE = {"inverse": _inverse, "closed_loop": _closed_loop, "envelope": _envelope}

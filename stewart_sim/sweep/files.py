@@ -1,0 +1,41 @@
+"""The `sweep` pipeline: GRID.toml -> the sweep on Dask (sweep_run) -> DIR/sweep.csv and the
+designer's plots."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from stewart_fmu.io import writing
+from stewart_fmu.scene import load_scene
+from stewart_sim.plots import save_figure
+from stewart_sim.progress import Progress
+from stewart_sim.sweep.grid import load_grid
+from stewart_sim.sweep.plots import METRIC, results_figure, workspace_figures
+from stewart_sim.sweep.run import SweepSummary, run_sweep
+from stewart_sim.sweep.table import read_table
+
+MAPS = ("force_envelope.png", "singularity_map.png")
+
+
+def run_sweep_files(scene: Path, grid_path: Path, out: Path, scheduler: str | None = None,
+                    workers: int | None = None, plots: bool = True
+                    ) -> tuple[SweepSummary, list[Path]]:
+    """Run or resume the sweep into `out`, then plot it; returns the summary and the files."""
+    grid = load_grid(grid_path)
+    model = load_scene(scene)
+    progress = Progress()
+    try:
+        with writing(out):
+            summary = run_sweep(scene, grid, out, scheduler, workers, progress)
+    finally:
+        progress.close()
+    written = [summary.table]
+    if plots:
+        title = f"{model.name}: {grid.evaluation} sweep over {', '.join(grid.keys)}"
+        figures = [(results_figure(read_table(summary.table), grid, title),
+                    METRIC[grid.evaluation][2])]
+        envelope = grid.envelope if grid.evaluation == "envelope" else None
+        figures += zip(workspace_figures(model, envelope), MAPS)
+        for fig, name in figures:
+            with writing(out / name):
+                written.append(save_figure(fig, out / name))
+    return summary, written
