@@ -195,7 +195,8 @@ int stewart_step_energy(const double *params, const double *y1, const double e0[
    n > max_steps); dopri5: error-controlled steps starting from *step_guess, which returns the
    next step to try (unused by fixed-step methods, may be NULL then). *evaluations (may be
    NULL) is set to the right-hand-side evaluations of this call. Status: OK, STROKE, SINGULAR,
-   GIMBAL, OVERFLOW, TOO_MANY_STEPS, STEP_TOO_SMALL (never NONFINITE). */
+   GIMBAL, OVERFLOW, TOO_MANY_STEPS, STEP_TOO_SMALL (never NONFINITE); -1 for an unknown
+   method. */
 int stewart_advance(const double *params, const stewart_options *o, const double *y0,
                     double *y1, const double rack[6], double h, double *step_guess,
                     long *evaluations);
@@ -226,8 +227,9 @@ typedef struct {
 void stewart_data_init(const double *params, const stewart_options *o, const double q[6],
                        const double qd[6], const double *rack, double t, stewart_data *d);
 
-/* One stewart_step of d over h; on OK d advances (y, energy, t, step_guess), otherwise d keeps
-   its state (only evaluations, excess and allowed are updated). */
+/* One stewart_step of d over h; on OK d advances (y, energy, t). step_guess, evaluations,
+   excess and allowed are updated whatever the status (as Plant does); on any status but OK
+   y, energy and t are kept (the step is rejected, the state is the step's start). */
 int stewart_data_step(const double *params, const stewart_options *o, stewart_data *d,
                       const double rack[6], double h);
 

@@ -1,0 +1,209 @@
+"""Thin typed wrappers over the C core (stewart.h) for numpy float64 arrays.
+
+The wrappers raise nothing themselves: each returns the C status code (the STEWART_* values,
+equal to dynamics.OK / NONFINITE / ..., kane.STROKE, integrators.TOO_MANY_STEPS /
+STEP_TOO_SMALL, and UNSTABLE = 102) with the results, so the Python API layer can map codes to
+its typed errors. Inputs must be C-contiguous float64 arrays of the documented shapes
+(unchecked, for speed: the C side trusts the sizes); outputs are written into `out` when
+given (no allocation), else into new arrays.
+
+params: the packed model vector (Model.params, 63 floats). `native_params(model.params)`
+converts it once to the C pointer the calls take; every function also accepts the numpy
+vector itself (one conversion per call more).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ._core import ffi, lib
+
+OK, NONFINITE, STROKE, SINGULAR, GIMBAL, OVERFLOW = (
+    lib.STEWART_OK, lib.STEWART_NONFINITE, lib.STEWART_STROKE, lib.STEWART_SINGULAR,
+    lib.STEWART_GIMBAL, lib.STEWART_OVERFLOW)
+TOO_MANY_STEPS, STEP_TOO_SMALL, UNSTABLE = (
+    lib.STEWART_TOO_MANY_STEPS, lib.STEWART_STEP_TOO_SMALL, lib.STEWART_UNSTABLE)
+METHODS = {"rk4": lib.STEWART_RK4, "euler": lib.STEWART_EULER, "dopri5": lib.STEWART_DOPRI5}
+N_PARAMS = lib.STEWART_N_PARAMS
+N_ENERGY = lib.STEWART_N_ENERGY
+
+_buf = ffi.from_buffer
+_D = "double[]"
+
+
+class NativeParams:
+    """The packed parameters as the C core reads them: a private read-only copy and its
+    pointer (convert once per model, pass to every call)."""
+
+    __slots__ = ("array", "ptr")
+
+    def __init__(self, params: np.ndarray):
+        arr = np.array(params, dtype=np.float64, copy=True)
+        if arr.shape != (N_PARAMS,):
+            raise ValueError(f"params must have {N_PARAMS} entries, got shape {arr.shape}")
+        self.array = arr
+        self.ptr = _buf(_D, arr)
+        arr.flags.writeable = False
+
+
+def native_params(params) -> NativeParams:
+    return params if isinstance(params, NativeParams) else NativeParams(params)
+
+
+def _p(params):
+    return params.ptr if type(params) is NativeParams else _buf(_D, params)
+
+
+def options(method: str = "rk4", rtol: float = 1e-8, atol: float = 1e-10,
+            max_step: float = 1e-3, max_steps: int = 10_000,
+            energy_tol: float = lib.STEWART_ENERGY_TOL):
+    """A stewart_options struct (cdata; keep it and reuse it)."""
+    o = ffi.new("stewart_options *")
+    o.method = METHODS[method]
+    o.rtol, o.atol, o.max_step, o.max_steps, o.energy_tol = rtol, atol, max_step, max_steps, energy_tol
+    return o
+
+
+def state_size(params) -> int:
+    return lib.stewart_state_size(_p(params))
+
+
+# --- dynamics --------------------------------------------------------------------------------
+
+def inverse_dynamics(params, q, qd, qdd, out=None):
+    """(sigma (6,), status) of one sample."""
+    if out is None:
+        out = np.empty(6)
+    return out, lib.stewart_inverse_dynamics(_p(params), _buf(_D, q), _buf(_D, qd),
+                                             _buf(_D, qdd), _buf(_D, out))
+
+
+def inverse_dynamics_parts(params, q, qd, qdd, out=None):
+    """(parts (6 parts, 6 legs) in dynamics.PARTS order, status) of one sample."""
+    if out is None:
+        out = np.empty((6, 6))
+    return out, lib.stewart_inverse_dynamics_parts(_p(params), _buf(_D, q), _buf(_D, qd),
+                                                   _buf(_D, qdd), _buf(_D, out))
+
+
+def forward_dynamics(params, q, qd, sigma, out=None):
+    """(qdd (6,), status) of one sample."""
+    if out is None:
+        out = np.empty(6)
+    return out, lib.stewart_forward_dynamics(_p(params), _buf(_D, q), _buf(_D, qd),
+                                             _buf(_D, sigma), _buf(_D, out))
+
+
+def _batch(fn, shape, params, a, b, c, out):
+    n = a.shape[0]
+    if out is None:
+        out = np.empty((n,) + shape)
+    status = ffi.new("int *")
+    index = fn(_p(params), n, _buf(_D, a), _buf(_D, b), _buf(_D, c), _buf(_D, out), status)
+    return out, index, status[0]
+
+
+def inverse_dynamics_batch(params, Q, QD, QDD, out=None):
+    """(sigma (N, 6), index of the first bad sample or -1, its status)."""
+    return _batch(lib.stewart_inverse_dynamics_batch, (6,), params, Q, QD, QDD, out)
+
+
+def inverse_dynamics_parts_batch(params, Q, QD, QDD, out=None):
+    """(parts (N, 6, 6), index of the first bad sample or -1, its status)."""
+    return _batch(lib.stewart_inverse_dynamics_parts_batch, (6, 6), params, Q, QD, QDD, out)
+
+
+def forward_dynamics_batch(params, Q, QD, SIGMA, out=None):
+    """(qdd (N, 6), index of the first bad sample or -1, its status)."""
+    return _batch(lib.stewart_forward_dynamics_batch, (6,), params, Q, QD, SIGMA, out)
+
+
+# --- kinematics and Kane terms ---------------------------------------------------------------
+
+def leg_state(params, q, qd):
+    """(lengths, rates, omega, status)."""
+    l, ld, om = np.empty(6), np.empty(6), np.empty(3)
+    st = lib.stewart_leg_state(_p(params), _buf(_D, q), _buf(_D, qd), _buf(_D, l),
+                               _buf(_D, ld), _buf(_D, om))
+    return l, ld, om, st
+
+
+def jacobian(params, q, scaled: bool = False):
+    """(J (6, 6), status); scaled: rotational columns divided by the characteristic length."""
+    J = np.empty((6, 6))
+    return J, lib.stewart_jacobian(_p(params), _buf(_D, q), int(scaled), _buf(_D, J))
+
+
+def condition_number(params, q):
+    """(cond of the scaled J, status)."""
+    c = ffi.new("double *")
+    st = lib.stewart_condition_number(_p(params), _buf(_D, q), c)
+    return c[0], st
+
+
+def twist_forces(params, q, qd, qdd):
+    """(gen (4, 6), leg rows (6, 3) of (l, ldot, lddot), status) (kane.twist_forces)."""
+    gen, leg = np.empty((4, 6)), np.empty((6, 3))
+    st = lib.stewart_twist_forces(_p(params), _buf(_D, q), _buf(_D, qd), _buf(_D, qdd),
+                                  _buf(_D, gen), _buf(_D, leg))
+    return gen, leg, st
+
+
+def mass_matrix(params, q):
+    """(M_nu (6, 6), status), the twist-space mass matrix (kane.twist_mass_matrix)."""
+    M = np.empty((6, 6))
+    return M, lib.stewart_mass_matrix(_p(params), _buf(_D, q), _buf(_D, M))
+
+
+# --- plant -----------------------------------------------------------------------------------
+
+def derivative(params, y, rack, out=None):
+    """(y' , status) at the plant state y (12 or 24) with the rack forces held."""
+    if out is None:
+        out = np.empty(y.shape[0])
+    return out, lib.stewart_derivative(_p(params), _buf(_D, y), _buf(_D, rack), _buf(_D, out))
+
+
+def spring_forces(params, y):
+    f = np.empty(6)
+    return f, lib.stewart_spring_forces(_p(params), _buf(_D, y), _buf(_D, f))
+
+
+def initial_state(params, q, qd, rack=None):
+    y = np.empty(state_size(params))
+    lib.stewart_initial_state(_p(params), _buf(_D, q), _buf(_D, qd),
+                              ffi.NULL if rack is None else _buf(_D, rack), _buf(_D, y))
+    return y
+
+
+def energy_terms(params, y, out=None):
+    """(T, V_g, V_s, d_1..d_6) at y (energy.energy_terms)."""
+    if out is None:
+        out = np.empty(N_ENERGY)
+    lib.stewart_energy_terms(_p(params), _buf(_D, y), _buf(_D, out))
+    return out
+
+
+def step_energy(params, y1, e0, e1, rack, tol=lib.STEWART_ENERGY_TOL):
+    """(finite, excess, allowed) as stability.step_energy (e1 written)."""
+    ex, al = ffi.new("double *"), ffi.new("double *")
+    ok = lib.stewart_step_energy(_p(params), _buf(_D, y1), _buf(_D, e0), _buf(_D, e1),
+                                 _buf(_D, rack), tol, ex, al)
+    return bool(ok), ex[0], al[0]
+
+
+def advance(params, opts, y0, y1, rack, h, step_guess=None):
+    """y1 = y0 advanced over h: (status, next step guess, evaluations)."""
+    sg = ffi.new("double *", opts.max_step if step_guess is None else step_guess)
+    ev = ffi.new("long *")
+    st = lib.stewart_advance(_p(params), opts, _buf(_D, y0), _buf(_D, y1), _buf(_D, rack), h,
+                             sg, ev)
+    return st, sg[0], ev[0]
+
+
+def step(params, opts, y0, y1, rack, h, e0, e1, step_guess=None):
+    """The plant step (stewart_step): (status, next step guess, evaluations, excess, allowed)."""
+    sg = ffi.new("double *", opts.max_step if step_guess is None else step_guess)
+    ev, ex, al = ffi.new("long *"), ffi.new("double *"), ffi.new("double *")
+    st = lib.stewart_step(_p(params), opts, _buf(_D, y0), _buf(_D, y1), _buf(_D, rack), h, sg,
+                          ev, _buf(_D, e0), _buf(_D, e1), ex, al)
+    return st, sg[0], ev[0], ex[0], al[0]
