@@ -233,6 +233,12 @@ void stewart_data_init(const double *params, const stewart_options *o, const dou
 int stewart_data_step(const double *params, const stewart_options *o, stewart_data *d,
                       const double rack[6], double h);
 
+/* n stewart_data_steps of h with the rack forces held (a constant-input run, and a timing loop
+   without per-step call overhead); stops at the first status but OK and returns it, with
+   *done (may be NULL) the steps completed. */
+int stewart_data_run(const double *params, const stewart_options *o, stewart_data *d,
+                     const double rack[6], double h, long n, long *done);
+
 #ifdef __cplusplus
 }
 #endif

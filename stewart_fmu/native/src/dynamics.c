@@ -5,8 +5,6 @@
 
 #define P(k) p[STEWART_P_##k]
 
-static const double ZERO6[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
-
 static int finite6(const double a[6])
 {
     int j;
@@ -120,8 +118,8 @@ int sw_forward_sample(const double *p, const double q[6], const double qd[6],
     int status, k, i;
     double net[6], a[3], c, res[6];
     const double *gen = ws->gen;
-    sw_orientation(q, qd, ZERO6, ws->R, ws->om, ws->al);  /* al = Edot thd */
-    status = sw_twist_forces(p, q, qd, ZERO6, ZERO6, ws);
+    sw_orientation(q, qd, SW_ZERO6, ws->R, ws->om, ws->al);  /* al = Edot thd */
+    status = sw_twist_forces(p, q, qd, SW_ZERO6, SW_ZERO6, ws);
     if (status != STEWART_OK)
         return status;
     sw_twist_mass_matrix(p, ws);

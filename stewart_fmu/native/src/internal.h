@@ -9,6 +9,9 @@
 #define PY_MIN(a, b) ((b) < (a) ? (b) : (a))
 #define PY_MAX(a, b) ((b) > (a) ? (b) : (a))
 
+/* Six zeros: a pose row at rest. */
+static const double SW_ZERO6[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+
 /* Scratch of one sample (dynamics._workspace): R, omega, alpha, unit vectors U, lever arms
    Rr = R p_i, leg rows (l, ldot, lddot), J^T (scaled, rows stored where order[1] says), the
    generalized forces gen (4 x 6), a right-hand side and the twist mass matrix. order carries

@@ -3,16 +3,14 @@
 #include <math.h>
 #include "internal.h"
 
-static const double ZERO6[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
-
 int stewart_leg_state(const double *params, const double q[6], const double qd[6],
                       double l[6], double ldot[6], double omega[3])
 {
     sw_ws ws;
     int st, i;
     sw_ws_init(&ws);
-    sw_orientation(q, qd, ZERO6, ws.R, ws.om, ws.al);
-    st = sw_twist_forces(params, q, qd, ZERO6, ws.al, &ws);
+    sw_orientation(q, qd, SW_ZERO6, ws.R, ws.om, ws.al);
+    st = sw_twist_forces(params, q, qd, SW_ZERO6, ws.al, &ws);
     for (i = 0; i < 6; ++i) {
         l[i] = ws.leg[3 * i];
         ldot[i] = ws.leg[3 * i + 1];
@@ -43,8 +41,8 @@ int stewart_jacobian(const double *params, const double q[6], int scaled, double
     sw_ws ws;
     int st;
     sw_ws_init(&ws);
-    sw_orientation(q, ZERO6, ZERO6, ws.R, ws.om, ws.al);
-    st = sw_twist_forces(params, q, ZERO6, ZERO6, ws.al, &ws);
+    sw_orientation(q, SW_ZERO6, SW_ZERO6, ws.R, ws.om, ws.al);
+    st = sw_twist_forces(params, q, SW_ZERO6, SW_ZERO6, ws.al, &ws);
     jacobian_rows(&ws, scaled ? 1.0 / params[STEWART_P_CHAR_LENGTH] : 1.0, J);
     return st;
 }

@@ -66,3 +66,18 @@ int stewart_data_step(const double *params, const stewart_options *o, stewart_da
     }
     return status;
 }
+
+int stewart_data_run(const double *params, const stewart_options *o, stewart_data *d,
+                     const double rack[6], double h, long n, long *done)
+{
+    long k;
+    int status = STEWART_OK;
+    for (k = 0; k < n; ++k) {
+        status = stewart_data_step(params, o, d, rack, h);
+        if (status != STEWART_OK)
+            break;
+    }
+    if (done)
+        *done = k;
+    return status;
+}

@@ -6,8 +6,6 @@
 
 #define P(k) p[STEWART_P_##k]
 
-static const double ZERO6[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
-
 void stewart_leg_side_params(const double *params, double out[STEWART_N_PARAMS])
 {
     int k;
@@ -20,8 +18,8 @@ void stewart_leg_side_params(const double *params, double out[STEWART_N_PARAMS])
 /* R, omega, U, Rr and the leg rows (l, ld) at y's pose and rates (transmission.leg_kinematics). */
 int sw_leg_kinematics(const double *pl, const double *y, sw_ws *ws)
 {
-    sw_orientation(y, y + 6, ZERO6, ws->R, ws->om, ws->al);
-    return sw_twist_forces(pl, y, y + 6, ZERO6, ws->al, ws);
+    sw_orientation(y, y + 6, SW_ZERO6, ws->R, ws->om, ws->al);
+    return sw_twist_forces(pl, y, y + 6, SW_ZERO6, ws->al, ws);
 }
 
 static double spring(const double *p, const double *y, const sw_ws *ws, int i)
