@@ -122,7 +122,7 @@ int sw_forward_sample(const double *p, const double q[6], const double qd[6],
     status = sw_twist_forces(p, q, qd, SW_ZERO6, SW_ZERO6, ws);
     if (status != STEWART_OK)
         return status;
-    sw_twist_mass_matrix(p, ws);
+    sw_twist_mass_matrix(p, ws, 0);  /* the Cholesky solve reads the lower triangle */
     c = P(CHAR_LENGTH);
     for (i = 0; i < 6; ++i)
         net[i] = sigma[i] - friction(p, ws->leg[3 * i + 1]) - drive_force(p, ws->leg[3 * i + 2]);

@@ -15,7 +15,7 @@ void sw_energy_terms(const double *p, const double *y, sw_ws *ws, double out[9])
     int a, b, i;
     stewart_leg_side_params(p, pl);
     sw_leg_kinematics(pl, y, ws);
-    sw_twist_mass_matrix(pl, ws);
+    sw_twist_mass_matrix(pl, ws, 1);
     nu[0] = y[6];
     nu[1] = y[7];
     nu[2] = y[8];

@@ -39,7 +39,7 @@ void sw_singular_values(const double A[36], double s[6]);
 /* kane.c */
 int sw_twist_forces(const double *p, const double x[6], const double v[6], const double acc[6],
                     const double al[3], sw_ws *ws);
-void sw_twist_mass_matrix(const double *p, sw_ws *ws);
+void sw_twist_mass_matrix(const double *p, sw_ws *ws, int full);
 
 /* dynamics.c */
 int sw_inverse_sample(const double *p, const double q[6], const double qd[6],

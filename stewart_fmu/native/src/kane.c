@@ -67,7 +67,7 @@ int sw_twist_forces(const double *p, const double x[6], const double v[6], const
     const double mp = P(MASS);
     const double *R = ws->R, *om = ws->om;
     const int *at = ws->order + 6;
-    double *gen = ws->gen;
+    double *gen = ws->gen, inv[6];
     const int has_legs = P(HAS_LEGS) != 0.0;
     const double ic = 1.0 / P(CHAR_LENGTH);
     const double mA = P(LOWER), cA = p[STEWART_P_LOWER + 1], ItA = p[STEWART_P_LOWER + 2];
@@ -78,16 +78,29 @@ int sw_twist_forces(const double *p, const double x[6], const double v[6], const
     gen[18] = mp * gx;
     gen[19] = mp * gy;
     gen[20] = mp * gz;
+    /* Leg kinematics first, all six legs: r = R p_i, L = x + r - a_i, l = |L| (the square
+       roots and divisions of the legs are independent: this lets them overlap). */
     for (i = 0; i < 6; ++i) {
         const int b = STEWART_P_PLATFORM + 3 * i, a = STEWART_P_BASE + 3 * i;
-        /* Leg kinematics: r = R p_i, L = x + r - a_i, u = L / l. */
-        double rx = R[0] * p[b] + R[1] * p[b + 1] + R[2] * p[b + 2];
-        double ry = R[3] * p[b] + R[4] * p[b + 1] + R[5] * p[b + 2];
-        double rz = R[6] * p[b] + R[7] * p[b + 1] + R[8] * p[b + 2];
-        double Lx = x[0] + rx - p[a], Ly = x[1] + ry - p[a + 1], Lz = x[2] + rz - p[a + 2];
-        double l = sqrt(Lx * Lx + Ly * Ly + Lz * Lz);
-        double il = 1.0 / l;
-        double ux = Lx * il, uy = Ly * il, uz = Lz * il;
+        const double rx = R[0] * p[b] + R[1] * p[b + 1] + R[2] * p[b + 2];
+        const double ry = R[3] * p[b] + R[4] * p[b + 1] + R[5] * p[b + 2];
+        const double rz = R[6] * p[b] + R[7] * p[b + 1] + R[8] * p[b + 2];
+        const double Lx = x[0] + rx - p[a], Ly = x[1] + ry - p[a + 1], Lz = x[2] + rz - p[a + 2];
+        ws->Rr[3 * i] = rx;
+        ws->Rr[3 * i + 1] = ry;
+        ws->Rr[3 * i + 2] = rz;
+        ws->U[3 * i] = Lx;
+        ws->U[3 * i + 1] = Ly;
+        ws->U[3 * i + 2] = Lz;
+        ws->leg[3 * i] = sqrt(Lx * Lx + Ly * Ly + Lz * Lz);
+    }
+    for (i = 0; i < 6; ++i)
+        inv[i] = 1.0 / ws->leg[3 * i];  /* one division per leg: the rest multiply */
+    for (i = 0; i < 6; ++i) {
+        const double rx = ws->Rr[3 * i], ry = ws->Rr[3 * i + 1], rz = ws->Rr[3 * i + 2];
+        const double l = ws->leg[3 * i], il = inv[i];
+        const double ux = ws->U[3 * i] * il, uy = ws->U[3 * i + 1] * il,
+                     uz = ws->U[3 * i + 2] * il;
         double wrx, wry, wrz, vpx, vpy, vpz, apx, apy, apz, ld, udx, udy, udz, ud2, ldd;
         double uddx, uddy, uddz;
         if (l < P(LEG_MIN) || l > P(LEG_MAX))
@@ -115,10 +128,6 @@ int sw_twist_forces(const double *p, const double x[6], const double v[6], const
         ws->U[3 * i] = ux;
         ws->U[3 * i + 1] = uy;
         ws->U[3 * i + 2] = uz;
-        ws->Rr[3 * i] = rx;
-        ws->Rr[3 * i + 1] = ry;
-        ws->Rr[3 * i + 2] = rz;
-        ws->leg[3 * i] = l;
         ws->leg[3 * i + 1] = ld;
         ws->leg[3 * i + 2] = ldd;
         ws->JT[at[0] * 6 + i] = ux;
@@ -156,8 +165,9 @@ int sw_twist_forces(const double *p, const double x[6], const double v[6], const
 
 /* M_nu = M_platform + sum_i S_i^T (M_leg,i + m_d u u^T) S_i, S_i = [I, -[r_i]x]
    (kane.twist_mass_matrix); M_leg = m_B uu^T + (k / l^2) P, k = m_A c_A^2 + m_B (l - c_B)^2
-   + I_tA + I_tB. Reads ws->R, U, Rr, leg; writes ws->Mt. */
-void sw_twist_mass_matrix(const double *p, sw_ws *ws)
+   + I_tA + I_tB. Reads ws->R, U, Rr, leg; writes ws->Mt, all of it when `full`, else only
+   its lower triangle (all that sw_cholesky_solve reads; each entry computed as in full). */
+void sw_twist_mass_matrix(const double *p, sw_ws *ws, int full)
 {
     const int has_legs = P(HAS_LEGS) != 0.0, has_drive = P(HAS_DRIVE) != 0.0;
     double *Mt = ws->Mt;
@@ -192,7 +202,7 @@ void sw_twist_mass_matrix(const double *p, sw_ws *ws)
                 s1y += kp * r1;
                 s1z += kp * r2;
                 for (a = 0; a < 3; ++a)
-                    for (b = 0; b < 3; ++b)
+                    for (b = 0; b < (full ? 3 : a + 1); ++b)
                         Mt[(3 + a) * 6 + 3 + b] += kp * ((a == b ? rr : 0.0) - rv[a] * rv[b]);
             }
             /* ax j j^T, j the Jacobian row [u; r x u] */
@@ -202,9 +212,11 @@ void sw_twist_mass_matrix(const double *p, sw_ws *ws)
             j[3] = r1 * u2 - r2 * u1;
             j[4] = r2 * u0 - r0 * u2;
             j[5] = r0 * u1 - r1 * u0;
-            for (a = 0; a < 6; ++a)
-                for (b = 0; b < 6; ++b)
-                    Mt[a * 6 + b] += ax * j[a] * j[b];
+            for (a = 0; a < 6; ++a) {
+                const double aj = ax * j[a];
+                for (b = 0; b < (full ? 6 : a + 1); ++b)
+                    Mt[a * 6 + b] += aj * j[b];
+            }
         }
         if (has_legs) {
             for (a = 0; a < 3; ++a)
@@ -219,7 +231,7 @@ void sw_twist_mass_matrix(const double *p, sw_ws *ws)
         }
     }
     for (a = 0; a < 3; ++a)
-        for (b = 0; b < 3; ++b) {
+        for (b = 0; b < (full ? 3 : a + 1); ++b) {
             double s = 0.0;
             for (k = 0; k < 3; ++k)
                 s += R[a * 3 + k] * p[STEWART_P_INERTIA + k] * R[b * 3 + k];
@@ -250,7 +262,7 @@ int stewart_mass_matrix(const double *params, const double q[6], double M[36])
     sw_ws_init(&ws);
     sw_orientation(q, zero, zero, ws.R, ws.om, ws.al);
     st = sw_twist_forces(params, q, zero, zero, ws.al, &ws);
-    sw_twist_mass_matrix(params, &ws);
+    sw_twist_mass_matrix(params, &ws, 1);
     for (k = 0; k < 36; ++k)
         M[k] = ws.Mt[k];
     return st;
