@@ -37,7 +37,14 @@ def _cdef() -> str:
             continue
         else:
             out.append(line)
-    return "\n".join(out)
+    decls = "\n".join(out)
+    # Array arguments as `void *` for cffi (the C prototypes keep their types; C converts void *
+    # implicitly): Python then passes ffi.from_buffer(array) without a type, ~35 ns less per
+    # argument than from_buffer("double[]", array). Struct fields are left as declared.
+    def untyped(m: re.Match) -> str:
+        args = re.sub(r"\b(?:const\s+)?double\s*\*\s*(\w+)", r"void *\1", m.group(0))
+        return re.sub(r"\b(?:const\s+)?double\s+(\w+)\s*\[[^\]]*\]", r"void *\1", args)
+    return re.sub(r"\([^()]*\)", untyped, decls)
 
 
 def _relative(path: Path) -> str:

@@ -26,8 +26,9 @@ METHODS = {"rk4": lib.STEWART_RK4, "euler": lib.STEWART_EULER, "dopri5": lib.STE
 N_PARAMS = lib.STEWART_N_PARAMS
 N_ENERGY = lib.STEWART_N_ENERGY
 
+# Arrays reach C through ffi.from_buffer (no copy; the cffi declarations take them as void *,
+# see build_core._cdef): the C side reads them as double arrays of the documented sizes.
 _buf = ffi.from_buffer
-_D = "double[]"
 
 
 class NativeParams:
@@ -41,7 +42,7 @@ class NativeParams:
         if arr.shape != (N_PARAMS,):
             raise ValueError(f"params must have {N_PARAMS} entries, got shape {arr.shape}")
         self.array = arr
-        self.ptr = _buf(_D, arr)
+        self.ptr = _buf(arr)
         arr.flags.writeable = False
 
 
@@ -50,7 +51,7 @@ def native_params(params) -> NativeParams:
 
 
 def _p(params):
-    return params.ptr if type(params) is NativeParams else _buf(_D, params)
+    return params.ptr if type(params) is NativeParams else _buf(params)
 
 
 def options(method: str = "rk4", rtol: float = 1e-8, atol: float = 1e-10,
@@ -69,28 +70,33 @@ def state_size(params) -> int:
 
 # --- dynamics --------------------------------------------------------------------------------
 
-def inverse_dynamics(params, q, qd, qdd, out=None):
+# The single-sample wrappers bind what they call as default arguments (local lookups): a call
+# costs the four from_buffer conversions and the C call, little else.
+
+def inverse_dynamics(params, q, qd, qdd, out=None, _b=_buf, _np=NativeParams, _e=np.empty,
+                     _f=lib.stewart_inverse_dynamics):
     """(sigma (6,), status) of one sample."""
     if out is None:
-        out = np.empty(6)
-    return out, lib.stewart_inverse_dynamics(_p(params), _buf(_D, q), _buf(_D, qd),
-                                             _buf(_D, qdd), _buf(_D, out))
+        out = _e(6)
+    return out, _f(params.ptr if type(params) is _np else _b(params), _b(q), _b(qd), _b(qdd),
+                   _b(out))
 
 
 def inverse_dynamics_parts(params, q, qd, qdd, out=None):
     """(parts (6 parts, 6 legs) in dynamics.PARTS order, status) of one sample."""
     if out is None:
         out = np.empty((6, 6))
-    return out, lib.stewart_inverse_dynamics_parts(_p(params), _buf(_D, q), _buf(_D, qd),
-                                                   _buf(_D, qdd), _buf(_D, out))
+    return out, lib.stewart_inverse_dynamics_parts(_p(params), _buf(q), _buf(qd),
+                                                   _buf(qdd), _buf(out))
 
 
-def forward_dynamics(params, q, qd, sigma, out=None):
+def forward_dynamics(params, q, qd, sigma, out=None, _b=_buf, _np=NativeParams, _e=np.empty,
+                     _f=lib.stewart_forward_dynamics):
     """(qdd (6,), status) of one sample."""
     if out is None:
-        out = np.empty(6)
-    return out, lib.stewart_forward_dynamics(_p(params), _buf(_D, q), _buf(_D, qd),
-                                             _buf(_D, sigma), _buf(_D, out))
+        out = _e(6)
+    return out, _f(params.ptr if type(params) is _np else _b(params), _b(q), _b(qd), _b(sigma),
+                   _b(out))
 
 
 def _batch(fn, shape, params, a, b, c, out):
@@ -98,7 +104,7 @@ def _batch(fn, shape, params, a, b, c, out):
     if out is None:
         out = np.empty((n,) + shape)
     status = ffi.new("int *")
-    index = fn(_p(params), n, _buf(_D, a), _buf(_D, b), _buf(_D, c), _buf(_D, out), status)
+    index = fn(_p(params), n, _buf(a), _buf(b), _buf(c), _buf(out), status)
     return out, index, status[0]
 
 
@@ -122,36 +128,36 @@ def forward_dynamics_batch(params, Q, QD, SIGMA, out=None):
 def leg_state(params, q, qd):
     """(lengths, rates, omega, status)."""
     l, ld, om = np.empty(6), np.empty(6), np.empty(3)
-    st = lib.stewart_leg_state(_p(params), _buf(_D, q), _buf(_D, qd), _buf(_D, l),
-                               _buf(_D, ld), _buf(_D, om))
+    st = lib.stewart_leg_state(_p(params), _buf(q), _buf(qd), _buf(l),
+                               _buf(ld), _buf(om))
     return l, ld, om, st
 
 
 def jacobian(params, q, scaled: bool = False):
     """(J (6, 6), status); scaled: rotational columns divided by the characteristic length."""
     J = np.empty((6, 6))
-    return J, lib.stewart_jacobian(_p(params), _buf(_D, q), int(scaled), _buf(_D, J))
+    return J, lib.stewart_jacobian(_p(params), _buf(q), int(scaled), _buf(J))
 
 
 def condition_number(params, q):
     """(cond of the scaled J, status)."""
     c = ffi.new("double *")
-    st = lib.stewart_condition_number(_p(params), _buf(_D, q), c)
+    st = lib.stewart_condition_number(_p(params), _buf(q), c)
     return c[0], st
 
 
 def twist_forces(params, q, qd, qdd):
     """(gen (4, 6), leg rows (6, 3) of (l, ldot, lddot), status) (kane.twist_forces)."""
     gen, leg = np.empty((4, 6)), np.empty((6, 3))
-    st = lib.stewart_twist_forces(_p(params), _buf(_D, q), _buf(_D, qd), _buf(_D, qdd),
-                                  _buf(_D, gen), _buf(_D, leg))
+    st = lib.stewart_twist_forces(_p(params), _buf(q), _buf(qd), _buf(qdd),
+                                  _buf(gen), _buf(leg))
     return gen, leg, st
 
 
 def mass_matrix(params, q):
     """(M_nu (6, 6), status), the twist-space mass matrix (kane.twist_mass_matrix)."""
     M = np.empty((6, 6))
-    return M, lib.stewart_mass_matrix(_p(params), _buf(_D, q), _buf(_D, M))
+    return M, lib.stewart_mass_matrix(_p(params), _buf(q), _buf(M))
 
 
 # --- plant -----------------------------------------------------------------------------------
@@ -160,18 +166,18 @@ def derivative(params, y, rack, out=None):
     """(y' , status) at the plant state y (12 or 24) with the rack forces held."""
     if out is None:
         out = np.empty(y.shape[0])
-    return out, lib.stewart_derivative(_p(params), _buf(_D, y), _buf(_D, rack), _buf(_D, out))
+    return out, lib.stewart_derivative(_p(params), _buf(y), _buf(rack), _buf(out))
 
 
 def spring_forces(params, y):
     f = np.empty(6)
-    return f, lib.stewart_spring_forces(_p(params), _buf(_D, y), _buf(_D, f))
+    return f, lib.stewart_spring_forces(_p(params), _buf(y), _buf(f))
 
 
 def initial_state(params, q, qd, rack=None):
     y = np.empty(state_size(params))
-    lib.stewart_initial_state(_p(params), _buf(_D, q), _buf(_D, qd),
-                              ffi.NULL if rack is None else _buf(_D, rack), _buf(_D, y))
+    lib.stewart_initial_state(_p(params), _buf(q), _buf(qd),
+                              ffi.NULL if rack is None else _buf(rack), _buf(y))
     return y
 
 
@@ -179,15 +185,15 @@ def energy_terms(params, y, out=None):
     """(T, V_g, V_s, d_1..d_6) at y (energy.energy_terms)."""
     if out is None:
         out = np.empty(N_ENERGY)
-    lib.stewart_energy_terms(_p(params), _buf(_D, y), _buf(_D, out))
+    lib.stewart_energy_terms(_p(params), _buf(y), _buf(out))
     return out
 
 
 def step_energy(params, y1, e0, e1, rack, tol=lib.STEWART_ENERGY_TOL):
     """(finite, excess, allowed) as stability.step_energy (e1 written)."""
     ex, al = ffi.new("double *"), ffi.new("double *")
-    ok = lib.stewart_step_energy(_p(params), _buf(_D, y1), _buf(_D, e0), _buf(_D, e1),
-                                 _buf(_D, rack), tol, ex, al)
+    ok = lib.stewart_step_energy(_p(params), _buf(y1), _buf(e0), _buf(e1),
+                                 _buf(rack), tol, ex, al)
     return bool(ok), ex[0], al[0]
 
 
@@ -195,7 +201,7 @@ def advance(params, opts, y0, y1, rack, h, step_guess=None):
     """y1 = y0 advanced over h: (status, next step guess, evaluations)."""
     sg = ffi.new("double *", opts.max_step if step_guess is None else step_guess)
     ev = ffi.new("long *")
-    st = lib.stewart_advance(_p(params), opts, _buf(_D, y0), _buf(_D, y1), _buf(_D, rack), h,
+    st = lib.stewart_advance(_p(params), opts, _buf(y0), _buf(y1), _buf(rack), h,
                              sg, ev)
     return st, sg[0], ev[0]
 
@@ -204,6 +210,6 @@ def step(params, opts, y0, y1, rack, h, e0, e1, step_guess=None):
     """The plant step (stewart_step): (status, next step guess, evaluations, excess, allowed)."""
     sg = ffi.new("double *", opts.max_step if step_guess is None else step_guess)
     ev, ex, al = ffi.new("long *"), ffi.new("double *"), ffi.new("double *")
-    st = lib.stewart_step(_p(params), opts, _buf(_D, y0), _buf(_D, y1), _buf(_D, rack), h, sg,
-                          ev, _buf(_D, e0), _buf(_D, e1), ex, al)
+    st = lib.stewart_step(_p(params), opts, _buf(y0), _buf(y1), _buf(rack), h, sg,
+                          ev, _buf(e0), _buf(e1), ex, al)
     return st, sg[0], ev[0], ex[0], al[0]

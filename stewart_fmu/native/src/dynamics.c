@@ -59,7 +59,7 @@ int sw_inverse_sample(const double *p, const double q[6], const double qd[6],
 {
     int status, k, i, ok = 1;
     const double *gen = ws->gen;
-    sw_orientation(q, qd, qdd, ws->R, ws->om, ws->al);
+    sw_orientation(q, qd, qdd, ws->R, ws->om, ws->al, ws->trig);
     status = sw_twist_forces(p, q, qd, qdd, ws->al, ws);
     if (status != STEWART_OK)
         return status;
@@ -118,7 +118,7 @@ int sw_forward_sample(const double *p, const double q[6], const double qd[6],
     int status, k, i;
     double net[6], a[3], c, res[6];
     const double *gen = ws->gen;
-    sw_orientation(q, qd, SW_ZERO6, ws->R, ws->om, ws->al);  /* al = Edot thd */
+    sw_orientation(q, qd, SW_ZERO6, ws->R, ws->om, ws->al, ws->trig);  /* al = Edot thd */
     status = sw_twist_forces(p, q, qd, SW_ZERO6, SW_ZERO6, ws);
     if (status != STEWART_OK)
         return status;
@@ -139,8 +139,8 @@ int sw_forward_sample(const double *p, const double q[6], const double qd[6],
         return STEWART_SINGULAR;
     if (!sw_cholesky_solve(ws->Mt, ws->rhs))
         return STEWART_SINGULAR;
-    if (!sw_solve_rate_matrix(q, ws->rhs[3] - ws->al[0], ws->rhs[4] - ws->al[1],
-                              ws->rhs[5] - ws->al[2], a))
+    if (!sw_solve_rate_trig(ws->trig, ws->rhs[3] - ws->al[0], ws->rhs[4] - ws->al[1],
+                            ws->rhs[5] - ws->al[2], a))
         return STEWART_GIMBAL;
     res[0] = ws->rhs[0];
     res[1] = ws->rhs[1];

@@ -17,7 +17,7 @@ static const double SW_ZERO6[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
    generalized forces gen (4 x 6), a right-hand side and the twist mass matrix. order carries
    from sample to sample (see linalg.c, sw_lu_factor). All matrices row-major. */
 typedef struct {
-    double R[9], om[3], al[3];
+    double R[9], om[3], al[3], trig[4];
     double U[18], Rr[18], leg[18];
     double JT[36], gen[24], rhs[6], Mt[36];
     int order[12];          /* order[0..5]: row names at storage rows; order[6..11]: where */
@@ -27,8 +27,8 @@ void sw_ws_init(sw_ws *ws);
 
 /* rotations.c */
 void sw_orientation(const double q[6], const double qd[6], const double qdd[6], double R[9],
-                    double om[3], double al[3]);
-int sw_solve_rate_matrix(const double q[6], double w0, double w1, double w2, double x[3]);
+                    double om[3], double al[3], double *trig);
+int sw_solve_rate_trig(const double trig[4], double w0, double w1, double w2, double x[3]);
 
 /* linalg.c */
 double sw_lu_factor(double A[36], int order[12]);

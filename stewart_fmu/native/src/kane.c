@@ -245,7 +245,7 @@ int stewart_twist_forces(const double *params, const double q[6], const double q
     sw_ws ws;
     int st, k;
     sw_ws_init(&ws);
-    sw_orientation(q, qd, qdd, ws.R, ws.om, ws.al);
+    sw_orientation(q, qd, qdd, ws.R, ws.om, ws.al, 0);
     st = sw_twist_forces(params, q, qd, qdd, ws.al, &ws);
     for (k = 0; k < 24; ++k)
         gen[k] = ws.gen[k];
@@ -260,7 +260,7 @@ int stewart_mass_matrix(const double *params, const double q[6], double M[36])
     sw_ws ws;
     int st, k;
     sw_ws_init(&ws);
-    sw_orientation(q, zero, zero, ws.R, ws.om, ws.al);
+    sw_orientation(q, zero, zero, ws.R, ws.om, ws.al, 0);
     st = sw_twist_forces(params, q, zero, zero, ws.al, &ws);
     sw_twist_mass_matrix(params, &ws, 1);
     for (k = 0; k < 36; ++k)

@@ -9,7 +9,7 @@ int stewart_leg_state(const double *params, const double q[6], const double qd[6
     sw_ws ws;
     int st, i;
     sw_ws_init(&ws);
-    sw_orientation(q, qd, SW_ZERO6, ws.R, ws.om, ws.al);
+    sw_orientation(q, qd, SW_ZERO6, ws.R, ws.om, ws.al, 0);
     st = sw_twist_forces(params, q, qd, SW_ZERO6, ws.al, &ws);
     for (i = 0; i < 6; ++i) {
         l[i] = ws.leg[3 * i];
@@ -41,7 +41,7 @@ int stewart_jacobian(const double *params, const double q[6], int scaled, double
     sw_ws ws;
     int st;
     sw_ws_init(&ws);
-    sw_orientation(q, SW_ZERO6, SW_ZERO6, ws.R, ws.om, ws.al);
+    sw_orientation(q, SW_ZERO6, SW_ZERO6, ws.R, ws.om, ws.al, 0);
     st = sw_twist_forces(params, q, SW_ZERO6, SW_ZERO6, ws.al, &ws);
     jacobian_rows(&ws, scaled ? 1.0 / params[STEWART_P_CHAR_LENGTH] : 1.0, J);
     return st;

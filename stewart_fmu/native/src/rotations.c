@@ -4,11 +4,17 @@
 #include "internal.h"
 
 void sw_orientation(const double q[6], const double qd[6], const double qdd[6], double R[9],
-                    double om[3], double al[3])
+                    double om[3], double al[3], double *trig)
 {
     double cx = cos(q[3]), sx = sin(q[3]);
     double cy = cos(q[4]), sy = sin(q[4]);
     double cz = cos(q[5]), sz = sin(q[5]);
+    if (trig) {  /* for sw_solve_rate_trig at the same pose */
+        trig[0] = cy;
+        trig[1] = sy;
+        trig[2] = cz;
+        trig[3] = sz;
+    }
     double t0 = qd[3], t1 = qd[4], t2 = qd[5];
     double e1x, e1y, e1z, e2x, e2y, d1x, d1y, d1z, d2x, d2y;
     R[0] = cz * cy;
@@ -35,15 +41,16 @@ void sw_orientation(const double q[6], const double qd[6], const double qdd[6], 
     al[2] = e1z * qdd[3] + qdd[5] + d1z * t0;
 }
 
-int sw_solve_rate_matrix(const double q[6], double w0, double w1, double w2, double x[3])
+/* Euler-angle rates x with E(th) x = w (rotations.solve_rate_matrix), from the cosines and
+   sines (cy, sy, cz, sz) of pitch and yaw that sw_orientation returned; 0 at gimbal lock. */
+int sw_solve_rate_trig(const double trig[4], double w0, double w1, double w2, double x[3])
 {
-    double cy = cos(q[4]), sy = sin(q[4]), cz, sz, x0;
+    const double cy = trig[0], sy = trig[1], cz = trig[2], sz = trig[3];
+    double x0;
     if (fabs(cy) < STEWART_GIMBAL_LIMIT) {
         x[0] = x[1] = x[2] = 0.0;
         return 0;
     }
-    cz = cos(q[5]);
-    sz = sin(q[5]);
     x0 = (cz * w0 + sz * w1) / cy;
     x[0] = x0;
     x[1] = -sz * w0 + cz * w1;
@@ -55,5 +62,5 @@ void stewart_orientation(const double q[6], const double qd[6], const double *qd
                          double R[9], double omega[3], double alpha[3])
 {
     static const double zero[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
-    sw_orientation(q, qd, qdd ? qdd : zero, R, omega, alpha);
+    sw_orientation(q, qd, qdd ? qdd : zero, R, omega, alpha, 0);
 }

@@ -18,7 +18,7 @@ void stewart_leg_side_params(const double *params, double out[STEWART_N_PARAMS])
 /* R, omega, U, Rr and the leg rows (l, ld) at y's pose and rates (transmission.leg_kinematics). */
 int sw_leg_kinematics(const double *pl, const double *y, sw_ws *ws)
 {
-    sw_orientation(y, y + 6, SW_ZERO6, ws->R, ws->om, ws->al);
+    sw_orientation(y, y + 6, SW_ZERO6, ws->R, ws->om, ws->al, ws->trig);
     return sw_twist_forces(pl, y, y + 6, SW_ZERO6, ws->al, ws);
 }
 
