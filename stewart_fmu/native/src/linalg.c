@@ -8,7 +8,7 @@
    ties of |pivot| go to the smaller row name, so the factors do not depend on the storage. */
 double sw_lu_factor(double A[36], int order[12])
 {
-    double pmin = INFINITY;
+    double pmin = HUGE_VAL;
     int k, i, j;
     for (k = 0; k < 6; ++k) {
         int p = k;
