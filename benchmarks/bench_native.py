@@ -7,7 +7,8 @@ is shared and noisy: every figure is the best of several repeats).
   max_step 1 ms, so 4 right-hand sides + the power-balance check per step), started from the
   hold at home with a small push. C: `stewart_data_run` runs N steps in ONE cffi call, so the
   time per step is the C step itself (the single call overhead, ~0.1 us, is spread over N).
-  Also the C step called once per step from Python (core.step, what a Python plant pays),
+  Also the C step called once per step from Python (core.step with numpy arrays, and
+  core.Run.step on a stewart_data held in C: what a Python plant would pay),
   and numba's Plant.do_step (Python per step, as the FMU runs it).
 - Single calls from Python: core.inverse_dynamics / forward_dynamics on (6,) arrays (with a
   given `out` and allocating), against stewart_fmu.inverse_dynamics / forward_dynamics.
@@ -96,6 +97,12 @@ def main() -> None:
             ya, yb, ea, eb = yb, ya, eb, ea
     t_c_py_step = best_time(c_py_run, 5) / n
 
+    def c_run_py():
+        run = core.Run(P, o, model.home, rack=F)
+        for _ in range(n):
+            assert run.step(h) == core.OK
+    t_c_run_step = best_time(c_run_py, 5) / n
+
     def numba_run():
         plant = Plant(model, opts)
         plant.set_force(F)
@@ -108,6 +115,7 @@ def main() -> None:
     t_nb_step = best_time(numba_run, 5) / n
     rows += [("plant step rk4 1 ms, C loop (stewart_data_run)", t_c_step * 1e6, "us", "<= 3.75"),
              ("plant step rk4 1 ms, C per call from Python (core.step)", t_c_py_step * 1e6, "us", ""),
+             ("plant step rk4 1 ms, C per call from Python (core.Run.step)", t_c_run_step * 1e6, "us", ""),
              ("plant step rk4 1 ms, numba Plant.do_step", t_nb_step * 1e6, "us", "")]
 
     # --- single calls --------------------------------------------------------------------

@@ -213,3 +213,41 @@ def step(params, opts, y0, y1, rack, h, e0, e1, step_guess=None):
     st = lib.stewart_step(_p(params), opts, _buf(y0), _buf(y1), _buf(rack), h, sg,
                           ev, _buf(e0), _buf(e1), ex, al)
     return st, sg[0], ev[0], ex[0], al[0]
+
+
+class Run:
+    """One plant run in C (a stewart_data the caller owns, mjData style): the state, its energy
+    terms, the dopri5 step guess and the held rack forces live in C memory; `y`, `energy` and
+    `rack` are numpy views of it (write `rack[:] = F` to change the held forces). `step(h)`
+    is one stewart_data_step: a single C call from Python."""
+
+    def __init__(self, params, opts, q, qd=None, rack=None, t: float = 0.0):
+        self.params = native_params(params)
+        self.options = opts
+        self.data = ffi.new("stewart_data *")
+        self._rack = ffi.new("double[6]")
+        self.rack = np.frombuffer(ffi.buffer(self._rack), dtype=np.float64)
+        if rack is not None:
+            self.rack[:] = rack
+        q = np.ascontiguousarray(q, dtype=np.float64)
+        qd = np.zeros(6) if qd is None else np.ascontiguousarray(qd, dtype=np.float64)
+        lib.stewart_data_init(self.params.ptr, opts, _buf(q), _buf(qd), self._rack, t,
+                              self.data)
+        n = self.data.n
+        self.y = np.frombuffer(ffi.buffer(self.data.y), dtype=np.float64)[:n]
+        self.energy = np.frombuffer(ffi.buffer(self.data.energy), dtype=np.float64)
+        self._done = ffi.new("long *")
+
+    @property
+    def time(self) -> float:
+        return self.data.t
+
+    def step(self, h: float) -> int:
+        """One plant step of h with the held rack forces; on a status but OK the state stays."""
+        return lib.stewart_data_step(self.params.ptr, self.options, self.data, self._rack, h)
+
+    def run(self, h: float, n: int) -> tuple[int, int]:
+        """n steps of h in one C call: (status, steps done)."""
+        status = lib.stewart_data_run(self.params.ptr, self.options, self.data, self._rack, h,
+                                      n, self._done)
+        return status, self._done[0]

@@ -471,3 +471,27 @@ def test_native_inverse_forward_round_trip(name, level):
                 (np.abs(sig2_back - sig2).max(axis=1) / np.abs(sig2).max(axis=1)).max())
     record(f"native 3 inverse <-> forward [{name}-{level}]", worst, tol)
     assert worst <= tol, worst
+
+
+def test_run_holder_steps_as_stewart_step():
+    """core.Run (a stewart_data in C with numpy views): 20 steps of 1 ms, then a run of 20
+    more in one call, equal 40 stewart_step calls on numpy arrays (bit for bit)."""
+    model = load_scene(SCENES_DIR / "micro_manipulator.toml")
+    P = core.native_params(model.params)
+    _, F = hold_state(model)
+    F = F + np.array([0.5, -0.5, 0.2, 0.0, 0.1, -0.3])
+    o = core.options("dopri5", max_step=1e-3)
+    run = core.Run(P, o, model.home, rack=F)
+    y = core.initial_state(P, model.home, np.zeros(6), F)
+    e, y1, e1, guess = core.energy_terms(P, y), np.empty(12), np.empty(9), 1e-3
+    assert np.array_equal(run.y, y) and np.array_equal(run.energy, e)
+    for k in range(40):
+        st, guess, *_ = core.step(P, o, y, y1, F, 1e-3, e, e1, guess)
+        assert st == core.OK
+        y, y1, e, e1 = y1, y, e1, e
+        if k < 20:
+            assert run.step(1e-3) == core.OK
+        elif k == 39:
+            assert run.run(1e-3, 20) == (core.OK, 20)
+    assert np.array_equal(run.y, y) and np.array_equal(run.energy, e)
+    assert run.data.step_guess == guess and abs(run.time - 0.04) < 1e-15
