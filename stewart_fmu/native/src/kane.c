@@ -14,18 +14,6 @@ void sw_ws_init(sw_ws *ws)
         ws->order[k] = ws->order[6 + k] = k;
 }
 
-/* Add [f; r x f], the twist-space image of a force f per unit joint velocity. */
-static void add_joint_force(double *g, double fx, double fy, double fz, double rx, double ry,
-                            double rz)
-{
-    g[0] += fx;
-    g[1] += fy;
-    g[2] += fz;
-    g[3] += ry * fz - rz * fy;
-    g[4] += rz * fx - rx * fz;
-    g[5] += rx * fy - ry * fx;
-}
-
 /* F* = -m a and T* = R (-(I alpha_c + omega_c x I omega_c)) in C (Eqs. 3-5). */
 static void platform_inertia(const double *p, const double *R, const double *om,
                              const double *acc, const double *al, double *g)
@@ -57,109 +45,139 @@ static void platform_inertia(const double *p, const double *R, const double *om,
    ws->gen rows 0 platform inertia, 1 lower legs, 2 upper legs, 3 gravity; also U, Rr, the leg
    rows (l, ldot, lddot) and J^T with its rotational rows divided by the characteristic length,
    row r stored at ws->order[6 + r]. x, v, acc: pose, velocity, acceleration (entries 0-2 used),
-   al the angular acceleration; ws->R and ws->om must hold the orientation. Returns OK, or STROKE when a leg is outside its
-   limits. */
+   al the angular acceleration; ws->R and ws->om must hold the orientation. Returns OK, or
+   STROKE when a leg is outside its limits.
+
+   Layout for speed, arithmetic as kane.py: the per-leg terms are computed leg-parallel over
+   arrays of six (loops the compiler vectorizes), each leg's contribution [f; r x f] to a body
+   group is kept, and the contributions are then summed over the legs in leg order 0..5 as the
+   Python kernel accumulates them, so every result is the same to the last bit. */
 int sw_twist_forces(const double *p, const double x[6], const double v[6], const double acc[6],
                     const double al[3], sw_ws *ws)
 {
-    int status = STEWART_OK, i, k;
+    int status = STEWART_OK, i, k, j;
     const double gx = P(GRAVITY), gy = p[STEWART_P_GRAVITY + 1], gz = p[STEWART_P_GRAVITY + 2];
     const double mp = P(MASS);
     const double *R = ws->R, *om = ws->om;
     const int *at = ws->order + 6;
-    double *gen = ws->gen, inv[6];
+    double *gen = ws->gen;
     const int has_legs = P(HAS_LEGS) != 0.0;
-    const double ic = 1.0 / P(CHAR_LENGTH);
+    const double ic = 1.0 / P(CHAR_LENGTH), lmin = P(LEG_MIN), lmax = P(LEG_MAX);
     const double mA = P(LOWER), cA = p[STEWART_P_LOWER + 1], ItA = p[STEWART_P_LOWER + 2];
     const double mB = P(UPPER), cB = p[STEWART_P_UPPER + 1], ItB = p[STEWART_P_UPPER + 2];
+    const double sA = -(mA * cA * cA + ItA), mAcA = mA * cA;
+    double rx[6], ry[6], rz[6], ux[6], uy[6], uz[6], l[6], il[6], ld[6], ldd[6];
+    double ud2[6], udx[6], udy[6], udz[6], pux[6], puy[6], puz[6];
+    double c[3][6][6];   /* per body group (lower, upper, gravity), component, leg */
     for (k = 0; k < 24; ++k)
         gen[k] = 0.0;
     platform_inertia(p, R, om, acc, al, gen);
     gen[18] = mp * gx;
     gen[19] = mp * gy;
     gen[20] = mp * gz;
-    /* Leg kinematics first, all six legs: r = R p_i, L = x + r - a_i, l = |L| (the square
-       roots and divisions of the legs are independent: this lets them overlap). */
+    /* Leg kinematics: r = R p_i, L = x + r - a_i, u = L / l (one division per leg). */
     for (i = 0; i < 6; ++i) {
-        const int b = STEWART_P_PLATFORM + 3 * i, a = STEWART_P_BASE + 3 * i;
-        const double rx = R[0] * p[b] + R[1] * p[b + 1] + R[2] * p[b + 2];
-        const double ry = R[3] * p[b] + R[4] * p[b + 1] + R[5] * p[b + 2];
-        const double rz = R[6] * p[b] + R[7] * p[b + 1] + R[8] * p[b + 2];
-        const double Lx = x[0] + rx - p[a], Ly = x[1] + ry - p[a + 1], Lz = x[2] + rz - p[a + 2];
-        ws->Rr[3 * i] = rx;
-        ws->Rr[3 * i + 1] = ry;
-        ws->Rr[3 * i + 2] = rz;
-        ws->U[3 * i] = Lx;
-        ws->U[3 * i + 1] = Ly;
-        ws->U[3 * i + 2] = Lz;
-        ws->leg[3 * i] = sqrt(Lx * Lx + Ly * Ly + Lz * Lz);
+        const double *pb = p + STEWART_P_PLATFORM + 3 * i, *pa = p + STEWART_P_BASE + 3 * i;
+        double Lx, Ly, Lz;
+        rx[i] = R[0] * pb[0] + R[1] * pb[1] + R[2] * pb[2];
+        ry[i] = R[3] * pb[0] + R[4] * pb[1] + R[5] * pb[2];
+        rz[i] = R[6] * pb[0] + R[7] * pb[1] + R[8] * pb[2];
+        Lx = x[0] + rx[i] - pa[0];
+        Ly = x[1] + ry[i] - pa[1];
+        Lz = x[2] + rz[i] - pa[2];
+        l[i] = sqrt(Lx * Lx + Ly * Ly + Lz * Lz);
+        il[i] = 1.0 / l[i];
+        ux[i] = Lx * il[i];
+        uy[i] = Ly * il[i];
+        uz[i] = Lz * il[i];
     }
     for (i = 0; i < 6; ++i)
-        inv[i] = 1.0 / ws->leg[3 * i];  /* one division per leg: the rest multiply */
-    for (i = 0; i < 6; ++i) {
-        const double rx = ws->Rr[3 * i], ry = ws->Rr[3 * i + 1], rz = ws->Rr[3 * i + 2];
-        const double l = ws->leg[3 * i], il = inv[i];
-        const double ux = ws->U[3 * i] * il, uy = ws->U[3 * i + 1] * il,
-                     uz = ws->U[3 * i + 2] * il;
-        double wrx, wry, wrz, vpx, vpy, vpz, apx, apy, apz, ld, udx, udy, udz, ud2, ldd;
-        double uddx, uddy, uddz;
-        if (l < P(LEG_MIN) || l > P(LEG_MAX))
+        if (l[i] < lmin || l[i] > lmax)
             status = STEWART_STROKE;
+    for (i = 0; i < 6; ++i) {
         /* Joint velocity vp = v + om x r and acceleration ap = acc + al x r + om x (om x r). */
-        wrx = om[1] * rz - om[2] * ry;
-        wry = om[2] * rx - om[0] * rz;
-        wrz = om[0] * ry - om[1] * rx;
-        vpx = v[0] + wrx;
-        vpy = v[1] + wry;
-        vpz = v[2] + wrz;
-        apx = acc[0] + al[1] * rz - al[2] * ry + om[1] * wrz - om[2] * wry;
-        apy = acc[1] + al[2] * rx - al[0] * rz + om[2] * wrx - om[0] * wrz;
-        apz = acc[2] + al[0] * ry - al[1] * rx + om[0] * wry - om[1] * wrx;
-        ld = ux * vpx + uy * vpy + uz * vpz;
-        udx = (vpx - ld * ux) * il;
-        udy = (vpy - ld * uy) * il;
-        udz = (vpz - ld * uz) * il;
-        ud2 = udx * udx + udy * udy + udz * udz;
-        ldd = ux * apx + uy * apy + uz * apz + l * ud2;
-        /* uddot from L'' = ldd u + 2 ld udot + l uddot. */
-        uddx = (apx - ldd * ux - 2.0 * ld * udx) * il;
-        uddy = (apy - ldd * uy - 2.0 * ld * udy) * il;
-        uddz = (apz - ldd * uz - 2.0 * ld * udz) * il;
-        ws->U[3 * i] = ux;
-        ws->U[3 * i + 1] = uy;
-        ws->U[3 * i + 2] = uz;
-        ws->leg[3 * i + 1] = ld;
-        ws->leg[3 * i + 2] = ldd;
-        ws->JT[at[0] * 6 + i] = ux;
-        ws->JT[at[1] * 6 + i] = uy;
-        ws->JT[at[2] * 6 + i] = uz;
-        ws->JT[at[3] * 6 + i] = (ry * uz - rz * uy) * ic;
-        ws->JT[at[4] * 6 + i] = (rz * ux - rx * uz) * ic;
-        ws->JT[at[5] * 6 + i] = (rx * uy - ry * ux) * ic;
-        if (has_legs) {
-            /* P uddot = uddot + |udot|^2 u, since u . uddot = -|udot|^2. */
-            double pux = uddx + ud2 * ux, puy = uddy + ud2 * uy, puz = uddz + ud2 * uz;
-            double s, e, axial, sp, st, fx, fy, fz, ug, c;
-            /* Part A: (c_A/l) P (-m_A c_A uddot) plus the torque -I_t alpha through [u]x/l. */
-            s = -(mA * cA * cA + ItA) * il;
-            add_joint_force(gen + 6, s * pux, s * puy, s * puz, rx, ry, rz);
-            /* Part B: a_B = ldd u + 2 ld udot + (l - c_B) uddot, by dV_B/dvp and dw/dvp. */
-            e = l - cB;
-            axial = -mB * (ldd - e * ud2);
-            sp = -mB * e * il;
-            st = -ItB * il;
-            fx = axial * ux + sp * (2.0 * ld * udx + e * pux) + st * pux;
-            fy = axial * uy + sp * (2.0 * ld * udy + e * puy) + st * puy;
-            fz = axial * uz + sp * (2.0 * ld * udz + e * puz) + st * puz;
-            add_joint_force(gen + 12, fx, fy, fz, rx, ry, rz);
-            /* Eq. 8 for both parts: m_B (u.g) u + ((m_A c_A + m_B (l - c_B)) / l) P g. */
-            ug = ux * gx + uy * gy + uz * gz;
-            s = (mA * cA + mB * (l - cB)) * il;
-            c = mB * ug - s * ug;
-            add_joint_force(gen + 18, s * gx + c * ux, s * gy + c * uy, s * gz + c * uz,
-                            rx, ry, rz);
-        }
+        const double wrx = om[1] * rz[i] - om[2] * ry[i];
+        const double wry = om[2] * rx[i] - om[0] * rz[i];
+        const double wrz = om[0] * ry[i] - om[1] * rx[i];
+        const double vpx = v[0] + wrx, vpy = v[1] + wry, vpz = v[2] + wrz;
+        const double apx = acc[0] + al[1] * rz[i] - al[2] * ry[i] + om[1] * wrz - om[2] * wry;
+        const double apy = acc[1] + al[2] * rx[i] - al[0] * rz[i] + om[2] * wrx - om[0] * wrz;
+        const double apz = acc[2] + al[0] * ry[i] - al[1] * rx[i] + om[0] * wry - om[1] * wrx;
+        const double d = ux[i] * vpx + uy[i] * vpy + uz[i] * vpz;
+        double dd, ddx, ddy, ddz, u2;
+        ld[i] = d;
+        ddx = (vpx - d * ux[i]) * il[i];
+        ddy = (vpy - d * uy[i]) * il[i];
+        ddz = (vpz - d * uz[i]) * il[i];
+        u2 = ddx * ddx + ddy * ddy + ddz * ddz;
+        dd = ux[i] * apx + uy[i] * apy + uz[i] * apz + l[i] * u2;
+        udx[i] = ddx;
+        udy[i] = ddy;
+        udz[i] = ddz;
+        ud2[i] = u2;
+        ldd[i] = dd;
+        /* uddot from L'' = ldd u + 2 ld udot + l uddot; P uddot = uddot + |udot|^2 u, since
+           u . uddot = -|udot|^2. */
+        pux[i] = (apx - dd * ux[i] - 2.0 * d * ddx) * il[i] + u2 * ux[i];
+        puy[i] = (apy - dd * uy[i] - 2.0 * d * ddy) * il[i] + u2 * uy[i];
+        puz[i] = (apz - dd * uz[i] - 2.0 * d * ddz) * il[i] + u2 * uz[i];
     }
+    for (i = 0; i < 6; ++i) {
+        ws->U[3 * i] = ux[i];
+        ws->U[3 * i + 1] = uy[i];
+        ws->U[3 * i + 2] = uz[i];
+        ws->Rr[3 * i] = rx[i];
+        ws->Rr[3 * i + 1] = ry[i];
+        ws->Rr[3 * i + 2] = rz[i];
+        ws->leg[3 * i] = l[i];
+        ws->leg[3 * i + 1] = ld[i];
+        ws->leg[3 * i + 2] = ldd[i];
+    }
+    for (i = 0; i < 6; ++i) {
+        ws->JT[at[0] * 6 + i] = ux[i];
+        ws->JT[at[1] * 6 + i] = uy[i];
+        ws->JT[at[2] * 6 + i] = uz[i];
+        ws->JT[at[3] * 6 + i] = (ry[i] * uz[i] - rz[i] * uy[i]) * ic;
+        ws->JT[at[4] * 6 + i] = (rz[i] * ux[i] - rx[i] * uz[i]) * ic;
+        ws->JT[at[5] * 6 + i] = (rx[i] * uy[i] - ry[i] * ux[i]) * ic;
+    }
+    if (!has_legs)
+        return status;
+    for (i = 0; i < 6; ++i) {
+        /* Part A: (c_A/l) P (-m_A c_A uddot) plus the torque -I_t alpha through [u]x/l. */
+        const double s = sA * il[i];
+        /* Part B: a_B = ldd u + 2 ld udot + (l - c_B) uddot, by dV_B/dvp and dw/dvp. */
+        const double e = l[i] - cB;
+        const double axial = -mB * (ldd[i] - e * ud2[i]);
+        const double sp = -mB * e * il[i], st = -ItB * il[i];
+        /* Eq. 8 for both parts: m_B (u.g) u + ((m_A c_A + m_B (l - c_B)) / l) P g. */
+        const double ug = ux[i] * gx + uy[i] * gy + uz[i] * gz;
+        const double sg = (mAcA + mB * (l[i] - cB)) * il[i];
+        const double cg = mB * ug - sg * ug;
+        c[0][0][i] = s * pux[i];
+        c[0][1][i] = s * puy[i];
+        c[0][2][i] = s * puz[i];
+        c[1][0][i] = axial * ux[i] + sp * (2.0 * ld[i] * udx[i] + e * pux[i]) + st * pux[i];
+        c[1][1][i] = axial * uy[i] + sp * (2.0 * ld[i] * udy[i] + e * puy[i]) + st * puy[i];
+        c[1][2][i] = axial * uz[i] + sp * (2.0 * ld[i] * udz[i] + e * puz[i]) + st * puz[i];
+        c[2][0][i] = sg * gx + cg * ux[i];
+        c[2][1][i] = sg * gy + cg * uy[i];
+        c[2][2][i] = sg * gz + cg * uz[i];
+    }
+    for (k = 0; k < 3; ++k)   /* the moments r x f of each contribution */
+        for (i = 0; i < 6; ++i) {
+            const double fx = c[k][0][i], fy = c[k][1][i], fz = c[k][2][i];
+            c[k][3][i] = ry[i] * fz - rz[i] * fy;
+            c[k][4][i] = rz[i] * fx - rx[i] * fz;
+            c[k][5][i] = rx[i] * fy - ry[i] * fx;
+        }
+    for (k = 0; k < 3; ++k)   /* summed in leg order, as the Python kernel adds them */
+        for (j = 0; j < 6; ++j) {
+            double g = gen[6 * (k + 1) + j];
+            for (i = 0; i < 6; ++i)
+                g += c[k][j][i];
+            gen[6 * (k + 1) + j] = g;
+        }
     return status;
 }
 
