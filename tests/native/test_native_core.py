@@ -28,7 +28,7 @@ from stewart_fmu.kane import twist_mass_matrix
 from stewart_fmu.kinematics import _scaled_jacobian, condition_number
 from stewart_fmu.stability import ENERGY_TOL, hold_state, step_energy
 from stewart_fmu.stepper import Plant
-from stewart_fmu.transmission import initial_state, spring_forces
+from stewart_fmu.transmission import initial_state, leg_side_params, spring_forces
 
 core = pytest.importorskip("stewart_fmu.native.core")
 
@@ -264,6 +264,9 @@ def test_plant_kernels_match_numba(cid, spec, level):
         if model.transmission is not None:
             f_c, _ = core.spring_forces(P, y)
             worst = max(worst, rel(f_c, spring_forces(model, y)))
+        pl = np.empty(core.N_PARAMS)
+        core.lib.stewart_leg_side_params(P.ptr, core.ffi.from_buffer(pl))
+        assert np.array_equal(pl, leg_side_params(p))
         e = E.energy_terms(model, y)
         ec = core.energy_terms(P, y)
         worst = max(worst, rel(ec, e))
