@@ -211,7 +211,8 @@ def fuzz(unzipdir: str, version: int, seed: int, n_calls: int) -> dict:
     phase, t = "inst", 0.0
     states: list = []
     blobs: list = []
-    out = {"calls": 0, "must_fail": 0, "errors_returned": 0, "discards": 0, "other_errors": 0, "not_error": []}
+    out = {"calls": 0, "must_fail": 0, "errors_returned": 0, "discards": 0, "steps_ok": 0, "other_errors": 0,
+           "not_error": []}
 
     def weird(x: float) -> float:
         return rng.choice([x, x * (1 + rng.uniform(-0.1, 0.1)), -x, 0.0, 1e300, -1e300, math.nan, math.inf,
@@ -231,11 +232,20 @@ def fuzz(unzipdir: str, version: int, seed: int, n_calls: int) -> dict:
             out["other_errors"] += 1
 
     for _ in range(n_calls):
-        action = rng.choice(["setup_enter", "exit", "terminate", "reset", "set_param", "set_input", "set_input",
-                             "set_output", "unknown", "get_outputs", "step", "step", "step", "step",
-                             "get_state", "set_state", "serialize", "deserialize_bad", "wrong_type", "renew",
-                             "set_method"])
-        if action == "setup_enter":
+        if phase == "inst" and rng.random() < 0.5:
+            action = "init_all"     # reach step mode often: most of the interesting calls are there
+        else:
+            action = rng.choice(["setup_enter", "exit", "terminate", "reset", "set_param", "set_input", "set_input",
+                                 "set_output", "unknown", "get_outputs", *["step"] * 10,
+                                 "get_state", "set_state", "serialize", "deserialize_bad", "wrong_type", "renew",
+                                 "set_method"])
+        if action == "init_all":
+            for name, call in (("setupExperiment", inst.setup), ("enterInitializationMode", inst.enter)):
+                note(name, call(), False)
+            s = inst.exit()
+            note("exitInitializationMode", s, False)
+            phase, t = ("step" if s == OK else "failed"), 0.0
+        elif action == "setup_enter":
             s1 = inst.setup()
             s2 = inst.enter()
             note("setupExperiment/enterInitializationMode", max(s1, s2), phase != "inst")
@@ -285,6 +295,7 @@ def fuzz(unzipdir: str, version: int, seed: int, n_calls: int) -> dict:
             note("doStep", s, bad)
             if s == OK and not bad:
                 t = tc + h
+                out["steps_ok"] += 1
         elif action == "get_state":
             s, state = inst.get_state()
             note("getFMUstate", s, False)

@@ -659,8 +659,9 @@ def test_fuzz_random_call_sequences(fmus, version):
     no crash, and every call that must fail returns Error."""
     b = fmus[("micro", version)]
     script = (f"import json, sys; sys.path.insert(0, {str(HERE)!r}); from native_fmu_child import fuzz; "
-              f"print('RESULT ' + json.dumps(fuzz({str(b.unzipdir)!r}, {version}, int(sys.argv[1]), 800)), flush=True)")
-    totals = {"calls": 0, "must_fail": 0, "errors_returned": 0, "discards": 0, "crashes": 0, "not_error": []}
+              f"print('RESULT ' + json.dumps(fuzz({str(b.unzipdir)!r}, {version}, int(sys.argv[1]), 1000)), flush=True)")
+    totals = {"calls": 0, "must_fail": 0, "errors_returned": 0, "discards": 0, "steps_ok": 0, "other_errors": 0,
+              "crashes": 0, "not_error": []}
     for seed in range(4):
         proc = subprocess.run([sys.executable, "-c", script, str(seed)], capture_output=True, text=True, timeout=300)
         lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")]
@@ -668,7 +669,7 @@ def test_fuzz_random_call_sequences(fmus, version):
             totals["crashes"] += 1
             continue
         r = json.loads(lines[-1][7:])
-        for k in ("calls", "must_fail", "errors_returned", "discards"):
+        for k in ("calls", "must_fail", "errors_returned", "discards", "steps_ok", "other_errors"):
             totals[k] += r[k]
         totals["not_error"] += r["not_error"]
     record(f"native fmu: fuzz FMI {version} calls={totals['calls']} must_fail={totals['must_fail']} "
@@ -677,3 +678,4 @@ def test_fuzz_random_call_sequences(fmus, version):
     assert totals["crashes"] == 0
     assert totals["calls"] >= 3000
     assert totals["not_error"] == [] and totals["errors_returned"] == totals["must_fail"] > 500
+    assert totals["steps_ok"] > 200 and totals["discards"] > 20   # the plant really stepped and refused
