@@ -679,3 +679,57 @@ def test_fuzz_random_call_sequences(fmus, version):
     assert totals["calls"] >= 3000
     assert totals["not_error"] == [] and totals["errors_returned"] == totals["must_fail"] > 500
     assert totals["steps_ok"] > 200 and totals["discards"] > 20   # the plant really stepped and refused
+
+
+# --- 5. export ----------------------------------------------------------------------------------------
+
+def test_platform_only_scene_declares_only_what_it_has(tmp_path, fmus):
+    """A scene with only [geometry] and [platform]: no legs/drive/friction parameters, no tau,
+    force parts platform and gravity only; those value references are unknown to the binary;
+    and it simulates like the Plant."""
+    data = fmus[("micro", 2)].data
+    geo = data["geometry"]
+    lines = ['name = "platform-only"', "", "[geometry]"]
+    lines += [f"{key} = {geo[key]}" for key in ("base_joints", "platform_joints", "home", "leg_min", "leg_max")]
+    lines += ["", "[platform]", f"mass = {data['platform']['mass']}", f"inertia = {data['platform']['inertia']}"]
+    scene = tmp_path / "platform_only.toml"
+    scene.write_text("\n".join(lines) + "\n")
+    for version in (2, 3):
+        b = _build(scene, version, tmp_path)
+        assert validate_fmu(str(b.path)) == []
+        names = set(b.variables)
+        assert not [n for n in names if n.startswith(("legs.", "drive.", "friction.", "tau["))]
+        assert {n.split("[")[0] for n in names if n.startswith("force.")} == {"force.platform", "force.gravity"}
+        assert "gravity[3]" in names                    # the default gravity is a parameter too
+        times, steps = grid(50)
+        u = drive_inputs(b.model, times, seed=9)
+        s = Slave(b).init()
+        try:
+            for vr in (V.SCENE_KEYS["legs.lower_mass"][0], V.SCENE_KEYS["drive.gear_ratio"][0], V.VR_TAU,
+                       V.VR_PARTS + 6):                 # declared in other scenes, not in this one
+                with pytest.raises(FMICallException) as exc:
+                    s.get_vr([vr])
+                assert exc.value.status == ERROR
+            got = s.run(times, steps, u)
+        finally:
+            s.close()
+        agree(f"platform-only FMI {version} vs Plant", residual(b, got, Reference(b.model, b.outputs).run(times, steps, u)))
+
+
+def test_export_errors_are_typed(tmp_path, monkeypatch):
+    """No compiler: CompilerNotFoundError (no traceback from the compiler call, nothing written);
+    a bad scene: its SceneError before anything is built."""
+    from stewart_fmu.errors import SceneError
+    from stewart_fmu.native_fmu import CompilerNotFoundError
+
+    bad = tmp_path / "bad.toml"
+    bad.write_text(SCENES["micro"].read_text().replace("mass = 0.5", "mass = -0.5"))
+    with pytest.raises(SceneError, match="platform.mass"):
+        export_fmu(bad, tmp_path / "bad.fmu")
+    monkeypatch.delenv("CC", raising=False)
+    monkeypatch.setenv("PATH", str(tmp_path / "empty"))
+    with pytest.raises(CompilerNotFoundError, match="no C compiler"):
+        export_fmu(SCENES["micro"], tmp_path / "none.fmu")
+    assert not (tmp_path / "none.fmu").exists() and not (tmp_path / "bad.fmu").exists()
+    with pytest.raises(ValueError):
+        export_fmu(SCENES["micro"], tmp_path / "x.fmu", fmi_version=4)

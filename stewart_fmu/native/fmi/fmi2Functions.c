@@ -109,7 +109,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
 }
 
 fmi2Status fmi2Terminate(fmi2Component c) {
-    GET("fmi2Terminate", BIT(PH_INITIALIZATION) | BIT(PH_STEPPING) | BIT(PH_FAILED));
+    GET("fmi2Terminate", BIT(PH_STEPPING));
     return (fmi2Status)model_terminate(inst);
 }
 

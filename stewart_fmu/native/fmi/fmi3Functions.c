@@ -140,7 +140,7 @@ fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) {
 fmi3Status fmi3EnterEventMode(fmi3Instance instance) { NOT_CS("fmi3EnterEventMode"); }
 
 fmi3Status fmi3Terminate(fmi3Instance instance) {
-    GET("fmi3Terminate", BIT(PH_INITIALIZATION) | BIT(PH_STEPPING) | BIT(PH_FAILED));
+    GET("fmi3Terminate", BIT(PH_STEPPING));
     return (fmi3Status)model_terminate(inst);
 }
 
