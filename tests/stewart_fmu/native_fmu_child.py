@@ -123,6 +123,7 @@ def calls_expected_to_fail(unzipdir: str, version: int) -> dict:
     st: dict[str, int] = {}
     p = 2 if version == 2 else 3
     fresh = Adapter(unzipdir, version, messages, "fresh")
+    st["getReal before initialization mode"] = fresh.get([fresh.vr["platform.mass"]])[0]
     st["doStep before initialization"] = fresh.step(0.0, 1e-3)
     st["exitInitializationMode before enter"] = fresh.exit()
     st["setString unknown method with %"] = fresh.set_string([fresh.vr["solver.method"]], ["rk4%s%n"])
@@ -206,7 +207,8 @@ def fuzz(unzipdir: str, version: int, seed: int, n_calls: int) -> dict:
     params = [vr[n] for n in ("platform.mass", "friction.viscous", "q0[3]", "solver.max_step", "geometry.leg_max",
                               "legs.lower_inertia[2]", "drive.pinion_radius")]
     inputs = [vr[f"sigma[{i}]"] for i in range(1, 7)] + [vr[f"tau[{i}]"] for i in range(1, 7)]
-    start = dict(zip(params, inst.get(params)[1]))
+    md = read_model_description(unzipdir)
+    start = {v.valueReference: float(v.start) for v in md.modelVariables if v.valueReference in params}
     unknown = [9999, 83, 150, 2**31, 4294967295, 0 if version == 2 else 5000]
     phase, t = "inst", 0.0
     states: list = []
@@ -285,7 +287,7 @@ def fuzz(unzipdir: str, version: int, seed: int, n_calls: int) -> dict:
             note("unknown value reference", s, True)
         elif action == "get_outputs":
             s, _ = inst.get(rng.sample(inst.outputs, rng.randint(1, len(inst.outputs))))
-            note("getReal(outputs)", s, phase == "failed")
+            note("getReal(outputs)", s, phase in ("inst", "failed"))
         elif action == "step":
             h = rng.choice([1e-3, 1e-3, 1e-4, 2.5e-3, 0.05, 1e300, 1e-15, 0.0, -1e-3, math.nan, math.inf])
             tc = t if rng.random() < 0.85 else rng.choice([t + 1.0, t - 1e-3, math.nan, -math.inf])

@@ -376,11 +376,16 @@ def test_sources_rebuild_warning_free(fmus, version, tmp_path):
 
 @pytest.mark.parametrize("version", [2, 3])
 def test_start_values_read_through_fmi(fmus, version):
-    """getReal of every parameter before initialization returns its start value (the C table
+    """getReal of every parameter in initialization mode returns its start value (the C table
     and the model description agree on value references)."""
     b = fmus[("sim", version)]
     s = Slave(b)
     try:
+        if version == 2:
+            s.fmu.setupExperiment(startTime=0.0)
+            s.fmu.enterInitializationMode()
+        else:
+            s.fmu.enterInitializationMode(startTime=0.0)
         params = [v for v in b.md.modelVariables if v.causality == "parameter" and v.type != "String"]
         got = s.get([v.name for v in params])
         assert got.tolist() == [float(v.start) for v in params]
@@ -565,13 +570,20 @@ def test_reset_then_rerun_equals_first_run(fmus, version):
         home = s.outputs()
         first = s.run(times, steps, u)
         s.fmu.reset()
-        assert s.get(["platform.mass"])[0] == 0.5          # back to the start value
-        s.init(reals={"platform.mass": 0.7})
+        s.init(init_reals={"platform.mass": 0.7})        # set in initialization mode this time
         assert np.array_equal(s.outputs(), home)
         again = s.run(times, steps, u)
     finally:
         s.close()
     assert np.array_equal(first, again) and not np.array_equal(first[-1], home)
+    s = Slave(b)
+    try:
+        s.init(reals={"platform.mass": 0.7, "sigma[1]": 1.0})
+        s.fmu.reset()                                     # every value back to its start value
+        s.init()
+        assert s.get(["platform.mass", "sigma[1]"]).tolist() == [0.5, 0.0]
+    finally:
+        s.close()
 
 
 @pytest.mark.parametrize("version", [2, 3])

@@ -11,6 +11,8 @@
 #define INSTANCE_MAGIC 0x46324d55u /* "F2MU" */
 #define BIT(p) (1u << (p))
 #define ANY (BIT(PH_INSTANTIATED) | BIT(PH_INITIALIZATION) | BIT(PH_STEPPING) | BIT(PH_TERMINATED) | BIT(PH_FAILED))
+/* Getters: from initialization mode on (FMI 2.0.4 / 3.0 state machines, as the Reference FMUs). */
+#define GETTABLE (ANY & ~BIT(PH_INSTANTIATED))
 
 typedef struct {
     unsigned magic;
@@ -120,7 +122,7 @@ fmi2Status fmi2Reset(fmi2Component c) {
 }
 
 fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
-    GET("fmi2GetReal", ANY);
+    GET("fmi2GetReal", GETTABLE);
     return (fmi2Status)model_get_real(inst, vr, nvr, value);
 }
 
@@ -130,7 +132,7 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
 }
 
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String value[]) {
-    GET("fmi2GetString", ANY);
+    GET("fmi2GetString", GETTABLE);
     return (fmi2Status)model_get_string(inst, vr, nvr, value);
 }
 
@@ -140,7 +142,7 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 }
 
 fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Integer value[]) {
-    GET("fmi2GetInteger", ANY);
+    GET("fmi2GetInteger", GETTABLE);
     (void)value;
     return (fmi2Status)model_wrong_type(inst, "fmi2GetInteger", vr, nvr);
 }
@@ -152,7 +154,7 @@ fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
 }
 
 fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[]) {
-    GET("fmi2GetBoolean", ANY);
+    GET("fmi2GetBoolean", GETTABLE);
     (void)value;
     return (fmi2Status)model_wrong_type(inst, "fmi2GetBoolean", vr, nvr);
 }
@@ -240,14 +242,14 @@ fmi2Status fmi2CancelStep(fmi2Component c) {
 }
 
 fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value) {
-    GET("fmi2GetStatus", ANY);
+    GET("fmi2GetStatus", BIT(PH_STEPPING) | BIT(PH_TERMINATED));
     (void)value;
     model_log(inst, M_ERROR, "fmi2GetStatus: status kind %d not provided (doStep is synchronous)", (int)s);
     return fmi2Error;
 }
 
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value) {
-    GET("fmi2GetRealStatus", ANY);
+    GET("fmi2GetRealStatus", BIT(PH_STEPPING) | BIT(PH_TERMINATED));
     if (s != fmi2LastSuccessfulTime || !value) {
         model_log(inst, M_ERROR, "fmi2GetRealStatus: only fmi2LastSuccessfulTime, with a value pointer");
         return fmi2Error;
@@ -257,14 +259,14 @@ fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *
 }
 
 fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *value) {
-    GET("fmi2GetIntegerStatus", ANY);
+    GET("fmi2GetIntegerStatus", BIT(PH_STEPPING) | BIT(PH_TERMINATED));
     (void)value;
     model_log(inst, M_ERROR, "fmi2GetIntegerStatus: status kind %d not provided", (int)s);
     return fmi2Error;
 }
 
 fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value) {
-    GET("fmi2GetBooleanStatus", ANY);
+    GET("fmi2GetBooleanStatus", BIT(PH_STEPPING) | BIT(PH_TERMINATED));
     if (s != fmi2Terminated || !value) {
         model_log(inst, M_ERROR, "fmi2GetBooleanStatus: only fmi2Terminated, with a value pointer");
         return fmi2Error;
@@ -274,7 +276,7 @@ fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boo
 }
 
 fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *value) {
-    GET("fmi2GetStringStatus", ANY);
+    GET("fmi2GetStringStatus", BIT(PH_STEPPING) | BIT(PH_TERMINATED));
     (void)value;
     model_log(inst, M_ERROR, "fmi2GetStringStatus: status kind %d not provided", (int)s);
     return fmi2Error;

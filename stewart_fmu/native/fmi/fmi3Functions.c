@@ -13,6 +13,8 @@
 #define INSTANCE_MAGIC 0x46334d55u /* "F3MU" */
 #define BIT(p) (1u << (p))
 #define ANY (BIT(PH_INSTANTIATED) | BIT(PH_INITIALIZATION) | BIT(PH_STEPPING) | BIT(PH_TERMINATED) | BIT(PH_FAILED))
+/* Getters: from initialization mode on (FMI 2.0.4 / 3.0 state machines, as the Reference FMUs). */
+#define GETTABLE (ANY & ~BIT(PH_INSTANTIATED))
 
 typedef struct {
     unsigned magic;
@@ -152,7 +154,7 @@ fmi3Status fmi3Reset(fmi3Instance instance) {
 
 fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
                           fmi3Float64 values[], size_t nValues) {
-    GET("fmi3GetFloat64", ANY);
+    GET("fmi3GetFloat64", GETTABLE);
     if (!count_ok(inst, "fmi3GetFloat64", nValueReferences, nValues)) return fmi3Error;
     return (fmi3Status)model_get_real(inst, valueReferences, nValueReferences, values);
 }
@@ -166,7 +168,7 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueR
 
 fmi3Status fmi3GetString(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
                          fmi3String values[], size_t nValues) {
-    GET("fmi3GetString", ANY);
+    GET("fmi3GetString", GETTABLE);
     if (!count_ok(inst, "fmi3GetString", nValueReferences, nValues)) return fmi3Error;
     return (fmi3Status)model_get_string(inst, valueReferences, nValueReferences, values);
 }
@@ -182,7 +184,7 @@ fmi3Status fmi3SetString(fmi3Instance instance, const fmi3ValueReference valueRe
 #define WRONG_TYPE(T, N)                                                                                  \
     fmi3Status fmi3Get##N(fmi3Instance instance, const fmi3ValueReference valueReferences[],              \
                           size_t nValueReferences, T values[], size_t nValues) {                          \
-        GET("fmi3Get" #N, ANY);                                                                           \
+        GET("fmi3Get" #N, GETTABLE);                                                                           \
         (void)values, (void)nValues;                                                                      \
         return (fmi3Status)model_wrong_type(inst, "fmi3Get" #N, valueReferences, nValueReferences);       \
     }                                                                                                     \
@@ -206,7 +208,7 @@ WRONG_TYPE(fmi3Boolean, Boolean)
 
 fmi3Status fmi3GetBinary(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
                          size_t valueSizes[], fmi3Binary values[], size_t nValues) {
-    GET("fmi3GetBinary", ANY);
+    GET("fmi3GetBinary", GETTABLE);
     (void)valueSizes, (void)values, (void)nValues;
     return (fmi3Status)model_wrong_type(inst, "fmi3GetBinary", valueReferences, nValueReferences);
 }
@@ -220,7 +222,7 @@ fmi3Status fmi3SetBinary(fmi3Instance instance, const fmi3ValueReference valueRe
 
 fmi3Status fmi3GetClock(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
                         fmi3Clock values[]) {
-    GET("fmi3GetClock", ANY);
+    GET("fmi3GetClock", GETTABLE);
     (void)values;
     return (fmi3Status)model_wrong_type(inst, "fmi3GetClock", valueReferences, nValueReferences);
 }
