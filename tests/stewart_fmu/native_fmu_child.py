@@ -183,6 +183,17 @@ def calls_expected_to_fail(unzipdir: str, version: int) -> dict:
         st["getFloat64 NULL arrays"] = a.raw("fmi3GetFloat64", None, 3, None, 3)
         st["getFloat64 nValues != nvr"] = a.raw("fmi3GetFloat64", (__import__("ctypes").c_uint32 * 1)(sig), 1,
                                                 (__import__("ctypes").c_double * 2)(), 2)
+    # a NULL instance (and NULL output pointers): Error, no crash
+    if version == 2:
+        st["doStep NULL instance"] = a.status(a.fmu.fmi2DoStep, None, 1e-3, 1e-3, 1)[0]
+        st["getReal NULL instance"] = a.status(a.fmu.fmi2GetReal, None, None, 0, None)[0]
+        st["terminate NULL instance"] = a.status(a.fmu.fmi2Terminate, None)[0]
+        a.fmu.fmi2FreeInstance(None)
+    else:
+        st["doStep NULL instance"] = a.status(a.fmu.fmi3DoStep, None, 1e-3, 1e-3, True, None, None, None, None)[0]
+        st["getFloat64 NULL instance"] = a.status(a.fmu.fmi3GetFloat64, None, None, 0, None, 0)[0]
+        st["terminate NULL instance"] = a.status(a.fmu.fmi3Terminate, None)[0]
+        a.fmu.fmi3FreeInstance(None)
     _, after = a.get(a.outputs)
     unchanged = after == before
     recovered = a.step(1e-3, 1e-3)
