@@ -608,6 +608,31 @@ def test_parameter_overrides_equal_the_plant_built_with_them(fmus, version):
     agree(f"overrides + dopri5 vs Plant FMI {version}", residual(b, got, ref.run(times, steps, u)))
 
 
+@pytest.mark.parametrize("version", [2, 3])
+def test_two_instances_and_variable_steps(fmus, version):
+    """Two instances stepped in turn with different inputs and steps of 1, 0.3 and 2.5 ms
+    (communication points accumulated as a master does) each equal their own Plant."""
+    b = fmus[("micro", version)]
+    steps = [1e-3, 0.3e-3, 2.5e-3] * 20
+    times = [0.0]
+    for h in steps[:-1]:
+        times.append(times[-1] + h)
+    ua, ub = drive_inputs(b.model, times, seed=10), drive_inputs(b.model, times, seed=11, rel=0.04)
+    a, c = Slave(b, "a").init(), Slave(b, "b").init()
+    try:
+        rows_a, rows_b = [], []
+        for t, h, xa, xb in zip(times, steps, ua, ub):
+            rows_a.append(a.step(t, h, xa))
+            rows_b.append(c.step(t, h, xb))
+    finally:
+        a.close()
+        c.close()
+    for name, rows, u in (("a", rows_a, ua), ("b", rows_b, ub)):
+        agree(f"two instances, variable steps: {name} FMI {version}",
+              residual(b, np.array(rows), Reference(b.model, b.outputs).run(times, steps, u)))
+    assert residual(b, np.array(rows_a), np.array(rows_b)) > 1e-6
+
+
 # --- 4. errors and discards ---------------------------------------------------------------------------
 
 @pytest.mark.parametrize("version", [2, 3])
