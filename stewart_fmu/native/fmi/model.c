@@ -285,8 +285,7 @@ static int check_pose(Instance *c, const char *call, const char *what, const dou
 }
 
 /* The physical rules of stewart_fmu/scene.py, naming the parameter that breaks one. */
-static int validate(Instance *c, const char *call, double *p) {
-    const double *v = c->d.par;
+static int validate(Instance *c, const char *call, const double *v, double *p) {
     char name[64];
     unsigned vr;
     int i, j, k;
@@ -371,7 +370,7 @@ static stewart_options options(const Instance *c) {
 int model_exit_init(Instance *c) {
     PlantData *d = &c->d;
     const char *call = "exitInitializationMode";
-    if (validate(c, call, d->p) || check_pose(c, call, "the initial pose q0", d->p, d->par + VR_Q0)) {
+    if (validate(c, call, d->par, d->p) || check_pose(c, call, "the initial pose q0", d->p, d->par + VR_Q0)) {
         d->phase = PH_FAILED;
         clear_outputs(c);
         return M_ERROR;
@@ -480,7 +479,7 @@ static int output_source(Instance *c, const double **p, const double **y) {
     if (!c->have_initial) {
         InstanceLogger log = c->log;
         c->log = NULL;  /* quiet check: the values may still be set before exitInitializationMode */
-        if (validate(c, "getReal", c->lp) || check_pose(c, "getReal", "q0", c->lp, d->par + VR_Q0)) {
+        if (validate(c, "getReal", d->par, c->lp) || check_pose(c, "getReal", "q0", c->lp, d->par + VR_Q0)) {
             c->log = log;
             model_log(c, M_ERROR, "getReal: outputs are undefined: the parameters set so far are not valid "
                       "(exitInitializationMode names the problem)");
@@ -729,9 +728,18 @@ int model_get_state(Instance *c, void **state) {
 
 /* A state's content is usable: enums in range, sizes consistent, finite where it matters. */
 static int sane(Instance *c, const char *call, const PlantData *d) {
-    int ok = d->phase >= 0 && d->phase < PH_COUNT && d->method >= 0 && d->method <= 2 &&
-             (d->phase < PH_STEPPING || d->phase == PH_FAILED || d->n == stewart_state_size(d->p)) &&
-             isfinite(d->time) && isfinite(d->start_time);
+    int i, ok = d->phase >= 0 && d->phase < PH_COUNT && d->method >= 0 && d->method <= 2 &&
+                isfinite(d->time) && isfinite(d->start_time);
+    if (ok && (d->phase == PH_STEPPING || d->phase == PH_TERMINATED)) {
+        /* a running plant: valid parameters packed as they are, a finite state of their size */
+        double p[STEWART_N_PARAMS];
+        InstanceLogger log = c->log;
+        c->log = NULL;
+        ok = validate(c, call, d->par, p) == M_OK && memcmp(p, d->p, sizeof p) == 0 &&
+             d->n == stewart_state_size(d->p);
+        c->log = log;
+        for (i = 0; ok && i < d->n; i++) ok = isfinite(d->y[i]);
+    }
     if (!ok) model_log(c, M_ERROR, "%s: the state is not a valid state of this FMU", call);
     return ok ? M_OK : M_ERROR;
 }
