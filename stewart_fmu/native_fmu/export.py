@@ -49,17 +49,21 @@ def find_compiler() -> str:
                                 "(e.g. apt install gcc) or set CC to its path")
 
 
-def platform_folder(fmi_version: int) -> str:
-    """binaries/<folder> of this machine (Linux x86_64: linux64 / x86_64-linux)."""
+def platform_folder(fmi_version: int) -> tuple[str, str]:
+    """(binaries/<folder>, file extension) of this machine: linux64 / x86_64-linux and .so on
+    Linux x86_64 (the platform this export is tested on); darwin64 / win64 and the FMI 3.0
+    platform tuples elsewhere."""
     machine = platform.machine().lower()
     system = platform.system()
     arch = {"amd64": "x86_64", "x86_64": "x86_64", "arm64": "aarch64", "aarch64": "aarch64"}.get(machine, machine)
-    if fmi_version == 2:
-        if system != "Linux" or arch != "x86_64":
-            raise BuildError(f"FMI 2.0 export is implemented for linux64 only, not {system} {machine}")
-        return "linux64"
     os_name = {"Linux": "linux", "Darwin": "darwin", "Windows": "windows"}.get(system, system.lower())
-    return f"{arch}-{os_name}"
+    ext = {"darwin": ".dylib", "windows": ".dll"}.get(os_name, ".so")
+    if fmi_version == 3:
+        return f"{arch}-{os_name}", ext
+    folder = {"linux": "linux64", "darwin": "darwin64", "windows": "win64"}.get(os_name)
+    if folder is None or (os_name != "darwin" and arch != "x86_64"):
+        raise BuildError(f"FMI 2.0 has no binaries folder for {system} {machine}: export FMI 3.0")
+    return folder, ext
 
 
 def core_sources(native: Path = NATIVE) -> list[str]:
@@ -81,7 +85,7 @@ def export_fmu(scene_path: str | Path, out_path: str | Path, fmi_version: int = 
     data = read_scene_dict(scene_path)
     scene_from_dict(data, source=str(scene_path))   # validates; raises SceneError
     compiler = find_compiler()
-    folder = platform_folder(fmi_version)
+    folder, ext = platform_folder(fmi_version)
     out = Path(out_path)
     core = core_sources()
     c_files = [f for f in core if f.endswith(".c")] + FMI_SOURCES[fmi_version]
@@ -97,9 +101,10 @@ def export_fmu(scene_path: str | Path, out_path: str | Path, fmi_version: int = 
                 model_description.build_description_xml(MODEL_IDENTIFIER, c_files))
         (root / "modelDescription.xml").write_bytes(
             model_description.build(data, fmi_version, MODEL_IDENTIFIER, c_files))
-        binary = root / "binaries" / folder / f"{MODEL_IDENTIFIER}.so"
+        binary = root / "binaries" / folder / f"{MODEL_IDENTIFIER}{ext}"
         binary.parent.mkdir(parents=True)
-        cmd = [compiler, *CFLAGS, "-shared", "-o", str(binary), *[str(src / f) for f in c_files], "-lm"]
+        flags = [f for f in CFLAGS if not (ext == ".dll" and f == "-fPIC")]
+        cmd = [compiler, *flags, "-shared", "-o", str(binary), *[str(src / f) for f in c_files], "-lm"]
         proc = subprocess.run(cmd, capture_output=True, text=True)
         if proc.returncode != 0 or not binary.exists():
             raise BuildError(f"compiling the FMU failed ({' '.join(cmd)}):\n{proc.stderr[-4000:]}")
