@@ -659,6 +659,45 @@ def test_discard_keeps_the_state_and_huge_step_returns_promptly(fmus, version):
             s.close()
 
 
+_SIMULATE_DISCARD = r"""
+import sys, numpy as np
+from fmpy import simulate_fmu
+from fmpy.fmi1 import FMICallException
+path, k_bad, hold = sys.argv[1], int(sys.argv[2]), [float(x) for x in sys.argv[3:9]]
+n, h = 50, 1e-3
+t = np.arange(n + 1) * h
+sig = np.tile(hold, (n + 1, 1))
+sig[k_bad:] += 5e6
+rows = [(tk, *s) for tk, s in zip(t, sig)]
+rows.insert(k_bad, (t[k_bad], *sig[k_bad - 1]))   # a step change at t_k: fmpy applies the right one
+signal = np.array(rows, dtype=[("time", float)] + [(f"sigma[{i}]", float) for i in range(1, 7)])
+try:
+    res = simulate_fmu(path, stop_time=n * h, output_interval=h, input=signal, output=["z"])
+    print("ENDED", repr(float(res["time"][-1])), len(res))
+except FMICallException as exc:
+    print("RAISED", exc.status)
+"""
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_simulate_fmu_stops_at_a_discard(fmus, version):
+    """fmpy.simulate_fmu driving a step into the stroke: with FMI 2.0 the FMU reports
+    fmi2Terminated after the discard and the run ends at the last successful time (fmpy would
+    otherwise retry the same step forever); with FMI 3.0 fmpy raises on the Discard."""
+    b = fmus[("micro", version)]
+    k_bad = 20
+    proc = subprocess.run([sys.executable, "-c", _SIMULATE_DISCARD, str(b.path), str(k_bad),
+                           *map(repr, hold_forces(b.model).tolist())], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    if version == 2:
+        line = [ln for ln in proc.stdout.splitlines() if ln.startswith("ENDED")]
+        assert line, proc.stdout[-2000:]
+        end, length = float(line[0].split()[1]), int(line[0].split()[2])
+        assert end == pytest.approx(k_bad * H, abs=1e-15) and length < 51
+    else:
+        assert f"RAISED {DISCARD}" in proc.stdout, proc.stdout
+
+
 _ERROR_CHILD = r"""
 import json, sys
 sys.path.insert(0, sys.argv[1])

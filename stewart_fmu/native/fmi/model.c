@@ -162,6 +162,7 @@ int model_require(Instance *c, const char *call, unsigned phases) {
 
 static void clear_outputs(Instance *c) {
     c->have_legs = c->have_cond = c->have_parts = c->have_initial = 0;
+    c->discarded = 0;
 }
 
 static void update_rack(Instance *c) {
@@ -428,6 +429,7 @@ int model_do_step(Instance *c, double t, double h, double *last_time) {
         model_log(c, M_DISCARD, "doStep from t = %.17g s by %.17g s discarded (%s): it needs %.3g internal "
                   "steps of at most %g s, more than max_steps = %ld; take smaller communication steps",
                   t, h, METHODS[d->method], ceil(h / o.max_step), o.max_step, o.max_steps);
+        c->discarded = 1;
         return M_DISCARD;
     }
     update_rack(c);
@@ -450,13 +452,14 @@ int model_do_step(Instance *c, double t, double h, double *last_time) {
                       "start of the step: q = (%.6g, %.6g, %.6g, %.6g, %.6g, %.6g), rack force = (%.6g, %.6g, "
                       "%.6g, %.6g, %.6g, %.6g) N", t, h, METHODS[d->method], why(status), q[0], q[1], q[2],
                       q[3], q[4], q[5], c->rack[0], c->rack[1], c->rack[2], c->rack[3], c->rack[4], c->rack[5]);
+        c->discarded = 1;
         return M_DISCARD;
     }
     memcpy(d->y, y1, (size_t)d->n * sizeof(double));
     memcpy(d->energy, e1, sizeof e1);
     d->time = t + h;
     if (last_time) *last_time = d->time;
-    c->have_legs = c->have_cond = c->have_parts = 0;
+    c->have_legs = c->have_cond = c->have_parts = c->discarded = 0;
     return M_OK;
 }
 

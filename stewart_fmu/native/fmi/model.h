@@ -100,6 +100,7 @@ struct Instance {
     PlantData d;
     /* outputs computed on demand (not part of the state; cleared whenever y or inputs change) */
     int have_legs, have_cond, have_parts, have_initial;
+    int discarded;              /* the last doStep was discarded (FMI 2.0 fmi2Terminated status) */
     double l[6], ldot[6], omega[3], cond, parts[36], rack[6];
     double lp[STEWART_N_PARAMS]; /* packed parameters for outputs before initialization ends */
     /* importer glue */
