@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from stewart_fmu import inverse_dynamics, load_scene
-from stewart_fmu.fmu import export_fmu
+from stewart_fmu.fmu.export import export_fmu
 from stewart_fmu.integrators import IntegratorOptions
 from stewart_fmu.plant import Plant
 

@@ -21,7 +21,7 @@ import numpy as np
 from fmpy import extract, read_model_description
 
 from stewart_fmu import inverse_dynamics, load_scene
-from stewart_fmu.native_fmu import export_fmu
+from stewart_fmu.fmu.export import export_fmu
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "scenes" / "micro_manipulator.toml"

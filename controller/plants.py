@@ -9,7 +9,7 @@ from typing import Protocol
 import numpy as np
 
 from stewart_fmu.errors import StewartError
-from stewart_fmu.fmu import initial_values, inputs, names, outputs
+from stewart_fmu.fmu.variables import VR_L, VR_LDOT, VR_Q, VR_Q0, VR_QD0, VR_TAU
 from stewart_fmu.integrators import IntegratorOptions
 from stewart_fmu.model import Model
 from stewart_fmu.plant import Plant, StepRejected
@@ -61,16 +61,14 @@ class FmuPlant:
         from fmpy.fmi2 import FMU2Slave
 
         self.md = read_model_description(str(path))
-        self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
         self.unzipdir = extract(str(path))
         self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=self.unzipdir,
                              modelIdentifier=self.md.coSimulation.modelIdentifier,
                              instanceName="plant")
-        self.vr_tau = [self.vr[n] for n in names(inputs(has_drive=True), "tau")]
-        self.vr_q0 = [self.vr[n] for n in names(initial_values(), "q0")]
-        self.vr_qd0 = [self.vr[n] for n in names(initial_values(), "qd0")]
-        out = outputs(())
-        self.vr_out = [self.vr[n] for key in ("l", "ldot", "q") for n in names(out, key)]
+        six = range(6)  # value references of the one table (stewart_fmu.fmu.variables)
+        self.vr_tau, self.vr_q0, self.vr_qd0 = ([base + i for i in six]
+                                                for base in (VR_TAU, VR_Q0, VR_QD0))
+        self.vr_out = [base + i for base in (VR_L, VR_LDOT, VR_Q) for i in six]
 
     def start(self, q0, qd0, t0, torque0) -> None:
         f = self.fmu

@@ -10,12 +10,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from .errors import ForwardKinematicsError, SingularityError, StrokeLimitError
-from .kane import twist_forces
-from .model import P_CHAR_LENGTH, Model
-from .rotations import euler_motion, orientation, solve_rate_matrix
+from .model import Model
+from .native import core
+from .rotations import euler_motion, solve_rate_matrix
 
 COND_LIMIT = 1e10  # cond(J) above this counts as singular: forces keep fewer than ~6 digits
 
@@ -114,11 +113,8 @@ def forward_kinematics(model: Model, lengths, guess=None, tol: float = 1e-12,
                                f"stroke [{lo}, {hi}] m: no pose to find")
     start = np.array(model.home if guess is None else guess, dtype=float)
     q = start.copy()
-    try:
-        iterations, residual = _newton(model.params, target, q,
-                                       tol * max(1.0, float(np.max(target))), max_iter)
-    except np.linalg.LinAlgError:  # the Jacobian became exactly singular on the way
-        iterations, residual = -1, float("nan")
+    iterations, residual = _newton(model, target, q, tol * max(1.0, float(np.max(target))),
+                                   max_iter)
     if iterations >= 0:
         return q
     raise ForwardKinematicsError(
@@ -128,75 +124,32 @@ def forward_kinematics(model: Model, lengths, guess=None, tol: float = 1e-12,
 
 
 def condition_number(model: Model, q) -> float:
-    """cond(J) of one pose (scaled as in inverse_kinematics), compiled: for per-step checks."""
-    return float(np.linalg.cond(_scaled_jacobian(model.params, np.asarray(q, dtype=float))))
+    """cond(J) of one pose (scaled as in inverse_kinematics; the C core's SVD): for per-step
+    checks. inf where the pose is not finite."""
+    cond, _ = core.condition_number(model.native, np.ascontiguousarray(q, dtype=float))
+    return float(cond)
 
 
-@njit(cache=True, error_model="numpy")
-def _scaled_jacobian(p, q):
-    """J at one pose with its rotational columns divided by the characteristic length."""
-    R, om, al = np.empty((3, 3)), np.empty(3), np.empty(3)
-    U, Rr, leg = np.empty((6, 3)), np.empty((6, 3)), np.empty((6, 3))
-    JT, gen, order = np.empty((6, 6)), np.empty((4, 6)), np.empty((2, 6), np.int64)
-    for k in range(6):
-        order[0, k] = order[1, k] = k
-    zero = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-    qt = (q[0], q[1], q[2], q[3], q[4], q[5])
-    orientation(qt, zero, zero, R, om, al)
-    twist_forces(p, qt, R, zero, om, zero, al, U, Rr, leg, JT, order, gen)
-    J = np.empty((6, 6))
-    _jacobian_rows(U, Rr, 1.0 / p[P_CHAR_LENGTH], J)
-    return J
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _jacobian_rows(U, Rr, scale, J) -> None:
-    """J rows [u_i, scale (r_i x u_i)] from the unit vectors and lever arms."""
-    for i in range(6):
-        u0, u1, u2 = U[i, 0], U[i, 1], U[i, 2]
-        r0, r1, r2 = Rr[i, 0], Rr[i, 1], Rr[i, 2]
-        J[i, 0], J[i, 1], J[i, 2] = u0, u1, u2
-        J[i, 3] = scale * (r1 * u2 - r2 * u1)
-        J[i, 4] = scale * (r2 * u0 - r0 * u2)
-        J[i, 5] = scale * (r0 * u1 - r1 * u0)
-
-
-@njit(cache=True, error_model="numpy")
-def _newton(p, target, q, tol, max_iter):
+def _newton(model: Model, target: np.ndarray, q: np.ndarray, tol: float, max_iter: int):
     """Newton on the leg lengths, in place on q: the step solves J dnu = -(l - target) for the
     twist increment and maps its rotation to Euler angles with E^-1 (first order, as dl/dq =
     J diag(I, E)). Returns (iterations, residual); iterations < 0: no convergence after -it."""
-    R, om, al = np.empty((3, 3)), np.empty(3), np.empty(3)
-    U, Rr, leg = np.empty((6, 3)), np.empty((6, 3)), np.empty((6, 3))
-    JT, gen = np.empty((6, 6)), np.empty((4, 6))
-    order = np.empty((2, 6), np.int64)
-    J = np.empty((6, 6))
-    zero = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-    residual = np.inf
+    zero, residual = np.zeros(6), np.inf
     for it in range(max_iter):
-        for k in range(6):
-            order[0, k] = order[1, k] = k
-        qt = (q[0], q[1], q[2], q[3], q[4], q[5])
-        orientation(qt, zero, zero, R, om, al)
-        twist_forces(p, qt, R, zero, om, zero, al, U, Rr, leg, JT, order, gen)
-        residual = 0.0
-        f = np.empty(6)
-        for i in range(6):
-            f[i] = target[i] - leg[i, 0]
-            residual = max(residual, abs(f[i]))
-        _jacobian_rows(U, Rr, 1.0, J)
+        lengths, _, _, _ = core.leg_state(model.native, q, zero)
+        f = target - lengths
+        residual = float(np.max(np.abs(f)))
         if not np.isfinite(residual):
             return -(it + 1), residual
         if residual <= tol:
             return it, residual
-        dnu = np.linalg.solve(J, f)
-        ok, d3, d4, d5 = solve_rate_matrix(qt, dnu[3], dnu[4], dnu[5])
+        J, _ = core.jacobian(model.native, q)
+        try:
+            dnu = np.linalg.solve(J, f)
+        except np.linalg.LinAlgError:  # exactly singular on the way
+            return -(it + 1), residual
+        ok, d3, d4, d5 = solve_rate_matrix(q, dnu[3], dnu[4], dnu[5])
         if not ok or not np.all(np.isfinite(dnu)):
             return -(it + 1), residual
-        q[0] += dnu[0]
-        q[1] += dnu[1]
-        q[2] += dnu[2]
-        q[3] += d3
-        q[4] += d4
-        q[5] += d5
+        q += (dnu[0], dnu[1], dnu[2], d3, d4, d5)
     return -max_iter, residual

@@ -12,6 +12,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from .native.core import NativeParams
+
 # Layout of Model.params, the flat float64 vector the compiled kernels read.
 P_HAS_LEGS, P_HAS_DRIVE, P_HAS_FRICTION = 0, 1, 2
 P_GRAVITY = 3            # 3 values
@@ -101,6 +103,7 @@ class Model:
     source: str | None = None
     transmission: TransmissionParams | None = None   # project table [transmission]
     params: np.ndarray = field(init=False, repr=False)
+    native: NativeParams = field(init=False, repr=False, compare=False)  # params for the C core
 
     def __post_init__(self) -> None:
         for name in ("gravity", "base_joints", "platform_joints", "home", "platform_inertia"):
@@ -109,6 +112,7 @@ class Model:
             object.__setattr__(self, name, arr)
         object.__setattr__(self, "extra", MappingProxyType(dict(self.extra)))
         object.__setattr__(self, "params", _pack(self))
+        object.__setattr__(self, "native", NativeParams(self.params))
 
     @property
     def characteristic_length(self) -> float:

@@ -25,20 +25,13 @@ import numpy as np
 from stewart_fmu.dynamics import forward_dynamics, inverse_dynamics_parts, leg_state, present_parts
 from stewart_fmu.energy import DRIVEN, energy_terms
 from stewart_fmu.errors import IntegrationError, StewartError, TrajectoryError
-from stewart_fmu.integrators import IntegratorOptions, derivative, scipy_advance
+from stewart_fmu.integrators import COMPILED, IntegratorOptions, derivative, scipy_advance
 from stewart_fmu.kinematics import check_poses, inverse_kinematics
 from stewart_fmu.model import Model
-from stewart_fmu.stability import ENERGY_TOL, advice, default_options, internal_step
+from stewart_fmu.stability import advice, default_options, internal_step
 from stewart_fmu.status import ENERGY_GAIN, STATE_NONFINITE, why
 from stewart_fmu.step import (
-    ALLOWED,
-    EVALUATIONS,
-    EXCESS,
-    INFO_SIZE,
-    METHODS,
-    STEP_GUESS,
     check_step,
-    fixed_substeps,
     plant_step,
 )
 from stewart_fmu.transmission import initial_state, spring_forces
@@ -166,6 +159,15 @@ class Plant:
         self._initial = np.r_[model.home, np.zeros(6)]
         self._set_fresh()
 
+    @property
+    def options(self) -> IntegratorOptions:
+        return self._options
+
+    @options.setter
+    def options(self, value: IntegratorOptions) -> None:
+        self._options = value
+        self._native_options = value.native() if value.method in COMPILED else None
+
     # --- life cycle ------------------------------------------------------------------------
 
     def _set_fresh(self) -> None:
@@ -180,7 +182,7 @@ class Plant:
         self._next = np.empty(self.model.state_size)  # the step's result; swapped on success
         self._energy: np.ndarray | None = None        # energy_terms of _y (power balance)
         self._energy_next = np.empty(DRIVEN + 6)      # ... of _next (swapped on success)
-        self._info = np.zeros(INFO_SIZE)              # plant_step's step guess, evaluations, excess
+        self._excess = self._allowed = 0.0            # the last step's power balance (J)
         self.evaluations = 0          # right-hand-side evaluations so far
         self._cache: dict = {}
         self._outputs = Outputs(self)
@@ -288,13 +290,12 @@ class Plant:
             raise CallSequenceError(f"do_step: current_time {current_time!r} is not the "
                                     f"component's time {t!r}")
         status = self._advance(step_size)
-        info = self._info
         if status == STATE_NONFINITE:
             self._unstable(current_time, step_size, "the state became non-finite")
         if status == ENERGY_GAIN:
             self._unstable(current_time, step_size,
-                           f"the energy grew by {info[EXCESS]:.3g} J more than the rack forces "
-                           f"supplied (allowed {info[ALLOWED]:.3g} J)")
+                           f"the energy grew by {self._excess:.3g} J more than the rack forces "
+                           f"supplied (allowed {self._allowed:.3g} J)")
         if status:
             self._check_stiff(current_time, step_size, why(status))
             raise StepRejected(self._rejection(status, current_time, step_size), current_time,
@@ -306,23 +307,23 @@ class Plant:
 
     def _advance(self, h: float) -> int:
         """self._next = self._y advanced by h and checked (step.plant_step); its status."""
-        o, p, info = self.options, self.model.params, self._info
+        o, model = self.options, self.model
         if self._energy is None:
-            self._energy = energy_terms(self.model, self._y)
-        if o.method in METHODS:
-            info[STEP_GUESS] = self._step_guess
-            status = plant_step(p, METHODS[o.method], self._y, self._next, self._rack, h,
-                                fixed_substeps(h, o.max_step), o.rtol, o.atol, o.max_step,
-                                o.max_steps, self._energy, self._energy_next, ENERGY_TOL, info)
-            self._step_guess = info[STEP_GUESS]
-            self.evaluations += int(info[EVALUATIONS])
-            return status
-        status, calls = scipy_advance(p, self._y, self._next, self._rack, h, o)
-        self.evaluations += calls
-        if status:
-            return status
-        return check_step(p, self._next, self._energy, self._energy_next, self._rack,
-                          ENERGY_TOL, h, info)
+            self._energy = energy_terms(model, self._y)
+        if o.method in COMPILED:
+            r = plant_step(model.native, self._native_options, self._y, self._next, self._rack,
+                           h, self._energy, self._energy_next, self._step_guess)
+            self._step_guess = r.step_guess
+        else:
+            status, calls = scipy_advance(model.native, self._y, self._next, self._rack, h, o)
+            self.evaluations += calls
+            if status:
+                return status
+            r = check_step(model.native, self._next, self._energy, self._energy_next,
+                           self._rack, h)
+        self.evaluations += r.evaluations
+        self._excess, self._allowed = r.excess, r.allowed
+        return r.status
 
     def _check_stiff(self, t: float, h: float, why: str) -> None:
         """A fixed-step method past its stability limit explains a failed step: say so."""

@@ -1,5 +1,6 @@
 """Stiffness and instability: the linearised plant's spectral radius, the explicit stability
-limit it sets, the default integrator that respects it, and the power-balance check of a step.
+limit it sets, the default integrator that respects it, and the advice an unstable step gets
+(the step's power-balance check itself is the C core's: see step.py).
 
 The stiff modes of this plant are linear in the state near any point (viscous friction c / m,
 transmission springs sqrt(k / m), damper c / m), so the spectral radius rho of the Jacobian of
@@ -12,20 +13,19 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from . import model as M
-from .dynamics import inverse_dynamics, leg_state_kernel
-from .energy import DRIVEN, KINETIC, POTENTIAL, SPRING, energy_terms_kernel
+from .dynamics import inverse_dynamics
 from .integrators import IntegratorOptions, derivative
 from .model import Model
+from .native import core
 from .status import OK
 from .transmission import initial_state
 
 RK4_LIMIT = 2.78          # |h lambda| at RK4's stability boundary (real and imaginary axes)
 DEFAULT_H_RHO = 0.5       # the default RK4 step keeps h rho <= 0.5: stiff modes resolved, not just stable
 DEFAULT_MAX_STEP = IntegratorOptions().max_step
-ENERGY_TOL = 1e-3         # energy gained beyond the input work, relative to the energy exchanged
+ENERGY_TOL = core.ENERGY_TOL  # energy gained beyond the input work, relative to the energy exchanged (1e-3)
 _FD = 1e-7                # relative finite-difference step of the Jacobian
 
 
@@ -72,36 +72,6 @@ def internal_step(options: IntegratorOptions, h: float) -> float:
     if options.method == "rk4":
         return h / max(1, math.ceil(h / options.max_step - 1e-9))
     return min(h, options.max_step)
-
-
-@njit(cache=True, error_model="numpy")
-def step_energy(p, y1, e0, e1, F, tol, h) -> tuple[bool, float, float]:
-    """The per-step power balance in one compiled call: (y1 finite, dE - W, allowed), with
-    e1 = energy_terms of y1 written in place (e0: those of the step's start). With the rack
-    forces F held, W = F . (d1 - d0) (energy.py) and dE - W = -(dissipation) <= 0 for an
-    accurate step; allowed: tol of the energy exchanged, plus the Coulomb work bound
-    coulomb (sum |dd| + h sum |ld1|): the friction's sign changes inside a step (a leg at rest,
-    or reversing) are integrated to O(1) of the work it does over the step's path, which its
-    displacement alone underestimates when the step ends moving (a platform starting from rest
-    against Coulomb friction gains ~1e-6 J of such spurious energy in a 1 ms RK4 step)."""
-    for v in y1:
-        if not np.isfinite(v):
-            return False, 0.0, 0.0
-    energy_terms_kernel(p, y1, e1)
-    work, moved = 0.0, 0.0
-    for i in range(6):
-        d = e1[DRIVEN + i] - e0[DRIVEN + i]
-        work += F[i] * d
-        moved += abs(d)
-    excess = ((e1[KINETIC] + e1[POTENTIAL] + e1[SPRING])
-              - (e0[KINETIC] + e0[POTENTIAL] + e0[SPRING]) - work)
-    scale = (e0[KINETIC] + e1[KINETIC] + e0[SPRING] + e1[SPRING] + abs(work)
-             + 1e-9 * (abs(e0[POTENTIAL]) + abs(e1[POTENTIAL])))
-    if p[M.P_COULOMB] > 0.0:
-        _, ld1, _ = leg_state_kernel(p, y1[:6], y1[6:12])
-        for i in range(6):
-            moved += h * abs(ld1[i])
-    return True, excess, tol * scale + p[M.P_COULOMB] * moved
 
 
 def advice(model: Model, y: np.ndarray, F: np.ndarray) -> tuple[float, str]:

@@ -26,7 +26,7 @@ from hil.spawn import serve_device
 from stewart_fmu import io
 from stewart_fmu.dynamics import present_parts
 from stewart_fmu.errors import SceneError, StewartError
-from stewart_fmu.fmu import export_fmu
+from stewart_fmu.fmu.export import export_fmu
 from stewart_fmu.io import OutputError, writing
 from stewart_fmu.model import Model
 from stewart_fmu.scene import load_scene
@@ -196,12 +196,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scene", metavar="SCENE", help="scene file (TOML)")
     p.set_defaults(run=cmd_scene_info)
 
-    p = sub.add_parser("export-fmu", help="export the plant as an FMI 2.0 co-simulation FMU",
-                       description="Build an FMI 2.0 co-simulation FMU of the scene's plant "
-                                   "(pythonfmu). It runs in the importer's Python, which needs "
-                                   "stewart-sim installed.")
+    p = sub.add_parser("export-fmu", help="export the plant as an FMI co-simulation FMU",
+                       description="Build a self-contained FMI 2.0 or 3.0 co-simulation FMU of "
+                                   "the scene's plant: the C core and FMI layer compiled with "
+                                   "this machine's C compiler (cc, gcc or clang; $CC first), "
+                                   "its sources inside for other platforms. The FMU needs no "
+                                   "Python, only the platform's C library.")
     p.add_argument("scene", metavar="SCENE", help="scene file (TOML)")
     p.add_argument("-o", "--out", required=True, metavar="PLANT.fmu", help="the FMU to write")
+    p.add_argument("--fmi-version", type=int, choices=(2, 3), default=2,
+                   help="FMI version of the FMU (default 2)")
     p.set_defaults(run=cmd_export_fmu)
 
     p = sub.add_parser("device", help="run the emulated micro-manipulator behind a MAVLink link",
@@ -416,10 +420,10 @@ def cmd_sweep(args: argparse.Namespace) -> None:
 # --- export-fmu ------------------------------------------------------------------------------
 
 def cmd_export_fmu(args: argparse.Namespace) -> None:
-    """`stewart-sim export-fmu SCENE -o PLANT.fmu`."""
+    """`stewart-sim export-fmu SCENE -o PLANT.fmu [--fmi-version 2|3]`."""
     out = Path(args.out)
     with writing(out):
-        export_fmu(args.scene, out)
+        export_fmu(args.scene, out, args.fmi_version)
     print(f"wrote {out}")
 
 

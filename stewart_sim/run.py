@@ -15,7 +15,7 @@ from controller.moves import RUN_HOLD, RUN_MOVE, run_reference
 from controller.plants import FmuPlant
 from stewart_fmu import io
 from stewart_fmu.errors import StewartError
-from stewart_fmu.fmu import SCENE_RESOURCE
+from stewart_fmu.fmu.export import SCENE_RESOURCE
 from stewart_fmu.io import writing
 from stewart_fmu.model import Model
 from stewart_fmu.scene import load_scene, scene_from_dict

@@ -13,7 +13,7 @@ import numpy as np
 
 from stewart_fmu.energy import DRIVEN, KINETIC, energy_terms, total_energy
 from stewart_fmu.errors import StewartError
-from stewart_fmu.integrators import IntegratorOptions, rk4_advance
+from stewart_fmu.integrators import IntegratorOptions, advance
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.model import Model
 from stewart_fmu.stability import default_options
@@ -94,11 +94,12 @@ def _conservative_run(model: Model, case, duration: float, step: float):
     nxt = np.empty_like(y)
     chunk = min(1.0, duration)
     n = int(round(chunk / step))
+    rk4 = IntegratorOptions(method="rk4", max_step=chunk / n, max_steps=n)
     out = []
     for _ in range(int(round(duration / chunk))):
         e = energy_terms(model, y)
         out.append((total_energy(e) - float(F @ e[DRIVEN:]), e[KINETIC]))
-        status = rk4_advance(model.params, y, nxt, F, chunk, n)
+        status = advance(model.native, rk4, y, nxt, F, chunk)
         if status:
             raise StewartError(f"hour run: the plant refused a step (status {status})")
         y, nxt = nxt, y

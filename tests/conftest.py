@@ -5,9 +5,9 @@ from __future__ import annotations
 import os
 
 import pytest
-from helpers import RESIDUALS, level_dict, level_model, scene_dict
 
 from stewart_fmu import Model, scene_from_dict
+from tests.helpers import RESIDUALS, level_dict, level_model, scene_dict
 
 
 @pytest.fixture

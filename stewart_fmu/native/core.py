@@ -25,6 +25,7 @@ TOO_MANY_STEPS, STEP_TOO_SMALL, UNSTABLE = (
 METHODS = {"rk4": lib.STEWART_RK4, "euler": lib.STEWART_EULER, "dopri5": lib.STEWART_DOPRI5}
 N_PARAMS = lib.STEWART_N_PARAMS
 N_ENERGY = lib.STEWART_N_ENERGY
+ENERGY_TOL = lib.STEWART_ENERGY_TOL
 
 # Arrays reach C through ffi.from_buffer (no copy; the cffi declarations take them as void *,
 # see build_core._cdef): the C side reads them as double arrays of the documented sizes.

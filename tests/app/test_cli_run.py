@@ -14,7 +14,7 @@ from controller.config import controller_config
 from controller.cosim import run_closed_loop
 from controller.moves import run_reference
 from stewart_fmu import load_scene
-from stewart_fmu.fmu import export_fmu
+from stewart_fmu.fmu.export import export_fmu
 from stewart_fmu.io import POSE
 from stewart_sim import cli
 from stewart_sim import run as run_files

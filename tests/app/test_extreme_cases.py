@@ -6,12 +6,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import level_model
 
 from stewart_fmu import forward_dynamics, inverse_dynamics, inverse_kinematics, load_scene
 from stewart_fmu.kinematics import COND_LIMIT
 from stewart_sim.cases import case_of, case_trajectory, run_case
 from stewart_sim.stiff_study import hour_drift
+from tests.helpers import level_model
 
 EXTREME = Path(__file__).resolve().parents[2] / "scenes" / "extreme"
 

@@ -4,7 +4,7 @@ module, imports inside functions included), no import cycles between our modules
 import ast
 from pathlib import Path
 
-from helpers import ROOT
+from tests.helpers import ROOT
 
 RANK = {"stewart_fmu": 0, "controller": 1, "hil": 2, "stewart_sim": 3}
 

@@ -9,7 +9,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from reference.newton_euler import reference_inverse_dynamics
 
 from stewart_fmu import (
     SceneError,
@@ -22,6 +21,7 @@ from stewart_fmu import (
 from stewart_fmu.model import P_HAS_DRIVE, P_HAS_FRICTION, P_HAS_LEGS, P_VISCOUS
 from stewart_sim.paper.report import write_paper_report
 from stewart_sim.paper.study import LEVELS, TRAJECTORIES, VARIANTS, PaperResults, run_paper_experiments
+from tests.reference.newton_euler import reference_inverse_dynamics
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 MICRO = SCENES / "micro_manipulator.toml"

@@ -16,7 +16,6 @@ import re
 import control as ct
 import numpy as np
 import pytest
-from helpers import SCENE_FILES, deleting, level_model, scene_dict, setting
 from scipy.optimize import brentq
 
 from controller.axis import AxisControllers
@@ -41,9 +40,10 @@ from controller.trajectory import Trajectory, constant_acceleration, leg_referen
 from stewart_fmu import load_scene, scene_from_dict
 from stewart_fmu.dynamics import inverse_dynamics
 from stewart_fmu.errors import IntegrationError, SceneError
-from stewart_fmu.fmu import export_fmu
+from stewart_fmu.fmu.export import export_fmu
 from stewart_fmu.integrators import IntegratorOptions
 from stewart_fmu.kane_terms import mass_matrix
+from tests.helpers import SCENE_FILES, deleting, level_model, scene_dict, setting
 
 SCENES = ("micro", "sim")
 

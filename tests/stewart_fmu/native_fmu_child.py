@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 import random
-from ctypes import POINTER, byref, c_void_p, cast
+from ctypes import byref
 
 from fmpy import read_model_description
 from fmpy.fmi1 import FMICallException
@@ -25,8 +25,13 @@ class Adapter:
         common = dict(guid=tok, unzipDirectory=unzipdir, modelIdentifier="StewartPlant", instanceName=name)
         if version == 2:
             from fmpy import calloc, free
-            from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                                   fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+            from fmpy.fmi2 import (
+                FMU2Slave,
+                fmi2CallbackAllocateMemoryTYPE,
+                fmi2CallbackFreeMemoryTYPE,
+                fmi2CallbackFunctions,
+                fmi2CallbackLoggerTYPE,
+            )
             from fmpy.logging import addLoggerProxy
 
             def log(_env, _name, status, category, message):

@@ -10,18 +10,6 @@ import dataclasses
 
 import numpy as np
 import pytest
-from helpers import (
-    leg_geometry,
-    level_dict,
-    level_model,
-    random_states,
-    rate_matrix,
-    record,
-    rotation,
-    scene_dict,
-    smooth_trajectory,
-)
-from reference.newton_euler import reference_inverse_dynamics
 from scipy.linalg import expm
 
 from stewart_fmu import (
@@ -38,6 +26,18 @@ from stewart_fmu import (
     inverse_kinematics,
     scene_from_dict,
 )
+from tests.helpers import (
+    leg_geometry,
+    level_dict,
+    level_model,
+    random_states,
+    rate_matrix,
+    record,
+    rotation,
+    scene_dict,
+    smooth_trajectory,
+)
+from tests.reference.newton_euler import reference_inverse_dynamics
 
 SCENES = ("micro", "sim")
 

@@ -1,6 +1,6 @@
-"""The native FMU (stewart_fmu.native_fmu.export_fmu): C core + C FMI layer, FMI 2.0 and 3.0.
+"""The native FMU (stewart_fmu.fmu.export_fmu): C core + C FMI layer, FMI 2.0 and 3.0.
 
-Checked against the in-process plant (stewart_fmu.stepper.Plant) driven the same way: same
+Checked against the in-process plant (stewart_fmu.plant.Plant) driven the same way: same
 inputs held over each step, same communication points. Agreement is measured as in
 tests/test_fmu.py: max |fmu - plant| / scale, scale = largest |value| among the outputs of the
 same unit over the run, and must be <= RTOL = 1e-12 (the numba kernels and the C core agree to
@@ -25,18 +25,17 @@ from xml.etree import ElementTree
 
 import numpy as np
 import pytest
-
 from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from conftest import record
 from stewart_fmu import Model, inverse_dynamics, load_scene
 from stewart_fmu.integrators import IntegratorOptions
-from stewart_fmu.native_fmu import export_fmu
-from stewart_fmu.native_fmu import variables as V
+from stewart_fmu.fmu.export import export_fmu
+from stewart_fmu.fmu import variables as V
+from stewart_fmu.plant import Plant
 from stewart_fmu.scene import apply_overrides, scene_from_dict
-from stewart_fmu.stepper import Plant
+from tests.helpers import record
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENES = {"micro": ROOT / "scenes" / "micro_manipulator.toml",
@@ -114,8 +113,13 @@ class Slave:
                       instanceName=name)
         if b.version == 2:
             from fmpy import calloc, free
-            from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                                   fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+            from fmpy.fmi2 import (
+                FMU2Slave,
+                fmi2CallbackAllocateMemoryTYPE,
+                fmi2CallbackFreeMemoryTYPE,
+                fmi2CallbackFunctions,
+                fmi2CallbackLoggerTYPE,
+            )
             from fmpy.logging import addLoggerProxy
 
             def log(_env, _name, status, category, message):
@@ -494,12 +498,12 @@ def test_simulate_fmu_matches_plant(fmus, case):
 def test_libcosim_runs_the_fmi2_fmu(fmus):
     """libcosimpy (DNV libcosim) runs the 2.0 FMU 100 steps at 1 ms; l[1..6] and z equal the Plant's."""
     try:
+        from libcosimpy._internal import get_last_error_message
         from libcosimpy.CosimEnums import CosimErrorCode
         from libcosimpy.CosimExecution import CosimExecution
         from libcosimpy.CosimManipulator import CosimManipulator
         from libcosimpy.CosimObserver import CosimObserver
         from libcosimpy.CosimSlave import CosimLocalSlave
-        from libcosimpy._internal import get_last_error_message
     except (ImportError, OSError) as exc:
         pytest.skip(f"libcosimpy cannot be loaded here: {exc!r}")
     b = fmus[("micro", 2)]
@@ -814,7 +818,7 @@ def test_export_errors_are_typed(tmp_path, monkeypatch):
     """No compiler: CompilerNotFoundError (no traceback from the compiler call, nothing written);
     a bad scene: its SceneError before anything is built."""
     from stewart_fmu.errors import SceneError
-    from stewart_fmu.native_fmu import CompilerNotFoundError
+    from stewart_fmu.fmu import CompilerNotFoundError
 
     bad = tmp_path / "bad.toml"
     bad.write_text(SCENES["micro"].read_text().replace("mass = 0.5", "mass = -0.5"))

@@ -7,12 +7,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from reference.newton_euler import reference_inverse_dynamics  # noqa: E402
 
 from stewart_fmu import inverse_dynamics, inverse_kinematics, load_scene, scene_from_dict
 from stewart_fmu.errors import TrajectoryError
 from stewart_fmu.integrators import IntegratorOptions
 from stewart_fmu.plant import CallSequenceError, Plant, StepRejected
+from tests.reference.newton_euler import reference_inverse_dynamics  # noqa: E402
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 H = 1e-3

@@ -5,7 +5,8 @@ import math
 
 import numpy as np
 import pytest
-from reference.newton_euler import reference_inverse_dynamics
+
+from tests.reference.newton_euler import reference_inverse_dynamics
 
 G = 9.81
 HOME = np.array([0.0, 0.0, 0.12, 0.0, 0.0, 0.0])

@@ -6,7 +6,6 @@ import math
 
 import numpy as np
 import pytest
-from helpers import SCENE_FILES, deleting, scene_dict, setting
 
 from stewart_fmu import SceneError, inverse_dynamics_parts, load_scene, scene_from_dict
 from stewart_fmu.model import (
@@ -18,6 +17,7 @@ from stewart_fmu.model import (
     P_UPPER,
     P_VISCOUS,
 )
+from tests.helpers import SCENE_FILES, deleting, scene_dict, setting
 
 
 def element(path: str, index, value):

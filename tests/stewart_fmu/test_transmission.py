@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from helpers import random_states, scene_dict
 
 from stewart_fmu import SceneError, scene_from_dict
 from stewart_fmu.dynamics import leg_state
@@ -12,6 +11,7 @@ from stewart_fmu.integrators import IntegratorOptions, derivative
 from stewart_fmu.plant import Plant
 from stewart_fmu.stability import hold_state
 from stewart_fmu.transmission import natural_frequencies
+from tests.helpers import random_states, scene_dict
 
 
 def _compliant(stiffness: float, damping: float = 20.0, drop: tuple[str, ...] = ()):

@@ -31,6 +31,9 @@ FMI_HEADERS = {2: ["fmi/model.h", "fmi/fmi_export.h", "fmi/fmi2_api.h"],
                3: ["fmi/model.h", "fmi/fmi_export.h", "fmi/fmi3_api.h"]}
 
 
+SCENE_RESOURCE = "scene.toml"   # resources/scene.toml: the scene the FMU was exported from
+
+
 class CompilerNotFoundError(StewartError):
     """No C compiler on this machine: set CC or install cc, gcc or clang."""
 
@@ -108,14 +111,18 @@ def export_fmu(scene_path: str | Path, out_path: str | Path, fmi_version: int = 
         proc = subprocess.run(cmd, capture_output=True, text=True)
         if proc.returncode != 0 or not binary.exists():
             raise BuildError(f"compiling the FMU failed ({' '.join(cmd)}):\n{proc.stderr[-4000:]}")
+        (root / "resources").mkdir()   # the scene as given: `run --fmu` checks it matches
+        (root / "resources" / SCENE_RESOURCE).write_bytes(Path(scene_path).read_bytes())
         doc = root / "documentation"
         doc.mkdir()
         (doc / "index.html").write_text(_documentation(data, fmi_version))
-        out.parent.mkdir(parents=True, exist_ok=True)
-        with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as z:
+        packed = Path(tmp) / "packed.fmu"
+        with zipfile.ZipFile(packed, "w", zipfile.ZIP_DEFLATED) as z:
             for path in sorted(root.rglob("*")):
                 if path.is_file():
                     z.write(path, path.relative_to(root).as_posix())
+        out.parent.mkdir(parents=True, exist_ok=True)
+        shutil.move(packed, out)   # whole or not at all: an existing out is replaced only now
     return out
 
 

@@ -1,6 +1,6 @@
 """The one table of the native FMU's variables: names, value references, units, descriptions.
 
-Names and meanings are those of the pythonfmu FMU (stewart_fmu/fmu.py): every numeric value of
+Names and meanings are those of the first (pythonfmu) FMU: every numeric value of
 the scene's plant tables as a fixed parameter, q0/qd0, solver settings, inputs sigma[1..6] (and
 tau[1..6] with a [drive]), outputs l, ldot, pose, rates, twist, cond, rack_force, force.<part>.
 Value references are fixed (stewart_fmu/native/fmi/model.h defines the same numbers); a scene
@@ -14,9 +14,10 @@ import math
 from dataclasses import dataclass
 from typing import Any, Mapping
 
-from ..dynamics import PARTS
+from ..dynamics import PARTS, present_parts
 from ..io import POSE
-from ..scene import DEFAULT_GRAVITY
+from ..scene import DEFAULT_GRAVITY, scene_from_dict
+from ..stability import default_options
 
 # Base-unit exponents (kg, m, s, rad) of every unit the FMU uses.
 UNITS: dict[str, dict[str, int]] = {
@@ -57,7 +58,6 @@ VR_SIGMA, VR_TAU = 100, 106
 VR_L, VR_LDOT, VR_Q, VR_QD, VR_V, VR_OMEGA, VR_COND, VR_RACK, VR_PARTS = (
     200, 206, 212, 218, 224, 227, 230, 231, 237)
 METHODS = ("rk4", "euler", "dopri5")
-SOLVER_DEFAULTS = {"method": "rk4", "rtol": 1e-8, "atol": 1e-10, "max_step": 1e-3}  # IntegratorOptions()
 LOG_CATEGORIES = {"logEvents": "initialization and step events",
                   "logStatusWarning": "warnings", "logStatusDiscard": "discarded steps, with the reason",
                   "logStatusError": "errors: calls out of order, bad arguments, invalid parameters",
@@ -123,8 +123,16 @@ def scene_parameters(data: Mapping[str, Any]) -> list[Variable]:
     return out
 
 
+def solver_defaults(data: Mapping[str, Any]) -> dict[str, Any]:
+    """The solver parameters' start values: stability.default_options of the scene's model,
+    the integrator Plant(model) and the closed loop take (a stiff scene's step is smaller)."""
+    o = default_options(scene_from_dict(data))
+    return {"method": o.method, "rtol": o.rtol, "atol": o.atol, "max_step": o.max_step}
+
+
 def variables(data: Mapping[str, Any], fmi_version: int = 2) -> list[Variable]:
     """The FMU's variables for a parsed scene, in model-description order."""
+    solver = solver_defaults(data)
     home = [float(x) for x in lookup(data, "geometry.home")]
     v = [Variable("time", VR_TIME, "independent", "s", "simulation time")] if fmi_version == 3 else []
     v += scene_parameters(data)
@@ -133,31 +141,19 @@ def variables(data: Mapping[str, Any], fmi_version: int = 2) -> list[Variable]:
     v += [Variable(f"qd0[{k + 1}]", VR_QD0 + k, "parameter", u, f"initial rate of {c}", 0.0)
           for k, (c, u) in enumerate(zip(POSE, RATE_UNITS))]
     v += [Variable("solver.rtol", VR_RTOL, "parameter", None, "integrator relative tolerance (dopri5)",
-                   SOLVER_DEFAULTS["rtol"]),
+                   solver["rtol"]),
           Variable("solver.atol", VR_ATOL, "parameter", None, "integrator absolute tolerance (dopri5)",
-                   SOLVER_DEFAULTS["atol"]),
+                   solver["atol"]),
           Variable("solver.max_step", VR_MAX_STEP, "parameter", "s", "largest internal step (s)",
-                   SOLVER_DEFAULTS["max_step"]),
+                   solver["max_step"]),
           Variable("solver.method", VR_METHOD, "parameter", None,
-                   f"integrator: one of {', '.join(METHODS)}", SOLVER_DEFAULTS["method"], "String")]
+                   f"integrator: one of {', '.join(METHODS)}", solver["method"], "String")]
     v += [Variable(f"sigma[{i}]", VR_SIGMA + i - 1, "input", "N", f"actuator force of leg {i} at the rack", 0.0)
           for i in range(1, 7)]
     if "drive" in data:
         v += [Variable(f"tau[{i}]", VR_TAU + i - 1, "input", "N.m", f"motor torque of leg {i}", 0.0)
               for i in range(1, 7)]
     return v + outputs(data)
-
-
-def present_parts(data: Mapping[str, Any]) -> tuple[str, ...]:
-    """dynamics.present_parts from the tables a scene has."""
-    absent = set()
-    if "legs" not in data:
-        absent |= {"lower_legs", "upper_legs"}
-    if "drive" not in data:
-        absent.add("drives")
-    if "friction" not in data:
-        absent.add("friction")
-    return tuple(p for p in PARTS if p not in absent)
 
 
 def outputs(data: Mapping[str, Any]) -> list[Variable]:
@@ -172,7 +168,7 @@ def outputs(data: Mapping[str, Any]) -> list[Variable]:
     v.append(o("cond", VR_COND, "1", "condition number of the leg Jacobian (scaled)"))
     v += [o(f"rack_force[{i}]", VR_RACK + i - 1, "N", f"total force at rack {i} (sigma + zeta/r tau)")
           for i in range(1, 7)]
-    for part in present_parts(data):
+    for part in present_parts(scene_from_dict(data)):
         base = VR_PARTS + 6 * PARTS.index(part)
         v += [o(f"force.{part}[{i}]", base + i - 1, "N", f"part of rack force {i} spent on {part}")
               for i in range(1, 7)]
@@ -202,10 +198,10 @@ def scene_c_source(data: Mapping[str, Any], fmi_version: int) -> str:
             declared[var.vr] = 1
     rows = ",\n    ".join(f"{_c_double(x)} /* {k} */" for k, x in enumerate(start))
     flags = ", ".join(str(f) for f in declared)
-    return (f"/* Generated by stewart_fmu.native_fmu.export for scene {data.get('name', '?')!r} "
+    return (f"/* Generated by stewart_fmu.fmu.export for scene {data.get('name', '?')!r} "
             f"(FMI {fmi_version}.0): do not edit. */\n"
             "#include <math.h>\n\n#include \"model.h\"\n\n"
             f"const char STEWART_MODEL_TOKEN[] = \"{token(data, fmi_version)}\";\n"
-            f"const int STEWART_START_METHOD = {METHODS.index(SOLVER_DEFAULTS['method'])};\n"
+            f"const int STEWART_START_METHOD = {METHODS.index(solver_defaults(data)['method'])};\n"
             f"const unsigned char STEWART_DECLARED[VR_N_PAR] = {{{flags}}};\n"
             f"const double STEWART_START[VR_N_PAR] = {{\n    {rows}\n}};\n")
