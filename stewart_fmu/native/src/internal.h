@@ -1,0 +1,61 @@
+/* internal.h -- shared declarations of the C core (not part of the public API). */
+#ifndef STEWART_INTERNAL_H
+#define STEWART_INTERNAL_H
+
+#include "../include/stewart.h"
+
+/* Python's builtin min(a, b) / max(a, b) as numba compiles them: the first argument unless the
+   second compares smaller (larger); a NaN in the second argument is never taken. */
+#define PY_MIN(a, b) ((b) < (a) ? (b) : (a))
+#define PY_MAX(a, b) ((b) > (a) ? (b) : (a))
+
+/* Six zeros: a pose row at rest. */
+static const double SW_ZERO6[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+
+/* Scratch of one sample (dynamics._workspace): R, omega, alpha, unit vectors U, lever arms
+   Rr = R p_i, leg rows (l, ldot, lddot), J^T (scaled, rows stored where order[1] says), the
+   generalized forces gen (4 x 6), a right-hand side and the twist mass matrix. order carries
+   from sample to sample (see linalg.c, sw_lu_factor). All matrices row-major. */
+typedef struct {
+    double R[9], om[3], al[3], trig[4];
+    double U[18], Rr[18], leg[18];
+    double JT[36], gen[24], rhs[6], Mt[36];
+    int order[12];          /* order[0..5]: row names at storage rows; order[6..11]: where */
+} sw_ws;
+
+void sw_ws_init(sw_ws *ws);
+
+/* rotations.c */
+void sw_orientation(const double q[6], const double qd[6], const double qdd[6], double R[9],
+                    double om[3], double al[3], double *trig);
+int sw_solve_rate_trig(const double trig[4], double w0, double w1, double w2, double x[3]);
+
+/* linalg.c */
+double sw_lu_factor(double A[36], int order[12]);
+void sw_lu_solve(const double LU[36], double b[6]);
+int sw_cholesky_solve(double A[36], double b[6]);
+void sw_singular_values(const double A[36], double s[6]);
+
+/* kane.c */
+int sw_twist_forces(const double *p, const double x[6], const double v[6], const double acc[6],
+                    const double al[3], sw_ws *ws);
+void sw_twist_mass_matrix(const double *p, sw_ws *ws, int full);
+
+/* dynamics.c */
+int sw_inverse_sample(const double *p, const double q[6], const double qd[6],
+                      const double qdd[6], sw_ws *ws, double out[6]);
+int sw_parts_sample(const double *p, const double q[6], const double qd[6],
+                    const double qdd[6], sw_ws *ws, double out[36]);
+int sw_forward_sample(const double *p, const double q[6], const double qd[6],
+                      const double sigma[6], sw_ws *ws, double out[6]);
+int sw_classify(int status, const double a[6], const double b[6], const double c[6]);
+
+/* transmission.c */
+int sw_derivative(const double *p, const double *pl, const double *y, const double F[6],
+                  sw_ws *ws, double *dy);
+int sw_leg_kinematics(const double *pl, const double *y, sw_ws *ws);
+
+/* energy.c */
+void sw_energy_terms(const double *p, const double *y, sw_ws *ws, double out[9]);
+
+#endif

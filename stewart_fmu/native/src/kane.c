@@ -1,0 +1,287 @@
+/* kane.c -- Kane's equations of the paper (Eqs. 1-14) reduced to the platform twist
+   nu = (v, omega) (kane.py): the generalized inertia and gravity forces per body group and
+   the twist-space mass matrix. Leg space follows with J (ldot = J nu):
+   K*_l = J^-T K*_nu, [m] = J^-T M_nu J^-1. */
+#include <math.h>
+#include "internal.h"
+
+#define P(k) p[STEWART_P_##k]
+
+void sw_ws_init(sw_ws *ws)
+{
+    int k;
+    for (k = 0; k < 6; ++k)
+        ws->order[k] = ws->order[6 + k] = k;
+}
+
+/* F* = -m a and T* = R (-(I alpha_c + omega_c x I omega_c)) in C (Eqs. 3-5). */
+static void platform_inertia(const double *p, const double *R, const double *om,
+                             const double *acc, const double *al, double *g)
+{
+    double mp = P(MASS), I0 = P(INERTIA), I1 = p[STEWART_P_INERTIA + 1],
+           I2 = p[STEWART_P_INERTIA + 2];
+    double wc0, wc1, wc2, ac0, ac1, ac2, h0, h1, h2, t0, t1, t2;
+    g[0] = -mp * acc[0];
+    g[1] = -mp * acc[1];
+    g[2] = -mp * acc[2];
+    wc0 = R[0] * om[0] + R[3] * om[1] + R[6] * om[2];
+    wc1 = R[1] * om[0] + R[4] * om[1] + R[7] * om[2];
+    wc2 = R[2] * om[0] + R[5] * om[1] + R[8] * om[2];
+    ac0 = R[0] * al[0] + R[3] * al[1] + R[6] * al[2];
+    ac1 = R[1] * al[0] + R[4] * al[1] + R[7] * al[2];
+    ac2 = R[2] * al[0] + R[5] * al[1] + R[8] * al[2];
+    h0 = I0 * wc0;
+    h1 = I1 * wc1;
+    h2 = I2 * wc2;
+    t0 = -(I0 * ac0 + wc1 * h2 - wc2 * h1);
+    t1 = -(I1 * ac1 + wc2 * h0 - wc0 * h2);
+    t2 = -(I2 * ac2 + wc0 * h1 - wc1 * h0);
+    g[3] = R[0] * t0 + R[1] * t1 + R[2] * t2;
+    g[4] = R[3] * t0 + R[4] * t1 + R[5] * t2;
+    g[5] = R[6] * t0 + R[7] * t1 + R[8] * t2;
+}
+
+/* Generalized inertia (Eqs. 3-7) and gravity (Eq. 8) forces on the twist (kane.twist_forces):
+   ws->gen rows 0 platform inertia, 1 lower legs, 2 upper legs, 3 gravity; also U, Rr, the leg
+   rows (l, ldot, lddot) and J^T with its rotational rows divided by the characteristic length,
+   row r stored at ws->order[6 + r]. x, v, acc: pose, velocity, acceleration (entries 0-2 used),
+   al the angular acceleration; ws->R and ws->om must hold the orientation. Returns OK, or
+   STROKE when a leg is outside its limits.
+
+   Layout for speed, arithmetic as kane.py: the per-leg terms are computed leg-parallel over
+   arrays of six (loops the compiler vectorizes), each leg's contribution [f; r x f] to a body
+   group is kept, and the contributions are then summed over the legs in leg order 0..5 as the
+   Python kernel accumulates them, so every result is the same to the last bit. */
+int sw_twist_forces(const double *p, const double x[6], const double v[6], const double acc[6],
+                    const double al[3], sw_ws *ws)
+{
+    int status = STEWART_OK, i, k, j;
+    const double gx = P(GRAVITY), gy = p[STEWART_P_GRAVITY + 1], gz = p[STEWART_P_GRAVITY + 2];
+    const double mp = P(MASS);
+    const double *R = ws->R, *om = ws->om;
+    const int *at = ws->order + 6;
+    double *gen = ws->gen;
+    const int has_legs = P(HAS_LEGS) != 0.0;
+    const double ic = 1.0 / P(CHAR_LENGTH), lmin = P(LEG_MIN), lmax = P(LEG_MAX);
+    const double mA = P(LOWER), cA = p[STEWART_P_LOWER + 1], ItA = p[STEWART_P_LOWER + 2];
+    const double mB = P(UPPER), cB = p[STEWART_P_UPPER + 1], ItB = p[STEWART_P_UPPER + 2];
+    const double sA = -(mA * cA * cA + ItA), mAcA = mA * cA;
+    double rx[6], ry[6], rz[6], ux[6], uy[6], uz[6], l[6], il[6], ld[6], ldd[6];
+    double ud2[6], udx[6], udy[6], udz[6], pux[6], puy[6], puz[6];
+    double c[3][6][6];   /* per body group (lower, upper, gravity), component, leg */
+    for (k = 0; k < 24; ++k)
+        gen[k] = 0.0;
+    platform_inertia(p, R, om, acc, al, gen);
+    gen[18] = mp * gx;
+    gen[19] = mp * gy;
+    gen[20] = mp * gz;
+    /* Leg kinematics: r = R p_i, L = x + r - a_i, u = L / l (one division per leg). */
+    for (i = 0; i < 6; ++i) {
+        const double *pb = p + STEWART_P_PLATFORM + 3 * i, *pa = p + STEWART_P_BASE + 3 * i;
+        double Lx, Ly, Lz;
+        rx[i] = R[0] * pb[0] + R[1] * pb[1] + R[2] * pb[2];
+        ry[i] = R[3] * pb[0] + R[4] * pb[1] + R[5] * pb[2];
+        rz[i] = R[6] * pb[0] + R[7] * pb[1] + R[8] * pb[2];
+        Lx = x[0] + rx[i] - pa[0];
+        Ly = x[1] + ry[i] - pa[1];
+        Lz = x[2] + rz[i] - pa[2];
+        l[i] = sqrt(Lx * Lx + Ly * Ly + Lz * Lz);
+        il[i] = 1.0 / l[i];
+        ux[i] = Lx * il[i];
+        uy[i] = Ly * il[i];
+        uz[i] = Lz * il[i];
+    }
+    for (i = 0; i < 6; ++i)
+        if (l[i] < lmin || l[i] > lmax)
+            status = STEWART_STROKE;
+    for (i = 0; i < 6; ++i) {
+        /* Joint velocity vp = v + om x r and acceleration ap = acc + al x r + om x (om x r). */
+        const double wrx = om[1] * rz[i] - om[2] * ry[i];
+        const double wry = om[2] * rx[i] - om[0] * rz[i];
+        const double wrz = om[0] * ry[i] - om[1] * rx[i];
+        const double vpx = v[0] + wrx, vpy = v[1] + wry, vpz = v[2] + wrz;
+        const double apx = acc[0] + al[1] * rz[i] - al[2] * ry[i] + om[1] * wrz - om[2] * wry;
+        const double apy = acc[1] + al[2] * rx[i] - al[0] * rz[i] + om[2] * wrx - om[0] * wrz;
+        const double apz = acc[2] + al[0] * ry[i] - al[1] * rx[i] + om[0] * wry - om[1] * wrx;
+        const double d = ux[i] * vpx + uy[i] * vpy + uz[i] * vpz;
+        double dd, ddx, ddy, ddz, u2;
+        ld[i] = d;
+        ddx = (vpx - d * ux[i]) * il[i];
+        ddy = (vpy - d * uy[i]) * il[i];
+        ddz = (vpz - d * uz[i]) * il[i];
+        u2 = ddx * ddx + ddy * ddy + ddz * ddz;
+        dd = ux[i] * apx + uy[i] * apy + uz[i] * apz + l[i] * u2;
+        udx[i] = ddx;
+        udy[i] = ddy;
+        udz[i] = ddz;
+        ud2[i] = u2;
+        ldd[i] = dd;
+        /* uddot from L'' = ldd u + 2 ld udot + l uddot; P uddot = uddot + |udot|^2 u, since
+           u . uddot = -|udot|^2. */
+        pux[i] = (apx - dd * ux[i] - 2.0 * d * ddx) * il[i] + u2 * ux[i];
+        puy[i] = (apy - dd * uy[i] - 2.0 * d * ddy) * il[i] + u2 * uy[i];
+        puz[i] = (apz - dd * uz[i] - 2.0 * d * ddz) * il[i] + u2 * uz[i];
+    }
+    for (i = 0; i < 6; ++i) {
+        ws->U[3 * i] = ux[i];
+        ws->U[3 * i + 1] = uy[i];
+        ws->U[3 * i + 2] = uz[i];
+        ws->Rr[3 * i] = rx[i];
+        ws->Rr[3 * i + 1] = ry[i];
+        ws->Rr[3 * i + 2] = rz[i];
+        ws->leg[3 * i] = l[i];
+        ws->leg[3 * i + 1] = ld[i];
+        ws->leg[3 * i + 2] = ldd[i];
+    }
+    for (i = 0; i < 6; ++i) {
+        ws->JT[at[0] * 6 + i] = ux[i];
+        ws->JT[at[1] * 6 + i] = uy[i];
+        ws->JT[at[2] * 6 + i] = uz[i];
+        ws->JT[at[3] * 6 + i] = (ry[i] * uz[i] - rz[i] * uy[i]) * ic;
+        ws->JT[at[4] * 6 + i] = (rz[i] * ux[i] - rx[i] * uz[i]) * ic;
+        ws->JT[at[5] * 6 + i] = (rx[i] * uy[i] - ry[i] * ux[i]) * ic;
+    }
+    if (!has_legs)
+        return status;
+    for (i = 0; i < 6; ++i) {
+        /* Part A: (c_A/l) P (-m_A c_A uddot) plus the torque -I_t alpha through [u]x/l. */
+        const double s = sA * il[i];
+        /* Part B: a_B = ldd u + 2 ld udot + (l - c_B) uddot, by dV_B/dvp and dw/dvp. */
+        const double e = l[i] - cB;
+        const double axial = -mB * (ldd[i] - e * ud2[i]);
+        const double sp = -mB * e * il[i], st = -ItB * il[i];
+        /* Eq. 8 for both parts: m_B (u.g) u + ((m_A c_A + m_B (l - c_B)) / l) P g. */
+        const double ug = ux[i] * gx + uy[i] * gy + uz[i] * gz;
+        const double sg = (mAcA + mB * (l[i] - cB)) * il[i];
+        const double cg = mB * ug - sg * ug;
+        c[0][0][i] = s * pux[i];
+        c[0][1][i] = s * puy[i];
+        c[0][2][i] = s * puz[i];
+        c[1][0][i] = axial * ux[i] + sp * (2.0 * ld[i] * udx[i] + e * pux[i]) + st * pux[i];
+        c[1][1][i] = axial * uy[i] + sp * (2.0 * ld[i] * udy[i] + e * puy[i]) + st * puy[i];
+        c[1][2][i] = axial * uz[i] + sp * (2.0 * ld[i] * udz[i] + e * puz[i]) + st * puz[i];
+        c[2][0][i] = sg * gx + cg * ux[i];
+        c[2][1][i] = sg * gy + cg * uy[i];
+        c[2][2][i] = sg * gz + cg * uz[i];
+    }
+    for (k = 0; k < 3; ++k)   /* the moments r x f of each contribution */
+        for (i = 0; i < 6; ++i) {
+            const double fx = c[k][0][i], fy = c[k][1][i], fz = c[k][2][i];
+            c[k][3][i] = ry[i] * fz - rz[i] * fy;
+            c[k][4][i] = rz[i] * fx - rx[i] * fz;
+            c[k][5][i] = rx[i] * fy - ry[i] * fx;
+        }
+    for (k = 0; k < 3; ++k)   /* summed in leg order, as the Python kernel adds them */
+        for (j = 0; j < 6; ++j) {
+            double g = gen[6 * (k + 1) + j];
+            for (i = 0; i < 6; ++i)
+                g += c[k][j][i];
+            gen[6 * (k + 1) + j] = g;
+        }
+    return status;
+}
+
+/* M_nu = M_platform + sum_i S_i^T (M_leg,i + m_d u u^T) S_i, S_i = [I, -[r_i]x]
+   (kane.twist_mass_matrix); M_leg = m_B uu^T + (k / l^2) P, k = m_A c_A^2 + m_B (l - c_B)^2
+   + I_tA + I_tB. Reads ws->R, U, Rr, leg; writes ws->Mt, all of it when `full`, else only
+   its lower triangle (all that sw_cholesky_solve reads; each entry computed as in full). */
+void sw_twist_mass_matrix(const double *p, sw_ws *ws, int full)
+{
+    const int has_legs = P(HAS_LEGS) != 0.0, has_drive = P(HAS_DRIVE) != 0.0;
+    double *Mt = ws->Mt;
+    const double *R = ws->R;
+    int a, b, k, n;
+    for (k = 0; k < 36; ++k)
+        Mt[k] = 0.0;
+    for (a = 0; a < 3; ++a)
+        Mt[a * 7] = P(MASS);
+    if (has_legs || has_drive) {  /* a platform-only model has no per-leg mass at all */
+        const double md = has_drive ? P(DRIVE_MASS) : 0.0;
+        double s0 = 0.0, s1x = 0.0, s1y = 0.0, s1z = 0.0;
+        for (n = 0; n < 6; ++n) {
+            const double u0 = ws->U[3 * n], u1 = ws->U[3 * n + 1], u2 = ws->U[3 * n + 2];
+            const double r0 = ws->Rr[3 * n], r1 = ws->Rr[3 * n + 1], r2 = ws->Rr[3 * n + 2];
+            double ax = md, j[6];
+            if (has_legs) {
+                const double l = ws->leg[3 * n];
+                const double mA = P(LOWER), cA = p[STEWART_P_LOWER + 1],
+                             ItA = p[STEWART_P_LOWER + 2];
+                const double mB = P(UPPER), cB = p[STEWART_P_UPPER + 1],
+                             ItB = p[STEWART_P_UPPER + 2];
+                const double e = l - cB;
+                const double kp = (mA * cA * cA + mB * (e * e) + ItA + ItB) / (l * l);
+                const double rr = r0 * r0 + r1 * r1 + r2 * r2;
+                const double rv[3] = {r0, r1, r2};
+                ax += mB - kp;
+                /* kp S^T S: translational trace, coupling [kp r]x, rotational
+                   kp (|r|^2 I - r r^T). */
+                s0 += kp;
+                s1x += kp * r0;
+                s1y += kp * r1;
+                s1z += kp * r2;
+                for (a = 0; a < 3; ++a)
+                    for (b = 0; b < (full ? 3 : a + 1); ++b)
+                        Mt[(3 + a) * 6 + 3 + b] += kp * ((a == b ? rr : 0.0) - rv[a] * rv[b]);
+            }
+            /* ax j j^T, j the Jacobian row [u; r x u] */
+            j[0] = u0;
+            j[1] = u1;
+            j[2] = u2;
+            j[3] = r1 * u2 - r2 * u1;
+            j[4] = r2 * u0 - r0 * u2;
+            j[5] = r0 * u1 - r1 * u0;
+            for (a = 0; a < 6; ++a) {
+                const double aj = ax * j[a];
+                for (b = 0; b < (full ? 6 : a + 1); ++b)
+                    Mt[a * 6 + b] += aj * j[b];
+            }
+        }
+        if (has_legs) {
+            for (a = 0; a < 3; ++a)
+                Mt[a * 7] += s0;
+            /* -[s1]x in the upper right block, its transpose [s1]x in the lower left. */
+            Mt[0 * 6 + 4] += s1z;  Mt[4 * 6 + 0] += s1z;
+            Mt[0 * 6 + 5] += -s1y; Mt[5 * 6 + 0] += -s1y;
+            Mt[1 * 6 + 3] += -s1z; Mt[3 * 6 + 1] += -s1z;
+            Mt[1 * 6 + 5] += s1x;  Mt[5 * 6 + 1] += s1x;
+            Mt[2 * 6 + 3] += s1y;  Mt[3 * 6 + 2] += s1y;
+            Mt[2 * 6 + 4] += -s1x; Mt[4 * 6 + 2] += -s1x;
+        }
+    }
+    for (a = 0; a < 3; ++a)
+        for (b = 0; b < (full ? 3 : a + 1); ++b) {
+            double s = 0.0;
+            for (k = 0; k < 3; ++k)
+                s += R[a * 3 + k] * p[STEWART_P_INERTIA + k] * R[b * 3 + k];
+            Mt[(3 + a) * 6 + 3 + b] += s;
+        }
+}
+
+int stewart_twist_forces(const double *params, const double q[6], const double qd[6],
+                         const double qdd[6], double gen[24], double leg[18])
+{
+    sw_ws ws;
+    int st, k;
+    sw_ws_init(&ws);
+    sw_orientation(q, qd, qdd, ws.R, ws.om, ws.al, 0);
+    st = sw_twist_forces(params, q, qd, qdd, ws.al, &ws);
+    for (k = 0; k < 24; ++k)
+        gen[k] = ws.gen[k];
+    for (k = 0; k < 18; ++k)
+        leg[k] = ws.leg[k];
+    return st;
+}
+
+int stewart_mass_matrix(const double *params, const double q[6], double M[36])
+{
+    static const double zero[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+    sw_ws ws;
+    int st, k;
+    sw_ws_init(&ws);
+    sw_orientation(q, zero, zero, ws.R, ws.om, ws.al, 0);
+    st = sw_twist_forces(params, q, zero, zero, ws.al, &ws);
+    sw_twist_mass_matrix(params, &ws, 1);
+    for (k = 0; k < 36; ++k)
+        M[k] = ws.Mt[k];
+    return st;
+}

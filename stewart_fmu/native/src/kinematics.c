@@ -1,0 +1,75 @@
+/* kinematics.c -- leg state, the leg Jacobian and its condition number (kinematics.py,
+   dynamics._leg_state). ldot = J nu, row i = [u_i, (R p_i) x u_i]. */
+#include <math.h>
+#include "internal.h"
+
+int stewart_leg_state(const double *params, const double q[6], const double qd[6],
+                      double l[6], double ldot[6], double omega[3])
+{
+    sw_ws ws;
+    int st, i;
+    sw_ws_init(&ws);
+    sw_orientation(q, qd, SW_ZERO6, ws.R, ws.om, ws.al, 0);
+    st = sw_twist_forces(params, q, qd, SW_ZERO6, ws.al, &ws);
+    for (i = 0; i < 6; ++i) {
+        l[i] = ws.leg[3 * i];
+        ldot[i] = ws.leg[3 * i + 1];
+    }
+    for (i = 0; i < 3; ++i)
+        omega[i] = ws.om[i];
+    return st;
+}
+
+/* J rows [u_i, scale (r_i x u_i)] (kinematics._jacobian_rows). */
+static void jacobian_rows(const sw_ws *ws, double scale, double J[36])
+{
+    int i;
+    for (i = 0; i < 6; ++i) {
+        const double u0 = ws->U[3 * i], u1 = ws->U[3 * i + 1], u2 = ws->U[3 * i + 2];
+        const double r0 = ws->Rr[3 * i], r1 = ws->Rr[3 * i + 1], r2 = ws->Rr[3 * i + 2];
+        J[6 * i] = u0;
+        J[6 * i + 1] = u1;
+        J[6 * i + 2] = u2;
+        J[6 * i + 3] = scale * (r1 * u2 - r2 * u1);
+        J[6 * i + 4] = scale * (r2 * u0 - r0 * u2);
+        J[6 * i + 5] = scale * (r0 * u1 - r1 * u0);
+    }
+}
+
+int stewart_jacobian(const double *params, const double q[6], int scaled, double J[36])
+{
+    sw_ws ws;
+    int st;
+    sw_ws_init(&ws);
+    sw_orientation(q, SW_ZERO6, SW_ZERO6, ws.R, ws.om, ws.al, 0);
+    st = sw_twist_forces(params, q, SW_ZERO6, SW_ZERO6, ws.al, &ws);
+    jacobian_rows(&ws, scaled ? 1.0 / params[STEWART_P_CHAR_LENGTH] : 1.0, J);
+    return st;
+}
+
+/* cond(J) = s_max / s_min of the scaled Jacobian, as numpy.linalg.cond (2-norm). */
+int stewart_condition_number(const double *params, const double q[6], double *cond)
+{
+    double J[36], s[6], smax = 0.0, smin = HUGE_VAL;
+    int i;
+    for (i = 0; i < 6; ++i)
+        if (!isfinite(q[i])) {
+            *cond = HUGE_VAL;
+            return STEWART_NONFINITE;
+        }
+    stewart_jacobian(params, q, 1, J);
+    for (i = 0; i < 36; ++i)
+        if (!isfinite(J[i])) {
+            *cond = HUGE_VAL;
+            return STEWART_OK;
+        }
+    sw_singular_values(J, s);
+    for (i = 0; i < 6; ++i) {
+        if (s[i] > smax)
+            smax = s[i];
+        if (s[i] < smin)
+            smin = s[i];
+    }
+    *cond = smin > 0.0 ? smax / smin : HUGE_VAL;
+    return STEWART_OK;
+}
