@@ -27,7 +27,7 @@ import numpy as np
 from stewart_fmu import forward_dynamics, inverse_dynamics, load_scene
 from stewart_fmu.native import core
 from stewart_fmu.stability import default_options, hold_state
-from stewart_fmu.stepper import Plant
+from stewart_fmu.plant import Plant
 
 SCENE = Path(__file__).resolve().parents[1] / "scenes" / "micro_manipulator.toml"
 

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from helpers import (
     LEVELS,
+    case,
     leg_geometry,
     level_dict,
     level_model,
@@ -21,6 +22,7 @@ from helpers import (
     rotation,
     scene_dict,
     smooth_trajectory,
+    trajectory_samples,
 )
 from reference.newton_euler import reference_inverse_dynamics
 from scipy.integrate import solve_ivp
@@ -40,22 +42,6 @@ SCENES = ("micro", "sim")
 CASES = [(s, lv) for s in SCENES for lv in LEVELS]
 CASE_IDS = [f"{s}-{lv}" for s, lv in CASES]
 LEVELS_INDEX = {lv: i for i, lv in enumerate(LEVELS)}
-
-
-def case(name: str, level: str) -> tuple[dict, object]:
-    """(scene dict, Model) of a scene at a level; level 'full+coulomb' is the full micro scene
-    with a Coulomb friction of 0.2 N (its file has coulomb = 0; the simulator's has 150 N)."""
-    if level == "full+coulomb":
-        d = scene_dict(name)
-        d["friction"]["coulomb"] = 0.2
-        return d, scene_from_dict(d)
-    return level_dict(scene_dict(name), level), level_model(name, level)
-
-
-def trajectory_samples(name: str, seeds, n: int, duration: float = 2.0):
-    """Samples of the smooth random trajectories `seeds`, n per trajectory over [0, duration]."""
-    rows = [smooth_trajectory(name, s)(np.linspace(0.0, duration, n)) for s in seeds]
-    return tuple(np.concatenate(c) for c in zip(*rows))
 
 
 # --- 1. power balance --------------------------------------------------------------------------

@@ -11,14 +11,12 @@ its work (TOO_MANY_STEPS).
 """
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from conftest import LEVELS, level_model, random_states, record
+from helpers import LEVELS, SCENES_DIR, case, level_model, random_states, record, trajectory_samples
 from reference.newton_euler import reference_inverse_dynamics
-from test_dynamics_physics import case, trajectory_samples
 from stewart_fmu import dynamics as D
 from stewart_fmu import energy as E
 from stewart_fmu import integrators as I
@@ -27,13 +25,13 @@ from stewart_fmu.errors import IntegrationError
 from stewart_fmu.kane import twist_mass_matrix
 from stewart_fmu.kinematics import _scaled_jacobian, condition_number
 from stewart_fmu.stability import ENERGY_TOL, hold_state, step_energy
-from stewart_fmu.stepper import Plant
+from stewart_fmu.plant import Plant
+from stewart_fmu.status import ENERGY_GAIN, STATE_NONFINITE
 from stewart_fmu.transmission import initial_state, leg_side_params, spring_forces
 
 core = pytest.importorskip("stewart_fmu.native.core")
 
 TOL = 1e-12
-SCENES_DIR = Path(__file__).resolve().parents[2] / "scenes"
 FILES = sorted([SCENES_DIR / "micro_manipulator.toml", SCENES_DIR / "motion_simulator.toml"]
                + list((SCENES_DIR / "stiff").glob("*.toml"))
                + list((SCENES_DIR / "extreme").glob("*.toml")))
@@ -277,7 +275,7 @@ def test_plant_kernels_match_numba(cid, spec, level):
                 if method == "dopri5":
                     guess = 2e-4
                     ref = I.dopri5_advance(p, y, y1, F, h, guess, 1e-8, 1e-10, max_step,
-                                           10_000, I._A, I._E)
+                                           10_000, I.DOPRI5_A, I.DOPRI5_E)
                     st, g, ev = core.advance(P, o, y, y1c, F, h, guess)
                     assert (st, ev) == (ref[0], 1 + 6 * (ref[2] + ref[3])), (method, h)
                     assert abs(g - ref[1]) <= TOL * ref[1], (g, ref[1])
@@ -292,8 +290,8 @@ def test_plant_kernels_match_numba(cid, spec, level):
                     worst_adv = max(worst_adv, rel(y1c, y1))
                     e0 = E.energy_terms(model, y)
                     e1, e1c = np.empty(9), np.empty(9)
-                    ref = step_energy(p, y1, e0, e1, F, ENERGY_TOL)
-                    got = core.step_energy(P, y1c, e0, e1c, F, ENERGY_TOL)
+                    ref = step_energy(p, y1, e0, e1, F, ENERGY_TOL, h)
+                    got = core.step_energy(P, y1c, e0, e1c, F, ENERGY_TOL, h)
                     assert got[0] == ref[0]
                     worst = max(worst, rel(e1c, e1),
                                 abs(got[1] - ref[1]) / max(abs(ref[2]), abs(ref[1]), 1e-300),
@@ -363,11 +361,12 @@ def test_stewart_step_detects_energy_gain_where_the_plant_raises():
     y1, e1 = np.empty(24), np.empty(9)
     keep = y0.copy()
     st, _, ev, excess, allowed = core.step(P, o, y0, y1, F, 1e-3, e0, e1)
-    assert st == core.UNSTABLE and ev == 4
+    assert st == core.UNSTABLE == ENERGY_GAIN and ev == 4
     assert np.array_equal(y0, keep)
     ref_y1 = np.empty(24)
     assert I.rk4_advance(model.params, y0, ref_y1, F, 1e-3, 1) == 0
-    ok, ref_ex, ref_al = step_energy(model.params, ref_y1, e0, np.empty(9), F, ENERGY_TOL)
+    ok, ref_ex, ref_al = step_energy(model.params, ref_y1, e0, np.empty(9), F, ENERGY_TOL,
+                                     1e-3)
     assert ok and ref_ex > ref_al
     assert abs(excess - ref_ex) <= TOL * abs(ref_ex) and abs(allowed - ref_al) <= TOL * ref_al
     plant = plant_for(model, "rk4", 1e-3, model.home, F)
@@ -383,8 +382,8 @@ def test_stewart_step_detects_energy_gain_where_the_plant_raises():
 def test_stewart_step_reports_a_non_finite_state():
     """Platform only, at home with vx = the largest double and a rack force of 1e302 N: every
     right-hand side is finite (no legs, drive or friction see the leg rates), but the Euler
-    update overflows vx. stewart_step returns NONFINITE, as stability.step_energy reports
-    the state not finite; y0 is untouched."""
+    update overflows vx. stewart_step returns STATE_NONFINITE (103, distinct from an input's
+    NONFINITE), as stability.step_energy reports the state not finite; y0 is untouched."""
     model = level_model("micro", "platform_only")
     P = core.native_params(model.params)
     y0 = np.r_[model.home, np.zeros(6)]
@@ -398,10 +397,10 @@ def test_stewart_step_reports_a_non_finite_state():
         st, *_ = core.step(P, core.options("euler"), y0, y1, F, 1e-3, e0, np.empty(9))
         assert I.euler_advance(model.params, y0, ref_y1, F, 1e-3, 1) == I.OK
         assert np.array_equal(y1, ref_y1, equal_nan=True)
-        ok, _, _ = step_energy(model.params, ref_y1, e0, np.empty(9), F, ENERGY_TOL)
-        assert core.step_energy(P, y1, e0, np.empty(9), F)[0] == ok
+        ok, _, _ = step_energy(model.params, ref_y1, e0, np.empty(9), F, ENERGY_TOL, 1e-3)
+        assert core.step_energy(P, y1, e0, np.empty(9), F, ENERGY_TOL, 1e-3)[0] == ok
         if not ok:
-            assert st == core.NONFINITE
+            assert st == core.STATE_NONFINITE == STATE_NONFINITE
             found = True
     assert found
     assert np.array_equal(y0, keep)
@@ -422,7 +421,7 @@ def test_the_step_bounds_its_work(method):
     assert st == core.TOO_MANY_STEPS
     if method == "dopri5":
         ref = I.dopri5_advance(model.params, y0, np.empty(12), F, 5e-2, 1e-3, 1e-8, 1e-10,
-                               1e-3, 10, I._A, I._E)
+                               1e-3, 10, I.DOPRI5_A, I.DOPRI5_E)
         assert ref[0] == I.TOO_MANY_STEPS and ev == 1 + 6 * (ref[2] + ref[3])
         assert g == ref[1]
     else:
