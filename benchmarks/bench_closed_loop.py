@@ -8,7 +8,7 @@ by default), feedforward "kane". The real-time factor is simulated time / the lo
 (Summary.realtime_factor: the per-sample loop only; a numba kernel's compilation is excluded by
 its warm-up call). The numba loop is main's controller package as `git show REF:controller/...`
 writes it into a temporary package (it imports the same stewart_fmu). Prints the best and the
-median of N runs of each, the end-to-end time of run_closed_loop (design, references and
+median of N interleaved runs of each, the end-to-end time of run_closed_loop (design, references and
 feedforward included), and the largest difference between the two loops' recorded signals.
 """
 from __future__ import annotations
@@ -57,51 +57,65 @@ def _git_package(ref: str, into: Path, name: str):
         importlib.import_module(f"{name}.moves")
 
 
-def _measure(label, cosim, config_mod, moves, model, duration, runs):
-    config = dataclasses.replace(config_mod.controller_config(model), feedforward="kane")
-    assert config.rate == 1000.0, config.rate
-    traj = moves.run_reference(model, config, duration)
-    start = time.perf_counter()
-    first = cosim.run_closed_loop(model, config, traj)      # loads / compiles the loop
-    cold = time.perf_counter() - start
-    factors, ends = [], []
-    for _ in range(runs):
+class _Loop:
+    """One loop's package, its configuration and reference, and its timings."""
+
+    def __init__(self, label, cosim, config_mod, moves, model, duration):
+        self.label, self.cosim, self.model = label, cosim, model
+        self.config = dataclasses.replace(config_mod.controller_config(model), feedforward="kane")
+        assert self.config.rate == 1000.0, self.config.rate
+        self.traj = moves.run_reference(model, self.config, duration)
         start = time.perf_counter()
-        res = cosim.run_closed_loop(model, config, traj)
-        ends.append(time.perf_counter() - start)
-        factors.append(res.summary.realtime_factor)
-    best, median = max(factors), statistics.median(factors)
-    print(f"{label:<16} {best:>9.0f}x {median:>9.0f}x {1e6 * duration / best / len(traj.t):>10.2f}"
-          f" {statistics.median(ends):>10.3f} {cold:>9.2f}")
-    return first, best
+        self.first = self.run()                      # loads / compiles the loop
+        self.cold = time.perf_counter() - start
+        self.factors, self.ends = [], []
+
+    def run(self):
+        return self.cosim.run_closed_loop(self.model, self.config, self.traj)
+
+    def once(self) -> None:
+        start = time.perf_counter()
+        res = self.run()
+        self.ends.append(time.perf_counter() - start)
+        self.factors.append(res.summary.realtime_factor)
+
+    def row(self, duration: float) -> float:
+        best, median = max(self.factors), statistics.median(self.factors)
+        print(f"{self.label:<16} {best:>9.0f}x {median:>9.0f}x "
+              f"{1e6 * duration / best / len(self.traj.t):>10.2f} "
+              f"{statistics.median(self.ends):>10.3f} {self.cold:>9.2f}")
+        return best
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--runs", type=int, default=7)
+    parser.add_argument("--runs", type=int, default=9)
     parser.add_argument("--duration", type=float, default=4.0)
     parser.add_argument("--ref", default="main", help="git ref of the numba loop (default main)")
     args = parser.parse_args()
     model = load_scene(SCENE)
     print(f"closed loop at 1 kHz, {SCENE.name}, run reference {args.duration:g} s, feedforward "
-          f"kane, {args.runs} runs")
-    print(f"{'loop':<16} {'best RTF':>10} {'median RTF':>10} {'us/sample':>10} {'end-to-end':>10}"
-          f" {'cold (s)':>9}")
-    c_res, c_best = _measure("C (this tree)", controller.cosim, controller.config,
-                             controller.moves, model, args.duration, args.runs)
+          f"kane, {args.runs} runs of each, interleaved")
     with tempfile.TemporaryDirectory() as tmp:
+        loops = [_Loop("C (this tree)", controller.cosim, controller.config, controller.moves,
+                       model, args.duration)]
         numba_loop = _git_package(args.ref, Path(tmp), "_bench_main_controller")
+        if numba_loop is not None:
+            loops.append(_Loop(f"numba ({args.ref})", *numba_loop, model, args.duration))
+        for _ in range(args.runs):
+            for loop in loops:
+                loop.once()
+        print(f"{'loop':<16} {'best RTF':>10} {'median RTF':>10} {'us/sample':>10} "
+              f"{'end-to-end':>10} {'cold (s)':>9}")
+        best = [loop.row(args.duration) for loop in loops]
         if numba_loop is None:
             print(f"numba loop: not measured (no numba loop at git ref {args.ref!r})")
         else:
-            n_res, n_best = _measure(f"numba ({args.ref})", *numba_loop, model, args.duration,
-                                     args.runs)
-            diff = max(float(np.max(np.abs(c_res.table[k] - n_res.table[k])))
-                       for k in c_res.table.dtype.names)
-            print(f"C / numba: {c_best / n_best:.2f}x; largest difference of the recorded "
-                  f"signals: {diff:.3g}")
-    print(f"target >= {TARGET:.0f}x: {'met' if c_best >= TARGET else 'NOT met'} "
-          f"({c_best:.0f}x)")
+            a, b = loops[0].first.table, loops[1].first.table
+            diff = max(float(np.max(np.abs(a[k] - b[k]))) for k in a.dtype.names)
+            print(f"C / numba (best): {best[0] / best[1]:.2f}x; largest difference of the "
+                  f"recorded signals: {diff:.3g}")
+    print(f"target >= {TARGET:.0f}x: {'met' if best[0] >= TARGET else 'NOT met'} ({best[0]:.0f}x)")
 
 
 if __name__ == "__main__":
