@@ -525,3 +525,21 @@ def test_run_holder_steps_as_stewart_step():
             assert run.run(1e-3, 20) == (core.OK, 20)
     assert np.array_equal(run.y, y) and np.array_equal(run.energy, e)
     assert run.data.step_guess == guess and abs(run.time - 0.04) < 1e-15
+
+
+def test_coulomb_friction_at_rest_is_numba_sign():
+    """The motion simulator (Coulomb 150 N) at rest, ldot = +0 and -0, and at a NaN rate:
+    the C friction term takes np.sign as numba compiles it (+-0 and NaN pass through), so
+    sigma equals numba's bit for bit, signs of zero included, and the NaN row is NONFINITE."""
+    model = level_model("sim", "full")
+    P = core.native_params(model.params)
+    q = np.ascontiguousarray(model.home)
+    for qd in (np.zeros(6), -np.zeros(6)):
+        ref, st = D._inverse_one(model.params, q, qd, np.zeros(6))
+        got, st_c = core.inverse_dynamics(P, q, qd, np.zeros(6))
+        assert st == st_c == core.OK
+        assert np.array_equal(got, ref) and np.array_equal(np.signbit(got), np.signbit(ref))
+    qd = np.zeros(6)
+    qd[0] = np.nan
+    assert core.inverse_dynamics(P, q, qd, np.zeros(6))[1] == D._inverse_one(
+        model.params, q, qd, np.zeros(6))[1] == core.NONFINITE

@@ -23,13 +23,14 @@ int sw_classify(int status, const double a[6], const double b[6], const double c
     return status == STEWART_OVERFLOW ? STEWART_SINGULAR : status;
 }
 
-/* mu_i of Eq. 9: the force friction opposes to extension (np.sign: sign(0) = 0, NaN kept). */
+/* mu_i of Eq. 9: the force friction opposes to extension (np.sign as numba compiles it:
+   1, -1, or the argument itself for +-0 and NaN). */
 static double friction(const double *p, double ld)
 {
     double sg;
     if (P(HAS_FRICTION) == 0.0)
         return 0.0;
-    sg = ld > 0.0 ? 1.0 : (ld < 0.0 ? -1.0 : (ld == 0.0 ? 0.0 : ld));
+    sg = ld > 0.0 ? 1.0 : (ld < 0.0 ? -1.0 : ld);
     return P(VISCOUS) * ld + P(COULOMB) * sg;
 }
 

@@ -1,0 +1,846 @@
+/* The Stewart-platform plant as an FMU (see model.h): parameters and their validation, inputs,
+ * outputs computed on demand, the life cycle, doStep over stewart_step, FMU states.
+ *
+ * The physics is the C core (stewart.h); this file only keeps the FMI semantics, as the
+ * Modelica Association's Reference FMUs do: a call out of order, an unknown value reference, a
+ * write to an output, a non-finite value or a bad step is fmiError with a logged message and
+ * changes nothing; a step the plant cannot take (stroke, singular pose, failed power balance,
+ * too many internal steps) is fmiDiscard with the state left at the start of the step. */
+#include <math.h>
+#include <stdarg.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "model.h"
+
+#define MAX_STEPS 10000L             /* internal steps per doStep (IntegratorOptions.max_steps) */
+#define TIME_EPS 1e-9                /* relative tolerance of currentCommunicationPoint */
+#define BIT(p) (1u << (p))
+
+static const char *const METHODS[] = {"rk4", "euler", "dopri5"};
+
+/* ---- names of value references ------------------------------------------------------------ */
+
+typedef struct { unsigned vr, count, cols; const char *name; } Group;
+
+static const Group GROUPS[] = {
+    {VR_GRAVITY, 3, 0, "gravity"}, {VR_BASE, 18, 3, "geometry.base_joints"},
+    {VR_PLATFORM, 18, 3, "geometry.platform_joints"}, {VR_HOME, 6, 0, "geometry.home"},
+    {VR_LEG_MIN, 1, 0, "geometry.leg_min"}, {VR_LEG_MAX, 1, 0, "geometry.leg_max"},
+    {VR_MASS, 1, 0, "platform.mass"}, {VR_INERTIA, 3, 0, "platform.inertia"},
+    {VR_LOWER_MASS, 1, 0, "legs.lower_mass"}, {VR_LOWER_COM, 1, 0, "legs.lower_com"},
+    {VR_LOWER_INERTIA, 2, 0, "legs.lower_inertia"}, {VR_UPPER_MASS, 1, 0, "legs.upper_mass"},
+    {VR_UPPER_COM, 1, 0, "legs.upper_com"}, {VR_UPPER_INERTIA, 2, 0, "legs.upper_inertia"},
+    {VR_GEAR_RATIO, 1, 0, "drive.gear_ratio"}, {VR_ROTOR_INERTIA, 1, 0, "drive.rotor_inertia"},
+    {VR_PINION_RADIUS, 1, 0, "drive.pinion_radius"}, {VR_VISCOUS, 1, 0, "friction.viscous"},
+    {VR_COULOMB, 1, 0, "friction.coulomb"}, {VR_STIFFNESS, 1, 0, "transmission.stiffness"},
+    {VR_DAMPING, 1, 0, "transmission.damping"}, {VR_Q0, 6, 0, "q0"}, {VR_QD0, 6, 0, "qd0"},
+    {VR_RTOL, 1, 0, "solver.rtol"}, {VR_ATOL, 1, 0, "solver.atol"},
+    {VR_MAX_STEP, 1, 0, "solver.max_step"}, {VR_METHOD, 1, 0, "solver.method"},
+    {VR_SIGMA, 6, 0, "sigma"}, {VR_TAU, 6, 0, "tau"}, {VR_L, 6, 0, "l"}, {VR_LDOT, 6, 0, "ldot"},
+    {VR_Q, 1, 0, "x"}, {VR_Q + 1, 1, 0, "y"}, {VR_Q + 2, 1, 0, "z"}, {VR_Q + 3, 1, 0, "thx"},
+    {VR_Q + 4, 1, 0, "thy"}, {VR_Q + 5, 1, 0, "thz"}, {VR_QD, 1, 0, "dx"}, {VR_QD + 1, 1, 0, "dy"},
+    {VR_QD + 2, 1, 0, "dz"}, {VR_QD + 3, 1, 0, "dthx"}, {VR_QD + 4, 1, 0, "dthy"},
+    {VR_QD + 5, 1, 0, "dthz"}, {VR_V, 3, 0, "v"}, {VR_OMEGA, 3, 0, "omega"},
+    {VR_COND, 1, 0, "cond"}, {VR_RACK, 6, 0, "rack_force"},
+    {VR_PARTS, 6, 0, "force.platform"}, {VR_PARTS + 6, 6, 0, "force.lower_legs"},
+    {VR_PARTS + 12, 6, 0, "force.upper_legs"}, {VR_PARTS + 18, 6, 0, "force.drives"},
+    {VR_PARTS + 24, 6, 0, "force.gravity"}, {VR_PARTS + 30, 6, 0, "force.friction"},
+};
+
+/* The variable's name in the model description ("?" for none). */
+static const char *vr_name(unsigned vr, char buf[64]) {
+    size_t k;
+    for (k = 0; k < sizeof GROUPS / sizeof GROUPS[0]; k++) {
+        const Group *g = &GROUPS[k];
+        if (vr >= g->vr && vr < g->vr + g->count) {
+            unsigned i = vr - g->vr;
+            if (g->count == 1)
+                snprintf(buf, 64, "%s", g->name);
+            else if (g->cols)
+                snprintf(buf, 64, "%s[%u,%u]", g->name, i / g->cols + 1, i % g->cols + 1);
+            else
+                snprintf(buf, 64, "%s[%u]", g->name, i + 1);
+            return buf;
+        }
+    }
+    snprintf(buf, 64, "?");
+    return buf;
+}
+
+/* ---- which value references this FMU declares ---------------------------------------------- */
+
+enum { K_UNKNOWN, K_PARAM, K_METHOD, K_INPUT, K_OUTPUT, K_TIME };
+
+static int has(unsigned vr) { return STEWART_DECLARED[vr] != 0; }
+static int has_legs(void) { return has(VR_LOWER_MASS); }
+static int has_drive(void) { return has(VR_GEAR_RATIO); }
+static int has_friction(void) { return has(VR_VISCOUS); }
+static int has_transmission(void) { return has(VR_STIFFNESS); }
+
+static int part_present(int part) {
+    switch (part) {
+    case STEWART_PART_LOWER_LEGS:
+    case STEWART_PART_UPPER_LEGS: return has_legs();
+    case STEWART_PART_DRIVES: return has_drive();
+    case STEWART_PART_FRICTION: return has_friction();
+    default: return 1;
+    }
+}
+
+static int vr_kind(unsigned vr) {
+    if (vr == 0) return has(0) ? K_TIME : K_UNKNOWN;  /* FMI 3.0: the independent variable */
+    if (vr >= 1 && vr < VR_N_PAR) return has(vr) ? K_PARAM : K_UNKNOWN;
+    if (vr == VR_METHOD) return K_METHOD;
+    if (vr >= VR_SIGMA && vr < VR_SIGMA + 6) return K_INPUT;
+    if (vr >= VR_TAU && vr < VR_TAU + 6) return has_drive() ? K_INPUT : K_UNKNOWN;
+    if (vr >= VR_L && vr < VR_PARTS) return K_OUTPUT;
+    if (vr >= VR_PARTS && vr < VR_END) return part_present((int)((vr - VR_PARTS) / 6)) ? K_OUTPUT : K_UNKNOWN;
+    return K_UNKNOWN;
+}
+
+/* ---- logging -------------------------------------------------------------------------------- */
+
+static const char *const CATEGORY[] = {"logEvents", "logStatusWarning", "logStatusDiscard",
+                                       "logStatusError", "logStatusFatal"};
+
+void model_log(Instance *c, int status, const char *fmt, ...) {
+    char msg[2048];
+    va_list ap;
+    int cat;
+    if (!c || !c->log) return;
+    cat = status <= M_OK ? 0 : (status > M_FATAL ? 4 : status);
+    /* Events only when the importer asked for them; warnings and errors always. */
+    if (cat == 0 && !(c->log_on && (c->log_mask & LOG_EVENTS))) return;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    c->log(c, status, CATEGORY[cat], msg);
+}
+
+int model_set_debug_logging(Instance *c, int on, size_t n, const char *const categories[]) {
+    size_t k;
+    unsigned mask = 0;
+    if (n > 0 && !categories) {
+        model_log(c, M_ERROR, "setDebugLogging: categories is NULL with nCategories = %lu", (unsigned long)n);
+        return M_ERROR;
+    }
+    for (k = 0; k < n; k++) {
+        int j, found = 0;
+        for (j = 0; j < 5; j++)
+            if (categories[k] && strcmp(categories[k], CATEGORY[j]) == 0) {
+                mask |= 1u << j;
+                found = 1;
+            }
+        if (!found) {
+            model_log(c, M_ERROR, "setDebugLogging: unknown log category '%s'",
+                      categories[k] ? categories[k] : "(null)");
+            return M_ERROR;
+        }
+    }
+    c->log_on = on != 0;
+    c->log_mask = n == 0 ? LOG_ALL : mask;
+    return M_OK;
+}
+
+/* ---- life cycle ----------------------------------------------------------------------------- */
+
+static const char *const PHASES[PH_COUNT] = {"instantiated", "initialization mode", "step mode",
+                                            "terminated", "error (initialization failed)"};
+
+const char *model_phase_name(int phase) {
+    return phase >= 0 && phase < PH_COUNT ? PHASES[phase] : "invalid";
+}
+
+int model_require(Instance *c, const char *call, unsigned phases) {
+    if (phases & BIT(c->d.phase)) return M_OK;
+    model_log(c, M_ERROR, "%s is not allowed in %s", call, model_phase_name(c->d.phase));
+    return M_ERROR;
+}
+
+static void clear_outputs(Instance *c) {
+    c->have_legs = c->have_cond = c->have_parts = c->have_initial = 0;
+    c->discarded = 0;
+}
+
+static void update_rack(Instance *c) {
+    double gain = has_drive() ? c->d.par[VR_GEAR_RATIO] / c->d.par[VR_PINION_RADIUS] : 0.0;
+    int i;
+    for (i = 0; i < 6; i++) c->rack[i] = c->d.sigma[i] + gain * c->d.tau[i];
+}
+
+void model_reset(Instance *c) {
+    memset(&c->d, 0, sizeof c->d);
+    memcpy(c->d.par, STEWART_START, sizeof c->d.par);
+    c->d.phase = PH_INSTANTIATED;
+    c->d.method = STEWART_START_METHOD;
+    c->d.step_guess = c->d.par[VR_MAX_STEP];
+    clear_outputs(c);
+    update_rack(c);
+}
+
+int model_init(Instance *c, const char *name, const char *token) {
+    if (!token || strcmp(token, STEWART_MODEL_TOKEN) != 0) {
+        model_log(c, M_ERROR, "instantiate: the token '%s' is not this FMU's '%s'",
+                  token ? token : "(null)", STEWART_MODEL_TOKEN);
+        return M_ERROR;
+    }
+    c->name = malloc(strlen(name) + 1);
+    if (!c->name) return M_ERROR;
+    strcpy(c->name, name);
+    model_reset(c);
+    return M_OK;
+}
+
+int model_setup(Instance *c, int tolerance_defined, double tolerance, double start_time) {
+    if (!isfinite(start_time)) {
+        model_log(c, M_ERROR, "setup: startTime must be finite, got %g", start_time);
+        return M_ERROR;
+    }
+    if (tolerance_defined && !(isfinite(tolerance) && tolerance > 0)) {
+        model_log(c, M_ERROR, "setup: tolerance must be finite and > 0, got %g", tolerance);
+        return M_ERROR;
+    }
+    c->d.tolerance_defined = tolerance_defined != 0;
+    c->d.tolerance = tolerance_defined ? tolerance : 0.0;
+    c->d.start_time = c->d.time = start_time;
+    return M_OK;
+}
+
+int model_enter_init(Instance *c) {
+    c->d.phase = PH_INITIALIZATION;
+    clear_outputs(c);
+    return M_OK;
+}
+
+/* model.py _pack: the packed parameter vector from the parameter values. */
+static void pack(const double *par, double *p) {
+    int i;
+    double sum = 0.0;
+    memset(p, 0, STEWART_N_PARAMS * sizeof(double));
+    p[STEWART_P_HAS_LEGS] = has_legs();
+    p[STEWART_P_HAS_DRIVE] = has_drive();
+    p[STEWART_P_HAS_FRICTION] = has_friction();
+    for (i = 0; i < 3; i++) p[STEWART_P_GRAVITY + i] = par[VR_GRAVITY + i];
+    p[STEWART_P_MASS] = par[VR_MASS];
+    for (i = 0; i < 3; i++) p[STEWART_P_INERTIA + i] = par[VR_INERTIA + i];
+    if (has_legs()) {
+        p[STEWART_P_LOWER] = par[VR_LOWER_MASS];
+        p[STEWART_P_LOWER + 1] = par[VR_LOWER_COM];
+        p[STEWART_P_LOWER + 2] = par[VR_LOWER_INERTIA];
+        p[STEWART_P_LOWER + 3] = par[VR_LOWER_INERTIA + 1];
+        p[STEWART_P_UPPER] = par[VR_UPPER_MASS];
+        p[STEWART_P_UPPER + 1] = par[VR_UPPER_COM];
+        p[STEWART_P_UPPER + 2] = par[VR_UPPER_INERTIA];
+        p[STEWART_P_UPPER + 3] = par[VR_UPPER_INERTIA + 1];
+    }
+    if (has_drive()) {
+        double g = par[VR_GEAR_RATIO], r = par[VR_PINION_RADIUS];
+        p[STEWART_P_DRIVE_MASS] = g * g * par[VR_ROTOR_INERTIA] / (r * r);
+    }
+    if (has_friction()) {
+        p[STEWART_P_VISCOUS] = par[VR_VISCOUS];
+        p[STEWART_P_COULOMB] = par[VR_COULOMB];
+    }
+    if (has_transmission()) {
+        p[STEWART_P_HAS_TRANSMISSION] = 1.0;
+        p[STEWART_P_STIFFNESS] = par[VR_STIFFNESS];
+        p[STEWART_P_DAMPING] = par[VR_DAMPING];
+    }
+    p[STEWART_P_LEG_MIN] = has(VR_LEG_MIN) ? par[VR_LEG_MIN] : 0.0;
+    p[STEWART_P_LEG_MAX] = has(VR_LEG_MAX) ? par[VR_LEG_MAX] : INFINITY;
+    for (i = 0; i < 6; i++) {  /* np.mean(np.linalg.norm(platform_joints, axis=1)) */
+        const double *pj = par + VR_PLATFORM + 3 * i;
+        sum += sqrt(pj[0] * pj[0] + pj[1] * pj[1] + pj[2] * pj[2]);
+    }
+    p[STEWART_P_CHAR_LENGTH] = sum / 6.0;
+    for (i = 0; i < 18; i++) {
+        p[STEWART_P_BASE + i] = par[VR_BASE + i];
+        p[STEWART_P_PLATFORM + i] = par[VR_PLATFORM + i];
+    }
+}
+
+/* kinematics.check_poses for one pose: within the stroke and cond(J) below the limit. */
+static int check_pose(Instance *c, const char *call, const char *what, const double *p, const double q[6]) {
+    double l[6], ld[6], om[3], zero[6] = {0, 0, 0, 0, 0, 0}, cond = 0.0;
+    double lo = p[STEWART_P_LEG_MIN], hi = p[STEWART_P_LEG_MAX];
+    int i;
+    stewart_leg_state(p, q, zero, l, ld, om);
+    for (i = 0; i < 6; i++)
+        if (!(l[i] >= lo && l[i] <= hi) || !isfinite(l[i]) || l[i] == 0.0) {
+            model_log(c, M_ERROR, "%s: %s: leg %d has length %.17g m, outside the stroke [%g, %g] m "
+                      "at pose (%g, %g, %g, %g, %g, %g)", call, what, i + 1, l[i], lo, hi,
+                      q[0], q[1], q[2], q[3], q[4], q[5]);
+            return M_ERROR;
+        }
+    stewart_condition_number(p, q, &cond);
+    if (!(cond < STEWART_COND_LIMIT)) {
+        model_log(c, M_ERROR, "%s: %s: the Jacobian is near-singular (cond = %.3g > %.0e) at pose "
+                  "(%g, %g, %g, %g, %g, %g)", call, what, cond, STEWART_COND_LIMIT,
+                  q[0], q[1], q[2], q[3], q[4], q[5]);
+        return M_ERROR;
+    }
+    return M_OK;
+}
+
+/* The physical rules of stewart_fmu/scene.py, naming the parameter that breaks one. */
+static int validate(Instance *c, const char *call, const double *v, double *p) {
+    char name[64];
+    unsigned vr;
+    int i, j, k;
+#define FAIL(VR, ...)                                                             \
+    do {                                                                          \
+        char why_[256];                                                           \
+        snprintf(why_, sizeof why_, __VA_ARGS__);                                 \
+        model_log(c, M_ERROR, "%s: parameter %s %s", call, vr_name(VR, name), why_); \
+        return M_ERROR;                                                           \
+    } while (0)
+    for (vr = 1; vr < VR_N_PAR; vr++)
+        if (has(vr) && !isfinite(v[vr])) FAIL(vr, "must be finite, got %g", v[vr]);
+    for (k = 0; k < 2; k++) {  /* coincident joints */
+        unsigned base = k ? VR_PLATFORM : VR_BASE;
+        double scale = 0.0;
+        for (i = 0; i < 18; i++) scale = fmax(scale, fabs(v[base + i]));
+        scale = fmax(scale, 1e-300);
+        for (i = 0; i < 6; i++)
+            for (j = i + 1; j < 6; j++) {
+                const double *a = v + base + 3 * i, *b = v + base + 3 * j;
+                double d = sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+                                (a[2] - b[2]) * (a[2] - b[2]));
+                if (d <= 1e-9 * scale)
+                    FAIL(base + 3 * j, "puts joints %d and %d at the same point (%g, %g, %g)", i + 1,
+                         j + 1, a[0], a[1], a[2]);
+            }
+    }
+    if (has(VR_LEG_MIN) && !(v[VR_LEG_MIN] > 0)) FAIL(VR_LEG_MIN, "must be > 0, got %g", v[VR_LEG_MIN]);
+    if (has(VR_LEG_MAX) && !(v[VR_LEG_MAX] > 0)) FAIL(VR_LEG_MAX, "must be > 0, got %g", v[VR_LEG_MAX]);
+    if (has(VR_LEG_MIN) && has(VR_LEG_MAX) && v[VR_LEG_MIN] >= v[VR_LEG_MAX])
+        FAIL(VR_LEG_MAX, "must exceed leg_min (%g <= %g)", v[VR_LEG_MAX], v[VR_LEG_MIN]);
+    if (!(v[VR_MASS] > 0)) FAIL(VR_MASS, "must be > 0, got %g", v[VR_MASS]);
+    for (i = 0; i < 3; i++)
+        if (!(v[VR_INERTIA + i] > 0))
+            FAIL(VR_INERTIA + i, "is not positive definite: principal moment %g must be > 0", v[VR_INERTIA + i]);
+    {
+        double a = v[VR_INERTIA], b = v[VR_INERTIA + 1], d = v[VR_INERTIA + 2];
+        if (a + b < d || b + d < a || a + d < b)
+            FAIL(VR_INERTIA, "(moments %g, %g, %g) breaks the triangle inequality: no rigid body has them", a, b, d);
+    }
+    if (has_legs()) {
+        unsigned part[2][3] = {{VR_LOWER_MASS, VR_LOWER_COM, VR_LOWER_INERTIA},
+                               {VR_UPPER_MASS, VR_UPPER_COM, VR_UPPER_INERTIA}};
+        for (k = 0; k < 2; k++) {
+            double tr = v[part[k][2]], ax = v[part[k][2] + 1];
+            if (v[part[k][0]] < 0) FAIL(part[k][0], "must be >= 0, got %g", v[part[k][0]]);
+            if (v[part[k][1]] < 0) FAIL(part[k][1], "must be >= 0, got %g", v[part[k][1]]);
+            if (tr < 0 || ax < 0) FAIL(part[k][2], "moments must be >= 0, got [%g, %g]", tr, ax);
+            if (ax > 2 * tr)
+                FAIL(part[k][2] + 1, "axial moment %g exceeds twice the transverse %g: no rigid body has it", ax, tr);
+        }
+    }
+    if (has_drive())
+        for (vr = VR_GEAR_RATIO; vr <= VR_PINION_RADIUS; vr++)
+            if (!(v[vr] > 0)) FAIL(vr, "must be > 0, got %g", v[vr]);
+    if (has_friction())
+        for (vr = VR_VISCOUS; vr <= VR_COULOMB; vr++)
+            if (v[vr] < 0) FAIL(vr, "must be >= 0, got %g", v[vr]);
+    if (has_transmission()) {
+        if (!(v[VR_STIFFNESS] > 0)) FAIL(VR_STIFFNESS, "must be > 0, got %g", v[VR_STIFFNESS]);
+        if (v[VR_DAMPING] < 0) FAIL(VR_DAMPING, "must be >= 0, got %g", v[VR_DAMPING]);
+    }
+    for (vr = VR_RTOL; vr <= VR_MAX_STEP; vr++)
+        if (!(v[vr] > 0)) FAIL(vr, "must be finite and > 0, got %g", v[vr]);
+#undef FAIL
+    pack(v, p);
+    if (check_pose(c, call, "parameter geometry.home", p, v + VR_HOME)) return M_ERROR;
+    return M_OK;
+}
+
+static stewart_options options(const Instance *c) {
+    stewart_options o = stewart_default_options();
+    o.method = (stewart_method)c->d.method;
+    o.rtol = c->d.tolerance_defined ? c->d.tolerance : c->d.par[VR_RTOL];
+    o.atol = c->d.par[VR_ATOL];
+    o.max_step = c->d.par[VR_MAX_STEP];
+    o.max_steps = MAX_STEPS;
+    o.energy_tol = STEWART_ENERGY_TOL;
+    return o;
+}
+
+int model_exit_init(Instance *c) {
+    PlantData *d = &c->d;
+    const char *call = "exitInitializationMode";
+    if (validate(c, call, d->par, d->p) || check_pose(c, call, "the initial pose q0", d->p, d->par + VR_Q0)) {
+        d->phase = PH_FAILED;
+        clear_outputs(c);
+        return M_ERROR;
+    }
+    update_rack(c);
+    d->n = stewart_initial_state(d->p, d->par + VR_Q0, d->par + VR_QD0, c->rack, d->y);
+    d->energy_valid = 0;
+    d->time = d->start_time;
+    d->phase = PH_STEPPING;
+    clear_outputs(c);
+    model_log(c, M_OK, "%s: %s at t = %.17g s, %s, max_step %g s", call,
+              has_transmission() ? "24 states" : "12 states", d->time, METHODS[d->method], d->par[VR_MAX_STEP]);
+    return M_OK;
+}
+
+int model_terminate(Instance *c) {
+    c->d.phase = PH_TERMINATED;
+    return M_OK;
+}
+
+/* ---- stepping ------------------------------------------------------------------------------- */
+
+static const char *why(int status) {
+    switch (status) {
+    case STEWART_NONFINITE: return "the state became non-finite";
+    case STEWART_STROKE: return "a leg left its stroke";
+    case STEWART_SINGULAR: return "the Jacobian became singular";
+    case STEWART_GIMBAL: return "the pitch reached +-90 degrees (Euler-rate singularity)";
+    case STEWART_OVERFLOW: return "the accelerations overflowed";
+    case STEWART_TOO_MANY_STEPS: return "the integrator needed too many internal steps";
+    case STEWART_STEP_TOO_SMALL: return "the integrator's step fell below its minimum (stiff)";
+    case STEWART_UNSTABLE: return "integration unstable: the energy grew more than the rack forces supplied";
+    default: return "unknown status";
+    }
+}
+
+int model_do_step(Instance *c, double t, double h, double *last_time) {
+    PlantData *d = &c->d;
+    stewart_options o;
+    double y1[STEWART_MAX_STATE], e1[STEWART_N_ENERGY], guess, excess = 0.0, allowed = 0.0;
+    long evaluations = 0;
+    int status;
+    if (last_time) *last_time = d->time;
+    if (model_require(c, "doStep", BIT(PH_STEPPING))) return M_ERROR;
+    if (!(h > 0 && isfinite(h))) {
+        model_log(c, M_ERROR, "doStep: communicationStepSize must be finite and > 0, got %.17g", h);
+        return M_ERROR;
+    }
+    if (!(fabs(t - d->time) <= TIME_EPS * fmax(1.0, fabs(d->time)))) {
+        model_log(c, M_ERROR, "doStep: currentCommunicationPoint %.17g is not the FMU's time %.17g", t, d->time);
+        return M_ERROR;
+    }
+    o = options(c);
+    if (o.method != STEWART_DOPRI5 && !(h / o.max_step <= (double)o.max_steps)) {
+        model_log(c, M_DISCARD, "doStep from t = %.17g s by %.17g s discarded (%s): it needs %.3g internal "
+                  "steps of at most %g s, more than max_steps = %ld; take smaller communication steps",
+                  t, h, METHODS[d->method], ceil(h / o.max_step), o.max_step, o.max_steps);
+        c->discarded = 1;
+        return M_DISCARD;
+    }
+    update_rack(c);
+    if (!d->energy_valid) {
+        stewart_energy_terms(d->p, d->y, d->energy);
+        d->energy_valid = 1;
+    }
+    guess = d->step_guess;
+    status = stewart_step(d->p, &o, d->y, y1, c->rack, h, &guess, &evaluations, d->energy, e1, &excess, &allowed);
+    d->step_guess = guess;  /* as Plant: the adaptive step guess follows even a rejected step */
+    d->evaluations += evaluations;
+    if (status != STEWART_OK) {
+        const double *q = d->y;
+        if (status == STEWART_UNSTABLE)
+            model_log(c, M_DISCARD, "doStep from t = %.17g s by %.17g s discarded (%s): %s (by %.3g J, allowed "
+                      "%.3g J); state kept at the start of the step", t, h, METHODS[d->method], why(status),
+                      excess, allowed);
+        else
+            model_log(c, M_DISCARD, "doStep from t = %.17g s by %.17g s discarded (%s): %s; state kept at the "
+                      "start of the step: q = (%.6g, %.6g, %.6g, %.6g, %.6g, %.6g), rack force = (%.6g, %.6g, "
+                      "%.6g, %.6g, %.6g, %.6g) N", t, h, METHODS[d->method], why(status), q[0], q[1], q[2],
+                      q[3], q[4], q[5], c->rack[0], c->rack[1], c->rack[2], c->rack[3], c->rack[4], c->rack[5]);
+        c->discarded = 1;
+        return M_DISCARD;
+    }
+    memcpy(d->y, y1, (size_t)d->n * sizeof(double));
+    memcpy(d->energy, e1, sizeof e1);
+    d->time = t + h;
+    if (last_time) *last_time = d->time;
+    c->have_legs = c->have_cond = c->have_parts = c->discarded = 0;
+    return M_OK;
+}
+
+/* ---- outputs ---------------------------------------------------------------------------------- */
+
+/* The packed parameters and state the outputs are computed from: the running plant's, or
+ * before exitInitializationMode those of the values set so far (if they are valid). */
+static int output_source(Instance *c, const double **p, const double **y) {
+    PlantData *d = &c->d;
+    static const unsigned LATE = BIT(PH_STEPPING) | BIT(PH_TERMINATED);
+    if (BIT(d->phase) & LATE) {
+        *p = d->p;
+        *y = d->y;
+        return M_OK;
+    }
+    if (d->phase == PH_FAILED) {
+        model_log(c, M_ERROR, "getReal: no outputs: initialization failed (see the log)");
+        return M_ERROR;
+    }
+    if (!c->have_initial) {
+        InstanceLogger log = c->log;
+        c->log = NULL;  /* quiet check: the values may still be set before exitInitializationMode */
+        if (validate(c, "getReal", d->par, c->lp) || check_pose(c, "getReal", "q0", c->lp, d->par + VR_Q0)) {
+            c->log = log;
+            model_log(c, M_ERROR, "getReal: outputs are undefined: the parameters set so far are not valid "
+                      "(exitInitializationMode names the problem)");
+            return M_ERROR;
+        }
+        c->log = log;
+        update_rack(c);
+        d->n = stewart_initial_state(c->lp, d->par + VR_Q0, d->par + VR_QD0, c->rack, d->y);
+        c->have_initial = 1;
+        c->have_legs = c->have_cond = c->have_parts = 0;
+    }
+    *p = c->lp;
+    *y = d->y;
+    return M_OK;
+}
+
+static int output(Instance *c, unsigned vr, double *value) {
+    const double *p, *y;
+    if (output_source(c, &p, &y)) return M_ERROR;
+    if ((vr >= VR_L && vr < VR_Q) || (vr >= VR_OMEGA && vr < VR_OMEGA + 3)) {
+        if (!c->have_legs) {
+            stewart_leg_state(p, y, y + 6, c->l, c->ldot, c->omega);
+            c->have_legs = 1;
+        }
+        *value = vr < VR_LDOT ? c->l[vr - VR_L] : vr < VR_Q ? c->ldot[vr - VR_LDOT] : c->omega[vr - VR_OMEGA];
+    } else if (vr >= VR_Q && vr < VR_Q + 12) {
+        *value = y[vr - VR_Q];
+    } else if (vr >= VR_V && vr < VR_V + 3) {
+        *value = y[6 + vr - VR_V];
+    } else if (vr == VR_COND) {
+        if (!c->have_cond) {
+            stewart_condition_number(p, y, &c->cond);
+            c->have_cond = 1;
+        }
+        *value = c->cond;
+    } else if (vr >= VR_RACK && vr < VR_RACK + 6) {
+        update_rack(c);
+        *value = c->rack[vr - VR_RACK];
+    } else {
+        if (!c->have_parts) {
+            double dy[STEWART_MAX_STATE], qdd[6];
+            int i;
+            update_rack(c);
+            memset(c->parts, 0, sizeof c->parts);
+            if (p[STEWART_P_HAS_TRANSMISSION] != 0.0) {
+                /* the leg side (Plant._leg_model: no drive, no transmission), qdd from y' */
+                double pl[STEWART_N_PARAMS];
+                memcpy(pl, p, sizeof pl);
+                pl[STEWART_P_HAS_DRIVE] = pl[STEWART_P_DRIVE_MASS] = 0.0;
+                pl[STEWART_P_HAS_TRANSMISSION] = pl[STEWART_P_STIFFNESS] = pl[STEWART_P_DAMPING] = 0.0;
+                stewart_derivative(p, y, c->rack, dy);
+                stewart_inverse_dynamics_parts(pl, y, y + 6, dy + 6, c->parts);
+                for (i = 0; i < 6; i++) c->parts[STEWART_PART_DRIVES * 6 + i] = p[STEWART_P_DRIVE_MASS] * dy[18 + i];
+            } else {
+                stewart_forward_dynamics(p, y, y + 6, c->rack, qdd);
+                stewart_inverse_dynamics_parts(p, y, y + 6, qdd, c->parts);
+            }
+            c->have_parts = 1;
+        }
+        *value = c->parts[vr - VR_PARTS];
+    }
+    return M_OK;
+}
+
+/* ---- get / set -------------------------------------------------------------------------------- */
+
+static int check_args(Instance *c, const char *call, const void *vr, size_t n, const void *value) {
+    if (n > 0 && (!vr || !value)) {
+        model_log(c, M_ERROR, "%s: NULL array with %lu value references", call, (unsigned long)n);
+        return M_ERROR;
+    }
+    return M_OK;
+}
+
+int model_get_real(Instance *c, const unsigned vr[], size_t n, double value[]) {
+    size_t k;
+    if (check_args(c, "getReal", vr, n, value)) return M_ERROR;
+    for (k = 0; k < n; k++) {
+        int kind = vr_kind(vr[k]);
+        if (kind == K_PARAM) {
+            value[k] = c->d.par[vr[k]];
+        } else if (kind == K_TIME) {
+            value[k] = c->d.time;
+        } else if (kind == K_INPUT) {
+            value[k] = vr[k] < VR_TAU ? c->d.sigma[vr[k] - VR_SIGMA] : c->d.tau[vr[k] - VR_TAU];
+        } else if (kind == K_OUTPUT) {
+            if (output(c, vr[k], &value[k])) return M_ERROR;
+        } else {
+            model_log(c, M_ERROR, "getReal: %s value reference %u", kind == K_METHOD ? "not a Real:" : "unknown",
+                      vr[k]);
+            return M_ERROR;
+        }
+    }
+    return M_OK;
+}
+
+int model_set_real(Instance *c, const unsigned vr[], size_t n, const double value[]) {
+    static const unsigned EARLY = BIT(PH_INSTANTIATED) | BIT(PH_INITIALIZATION);
+    size_t k;
+    char name[64];
+    if (check_args(c, "setReal", vr, n, value)) return M_ERROR;
+    /* Check every value first: an Error changes nothing. */
+    for (k = 0; k < n; k++) {
+        int kind = vr_kind(vr[k]);
+        if (kind == K_UNKNOWN || kind == K_METHOD) {
+            model_log(c, M_ERROR, "setReal: %s value reference %u", kind == K_METHOD ? "not a Real:" : "unknown", vr[k]);
+            return M_ERROR;
+        }
+        if (kind == K_OUTPUT || kind == K_TIME) {
+            model_log(c, M_ERROR, "setReal: %s (value reference %u) is %s: it cannot be set",
+                      kind == K_TIME ? "time" : vr_name(vr[k], name), vr[k],
+                      kind == K_TIME ? "the independent variable" : "an output");
+            return M_ERROR;
+        }
+        if (kind == K_PARAM && !(BIT(c->d.phase) & EARLY)) {
+            model_log(c, M_ERROR, "setReal: parameter %s is fixed: it can only be set before exitInitializationMode "
+                      "(now in %s)", vr_name(vr[k], name), model_phase_name(c->d.phase));
+            return M_ERROR;
+        }
+        if (kind == K_INPUT && !(BIT(c->d.phase) & (EARLY | BIT(PH_STEPPING)))) {
+            model_log(c, M_ERROR, "setReal: input %s cannot be set in %s", vr_name(vr[k], name),
+                      model_phase_name(c->d.phase));
+            return M_ERROR;
+        }
+        if (!isfinite(value[k])) {
+            model_log(c, M_ERROR, "setReal: %s = %g at t = %.17g s is not finite: rejected, the value stays %.17g",
+                      vr_name(vr[k], name), value[k], c->d.time,
+                      kind == K_PARAM ? c->d.par[vr[k]]
+                                      : (vr[k] < VR_TAU ? c->d.sigma[vr[k] - VR_SIGMA] : c->d.tau[vr[k] - VR_TAU]));
+            return M_ERROR;
+        }
+    }
+    for (k = 0; k < n; k++) {
+        if (vr_kind(vr[k]) == K_PARAM) {
+            c->d.par[vr[k]] = value[k];
+            c->have_initial = 0;
+        } else if (vr[k] < VR_TAU) {
+            c->d.sigma[vr[k] - VR_SIGMA] = value[k];
+        } else {
+            c->d.tau[vr[k] - VR_TAU] = value[k];
+        }
+    }
+    if (n) {
+        c->have_parts = 0;
+        c->have_initial = c->have_initial && !has_transmission();  /* the preload follows the inputs */
+        update_rack(c);
+    }
+    return M_OK;
+}
+
+int model_get_string(Instance *c, const unsigned vr[], size_t n, const char *value[]) {
+    size_t k;
+    if (check_args(c, "getString", vr, n, value)) return M_ERROR;
+    for (k = 0; k < n; k++) {
+        if (vr[k] != VR_METHOD) return model_wrong_type(c, "getString", vr + k, 1);
+        value[k] = METHODS[c->d.method];
+    }
+    return M_OK;
+}
+
+int model_set_string(Instance *c, const unsigned vr[], size_t n, const char *const value[]) {
+    size_t k;
+    int j, method[64];
+    if (check_args(c, "setString", vr, n, value)) return M_ERROR;
+    if (n > 64) {
+        model_log(c, M_ERROR, "setString: %lu values: this FMU has one String variable", (unsigned long)n);
+        return M_ERROR;
+    }
+    for (k = 0; k < n; k++) {
+        if (vr[k] != VR_METHOD) return model_wrong_type(c, "setString", vr + k, 1);
+        if (model_require(c, "setString(solver.method)", BIT(PH_INSTANTIATED) | BIT(PH_INITIALIZATION)))
+            return M_ERROR;
+        method[k] = -1;
+        for (j = 0; j < 3; j++)
+            if (value[k] && strcmp(value[k], METHODS[j]) == 0) method[k] = j;
+        if (method[k] < 0) {
+            model_log(c, M_ERROR, "setString: integrator '%.100s' unknown: solver.method is one of rk4, euler, "
+                      "dopri5", value[k] ? value[k] : "(null)");
+            return M_ERROR;
+        }
+    }
+    for (k = 0; k < n; k++) c->d.method = method[k];
+    return M_OK;
+}
+
+int model_wrong_type(Instance *c, const char *call, const unsigned vr[], size_t n) {
+    char name[64];
+    if (n == 0) return M_OK;
+    if (!vr) return check_args(c, call, vr, n, NULL);
+    if (vr_kind(vr[0]) == K_UNKNOWN)
+        model_log(c, M_ERROR, "%s: unknown value reference %u", call, vr[0]);
+    else
+        model_log(c, M_ERROR, "%s: %s (value reference %u) is not of this type", call, vr_name(vr[0], name), vr[0]);
+    return M_ERROR;
+}
+
+/* ---- FMU states ------------------------------------------------------------------------------- */
+
+#define STATE_MAGIC 0x53545750u   /* "STWP" */
+#define STATE_VERSION 1u
+
+typedef struct {
+    unsigned magic;
+    PlantData d;
+} State;
+
+typedef struct {
+    char magic[8];          /* "STWFMUS\0" */
+    uint32_t version;
+    uint32_t payload;       /* sizeof(PlantData) */
+    uint64_t token;         /* FNV-1a of the instantiation token */
+    uint64_t checksum;      /* FNV-1a of the payload */
+} Header;
+
+static uint64_t fnv1a(const unsigned char *b, size_t n, uint64_t h) {
+    size_t i;
+    for (i = 0; i < n; i++) {
+        h ^= b[i];
+        h *= 1099511628211ull;
+    }
+    return h;
+}
+
+#define FNV_START 14695981039346656037ull
+
+int model_get_state(Instance *c, void **state) {
+    State *s;
+    if (!state) {
+        model_log(c, M_ERROR, "getFMUstate: FMUstate is NULL");
+        return M_ERROR;
+    }
+    s = *state ? (State *)*state : calloc(1, sizeof *s);
+    if (!s) {
+        model_log(c, M_ERROR, "getFMUstate: out of memory");
+        return M_ERROR;
+    }
+    if (s->magic && s->magic != STATE_MAGIC) {
+        model_log(c, M_ERROR, "getFMUstate: *FMUstate is not NULL and not a state of this FMU");
+        return M_ERROR;
+    }
+    s->magic = STATE_MAGIC;
+    s->d = c->d;
+    *state = s;
+    return M_OK;
+}
+
+/* A state's content is usable: enums in range, sizes consistent, finite where it matters. */
+static int sane(Instance *c, const char *call, const PlantData *d) {
+    int i, ok = d->phase >= 0 && d->phase < PH_COUNT && d->method >= 0 && d->method <= 2 &&
+                isfinite(d->time) && isfinite(d->start_time);
+    if (ok && (d->phase == PH_STEPPING || d->phase == PH_TERMINATED)) {
+        /* a running plant: valid parameters packed as they are, a finite state of their size */
+        double p[STEWART_N_PARAMS];
+        InstanceLogger log = c->log;
+        c->log = NULL;
+        ok = validate(c, call, d->par, p) == M_OK && memcmp(p, d->p, sizeof p) == 0 &&
+             d->n == stewart_state_size(d->p);
+        c->log = log;
+        for (i = 0; ok && i < d->n; i++) ok = isfinite(d->y[i]);
+    }
+    if (!ok) model_log(c, M_ERROR, "%s: the state is not a valid state of this FMU", call);
+    return ok ? M_OK : M_ERROR;
+}
+
+int model_set_state(Instance *c, const void *state) {
+    const State *s = (const State *)state;
+    if (!s || s->magic != STATE_MAGIC) {
+        model_log(c, M_ERROR, "setFMUstate: not a state of this FMU%s", s ? "" : " (NULL)");
+        return M_ERROR;
+    }
+    if (sane(c, "setFMUstate", &s->d)) return M_ERROR;
+    c->d = s->d;
+    c->d.energy_valid = 0;  /* as Plant.set_state: the energy terms are recomputed from y */
+    clear_outputs(c);
+    update_rack(c);
+    return M_OK;
+}
+
+int model_free_state(Instance *c, void **state) {
+    State *s;
+    (void)c;
+    if (!state || !*state) return M_OK;
+    s = (State *)*state;
+    s->magic = 0;
+    free(s);
+    *state = NULL;
+    return M_OK;
+}
+
+size_t model_serialized_size(void) { return sizeof(Header) + sizeof(PlantData); }
+
+int model_serialize(Instance *c, const void *state, unsigned char *out, size_t size) {
+    const State *s = (const State *)state;
+    Header h;
+    if (!s || s->magic != STATE_MAGIC || !out) {
+        model_log(c, M_ERROR, "serializeFMUstate: %s", !out ? "the buffer is NULL" : "not a state of this FMU");
+        return M_ERROR;
+    }
+    if (size < model_serialized_size()) {
+        model_log(c, M_ERROR, "serializeFMUstate: buffer of %lu bytes, need %lu", (unsigned long)size,
+                  (unsigned long)model_serialized_size());
+        return M_ERROR;
+    }
+    memset(&h, 0, sizeof h);
+    memcpy(h.magic, "STWFMUS", 8);
+    h.version = STATE_VERSION;
+    h.payload = (uint32_t)sizeof(PlantData);
+    h.token = fnv1a((const unsigned char *)STEWART_MODEL_TOKEN, strlen(STEWART_MODEL_TOKEN), FNV_START);
+    h.checksum = fnv1a((const unsigned char *)&s->d, sizeof s->d, FNV_START);
+    memcpy(out, &h, sizeof h);
+    memcpy(out + sizeof h, &s->d, sizeof s->d);
+    return M_OK;
+}
+
+int model_deserialize(Instance *c, const unsigned char *in, size_t size, void **state) {
+    Header h;
+    State *s;
+    PlantData d;
+    if (!in || !state) {
+        model_log(c, M_ERROR, "deserializeFMUstate: %s is NULL", !in ? "serializedState" : "FMUstate");
+        return M_ERROR;
+    }
+    if (size != model_serialized_size()) {
+        model_log(c, M_ERROR, "deserializeFMUstate: %lu bytes, a state of this FMU has %lu", (unsigned long)size,
+                  (unsigned long)model_serialized_size());
+        return M_ERROR;
+    }
+    memcpy(&h, in, sizeof h);
+    memcpy(&d, in + sizeof h, sizeof d);
+    if (memcmp(h.magic, "STWFMUS", 8) != 0 || h.version != STATE_VERSION || h.payload != sizeof(PlantData)) {
+        model_log(c, M_ERROR, "deserializeFMUstate: not a serialized state of this FMU (magic or version %u)",
+                  (unsigned)h.version);
+        return M_ERROR;
+    }
+    if (h.token != fnv1a((const unsigned char *)STEWART_MODEL_TOKEN, strlen(STEWART_MODEL_TOKEN), FNV_START)) {
+        model_log(c, M_ERROR, "deserializeFMUstate: the state belongs to a different FMU");
+        return M_ERROR;
+    }
+    if (h.checksum != fnv1a((const unsigned char *)&d, sizeof d, FNV_START)) {
+        model_log(c, M_ERROR, "deserializeFMUstate: checksum mismatch: the state is corrupted");
+        return M_ERROR;
+    }
+    if (sane(c, "deserializeFMUstate", &d)) return M_ERROR;
+    if (*state) {
+        s = (State *)*state;
+        if (s->magic != STATE_MAGIC) {
+            model_log(c, M_ERROR, "deserializeFMUstate: *FMUstate is not NULL and not a state of this FMU");
+            return M_ERROR;
+        }
+    } else {
+        s = calloc(1, sizeof *s);
+        if (!s) {
+            model_log(c, M_ERROR, "deserializeFMUstate: out of memory");
+            return M_ERROR;
+        }
+    }
+    s->magic = STATE_MAGIC;
+    s->d = d;
+    *state = s;
+    return M_OK;
+}

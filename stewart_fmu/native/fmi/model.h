@@ -1,0 +1,147 @@
+/* The Stewart-platform plant as an FMU: value references, the instance, and the calls the
+ * shared FMI 2.0 / 3.0 layers (fmi2Functions.c, fmi3Functions.c) make on it (model.c).
+ *
+ * Value references are fixed by this header and mirrored by stewart_fmu/native_fmu/variables.py
+ * (the one table of names, units and descriptions). A scene declares a subset: parameters of
+ * absent tables, tau without a [drive] and force parts of absent effects are unknown value
+ * references of that FMU. The generated scene file (scene.c, written by the export) holds the
+ * start values, which value references are declared, and the instantiation token. */
+#ifndef STEWART_FMI_MODEL_H
+#define STEWART_FMI_MODEL_H
+
+#include <stddef.h>
+
+#include "../include/stewart.h"
+
+/* ---- value references ---------------------------------------------------------------------- */
+/* Parameters (Real, fixed): par[vr] of the instance, vr in [1, VR_N_PAR). */
+#define VR_GRAVITY 1           /* gravity[1..3] */
+#define VR_BASE 4              /* geometry.base_joints[i,j]: 18, row-major */
+#define VR_PLATFORM 22         /* geometry.platform_joints[i,j]: 18 */
+#define VR_HOME 40             /* geometry.home[1..6] */
+#define VR_LEG_MIN 46
+#define VR_LEG_MAX 47
+#define VR_MASS 48             /* platform.mass */
+#define VR_INERTIA 49          /* platform.inertia[1..3] */
+#define VR_LOWER_MASS 52
+#define VR_LOWER_COM 53
+#define VR_LOWER_INERTIA 54    /* 2 */
+#define VR_UPPER_MASS 56
+#define VR_UPPER_COM 57
+#define VR_UPPER_INERTIA 58    /* 2 */
+#define VR_GEAR_RATIO 60
+#define VR_ROTOR_INERTIA 61
+#define VR_PINION_RADIUS 62
+#define VR_VISCOUS 63
+#define VR_COULOMB 64
+#define VR_STIFFNESS 65
+#define VR_DAMPING 66
+#define VR_Q0 67               /* q0[1..6] */
+#define VR_QD0 73              /* qd0[1..6] */
+#define VR_RTOL 79             /* solver.rtol */
+#define VR_ATOL 80             /* solver.atol */
+#define VR_MAX_STEP 81         /* solver.max_step */
+#define VR_N_PAR 82
+#define VR_METHOD 82           /* solver.method (String parameter) */
+/* Inputs (Real, continuous). */
+#define VR_SIGMA 100           /* sigma[1..6] */
+#define VR_TAU 106             /* tau[1..6], only with a [drive] */
+/* Outputs (Real, continuous, calculated on demand). */
+#define VR_L 200               /* l[1..6] */
+#define VR_LDOT 206            /* ldot[1..6] */
+#define VR_Q 212               /* x, y, z, thx, thy, thz */
+#define VR_QD 218              /* dx ... dthz */
+#define VR_V 224               /* v[1..3] */
+#define VR_OMEGA 227           /* omega[1..3] */
+#define VR_COND 230
+#define VR_RACK 231            /* rack_force[1..6] */
+#define VR_PARTS 237           /* force.<part>[1..6], parts in STEWART_PART_* order: 36 */
+#define VR_END 273
+
+enum { PH_INSTANTIATED, PH_INITIALIZATION, PH_STEPPING, PH_TERMINATED, PH_FAILED, PH_COUNT };
+
+/* ---- the generated scene file ---------------------------------------------------------------- */
+extern const char STEWART_MODEL_TOKEN[];            /* guid / instantiationToken */
+extern const double STEWART_START[VR_N_PAR];        /* start values of the parameters */
+extern const unsigned char STEWART_DECLARED[VR_N_PAR]; /* 1: declared in the model description */
+extern const int STEWART_START_METHOD;              /* stewart_method */
+
+/* ---- the instance ------------------------------------------------------------------------------ */
+/* Everything a rollback restores: plain data (no pointers), copied as is into FMU states and
+ * serialized byte for byte. */
+typedef struct {
+    int phase;
+    int method;                 /* stewart_method */
+    int tolerance_defined;
+    int energy_valid;           /* energy holds the terms of y */
+    int n;                      /* state size, 12 or 24 (valid from exitInitializationMode) */
+    int reserved;               /* keeps the struct free of padding */
+    double tolerance;
+    double start_time, time;
+    double step_guess;
+    long evaluations;
+    double par[VR_N_PAR];       /* parameter values by value reference */
+    double sigma[6], tau[6];
+    double p[STEWART_N_PARAMS]; /* packed parameters (valid from exitInitializationMode) */
+    double y[STEWART_MAX_STATE];
+    double energy[STEWART_N_ENERGY];
+} PlantData;
+
+typedef enum { LOG_EVENTS = 1, LOG_WARNING = 2, LOG_DISCARD = 4, LOG_ERROR = 8, LOG_FATAL = 16,
+               LOG_ALL = 31 } LogCategory;
+
+/* Status codes of model.c, the same numbers in FMI 2.0 and 3.0. */
+enum { M_OK = 0, M_WARNING = 1, M_DISCARD = 2, M_ERROR = 3, M_FATAL = 4 };
+
+typedef struct Instance Instance;
+typedef void (*InstanceLogger)(Instance *c, int status, const char *category, const char *message);
+
+struct Instance {
+    PlantData d;
+    /* outputs computed on demand (not part of the state; cleared whenever y or inputs change) */
+    int have_legs, have_cond, have_parts, have_initial;
+    int discarded;              /* the last doStep was discarded (FMI 2.0 fmi2Terminated status) */
+    double l[6], ldot[6], omega[3], cond, parts[36], rack[6];
+    double lp[STEWART_N_PARAMS]; /* packed parameters for outputs before initialization ends */
+    /* importer glue */
+    char *name;
+    int log_on;                 /* loggingOn */
+    unsigned log_mask;          /* categories enabled by setDebugLogging */
+    InstanceLogger log;
+    void *env;                  /* the importer's environment pointer */
+    void *callback;             /* the importer's logger (FMI 2.0 or 3.0) */
+    const char *method_text;    /* for getString */
+};
+
+int model_init(Instance *c, const char *name, const char *token);  /* after zeroing; M_OK/M_ERROR */
+void model_reset(Instance *c);
+void model_log(Instance *c, int status, const char *fmt, ...)
+#if defined(__GNUC__) || defined(__clang__)
+    __attribute__((format(printf, 3, 4)))
+#endif
+    ;
+const char *model_phase_name(int phase);
+int model_require(Instance *c, const char *call, unsigned phases); /* bit 1 << PH_*: M_OK/M_ERROR */
+int model_set_debug_logging(Instance *c, int on, size_t n, const char *const categories[]);
+
+int model_setup(Instance *c, int tolerance_defined, double tolerance, double start_time);
+int model_enter_init(Instance *c);
+int model_exit_init(Instance *c);
+int model_terminate(Instance *c);
+int model_do_step(Instance *c, double t, double h, double *last_time);
+
+int model_get_real(Instance *c, const unsigned vr[], size_t n, double value[]);
+int model_set_real(Instance *c, const unsigned vr[], size_t n, const double value[]);
+int model_get_string(Instance *c, const unsigned vr[], size_t n, const char *value[]);
+int model_set_string(Instance *c, const unsigned vr[], size_t n, const char *const value[]);
+int model_wrong_type(Instance *c, const char *call, const unsigned vr[], size_t n);
+
+/* FMU states: a heap copy of PlantData; serialized as header + PlantData. */
+int model_get_state(Instance *c, void **state);
+int model_set_state(Instance *c, const void *state);
+int model_free_state(Instance *c, void **state);
+size_t model_serialized_size(void);
+int model_serialize(Instance *c, const void *state, unsigned char *out, size_t size);
+int model_deserialize(Instance *c, const unsigned char *in, size_t size, void **state);
+
+#endif

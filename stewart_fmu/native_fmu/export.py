@@ -1,0 +1,131 @@
+"""Export a scene as a self-contained co-simulation FMU (FMI 2.0 or 3.0) in plain C.
+
+The FMU's binary is the C core (stewart_fmu/native/include, src) and the FMI layer
+(stewart_fmu/native/fmi) compiled with the system C compiler, plus a generated C file with the
+scene's start values. It links libm only: no Python at run time. The FMU also carries every
+source it was built from (sources/, with buildDescription.xml for FMI 3.0 and <SourceFiles>
+for FMI 2.0), so it can be rebuilt on another platform.
+"""
+from __future__ import annotations
+
+import os
+import platform
+import shutil
+import subprocess
+import tempfile
+import zipfile
+from pathlib import Path
+
+from ..errors import StewartError
+from ..scene import read_scene_dict, scene_from_dict
+from . import model_description, variables
+
+MODEL_IDENTIFIER = "StewartPlant"
+NATIVE = Path(__file__).resolve().parents[1] / "native"
+# Portable flags: those of the core's own build (no fused multiply-add, as numba), no -march.
+CFLAGS = ["-std=c99", "-O2", "-ffp-contract=off", "-fno-math-errno", "-fPIC",
+          "-fvisibility=hidden", "-Wall", "-Wextra", "-Wpedantic"]
+FMI_SOURCES = {2: ["fmi/model.c", "fmi/fmi2Functions.c", "fmi/scene.c"],
+               3: ["fmi/model.c", "fmi/fmi3Functions.c", "fmi/scene.c"]}
+FMI_HEADERS = {2: ["fmi/model.h", "fmi/fmi_export.h", "fmi/fmi2_api.h"],
+               3: ["fmi/model.h", "fmi/fmi_export.h", "fmi/fmi3_api.h"]}
+
+
+class CompilerNotFoundError(StewartError):
+    """No C compiler on this machine: set CC or install cc, gcc or clang."""
+
+
+class BuildError(StewartError):
+    """The C compiler failed on the FMU's sources (its output is in the message)."""
+
+
+def find_compiler() -> str:
+    """$CC if set, else the first of cc, gcc, clang on the PATH."""
+    for name in ([os.environ["CC"]] if os.environ.get("CC") else []) + ["cc", "gcc", "clang"]:
+        path = shutil.which(name)
+        if path:
+            return path
+    raise CompilerNotFoundError("no C compiler found (tried $CC, cc, gcc, clang): install one "
+                                "(e.g. apt install gcc) or set CC to its path")
+
+
+def platform_folder(fmi_version: int) -> tuple[str, str]:
+    """(binaries/<folder>, file extension) of this machine: linux64 / x86_64-linux and .so on
+    Linux x86_64 (the platform this export is tested on); darwin64 / win64 and the FMI 3.0
+    platform tuples elsewhere."""
+    machine = platform.machine().lower()
+    system = platform.system()
+    arch = {"amd64": "x86_64", "x86_64": "x86_64", "arm64": "aarch64", "aarch64": "aarch64"}.get(machine, machine)
+    os_name = {"Linux": "linux", "Darwin": "darwin", "Windows": "windows"}.get(system, system.lower())
+    ext = {"darwin": ".dylib", "windows": ".dll"}.get(os_name, ".so")
+    if fmi_version == 3:
+        return f"{arch}-{os_name}", ext
+    folder = {"linux": "linux64", "darwin": "darwin64", "windows": "win64"}.get(os_name)
+    if folder is None or (os_name != "darwin" and arch != "x86_64"):
+        raise BuildError(f"FMI 2.0 has no binaries folder for {system} {machine}: export FMI 3.0")
+    return folder, ext
+
+
+def core_sources(native: Path = NATIVE) -> list[str]:
+    """The core's files, relative to `native`: include/*.h, src/*.h, src/*.c."""
+    files = sorted(p.relative_to(native).as_posix()
+                   for pattern in ("include/*.h", "src/*.h", "src/*.c") for p in native.glob(pattern))
+    if not any(f.endswith(".c") for f in files):
+        raise BuildError(f"the C core's sources are missing under {native}/src")
+    return files
+
+
+def export_fmu(scene_path: str | Path, out_path: str | Path, fmi_version: int = 2) -> Path:
+    """Build the FMU of a scene at out_path; returns out_path.
+
+    SceneError for a bad scene (nothing written), CompilerNotFoundError without a C compiler,
+    BuildError if compiling fails."""
+    if fmi_version not in (2, 3):
+        raise ValueError(f"fmi_version must be 2 or 3, got {fmi_version!r}")
+    data = read_scene_dict(scene_path)
+    scene_from_dict(data, source=str(scene_path))   # validates; raises SceneError
+    compiler = find_compiler()
+    folder, ext = platform_folder(fmi_version)
+    out = Path(out_path)
+    core = core_sources()
+    c_files = [f for f in core if f.endswith(".c")] + FMI_SOURCES[fmi_version]
+    with tempfile.TemporaryDirectory(prefix="stewart_native_fmu_") as tmp:
+        root = Path(tmp) / "fmu"
+        src = root / "sources"
+        for rel in core + FMI_SOURCES[fmi_version][:-1] + FMI_HEADERS[fmi_version]:
+            (src / rel).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(NATIVE / rel, src / rel)
+        (src / "fmi" / "scene.c").write_text(variables.scene_c_source(data, fmi_version))
+        if fmi_version == 3:
+            (src / "buildDescription.xml").write_bytes(
+                model_description.build_description_xml(MODEL_IDENTIFIER, c_files))
+        (root / "modelDescription.xml").write_bytes(
+            model_description.build(data, fmi_version, MODEL_IDENTIFIER, c_files))
+        binary = root / "binaries" / folder / f"{MODEL_IDENTIFIER}{ext}"
+        binary.parent.mkdir(parents=True)
+        flags = [f for f in CFLAGS if not (ext == ".dll" and f == "-fPIC")]
+        cmd = [compiler, *flags, "-shared", "-o", str(binary), *[str(src / f) for f in c_files], "-lm"]
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+        if proc.returncode != 0 or not binary.exists():
+            raise BuildError(f"compiling the FMU failed ({' '.join(cmd)}):\n{proc.stderr[-4000:]}")
+        doc = root / "documentation"
+        doc.mkdir()
+        (doc / "index.html").write_text(_documentation(data, fmi_version))
+        out.parent.mkdir(parents=True, exist_ok=True)
+        with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as z:
+            for path in sorted(root.rglob("*")):
+                if path.is_file():
+                    z.write(path, path.relative_to(root).as_posix())
+    return out
+
+
+def _documentation(data, fmi_version: int) -> str:
+    return (f"<html><body><h1>{data.get('name', 'Stewart plant')} (FMI {fmi_version}.0)</h1>"
+            "<p>Stewart platform plant: inputs sigma[1..6] (rack forces, N) and, with a drive, "
+            "tau[1..6] (motor torques, N m), held over each communication step. Outputs: leg "
+            "lengths and rates, pose and rates, twist, cond(J), rack forces and their parts. "
+            "Parameters: the scene's values, q0/qd0, solver.method (rk4, euler, dopri5), "
+            "solver.max_step, solver.rtol, solver.atol. A step into a stroke limit, a "
+            "singular pose or a failed power-balance check returns Discard with the state "
+            "unchanged. Self-contained C (libm only); rebuild from sources/ with any C99 "
+            "compiler.</p></body></html>\n")

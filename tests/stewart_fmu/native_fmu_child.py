@@ -1,0 +1,367 @@
+"""Run in child processes by test_native_fmu.py: FMI call scenarios through fmpy's low-level
+FMU2Slave / FMU3Slave that must return Error, and a bounded random call-sequence fuzz. A crash
+ends only the child (the test counts it); every status is returned as data (JSON)."""
+from __future__ import annotations
+
+import math
+import random
+from ctypes import POINTER, byref, c_void_p, cast
+
+from fmpy import read_model_description
+from fmpy.fmi1 import FMICallException
+
+OK, DISCARD, ERROR = 0, 2, 3
+
+
+class Adapter:
+    """The calls the scenarios make, the same for FMI 2.0 and 3.0; each returns its status."""
+
+    def __init__(self, unzipdir: str, version: int, messages: list, name: str = "child", token: str | None = None):
+        self.version = version
+        md = read_model_description(unzipdir)
+        self.vr = {v.name: v.valueReference for v in md.modelVariables}
+        self.outputs = [v.valueReference for v in md.modelVariables if v.causality == "output"]
+        tok = token or (md.guid if version == 2 else md.instantiationToken)
+        common = dict(guid=tok, unzipDirectory=unzipdir, modelIdentifier="StewartPlant", instanceName=name)
+        if version == 2:
+            from fmpy import calloc, free
+            from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                                   fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+            from fmpy.logging import addLoggerProxy
+
+            def log(_env, _name, status, category, message):
+                messages.append((status, (category or b"").decode(), message.decode()))
+
+            cb = fmi2CallbackFunctions()
+            cb.logger = fmi2CallbackLoggerTYPE(log)
+            cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+            cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+            addLoggerProxy(byref(cb))
+            self._keep = (log, cb)
+            self.fmu = FMU2Slave(**common)
+            self.fmu.instantiate(loggingOn=True, callbacks=cb)
+        else:
+            from fmpy.fmi3 import FMU3Slave
+
+            def log3(_env, status, category, message):
+                messages.append((status, (category or b"").decode(), message.decode()))
+
+            self._keep = (log3,)
+            self.fmu = FMU3Slave(**common)
+            self.fmu.instantiate(loggingOn=True, logMessage=log3)
+
+    @staticmethod
+    def status(fn, *args):
+        """(status, result) of one call: fmpy raises on a status above Warning."""
+        try:
+            return OK, fn(*args)
+        except FMICallException as exc:
+            return exc.status, None
+
+    def setup(self):
+        if self.version == 2:
+            s, _ = self.status(self.fmu.setupExperiment, None, 0.0)
+            return s
+        return OK
+
+    def enter(self):
+        if self.version == 2:
+            return self.status(self.fmu.enterInitializationMode)[0]
+        return self.status(self.fmu.enterInitializationMode, None, 0.0)[0]
+
+    def exit(self):
+        return self.status(self.fmu.exitInitializationMode)[0]
+
+    def terminate(self):
+        return self.status(self.fmu.terminate)[0]
+
+    def reset(self):
+        return self.status(self.fmu.reset)[0]
+
+    def set(self, vrs, values):
+        f = self.fmu.setReal if self.version == 2 else self.fmu.setFloat64
+        return self.status(f, list(vrs), [float(x) for x in values])[0]
+
+    def get(self, vrs):
+        f = self.fmu.getReal if self.version == 2 else self.fmu.getFloat64
+        return self.status(f, list(vrs))
+
+    def step(self, t, h):
+        return self.status(self.fmu.doStep, t, h)[0]
+
+    def get_state(self):
+        return self.status(self.fmu.getFMUstate if self.version == 2 else self.fmu.getFMUState)
+
+    def set_state(self, state):
+        return self.status(self.fmu.setFMUstate if self.version == 2 else self.fmu.setFMUState, state)[0]
+
+    def serialize(self, state):
+        return self.status(self.fmu.serializeFMUstate if self.version == 2 else self.fmu.serializeFMUState, state)
+
+    def deserialize(self, blob):
+        return self.status(self.fmu.deSerializeFMUstate if self.version == 2 else self.fmu.deserializeFMUState, blob)
+
+    def get_string(self, vrs):
+        return self.status(self.fmu.getString, list(vrs))[0]
+
+    def set_string(self, vrs, values):
+        return self.status(self.fmu.setString, list(vrs), list(values))[0]
+
+    def set_boolean(self, vrs):
+        return self.status(self.fmu.setBoolean, list(vrs), [True] * len(vrs))[0]
+
+    def raw(self, name, *args):
+        """A C function called directly with raw arguments (NULL pointers, wrong counts)."""
+        return self.status(getattr(self.fmu, name), self.fmu.component, *args)[0]
+
+    def free(self):
+        self.fmu.freeInstance()
+
+
+def calls_expected_to_fail(unzipdir: str, version: int) -> dict:
+    messages: list = []
+    st: dict[str, int] = {}
+    p = 2 if version == 2 else 3
+    fresh = Adapter(unzipdir, version, messages, "fresh")
+    st["getReal before initialization mode"] = fresh.get([fresh.vr["platform.mass"]])[0]
+    st["doStep before initialization"] = fresh.step(0.0, 1e-3)
+    st["exitInitializationMode before enter"] = fresh.exit()
+    st["setString unknown method with %"] = fresh.set_string([fresh.vr["solver.method"]], ["rk4%s%n"])
+    st["setReal NaN parameter"] = fresh.set([fresh.vr["platform.mass"]], [math.nan])
+    st["setReal inf q0"] = fresh.set([fresh.vr["q0[3]"]], [math.inf])
+    st["setDebugLogging unknown category"] = fresh.raw(f"fmi{p}SetDebugLogging", True, 1,
+                                                       (__import__("ctypes").c_char_p * 1)(b"logNothing"))
+    fresh.set([fresh.vr["platform.mass"]], [-0.5])
+    fresh.setup()
+    fresh.enter()
+    st["exitInitializationMode with platform.mass = -0.5"] = fresh.exit()
+    st["doStep after failed initialization"] = fresh.step(0.0, 1e-3)
+    st["setReal parameter after failed initialization"] = fresh.set([fresh.vr["platform.mass"]], [0.5])
+    fresh.reset()
+    fresh.setup()
+    fresh.enter()
+    recovered_fresh = fresh.exit()
+    fresh.terminate()
+    st["terminate twice"] = fresh.terminate()
+    fresh.free()
+
+    a = Adapter(unzipdir, version, messages, "a")
+    a.setup()
+    a.enter()
+    a.exit()
+    a.step(0.0, 1e-3)
+    _, before = a.get(a.outputs)
+    _, state = a.get_state()
+    _, blob = a.serialize(state)
+    sig = a.vr["sigma[1]"]
+    st["enterInitializationMode in step mode"] = a.enter()
+    st["exitInitializationMode in step mode"] = a.exit()
+    st["getReal unknown value reference"] = a.get([9999])[0]
+    st["getReal unused value reference"] = a.get([83])[0]
+    st["setReal unknown value reference"] = a.set([4294967295], [1.0])
+    st["setReal output l[1]"] = a.set([a.vr["l[1]"]], [0.1])
+    st["setReal NaN input"] = a.set([sig], [math.nan])
+    st["setReal -inf input"] = a.set([sig], [-math.inf])
+    st["setReal parameter in step mode"] = a.set([a.vr["platform.mass"]], [0.6])
+    st["setString solver.method in step mode"] = a.set_string([a.vr["solver.method"]], ["euler"])
+    for h in (0.0, -1e-3, math.nan, math.inf, -math.inf):
+        st[f"doStep h = {h}"] = a.step(1e-3, h)
+    st["doStep wrong communication point"] = a.step(0.5, 1e-3)
+    st["doStep NaN communication point"] = a.step(math.nan, 1e-3)
+    st["getString of a Real"] = a.get_string([sig])
+    st["setBoolean of a Real"] = a.set_boolean([sig])
+    st["deserialize random bytes"] = a.deserialize(bytes(random.Random(1).randrange(256) for _ in range(len(blob))))[0]
+    st["deserialize truncated"] = a.deserialize(blob[: len(blob) // 2])[0]
+    corrupted = bytearray(blob)
+    corrupted[len(blob) // 2] ^= 0x40
+    st["deserialize corrupted byte"] = a.deserialize(bytes(corrupted))[0]
+    st["deserialize empty"] = a.deserialize(b"\x00")[0]
+    st["setFMUstate NULL"] = a.raw(f"fmi{p}SetFMUstate" if version == 2 else "fmi3SetFMUState", None)
+    if version == 2:
+        st["getReal NULL arrays"] = a.raw("fmi2GetReal", None, 3, None)
+    else:
+        st["getFloat64 NULL arrays"] = a.raw("fmi3GetFloat64", None, 3, None, 3)
+        st["getFloat64 nValues != nvr"] = a.raw("fmi3GetFloat64", (__import__("ctypes").c_uint32 * 1)(sig), 1,
+                                                (__import__("ctypes").c_double * 2)(), 2)
+    # a NULL instance (and NULL output pointers): Error, no crash
+    if version == 2:
+        st["doStep NULL instance"] = a.status(a.fmu.fmi2DoStep, None, 1e-3, 1e-3, 1)[0]
+        st["getReal NULL instance"] = a.status(a.fmu.fmi2GetReal, None, None, 0, None)[0]
+        st["terminate NULL instance"] = a.status(a.fmu.fmi2Terminate, None)[0]
+        a.fmu.fmi2FreeInstance(None)
+    else:
+        st["doStep NULL instance"] = a.status(a.fmu.fmi3DoStep, None, 1e-3, 1e-3, True, None, None, None, None)[0]
+        st["getFloat64 NULL instance"] = a.status(a.fmu.fmi3GetFloat64, None, None, 0, None, 0)[0]
+        st["terminate NULL instance"] = a.status(a.fmu.fmi3Terminate, None)[0]
+        a.fmu.fmi3FreeInstance(None)
+    _, after = a.get(a.outputs)
+    unchanged = after == before
+    recovered = a.step(1e-3, 1e-3)
+    a.terminate()
+    a.free()
+    try:
+        Adapter(unzipdir, version, messages, "bad token", token="{not-this-fmu}")
+        st["instantiate with a foreign token"] = OK
+    except Exception:  # fmpy: "Failed to instantiate FMU" (the FMU returned NULL)
+        st["instantiate with a foreign token"] = ERROR
+    return {"status": st, "unchanged": unchanged, "recovered": recovered + recovered_fresh,
+            "messages": messages}
+
+
+def fuzz(unzipdir: str, version: int, seed: int, n_calls: int) -> dict:
+    """Random calls; each call's status is checked against what it must be where that is
+    determined (Error for out-of-order and bad-argument calls)."""
+    rng = random.Random(seed)
+    messages: list = []
+    inst = Adapter(unzipdir, version, messages, f"fuzz{seed}")
+    vr = inst.vr
+    params = [vr[n] for n in ("platform.mass", "friction.viscous", "q0[3]", "solver.max_step", "geometry.leg_max",
+                              "legs.lower_inertia[2]", "drive.pinion_radius")]
+    inputs = [vr[f"sigma[{i}]"] for i in range(1, 7)] + [vr[f"tau[{i}]"] for i in range(1, 7)]
+    md = read_model_description(unzipdir)
+    start = {v.valueReference: float(v.start) for v in md.modelVariables if v.valueReference in params}
+    unknown = [9999, 83, 150, 2**31, 4294967295, 0 if version == 2 else 5000]
+    phase, t = "inst", 0.0
+    states: list = []
+    blobs: list = []
+    out = {"calls": 0, "must_fail": 0, "errors_returned": 0, "discards": 0, "steps_ok": 0, "other_errors": 0,
+           "not_error": []}
+
+    def weird(x: float) -> float:
+        return rng.choice([x, x * (1 + rng.uniform(-0.1, 0.1)), -x, 0.0, 1e300, -1e300, math.nan, math.inf,
+                           -math.inf, 5e-324, x * 1e6])
+
+    def note(action: str, status: int, must_fail: bool):
+        out["calls"] += 1
+        if status == DISCARD:
+            out["discards"] += 1
+        if must_fail:
+            out["must_fail"] += 1
+            if status == ERROR:
+                out["errors_returned"] += 1
+            else:
+                out["not_error"].append([action, status, phase])
+        elif status == ERROR:
+            out["other_errors"] += 1
+
+    for _ in range(n_calls):
+        if phase == "inst" and rng.random() < 0.5:
+            action = "init_all"     # reach step mode often: most of the interesting calls are there
+        else:
+            action = rng.choice(["setup_enter", "exit", "terminate", "reset", "set_param", "set_input", "set_input",
+                                 "set_output", "unknown", "get_outputs", *["step"] * 10,
+                                 "get_state", "set_state", "serialize", "deserialize_bad", "wrong_type", "renew",
+                                 "set_method"])
+        if action == "init_all":
+            for name, call in (("setupExperiment", inst.setup), ("enterInitializationMode", inst.enter)):
+                note(name, call(), False)
+            s = inst.exit()
+            note("exitInitializationMode", s, False)
+            phase, t = ("step" if s == OK else "failed"), 0.0
+        elif action == "setup_enter":
+            s1 = inst.setup()
+            s2 = inst.enter()
+            note("setupExperiment/enterInitializationMode", max(s1, s2), phase != "inst")
+            if phase == "inst" and max(s1, s2) == OK:
+                phase, t = "init", 0.0
+        elif action == "exit":
+            s = inst.exit()
+            note("exitInitializationMode", s, phase != "init")
+            if phase == "init":
+                phase = "step" if s == OK else "failed"
+        elif action == "terminate":
+            s = inst.terminate()
+            note("terminate", s, phase != "step")
+            if s == OK:
+                phase = "term"
+        elif action == "reset":
+            s = inst.reset()
+            note("reset", s, False)
+            if s == OK:
+                phase, t = "inst", 0.0
+        elif action == "set_param":
+            k = rng.choice(params)
+            value = weird(start[k])
+            s = inst.set([k], [value])
+            note("setReal(parameter)", s, not math.isfinite(value) or phase not in ("inst", "init"))
+        elif action == "set_input":
+            ks = rng.sample(inputs, rng.randint(1, 12))
+            values = [weird(rng.uniform(-5, 5)) for _ in ks]
+            s = inst.set(ks, values)
+            note("setReal(inputs)", s, not all(math.isfinite(v) for v in values) or phase in ("term", "failed"))
+        elif action == "set_output":
+            s = inst.set([rng.choice(inst.outputs)], [rng.uniform(-1, 1)])
+            note("setReal(output)", s, True)
+        elif action == "unknown":
+            k = rng.choice(unknown)
+            s = inst.get([k])[0] if rng.random() < 0.5 else inst.set([k], [1.0])
+            note("unknown value reference", s, True)
+        elif action == "get_outputs":
+            s, _ = inst.get(rng.sample(inst.outputs, rng.randint(1, len(inst.outputs))))
+            note("getReal(outputs)", s, phase in ("inst", "failed"))
+        elif action == "step":
+            h = rng.choice([1e-3, 1e-3, 1e-4, 2.5e-3, 0.05, 1e300, 1e-15, 0.0, -1e-3, math.nan, math.inf])
+            tc = t if rng.random() < 0.85 else rng.choice([t + 1.0, t - 1e-3, math.nan, -math.inf])
+            s = inst.step(tc, h)
+            bad = (phase != "step" or not (math.isfinite(h) and h > 0)
+                   or not (abs(tc - t) <= 1e-9 * max(1.0, abs(t))))
+            note("doStep", s, bad)
+            if s == OK and not bad:
+                t = tc + h
+                out["steps_ok"] += 1
+        elif action == "get_state":
+            s, state = inst.get_state()
+            note("getFMUstate", s, False)
+            if s == OK:
+                states.append((state, phase, t))
+        elif action == "set_state" and states:
+            state, ph, tt = rng.choice(states)
+            s = inst.set_state(state)
+            note("setFMUstate", s, False)
+            if s == OK:
+                phase, t = ph, tt
+        elif action == "serialize" and states:
+            state, ph, tt = rng.choice(states)
+            s, blob = inst.serialize(state)
+            note("serializeFMUstate", s, False)
+            if s == OK:
+                blobs.append(blob)
+                s2, restored = inst.deserialize(blob)
+                note("deSerializeFMUstate", s2, False)
+                if s2 == OK:
+                    states.append((restored, ph, tt))
+        elif action == "deserialize_bad":
+            if blobs and rng.random() < 0.7:
+                blob = bytearray(rng.choice(blobs))
+                how = rng.choice(["truncate", "flip", "extend", "header"])
+                if how == "truncate":
+                    blob = blob[: rng.randrange(1, len(blob))]
+                elif how == "flip":
+                    k = rng.randrange(len(blob))
+                    blob[k] ^= 1 << rng.randrange(8)
+                elif how == "extend":
+                    blob += b"\x00"
+                else:
+                    blob[:8] = b"NOTOURS!"
+            else:
+                blob = bytearray(rng.randrange(256) for _ in range(rng.randint(1, 2000)))
+            s, _ = inst.deserialize(bytes(blob))
+            note("deSerializeFMUstate(foreign)", s, True)
+        elif action == "wrong_type":
+            k = rng.choice(inputs[:6] + inst.outputs[:3])
+            s = inst.get_string([k]) if rng.random() < 0.5 else inst.set_boolean([k])
+            note("wrong type", s, True)
+        elif action == "set_method":
+            name = rng.choice(["rk4", "euler", "dopri5", "RK45", "%s%n%x", ""])
+            s = inst.set_string([vr["solver.method"]], [name])
+            note("setString(solver.method)", s, name not in ("rk4", "euler", "dopri5") or phase not in ("inst", "init"))
+        elif action == "renew":
+            inst.terminate()
+            inst.free()
+            inst = Adapter(unzipdir, version, messages, f"fuzz{seed}")
+            phase, t = "inst", 0.0
+            out["calls"] += 1
+        if len(messages) > 2000:
+            del messages[:1000]
+    inst.free()
+    return out
