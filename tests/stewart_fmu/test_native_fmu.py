@@ -30,13 +30,13 @@ from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from conftest import record
+from helpers import record
 from stewart_fmu import Model, inverse_dynamics, load_scene
 from stewart_fmu.integrators import IntegratorOptions
 from stewart_fmu.native_fmu import export_fmu
 from stewart_fmu.native_fmu import variables as V
 from stewart_fmu.scene import apply_overrides, scene_from_dict
-from stewart_fmu.stepper import Plant
+from stewart_fmu.plant import Plant
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENES = {"micro": ROOT / "scenes" / "micro_manipulator.toml",
