@@ -6,7 +6,10 @@ STAMP  := $(VENV)/.installed
 
 .PHONY: demo test bench accuracy clean
 
-$(STAMP): pyproject.toml
+# The C sources too: an editable install compiles them only when it runs (setup.py, cffi).
+NATIVE := $(wildcard stewart_fmu/native/src/*.[ch] stewart_fmu/native/include/*.h controller/native/*.[ch])
+
+$(STAMP): pyproject.toml setup.py $(NATIVE)
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[test]'

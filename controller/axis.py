@@ -11,43 +11,25 @@ the sampling of the integral and the zero-order hold.
 leg rate held (first-order ODE), clamps it at the current limit, and returns the step's mean
 torque, which the plant receives as its motor-torque input.
 
-The arithmetic lives in two compiled functions (`pid_voltages`, `advance_currents`) shared by
-these classes (the master's Python loop, e.g. around an FMU) and by the master's compiled
-in-process loop, so both loops compute the same numbers.
+The arithmetic lives in two C functions (controller/native/axis.c: `pid_voltages`,
+`advance_currents`) shared by these classes (the master's Python loop, e.g. around an FMU, and
+the emulated device) and by the master's C loop (`closed_loop_run`), so both loops compute the
+same numbers.
 """
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from .design import PidGains
 from .drive import AxisModel
+from .native._axis import ffi, lib
+
+_buf = ffi.from_buffer
 
 
-@njit(cache=True, error_model="numpy")
-def pid_voltages(kp, ki, kd, vmax, dt, integral, l_ref, ldot_ref, l, ldot, v_ff, v, sat) -> None:
-    """Fill v (6,) and sat (6,) and advance the integral in place (anti-windup)."""
-    for i in range(6):
-        e = l_ref[i] - l[i]
-        u = kp * e + ki * integral[i] + kd * (ldot_ref[i] - ldot[i]) + v_ff[i]
-        out = min(max(u, -vmax), vmax)
-        v[i] = out
-        sat[i] = out != u
-        if not (sat[i] and (e > 0) == (u > 0) and e != 0.0):
-            integral[i] += e * dt
-
-
-@njit(cache=True, error_model="numpy")
-def advance_currents(R, Kt, emf, ilim, decay, mean_decay, current, v, ldot, torque, limited) -> None:
-    """Advance the currents in place; fill the mean torque over the step and the limited flags."""
-    for i in range(6):
-        steady = (v[i] - emf * ldot[i]) / R
-        gap = current[i] - steady
-        mean = steady + gap * mean_decay
-        end = steady + gap * decay
-        limited[i] = abs(mean) > ilim
-        current[i] = min(max(end, -ilim), ilim)
-        torque[i] = Kt * min(max(mean, -ilim), ilim)
+def _f64(a: np.ndarray) -> np.ndarray:
+    """a itself when it is C-contiguous float64 (the C side updates it in place), else a copy."""
+    return np.ascontiguousarray(a, dtype=np.float64)
 
 
 class AxisControllers:
@@ -65,8 +47,10 @@ class AxisControllers:
         """Voltages for this sample and which axes are saturated."""
         g = self.gains
         v, sat = np.empty(6), np.empty(6, dtype=np.bool_)
-        pid_voltages(g.kp, g.ki, g.kd, self.axis.motor.voltage_limit, self.dt, self.integral,
-                     l_ref, ldot_ref, l, ldot, v_ff, v, sat)
+        self.integral = _f64(self.integral)
+        lib.pid_voltages(g.kp, g.ki, g.kd, self.axis.motor.voltage_limit, self.dt,
+                         _buf(self.integral), _buf(_f64(l_ref)), _buf(_f64(ldot_ref)),
+                         _buf(_f64(l)), _buf(_f64(ldot)), _buf(_f64(v_ff)), _buf(v), _buf(sat))
         return v, sat
 
 
@@ -88,6 +72,8 @@ class MotorCurrents:
         """Advance the currents; returns (mean motor torque over the step, current-limited axes)."""
         m = self.axis.motor
         torque, limited = np.empty(6), np.empty(6, dtype=np.bool_)
-        advance_currents(m.resistance, m.torque_constant, self.axis.emf_constant, m.current_limit,
-                         self.decay, self.mean_decay, self.current, voltage, ldot, torque, limited)
+        self.current = _f64(self.current)
+        lib.advance_currents(m.resistance, m.torque_constant, self.axis.emf_constant,
+                             m.current_limit, self.decay, self.mean_decay, _buf(self.current),
+                             _buf(_f64(voltage)), _buf(_f64(ldot)), _buf(torque), _buf(limited))
         return torque, limited

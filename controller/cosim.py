@@ -3,7 +3,9 @@
 At each communication step (the controller period): measure leg lengths and rates, compute the
 voltages (PID + feedforward), advance the motor currents, hand the mean motor torques to the
 plant, step the plant. The plant is the in-process component (stewart_fmu.plant.Plant) or the
-exported FMU driven through fmpy; both see the same calls, so their results are equal.
+exported FMU driven through fmpy; both see the same calls, so their results are equal. With
+the in-process plant the whole loop runs in C (controller/native/axis.c, closed_loop_run, around
+the plant's C core stewart_step), a chunk of samples per call.
 """
 from __future__ import annotations
 
@@ -12,29 +14,27 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
-from numba import njit
 
-from stewart_fmu.dynamics import leg_state_kernel
-from stewart_fmu.energy import DRIVEN, energy_terms
 from stewart_fmu.errors import IntegrationError, StewartError
 from stewart_fmu.integrators import IntegratorOptions
 from stewart_fmu.io import POSE, named_array
 from stewart_fmu.model import Model
+from stewart_fmu.native import core
 from stewart_fmu.stability import ENERGY_TOL, default_options, internal_step
 from stewart_fmu.status import ENERGY_GAIN, STATE_NONFINITE, why
-from stewart_fmu.step import INFO_SIZE, METHODS, STEP_GUESS, fixed_substeps, plant_step
 from stewart_fmu.transmission import initial_state
 
-from .axis import AxisControllers, MotorCurrents, advance_currents, pid_voltages
+from .axis import AxisControllers, MotorCurrents
 from .config import ControllerConfig
 from .design import Analysis, PidGains, UnstableLoopError, check_stable, tune_pid
 from .drive import AxisModel, axis_model
 from .feedforward import feedforward_voltage, start_at_equilibrium
+from .native._axis import ffi, lib
 from .plants import PlantPort, PlantStepError
 from .trajectory import LegReferences, Trajectory, leg_references
 
 DIVERGENCE_FRACTION = 0.5  # a leg error beyond this fraction of the stroke range means unstable
-DIVERGED = -1              # status of the compiled loop: tracking error beyond the bound
+DIVERGED = lib.AXIS_DIVERGED  # status of the C loop: tracking error beyond the bound (-1)
 
 
 @dataclass(frozen=True)
@@ -80,7 +80,7 @@ def run_closed_loop(model: Model, config: ControllerConfig, traj: Trajectory,
     ctrl, motors = AxisControllers(gains, axis, config.dt), MotorCurrents(axis, config.dt)
     rec = _Recorder(len(traj.t))
     bound = DIVERGENCE_FRACTION * _stroke_range(model, refs)
-    if plant is None:  # in-process: the whole loop in one compiled call
+    if plant is None:  # in-process: the whole loop in C (controller/native/axis.c)
         start_at_equilibrium(model, traj, refs, gains, ctrl, motors, i_ff[0], None)
         wall = _run_compiled(model, traj, refs, v_ff, ctrl, motors, bound, rec, progress,
                              options or default_options(model))
@@ -114,43 +114,56 @@ def _diverged(t: float, err: np.ndarray, bound: float) -> UnstableLoopError:
                              f"exceed {bound:.3g} m ({DIVERGENCE_FRACTION} of the stroke)")
 
 
-CHUNK = 20_000  # samples per compiled call, so that long runs can report progress
+CHUNK = 20_000  # samples per C call, so that long runs can report progress
+# The C core's statuses of the step's check, as stewart_fmu.status names them.
+_STATUS = {core.UNSTABLE: ENERGY_GAIN, core.STATE_NONFINITE: STATE_NONFINITE}
 
 
 def _run_compiled(model, traj, refs, v_ff, ctrl, motors, bound, rec, progress, o) -> float:
-    """The in-process loop as compiled calls; the same arithmetic as _run_ports with
-    InProcessPlant (the default integrator options of stewart_fmu.plant.Plant). Returns the
-    loop's wall time, after a zero-sample call has loaded the compiled kernel (the one-time
-    cost of a fresh process is not the loop's)."""
-    h = float(traj.t[1] - traj.t[0])
+    """The in-process loop in C (controller/native/axis.c: closed_loop_run, CHUNK samples per
+    call, the plant step being the C core's stewart_step); the same arithmetic as _run_ports
+    with InProcessPlant (the default integrator options of stewart_fmu.plant.Plant). Returns
+    the loop's wall time."""
     g, m, ax = ctrl.gains, motors.axis.motor, motors.axis
-    gain = model.drive.force_per_torque
-    y = initial_state(model, traj.q[0], traj.qd[0], motors.current * ax.force_constant)
-    energy = np.stack([energy_terms(model, y), np.empty(DRIVEN + 6)])  # step start, step end
-    info = np.zeros(INFO_SIZE)
-    info[STEP_GUESS] = o.max_step
     n = len(traj.t)
-
-    def chunk(k0: int, k1: int):
-        return _loop_kernel(
-            model.params, y, traj.t, k0, k1, refs.l, refs.ldot, v_ff, g.kp, g.ki, g.kd,
-            m.voltage_limit, ctrl.dt, ctrl.integral, m.resistance, m.torque_constant,
-            ax.emf_constant, m.current_limit, motors.decay, motors.mean_decay, motors.current,
-            gain, METHODS[o.method], fixed_substeps(h, o.max_step), o.rtol, o.atol, o.max_step,
-            o.max_steps, energy, info, bound, rec.data["l"], rec.data["ldot"], rec.data["q"],
-            rec.data["v"], rec.data["i"], rec.data["tau"], rec.sat)
-
-    chunk(0, 0)  # load the compiled kernel: no samples, no state change
+    P = core.native_params(model.params)
+    opts = core.options(o.method, o.rtol, o.atol, o.max_step, o.max_steps, ENERGY_TOL)
+    d = ffi.new("stewart_data *")          # the plant's state, carried from call to call
+    y = initial_state(model, traj.q[0], traj.qd[0], motors.current * ax.force_constant)
+    d.n = y.shape[0]
+    ffi.memmove(d.y, y.astype(np.float64).tobytes(), y.nbytes)
+    core.lib.stewart_energy_terms(P.ptr, d.y, d.energy)
+    d.t, d.step_guess = float(traj.t[0]), o.max_step
+    c = ffi.new("axis_loop *", dict(
+        kp=g.kp, ki=g.ki, kd=g.kd, vmax=m.voltage_limit, dt=ctrl.dt, R=m.resistance,
+        Kt=m.torque_constant, emf=ax.emf_constant, ilim=m.current_limit, decay=motors.decay,
+        mean_decay=motors.mean_decay, gain=model.drive.force_per_torque, bound=bound))
+    ctrl.integral = np.ascontiguousarray(ctrl.integral, dtype=np.float64)
+    motors.current = np.ascontiguousarray(motors.current, dtype=np.float64)
+    inputs = [np.ascontiguousarray(a, dtype=np.float64) for a in (traj.t, refs.l, refs.ldot, v_ff)]
+    keep = [ffi.from_buffer(a) for a in inputs]
+    out = {k: rec.data[k] for k in ("l", "ldot", "q", "v", "i", "tau")}
+    r = ffi.new("axis_records *")
+    bufs = [ffi.from_buffer(a, require_writable=True) for a in (*out.values(), rec.sat)]
+    for name, b in zip(("l", "ldot", "q", "v", "i", "tau"), bufs):
+        setattr(r, name, ffi.cast("double *", b))
+    r.sat = ffi.cast("unsigned char *", bufs[-1])
+    integral, current = ffi.from_buffer(ctrl.integral), ffi.from_buffer(motors.current)
+    k_fail = ffi.new("long *")
     start = wallclock.perf_counter()
+    status = 0
     for k0 in range(0, n, CHUNK):
-        k, status = chunk(k0, min(k0 + CHUNK, n))
+        status = lib.closed_loop_run(P.ptr, opts, c, d, integral, current, keep[0], n, keep[1],
+                                     keep[2], keep[3], k0, min(k0 + CHUNK, n), r, k_fail)
         if status:
             break
         if progress is not None:
             progress(min(k0 + CHUNK, n), n)
     wall = wallclock.perf_counter() - start
+    k = k_fail[0]
     if status == DIVERGED:
         raise _diverged(float(traj.t[k]), np.abs(refs.l[k] - rec.data["l"][k]), bound)
+    status = _STATUS.get(status, status)
     if status in (ENERGY_GAIN, STATE_NONFINITE):  # numerically unstable: as Plant.do_step says
         step = internal_step(o, float(traj.t[k + 1] - traj.t[k]))
         raise IntegrationError(
@@ -164,42 +177,6 @@ def _run_compiled(model, traj, refs, v_ff, ctrl, motors, bound, rec, progress, o
             f"(stroke [{model.leg_min}, {model.leg_max}]), motor torques = "
             f"{rec.data['tau'][k].tolist()} N m")
     return wall
-
-
-@njit(cache=True, error_model="numpy")
-def _loop_kernel(p, y, t, k0, k1, l_ref, ldot_ref, v_ff, kp, ki, kd, vmax, dt, integral, R, Kt,
-                 emf, ilim, decay, mean_decay, current, gain, method, n_sub, rtol, atol,
-                 max_step, max_steps, energy, info, bound, rec_l, rec_ldot, rec_q, rec_v, rec_i,
-                 rec_tau, rec_sat):
-    """measure -> PID -> motor currents -> plant step (stewart_fmu.step.plant_step, the step
-    Plant takes, with its check) for samples k0..k1-1 (state carried in y, integral, current,
-    energy[0] (the energy terms of y) and info); (k, status) of a failure, (-1, 0) when all
-    went well."""
-    n = t.shape[0]
-    ynext, rack = np.empty(y.shape[0]), np.empty(6)
-    v, torque = np.empty(6), np.empty(6)
-    sat, limited = np.empty(6, np.bool_), np.empty(6, np.bool_)
-    for k in range(k0, k1):
-        l, ldot, _ = leg_state_kernel(p, y[:6], y[6:12])
-        pid_voltages(kp, ki, kd, vmax, dt, integral, l_ref[k], ldot_ref[k], l, ldot, v_ff[k], v, sat)
-        advance_currents(R, Kt, emf, ilim, decay, mean_decay, current, v, ldot, torque, limited)
-        for i in range(6):
-            rec_l[k, i], rec_ldot[k, i], rec_q[k, i] = l[i], ldot[i], y[i]
-            rec_v[k, i], rec_i[k, i], rec_tau[k, i] = v[i], current[i], torque[i]
-            rec_sat[k, i] = sat[i] or limited[i]
-            err = abs(l_ref[k, i] - l[i])
-            if not err <= bound:
-                return k, DIVERGED
-        if k + 1 < n:
-            for i in range(6):
-                rack[i] = 0.0 + gain * torque[i]  # the plant's rack force: sigma (0) + zeta/r tau
-            status = plant_step(p, method, y, ynext, rack, t[k + 1] - t[k], n_sub, rtol, atol,
-                                max_step, max_steps, energy[0], energy[1], ENERGY_TOL, info)
-            if status != 0:
-                return k, status
-            y[:] = ynext
-            energy[0, :] = energy[1]
-    return -1, 0
 
 
 def _check_rate(traj: Trajectory, config: ControllerConfig) -> None:

@@ -73,10 +73,11 @@ def scipy_advance(model_params: np.ndarray | core.NativeParams, y0: np.ndarray, 
                   h: float, opts: IntegratorOptions) -> tuple[int, int]:
     """y = y0 advanced over h with a solve_ivp method (y0 kept); (status, right-hand-side calls)."""
     calls, params = [0], core.native_params(model_params)
+    F = np.ascontiguousarray(F, dtype=float)
 
     def rhs(_t: float, state: np.ndarray) -> np.ndarray:
         calls[0] += 1
-        dy, status = core.derivative(params, state, F)
+        dy, status = core.derivative(params, np.ascontiguousarray(state), F)
         if status != OK:
             raise _StageFailed(status)
         return dy

@@ -2,8 +2,8 @@
 
 `Plant` follows the FMI life cycle (instantiate, setup experiment, initialization mode, set
 inputs, do_step, get outputs, get/set/serialize state, reset, terminate) and checks the call
-sequence itself, as the FMI Reference FMUs do. The pythonfmu adapter (`fmu_slave.py`) only
-translates names; the physics and every check live here, so they run without an importer.
+sequence itself, as the FMI Reference FMUs do. Each step is the C core's (step.plant_step), the
+same step the exported FMU's binary takes.
 
 State is (t, y) plus the held inputs and the adaptive step guess: everything a master needs
 to roll back exactly (`get_state` / `set_state`, `serialize_state` / `deserialize_state`);

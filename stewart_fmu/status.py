@@ -1,18 +1,21 @@
-"""Status codes of the compiled kernels, in one place, and what each means to a user.
+"""Status codes of the C core, in one place, and what each means to a user.
 
-Every kernel returns an int status instead of raising (compiled code cannot raise typed errors
-cheaply); the Python layer turns a non-zero status into the typed error of `errors.py`.
+Every core function returns an int status instead of raising; the Python layer turns a non-zero
+status into the typed error of `errors.py`.
 """
-OK = 0
-NONFINITE = 1        # a non-finite input, or the state became non-finite inside the integrator
-STROKE = 2           # a leg is outside [leg_min, leg_max]
-SINGULAR = 3         # the Jacobian is singular (smallest LU pivot below SINGULAR_PIVOT)
-GIMBAL = 4           # pitch at +-90 degrees: the Euler-rate matrix E cannot be inverted
-OVERFLOW = 5         # an acceleration overflowed (a near-singular pose)
-TOO_MANY_STEPS = 100  # the integrator needed more than max_steps internal steps
-STEP_TOO_SMALL = 101  # the adaptive step fell below 1e-14 of the time scale
-ENERGY_GAIN = 102    # the step's check: energy grew beyond the work of the held rack forces
-STATE_NONFINITE = 103  # the step's check: the integrated state is not finite
+from .native.core import lib
+
+# The numbers are the C core's (native/include/stewart.h), named as Python uses them.
+OK = lib.STEWART_OK                    # 0
+NONFINITE = lib.STEWART_NONFINITE      # 1: a non-finite input
+STROKE = lib.STEWART_STROKE            # 2: a leg is outside [leg_min, leg_max]
+SINGULAR = lib.STEWART_SINGULAR        # 3: the Jacobian is singular (smallest LU pivot tiny)
+GIMBAL = lib.STEWART_GIMBAL            # 4: pitch at +-90 degrees: E cannot be inverted
+OVERFLOW = lib.STEWART_OVERFLOW        # 5: an acceleration overflowed (a near-singular pose)
+TOO_MANY_STEPS = lib.STEWART_TOO_MANY_STEPS    # 100: more than max_steps internal steps
+STEP_TOO_SMALL = lib.STEWART_STEP_TOO_SMALL    # 101: the adaptive step fell below its minimum
+ENERGY_GAIN = lib.STEWART_UNSTABLE             # 102: the step's check: energy grew beyond the work
+STATE_NONFINITE = lib.STEWART_STATE_NONFINITE  # 103: the step's check: the new state is not finite
 
 WHY = {NONFINITE: "the state became non-finite", OVERFLOW: "the accelerations overflowed",
        STROKE: "a leg left its stroke", SINGULAR: "the Jacobian became singular",

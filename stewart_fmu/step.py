@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .native import core
-from .status import ENERGY_GAIN, NONFINITE, OK, STATE_NONFINITE
+from .status import ENERGY_GAIN, OK, STATE_NONFINITE
 
 
 @dataclass(frozen=True)
@@ -41,18 +41,14 @@ def plant_step(params: core.NativeParams, options, y0: np.ndarray, y1: np.ndarra
                step_guess: float) -> StepResult:
     """y1 = y0 advanced by h with the rack forces F held, then checked against e0 =
     energy_terms(y0) (e1 receives those of y1). `options`: IntegratorOptions.native()."""
-    status, guess, evaluations, excess, allowed = core.step(params, options, y0, y1, F, h,
-                                                            e0, e1, step_guess)
-    if status == NONFINITE:  # the core's advance never reports it: the result is not finite
-        status = STATE_NONFINITE
-    return StepResult(status, guess, evaluations, excess, allowed)
+    return StepResult(*core.step(params, options, y0, y1, F, h, e0, e1, step_guess))
 
 
 def check_step(params: core.NativeParams, y1: np.ndarray, e0: np.ndarray, e1: np.ndarray,
                F: np.ndarray, h: float) -> StepResult:
     """The check alone, for a step integrated elsewhere (scipy's methods): the same power
     balance as plant_step's, with its default tolerance."""
-    finite, excess, allowed = core.step_energy(params, y1, e0, e1, F, h=h)
+    finite, excess, allowed = core.step_energy(params, y1, e0, e1, F, core.ENERGY_TOL, h)
     status = STATE_NONFINITE if not finite else ENERGY_GAIN if not excess <= allowed else OK
     return StepResult(status, math.nan, 0, excess, allowed)
 

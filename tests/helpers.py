@@ -89,6 +89,22 @@ def smooth_trajectory(name: str, seed: int, n_terms: int = 3, scale: np.ndarray 
     return at
 
 
+def case(name: str, level: str) -> tuple[dict, object]:
+    """(scene dict, Model) of a scene at a level; level 'full+coulomb' is the full micro scene
+    with a Coulomb friction of 0.2 N (its file has coulomb = 0; the simulator's has 150 N)."""
+    if level == "full+coulomb":
+        d = scene_dict(name)
+        d["friction"]["coulomb"] = 0.2
+        return d, scene_from_dict(d)
+    return level_dict(scene_dict(name), level), level_model(name, level)
+
+
+def trajectory_samples(name: str, seeds, n: int, duration: float = 2.0):
+    """Samples of the smooth random trajectories `seeds`, n per trajectory over [0, duration]."""
+    rows = [smooth_trajectory(name, s)(np.linspace(0.0, duration, n)) for s in seeds]
+    return tuple(np.concatenate(c) for c in zip(*rows))
+
+
 RATE_SCALE = {"micro": np.array([0.1, 0.1, 0.1, 2.0, 2.0, 2.0]),
               "sim": np.array([0.5, 0.5, 0.5, 0.8, 0.8, 0.8])}
 ACC_SCALE = {"micro": np.array([3.0, 3.0, 3.0, 40.0, 40.0, 40.0]),
@@ -186,19 +202,3 @@ def record(name: str, worst: float, tol: float) -> None:
     """Keep the worst residual of check `name` (and its tolerance) for the session summary."""
     prev = RESIDUALS.get(name, (0.0, tol))[0]
     RESIDUALS[name] = (max(prev, float(worst)), tol)
-
-
-def case(name: str, level: str) -> tuple[dict, object]:
-    """(scene dict, Model) of a scene at a level; level 'full+coulomb' is the full micro scene
-    with a Coulomb friction of 0.2 N (its file has coulomb = 0; the simulator's has 150 N)."""
-    if level == "full+coulomb":
-        d = scene_dict(name)
-        d["friction"]["coulomb"] = 0.2
-        return d, scene_from_dict(d)
-    return level_dict(scene_dict(name), level), level_model(name, level)
-
-
-def trajectory_samples(name: str, seeds, n: int, duration: float = 2.0):
-    """Samples of the smooth random trajectories `seeds`, n per trajectory over [0, duration]."""
-    rows = [smooth_trajectory(name, s)(np.linspace(0.0, duration, n)) for s in seeds]
-    return tuple(np.concatenate(c) for c in zip(*rows))

@@ -1,9 +1,9 @@
 """Thin typed wrappers over the C core (stewart.h) for numpy float64 arrays.
 
 The wrappers raise nothing themselves: each returns the C status code (the STEWART_* values,
-equal to dynamics.OK / NONFINITE / ..., kane.STROKE, integrators.TOO_MANY_STEPS /
-STEP_TOO_SMALL, and UNSTABLE = 102) with the results, so the Python API layer can map codes to
-its typed errors. Inputs must be C-contiguous float64 arrays of the documented shapes
+equal to stewart_fmu.status: OK, NONFINITE, ..., TOO_MANY_STEPS, STEP_TOO_SMALL, and
+UNSTABLE = 102 = ENERGY_GAIN, STATE_NONFINITE = 103 from the step's check) with the results,
+so the Python API layer can map codes to its typed errors. Inputs must be C-contiguous float64 arrays of the documented shapes
 (unchecked, for speed: the C side trusts the sizes); outputs are written into `out` when
 given (no allocation), else into new arrays.
 
@@ -20,8 +20,9 @@ from ._core import ffi, lib
 OK, NONFINITE, STROKE, SINGULAR, GIMBAL, OVERFLOW = (
     lib.STEWART_OK, lib.STEWART_NONFINITE, lib.STEWART_STROKE, lib.STEWART_SINGULAR,
     lib.STEWART_GIMBAL, lib.STEWART_OVERFLOW)
-TOO_MANY_STEPS, STEP_TOO_SMALL, UNSTABLE = (
-    lib.STEWART_TOO_MANY_STEPS, lib.STEWART_STEP_TOO_SMALL, lib.STEWART_UNSTABLE)
+TOO_MANY_STEPS, STEP_TOO_SMALL, UNSTABLE, STATE_NONFINITE = (
+    lib.STEWART_TOO_MANY_STEPS, lib.STEWART_STEP_TOO_SMALL, lib.STEWART_UNSTABLE,
+    lib.STEWART_STATE_NONFINITE)
 METHODS = {"rk4": lib.STEWART_RK4, "euler": lib.STEWART_EULER, "dopri5": lib.STEWART_DOPRI5}
 N_PARAMS = lib.STEWART_N_PARAMS
 N_ENERGY = lib.STEWART_N_ENERGY
@@ -190,11 +191,11 @@ def energy_terms(params, y, out=None):
     return out
 
 
-def step_energy(params, y1, e0, e1, rack, tol=lib.STEWART_ENERGY_TOL):
-    """(finite, excess, allowed) as stability.step_energy (e1 written)."""
+def step_energy(params, y1, e0, e1, rack, tol, h):
+    """(finite, excess, allowed) as stability.step_energy of a step of length h (e1 written)."""
     ex, al = ffi.new("double *"), ffi.new("double *")
     ok = lib.stewart_step_energy(_p(params), _buf(y1), _buf(e0), _buf(e1),
-                                 _buf(rack), tol, ex, al)
+                                 _buf(rack), tol, h, ex, al)
     return bool(ok), ex[0], al[0]
 
 

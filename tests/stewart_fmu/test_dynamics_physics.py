@@ -467,6 +467,7 @@ def test_absent_effects_are_not_computed(level):
     absent effects' parameter slots, inverse, forward and parts kernels still return the same
     finite forces and accelerations bit for bit (a NaN read anywhere would reach the result)."""
     from stewart_fmu import dynamics as D
+    from stewart_fmu.native import core
     from stewart_fmu import model as M
 
     model = level_model("micro", level)
@@ -479,13 +480,13 @@ def test_absent_effects_are_not_computed(level):
             poisoned[where] = np.nan
     sigma = inverse_dynamics(model, q, qd, qdd)
     for p, expect in ((model.params, sigma), (poisoned, sigma)):
-        out = np.empty_like(q)
-        assert D._inverse_batch(p, q, qd, qdd, out) == (-1, D.OK)
+        out, index, status = core.inverse_dynamics_batch(p, q, qd, qdd)
+        assert (index, status) == (-1, core.OK)
         assert np.array_equal(out, expect)
-        acc = np.empty_like(q)
-        assert D._forward_batch(p, q, qd, sigma, acc) == (-1, D.OK)
+        acc, index, status = core.forward_dynamics_batch(p, q, qd, sigma)
+        assert (index, status) == (-1, core.OK)
         assert np.array_equal(acc, forward_dynamics(model, q, qd, sigma))
-        parts = np.empty((len(q), len(D.PARTS), 6))
-        assert D._parts_batch(p, q, qd, qdd, parts) == (-1, D.OK)
+        parts, index, status = core.inverse_dynamics_parts_batch(p, q, qd, qdd)
+        assert (index, status) == (-1, core.OK)
         for name, value in inverse_dynamics_parts(model, q, qd, qdd).items():
             assert np.array_equal(parts[:, D.PARTS.index(name)], value)

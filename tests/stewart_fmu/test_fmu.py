@@ -10,12 +10,10 @@ same unit over the run (so x, y, z share the 0.1 m scale of the leg lengths); ru
 STEWART_RESIDUALS=1 to print the worst residuals. Rollback, serialization and reset are
 asserted bit for bit.
 
-Errors: pythonfmu 0.7 cannot return fmi2Error from Python. Any exception in a slave method
-becomes fmi2Fatal, and its PySlaveInstance::handle_py_exception drops its references to the
-slave without clearing the pointers, so the importer may crash later. The slave therefore never
-raises: it logs the error (status fmi2Error) and refuses every doStep with fmi2Discard until the
-cause is gone. The error scenarios run in child processes, so that a crash fails a test instead
-of ending the session; calls of the wrong variable type are guarded the same way.
+The FMU is the native one (C core + C FMI layer). Its error semantics (fmi2Error for a bad
+call, state unchanged) and the fuzz are tests/stewart_fmu/test_native_fmu.py's; here, calls of
+the wrong variable type run in child processes, so that a crash fails a test instead of ending
+the session.
 """
 from __future__ import annotations
 
@@ -48,8 +46,8 @@ from fmpy.validation import validate_fmu
 from stewart_fmu import Model, inverse_dynamics, inverse_kinematics, load_scene
 from stewart_fmu.fmu.export import export_fmu
 from stewart_fmu.fmu.variables import outputs as fmu_outputs
-from stewart_fmu.io import POSE
 from stewart_fmu.integrators import IntegratorOptions
+from stewart_fmu.io import POSE
 from stewart_fmu.plant import Plant, StepRejected
 from stewart_fmu.stability import default_options
 from tests.helpers import record
@@ -751,11 +749,6 @@ print("SURVIVED", flush=True)
 os._exit(0)
 """
 
-# scenario -> (statuses of its calls, text the logged error message must contain). Where FMI 2.0
-# wants fmi2Error, pythonfmu 0.7 can only give fmi2Fatal (any Python exception) or fmi2Discard
-# (do_step returning False); the slave uses: log the error, return fmi2OK from the call itself
-# when it is not a step, and fmi2Discard from every step until the cause is gone.
-_OK, _DISCARD = 0, fmi2Discard
 # The error scenarios of FMI calls (NaN input, a step before initialization, a wrong time,
 # zero and negative steps, a bad parameter at exitInitializationMode, a '%' in a logged value)
 # are tests/stewart_fmu/test_native_fmu.py's: each returns fmi2Error with the state unchanged.
@@ -788,8 +781,8 @@ def test_wrong_type_call_does_not_crash_the_importer(error_runs, scenario):
 
 
 def test_simulate_fmu_stops_quietly_at_a_discard(micro):
-    """fmpy.simulate_fmu at a step into the stroke: the FMU returns fmi2Discard, pythonfmu
-    reports fmi2Terminated = true for every discard, and simulate_fmu then ends the run at the
+    """fmpy.simulate_fmu at a step into the stroke: the FMU returns fmi2Discard, reports
+    fmi2Terminated = true after a discard, and simulate_fmu then ends the run at the
     last successful time without raising: the result is just shorter. (Masters that want to
     roll back must drive the FMU themselves, as in the test above.)"""
     model = micro.model
@@ -828,7 +821,7 @@ def test_libcosim_matches_plant(micro):
     slave = CosimLocalSlave(fmu_path=str(micro.path), instance_name="plant")
     index = execution.add_local_slave(slave)
     if index < 0:
-        pytest.skip(f"libcosim cannot load the pythonfmu FMU: {get_last_error_message()}")
+        pytest.skip(f"libcosim cannot load the FMU: {get_last_error_message()}")
     refs = {v.name.decode(): v.reference for v in execution.slave_variables(index)}
     observer = CosimObserver.create_last_value()
     manipulator = CosimManipulator.create_override()

@@ -81,7 +81,7 @@ def test_stewart_step_detects_energy_gain_where_the_plant_raises():
     assert np.array_equal(y0, keep)
     ref_y1 = np.empty(24)
     assert I.advance(P, I.IntegratorOptions(max_step=1e-3), y0, ref_y1, F, 1e-3) == core.OK
-    ok, ref_ex, ref_al = core.step_energy(P, ref_y1, e0, np.empty(9), F, h=1e-3)
+    ok, ref_ex, ref_al = core.step_energy(P, ref_y1, e0, np.empty(9), F, core.ENERGY_TOL, 1e-3)
     assert ok and ref_ex > ref_al
     assert excess == ref_ex and allowed == ref_al
     plant = plant_for(model, "rk4", 1e-3, model.home, F)
@@ -97,8 +97,9 @@ def test_stewart_step_detects_energy_gain_where_the_plant_raises():
 def test_stewart_step_reports_a_non_finite_state():
     """Platform only, at home with vx = the largest double and a rack force of 1e302 N: every
     right-hand side is finite (no legs, drive or friction see the leg rates), but the Euler
-    update overflows vx. stewart_step returns NONFINITE, as its check (step_energy) reports
-    the advanced state not finite; y0 is untouched."""
+    update overflows vx. stewart_step returns STATE_NONFINITE (103, distinct from a non-finite
+    input's NONFINITE), as its check (step_energy) reports the advanced state not finite; y0
+    is untouched."""
     model = level_model("micro", "platform_only")
     P = core.native_params(model.params)
     y0 = np.r_[model.home, np.zeros(6)]
@@ -112,9 +113,9 @@ def test_stewart_step_reports_a_non_finite_state():
         st, *_ = core.step(P, core.options("euler"), y0, y1, F, 1e-3, e0, np.empty(9))
         assert I.advance(P, I.IntegratorOptions(method="euler"), y0, ref_y1, F, 1e-3) == core.OK
         assert np.array_equal(y1, ref_y1, equal_nan=True)
-        ok, _, _ = core.step_energy(P, ref_y1, e0, np.empty(9), F, h=1e-3)
+        ok, _, _ = core.step_energy(P, ref_y1, e0, np.empty(9), F, core.ENERGY_TOL, 1e-3)
         if not ok:
-            assert st == core.NONFINITE
+            assert st == core.STATE_NONFINITE
             found = True
     assert found
     assert np.array_equal(y0, keep)

@@ -404,6 +404,7 @@ static const char *why(int status) {
     case STEWART_TOO_MANY_STEPS: return "the integrator needed too many internal steps";
     case STEWART_STEP_TOO_SMALL: return "the integrator's step fell below its minimum (stiff)";
     case STEWART_UNSTABLE: return "integration unstable: the energy grew more than the rack forces supplied";
+    case STEWART_STATE_NONFINITE: return "integration unstable: the state became non-finite";
     default: return "unknown status";
     }
 }

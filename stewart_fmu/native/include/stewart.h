@@ -62,8 +62,7 @@ enum { STEWART_PART_PLATFORM = 0, STEWART_PART_LOWER_LEGS = 1, STEWART_PART_UPPE
 /* ---- status codes: identical to the Python side ----------------------------------------- */
 enum {
     STEWART_OK = 0,              /* dynamics.OK */
-    STEWART_NONFINITE = 1,       /* dynamics.NONFINITE: non-finite input (or, from stewart_step,
-                                    a non-finite result state) */
+    STEWART_NONFINITE = 1,       /* status.NONFINITE: a non-finite input */
     STEWART_STROKE = 2,          /* kane.STROKE: a leg outside [leg_min, leg_max] */
     STEWART_SINGULAR = 3,        /* dynamics.SINGULAR: J^T LU pivot < SINGULAR_PIVOT, or the
                                     twist mass matrix not positive definite */
@@ -72,8 +71,10 @@ enum {
                                     (batch/single calls report it as SINGULAR, as Python does) */
     STEWART_TOO_MANY_STEPS = 100,/* integrators.TOO_MANY_STEPS */
     STEWART_STEP_TOO_SMALL = 101,/* integrators.STEP_TOO_SMALL */
-    STEWART_UNSTABLE = 102       /* new: the step gained energy beyond the rack forces' work
-                                    (power balance of stability.step_energy) */
+    STEWART_UNSTABLE = 102,      /* status.ENERGY_GAIN: the step gained energy beyond the rack
+                                    forces' work (power balance of stability.step_energy) */
+    STEWART_STATE_NONFINITE = 103 /* status.STATE_NONFINITE: stewart_step's check found the
+                                    integrated state not finite */
 };
 
 /* ---- limits (same values as the Python constants) ---------------------------------------- */
@@ -182,12 +183,13 @@ int stewart_initial_state(const double *params, const double q[6], const double 
 /* out = (T, V_g, V_s, d_1..d_6) at y (energy._energy_terms). */
 void stewart_energy_terms(const double *params, const double *y, double out[STEWART_N_ENERGY]);
 
-/* The power balance of a step (stability.step_energy): returns 0 if y1 is non-finite, else 1
-   with e1 = energy terms of y1, *excess = dE - F.(d1 - d0) and *allowed = tol * (energy
-   exchanged) + coulomb * sum |d1 - d0|. The step is unstable when !(excess <= allowed). */
+/* The power balance of a step of length h (stability.step_energy): returns 0 if y1 is
+   non-finite, else 1 with e1 = energy terms of y1, *excess = dE - F.(d1 - d0) and
+   *allowed = tol * (energy exchanged) + coulomb * (sum |d1 - d0| + h sum |ldot_i(y1)|) (the
+   second sum only with coulomb > 0). The step is unstable when !(excess <= allowed). */
 int stewart_step_energy(const double *params, const double *y1, const double e0[9],
-                        double e1[9], const double rack[6], double tol, double *excess,
-                        double *allowed);
+                        double e1[9], const double rack[6], double tol, double h,
+                        double *excess, double *allowed);
 
 /* ---- integration (integrators.py) --------------------------------------------------------- */
 /* y1 = y0 advanced over h with the rack forces held (zero-order hold); y0 is not modified.
@@ -204,8 +206,8 @@ int stewart_advance(const double *params, const stewart_options *o, const double
 /* THE plant step (Plant.do_step without the call-sequence checks): stewart_advance, then the
    finiteness and power-balance check of stewart_step_energy with o->energy_tol. e0: energy
    terms of y0 (stewart_energy_terms, or the e1 of the previous accepted step); e1 receives
-   those of y1. excess / allowed may be NULL. Status: that of stewart_advance, else NONFINITE
-   (y1 not finite) or UNSTABLE (excess > allowed), else OK. On any status but OK the caller
+   those of y1. excess / allowed may be NULL. Status: that of stewart_advance, else
+   STATE_NONFINITE (y1 not finite) or UNSTABLE (excess > allowed), else OK. On any status but OK the caller
    keeps y0 (and e0) as the state. */
 int stewart_step(const double *params, const stewart_options *o, const double *y0, double *y1,
                  const double rack[6], double h, double *step_guess, long *evaluations,

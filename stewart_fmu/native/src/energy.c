@@ -58,8 +58,8 @@ void stewart_energy_terms(const double *params, const double *y, double out[9])
 }
 
 int stewart_step_energy(const double *params, const double *y1, const double e0[9],
-                        double e1[9], const double rack[6], double tol, double *excess,
-                        double *allowed)
+                        double e1[9], const double rack[6], double tol, double h,
+                        double *excess, double *allowed)
 {
     const double *p = params;
     const int n = stewart_state_size(params);
@@ -79,6 +79,14 @@ int stewart_step_energy(const double *params, const double *y1, const double e0[
     }
     *excess = (e1[0] + e1[1] + e1[2]) - (e0[0] + e0[1] + e0[2]) - work;
     scale = e0[0] + e1[0] + e0[2] + e1[2] + fabs(work) + 1e-9 * (fabs(e0[1]) + fabs(e1[1]));
+    if (P(COULOMB) > 0.0) {
+        /* the friction's sign changes inside the step: its work bound also counts the path
+           the legs would cover at their end rates (stability.step_energy's h sum |ldot_i|) */
+        double l1[6], ld1[6], om1[3];
+        stewart_leg_state(params, y1, y1 + 6, l1, ld1, om1);
+        for (i = 0; i < 6; ++i)
+            moved += h * fabs(ld1[i]);
+    }
     *allowed = tol * scale + P(COULOMB) * moved;
     return 1;
 }

@@ -23,8 +23,8 @@ int stewart_step(const double *params, const stewart_options *o, const double *y
     double ex = 0.0, al = 0.0;
     int status = stewart_advance(params, o, y0, y1, rack, h, step_guess, evaluations);
     if (status == STEWART_OK) {
-        if (!stewart_step_energy(params, y1, e0, e1, rack, o->energy_tol, &ex, &al))
-            status = STEWART_NONFINITE;
+        if (!stewart_step_energy(params, y1, e0, e1, rack, o->energy_tol, h, &ex, &al))
+            status = STEWART_STATE_NONFINITE;
         else if (!(ex <= al))
             status = STEWART_UNSTABLE;
     }
