@@ -28,6 +28,9 @@ def leg_state(model: Model, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, 
 
 def inverse_dynamics(model: Model, q, qd, qdd) -> np.ndarray:
     """Actuator (rack) forces sigma (Eq. 12) for poses and their derivatives, (N, 6) or (6,)."""
+    done = _single(core.inverse_dynamics, model, q, qd, qdd)
+    if done is not None and not done[1]:
+        return done[0]
     return _evaluate(model, core.inverse_dynamics, core.inverse_dynamics_batch,
                      ("q", "qd", "qdd"), q, qd, qdd)
 
@@ -56,8 +59,26 @@ def inverse_dynamics_parts(model: Model, q, qd, qdd) -> dict[str, np.ndarray]:
 
 def forward_dynamics(model: Model, q, qd, sigma) -> np.ndarray:
     """Pose accelerations qdd from rack forces sigma (the inverse of inverse_dynamics)."""
+    done = _single(core.forward_dynamics, model, q, qd, sigma)
+    if done is not None and not done[1]:
+        return done[0]
     return _evaluate(model, core.forward_dynamics, core.forward_dynamics_batch,
                      ("q", "qd", "sigma"), q, qd, sigma)
+
+
+_F64 = np.dtype(np.float64)
+
+
+def _single(call, model: Model, a, b, c):
+    """The fast path of one sample given as float64 (6,) arrays: (result, status), or None for
+    anything else (lists, other shapes or dtypes, strided views: _evaluate checks those)."""
+    try:
+        if a.shape == b.shape == c.shape == (6,) and a.dtype is _F64 and b.dtype is _F64 \
+                and c.dtype is _F64:
+            return call(model.native, a, b, c)
+    except (AttributeError, ValueError):   # not an array; not contiguous (cffi's from_buffer)
+        pass
+    return None
 
 
 def _evaluate(model: Model, one, batch, names, a, b, c) -> np.ndarray:

@@ -184,59 +184,46 @@ int stewart_forward_dynamics(const double *params, const double q[6], const doub
     return st == STEWART_OK ? st : sw_classify(st, q, qd, sigma);
 }
 
-long stewart_inverse_dynamics_batch(const double *params, long n, const double *Q,
-                                    const double *QD, const double *QDD, double *sigma,
-                                    int *status)
+/* One per-sample function over N samples (rows of 6): the index of the first bad sample and its
+ * classified status, or -1. Static with a constant function argument: the compiler inlines it. */
+typedef int (*sw_sample_fn)(const double *, const double *, const double *, const double *,
+                            sw_ws *, double *);
+
+static long sw_batch(sw_sample_fn sample, int out_size, const double *params, long n,
+                     const double *A, const double *B, const double *C, double *out, int *status)
 {
     sw_ws ws;
     long k;
     sw_ws_init(&ws);
     for (k = 0; k < n; ++k) {
-        const double *q = Q + 6 * k, *qd = QD + 6 * k, *qdd = QDD + 6 * k;
-        int st = sw_inverse_sample(params, q, qd, qdd, &ws, sigma + 6 * k);
+        const double *a = A + 6 * k, *b = B + 6 * k, *c = C + 6 * k;
+        int st = sample(params, a, b, c, &ws, out + (long)out_size * k);
         if (st != STEWART_OK) {
-            *status = sw_classify(st, q, qd, qdd);
+            *status = sw_classify(st, a, b, c);
             return k;
         }
     }
     *status = STEWART_OK;
     return -1;
+}
+
+long stewart_inverse_dynamics_batch(const double *params, long n, const double *Q,
+                                    const double *QD, const double *QDD, double *sigma,
+                                    int *status)
+{
+    return sw_batch(sw_inverse_sample, 6, params, n, Q, QD, QDD, sigma, status);
 }
 
 long stewart_inverse_dynamics_parts_batch(const double *params, long n, const double *Q,
                                           const double *QD, const double *QDD, double *parts,
                                           int *status)
 {
-    sw_ws ws;
-    long k;
-    sw_ws_init(&ws);
-    for (k = 0; k < n; ++k) {
-        const double *q = Q + 6 * k, *qd = QD + 6 * k, *qdd = QDD + 6 * k;
-        int st = sw_parts_sample(params, q, qd, qdd, &ws, parts + 36 * k);
-        if (st != STEWART_OK) {
-            *status = sw_classify(st, q, qd, qdd);
-            return k;
-        }
-    }
-    *status = STEWART_OK;
-    return -1;
+    return sw_batch(sw_parts_sample, 36, params, n, Q, QD, QDD, parts, status);
 }
 
 long stewart_forward_dynamics_batch(const double *params, long n, const double *Q,
                                     const double *QD, const double *SIGMA, double *QDD,
                                     int *status)
 {
-    sw_ws ws;
-    long k;
-    sw_ws_init(&ws);
-    for (k = 0; k < n; ++k) {
-        const double *q = Q + 6 * k, *qd = QD + 6 * k, *f = SIGMA + 6 * k;
-        int st = sw_forward_sample(params, q, qd, f, &ws, QDD + 6 * k);
-        if (st != STEWART_OK) {
-            *status = sw_classify(st, q, qd, f);
-            return k;
-        }
-    }
-    *status = STEWART_OK;
-    return -1;
+    return sw_batch(sw_forward_sample, 6, params, n, Q, QD, SIGMA, QDD, status);
 }
