@@ -26,7 +26,7 @@ from stewart_fmu.dynamics import forward_dynamics, inverse_dynamics_parts, leg_s
 from stewart_fmu.energy import DRIVEN, energy_terms
 from stewart_fmu.errors import IntegrationError, StewartError, TrajectoryError
 from stewart_fmu.integrators import COMPILED, IntegratorOptions, derivative, scipy_advance
-from stewart_fmu.kinematics import check_poses, inverse_kinematics
+from stewart_fmu.kinematics import check_poses, condition_number, inverse_kinematics
 from stewart_fmu.model import Model
 from stewart_fmu.stability import advice, default_options, internal_step
 from stewart_fmu.status import ENERGY_GAIN, STATE_NONFINITE, why
@@ -117,9 +117,9 @@ class Outputs:
 
     @property
     def cond(self) -> float:
-        """cond(J), scaled (an SVD: computed only when asked for)."""
+        """cond(J), scaled (the core's SVD, as the FMU's: computed only when asked for)."""
         y = self.plant._y
-        return self._get("cond", lambda: float(inverse_kinematics(self.plant.model, y[:6]).cond))
+        return self._get("cond", lambda: condition_number(self.plant.model, y[:6]))
 
     @property
     def qdd(self) -> np.ndarray:
