@@ -22,7 +22,8 @@ from . import model_description, variables
 
 MODEL_IDENTIFIER = "StewartPlant"
 NATIVE = Path(__file__).resolve().parents[1] / "native"
-# Portable flags: those of the core's own build (no fused multiply-add, as numba), no -march.
+# Portable flags: those of the core's own build (no fused multiply-add: bit for bit with the
+# Python plant), no -march.
 CFLAGS = ["-std=c99", "-O2", "-ffp-contract=off", "-fno-math-errno", "-fPIC",
           "-fvisibility=hidden", "-Wall", "-Wextra", "-Wpedantic"]
 FMI_SOURCES = {2: ["fmi/model.c", "fmi/fmi2Functions.c", "fmi/scene.c"],

@@ -113,9 +113,8 @@ def test_loop_in_chunks_equals_one_call(monkeypatch):
 @pytest.mark.parametrize("feedforward", ["none", "kane"])
 def test_c_loop_equals_the_python_loop_bit_for_bit(feedforward):
     """The `run` reference (1 s) on the micro-manipulator: the C loop (the core's stewart_step)
-    and the Python loop around InProcessPlant (Plant.do_step, numba's plant_step, and the C
-    controller functions) record the same signals, bit for bit (the core repeats numba's
-    arithmetic in the same order)."""
+    and the Python loop around InProcessPlant (Plant.do_step, the same C step, and the C
+    controller functions through cffi) record the same signals, bit for bit."""
     model, config, _, _ = _micro()
     config = dataclasses.replace(config, feedforward=feedforward)
     traj = run_reference(model, config, 1.0)

@@ -2,9 +2,8 @@
 
 Checked against the in-process plant (stewart_fmu.plant.Plant) driven the same way: same
 inputs held over each step, same communication points. Agreement is measured as in
-tests/test_fmu.py: max |fmu - plant| / scale, scale = largest |value| among the outputs of the
-same unit over the run, and must be <= RTOL = 1e-12 (the numba kernels and the C core agree to
-~1e-13). Rollback, serialization and reset are asserted bit for bit. Importers: a small C
+tests/stewart_fmu/test_fmu.py: max |fmu - plant| / scale, scale = largest |value| among the outputs of the
+same unit over the run, and must be <= RTOL = 1e-12 (the FMU's binary runs the same C step as Plant). Rollback, serialization and reset are asserted bit for bit. Importers: a small C
 master (dlopen), fmpy (validate, simulate_fmu, FMU2Slave / FMU3Slave), libcosimpy (2.0).
 Error and fuzz scenarios run in child processes, so that a crash fails a test instead of
 ending the session. Every FMU is built once per module.
