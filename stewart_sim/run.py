@@ -60,7 +60,7 @@ def run_closed_loop_files(model: Model, config, duration: float, out: Path,
 
 
 def open_fmu(path: Path, model: Model):
-    """controller.cosim.FmuPlant for `path`, after checking that the FMU was exported from a
+    """controller.plants.FmuPlant for `path`, after checking that the FMU was exported from a
     scene with the same physical parameters as `model` (its resources/scene.toml)."""
 
     if not path.is_file():

@@ -6,7 +6,7 @@ and one of:
   inverse      the inverse dynamics along the point's trajectory: peak |sigma_i| per leg and
                overall (rack force, drive included), peak motor torque sigma r / zeta, peak leg
                power |sigma_i ldot_i|, worst cond(J);
-  closed_loop  the PID design at the point (controller.cosim.design_axis) and the closed loop
+  closed_loop  the PID design at the point (controller.design.design_axis) and the closed loop
                tracking the trajectory (stewart_sim.compare.study.run_mode): gains, margins,
                tracking errors, effort;
   envelope     the static (and load-case) forces over a pose grid about home: peak |sigma|,
