@@ -235,6 +235,7 @@ class Device:
         self._v = np.zeros(6)
         self._sat = np.zeros(6, dtype=bool)
         self.load = 0                    # per mille of the tick period (set by serve)
+        self.last_fault: str | None = None   # the last numerical fault, in full
         self.params = self._parameters()
 
     # --- set-up --------------------------------------------------------------------------
@@ -662,8 +663,9 @@ class Device:
             self._start_holding(np.asarray(self.model.home, dtype=float), t)
         self._disarm()
         self._v, self._sat = np.zeros(6), np.zeros(6, dtype=bool)
+        self.last_fault = f"{type(exc).__name__}: {exc}"
         return self._say_once(ms.MAV_SEVERITY_CRITICAL,
-                              f"numerical fault, holding, disarmed, gains reset: {exc}"[:200],
+                              f"numeric fault ({type(exc).__name__})"[:34] + ": hold, disarmed",
                               key="numeric-fault")
 
     def _fault(self, why: str) -> list[Any]:

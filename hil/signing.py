@@ -44,15 +44,6 @@ def wall_timestamp() -> int:
     return int((time.time() - SIGNING_EPOCH) * 1e5)
 
 
-def sign_frame(key: bytes, unsigned_frame: bytes, link_id: int, timestamp: int) -> bytes:
-    """A signed frame from a frame packed unsigned: set the flag, append link, time, signature.
-    The CRC does not cover the incompat flags, so it stays valid."""
-    b = bytearray(unsigned_frame)
-    b[2] |= IFLAG_SIGNED
-    b += bytes((link_id,)) + timestamp.to_bytes(6, "little")
-    return bytes(b + hashlib.sha256(key + bytes(b)).digest()[:6])
-
-
 class Verifier:
     """Check signatures of incoming frames (see the module doc)."""
 
