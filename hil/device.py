@@ -30,6 +30,15 @@ STEWART_SETPOINT_FLAG_FORCE_RATE_VALID, else 0): the master's feed-forward. When
 stream begins or ends the integral takes over its static part (bumpless transfer). HOLD holds
 the current leg lengths.
 
+Bounds (hil.limits)
+-------------------
+Setpoint rates, forces and force rates are also refused beyond the drive-derived bounds of
+`hil.limits` (the STATUSTEXT names the leg, the value and the bound); every parameter has a
+range (PARAM_SET out of range: PARAM_VALUE with the unchanged value and a STATUSTEXT); the bounds
+are read-only parameters SP_LEN_MIN/MAX, SP_RATE_MAX, SP_FORCE_MAX, SP_FRATE_MAX. STATUSTEXT
+floods are cut by a token bucket. With a signing key, frames pass `hil.signing.Verifier` (the
+signature before any timestamp is stored) before they are decoded.
+
 Watchdog and safe states
 ------------------------
 Disarmed: the drives hold the leg lengths measured at disarm (and at start). Armed: the watchdog
@@ -37,7 +46,9 @@ starts with the first valid setpoint; when `watchdog` seconds (device time, i.e.
 without one, the device holds the leg lengths measured at that tick and sends one STATUSTEXT;
 the next valid setpoint (or a re-arm) resumes. If the plant refuses a step (a leg at its end
 stop), the device stops the platform where it is (restarted at rest, drives holding), disarms
-and says so.
+and says so. Any numerical failure of a tick (non-finite voltage or torque, IntegrationError...)
+restarts the plant at rest at the last good pose, drives holding with the designed gains and
+rated limits, disarms and sends one CRITICAL STATUSTEXT: the device never exits on numbers.
 
 Commands (COMMAND_LONG -> COMMAND_ACK)
 ---------------------------------------

@@ -197,7 +197,8 @@ class UdpTransport(_Base):
 
 
 def udp_server(host: str = LOOPBACK, port: int = 0) -> UdpTransport:
-    """A UDP socket listening on a loopback address that answers the last peer it heard from."""
+    """A UDP socket listening on a loopback address that answers the last peer it heard from
+    (hil.serve narrows that with hil.peer.PeerGuard: only a datagram with a valid frame)."""
     if not ipaddress.IPv4Address(host).is_loopback:
         raise LinkError(f"udp_server: {host} is not a loopback address")
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
