@@ -25,7 +25,6 @@ Out-of-range values are refused: a STATUSTEXT names the value and the bound.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -113,10 +112,6 @@ def in_range(lo: float, hi: float, unit: str = "", lo_open: bool = False):
 
 def read_only(x: float) -> str | None:
     return "read-only (a bound of the device)"
-
-
-def is_finite_number(x: Any) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 
 
 class StatusLimiter:
