@@ -30,6 +30,15 @@ STEWART_SETPOINT_FLAG_FORCE_RATE_VALID, else 0): the master's feed-forward. When
 stream begins or ends the integral takes over its static part (bumpless transfer). HOLD holds
 the current leg lengths.
 
+Bounds (hil.limits)
+-------------------
+Setpoint rates, forces and force rates are also refused beyond the drive-derived bounds of
+`hil.limits` (the STATUSTEXT names the leg, the value and the bound); every parameter has a
+range (PARAM_SET out of range: PARAM_VALUE with the unchanged value and a STATUSTEXT); the bounds
+are read-only parameters SP_LEN_MIN/MAX, SP_RATE_MAX, SP_FORCE_MAX, SP_FRATE_MAX. STATUSTEXT
+floods are cut by a token bucket. With a signing key, frames pass `hil.signing.Verifier` (the
+signature before any timestamp is stored) before they are decoded.
+
 Watchdog and safe states
 ------------------------
 Disarmed: the drives hold the leg lengths measured at disarm (and at start). Armed: the watchdog
@@ -37,7 +46,9 @@ starts with the first valid setpoint; when `watchdog` seconds (device time, i.e.
 without one, the device holds the leg lengths measured at that tick and sends one STATUSTEXT;
 the next valid setpoint (or a re-arm) resumes. If the plant refuses a step (a leg at its end
 stop), the device stops the platform where it is (restarted at rest, drives holding), disarms
-and says so.
+and says so. Any numerical failure of a tick (non-finite voltage or torque, IntegrationError...)
+restarts the plant at rest at the last good pose, drives holding with the designed gains and
+rated limits, disarms and sends one CRITICAL STATUSTEXT: the device never exits on numbers.
 
 Commands (COMMAND_LONG -> COMMAND_ACK)
 ---------------------------------------
@@ -85,7 +96,9 @@ from controller.plants import InProcessPlant, PlantStepError
 from controller.trajectory import QUINTIC_PEAK_RATE, Trajectory, leg_references, minimum_jerk
 from hil import mavlink_stewart as ms
 from hil.framing import Receiver
-from stewart_fmu.errors import StewartError
+from hil import limits
+from hil.signing import SignedDecoder, Verifier, wall_timestamp
+from stewart_fmu.errors import IntegrationError, StewartError
 from stewart_fmu.kinematics import condition_number, forward_kinematics, inverse_kinematics
 from stewart_fmu.model import Model
 from stewart_fmu.rotations import euler_motion
@@ -134,6 +147,11 @@ class DeviceCounters:
     watchdog_trips: int = 0
     faults: int = 0                 # plant steps refused (end stop)
     overruns: int = 0               # real-time ticks late by more than one period (serve)
+    numeric_faults: int = 0         # numerical failures in the loop (safe hold, disarmed)
+    handler_errors: int = 0         # messages whose handling raised (dropped, device serving)
+    statustexts_rate_limited: int = 0  # cut by the STATUSTEXT token bucket (hil.limits)
+    frames_valid: int = 0           # decoded (and authenticated) frames for this system
+    peer_changes: int = 0           # UDP peer switches (hil.peer)
 
 
 def _quat_zyx(thx: float, thy: float, thz: float) -> tuple[float, float, float, float]:
@@ -176,8 +194,9 @@ class Device:
         self.config = config if config is not None else controller_config(model)
         self.rate = self.config.rate
         self.dt = self.config.dt
-        if not (math.isfinite(watchdog) and watchdog > 0):
-            raise DeviceError(f"watchdog must be a finite time > 0 s, got {watchdog!r}")
+        lo, hi = limits.WATCHDOG_RANGE
+        if not (math.isfinite(watchdog) and lo <= watchdog <= hi):
+            raise DeviceError(f"watchdog must be a finite time in [{lo:g}, {hi:g}] s, got {watchdog!r}")
         self.watchdog = float(watchdog)
         self.lockstep = bool(lockstep)
         self.rates = dict(TELEMETRY)
@@ -190,9 +209,13 @@ class Device:
             self.rates[name] = float(hz)
         self.counters = DeviceCounters()
         self.mav = ms.MAVLink(None, srcSystem=system_id, srcComponent=component_id)
+        self.verifier: Verifier | None = None
         if signing_key is not None:
             self._setup_signing(signing_key)
-        self.rx = Receiver(ms, self.mav)
+        self.rx = Receiver(ms, self.mav if self.verifier is None else SignedDecoder(
+            ms.MAVLink(None, srcSystem=system_id, srcComponent=component_id), self.verifier,
+            self._signing_refused))
+        self.limiter = limits.StatusLimiter(self.config.dt)
 
         axis, gains, self.analysis = design_axis(model, self.config)
         self.ctrl = AxisControllers(gains, axis, self.dt)
@@ -203,6 +226,8 @@ class Device:
         self.leg_max = model.leg_max if model.leg_max is not None else math.inf
         self.home_lengths = inverse_kinematics(model, model.home, with_cond=False).lengths.copy()
         self.cond_max = COND_MAX
+        self.design_gains, self.design_motor = self.ctrl.gains, self.ctrl.axis.motor
+        self.bounds = limits.bounds(self.leg_min, self.leg_max, self.ctrl.axis, self.ctrl.gains)
         self._ff_static: np.ndarray | None = None   # R i + Ke ldot_ref of the feed-forward in use
         self._start_holding(np.asarray(model.home, dtype=float), 0.0)
 
@@ -221,6 +246,7 @@ class Device:
         self._v = np.zeros(6)
         self._sat = np.zeros(6, dtype=bool)
         self.load = 0                    # per mille of the tick period (set by serve)
+        self.last_fault: str | None = None   # the last numerical fault, in full
         self.params = self._parameters()
 
     # --- set-up --------------------------------------------------------------------------
@@ -234,6 +260,17 @@ class Device:
         s.sign_outgoing = True
         s.timestamp = int((time.time() - SIGNING_EPOCH) * 1e5)
         s.allow_unsigned_callback = self._reject_unsigned
+        self.verifier = Verifier(s.secret_key, self._signing_clock)
+
+    def _signing_clock(self) -> int:
+        """The device's signing clock (10 us units since 2015): the wall clock (tests may
+        replace `signing_clock`)."""
+        return self.signing_clock()
+
+    signing_clock = staticmethod(wall_timestamp)
+
+    def _signing_refused(self, why: str) -> None:
+        self.counters.signing_rejected += 1
 
     def _reject_unsigned(self, mav: Any, msg_id: int) -> bool:
         """pymavlink asks this for every unsigned or badly signed frame: reject and count."""
@@ -275,29 +312,36 @@ class Device:
         return None
 
     def _parameters(self) -> dict[str, _Param]:
+        b = self.bounds
+
         def gain(name: str) -> _Param:
             return _Param(lambda: getattr(self.ctrl.gains, name), lambda x: self._set_gain(name, x),
-                          lambda x: None if x >= 0 else "must be >= 0")
+                          limits.in_range(0.0, b.gain_max[name]))
 
-        def positive(x: float) -> str | None:
-            return None if x > 0 else "must be > 0"
-
-        def motor(field: str) -> _Param:
+        def motor(field: str, rng: tuple[float, float], unit: str) -> _Param:
             return _Param(lambda: getattr(self.ctrl.axis.motor, field),
-                          lambda x: self._set_motor(field, x), positive)
+                          lambda x: self._set_motor(field, x), limits.in_range(*rng, unit))
+
+        def bound(value: float) -> _Param:
+            return _Param(lambda: value, lambda x: None, limits.read_only)
 
         def stream(name: str) -> _Param:
             return _Param(lambda: self.rates[name], lambda x: self.rates.__setitem__(name, x),
-                          lambda x: self._check_rate(x) or (None if x <= self.rate else
-                                                             f"must be <= {self.rate:g} Hz"))
+                          lambda x: self._check_rate(x) or limits.in_range(
+                              0.0, min(self.rate, b.stream_max), "Hz")(x))
 
         params = {"CTRL_KP": gain("kp"), "CTRL_KI": gain("ki"), "CTRL_KD": gain("kd"),
-                  "DRV_V_LIMIT": motor("voltage_limit"), "DRV_I_LIMIT": motor("current_limit"),
+                  "DRV_V_LIMIT": motor("voltage_limit", b.voltage_range, "V"),
+                  "DRV_I_LIMIT": motor("current_limit", b.current_range, "A"),
                   "WDG_TIMEOUT": _Param(lambda: self.watchdog,
-                                        lambda x: setattr(self, "watchdog", x), positive),
+                                        lambda x: setattr(self, "watchdog", x),
+                                        limits.in_range(*b.watchdog_range, "s")),
                   "SP_COND_MAX": _Param(lambda: self.cond_max, lambda x: setattr(self, "cond_max", x),
-                                        lambda x: None if x > 1 else "must be > 1")}
+                                        limits.in_range(1.0, b.cond_max_limit, lo_open=True))}
         params.update({p: stream(s) for p, s in STREAM_PARAMS.items()})
+        params.update({"SP_LEN_MIN": bound(b.leg_min), "SP_LEN_MAX": bound(b.leg_max),
+                       "SP_RATE_MAX": bound(b.rate_max), "SP_FORCE_MAX": bound(b.force_max),
+                       "SP_FRATE_MAX": bound(b.force_rate_max)})
         return params
 
     def _set_gain(self, name: str, x: float) -> None:
@@ -334,20 +378,44 @@ class Device:
         """Bytes from the link: decode every intact frame and `receive` it; the replies."""
         out: list[Any] = []
         for msg in self.rx.feed(data):
+            self._count_valid(msg)
             out += self.receive(msg)
         return out
+
+    def _count_valid(self, msg: Any) -> None:
+        """Count a decoded (with a key: authenticated) frame that is for this system (no target
+        field, or target 0 or ours): what hil.peer needs to follow or refuse a new peer."""
+        target = getattr(msg, "target_system", None)
+        if target is None or target in (0, self.mav.srcSystem):
+            self.counters.frames_valid += 1
 
     def flush(self) -> list[Any]:
         """The line went idle: give up a partial frame (the Receiver's flush); the replies."""
         out: list[Any] = []
         for msg in self.rx.flush():
+            self._count_valid(msg)
             out += self.receive(msg)
         return out
 
     def receive(self, msg: Any) -> list[Any]:
         """Handle one decoded message of our dialect; the messages to send back."""
         handler = self._handlers.get(msg.get_msgId())
-        return handler(self, msg) if handler is not None else []
+        if handler is None:
+            return []
+        try:
+            out = handler(self, msg)
+        except Exception as exc:  # the device keeps serving whatever a message holds
+            self.counters.handler_errors += 1
+            out = self._say_once(ms.MAV_SEVERITY_ERROR,
+                                 f"{msg.get_type()} dropped: {type(exc).__name__}", key="handler")
+        return self._limit_statustext(out)
+
+    def _limit_statustext(self, out: list[Any]) -> list[Any]:
+        """The STATUSTEXT token bucket (hil.limits.StatusLimiter) over `out`."""
+        n = self.limiter.suppressed
+        out = self.limiter.filter(out, self.k, ms.MAV_SEVERITY_CRITICAL)
+        self.counters.statustexts_rate_limited += self.limiter.suppressed - n
+        return out
 
     def _for_me(self, msg: Any) -> bool:
         return (msg.target_system in (0, self.mav.srcSystem)
@@ -405,6 +473,11 @@ class Device:
         if (flags & ms.STEWART_SETPOINT_FLAG_FORCE_RATE_VALID
                 and not np.all(np.isfinite(msg.force_rate))):
             return "non-finite force rate", None
+        why = self.bounds.setpoint(msg, flags, ms.STEWART_SETPOINT_FLAG_RATE_VALID,
+                                   ms.STEWART_SETPOINT_FLAG_FORCE_VALID,
+                                   ms.STEWART_SETPOINT_FLAG_FORCE_RATE_VALID)
+        if why is not None:
+            return why, None
         bad = [i for i in range(6) if not self.leg_min <= lengths[i] <= self.leg_max]
         if bad:
             i = bad[0]
@@ -438,6 +511,9 @@ class Device:
                 result = ms.MAV_RESULT_ACCEPTED
             else:
                 result = ms.MAV_RESULT_DENIED
+                out = self._say_once(ms.MAV_SEVERITY_WARNING,
+                                     f"arm/disarm param1 {msg.param1:.3g} refused: must be 0 or 1",
+                                     key="arm-denied")
         elif cmd == ms.MAV_CMD_NAV_RETURN_TO_LAUNCH:
             if self.armed:
                 self._start_homing()
@@ -564,17 +640,44 @@ class Device:
             self._homing_reference()
         outputs = self.plant.outputs
         l, ldot = outputs.lengths, outputs.rates
-        v, sat = self.ctrl.step(self.l_ref, self.ldot_ref, l, ldot, self.v_ff)
-        torque, limited = self.motors.step(v, ldot)
-        self._v, self._sat = v, sat | limited
+        good_q = outputs.q.copy()
         try:
+            v, sat = self.ctrl.step(self.l_ref, self.ldot_ref, l, ldot, self.v_ff)
+            torque, limited = self.motors.step(v, ldot)
+            if not (np.all(np.isfinite(v)) and np.all(np.isfinite(torque))):
+                raise FloatingPointError("non-finite motor voltage or torque")
+            self._v, self._sat = v, sat | limited
             self.port.step(self.plant.time, self.dt, torque)
         except PlantStepError as exc:
             out += self._fault(str(exc))
+        except (IntegrationError, StewartError, ArithmeticError, ValueError,
+                np.linalg.LinAlgError) as exc:
+            out += self._numeric_fault(good_q, exc)
         self.k += 1
         self.counters.ticks += 1
         out += self._telemetry(step)
-        return out
+        return self._limit_statustext(out)
+
+    def _numeric_fault(self, good_q: np.ndarray, exc: BaseException) -> list[Any]:
+        """A numerical failure in the loop: restart the plant at rest at the last good pose,
+        drives holding it with the designed gains and the motor's rated limits, disarm, one
+        CRITICAL STATUSTEXT; the device keeps serving."""
+        self.counters.numeric_faults += 1
+        self.ctrl.gains = self.design_gains
+        self._set_motor("voltage_limit", self.design_motor.voltage_limit)
+        self._set_motor("current_limit", self.design_motor.current_limit)
+        t = self.plant.time if math.isfinite(self.plant.time) else self.k * self.dt
+        q = good_q if np.all(np.isfinite(good_q)) else self._last_pose
+        try:
+            self._start_holding(q, t)
+        except (StewartError, ArithmeticError, ValueError, np.linalg.LinAlgError):
+            self._start_holding(np.asarray(self.model.home, dtype=float), t)
+        self._disarm()
+        self._v, self._sat = np.zeros(6), np.zeros(6, dtype=bool)
+        self.last_fault = f"{type(exc).__name__}: {exc}"
+        return self._say_once(ms.MAV_SEVERITY_CRITICAL,
+                              f"numeric fault ({type(exc).__name__})"[:34] + ": hold, disarmed",
+                              key="numeric-fault")
 
     def _fault(self, why: str) -> list[Any]:
         """The plant refused the step: stop at rest where it is, drives holding; disarm."""

@@ -160,6 +160,8 @@ class UdpTransport(_Base):
         self.address: tuple[str, int] = sock.getsockname()
         self.connected = connected
         self.peer: tuple[str, int] | None = sock.getpeername() if connected else None
+        self.sender: tuple[str, int] | None = None   # of the last datagram received
+        self.follow_sender = True   # a server answers the last sender (hil.peer turns this off)
 
     def send(self, data: bytes) -> int:
         """Send one datagram; if the socket buffer is full or the peer is gone it is dropped."""
@@ -182,7 +184,8 @@ class UdpTransport(_Base):
             data, peer = self.sock.recvfrom(READ_SIZE)
         except (BlockingIOError, ConnectionRefusedError):
             return b""
-        if not self.connected:
+        self.sender = peer
+        if not self.connected and self.follow_sender:
             self.peer = peer
         return self._count_recv(data)
 
@@ -194,7 +197,8 @@ class UdpTransport(_Base):
 
 
 def udp_server(host: str = LOOPBACK, port: int = 0) -> UdpTransport:
-    """A UDP socket listening on a loopback address that answers the last peer it heard from."""
+    """A UDP socket listening on a loopback address that answers the last peer it heard from
+    (hil.serve narrows that with hil.peer.PeerGuard: only a datagram with a valid frame)."""
     if not ipaddress.IPv4Address(host).is_loopback:
         raise LinkError(f"udp_server: {host} is not a loopback address")
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 from hil.device import Device, DeviceError
 from hil.errors import LinkError
+from hil.peer import PeerGuard
 
 IDLE_FLUSH = 0.005   # s without input after which a partial frame is given up (Receiver.flush)
 POLL = 0.05          # s: the longest wait before `stop` is looked at again
@@ -64,6 +65,7 @@ def serve(device: Device, transport, realtime: bool | None = None,
     next_tick = start + period
     last_input = start
     window_start, window_busy, window_ticks = start, 0.0, 0
+    peers = PeerGuard(device, transport) if PeerGuard.applies(transport) else None
     while not stop.is_set():
         now = clock()
         timeout = min(poll, max(0.0, next_tick - now)) if realtime else poll
@@ -71,6 +73,8 @@ def serve(device: Device, transport, realtime: bool | None = None,
         if data:
             t0 = clock()
             replies = device.feed(data)
+            if peers is not None:
+                st.messages_out += peers.after_feed()
             st.messages_out += _send_all(device, transport, replies)
             last_input = t1 = clock()
             st.busy += t1 - t0

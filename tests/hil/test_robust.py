@@ -1,0 +1,519 @@
+"""Hostile input to the emulated device: every repro of the hardening brief is refused and the
+device keeps serving (hil.limits, hil.signing, hil.peer, the numerical safe hold); a seeded fuzz
+in process and once against the device process over UDP. Bounded and deterministic: no
+wall-clock pass/fail (wall-clock waits only bound how long a socket is read)."""
+from __future__ import annotations
+
+import math
+import random
+import select
+import signal
+import socket
+import struct
+import subprocess
+import time
+from pathlib import Path
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+pytest.importorskip("pymavlink")
+
+from hil import limits  # noqa: E402
+from hil import mavlink_stewart as ms  # noqa: E402
+from hil.device import Device, DeviceError  # noqa: E402
+from hil.framing import Receiver, crc16  # noqa: E402
+from hil.link import udp_server  # noqa: E402
+from hil.serve import serve_in_thread  # noqa: E402
+from hil.signing import SIGNING_EPOCH  # noqa: E402
+from hil.spawn import _first_line, device_command, parse_udp  # noqa: E402
+from stewart_fmu.kinematics import inverse_kinematics  # noqa: E402
+from stewart_fmu.scene import load_scene  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENE = ROOT / "scenes" / "micro_manipulator.toml"
+KEY = bytes(range(32))
+
+
+def host_mav(key: bytes | None = None):
+    mav = ms.MAVLink(None, srcSystem=255, srcComponent=190)
+    if key is not None:
+        mav.signing.secret_key = key
+        mav.signing.sign_outgoing = True
+        mav.signing.timestamp = int((time.time() - SIGNING_EPOCH) * 1e5)
+    return mav
+
+
+def arm(value: int = 1):
+    return ms.MAVLink_command_long_message(1, 1, ms.MAV_CMD_COMPONENT_ARM_DISARM, 0, value,
+                                           0, 0, 0, 0, 0, 0)
+
+
+def setpoint(seq: int, lengths):
+    return ms.MAVLink_leg_setpoint_message(seq * 1000, seq, list(map(float, lengths)), [0.0] * 6, 0,
+                                           [0.0] * 6)
+
+
+def types(msgs) -> list[str]:
+    return [m.get_type() for m in msgs]
+
+
+def texts(msgs) -> list[str]:
+    return [m.text for m in msgs if m.get_type() == "STATUSTEXT"]
+
+RATE, FORCE, FORCE_RATE = (ms.STEWART_SETPOINT_FLAG_RATE_VALID, ms.STEWART_SETPOINT_FLAG_FORCE_VALID,
+                           ms.STEWART_SETPOINT_FLAG_FORCE_RATE_VALID)
+T0 = 500_000_000_000  # a fixed signing clock (10 us units since 2015): deterministic tests
+
+
+@pytest.fixture(scope="module")
+def model():
+    return load_scene(SCENE)
+
+
+def param_set(name: str, value: float):
+    return ms.MAVLink_param_set_message(1, 1, name.encode(), value, ms.MAV_PARAM_TYPE_REAL32)
+
+
+def read_kp():
+    return ms.MAVLink_param_request_read_message(1, 1, b"CTRL_KP", -1)
+
+
+def still_serving(dev: Device) -> None:
+    """The device answers a PARAM_REQUEST_READ and its plant state is finite."""
+    out = dev.receive(read_kp())
+    assert types(out) == ["PARAM_VALUE"] and out[0].param_value == pytest.approx(dev.gains.kp, rel=1e-6)
+    o = dev.plant.outputs
+    assert np.all(np.isfinite(o.q)) and np.all(np.isfinite(o.lengths))
+    assert dev.counters.handler_errors == 0
+
+
+def full_setpoint(seq, lengths, rate=None, force=None, force_rate=None, flags=0):
+    z = [0.0] * 6
+    return ms.MAVLink_leg_setpoint_message(seq, seq, list(map(float, lengths)),
+                                           list(map(float, rate if rate is not None else z)), flags,
+                                           list(map(float, force if force is not None else z)),
+                                           list(map(float, force_rate if force_rate is not None else z)))
+
+
+# --------------------------------------------------------------------------- 1. setpoints
+
+
+def test_rate_1e307_with_force_is_refused_and_nothing_moves(model):
+    dev = Device(model)
+    dev.receive(arm())
+    l0 = dev.plant.outputs.lengths.copy()
+    out = dev.receive(full_setpoint(1, l0, [1e307] * 6, [1.0] * 6, flags=RATE | FORCE))
+    assert dev.counters.setpoints_refused == 1 and dev.counters.setpoints_accepted == 0
+    [t] = texts(out)
+    assert "rate 1e+307" in t and "bound 3" in t, t   # names the value and the bound
+    for _ in range(200):
+        dev.tick()
+    assert dev.armed and dev.counters.numeric_faults == 0 and dev.counters.faults == 0
+    assert np.max(np.abs(dev.plant.outputs.lengths - l0)) < 1e-12
+    still_serving(dev)
+
+
+@pytest.mark.parametrize("field, value, flags", [("force", 1e308, FORCE), ("rate", 1e300, RATE),
+                                                 ("force_rate", 1e300, FORCE | FORCE_RATE),
+                                                 ("force", -1e5, FORCE), ("rate", 3.5, RATE)])
+def test_absurd_finite_setpoints_are_refused(model, field, value, flags):
+    dev = Device(model)
+    dev.receive(arm())
+    l0 = dev.plant.outputs.lengths.copy()
+    kw = {field: [0.0, 0.0, value, 0.0, 0.0, 0.0]}
+    if field == "force_rate":
+        kw["force"] = [0.0] * 6
+    out = dev.receive(full_setpoint(1, l0, flags=flags, **kw))
+    assert dev.counters.setpoints_refused == 1, texts(out)
+    assert texts(out)[0].startswith("refused: leg 2") and f"{value:.3g}" in texts(out)[0]
+    for _ in range(100):
+        dev.tick()
+    assert np.max(np.abs(dev.plant.outputs.lengths - l0)) < 1e-12
+    still_serving(dev)
+
+
+def test_bounds_table_follows_the_drive(model):
+    dev = Device(model)
+    b, ax = dev.bounds, dev.ctrl.axis
+    assert b.rate_max == pytest.approx(limits.RATE_MARGIN * 24.0 / ax.emf_constant)  # 10 x 0.3 m/s
+    assert b.force_max == pytest.approx(limits.FORCE_MARGIN * ax.force_constant * 2.0)
+    assert (b.leg_min, b.leg_max) == (model.leg_min, model.leg_max)
+    assert b.voltage_range[1] == 24.0 and b.current_range[1] == 2.0
+    values = {m.param_id: m.param_value for m in dev.receive(ms.MAVLink_param_request_list_message(1, 1))}
+    assert values["SP_RATE_MAX"] == pytest.approx(b.rate_max)
+    assert values["SP_FORCE_MAX"] == pytest.approx(b.force_max)
+    out = dev.receive(param_set("SP_RATE_MAX", 1e9))  # read-only
+    assert out[0].param_value == pytest.approx(b.rate_max) and "read-only" in texts(out)[0]
+    with pytest.raises(DeviceError):
+        Device(model, watchdog=1e-38)
+
+
+# --------------------------------------------------------------------------- parameters
+
+
+@pytest.mark.parametrize("name, value", [("DRV_V_LIMIT", 1e6), ("DRV_I_LIMIT", 1e6), ("CTRL_KP", 1e9),
+                                         ("CTRL_KD", 3e38), ("CTRL_KI", -1.0), ("WDG_TIMEOUT", 1e-38),
+                                         ("WDG_TIMEOUT", 1e6), ("SP_COND_MAX", 1e30),
+                                         ("SR_LEG_STATE", 1e9), ("DRV_V_LIMIT", 0.0)])
+def test_hostile_parameter_is_refused_with_the_unchanged_value(model, name, value):
+    dev = Device(model)
+    before = dev.params[name].get()
+    out = dev.receive(param_set(name, value))
+    assert types(out)[0] == "PARAM_VALUE" and set(types(out)[1:]) == {"STATUSTEXT"}
+    assert out[0].param_value == pytest.approx(before) and dev.params[name].get() == before
+    text = "".join(texts(out))  # one text (in 50-byte chunks when longer)
+    assert f"{value:g}" in text and "must be in" in text, text
+    assert dev.counters.params_refused == 1
+    still_serving(dev)
+
+
+def test_hostile_parameter_set_then_4mm_step_tracks(model):
+    """The brief's repro 2: DRV_V_LIMIT 1e6, DRV_I_LIMIT 1e6, CTRL_KP 1e9, then a 4 mm step."""
+    dev = Device(model, watchdog=5.0)
+    for name, value in (("DRV_V_LIMIT", 1e6), ("DRV_I_LIMIT", 1e6), ("CTRL_KP", 1e9)):
+        dev.receive(param_set(name, value))
+    assert dev.counters.params_refused == 3
+    dev.receive(arm())
+    l0 = dev.plant.outputs.lengths.copy()
+    goal = l0 + np.array([0.004, 0, 0, 0, 0, 0])
+    dev.receive(setpoint(1, goal))
+    for _ in range(500):
+        dev.tick()
+    assert dev.armed and dev.counters.numeric_faults == 0
+    assert np.max(np.abs(dev.plant.outputs.lengths - goal)) < 1e-4
+    still_serving(dev)
+
+
+def test_watchdog_flood_is_refused_and_statustext_is_rate_limited(model):
+    dev = Device(model)
+    out = dev.receive(param_set("WDG_TIMEOUT", 1e-38))
+    assert out[0].param_value == pytest.approx(0.2) and dev.watchdog == 0.2
+    # the shortest allowed watchdog with setpoints just slower: trips and resumes 50 times a
+    # second; and 2000 refusals of distinct texts: the token bucket keeps the link usable
+    dev.receive(param_set("WDG_TIMEOUT", 0.01))
+    assert dev.watchdog == 0.01
+    dev.receive(arm())
+    l0 = dev.plant.outputs.lengths.copy()
+    n_text = 0
+    for k in range(1000):  # 1 s of device time
+        if k % 20 == 0:
+            n_text += len(texts(dev.receive(setpoint(k, l0))))
+        if k % 2 == 0:
+            n_text += len(texts(dev.receive(param_set(f"NOPE{k}", 1.0))))
+        n_text += len(texts(dev.tick()))
+    assert dev.counters.watchdog_trips == 50
+    assert n_text <= limits.STATUS_BURST + limits.STATUS_RATE * 1.0 + 1, n_text
+    assert dev.counters.statustexts_rate_limited >= 500
+    still_serving(dev)
+
+
+# --------------------------------------------------------------------------- 2. numbers
+
+
+def test_numerical_failure_in_the_loop_gives_a_safe_hold(model):
+    """Drive limits and gain as the old device accepted them (set behind the checks): the 4 mm
+    step makes the integration fail; the device holds the last good pose, disarms, says so
+    once (CRITICAL) and keeps serving with the designed gains and rated limits."""
+    dev = Device(model)
+    dev._set_motor("voltage_limit", 1e6)
+    dev._set_motor("current_limit", 1e6)
+    dev.ctrl.gains = replace(dev.ctrl.gains, kp=1e9)
+    dev.receive(arm())
+    l0 = dev.plant.outputs.lengths.copy()
+    dev.receive(setpoint(1, l0 + np.array([0.004, 0, 0, 0, 0, 0])))
+    out = []
+    for _ in range(300):
+        out += dev.tick()
+    crit = [m for m in out if m.get_type() == "STATUSTEXT" and m.severity == ms.MAV_SEVERITY_CRITICAL]
+    assert len(crit) == 1 and crit[0].text.startswith("numeric fault (IntegrationError)")
+    assert dev.counters.numeric_faults == 1 and not dev.armed
+    assert dev.gains == dev.design_gains and dev.ctrl.axis.motor.voltage_limit == 24.0
+    assert np.max(np.abs(dev.plant.outputs.lengths - l0)) < 1e-6   # held at the last good pose
+    still_serving(dev)
+
+
+def test_non_finite_torque_gives_a_safe_hold(model, monkeypatch):
+    dev = Device(model)
+    dev.receive(arm())
+    l0 = dev.plant.outputs.lengths.copy()
+    real = dev.motors.step
+    calls = {"n": 0}
+
+    def bad_once(v, ldot):
+        calls["n"] += 1
+        torque, lim = real(v, ldot)
+        return (torque * np.nan if calls["n"] == 5 else torque), lim
+
+    monkeypatch.setattr(dev.motors, "step", bad_once)
+    out = []
+    for _ in range(100):
+        out += dev.tick()
+    assert [t for t in texts(out) if "numeric" in t] == ["numeric fault (FloatingPointError): hold, disarmed"]
+    assert dev.counters.numeric_faults == 1 and not dev.armed
+    assert np.max(np.abs(dev.plant.outputs.lengths - l0)) < 1e-9
+    still_serving(dev)
+
+
+# --------------------------------------------------------------------------- 3. signing
+
+
+def signed_device(model) -> Device:
+    dev = Device(model, signing_key=KEY)
+    dev.signing_clock = lambda: T0
+    return dev
+
+
+def host_at(ts: int, link_id: int = 0):
+    mav = host_mav(key=KEY)
+    mav.signing.timestamp = ts
+    mav.signing.link_id = link_id
+    return mav
+
+
+def test_forged_future_timestamp_does_not_lock_the_host_out(model):
+    dev = signed_device(model)
+    forged = bytearray(arm().pack(host_mav(key=bytes(32))))  # the host's ids: 255/190
+    forged[-13:] = bytes((0,)) + (2**48 - 1).to_bytes(6, "little") + b"\xde\xad\xbe\xef\x00\x01"
+    assert forged[2] & 1 and Receiver(ms).feed(bytes(forged))  # CRC good: only the signature is bad
+    assert dev.feed(bytes(forged)) == [] and dev.counters.signing_rejected == 1
+    assert dev.verifier.streams == {}                  # nothing stored
+    host = host_at(T0 - 1000)
+    out = dev.feed(bytes(arm().pack(host)))
+    assert types(out)[0] == "COMMAND_ACK" and dev.armed
+    # pymavlink's own check, for the record: the same forged frame does lock it out
+    victim = host_mav(key=KEY)
+    victim.signing.allow_unsigned_callback = lambda *a: False
+    pm = ms.MAVLink(None, 1, 1)
+    pm.signing.secret_key, pm.signing.timestamp = KEY, T0
+    pm.signing.allow_unsigned_callback = lambda *a: False
+    with pytest.raises(Exception):
+        pm.decode(bytearray(forged))
+    with pytest.raises(Exception):
+        pm.decode(bytearray(arm().pack(host_at(T0 + 10))))
+    assert still_serving(dev) is None
+
+
+def test_signing_timestamp_rules(model):
+    dev = signed_device(model)
+    host = host_at(T0)
+    frame = bytes(read_kp().pack(host))
+    assert types(dev.feed(frame)) == ["PARAM_VALUE"]
+    assert dev.feed(frame) == []                                   # replay: same timestamp
+    ahead = bytes(read_kp().pack(host_at(T0 + 6_000_001, link_id=1)))
+    assert dev.feed(ahead) == []                                   # > 1 min ahead, valid signature
+    old = bytes(read_kp().pack(host_at(T0 - 6_000_001, link_id=2)))
+    assert dev.feed(old) == []                                     # new stream, > 1 min behind
+    ok = bytes(read_kp().pack(host_at(T0 + 5_000_000, link_id=3)))
+    assert types(dev.feed(ok)) == ["PARAM_VALUE"]                 # within the minute
+    assert dev.verifier.rejected == {"timestamp replayed": 1, "timestamp ahead": 1,
+                                     "timestamp too old": 1}
+    assert dev.counters.signing_rejected == 3
+    assert types(dev.feed(bytes(read_kp().pack(host)))) == ["PARAM_VALUE"]  # host goes on
+    still_serving(dev)
+
+
+# --------------------------------------------------------------------------- UDP peer
+
+
+class _Udp:
+    def __init__(self, server_address):
+        self.s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.s.bind(("127.0.0.1", 0))
+        self.s.setblocking(False)
+        self.to = server_address
+
+    def send(self, data: bytes) -> None:
+        self.s.sendto(data, self.to)
+
+    def collect(self, rx: Receiver, until, limit: float = 5.0) -> list:
+        got, deadline = [], time.monotonic() + limit
+        while time.monotonic() < deadline:
+            if select.select([self.s], [], [], 0.02)[0]:
+                got += rx.feed(self.s.recv(65536))
+                if until(got):
+                    break
+        return got
+
+    def drain(self, wait: float = 0.2) -> int:
+        n, deadline = 0, time.monotonic() + wait
+        while time.monotonic() < deadline:
+            if select.select([self.s], [], [], 0.02)[0]:
+                self.s.recv(65536)
+                n += 1
+        return n
+
+
+def _has(kind, pred=lambda m: True):
+    return lambda got: any(m.get_type() == kind and pred(m) for m in got)
+
+
+@pytest.mark.parametrize("signed", [False, True], ids=["unsigned", "signed"])
+def test_a_datagram_cannot_hijack_the_replies(model, signed):
+    dev = Device(model, signing_key=KEY if signed else None)
+    server = udp_server("127.0.0.1", 0)
+    thread, stop, _ = serve_in_thread(dev, server)
+    host, attacker = _Udp(server.address), _Udp(server.address)
+    hmav = host_mav(key=KEY if signed else None)
+    try:
+        host.send(bytes(read_kp().pack(hmav)))
+        assert _has("PARAM_VALUE")(host.collect(Receiver(ms, host_mav(key=KEY if signed else None)), _has("PARAM_VALUE")))
+        attacker.send(bytes(random.Random(1).getrandbits(8) for _ in range(64)))   # garbage
+        attacker.send(b"\xfd" + bytes(40))
+        if signed:  # a valid frame, unsigned or with a wrong key: dropped, no change
+            attacker.send(bytes(read_kp().pack(host_mav())))
+            attacker.send(bytes(read_kp().pack(host_mav(key=bytes(32)))))
+        host.send(bytes(read_kp().pack(hmav)))
+        got = host.collect(Receiver(ms, host_mav(key=KEY if signed else None)),
+                           lambda g: _has("PARAM_VALUE")(g) and _has("HEARTBEAT")(g))
+        assert _has("PARAM_VALUE")(got) and _has("HEARTBEAT")(got)   # replies and telemetry
+        assert attacker.drain() == 0                                 # the attacker gets nothing
+        assert dev.counters.peer_changes == 0
+        if not signed:  # a valid frame from a new port moves the peer, and the old one is told
+            attacker.send(bytes(read_kp().pack(host_mav())))
+            told = host.collect(Receiver(ms), _has("STATUSTEXT", lambda m: "peer" in m.text))
+            assert _has("STATUSTEXT", lambda m: m.text.startswith("peer 127.0.0.1:"))(told)
+            assert dev.counters.peer_changes == 1
+    finally:
+        stop.set()
+        thread.join(5)
+        server.close()
+        host.s.close()
+        attacker.s.close()
+    assert not thread.is_alive()
+    assert dev.counters.handler_errors == 0 and dev.counters.numeric_faults == 0
+
+
+# --------------------------------------------------------------------------- fuzz
+
+_HANDLED = (ms.MAVLINK_MSG_ID_LEG_SETPOINT, ms.MAVLINK_MSG_ID_COMMAND_LONG,
+            ms.MAVLINK_MSG_ID_PARAM_REQUEST_LIST, ms.MAVLINK_MSG_ID_PARAM_REQUEST_READ,
+            ms.MAVLINK_MSG_ID_PARAM_SET, ms.MAVLINK_MSG_ID_LOCKSTEP)
+_HOSTILE = [0.0, -0.0, 1e-38, -1e-38, 1e38, -3e38, 1e300, -1e307, 1e308, 5e-324, 3.5, -2.0,
+            1.0, 100.0, 1e6, 1e9]
+
+
+def _frame(rng: random.Random, msgid: int, payload: bytes) -> bytes:
+    """A MAVLink 2 frame with a valid CRC (CRC_EXTRA of the id), random sequence and ids."""
+    cls = ms.mavlink_map[msgid]
+    sysid, compid = rng.choice([(255, 190), (rng.randrange(256), rng.randrange(256))])
+    head = struct.pack("<BBBBBBBHB", 0xFD, len(payload), 0, 0, rng.randrange(256), sysid, compid,
+                       msgid & 0xFFFF, msgid >> 16)
+    crc = crc16(bytes((cls.crc_extra,)), crc16(head[1:] + payload))
+    return head + payload + struct.pack("<H", crc)
+
+
+def _hostile_message(rng: random.Random, l0: np.ndarray, seq: int):
+    """A handled message with hostile numbers (valid encoding), addressed to the device."""
+    h = lambda: rng.choice(_HOSTILE)  # noqa: E731
+    h32 = lambda: rng.choice([x for x in _HOSTILE if abs(x) < 3e38] + [math.nan, math.inf])  # noqa: E731
+    kind = rng.randrange(5)
+    if kind == 0:
+        lengths = l0 + np.array([rng.choice([0.0, 1e-3, -2e-3, h()]) for _ in range(6)])
+        return full_setpoint(seq, lengths, [h() for _ in range(6)], [h() for _ in range(6)],
+                             [h() for _ in range(6)], flags=rng.randrange(16))
+    if kind == 1:
+        name = rng.choice(["CTRL_KP", "CTRL_KI", "CTRL_KD", "DRV_V_LIMIT", "DRV_I_LIMIT", "WDG_TIMEOUT",
+                           "SP_COND_MAX", "SR_LEG_STATE", "SP_RATE_MAX", "NOPE"])
+        return ms.MAVLink_param_set_message(1, 1, name.encode(), h32(),
+                                            ms.MAV_PARAM_TYPE_REAL32)
+    if kind == 2:
+        return ms.MAVLink_command_long_message(1, 1, rng.choice([400, 20, 179, 511, 0, 65535]), 0,
+                                               *[rng.choice([h32(), 1.0, 0.0]) for _ in range(7)])
+    if kind == 3:
+        return ms.MAVLink_lockstep_message(rng.getrandbits(64), rng.getrandbits(32))
+    return ms.MAVLink_param_request_read_message(1, 1, b"", rng.randrange(-2, 40))
+
+
+def fuzz_frames(seed: int, l0: np.ndarray, n_random: int = 6, n_hostile: int = 1500):
+    """(frames, payload count): n_random random payloads (valid CRC, random length up to the
+    message's size) of every message id of the dialect (common + ours), then n_hostile encoded
+    hostile messages of the ids the device handles; shuffled, with arms sprinkled in."""
+    rng = random.Random(seed)
+    frames = []
+    for msgid, cls in sorted(ms.mavlink_map.items()):
+        for _ in range(n_random * (4 if msgid in _HANDLED else 1)):
+            size = cls.unpacker.size
+            payload = bytes(rng.getrandbits(8) for _ in range(rng.randint(1, size)))
+            frames.append(_frame(rng, msgid, payload))
+    mav = host_mav()
+    for k in range(n_hostile):
+        frames.append(bytes(_hostile_message(rng, l0, k).pack(mav)))
+        if k % 100 == 0:
+            frames.append(bytes(arm().pack(mav)))
+    rng.shuffle(frames)
+    return frames
+
+
+def test_fuzz_in_process(model, capsys):
+    dev = Device(model)
+    l0 = inverse_kinematics(model, model.home).lengths
+    frames = fuzz_frames(11, l0)
+    assert len(frames) > 2000
+    replies = 0
+    for i, f in enumerate(frames):
+        replies += len(dev.feed(f))
+        if i % 3 == 0:
+            replies += len(dev.tick())
+    replies += len(dev.flush())
+    c, st = dev.counters, dev.rx.stats
+    report = (f"fuzz in process: {len(frames)} frames, {sum(map(len, frames))} bytes, "
+              f"{st.frames_ok} decoded, {st.rejected} dropped by framing, "
+              f"{c.setpoints_refused} setpoints refused, {c.params_refused} params refused, "
+              f"{c.commands_refused} commands refused, {c.lockstep_refused} lockstep refused, "
+              f"{c.faults} end-stop faults, {c.numeric_faults} numeric faults, "
+              f"{c.statustexts_rate_limited} STATUSTEXT cut, exits 0")
+    with capsys.disabled():
+        print("\n" + report)
+    assert st.frames_ok + st.rejected >= len(frames) - 10
+    assert c.handler_errors == 0                  # no handler raised (nothing hidden)
+    assert c.setpoints_refused > 100 and c.params_refused > 100
+    # no parameter left outside its bounds
+    b = dev.bounds
+    assert dev.gains.kp <= b.gain_max["kp"] and dev.gains.kd <= b.gain_max["kd"]
+    assert dev.ctrl.axis.motor.voltage_limit <= 24.0 and dev.ctrl.axis.motor.current_limit <= 2.0
+    assert b.watchdog_range[0] <= dev.watchdog <= b.watchdog_range[1]
+    dev.receive(arm(0))
+    still_serving(dev)
+
+
+def test_fuzz_device_process_over_udp(model, capsys):
+    """The same fuzz (fewer hostile messages) against `python -m hil.spawn SCENE --udp`: the
+    process never exits; afterwards it answers a PARAM_REQUEST_READ; SIGINT stops it (0)."""
+    l0 = inverse_kinematics(model, model.home).lengths
+    frames = fuzz_frames(12, l0, n_random=4, n_hostile=800)
+    proc = subprocess.Popen(device_command(SCENE, "udp", False), stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    host = None
+    try:
+        host = _Udp(parse_udp(_first_line(proc, 60.0)))
+        sent = 0
+        for i in range(0, len(frames), 4):  # 4 frames per datagram
+            host.send(b"".join(frames[i:i + 4]))
+            sent += 1
+            if sent % 10 == 0:
+                time.sleep(0.003)  # pace below the socket buffer (no pass/fail on time)
+        match = _has("PARAM_VALUE", lambda m: m.param_id == "CTRL_KP")
+        ok = False
+        for _ in range(20):
+            host.send(bytes(read_kp().pack(host_mav())))
+            if match(host.collect(Receiver(ms), match, limit=1.0)):
+                ok = True
+                break
+        alive = proc.poll() is None
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=10)
+    finally:
+        if host is not None:
+            host.s.close()
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(5)
+    assert alive and ok, "the device process stopped answering"
+    assert proc.returncode == 0, err
+    summary = [ln for ln in err.splitlines() if ln.startswith("device stopped")]
+    with capsys.disabled():
+        print(f"\nfuzz over UDP: {len(frames)} frames in {sent} datagrams, "
+              f"{sum(map(len, frames))} bytes; exit status {proc.returncode}; {summary}")
+    assert summary and "setpoints refused" in summary[0]
