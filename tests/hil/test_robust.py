@@ -366,8 +366,11 @@ def test_a_datagram_cannot_hijack_the_replies(model, signed):
             attacker.send(bytes(read_kp().pack(host_mav(key=bytes(32)))))
         host.send(bytes(read_kp().pack(hmav)))
         got = host.collect(Receiver(ms, host_mav(key=KEY if signed else None)),
-                           lambda g: _has("PARAM_VALUE")(g) and _has("HEARTBEAT")(g))
-        assert _has("PARAM_VALUE")(got) and _has("HEARTBEAT")(got)   # replies and telemetry
+                           _has("PARAM_VALUE"))
+        assert _has("PARAM_VALUE")(got)                              # replies
+        # ... and telemetry: everything the device sends goes to its transport's peer (waiting
+        # for the 1 Hz HEARTBEAT instead made the test depend on the machine's load)
+        assert server.peer == host.s.getsockname()
         assert attacker.drain() == 0                                 # the attacker gets nothing
         assert dev.counters.peer_changes == 0
         if not signed:  # a valid frame from a new port moves the peer, and the old one is told
