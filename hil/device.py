@@ -33,7 +33,8 @@ the current leg lengths.
 Watchdog and safe states
 ------------------------
 Disarmed: the drives hold the leg lengths measured at disarm (and at start). Armed: the watchdog
-starts with the first valid setpoint; when `watchdog` seconds (device time, i.e. ticks) pass
+starts with the first valid setpoint; when `watchdog` seconds (device time, i.e. ticks; served in
+real time, the monotonic wall clock `clock` that also schedules the ticks) pass
 without one, the device holds the leg lengths measured at that tick and sends one STATUSTEXT;
 the next valid setpoint (or a re-arm) resumes. If the plant refuses a step (a leg at its end
 stop), the device stops the platform where it is (restarted at rest, drives holding), disarms
@@ -227,6 +228,9 @@ class Device:
         self._v = np.zeros(6)
         self._sat = np.zeros(6, dtype=bool)
         self.load = 0                    # per mille of the tick period (set by serve)
+        # real time (set by serve): the monotonic wall clock the watchdog runs on; None: ticks
+        self.clock: Callable[[], float] | None = None
+        self._last_setpoint_wall = 0.0
         self.params = self._parameters()
 
     # --- set-up --------------------------------------------------------------------------
@@ -381,6 +385,7 @@ class Device:
             out = self._statustext(ms.MAV_SEVERITY_NOTICE, "watchdog: setpoints resumed")
         self.watchdog_state = ms.STEWART_WATCHDOG_OK
         self._last_setpoint_k = self.k
+        self._last_setpoint_wall = self.clock() if self.clock is not None else 0.0
         self._setpoint_sequence = msg.sequence
         if flags & ms.STEWART_SETPOINT_FLAG_HOLD:
             self._hold()
@@ -576,7 +581,7 @@ class Device:
         """Advance one controller period; the telemetry due (in lockstep: with `step`)."""
         out: list[Any] = []
         if (self.armed and self.watchdog_state == ms.STEWART_WATCHDOG_OK
-                and (self.k - self._last_setpoint_k) * self.dt >= self.watchdog - 1e-9 * self.dt):
+                and self._watchdog_expired()):
             self._hold()
             self.watchdog_state = ms.STEWART_WATCHDOG_TRIPPED
             self.counters.watchdog_trips += 1
@@ -597,6 +602,13 @@ class Device:
         self.counters.ticks += 1
         out += self._telemetry(step)
         return out
+
+    def _watchdog_expired(self) -> bool:
+        """`watchdog` s without a valid setpoint: by the wall clock when served in real time
+        (`clock` set: catching up after a stall must not trip it early), else by device time."""
+        if self.clock is not None:
+            return self.clock() - self._last_setpoint_wall >= self.watchdog
+        return (self.k - self._last_setpoint_k) * self.dt >= self.watchdog - 1e-9 * self.dt
 
     def _fault(self, why: str) -> list[Any]:
         """The plant refused the step: stop at rest where it is, drives holding; disarm."""
