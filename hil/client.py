@@ -31,7 +31,10 @@ with i = F / Kf, as the in-process loop does, so lockstep over the link equals
   to host time by the smallest (host receive time - device time) seen over `sync_time` before
   and during the run (so it includes the one-way latency of the fastest message), and the error is taken against the
   reference at that time (linear interpolation, held at the ends). Latency and loss of the
-  link therefore show up in the tracking error.
+  link therefore show up in the tracking error. The host waits for each due time with a hybrid
+  schedule (select until half a millisecond before, then a non-blocking spin:
+  `hil.timing.wait_until`), with the garbage collector frozen during the run, and reports how
+  late each setpoint went out (`LinkSummary.send_late`, `deadline_misses`).
 
 Both return a `LinkRun`: a structured array (one row per state: time, step, l_ref1..6,
 l1..6, e1..6, ldot1..6, force1..6, rtt) and a `LinkSummary` (RMS / max leg errors, messages
@@ -39,6 +42,7 @@ sent / received / lost, round-trip latency statistics).
 """
 from __future__ import annotations
 
+import dataclasses
 import ipaddress
 import math
 import time
@@ -57,6 +61,7 @@ from hil.errors import LinkError
 from hil.framing import Receiver
 from hil.link import MavutilTransport
 from hil.spawn import parse_udp
+from hil.timing import Lateness, gc_frozen, wait_until
 from stewart_fmu.io import named_array
 from stewart_fmu.model import Model
 
@@ -329,6 +334,10 @@ class LinkSummary:
     rtt_max: float
     wall_time: float
     statustexts: tuple[str, ...] = ()
+    # real time: how late the host sent its setpoints after their due times (s): p50, p99,
+    # p99.9, max (hil.timing.Lateness), and the deadline misses (a period or more late)
+    send_late: tuple[float, float, float, float] = (math.nan,) * 4
+    deadline_misses: int = 0
 
     @property
     def rms(self) -> float:
@@ -455,20 +464,24 @@ def run_realtime(client: Client, ref: LinkReference, *, tail: float = 0.02,
     sync = list(records)
     records.clear()
     sent0, recv0 = client.counters.sent, client.counters.received
-    t0 = client.clock()
-    start = time.perf_counter()
-    try:
-        for k in range(0, n, max(1, int(every))):
-            due = t0 + t_ref[k]
-            while (left := due - client.clock()) > 0:
+    step = max(1, int(every))
+    late = Lateness(step * dt)
+    msgs = [client.reference_setpoint(ref, k) for k in range(0, n, step)]  # built before
+    with gc_frozen():     # no collection pauses in the loop
+        t0 = client.clock()
+        start = time.perf_counter()
+        try:
+            for k, msg in zip(range(0, n, step), msgs):
+                due = t0 + t_ref[k]
+                wait_until(due, client.clock, client.poll)   # sleep, then spin the last bit
+                late.add(client.clock() - due)
+                client.send(msg)
+                client.poll(0.0)
+            end = client.clock() + tail
+            while (left := end - client.clock()) > 0:
                 client.poll(left)
-            client.send(client.reference_setpoint(ref, k))
-            client.poll(0.0)
-        end = client.clock() + tail
-        while (left := end - client.clock()) > 0:
-            client.poll(left)
-    finally:
-        client.on_message = None
+        finally:
+            client.on_message = None
     wall = time.perf_counter() - start
     # device time -> host time: the smallest (receive time - device time) of the whole stream
     offset = min(now - m.time_usec * 1e-6 for now, m in sync + records)
@@ -489,5 +502,9 @@ def run_realtime(client: Client, ref: LinkReference, *, tail: float = 0.02,
     else:
         lost = 0
     c = client.counters
-    return LinkRun(table, _summarise("realtime", table, c.sent - sent0, c.received - recv0, lost,
-                                     wall, c.statustexts))
+    sm = _summarise("realtime", table, c.sent - sent0, c.received - recv0, lost, wall,
+                    c.statustexts)
+    ls = late.summary()
+    sm = dataclasses.replace(sm, send_late=(ls["p50"], ls["p99"], ls["p99.9"], ls["max"]),
+                             deadline_misses=late.misses)
+    return LinkRun(table, sm)

@@ -42,7 +42,8 @@ signature before any timestamp is stored) before they are decoded.
 Watchdog and safe states
 ------------------------
 Disarmed: the drives hold the leg lengths measured at disarm (and at start). Armed: the watchdog
-starts with the first valid setpoint; when `watchdog` seconds (device time, i.e. ticks) pass
+starts with the first valid setpoint; when `watchdog` seconds (device time, i.e. ticks; served in
+real time, the monotonic wall clock `clock` that also schedules the ticks) pass
 without one, the device holds the leg lengths measured at that tick and sends one STATUSTEXT;
 the next valid setpoint (or a re-arm) resumes. If the plant refuses a step (a leg at its end
 stop), the device stops the platform where it is (restarted at rest, drives holding), disarms
@@ -50,12 +51,17 @@ and says so. Any numerical failure of a tick (non-finite voltage or torque, Inte
 restarts the plant at rest at the last good pose, drives holding with the designed gains and
 rated limits, disarms and sends one CRITICAL STATUSTEXT: the device never exits on numbers.
 
-Commands (COMMAND_LONG -> COMMAND_ACK)
----------------------------------------
+Commands (COMMAND_LONG or COMMAND_INT -> COMMAND_ACK)
+------------------------------------------------------
 MAV_CMD_COMPONENT_ARM_DISARM (param1 1 arm, 0 disarm); MAV_CMD_NAV_RETURN_TO_LAUNCH ("home":
 while armed, move to the scene's home leg lengths along a quintic in leg space at a quarter
 stroke per second peak, then hold; a host setpoint takes over). MAV_CMD_DO_SET_HOME is refused
-as unsupported: the home pose is the scene's. Other commands: MAV_RESULT_UNSUPPORTED.
+as unsupported: the home pose is the scene's. MAV_CMD_GET_HOME_POSITION (or
+MAV_CMD_REQUEST_MESSAGE of HOME_POSITION): HOME_POSITION after the ack (the scene's home in the
+convention of LOCAL_POSITION_NED, see hil.protocol); HOME_POSITION also goes out once on arming.
+Other commands: MAV_RESULT_UNSUPPORTED. PARAM_SET honours param_type: REAL32, and the integer
+types up to 32 bits in MAVLink's bytewise encoding; other types are refused (the unchanged
+PARAM_VALUE and a STATUSTEXT). Every frame sent carries the next sequence number (mod 256).
 
 Lockstep
 --------
@@ -71,8 +77,8 @@ Telemetry and frames
 --------------------
 HEARTBEAT at 1 Hz (MAV_TYPE_GENERIC, MAV_AUTOPILOT_GENERIC; base mode SAFETY_ARMED while armed,
 custom mode 1 in lockstep; system status STANDBY, ACTIVE, or CRITICAL while the watchdog has
-tripped); SYS_STATUS, LEG_STATE, DRIVE_STATUS, ATTITUDE_QUATERNION and LOCAL_POSITION_NED at the
-rates of `telemetry` (Hz, 0 = off; also parameters SR_*), all starting at the first tick.
+tripped); SYS_STATUS, LEG_STATE, DRIVE_STATUS, ATTITUDE_QUATERNION (with ATTITUDE beside it)
+and LOCAL_POSITION_NED at the rates of `telemetry` (Hz, 0 = off; also parameters SR_*), all starting at the first tick.
 Our frame N is z up; MAVLink's is NED. We map N to NED by a half turn about x: north = x,
 east = -y, down = -z, and the platform frame to FRD the same way. So LOCAL_POSITION_NED is
 (x, -y, -z) and its rates likewise, and the attitude quaternion of R = Rz(thz) Ry(thy) Rx(thx)
@@ -96,7 +102,7 @@ from controller.plants import InProcessPlant, PlantStepError
 from controller.trajectory import QUINTIC_PEAK_RATE, Trajectory, leg_references, minimum_jerk
 from hil import mavlink_stewart as ms
 from hil.framing import Receiver
-from hil import limits
+from hil import limits, protocol
 from hil.signing import SignedDecoder, Verifier, wall_timestamp
 from stewart_fmu.errors import IntegrationError, StewartError
 from stewart_fmu.kinematics import condition_number, forward_kinematics, inverse_kinematics
@@ -247,6 +253,9 @@ class Device:
         self._sat = np.zeros(6, dtype=bool)
         self.load = 0                    # per mille of the tick period (set by serve)
         self.last_fault: str | None = None   # the last numerical fault, in full
+        # real time (set by serve): the monotonic wall clock the watchdog runs on; None: ticks
+        self.clock: Callable[[], float] | None = None
+        self._last_setpoint_wall = 0.0
         self.params = self._parameters()
 
     # --- set-up --------------------------------------------------------------------------
@@ -370,7 +379,9 @@ class Device:
 
     def pack(self, msg: Any) -> bytes:
         """The MAVLink 2 frame of `msg` from this device (signed when a key is set)."""
-        return bytes(msg.pack(self.mav))
+        frame = bytes(msg.pack(self.mav))
+        self.mav.seq = (self.mav.seq + 1) % 256   # MAVLink's per-sender sequence, every frame
+        return frame
 
     # --- input ---------------------------------------------------------------------------
 
@@ -441,6 +452,7 @@ class Device:
             out = self._statustext(ms.MAV_SEVERITY_NOTICE, "watchdog: setpoints resumed")
         self.watchdog_state = ms.STEWART_WATCHDOG_OK
         self._last_setpoint_k = self.k
+        self._last_setpoint_wall = self.clock() if self.clock is not None else 0.0
         self._setpoint_sequence = msg.sequence
         if flags & ms.STEWART_SETPOINT_FLAG_HOLD:
             self._hold()
@@ -499,7 +511,7 @@ class Device:
         if cmd == ms.MAV_CMD_COMPONENT_ARM_DISARM:
             if msg.param1 == 1.0:
                 if not self.armed:
-                    out = self._statustext(ms.MAV_SEVERITY_INFO, "armed")
+                    out = self._statustext(ms.MAV_SEVERITY_INFO, "armed") + [self.home_position()]
                 self.armed = True
                 self._hold()
                 self.watchdog_state = ms.STEWART_WATCHDOG_IDLE
@@ -523,12 +535,21 @@ class Device:
                 result = ms.MAV_RESULT_TEMPORARILY_REJECTED
                 out = self._statustext(ms.MAV_SEVERITY_WARNING, "home refused: disarmed")
         else:
-            result = ms.MAV_RESULT_UNSUPPORTED
+            result, out = self._on_other_command(msg)
         if result != ms.MAV_RESULT_ACCEPTED:
             self.counters.commands_refused += 1
         ack = ms.MAVLink_command_ack_message(cmd, result, 0, 0, msg.get_srcSystem(),
                                              msg.get_srcComponent())
         return [ack] + out
+
+    def _on_other_command(self, msg: Any) -> tuple[int, list[Any]]:
+        """GET_HOME_POSITION (and REQUEST_MESSAGE of HOME_POSITION): HOME_POSITION after the
+        ack; anything else unsupported."""
+        if msg.command == ms.MAV_CMD_GET_HOME_POSITION or (
+                msg.command == ms.MAV_CMD_REQUEST_MESSAGE
+                and msg.param1 == ms.MAVLINK_MSG_ID_HOME_POSITION):
+            return ms.MAV_RESULT_ACCEPTED, [self.home_position()]
+        return ms.MAV_RESULT_UNSUPPORTED, []
 
     def _disarm(self) -> None:
         self.armed = False
@@ -584,7 +605,11 @@ class Device:
         if p is None:
             self.counters.params_refused += 1
             return self._statustext(ms.MAV_SEVERITY_WARNING, f"no parameter {name}")
-        x = float(msg.param_value)
+        x, why = protocol.param_set_value(msg)
+        if why is not None:
+            self.counters.params_refused += 1
+            return [self._param_value(name)] + self._statustext(
+                ms.MAV_SEVERITY_WARNING, f"{name} refused: {why}")
         why = "must be finite" if not math.isfinite(x) else p.check(x)
         if why is not None:
             self.counters.params_refused += 1
@@ -619,6 +644,7 @@ class Device:
 
     _handlers = {ms.MAVLINK_MSG_ID_LEG_SETPOINT: _on_setpoint,
                  ms.MAVLINK_MSG_ID_COMMAND_LONG: _on_command,
+                 ms.MAVLINK_MSG_ID_COMMAND_INT: _on_command,   # the same commands, same acks
                  ms.MAVLINK_MSG_ID_PARAM_REQUEST_LIST: _on_param_request_list,
                  ms.MAVLINK_MSG_ID_PARAM_REQUEST_READ: _on_param_request_read,
                  ms.MAVLINK_MSG_ID_PARAM_SET: _on_param_set,
@@ -630,7 +656,7 @@ class Device:
         """Advance one controller period; the telemetry due (in lockstep: with `step`)."""
         out: list[Any] = []
         if (self.armed and self.watchdog_state == ms.STEWART_WATCHDOG_OK
-                and (self.k - self._last_setpoint_k) * self.dt >= self.watchdog - 1e-9 * self.dt):
+                and self._watchdog_expired()):
             self._hold()
             self.watchdog_state = ms.STEWART_WATCHDOG_TRIPPED
             self.counters.watchdog_trips += 1
@@ -679,6 +705,13 @@ class Device:
                               f"numeric fault ({type(exc).__name__})"[:34] + ": hold, disarmed",
                               key="numeric-fault")
 
+    def _watchdog_expired(self) -> bool:
+        """`watchdog` s without a valid setpoint: by the wall clock when served in real time
+        (`clock` set: catching up after a stall must not trip it early), else by device time."""
+        if self.clock is not None:
+            return self.clock() - self._last_setpoint_wall >= self.watchdog
+        return (self.k - self._last_setpoint_k) * self.dt >= self.watchdog - 1e-9 * self.dt
+
     def _fault(self, why: str) -> list[Any]:
         """The plant refused the step: stop at rest where it is, drives holding; disarm."""
         self.counters.faults += 1
@@ -701,7 +734,7 @@ class Device:
         if self._due(r["SYS_STATUS"]):
             out.append(self.sys_status())
         if self._due(r["ATTITUDE_QUATERNION"]):
-            out.append(self.attitude())
+            out += [self.attitude(), self.attitude_euler()]
         if self._due(r["LOCAL_POSITION_NED"]):
             out.append(self.local_position())
         if self._due(r["DRIVE_STATUS"]):
@@ -740,7 +773,8 @@ class Device:
     @property
     def link_errors(self) -> int:
         """Frames dropped on input: framing rejects (CRC, length, unknown id...) + signing."""
-        return self.rx.stats.rejected + self.counters.signing_rejected
+        # a signing rejection is also a decode error of the Receiver: counted there, once
+        return self.rx.stats.rejected
 
     def leg_state(self, step: int = 0) -> Any:
         o = self.plant.outputs
@@ -762,6 +796,18 @@ class Device:
         return ms.MAVLink_attitude_quaternion_message(self._time_ms(), w, x, y, z, float(body[0]),
                                                       float(-body[1]), float(-body[2]))
 
+    def attitude_euler(self) -> Any:
+        """ATTITUDE (roll, pitch, yaw and body rates in NED/FRD), beside ATTITUDE_QUATERNION."""
+        a = self.attitude()
+        roll, pitch, yaw = protocol.attitude_euler(self.plant.outputs.q)
+        return ms.MAVLink_attitude_message(a.time_boot_ms, roll, pitch, yaw, a.rollspeed,
+                                           a.pitchspeed, a.yawspeed)
+
+    def home_position(self) -> Any:
+        """HOME_POSITION: the scene's home in LOCAL_POSITION_NED's convention (hil.protocol)."""
+        home = np.asarray(self.model.home, dtype=float)
+        return protocol.home_position(home, ned_attitude(home), self._usec())
+
     def local_position(self) -> Any:
         o = self.plant.outputs
         q, qd = o.q, o.qd
@@ -773,14 +819,12 @@ class Device:
         return int(self.k * 1000 // self.rate) & _U32
 
     def _statustext(self, severity: int, text: str) -> list[Any]:
-        """STATUSTEXT, in 50-byte chunks (with a common id) when longer."""
-        data = text.encode("utf-8", "replace")
-        if len(data) <= STATUSTEXT_LEN:
-            return [ms.MAVLink_statustext_message(severity, data, 0, 0)]
-        self._statustext_id = self._statustext_id % 0xFFFF + 1
-        chunks = [data[i:i + STATUSTEXT_LEN] for i in range(0, len(data), STATUSTEXT_LEN)]
-        return [ms.MAVLink_statustext_message(severity, c, self._statustext_id, n)
-                for n, c in enumerate(chunks)]
+        """STATUSTEXT; longer than 50 bytes: chunks on UTF-8 character boundaries with a common
+        id and chunk_seq 0, 1, ... (hil.protocol.statustext_chunks)."""
+        msgs = protocol.statustext_messages(severity, text, self._statustext_id % 0xFFFF + 1)
+        if len(msgs) > 1:
+            self._statustext_id = msgs[0].id
+        return msgs
 
     def _say_once(self, severity: int, text: str, key: str | None = None) -> list[Any]:
         """A STATUSTEXT, unless one of the same key (default: the text) went out less than

@@ -4,12 +4,15 @@ A device served in a thread of the host's process shares the GIL with the host's
 time each side's stalls show up as the other's latency; in its own process it keeps its 1 kHz
 clock the way the real micro-manipulator does. The device prints where it listens on its first
 line (``udp 127.0.0.1:PORT`` or the pseudo-terminal's path); `device_process` reads that line,
-yields it, and stops the device with SIGINT (then SIGKILL) when the block ends.
+yields it, and stops the device with SIGINT (then SIGKILL) when the block ends. The device warms
+every path it will run (`hil.warmup`) before it prints that line, so the first setpoint and the
+first ticks after it cost what later ones do.
 """
 from __future__ import annotations
 
 import argparse
 import contextlib
+import gc
 import select
 import signal
 import subprocess
@@ -24,6 +27,7 @@ from hil.device import Device
 from hil.errors import LinkError
 from hil.link import pty_pair, udp_server
 from hil.serve import loopback_address, serve
+from hil.warmup import warm_up
 from stewart_fmu.errors import StewartError
 from stewart_fmu.model import Model
 from stewart_fmu.scene import load_scene
@@ -109,8 +113,11 @@ def serve_device(model: Model, udp: str | None, watchdog: float = WATCHDOG,
     listens; a summary goes to stderr when it stops."""
     key = signing_key(key_hex)
     address = loopback_address(udp) if udp is not None else None
-    device = Device(model, controller_config(model), watchdog=watchdog, signing_key=key,
-                    lockstep=lockstep)
+    config = controller_config(model)
+    device = Device(model, config, watchdog=watchdog, signing_key=key, lockstep=lockstep)
+    warm = warm_up(model, config)   # every path run once before the ready line (hil.warmup)
+    gc.collect()
+    gc.freeze()                     # what exists now is never scanned again by the collector
     keep = None  # the pty's slave end, held open so the master never sees a hang-up
     if address is not None:
         transport = udp_server(*address)
@@ -124,7 +131,8 @@ def serve_device(model: Model, udp: str | None, watchdog: float = WATCHDOG,
         print(first, flush=True)
         print(f"device: {model.name}, {device.rate:g} Hz, "
               f"{'lockstep' if lockstep else 'real time'}, watchdog {watchdog:g} s"
-              f"{', signed' if key else ''}; Ctrl-C stops", file=sys.stderr, flush=True)
+              f"{', signed' if key else ''}, warmed in {warm:.3g} s; Ctrl-C stops",
+              file=sys.stderr, flush=True)
         stats = serve(device, transport, not lockstep, stop)
     finally:
         for sig, old in handlers.items():
@@ -135,7 +143,8 @@ def serve_device(model: Model, udp: str | None, watchdog: float = WATCHDOG,
     c = device.counters
     print(f"device stopped: {stats.ticks} ticks in {stats.wall:.3g} s, {stats.overruns} overruns, "
           f"{stats.messages_in} messages in, {stats.messages_out} out, "
-          f"{device.link_errors} bad frames, {c.setpoints_refused} setpoints refused",
+          f"{device.link_errors} bad frames, {c.setpoints_refused} setpoints refused"
+          + (f"; ticks {stats.late.text()}" if stats.late is not None else ""),
           file=sys.stderr, flush=True)
 
 

@@ -192,6 +192,11 @@ def test_realtime_over_udp_tracks(realtime_ref):
     assert sm.sent == len(realtime_ref.refs.t)
     assert sm.samples > 0 and sm.received >= sm.samples
     assert np.isfinite(sm.rms) and np.isfinite(sm.max) and sm.wall_time > 0
+    # the host's deadline statistics are counted and reported (their values depend on load)
+    print(f"host send lateness p50/p99/p99.9/max (us): "
+          f"{'/'.join(f'{x * 1e6:.0f}' for x in sm.send_late)}, {sm.deadline_misses} misses")
+    assert len(sm.send_late) == 4 and all(np.isfinite(x) and x >= 0 for x in sm.send_late)
+    assert 0 <= sm.deadline_misses <= sm.sent
 
 
 def _emulated_realtime(model, config, ref, latency):

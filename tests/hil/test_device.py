@@ -94,7 +94,7 @@ def test_starts_at_home_holding_and_streams_telemetry(model):
     assert np.max(np.abs(dev.plant.outputs.lengths - l0)) < 1e-12
     assert np.max(np.abs(dev.plant.outputs.q - model.home)) < 1e-12
     assert seen == {"HEARTBEAT": 1, "SYS_STATUS": 1, "LEG_STATE": 100, "DRIVE_STATUS": 10,
-                    "ATTITUDE_QUATERNION": 50, "LOCAL_POSITION_NED": 50}
+                    "ATTITUDE_QUATERNION": 50, "ATTITUDE": 50, "LOCAL_POSITION_NED": 50}
     lp = dev.local_position()
     assert (lp.x, lp.y, lp.z) == pytest.approx((0.0, 0.0, -model.home[2]), abs=1e-12)  # NED: z down
 

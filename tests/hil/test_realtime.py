@@ -1,0 +1,230 @@
+"""The real-time serve loop on a simulated clock (deterministic): input drained before every
+tick, no skipped ticks after a stall (device time stays on the wall clock), the watchdog by the
+wall clock, lateness statistics; and the host's timing helpers."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("pymavlink")
+
+from hil import mavlink_stewart as ms  # noqa: E402
+from hil.device import Device  # noqa: E402
+from hil.serve import serve  # noqa: E402
+from hil.timing import Lateness, gc_frozen, wait_until  # noqa: E402
+from hil.warmup import warm_up  # noqa: E402
+from stewart_fmu.scene import load_scene  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENE = ROOT / "scenes" / "micro_manipulator.toml"
+
+
+@pytest.fixture(scope="module")
+def model():
+    return load_scene(SCENE)
+
+
+class SimClock:
+    def __init__(self) -> None:
+        self.t = 100.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+class SimTransport:
+    """Datagrams queued by wall time; recv(timeout) advances the simulated clock."""
+
+    def __init__(self, clock: SimClock) -> None:
+        self.clock = clock
+        self.inbox: list[tuple[float, bytes]] = []
+        self.sent: list[bytes] = []
+
+    def send(self, data: bytes) -> int:
+        self.sent.append(data)
+        return len(data)
+
+    def recv(self, timeout: float = 0.0) -> bytes:
+        if self.inbox and self.inbox[0][0] <= self.clock.t:
+            return self.inbox.pop(0)[1]
+        nxt = self.inbox[0][0] if self.inbox else math.inf
+        self.clock.t = min(self.clock.t + timeout, max(nxt, self.clock.t))
+        if self.inbox and self.inbox[0][0] <= self.clock.t:
+            return self.inbox.pop(0)[1]
+        return b""
+
+    def close(self) -> None:
+        pass
+
+
+def host():
+    return ms.MAVLink(None, srcSystem=255, srcComponent=190)
+
+
+def frame(mav, msg) -> bytes:
+    data = bytes(msg.pack(mav))
+    mav.seq = (mav.seq + 1) % 256
+    return data
+
+
+def setpoint(k, lengths):
+    return ms.MAVLink_leg_setpoint_message(k, k, list(map(float, lengths)), [0.0] * 6, 0)
+
+
+class Recording(Device):
+    """Records the tick count at which every message is handled, and can stall one tick."""
+
+    def __init__(self, *a, stall_at=None, stall=0.0, clock=None, **kw):
+        super().__init__(*a, **kw)
+        self.handled_at: list[tuple[str, int]] = []
+        self.handled_wall: list[float] = []
+        self._stall = (stall_at, stall, clock)
+
+    def receive(self, msg):
+        clock = self._stall[2]
+        self.handled_at.append((msg.get_type(), self.k))
+        self.handled_wall.append(clock.t if clock is not None else math.nan)
+        return super().receive(msg)
+
+    def tick(self, step=None):
+        at, stall, clock = self._stall
+        if at is not None and self.k == at:
+            clock.t += stall       # this tick takes `stall` s of wall time
+        return super().tick(step)
+
+
+def test_backlog_is_drained_before_the_next_tick(model):
+    clock = SimClock()
+    tr = SimTransport(clock)
+    dev = Recording(model)
+    mav = host()
+    l0 = dev.plant.outputs.lengths
+    tr.inbox.append((clock.t, frame(mav, ms.MAVLink_command_long_message(
+        1, 1, ms.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0))))
+    # 40 setpoints all waiting at 2.5 ms: handled together before tick 3
+    tr.inbox += [(clock.t + 0.0025, frame(mav, setpoint(k, l0))) for k in range(40)]
+    st = serve(dev, tr, True, max_ticks=10, clock=clock)
+    ks = [k for t, k in dev.handled_at if t == "LEG_SETPOINT"]
+    assert ks == [2] * 40 and dev.counters.setpoints_accepted == 40
+    assert st.ticks == 10 and dev.k == 10 and st.messages_in == 41
+
+
+def test_no_tick_skipped_after_a_stall_device_time_stays_on_the_wall_clock(model):
+    clock = SimClock()
+    tr = SimTransport(clock)
+    dev = Recording(model, stall_at=100, stall=0.2, clock=clock)
+    start = clock.t
+    st = serve(dev, tr, True, max_ticks=1000, clock=clock)
+    # every tick ran: device time k / rate == the wall time of the schedule
+    assert st.ticks == dev.k == 1000
+    assert dev.time == pytest.approx(clock.t - start, abs=dev.dt)
+    assert st.overruns == 1 and dev.counters.overruns == 1
+    assert st.late.count == 1000
+    assert st.late.misses in (198, 199)  # ticks due in the 0.2 s stall, a period late or more (fp)
+    assert st.late.max == pytest.approx(0.2 - dev.dt, abs=1e-9)
+    s = st.late.summary()
+    assert s["p50"] <= s["p99"] <= s["p99.9"] <= s["max"]
+
+
+def test_watchdog_by_the_wall_clock_not_by_caught_up_ticks(model):
+    """Served in real time the watchdog trips `watchdog` s of wall time after the last
+    setpoint, however many ticks a catch-up runs in between."""
+    clock = SimClock()
+    tr = SimTransport(clock)
+    dev = Recording(model, watchdog=0.2, stall_at=50, stall=0.05, clock=clock)
+    mav = host()
+    l0 = dev.plant.outputs.lengths
+    tr.inbox.append((clock.t, frame(mav, ms.MAVLink_command_long_message(
+        1, 1, ms.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0))))
+    t_sp = clock.t + 0.0515     # arrives during the stall of tick 50: handled at the catch-up
+    tr.inbox.append((t_sp, frame(mav, setpoint(0, l0))))
+    trips = []
+    orig = dev._statustext
+
+    def spy(sev, text):
+        if text.startswith("watchdog"):
+            trips.append(clock.t)
+        return orig(sev, text)
+
+    dev._statustext = spy
+    serve(dev, tr, True, max_ticks=400, clock=clock)
+    assert dev.counters.watchdog_trips == 1 and len(trips) == 1
+    i = [t for t, _ in dev.handled_at].index("LEG_SETPOINT")
+    k_sp, wall_sp = dev.handled_at[i][1], dev.handled_wall[i]
+    assert wall_sp > t_sp + 0.04            # taken at the catch-up after the stall
+    # 0.2 s of wall time after it was taken, at the first tick past that (not 200 ticks later,
+    # which the catch-up would have reached 0.05 s early)
+    assert 0.2 <= trips[0] - wall_sp < 0.2 + 2 * dev.dt
+    assert dev.k == 400 and k_sp < 100
+
+
+def test_watchdog_in_process_counts_ticks(model):
+    dev = Device(model, watchdog=0.05)
+    dev.receive(ms.MAVLink_command_long_message(1, 1, ms.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1,
+                                                0, 0, 0, 0, 0, 0))
+    dev.receive(setpoint(0, dev.plant.outputs.lengths))
+    for _ in range(50):
+        dev.tick()
+    assert dev.counters.watchdog_trips == 0
+    dev.tick()   # the first tick that starts 50 ticks (0.05 s) after the setpoint
+    assert dev.counters.watchdog_trips == 1
+
+
+def test_watchdog_clock_set_ignores_ticks(model):
+    t = [0.0]
+    dev = Device(model, watchdog=0.05)
+    dev.clock = lambda: t[0]
+    dev.receive(ms.MAVLink_command_long_message(1, 1, ms.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1,
+                                                0, 0, 0, 0, 0, 0))
+    dev.receive(setpoint(0, dev.plant.outputs.lengths))
+    t[0] = 0.049
+    for _ in range(200):       # a catch-up of 200 ticks within 49 ms of wall time
+        dev.tick()
+    assert dev.counters.watchdog_trips == 0
+    t[0] = 0.05
+    dev.tick()
+    assert dev.counters.watchdog_trips == 1
+
+
+def test_lateness_histogram():
+    late = Lateness(0.001)
+    for x in [0.0] * 900 + [0.0001] * 90 + [0.002] * 9 + [0.5]:
+        late.add(x)
+    s = late.summary()
+    assert s["count"] == 1000 and s["misses"] == 10 and s["max"] == 0.5
+    assert s["p50"] == pytest.approx(1e-6) and s["p99"] == pytest.approx(0.000101, abs=1e-6)
+    assert s["p99.9"] == pytest.approx(0.002001, abs=1e-6)
+    assert "10 deadline misses of 1000" in late.text()
+    assert math.isnan(Lateness(0.001).percentile(50))
+
+
+def test_wait_until_sleeps_then_spins():
+    t = [0.0]
+    calls = []
+
+    def poll(timeout):
+        calls.append(timeout)
+        t[0] += max(timeout, 1e-5)
+
+    wait_until(0.01, lambda: t[0], poll, spin=0.0005)
+    assert calls[0] == pytest.approx(0.0095)
+    assert sum(c for c in calls if c > 0) == pytest.approx(0.0095)    # slept until 0.5 ms before
+    assert t[0] >= 0.01 and sum(1 for c in calls if c == 0.0) >= 40    # then spun
+
+
+def test_gc_frozen_restores():
+    import gc
+    assert gc.isenabled()
+    with gc_frozen():
+        assert not gc.isenabled()
+    assert gc.isenabled() and gc.get_freeze_count() == 0
+
+
+def test_warm_up_leaves_no_state(model):
+    dev = Device(model)
+    l0 = dev.plant.outputs.lengths.copy()
+    assert warm_up(model, dev.config, ticks=100) > 0
+    assert dev.k == 0 and not dev.armed and np.array_equal(dev.plant.outputs.lengths, l0)
