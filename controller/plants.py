@@ -9,7 +9,7 @@ from typing import Protocol
 import numpy as np
 
 from stewart_fmu.errors import StewartError
-from stewart_fmu.fmu.variables import VR_L, VR_LDOT, VR_Q, VR_Q0, VR_QD0, VR_TAU
+from stewart_fmu.fmu.variables import VR_L, VR_LDOT, VR_Q, VR_Q0, VR_QD0, VR_SIGMA, VR_TAU
 from stewart_fmu.integrators import IntegratorOptions
 from stewart_fmu.model import Model
 from stewart_fmu.plant import Plant, StepRejected
@@ -69,6 +69,7 @@ class FmuPlant:
         self.vr_tau, self.vr_q0, self.vr_qd0 = ([base + i for i in six]
                                                 for base in (VR_TAU, VR_Q0, VR_QD0))
         self.vr_out = [base + i for base in (VR_L, VR_LDOT, VR_Q) for i in six]
+        self.vr_sigma = [VR_SIGMA + i for i in six]
 
     def start(self, q0, qd0, t0, torque0) -> None:
         f = self.fmu
@@ -78,6 +79,9 @@ class FmuPlant:
         f.setReal(self.vr_q0, list(map(float, q0)))
         f.setReal(self.vr_qd0, list(map(float, qd0)))
         f.setReal(self.vr_tau, list(map(float, torque0)))
+        # the controllers drive the torques alone: the rack-force inputs, which start at the
+        # force holding home (for importers that set nothing), are zeroed
+        f.setReal(self.vr_sigma, [0.0] * 6)
         f.exitInitializationMode()
 
     def step(self, t, h, torque) -> None:

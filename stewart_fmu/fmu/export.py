@@ -130,10 +130,13 @@ def export_fmu(scene_path: str | Path, out_path: str | Path, fmi_version: int = 
 def _documentation(data, fmi_version: int) -> str:
     return (f"<html><body><h1>{data.get('name', 'Stewart plant')} (FMI {fmi_version}.0)</h1>"
             "<p>Stewart platform plant: inputs sigma[1..6] (rack forces, N) and, with a drive, "
-            "tau[1..6] (motor torques, N m), held over each communication step. Outputs: leg "
+            "tau[1..6] (motor torques, N m), held over each communication step; sigma starts at "
+            "the static force holding the home pose and tau at 0, so the platform stays put "
+            "when no input is set. Default experiment: 0 to 1 s, 1 ms steps. Outputs: leg "
             "lengths and rates, pose and rates, twist, cond(J), rack forces and their parts. "
             "Parameters: the scene's values, q0/qd0, solver.method (rk4, euler, dopri5), "
             "solver.max_step, solver.rtol, solver.atol. A step into a stroke limit, a "
             "singular pose or a failed power-balance check returns Discard with the state "
-            "unchanged. Self-contained C (libm only); rebuild from sources/ with any C99 "
+            "unchanged, and the reason is logged (category logStatusDiscard) even with logging "
+            "off. Self-contained C (libm only); rebuild from sources/ with any C99 "
             "compiler.</p></body></html>\n")

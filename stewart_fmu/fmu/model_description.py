@@ -60,7 +60,9 @@ def build(data: Mapping[str, Any], fmi_version: int, model_identifier: str,
             "providesIntermediateUpdate": "false", "canReturnEarlyAfterIntermediateUpdate": "false"})
     _units(root, [x.unit for x in table if x.unit])
     _log_categories(root)
-    SubElement(root, "DefaultExperiment", {"startTime": "0.0", "stepSize": "0.001"})
+    SubElement(root, "DefaultExperiment", {
+        "startTime": "0.0", "stopTime": _num(V.STOP_TIME),
+        "tolerance": _num(V.solver_defaults(data)["rtol"]), "stepSize": _num(V.STEP_SIZE)})
     mv = SubElement(root, "ModelVariables")
     outputs, index = [], {}
     for k, var in enumerate(table):

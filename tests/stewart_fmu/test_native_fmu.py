@@ -204,11 +204,13 @@ class Reference:
     """The in-process Plant driven like the FMU; its outputs in the FMU's output order."""
 
     def __init__(self, model: Model, outputs: list[str], options: IntegratorOptions | None = None,
-                 q0=None, qd0=None):
+                 q0=None, qd0=None, sigma0=None):
         self.model, self.names = model, outputs
         self.plant = Plant(model, options or IntegratorOptions())
         self.plant.setup_experiment(0.0)
         self.plant.enter_initialization_mode()
+        # the FMU's inputs start at the force holding the scene's home (variables.hold_forces)
+        self.plant.set_force(hold_forces(model) if sigma0 is None else sigma0)
         if q0 is not None or qd0 is not None:
             self.plant.set_initial(q0, qd0)
         self.plant.exit_initialization_mode()
@@ -472,7 +474,7 @@ def test_compliant_transmission_matches_plant(tmp_path):
     ref.plant = Plant(b.model, opts)
     ref.plant.setup_experiment(0.0)
     ref.plant.enter_initialization_mode()
-    ref.plant.set_force(np.r_[u[0][0], np.zeros(5)])
+    ref.plant.set_force(np.r_[u[0][0], hold_forces(b.model)[1:]])   # the others at their start
     ref.plant.exit_initialization_mode()
     agree("compliant transmission vs Plant", residual(b, got, ref.run(times, steps, u)))
 
@@ -585,7 +587,7 @@ def test_reset_then_rerun_equals_first_run(fmus, version):
         s.init(reals={"platform.mass": 0.7, "sigma[1]": 1.0})
         s.fmu.reset()                                     # every value back to its start value
         s.init()
-        assert s.get(["platform.mass", "sigma[1]"]).tolist() == [0.5, 0.0]
+        assert s.get(["platform.mass", "sigma[1]"]).tolist() == [0.5, hold_forces(b.model)[0]]
     finally:
         s.close()
 

@@ -174,6 +174,7 @@ static void update_rack(Instance *c) {
 void model_reset(Instance *c) {
     memset(&c->d, 0, sizeof c->d);
     memcpy(c->d.par, STEWART_START, sizeof c->d.par);
+    memcpy(c->d.sigma, STEWART_START_SIGMA, sizeof c->d.sigma);  /* tau starts at 0 */
     c->d.phase = PH_INSTANTIATED;
     c->d.method = STEWART_START_METHOD;
     c->d.step_guess = c->d.par[VR_MAX_STEP];

@@ -63,6 +63,7 @@ enum { PH_INSTANTIATED, PH_INITIALIZATION, PH_STEPPING, PH_TERMINATED, PH_FAILED
 /* ---- the generated scene file ---------------------------------------------------------------- */
 extern const char STEWART_MODEL_TOKEN[];            /* guid / instantiationToken */
 extern const double STEWART_START[VR_N_PAR];        /* start values of the parameters */
+extern const double STEWART_START_SIGMA[6];         /* start of sigma: the force holding home */
 extern const unsigned char STEWART_DECLARED[VR_N_PAR]; /* 1: declared in the model description */
 extern const int STEWART_START_METHOD;              /* stewart_method */
 

@@ -1,0 +1,164 @@
+"""`stewart-sim simulate SCENE --forces F.csv --out DIR [--integrator M]`: open-loop forward
+dynamics from rack forces.
+
+The forces file has the columns t, sigma1..sigma6 (N; further columns, such as the cond and
+parts that `inverse` writes, are ignored); each row's forces are held from its time to the
+next row's (zero-order hold, as an FMU's inputs). The platform starts at rest at the scene's
+home pose at the first time. The run goes through stewart_fmu.plant.Plant, so the plant's
+checks apply: a step that leaves the stroke, meets a singularity or goes unstable ends the run
+with its typed error (StepRejected, IntegrationError), and nothing is written. On success DIR
+gets motion.csv (t, the pose x..thz, its rates dx..dthz, leg lengths l1..l6) and motion.png,
+all or nothing.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from stewart_fmu import io
+from stewart_fmu.errors import StewartError, TrajectoryError
+from stewart_fmu.integrators import INTEGRATORS
+from stewart_fmu.io import POSE
+from stewart_fmu.model import Model
+from stewart_fmu.plant import Plant
+from stewart_fmu.scene import load_scene
+from stewart_fmu.stability import default_options
+from stewart_sim.result_set import result_set
+
+FORCE_COLUMNS = io.FORCE_COLUMNS                      # t, sigma1..sigma6
+MOTION_COLUMNS = ("t", *POSE, *(f"d{c}" for c in POSE), *(f"l{i}" for i in range(1, 7)))
+FILES = ("motion.csv", "motion.png")
+
+
+def add_parser(sub) -> None:
+    """Register `simulate` on the CLI's subparsers."""
+    p = sub.add_parser(
+        "simulate", help="open-loop forward dynamics from rack forces",
+        description="Simulate the scene's plant open loop from rack forces (a CSV with columns "
+                    "t,sigma1..sigma6 in N, held over each interval; the platform starts at "
+                    "rest at home). The plant's stroke, singularity and stability checks apply: "
+                    "a refused step ends the run with its error and writes nothing. Writes "
+                    "DIR/motion.csv (t, x..thz, dx..dthz, l1..l6) and DIR/motion.png.")
+    p.add_argument("scene", metavar="SCENE", help="scene file (TOML)")
+    p.add_argument("--forces", required=True, metavar="F.csv",
+                   help="columns t,sigma1..sigma6 (further columns ignored: `inverse` output works)")
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    p.add_argument("--integrator", choices=INTEGRATORS, default=None,
+                   help="plant integrator (default: the scene's, stability.default_options: rk4 "
+                        "with a stiffness-aware max step)")
+    p.set_defaults(run=cmd)
+
+
+def cmd(args: argparse.Namespace) -> None:
+    """Run `simulate`; StewartError subclasses for bad input or a refused step."""
+    model = load_scene(args.scene)
+    t, sigma = read_forces(Path(args.forces))
+    table = simulate(model, t, sigma, args.integrator)
+    out = Path(args.out)
+    write_motion(model, table, out, f"{model.name}: open loop from {Path(args.forces).name}")
+    print(f"simulated {t[-1] - t[0]:g} s ({t.size} samples) open loop")
+    for name in FILES:
+        print(f"wrote {out / name}")
+
+
+def read_forces(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """t (N,) and sigma (N, 6) from a forces CSV; errors name the line and column."""
+    try:
+        with path.open(newline="") as fh:
+            rows = list(csv.reader(fh))
+    except OSError as exc:
+        raise TrajectoryError(f"{path}: cannot read forces: {exc.strerror or exc}") from None
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise TrajectoryError(f"{path}: not a CSV text file: {exc}") from None
+    if not rows:
+        raise TrajectoryError(f"{path}: empty file, expected header {','.join(FORCE_COLUMNS)}")
+    header = tuple(c.strip() for c in rows[0])
+    if header[:7] != FORCE_COLUMNS:
+        raise TrajectoryError(f"{path}: header must start with {','.join(FORCE_COLUMNS)}, "
+                              f"got {','.join(header[:7]) or 'nothing'}")
+    data = np.empty((len(rows) - 1, 7))
+    for r, row in enumerate(rows[1:]):
+        if len(row) != len(header):
+            raise TrajectoryError(f"{path}: line {r + 2} has {len(row)} fields, expected {len(header)}")
+        for c in range(7):
+            try:
+                data[r, c] = float(row[c])
+            except ValueError:
+                raise TrajectoryError(f"{path}: line {r + 2}, column '{FORCE_COLUMNS[c]}': not a "
+                                      f"number: {row[c]!r}") from None
+    if data.shape[0] < 2:
+        raise TrajectoryError(f"{path}: need two or more samples, got {data.shape[0]}")
+    bad = np.argwhere(~np.isfinite(data))
+    if bad.size:
+        r, c = bad[0]
+        raise TrajectoryError(f"{path}: line {r + 2}, column '{FORCE_COLUMNS[c]}': non-finite "
+                              f"value {data[r, c]}")
+    if np.any(np.diff(data[:, 0]) <= 0):
+        r = int(np.flatnonzero(np.diff(data[:, 0]) <= 0)[0]) + 3
+        raise TrajectoryError(f"{path}: line {r}, column 't': time must increase strictly")
+    return data[:, 0].copy(), data[:, 1:].copy()
+
+
+def simulate(model: Model, t: np.ndarray, sigma: np.ndarray, integrator: str | None = None,
+             q0=None, qd0=None) -> np.ndarray:
+    """The plant from rest at home (or q0, qd0) at t[0], sigma[k] held over [t[k], t[k+1]);
+    the MOTION_COLUMNS table at every t. A refused step raises its typed error (StepRejected,
+    IntegrationError), its message naming the time."""
+    options = default_options(model)
+    if integrator is not None:
+        if integrator not in INTEGRATORS:
+            raise StewartError(f"integrator '{integrator}' unknown: one of {', '.join(INTEGRATORS)}")
+        options = replace(options, method=integrator)
+    plant = Plant(model, options)
+    plant.setup_experiment(float(t[0]))
+    plant.enter_initialization_mode()
+    plant.set_initial(model.home if q0 is None else q0, np.zeros(6) if qd0 is None else qd0)
+    plant.set_force(sigma[0])
+    plant.exit_initialization_mode()
+    rows = np.empty((t.size, len(MOTION_COLUMNS)))
+    rows[0] = _row(plant, t[0])
+    for k in range(t.size - 1):
+        plant.set_force(sigma[k])
+        plant.do_step(plant.time, float(t[k + 1] - plant.time))
+        rows[k + 1] = _row(plant, t[k + 1])
+    return io.named_array({name: rows[:, k] for k, name in enumerate(MOTION_COLUMNS)})
+
+
+def _row(plant: Plant, t: float) -> np.ndarray:
+    o = plant.outputs
+    return np.r_[t, o.q, o.qd, o.lengths]
+
+
+def write_motion(model: Model, table: np.ndarray, out: Path, title: str) -> list[Path]:
+    """motion.csv and motion.png into `out`, all or nothing."""
+    with result_set(out) as tmp:
+        io.write_csv(tmp / "motion.csv", table)
+        from stewart_sim.plots import save_figure   # matplotlib: only when plotting
+        save_figure(motion_figure(table, title), tmp / "motion.png")
+    return [out / name for name in FILES]
+
+
+def motion_figure(table: np.ndarray, title: str):
+    """Translations (m), rotations (rad) and leg lengths (m) against time (s)."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(10, 8), layout="constrained")
+    axes = fig.subplots(3, 1, sharex=True)
+    t = table["t"]
+    for c in ("x", "y", "z"):
+        axes[0].plot(t, table[c], label=c)
+    for c in ("thx", "thy", "thz"):
+        axes[1].plot(t, table[c], label=f"θ{c[2]}")
+    for i in range(1, 7):
+        axes[2].plot(t, table[f"l{i}"], label=f"l{i}")
+    for ax, (what, unit) in zip(axes, (("position", "m"), ("orientation", "rad"), ("leg length", "m"))):
+        ax.set_ylabel(f"{what} ({unit})")
+        ax.grid(True, alpha=0.3)
+        ax.legend(ncol=6, fontsize="small", loc="best")
+    axes[-1].set_xlabel("time t (s)")
+    fig.suptitle(title)
+    return fig

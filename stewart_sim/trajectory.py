@@ -1,0 +1,164 @@
+"""`stewart-sim trajectory SCENE (--waypoints W.csv | --move demo|run|quintic) --out T.csv
+[--rate HZ] [--duration S]`: write a smooth reference trajectory in the `inverse` format.
+
+The trajectories are those the controller builds (controller.trajectory, controller.moves),
+with exact rates and accelerations:
+
+* `--waypoints W.csv`: a C2 cubic spline through the poses of W.csv (columns t,x,y,z,thx,thy,thz;
+  further columns, e.g. a whole trajectory file's rates, are ignored), at rest at the first
+  and last waypoint, sampled at --rate from the first to the last waypoint time.
+* `--move demo`: the raised-cosine six-axis move of `demo` (controller.moves.demo_trajectory).
+* `--move run`: the reference `run` tracks: a quintic move out (30 % of the duration), a hold
+  (20 %), the move back and a second hold (controller.moves.move_and_hold).
+* `--move quintic`: one minimum-jerk move from rest at home to the demo goal (home plus a
+  third of the stroke margin, up to 0.1 rad), over the whole duration.
+
+Every sample is checked by inverse kinematics (stroke, singularity: leg_references) before the
+file is written (atomically). The output has the contract's columns (stewart_fmu.io
+TRAJECTORY_COLUMNS) and feeds `stewart-sim inverse` as it is.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+
+from controller.moves import DEMO_DURATION, DEMO_RATE, RUN_HOLD, RUN_MOVE, demo_trajectory, move_and_hold
+from controller.trajectory import Trajectory, leg_references, waypoints
+from stewart_fmu import io
+from stewart_fmu.errors import StewartError, TrajectoryError
+from stewart_fmu.io import POSE, writing
+from stewart_fmu.model import Model
+from stewart_fmu.scene import load_scene
+
+MOVES = ("demo", "run", "quintic")
+WAYPOINT_COLUMNS = ("t", *POSE)
+
+
+def add_parser(sub) -> None:
+    """Register `trajectory` on the CLI's subparsers."""
+    p = sub.add_parser(
+        "trajectory", help="write a smooth reference trajectory (the `inverse` input format)",
+        description="Write a smooth trajectory with exact rates and accelerations, checked by "
+                    "inverse kinematics, in the format `inverse` reads (t, x..thz, dx..dthz, "
+                    "ddx..ddthz): a spline through waypoints, or one of the project's moves "
+                    "(demo: raised cosines; run: quintic out, hold, back, hold; quintic: one "
+                    "minimum-jerk move to the demo goal).")
+    p.add_argument("scene", metavar="SCENE", help="scene file (TOML)")
+    what = p.add_mutually_exclusive_group(required=True)
+    what.add_argument("--waypoints", metavar="W.csv",
+                      help="columns t,x,y,z,thx,thy,thz (m, rad): a C2 spline through them, at "
+                           "rest at both ends")
+    what.add_argument("--move", choices=MOVES, help="one of the project's moves from rest at home")
+    p.add_argument("--out", required=True, metavar="T.csv", help="trajectory to write (atomically)")
+    p.add_argument("--rate", type=_positive("a rate in Hz"), default=None, metavar="HZ",
+                   help=f"sample rate (default {DEMO_RATE:g} Hz; --move run: the scene's "
+                        "controller rate if it has a [controller] table)")
+    p.add_argument("--duration", type=_positive("a number of seconds"), default=None, metavar="S",
+                   help=f"length of the move (default {DEMO_DURATION:g} s; not with --waypoints, "
+                        "whose times set it)")
+    p.set_defaults(run=cmd)
+
+
+def _positive(what: str):
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not {what}: {text!r}") from None
+        if not (math.isfinite(value) and value > 0):
+            raise argparse.ArgumentTypeError(f"must be finite and > 0, got {text!r}")
+        return value
+    return parse
+
+
+def cmd(args: argparse.Namespace) -> None:
+    """Run `trajectory`; StewartError subclasses for bad input."""
+    model = load_scene(args.scene)
+    if args.waypoints is not None:
+        if args.duration is not None:
+            raise StewartError("trajectory: --duration applies to --move only (the waypoint "
+                               "times set the length)")
+        traj = waypoint_trajectory(Path(args.waypoints), args.rate or DEMO_RATE)
+        what = f"spline through {args.waypoints}"
+    else:
+        traj = move(model, args.move, args.duration or DEMO_DURATION, args.rate)
+        what = f"{args.move} move"
+    checked(model, traj)
+    out = Path(args.out)
+    write_trajectory(traj, out)
+    rate = (traj.t.size - 1) / (traj.t[-1] - traj.t[0])
+    print(f"wrote {out}: {what}, {traj.t.size} samples over {traj.t[-1] - traj.t[0]:g} s "
+          f"at {rate:g} Hz")
+
+
+def move(model: Model, name: str, duration: float, rate: float | None = None) -> Trajectory:
+    """The named move of the scene (MOVES), sampled at `rate` (None: the default)."""
+    if name == "demo":
+        rate = rate or DEMO_RATE
+        return Trajectory(*demo_trajectory(model, duration, rate))
+    if name == "run":
+        if rate is None:
+            rate = DEMO_RATE
+            if "controller" in model.extra:
+                from controller.config import controller_config
+                rate = controller_config(model).rate
+        return move_and_hold(model, rate, RUN_MOVE * duration, RUN_HOLD * duration, back=True)
+    if name == "quintic":
+        return move_and_hold(model, rate or DEMO_RATE, duration, 0.0)
+    raise StewartError(f"trajectory: move '{name}' unknown: one of {', '.join(MOVES)}")
+
+
+def waypoint_trajectory(path: Path, rate: float) -> Trajectory:
+    """controller.trajectory.waypoints through the poses of a waypoint CSV."""
+    times, poses = read_waypoints(path)
+    return waypoints(times, poses, rate)
+
+
+def read_waypoints(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """t (N,) and poses (N, 6) of a CSV whose header starts with t,x,y,z,thx,thy,thz."""
+    try:
+        with path.open(newline="") as fh:
+            rows = list(csv.reader(fh))
+    except OSError as exc:
+        raise TrajectoryError(f"{path}: cannot read waypoints: {exc.strerror or exc}") from None
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise TrajectoryError(f"{path}: not a CSV text file: {exc}") from None
+    if not rows or tuple(c.strip() for c in rows[0][:7]) != WAYPOINT_COLUMNS:
+        raise TrajectoryError(f"{path}: header must start with {','.join(WAYPOINT_COLUMNS)}")
+    width = len(rows[0])
+    data = np.empty((len(rows) - 1, 7))
+    for r, row in enumerate(rows[1:]):
+        if len(row) != width:
+            raise TrajectoryError(f"{path}: line {r + 2} has {len(row)} fields, expected {width}")
+        for c in range(7):
+            try:
+                data[r, c] = float(row[c])
+            except ValueError:
+                raise TrajectoryError(f"{path}: line {r + 2}, column '{WAYPOINT_COLUMNS[c]}': "
+                                      f"not a number: {row[c]!r}") from None
+            if not math.isfinite(data[r, c]):
+                raise TrajectoryError(f"{path}: line {r + 2}, column '{WAYPOINT_COLUMNS[c]}': "
+                                      f"non-finite value {row[c]!r}")
+    if data.shape[0] < 2:
+        raise TrajectoryError(f"{path}: need two or more waypoints, got {data.shape[0]}")
+    if np.any(np.diff(data[:, 0]) <= 0):
+        r = int(np.flatnonzero(np.diff(data[:, 0]) <= 0)[0]) + 3
+        raise TrajectoryError(f"{path}: line {r}, column 't': time must increase strictly")
+    return data[:, 0].copy(), data[:, 1:].copy()
+
+
+def checked(model: Model, traj: Trajectory) -> Trajectory:
+    """Every sample inside the stroke and away from singularities (KinematicsError names the
+    first bad sample and its time)."""
+    leg_references(model, traj)
+    return traj
+
+
+def write_trajectory(traj: Trajectory, out: Path) -> Path:
+    """The trajectory in the contract's columns, atomically."""
+    with writing(out):
+        return io.write_csv(out, io.trajectory_table(traj.t, traj.q, traj.qd, traj.qdd))
