@@ -358,3 +358,27 @@ def test_sweep_value_breaking_its_keys_rule_is_refused_up_front(tmp_path, capsys
     assert err == (f"stewart-sim: error: {grid}: grid point 0 (friction.viscous = -1.0): scene key "
                    "'friction.viscous': must be >= 0, got -1.0\n")
     assert not out.exists()
+
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
+def test_a_swallowed_sigint_still_stops_the_set(tmp_path) -> None:
+    """Ctrl-C raised where Python cannot propagate it ("Exception ignored in ..."): the set
+    is not moved into place and the command still ends as interrupted."""
+    from stewart_sim import outputs
+
+    class Swallowed:
+        def __del__(self):
+            outputs.sigint_handler(signal.SIGINT, None)   # raised in __del__: ignored
+
+    out = tmp_path / "out"
+    outputs.reset_interrupt()
+    try:
+        with pytest.raises(outputs.Interrupted) as info:
+            with outputs.result_set(out) as stage:
+                (stage / "run.csv").write_text("t\n")
+                obj = Swallowed()
+                del obj
+        assert info.value.kept == f"nothing new written, {out} not created"
+    finally:
+        outputs.reset_interrupt()
+    assert not out.exists() and _partials(out) == []
