@@ -19,6 +19,13 @@ class SceneError(StewartError, ValueError):
         super().__init__(f"{where}{what}{reason}")
 
 
+class SceneKeyError(SceneError):
+    """A key breaks its own rule (missing, unknown, wrong type or shape, out of its range):
+    wrong whatever the scene's other values are. Other SceneErrors are relations between
+    keys (leg_max above leg_min, a home pose within the stroke): a design sweep makes a point
+    that breaks one a row with its error, and refuses a grid whose values break a key's rule."""
+
+
 class TrajectoryError(StewartError, ValueError):
     """A trajectory (file or arrays) is malformed: wrong columns, shapes or non-finite values.
 

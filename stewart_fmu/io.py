@@ -27,11 +27,19 @@ def named_array(columns: dict[str, np.ndarray]) -> np.ndarray:
     return out
 
 
-def write_csv(path: str | Path, table: np.ndarray) -> Path:
+def write_csv(path: str | Path, table: np.ndarray,
+              progress: Callable[[int, int], None] | None = None) -> Path:
     """Write a structured array as CSV with repr-exact floats (and text fields, e.g. a method
-    name, as they are); the old file survives a failure."""
+    name, as they are); the old file survives a failure. `progress(rows_written, rows)` is
+    called after each block of CHUNK_ROWS rows (long tables take seconds to write)."""
     starts = range(0, max(len(table), 1), CHUNK_ROWS)  # an empty table still gets its header
-    return write_csv_chunks(path, (table[i:i + CHUNK_ROWS] for i in starts))
+
+    def chunks():
+        for i in starts:
+            yield table[i:i + CHUNK_ROWS]
+            if progress is not None:
+                progress(min(i + CHUNK_ROWS, len(table)), len(table))
+    return write_csv_chunks(path, chunks())
 
 
 def write_csv_chunks(path: str | Path, chunks: Iterable[np.ndarray]) -> Path:

@@ -10,7 +10,7 @@ import numpy as np
 
 from stewart_fmu.kinematics import check_poses
 
-from .errors import KinematicsError, SceneError
+from .errors import KinematicsError, SceneError, SceneKeyError
 from .model import DriveParams, FrictionParams, LegParams, Model, TransmissionParams
 
 DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
@@ -57,6 +57,14 @@ def read_scene_dict(path: str | Path) -> dict[str, Any]:
             return tomllib.load(fh)
     except FileNotFoundError:
         raise SceneError("<file>", f"no such scene file: {path}") from None
+    except IsADirectoryError:
+        raise SceneError("<file>", "is a directory, not a scene file", str(path)) from None
+    except OSError as exc:
+        raise SceneError("<file>", f"cannot read the scene file: {exc.strerror or exc}",
+                         str(path)) from None
+    except UnicodeDecodeError as exc:
+        raise SceneError("<file>", f"not a text (TOML) file: {exc.reason} at byte {exc.start}",
+                         str(path)) from None
     except tomllib.TOMLDecodeError as exc:
         raise SceneError("<file>", f"not valid TOML: {exc}", str(path)) from None
 
@@ -85,7 +93,7 @@ def scene_from_dict(data: Mapping[str, Any], source: str | None = None) -> Model
     v = _Validator(source)
     unknown = set(data) - _TOP_KEYS - PROJECT_TABLES
     if unknown:
-        v.fail(sorted(unknown)[0], f"unknown key (allowed: {sorted(_TOP_KEYS | PROJECT_TABLES)})")
+        v.fail_key(sorted(unknown)[0], f"unknown key (allowed: {sorted(_TOP_KEYS | PROJECT_TABLES)})")
     name = data.get("name", Path(source).stem if source else "scene")
     if not isinstance(name, str):
         v.fail("name", "must be a string")
@@ -197,21 +205,26 @@ class _Validator:
         self.source = source
 
     def fail(self, key: str, reason: str) -> None:
+        """A relation between keys is broken (SceneError)."""
         raise SceneError(key, reason, self.source)
+
+    def fail_key(self, key: str, reason: str) -> None:
+        """A key breaks its own rule (SceneKeyError)."""
+        raise SceneKeyError(key, reason, self.source)
 
     def table(self, data: Mapping[str, Any], name: str, required: bool = False):
         t = data.get(name)
         if t is None:
             if required:
-                self.fail(name, "required table is missing")
+                self.fail_key(name, "required table is missing")
             return None
         if not isinstance(t, Mapping):
-            self.fail(name, f"must be a table, got {type(t).__name__}")
+            self.fail_key(name, f"must be a table, got {type(t).__name__}")
         need, optional = _TABLE_KEYS[name]
         for key in sorted(set(t) - need - optional):
-            self.fail(f"{name}.{key}", f"unknown key (allowed: {sorted(need | optional)})")
+            self.fail_key(f"{name}.{key}", f"unknown key (allowed: {sorted(need | optional)})")
         for key in sorted(need - set(t)):
-            self.fail(f"{name}.{key}", "required key is missing")
+            self.fail_key(f"{name}.{key}", "required key is missing")
         return t
 
     def number(self, t: Mapping[str, Any], dotted: str, positive: bool = False,
@@ -220,24 +233,24 @@ class _Validator:
         if key not in t:
             if optional:
                 return None
-            self.fail(dotted, "required key is missing")
+            self.fail_key(dotted, "required key is missing")
         x = t[key]
         if isinstance(x, bool) or not isinstance(x, (int, float)):
-            self.fail(dotted, f"must be a number, got {x!r}")
+            self.fail_key(dotted, f"must be a number, got {x!r}")
         x = float(x)
         if not math.isfinite(x):
-            self.fail(dotted, f"must be finite, got {x}")
+            self.fail_key(dotted, f"must be finite, got {x}")
         if positive and x <= 0:
-            self.fail(dotted, f"must be > 0, got {x}")
+            self.fail_key(dotted, f"must be > 0, got {x}")
         if nonnegative and x < 0:
-            self.fail(dotted, f"must be >= 0, got {x}")
+            self.fail_key(dotted, f"must be >= 0, got {x}")
         return x
 
     def vector(self, t: Mapping[str, Any], dotted: str, n: int, default=None) -> np.ndarray:
         key = dotted.rsplit(".", 1)[-1]
         if key not in t:
             if default is None:
-                self.fail(dotted, "required key is missing")
+                self.fail_key(dotted, "required key is missing")
             return np.array(default, dtype=float)
         return self._array(t[key], dotted, (n,))
 
@@ -261,7 +274,7 @@ class _Validator:
 
     def _array(self, x: Any, dotted: str, shape: tuple[int, ...]) -> np.ndarray:
         def bad(reason: str):
-            self.fail(dotted, reason)
+            self.fail_key(dotted, reason)
 
         try:
             arr = np.array(x, dtype=float)

@@ -16,51 +16,83 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from dataclasses import replace
 from pathlib import Path
 from typing import Sequence
 
-from controller.config import controller_config
-from controller.moves import DEMO_DURATION, DEMO_RATE, RUN_HOLD, RUN_MOVE, demo_trajectory
-from hil.spawn import serve_device
-from stewart_fmu import io
-from stewart_fmu.dynamics import present_parts
-from stewart_fmu.errors import SceneError, StewartError
-from stewart_fmu.fmu.export import export_fmu
-from stewart_fmu.io import OutputError, writing
-from stewart_fmu.model import Model
-from stewart_fmu.scene import load_scene
-from stewart_sim.accuracy.report import write_accuracy_report
-from stewart_sim.accuracy.study import CLOSED_LOOP_DURATION, COMM_STEP, HORIZON, accuracy_study
-from stewart_sim.inverse import run_inverse
-from stewart_sim.link_run import LINK_FILES, run_link_files
-from stewart_sim.paper.report import write_paper_report
-from stewart_sim.paper.study import PaperResults, run_paper_experiments
-from stewart_sim.plots import forces_figure, save_figure
-from stewart_sim.progress import Progress
-from stewart_sim.run import RUN_FILES, run_closed_loop_files, run_compare
-from stewart_sim.scene_info import describe_model
-
+# Only the standard library up here: `--help` and `--version` must answer at once. Each command
+# imports what it needs (numpy, the C core, matplotlib, scipy, dask, fmpy, pymavlink) when it
+# runs; the defaults the help shows are repeated below (tests/app/test_cli_edges.py holds them
+# to the library's values).
+DEMO_DURATION = 4.0           # controller.moves.DEMO_DURATION, s
+DEMO_RATE = 1000.0            # controller.moves.DEMO_RATE, Hz
+RUN_MOVE = 0.3                # controller.moves.RUN_MOVE
+RUN_HOLD = 0.2                # controller.moves.RUN_HOLD
+HORIZON = 1.0                 # stewart_sim.accuracy.study.HORIZON, s
+COMM_STEP = 0.05              # stewart_sim.accuracy.study.COMM_STEP, s
+CLOSED_LOOP_DURATION = 4.0    # stewart_sim.accuracy.study.CLOSED_LOOP_DURATION, s
 PROG = "stewart-sim"
 DEFAULT_SCENE = Path("scenes") / "micro_manipulator.toml"
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; returns the exit status (0 ok, 1 I/O failure, 2 bad input)."""
+    """Run the command line; returns the exit status (0 ok, 1 I/O failure, 2 bad input,
+    130 Ctrl-C)."""
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # --help, usage errors: argparse has printed the message
         return exc.code if isinstance(exc.code, int) else 2
+    # imported after parsing: --help, --version and usage errors need none of the packages
+    from stewart_fmu.errors import StewartError
+    from stewart_fmu.io import OutputError
+    from stewart_sim import outputs
+
+    outputs.reset_interrupt()
+    restore = _catch_sigint(outputs.sigint_handler)
     try:
         args.run(args)
+        outputs.check_interrupted()   # a Ctrl-C swallowed in a callback still ends with 130
+    except outputs.Interrupted as exc:   # one line: interrupted, and what was kept
+        return _fail(f"interrupted: {exc.kept}", 130)
+    except KeyboardInterrupt:
+        if hasattr(args, "kept"):          # sweep: its note, then the line scripts look for
+            print(f"{PROG}: {args.kept}", file=sys.stderr)
+            return _fail("interrupted", 130)
+        return _fail(f"interrupted: {KEPT}", 130)
     except StewartError as exc:
         return _fail(str(exc), 2)
     except OutputError as exc:
         return _fail(str(exc), 1)
-    except KeyboardInterrupt:
-        return _fail("interrupted", 130)
+    finally:
+        restore()
     return 0
+
+
+KEPT = "nothing new written (an earlier output is left as it was)"  # on Ctrl-C
+
+
+def _catch_sigint(handler):
+    """Install `handler` for SIGINT (main thread only) and hide the "Exception ignored"
+    report of a KeyboardInterrupt raised inside a callback (outputs.interrupted() keeps it);
+    returns the function that restores both."""
+    import signal
+
+    hook = sys.unraisablehook
+
+    def quiet(unraisable):
+        if not isinstance(unraisable.exc_value, KeyboardInterrupt):
+            hook(unraisable)
+
+    try:
+        previous = signal.signal(signal.SIGINT, handler)
+    except ValueError:          # not the main thread: leave SIGINT alone
+        return lambda: None
+    sys.unraisablehook = quiet
+
+    def restore() -> None:
+        signal.signal(signal.SIGINT, previous)
+        sys.unraisablehook = hook
+    return restore
 
 
 def _fail(message: str, status: int) -> int:
@@ -75,6 +107,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog=PROG, description="Dynamics of Stewart platforms (Kane's method).",
         epilog="Exit status: 0 ok, 2 usage error or bad scene/trajectory/pose, 1 a file could "
                "not be written.")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = parser.add_subparsers(title="commands", required=True, metavar="COMMAND")
 
     p = sub.add_parser("inverse", help="actuator forces along a trajectory",
@@ -122,6 +155,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"length of the run (default {DEMO_DURATION:g} s): the move out and "
                         f"back take {100 * RUN_MOVE:g} %% of it each, the holds after them "
                         f"{100 * RUN_HOLD:g} %% each")
+    p.add_argument("--format", choices=("csv", "parquet"), default="csv",
+                   help="the run's table: run.csv (default) or run.parquet (smaller and much "
+                        "faster to write for long runs; needs pyarrow: pip install "
+                        "'stewart-sim[parquet]')")
     p.add_argument("--feedforward", choices=("none", "constant_load", "kane"),
                    help="override the scene's controller.feedforward")
     p.add_argument("--link", choices=("serial", "udp"),
@@ -234,6 +271,16 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _version() -> str:
+    """The installed distribution's version (importlib.metadata: no package import)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("stewart-sim")
+    except PackageNotFoundError:
+        return "unknown (not installed)"
+
+
 def _number(convert, what: str, ok, rule: str):
     """An argparse type: `convert(text)` that must satisfy `ok`, else a message saying `rule`."""
     def parse(text: str):
@@ -254,11 +301,29 @@ _repeats = _number(int, "an integer", lambda v: 1 <= v <= 20, "1 to 20")
 _workers = _number(int, "an integer", lambda v: 1 <= v <= 1024, "1 to 1024")
 
 
+# Each command imports its pipeline when it runs (start-up time of every other command); the
+# layers allow it: our lower packages and the application's own modules only.
+
+def _load(scene):
+    """The scene's Model (stewart_fmu.scene: SceneError names the file and the key)."""
+    from stewart_fmu.scene import load_scene
+
+    return load_scene(scene)
+
+
+def _written(stage: Path, out: Path, paths) -> list[Path]:
+    """The paths written into the temporary `stage`, as they are in `out` now."""
+    return [out / Path(p).relative_to(stage) for p in paths]
+
+
 # --- inverse ---------------------------------------------------------------------------------
 
 def cmd_inverse(args: argparse.Namespace) -> None:
     """`stewart-sim inverse SCENE --trajectory TRAJ.csv --out FORCES.csv [--parts]`."""
-    model = load_scene(args.scene)
+    from stewart_sim.inverse import run_inverse
+    from stewart_sim.progress import Progress
+
+    model = _load(args.scene)
     progress = Progress()
     try:
         n, _ = run_inverse(model, Path(args.trajectory), Path(args.out), args.parts, progress)
@@ -271,13 +336,20 @@ def cmd_inverse(args: argparse.Namespace) -> None:
 
 def cmd_paper(args: argparse.Namespace) -> None:
     """`stewart-sim paper [SCENE] --out DIR`."""
-    model = load_scene(resolve_scene(args.scene))
-    report = run_paper(model, Path(args.out))
-    print(f"wrote {report}")
+    from stewart_sim.outputs import result_set
+
+    model = _load(resolve_scene(args.scene))
+    out = Path(args.out)
+    with result_set(out) as stage:
+        report, results = run_paper(model, stage)
+    print_verdicts(results)
+    print(f"wrote {out / report.relative_to(stage)}")
 
 
 def resolve_scene(scene: str | None) -> Path:
     """The scene given, else DEFAULT_SCENE here, else the one in the source checkout."""
+    from stewart_fmu.errors import SceneError
+
     if scene is not None:
         return Path(scene)
     if DEFAULT_SCENE.is_file():
@@ -289,16 +361,19 @@ def resolve_scene(scene: str | None) -> Path:
                                f"({Path.cwd()}) or at {checkout}")
 
 
-def run_paper(model: Model, out: Path) -> Path:
-    """Rerun the paper's experiments into `out`, print the verdicts; returns report.md."""
+def run_paper(model, out: Path):
+    """Rerun the paper's experiments into the directory `out`; returns (report.md, results)."""
+    from stewart_fmu.io import writing
+    from stewart_sim.paper.report import write_paper_report
+    from stewart_sim.paper.study import run_paper_experiments
+
     results = run_paper_experiments(model)
     with writing(out):
         paths = write_paper_report(results, out)
-    print_verdicts(results)
-    return next(p for p in paths if p.name == "report.md")
+    return next(p for p in paths if p.name == "report.md"), results
 
 
-def print_verdicts(results: PaperResults) -> None:
+def print_verdicts(results) -> None:
     """One line per claim of the paper: agrees / does not agree."""
     print(f"paper rerun on '{results.scene}':")
     for v in results.verdicts:
@@ -309,14 +384,31 @@ def print_verdicts(results: PaperResults) -> None:
 
 def cmd_demo(args: argparse.Namespace) -> None:
     """`stewart-sim demo SCENE --out DIR [--duration S]`."""
-    model = load_scene(args.scene)
+    from stewart_sim.limits import check_samples
+    from stewart_sim.outputs import result_set
+
+    model = _load(args.scene)
+    check_samples("--duration", args.duration, DEMO_RATE)
     out = Path(args.out)
-    for path in run_demo(model, out, args.duration):
+    with result_set(out) as stage:
+        written, results = run_demo(model, stage, args.duration)
+    if results is not None:
+        print_verdicts(results)
+    for path in _written(stage, out, written):
         print(f"wrote {path}")
 
 
-def run_demo(model: Model, out: Path, duration: float) -> list[Path]:
-    """Demonstration trajectory, its forces (the `inverse` path), their plot, the paper rerun."""
+def run_demo(model, out: Path, duration: float):
+    """Demonstration trajectory, its forces (the `inverse` path), their plot, the paper rerun,
+    into the directory `out`; returns (the files, the paper's results or None)."""
+    from controller.moves import demo_trajectory
+    from stewart_fmu import io
+    from stewart_fmu.dynamics import present_parts
+    from stewart_fmu.io import writing
+    from stewart_sim.inverse import run_inverse
+    from stewart_sim.plots import forces_figure, save_figure
+    from stewart_sim.progress import Progress
+
     t, q, qd, qdd = demo_trajectory(model, duration)
     traj = out / "demo_trajectory.csv"
     with writing(traj):
@@ -331,51 +423,70 @@ def run_demo(model: Model, out: Path, duration: float) -> list[Path]:
     png = out / "demo_forces.png"
     with writing(png):
         save_figure(forces_figure(table, present_parts(model), title), png)
-    written = [traj, forces, png]
+    written, results = [traj, forces, png], None
     if model.legs is None or model.drive is None:
         print("paper rerun skipped: it needs the scene's [legs] and [drive]", file=sys.stderr)
     else:
-        written.append(run_paper(model, out / "paper"))
-    return written
+        report, results = run_paper(model, out / "paper")
+        written.append(report)
+    return written, results
 
 
 # --- run -------------------------------------------------------------------------------------
 
 def cmd_run(args: argparse.Namespace) -> None:
     """`stewart-sim run SCENE [--fmu PLANT.fmu | --link serial|udp [--mode lockstep|realtime]]
-    --out DIR [--duration S] [--feedforward F]`."""
-    model = load_scene(args.scene)
+    --out DIR [--duration S] [--feedforward F] [--format csv|parquet]`."""
+    from dataclasses import replace
+
+    model = _load(args.scene)        # a bad scene file fails before the heavy imports
+    from controller.config import controller_config
+    from stewart_fmu.errors import StewartError
+    from stewart_sim.limits import check_samples
+    from stewart_sim.outputs import result_set
+    from stewart_sim.run import ANY_RUN_FILES, check_format, run_closed_loop_files, run_files
+
     config = controller_config(model)
     if args.feedforward is not None:
         config = replace(config, feedforward=args.feedforward)
+    if args.link is not None and args.fmu:
+        raise StewartError("run: --fmu and --link exclude each other (the device over the "
+                           "link runs its own in-process plant)")
+    if args.link is None and args.mode != "lockstep":
+        raise StewartError("run: --mode needs --link serial|udp")
+    check_samples("--duration", args.duration, config.rate)
+    check_format(args.format)
     out = Path(args.out)
     if args.link is not None:
+        # hil (pymavlink, the device process): only for --link
+        from stewart_sim.link_run import LINK_FILES, run_link_files
 
-        if args.fmu:
-            raise StewartError("run: --fmu and --link exclude each other (the device over the "
-                               "link runs its own in-process plant)")
-        run_link_files(model, config, args.duration, out, args.link, args.mode)
-        print((out / "summary.md").read_text(encoding="utf-8"), end="")
-        for name in LINK_FILES:
-            print(f"wrote {out / name}")
-        return
-    if args.mode != "lockstep":
-        raise StewartError("run: --mode needs --link serial|udp")
-    result, traj = run_closed_loop_files(model, config, args.duration, out,
-                                         Path(args.fmu) if args.fmu else None)
+        if args.format != "csv":
+            raise StewartError("run --link: --format parquet is not supported over the link")
+        with result_set(out, ANY_RUN_FILES) as stage:
+            run_link_files(model, config, args.duration, stage, args.link, args.mode)
+        names = LINK_FILES
+    else:
+        names = run_files(args.format)
+        with result_set(out, ANY_RUN_FILES) as stage:
+            run_closed_loop_files(model, config, args.duration, stage,
+                                  Path(args.fmu) if args.fmu else None, args.format)
     print((out / "summary.md").read_text(encoding="utf-8"), end="")
-    for name in RUN_FILES:
+    for name in names:
         print(f"wrote {out / name}")
-
-
 
 
 # --- compare ---------------------------------------------------------------------------------
 
 def cmd_compare(args: argparse.Namespace) -> None:
     """`stewart-sim compare SCENE... --out DIR [--points N]`."""
+    from stewart_sim.outputs import result_set
+    from stewart_sim.run import run_compare
+
     out = Path(args.out)
-    for path in run_compare([Path(s) for s in args.scenes], out, args.points):
+    with result_set(out) as stage:
+        written = run_compare([Path(s) for s in args.scenes], stage, args.points)
+    for path in _written(stage, out, written):
         print(f"wrote {path}")
 
 
@@ -384,19 +495,32 @@ def cmd_compare(args: argparse.Namespace) -> None:
 def cmd_accuracy(args: argparse.Namespace) -> None:
     """`stewart-sim accuracy SCENE --out DIR [--horizon S] [--comm-step S] [--fine]
     [--repeats N] [--closed-loop-duration S | --no-closed-loop]`."""
-    model = load_scene(args.scene)
+    model = _load(args.scene)        # a bad scene file fails before the heavy imports
+    from stewart_fmu.io import writing
+    from stewart_sim.accuracy.report import write_accuracy_report
+    from stewart_sim.accuracy.study import CLOSED_LOOP_REFERENCE, accuracy_study
+    from stewart_sim.limits import check_samples
+    from stewart_sim.outputs import result_set
+    from stewart_sim.progress import Progress
+
+    check_samples("--horizon", args.horizon, 2.0 / args.comm_step,
+                  "the open loop samples the move twice per --comm-step")
+    if not args.no_closed_loop:
+        check_samples("--closed-loop-duration", args.closed_loop_duration,
+                      1.0 / CLOSED_LOOP_REFERENCE, "the closed loop's reference run")
     out = Path(args.out)
-    progress = Progress()
-    try:
-        results = accuracy_study(
-            model, args.horizon, args.comm_step, "fine" if args.fine else "default",
-            args.repeats, None if args.no_closed_loop else args.closed_loop_duration,
-            lambda stage, done, total: progress.update(stage, done, total, unit="runs"))
-    finally:
-        progress.close()
-    with writing(out):
-        paths = write_accuracy_report(results, out)
-    for path in paths:
+    with result_set(out) as stage:
+        progress = Progress()
+        try:
+            results = accuracy_study(
+                model, args.horizon, args.comm_step, "fine" if args.fine else "default",
+                args.repeats, None if args.no_closed_loop else args.closed_loop_duration,
+                lambda stage_, done, total: progress.update(stage_, done, total, unit="runs"))
+        finally:
+            progress.close()
+        with writing(out):
+            paths = write_accuracy_report(results, stage)
+    for path in _written(stage, out, paths):
         print(f"wrote {path}")
 
 
@@ -405,8 +529,10 @@ def cmd_accuracy(args: argparse.Namespace) -> None:
 def cmd_sweep(args: argparse.Namespace) -> None:
     """`stewart-sim sweep SCENE --grid GRID.toml --out DIR [--scheduler tcp://HOST:PORT |
     --workers N] [--no-plots]`."""
-    from stewart_sim.sweep.files import run_sweep_files  # imports dask: only for this command
+    from stewart_sim.sweep.files import run_sweep_files  # dask: only for this command
 
+    args.kept = (f"the points finished so far are kept in {args.out} (its chunk files), "
+                 "the same command resumes from there")
     summary, written = run_sweep_files(Path(args.scene), Path(args.grid), Path(args.out),
                                        args.scheduler, args.workers, not args.no_plots)
     where = args.scheduler or "local cluster"
@@ -420,8 +546,17 @@ def cmd_sweep(args: argparse.Namespace) -> None:
 # --- export-fmu ------------------------------------------------------------------------------
 
 def cmd_export_fmu(args: argparse.Namespace) -> None:
-    """`stewart-sim export-fmu SCENE -o PLANT.fmu [--fmi-version 2|3]`."""
+    """`stewart-sim export-fmu SCENE -o PLANT.fmu [--fmi-version 2|3]`: -o names the file; a
+    directory is refused (the FMU's name is the user's choice, not ours)."""
+    from stewart_fmu.errors import StewartError
+    from stewart_fmu.fmu.export import export_fmu
+    from stewart_fmu.io import writing
+
     out = Path(args.out)
+    if out.is_dir():
+        raise StewartError(f"-o {out} is a directory: give the FMU's file name, e.g. "
+                           f"{out / 'StewartPlant.fmu'}")
+    _load(args.scene)   # the scene checked (file, keys) before the compiler runs
     with writing(out):
         export_fmu(args.scene, out, args.fmi_version)
     print(f"wrote {out}")
@@ -432,14 +567,16 @@ def cmd_export_fmu(args: argparse.Namespace) -> None:
 def cmd_device(args: argparse.Namespace) -> None:
     """`stewart-sim device SCENE (--udp 127.0.0.1:PORT | --pty) [--watchdog S] [--lockstep]
     [--signing-key HEX]`: serve until SIGINT or SIGTERM, then return (exit status 0)."""
-    serve_device(load_scene(args.scene), args.udp, args.watchdog, args.lockstep,
-                 args.signing_key)
+    from hil.spawn import serve_device  # pymavlink: only for this command
+
+    serve_device(_load(args.scene), args.udp, args.watchdog, args.lockstep, args.signing_key)
 
 
 # --- scene-info ------------------------------------------------------------------------------
 
 def cmd_scene_info(args: argparse.Namespace) -> None:
-    """`stewart-sim scene-info SCENE`."""
-    print(describe_model(load_scene(args.scene)))
+    """`stewart-sim scene-info SCENE`: checks what run and inverse check."""
+    model = _load(args.scene)        # a bad scene file fails before the heavy imports
+    from stewart_sim.scene_info import describe_model
 
-
+    print(describe_model(model))

@@ -26,36 +26,82 @@ from stewart_sim.progress import Progress
 from stewart_sim.scene_info import format_vector
 
 RUN_FILES = ("run.csv", "run_tracking.png", "run_errors.png", "run_forces.png", "summary.md")
+FORMATS = ("csv", "parquet")
+# Every file a `run` may write (in-process, --fmu, --link: link_run.LINK_FILES): a rerun removes
+# them all from an earlier set written without the manifest (outputs.MANIFEST).
+ANY_RUN_FILES = (*RUN_FILES, "run.parquet", "run_link.png")
+
+
+def run_files(fmt: str = "csv") -> tuple[str, ...]:
+    """The files `run` writes with the table in format `fmt`."""
+    return (f"run.{fmt}", *RUN_FILES[1:])
+
+
+def check_format(fmt: str) -> None:
+    """The table format must be writable here: parquet needs pyarrow (optional dependency)."""
+    if fmt not in FORMATS:
+        raise StewartError(f"run: --format must be one of {FORMATS}, got {fmt!r}")
+    if fmt == "parquet":
+        try:
+            import pyarrow  # noqa: F401  (optional: only --format parquet needs it)
+        except ImportError:
+            raise StewartError("run: --format parquet needs pyarrow: pip install "
+                               "'stewart-sim[parquet]' (or pyarrow)") from None
+
+
+def write_parquet(path: Path, table: np.ndarray) -> Path:
+    """A structured array as a Parquet file (one float64 column per field), atomically."""
+    import pyarrow as pa  # optional dependency, checked by check_format
+    import pyarrow.parquet as pq
+
+    arrow = pa.table({name: table[name] for name in table.dtype.names})
+    return io.atomic_write(path, lambda fh: pq.write_table(arrow, fh), binary=True)
+
 
 def run_closed_loop_files(model: Model, config, duration: float, out: Path,
-                          fmu: Path | None = None):
-    """Run the closed loop (in-process plant, or the FMU) and write RUN_FILES into `out`;
-    returns (ClosedLoopResult, reference)."""
-
+                          fmu: Path | None = None, fmt: str = "csv"):
+    """Run the closed loop (in-process plant, or the FMU) and write run_files(fmt) into `out`
+    (progress covers the writing: a long run's CSV takes seconds); returns
+    (ClosedLoopResult, reference)."""
+    check_format(fmt)
     traj = run_reference(model, config, duration)
     plant = open_fmu(fmu, model) if fmu is not None else None
     progress = Progress()
     try:
-        result = run_closed_loop(model, config, traj, plant=plant,
-                                 progress=lambda k, n: progress.update("closed loop", k, n))
-        progress.update("closed loop", len(traj.t), len(traj.t))
+        try:
+            result = run_closed_loop(model, config, traj, plant=plant,
+                                     progress=lambda k, n: progress.update("closed loop", k, n))
+            progress.update("closed loop", len(traj.t), len(traj.t))
+        finally:
+            if plant is not None:
+                plant.close()
+        where = f"FMU {fmu}" if fmu is not None else "in-process plant"
+        title = (f"{model.name}: closed loop, feedforward {config.feedforward}, {where} "
+                 f"({traj.t[-1]:g} s at {config.rate:g} Hz)")
+        m = config.motor
+        table = out / f"run.{fmt}"
+        with writing(out):
+            if fmt == "parquet":
+                progress.update(f"writing {table.name}", 0, len(result.table), unit="rows")
+                write_parquet(table, result.table)
+                progress.update(f"writing {table.name}", len(result.table), len(result.table),
+                                unit="rows")
+            else:
+                io.write_csv(table, result.table, lambda k, n: progress.update(
+                    f"writing {table.name}", k, n, unit="rows"))
+            figures = (
+                ("run_tracking.png", lambda: tracking_figure(result.table, f"{title}\npose tracking")),
+                ("run_errors.png", lambda: leg_errors_figure(result.table,
+                                                             f"{title}\ntracking errors")),
+                ("run_forces.png", lambda: drive_figure(result.table, m.voltage_limit,
+                                                        m.current_limit, f"{title}\ndrives")))
+            for k, (name, figure) in enumerate(figures):
+                progress.update("plotting", k, len(figures), unit="figures")
+                save_figure(figure(), out / name)
+            progress.update("plotting", len(figures), len(figures), unit="figures")
+            io.write_text(out / "summary.md", run_summary(model, result, traj, where))
     finally:
         progress.close()
-        if plant is not None:
-            plant.close()
-    where = f"FMU {fmu}" if fmu is not None else "in-process plant"
-    title = (f"{model.name}: closed loop, feedforward {config.feedforward}, {where} "
-             f"({traj.t[-1]:g} s at {config.rate:g} Hz)")
-    m = config.motor
-    with writing(out):
-        io.write_csv(out / "run.csv", result.table)
-        save_figure(tracking_figure(result.table, f"{title}\npose tracking"),
-                    out / "run_tracking.png")
-        save_figure(leg_errors_figure(result.table, f"{title}\ntracking errors"),
-                    out / "run_errors.png")
-        save_figure(drive_figure(result.table, m.voltage_limit, m.current_limit,
-                                 f"{title}\ndrives"), out / "run_forces.png")
-        io.write_text(out / "summary.md", run_summary(model, result, traj, where))
     return result, traj
 
 

@@ -1,10 +1,17 @@
-"""`scene-info`: the model a scene builds, as text."""
+"""`scene-info`: the model a scene builds, as text, checked as `run` and `inverse` check it
+(the scene, and its [controller] table when it has one), with every table it has."""
 from __future__ import annotations
 
 import numpy as np
 
+from controller.config import controller_config
+from controller.drive import axis_model
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.model import Model
+from stewart_fmu.scene import PROJECT_TABLES
+
+# Project tables scene-info names without describing (their owners check them when used).
+_OTHER_TABLES = sorted(PROJECT_TABLES - {"controller", "case"})
 
 
 def describe_model(model: Model) -> str:
@@ -22,8 +29,50 @@ def describe_model(model: Model) -> str:
         f"home leg lengths: {format_vector(kin.lengths)} m",
         f"cond(J) at home: {kin.cond:.6g} (rotational columns scaled by "
         f"{model.characteristic_length:.6g} m)",
+        _describe_transmission(model), _describe_controller(model), _describe_case(model),
     ]
+    others = [t for t in _OTHER_TABLES if t in model.extra]
+    if others:
+        lines.append("other tables: " + ", ".join(f"[{t}]" for t in others))
     return "\n".join(lines)
+
+
+def _describe_transmission(model: Model) -> str:
+    """The compliant transmission and what it brings in, or that the drive is rigid."""
+    tr = model.transmission
+    if tr is None:
+        return "transmission: none (rigid: each motor moves its leg directly; 12 states)"
+    return (f"transmission: stiffness {tr.stiffness:g} N/m, damping {tr.damping:g} N s/m "
+            f"between each motor and its leg (the motor side moves on its own: "
+            f"{model.state_size} states)")
+
+
+def _describe_controller(model: Model) -> str:
+    """The [controller] table, built as `run` builds it (SceneError as `run` says it)."""
+    if "controller" not in model.extra:
+        return "controller: none (run, compare and closed-loop sweeps need a [controller] table)"
+    cfg = controller_config(model)
+    m = cfg.motor
+    axis = axis_model(model, m, cfg.load_mass)
+    load = "given" if cfg.load_mass is not None else "largest diagonal of Kane's [m] at home"
+    return (f"controller: rate {cfg.rate:g} Hz, bandwidth {cfg.bandwidth:g} Hz, phase margin "
+            f"{cfg.phase_margin:g} deg, feedforward {cfg.feedforward}; motor R "
+            f"{m.resistance:g} ohm, L {m.inductance:g} H, Kt {m.torque_constant:g} N m/A, Ke "
+            f"{m.back_emf:g} V s/rad, limits {m.current_limit:g} A and {m.voltage_limit:g} V; "
+            f"each axis: constant load {axis.load_mass:.6g} kg ({load}), reflected drive "
+            f"inertia {axis.reflected_mass:.6g} kg")
+
+
+def _describe_case(model: Model) -> str:
+    """The [case] table of a stiff or extreme scene: what it runs and the outcome expected."""
+    t = model.extra.get("case")
+    if t is None:
+        return "case: none"
+    extra = ", ".join(f"{k} {t[k]}" for k in ("step", "force_scale", "start_rates",
+                                              "acceleration", "target") if k in t)
+    return (f"case: {t['kind']}, motion {t['motion']} for {float(t['duration']):g} s, expected "
+            f"outcome {t['expect']}" + (f" ({extra})" if extra else "")
+            + f": {t['description']}")
 
 
 def _describe_legs(model: Model) -> str:

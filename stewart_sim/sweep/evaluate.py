@@ -30,7 +30,7 @@ from controller.design import design_axis
 from controller.moves import demo_trajectory, run_reference
 from controller.trajectory import Trajectory
 from stewart_fmu.dynamics import inverse_dynamics
-from stewart_fmu.errors import StewartError
+from stewart_fmu.errors import SceneError, StewartError
 from stewart_fmu.kinematics import COND_LIMIT, check_poses, inverse_kinematics
 from stewart_fmu.model import Model
 from stewart_fmu.scene import apply_overrides, scene_from_dict
@@ -82,10 +82,20 @@ def evaluate_point(spec: EvalSpec, pid: int, values: Mapping[str, Any],
     nan = dict.fromkeys(RESULTS[spec.evaluation], np.nan)
     try:
         results = _EVALUATE[spec.evaluation](spec, values, {} if cache is None else cache)
+    except SceneError as exc:  # the point's values, not the scene file: name the point
+        text = (f"SceneError: {point_label(pid, values)}: scene key '{exc.key}': "
+                f"{exc.reason}")
+        return {**row, "status": "error", "error": text, **nan}
     except POINT_ERRORS as exc:
         text = str(exc) if isinstance(exc, _RunFailed) else f"{type(exc).__name__}: {exc}"
         return {**row, "status": "error", "error": text, **nan}
     return {**row, **nan, **results}
+
+
+def point_label(pid: int | None, values: Mapping[str, Any]) -> str:
+    """'grid point 3 (geometry.leg_max = 0.05, platform.mass = 0.5)' for messages."""
+    inner = ", ".join(f"{k} = {v!r}" for k, v in values.items())
+    return ("grid point" if pid is None else f"grid point {pid}") + f" ({inner})"
 
 
 def point_scene(spec: EvalSpec, values: Mapping[str, Any]) -> dict[str, Any]:

@@ -158,6 +158,14 @@ def load_grid(path: str | Path) -> GridSpec:
             data = tomllib.load(fh)
     except FileNotFoundError:
         raise SweepError(None, f"no such grid file: {path}") from None
+    except IsADirectoryError:
+        raise SweepError(None, "is a directory, not a grid file", str(path)) from None
+    except OSError as exc:
+        raise SweepError(None, f"cannot read the grid file: {exc.strerror or exc}",
+                         str(path)) from None
+    except UnicodeDecodeError as exc:
+        raise SweepError(None, f"not a text (TOML) file: {exc.reason} at byte {exc.start}",
+                         str(path)) from None
     except tomllib.TOMLDecodeError as exc:
         raise SweepError(None, f"not valid TOML: {exc}", str(path)) from None
     return grid_from_dict(data, str(path))

@@ -18,11 +18,11 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 from controller.config import controller_config
-from stewart_fmu.errors import SweepError
+from stewart_fmu.errors import SceneError, SceneKeyError, SweepError
 from stewart_fmu.io import read_trajectory
 from stewart_fmu.scene import read_scene_dict, scene_from_dict
 from stewart_sim.progress import Progress
-from stewart_sim.sweep.evaluate import EvalSpec, columns, evaluate_batch, point_model
+from stewart_sim.sweep.evaluate import EvalSpec, columns, evaluate_batch, point_label, point_model
 from stewart_sim.sweep.grid import GridSpec
 from stewart_sim.sweep.table import chunk_rows, merge, open_sweep, write_chunk
 
@@ -50,7 +50,9 @@ class SweepSummary:
 def eval_spec(scene: Path, grid: GridSpec) -> EvalSpec:
     """The shared part of every task: base scene, settings and trajectory files, checked."""
     data = read_scene_dict(scene)
-    scene_from_dict(data, str(scene))
+    base = scene_from_dict(data, str(scene))
+    if grid.evaluation == "closed_loop":
+        controller_config(base)     # the scene's own [controller]: its file is at fault
     files = {}
     names = {grid.trajectory.file} | {v for a in grid.axes if a.key == "trajectory.file"
                                       for v in a.grid_values()}
@@ -66,12 +68,22 @@ def _beside(source: str | None, name: str) -> Path:
     return p if p.is_absolute() or source is None else Path(source).parent / p
 
 
-def check_first_point(spec: EvalSpec, point: Mapping[str, Any]) -> None:
-    """The first point's scene (and controller table) must build: a key the scene cannot take
-    (e.g. legs.* on a scene without [legs]) fails here, naming the key, before anything runs."""
-    model = point_model(spec, point)
-    if spec.evaluation == "closed_loop":
-        controller_config(model)
+def check_first_point(spec: EvalSpec, point: Mapping[str, Any], grid: GridSpec | None = None
+                      ) -> None:
+    """The first point's scene (and controller table) must take the grid's keys: a key the
+    scene cannot take (e.g. legs.* on a scene without [legs], a value out of the key's range:
+    SceneKeyError) fails here, naming the grid, the point and the key, before anything runs.
+    A relation between keys the point breaks (leg_max not above leg_min, the home pose past
+    the stroke) is not refused: the point becomes a row with its error (evaluate_point)."""
+    try:
+        model = point_model(spec, point)
+        if spec.evaluation == "closed_loop":
+            controller_config(model)
+    except SceneKeyError as exc:
+        where = f"{grid.source}: " if grid is not None and grid.source else ""
+        raise SceneKeyError(exc.key, exc.reason, f"{where}{point_label(0, point)}") from None
+    except SceneError:
+        return      # a relation this point breaks: its row says so
 
 
 def fingerprint(spec: EvalSpec, grid: GridSpec) -> str:
@@ -86,7 +98,7 @@ def run_sweep(scene: Path, grid: GridSpec, out: Path, scheduler: str | None = No
     """Run (or resume) the sweep into `out` and merge its table; see the module doc."""
     spec = eval_spec(scene, grid)
     points = grid.points()
-    check_first_point(spec, points[0][1])
+    check_first_point(spec, points[0][1], grid)
     cols = columns(grid.evaluation, grid.keys)
     open_sweep(out, fingerprint(spec, grid), cols, len(points))
     done = set(chunk_rows(out, cols))

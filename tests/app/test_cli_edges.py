@@ -1,0 +1,384 @@
+"""The command line's edges: result sets all or nothing (a real SIGINT), bad inputs as one line
+and exit 2, scene-info checking what run checks, start-up without the heavy imports."""
+from __future__ import annotations
+
+import csv
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from stewart_sim import cli, limits, progress
+from stewart_sim.outputs import MANIFEST
+
+ROOT = Path(__file__).resolve().parents[2]
+MICRO = ROOT / "scenes" / "micro_manipulator.toml"
+EXE = Path(sys.executable).parent / "stewart-sim"
+WAIT = 120.0
+EARLIER = {"summary.md": "# an earlier result that must survive\n",
+           "run.csv": "t,x\n0.0,1.0\n"}
+
+
+def _listing(d: Path) -> dict[str, str]:
+    return {p.name: p.read_text() for p in d.iterdir()} if d.exists() else {}
+
+
+def _partials(out: Path) -> list[Path]:
+    return sorted(out.parent.glob(f".{out.name}.partial-*"))
+
+
+def _interrupt(args: list[str], out: Path, ready) -> tuple[int, str]:
+    """Run `stewart-sim ARGS`, send SIGINT once ready(partial dir) holds, return (status, err)."""
+    proc = subprocess.Popen([str(EXE), *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        deadline = time.monotonic() + WAIT
+        while True:
+            assert proc.poll() is None, proc.communicate()
+            assert time.monotonic() < deadline, "the command never got going"
+            parts = _partials(out)
+            if parts and ready(parts[0]):
+                break
+            time.sleep(0.01)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=WAIT)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(timeout=WAIT)
+    return proc.returncode, err
+
+
+def _after(seconds: float):
+    """ready(): the temporary directory exists, then `seconds` more."""
+    seen: list[float] = []
+
+    def ready(_: Path) -> bool:
+        seen.append(time.monotonic())
+        return seen[-1] - seen[0] >= seconds
+    return ready
+
+
+@pytest.mark.parametrize("command", ["run", "compare", "paper", "accuracy"])
+@pytest.mark.parametrize("earlier", [True, False], ids=["over_earlier_set", "new_dir"])
+def test_sigint_keeps_the_earlier_set_whole(command, earlier, tmp_path) -> None:
+    """A real Ctrl-C mid-command: exit 130, one line saying what was kept, and DIR holds
+    exactly the earlier set (or does not exist); no temporary directory is left."""
+    out = tmp_path / "out"
+    if earlier:
+        out.mkdir()
+        for name, text in EARLIER.items():
+            (out / name).write_text(text)
+    args = {"run": ["run", str(MICRO), "--duration", "1"],
+            "compare": ["compare", str(MICRO), "--points", "2"],
+            "paper": ["paper", str(MICRO)],
+            "accuracy": ["accuracy", str(MICRO), "--repeats", "1"]}[command]
+    # run: once run.csv is written into the temporary directory (the plots take seconds more)
+    ready = (lambda d: (d / "run.csv").exists()) if command == "run" else _after(0.3)
+    status, err = _interrupt([*args, "--out", str(out)], out, ready)
+    assert status == 130, err
+    line = err.rstrip().splitlines()[-1]
+    assert line.startswith(f"stewart-sim: error: interrupted: nothing new written, {out} ")
+    assert ("the earlier set untouched" if earlier else "not created") in line
+    assert _listing(out) == (EARLIER if earlier else {})
+    assert _partials(out) == []
+
+
+def test_a_rerun_replaces_the_earlier_set_whole(tmp_path, capsys) -> None:
+    """A second command into DIR removes every file of the first set, keeps foreign files."""
+    out = tmp_path / "out"
+    assert cli.main(["run", str(MICRO), "--out", str(out), "--duration", "0.5"]) == 0
+    (out / "notes.txt").write_text("mine\n")
+    assert cli.main(["accuracy", str(MICRO), "--out", str(out), "--repeats", "1",
+                     "--no-closed-loop"]) == 0
+    names = {p.name for p in out.iterdir()}
+    assert names == {"open_loop.csv", "work_precision.png", "summary.md", "notes.txt", MANIFEST}
+    assert "Closed-loop run" not in (out / "summary.md").read_text()
+    assert _partials(out) == []
+    capsys.readouterr()
+
+
+def test_an_earlier_set_without_manifest_is_replaced_by_its_known_names(tmp_path, capsys) -> None:
+    """`run` over a set written before the manifest existed: no stale run_link.png is left."""
+    out = tmp_path / "out"
+    out.mkdir()
+    for name in ("run.csv", "run_link.png", "summary.md"):
+        (out / name).write_text("old\n")
+    assert cli.main(["run", str(MICRO), "--out", str(out), "--duration", "0.5"]) == 0
+    assert {p.name for p in out.iterdir()} == {*cli_run_files(), MANIFEST}
+    capsys.readouterr()
+
+
+def cli_run_files() -> tuple[str, ...]:
+    from stewart_sim.run import RUN_FILES
+    return RUN_FILES
+
+
+def test_out_is_a_file_exit_1(tmp_path, capsys) -> None:
+    out = tmp_path / "file"
+    out.write_text("x")
+    assert cli.main(["run", str(MICRO), "--out", str(out), "--duration", "0.5"]) == 1
+    assert capsys.readouterr().err == (f"stewart-sim: error: cannot write {out}: exists and is "
+                                       "not a directory\n")
+    assert out.read_text() == "x"
+
+
+# --- bad inputs: one line, exit 2, before any work -------------------------------------------
+
+def _bad_files(tmp_path: Path) -> dict[str, Path]:
+    binary = tmp_path / "binary.toml"
+    binary.write_bytes(bytes(range(256)) * 4)
+    folder = tmp_path / "folder.toml"
+    folder.mkdir()
+    return {"binary": binary, "directory": folder}
+
+
+def _one_error_line(capsys) -> str:
+    err = capsys.readouterr().err
+    assert err.startswith("stewart-sim: error: ") and err.count("\n") == 1, err
+    assert "Traceback" not in err
+    return err
+
+
+@pytest.mark.parametrize("kind", ["binary", "directory"])
+@pytest.mark.parametrize("command", ["scene-info", "run", "inverse", "export-fmu", "sweep",
+                                     "demo", "accuracy", "paper", "compare"])
+def test_unreadable_scene_exit_2(command, kind, tmp_path, capsys) -> None:
+    scene = _bad_files(tmp_path)[kind]
+    traj = tmp_path / "traj.csv"
+    traj.write_text("t\n")
+    out = tmp_path / "out"
+    extra = {"scene-info": [], "run": ["--out", str(out)],
+             "inverse": ["--trajectory", str(traj), "--out", str(out)],
+             "export-fmu": ["-o", str(tmp_path / "p.fmu")],
+             "sweep": ["--grid", str(MICRO), "--out", str(out)],
+             "demo": ["--out", str(out)], "accuracy": ["--out", str(out)],
+             "paper": ["--out", str(out)], "compare": ["--out", str(out)]}[command]
+    if command == "sweep":  # the grid is read first: give a good one
+        grid = tmp_path / "grid.toml"
+        grid.write_text('evaluation = "inverse"\n[trajectory]\nduration = 0.01\n'
+                        '[axes]\n"drive.gear_ratio" = [10.0, 20.0]\n')
+        extra = ["--grid", str(grid), "--out", str(out), "--no-plots", "--workers", "1"]
+    assert cli.main([command, str(scene), *extra]) == 2
+    err = _one_error_line(capsys)
+    assert str(scene) in err
+    assert ("is a directory, not a scene file" if kind == "directory"
+            else "not a text (TOML) file") in err
+    assert not out.exists() and not (tmp_path / "p.fmu").exists()
+
+
+@pytest.mark.parametrize("kind", ["binary", "directory"])
+def test_unreadable_grid_exit_2(kind, tmp_path, capsys) -> None:
+    grid = _bad_files(tmp_path)[kind]
+    out = tmp_path / "out"
+    assert cli.main(["sweep", str(MICRO), "--grid", str(grid), "--out", str(out)]) == 2
+    err = _one_error_line(capsys)
+    assert str(grid) in err
+    assert ("is a directory, not a grid file" if kind == "directory"
+            else "not a text (TOML) file") in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("args, option", [
+    (["run", "--duration", "1e9"], "--duration"),
+    (["demo", "--duration", "1e9"], "--duration"),
+    (["accuracy", "--horizon", "1e9"], "--horizon"),
+    (["accuracy", "--comm-step", "1e-9"], "--horizon"),
+    (["accuracy", "--closed-loop-duration", "1e6"], "--closed-loop-duration"),
+])
+def test_too_long_refused_before_work(args, option, tmp_path, capsys) -> None:
+    """A run whose samples would not fit the memory budget: the limit and why, in one line."""
+    out = tmp_path / "out"
+    start = time.monotonic()
+    assert cli.main([args[0], str(MICRO), "--out", str(out), *args[1:]]) == 2
+    assert time.monotonic() - start < 10
+    err = _one_error_line(capsys)
+    assert f"{option} " in err and f"at most {limits.MAX_SAMPLES:,}" in err
+    assert "memory budget of 2 GiB" in err
+    assert not out.exists()
+
+
+def test_longest_run_allowed_fits_the_budget() -> None:
+    limits.check_samples("--duration", limits.MAX_SAMPLES / 1000.0, 1000.0)
+    with pytest.raises(limits.StewartError):
+        limits.check_samples("--duration", limits.MAX_SAMPLES / 1000.0 + 0.01, 1000.0)
+
+
+def test_progress_covers_writing_the_table(tmp_path, monkeypatch, capsys) -> None:
+    """A long run's table and plots are part of the progress: no silent minutes at 100 %."""
+    monkeypatch.setattr(progress, "PROGRESS_SAMPLES", 50)
+    monkeypatch.setattr(progress, "PROGRESS_INTERVAL", 0.0)
+    monkeypatch.setattr("stewart_fmu.io.CHUNK_ROWS", 100)
+    out = tmp_path / "out"
+    assert cli.main(["run", str(MICRO), "--out", str(out), "--duration", "0.5"]) == 0
+    err = capsys.readouterr().err
+    assert "writing run.csv: 100/501 (20%) rows" in err
+    assert "writing run.csv: 501/501 (100%) rows" in err
+    assert "plotting: 3/3 (100%) figures" in err
+
+
+def test_run_parquet_holds_the_csv_table(tmp_path, capsys) -> None:
+    pq = pytest.importorskip("pyarrow.parquet")
+    assert cli.main(["run", str(MICRO), "--out", str(tmp_path / "c"), "--duration", "0.5"]) == 0
+    assert cli.main(["run", str(MICRO), "--out", str(tmp_path / "p"), "--duration", "0.5",
+                     "--format", "parquet"]) == 0
+    assert f"wrote {tmp_path / 'p' / 'run.parquet'}" in capsys.readouterr().out
+    assert not (tmp_path / "p" / "run.csv").exists()
+    table = pq.read_table(tmp_path / "p" / "run.parquet")
+    with (tmp_path / "c" / "run.csv").open(newline="") as fh:
+        rows = list(csv.reader(fh))
+    assert table.column_names == rows[0]
+    values = np.array([[float(c) for c in r] for r in rows[1:]])
+    got = np.column_stack([table[c].to_numpy() for c in rows[0]])
+    assert got.shape == values.shape  # wall-clock columns aside, the same run
+    assert np.array_equal(got[:, 0], values[:, 0])
+
+
+# --- scene-info, export-fmu ------------------------------------------------------------------
+
+def _scene_with(tmp_path: Path, old: str, new: str) -> Path:
+    text = MICRO.read_text()
+    assert old in text
+    scene = tmp_path / "scene.toml"
+    scene.write_text(text.replace(old, new))
+    return scene
+
+
+def test_scene_info_rejects_what_run_rejects(tmp_path, capsys) -> None:
+    """A typo in [controller]: scene-info and run say the same, exit 2."""
+    scene = _scene_with(tmp_path, "[controller]\n", "[controller]\nbandwith = 20.0\n")
+    assert cli.main(["run", str(scene), "--out", str(tmp_path / "out")]) == 2
+    run_err = _one_error_line(capsys)
+    assert cli.main(["scene-info", str(scene)]) == 2
+    assert _one_error_line(capsys) == run_err
+    assert "scene key 'controller.bandwith': unknown key" in run_err
+
+
+def test_scene_info_shows_every_table(capsys) -> None:
+    assert cli.main(["scene-info", str(MICRO)]) == 0
+    out = capsys.readouterr().out
+    assert "controller: rate 1000 Hz, bandwidth 20 Hz" in out
+    assert "feedforward kane" in out and "constant load 0.481847 kg" in out
+    assert "transmission: none (rigid" in out
+    stiff = sorted((ROOT / "scenes").rglob("*.toml"))
+    with_case = [p for p in stiff if "[case]" in p.read_text()]
+    with_trans = [p for p in stiff if "[transmission]" in p.read_text()]
+    assert with_case and with_trans
+    assert cli.main(["scene-info", str(with_case[0])]) == 0
+    assert "case: " in capsys.readouterr().out
+    assert cli.main(["scene-info", str(with_trans[0])]) == 0
+    text = capsys.readouterr().out
+    assert "transmission: stiffness" in text and "effects: " in text
+
+
+def test_export_fmu_refuses_a_directory(tmp_path, capsys) -> None:
+    """-o names the FMU file; a directory is refused before the compiler runs."""
+    assert cli.main(["export-fmu", str(MICRO), "-o", str(tmp_path)]) == 2
+    err = _one_error_line(capsys)
+    assert f"-o {tmp_path} is a directory" in err and "StewartPlant.fmu" in err
+    assert list(tmp_path.iterdir()) == []
+
+
+# --- start-up --------------------------------------------------------------------------------
+
+HEAVY = ("numpy", "matplotlib", "scipy", "dask", "distributed", "fmpy", "control", "pymavlink",
+         "stewart_fmu", "controller", "hil")
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["--version"], ["run", "--help"]])
+def test_help_and_version_import_nothing_heavy(argv) -> None:
+    code = ("import sys\nfrom stewart_sim import cli\n"
+            f"status = cli.main({argv!r})\n"
+            f"print(sorted(m for m in sys.modules if m.split('.')[0] in {HEAVY!r}))\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=WAIT, cwd=ROOT)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.rstrip().splitlines()[-1] == "[]"
+
+
+def test_version() -> None:
+    from importlib.metadata import version
+    done = subprocess.run([str(EXE), "--version"], capture_output=True, text=True, timeout=WAIT)
+    assert done.returncode == 0 and done.stdout == f"stewart-sim {version('stewart-sim')}\n"
+
+
+def test_help_defaults_are_the_librarys() -> None:
+    """cli repeats a few defaults to stay light; they must be the library's."""
+    from controller import moves
+    from stewart_sim.accuracy import study
+
+    assert (cli.DEMO_DURATION, cli.DEMO_RATE, cli.RUN_MOVE, cli.RUN_HOLD) == (
+        moves.DEMO_DURATION, moves.DEMO_RATE, moves.RUN_MOVE, moves.RUN_HOLD)
+    assert (cli.HORIZON, cli.COMM_STEP, cli.CLOSED_LOOP_DURATION) == (
+        study.HORIZON, study.COMM_STEP, study.CLOSED_LOOP_DURATION)
+
+
+def test_any_run_files_covers_the_link_run() -> None:
+    from stewart_sim.link_run import LINK_FILES
+    from stewart_sim.run import ANY_RUN_FILES, RUN_FILES, run_files
+
+    assert set(LINK_FILES) | set(RUN_FILES) | set(run_files("parquet")) == set(ANY_RUN_FILES)
+
+
+# --- sweep: points the scene rejects ---------------------------------------------------------
+
+def _grid(tmp_path: Path, axes: str) -> Path:
+    grid = tmp_path / "grid.toml"
+    grid.write_text('evaluation = "inverse"\n[trajectory]\nduration = 0.05\n[axes]\n' + axes)
+    return grid
+
+
+def test_sweep_point_the_scene_rejects_is_a_row(tmp_path, capsys) -> None:
+    """leg_max below leg_min at one point: that point is a row naming the grid point and the
+    key (not the scene file), the others are computed."""
+    out = tmp_path / "out"
+    grid = _grid(tmp_path, '"geometry.leg_max" = [0.05, 0.19]\n')
+    assert cli.main(["sweep", str(MICRO), "--grid", str(grid), "--out", str(out),
+                     "--workers", "1", "--no-plots"]) == 0
+    assert "2 points, 0 already done, 2 computed" in capsys.readouterr().out
+    with (out / "sweep.csv").open(newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [r["status"] for r in rows] == ["error", "ok"]
+    assert rows[0]["error"].startswith("SceneError: grid point 0 (geometry.leg_max = 0.05): "
+                                       "scene key 'geometry.leg_max': must exceed leg_min")
+    assert str(MICRO) not in rows[0]["error"] and MICRO.name not in rows[0]["error"]
+
+
+def test_sweep_value_breaking_its_keys_rule_is_refused_up_front(tmp_path, capsys) -> None:
+    """A negative friction at the first point: exit 2 before anything runs, naming the grid
+    file, the point and the key (tests/app/test_sweep.py: later points are rows)."""
+    out = tmp_path / "out"
+    grid = _grid(tmp_path, '"friction.viscous" = [-1.0, 1.0]\n')
+    assert cli.main(["sweep", str(MICRO), "--grid", str(grid), "--out", str(out)]) == 2
+    err = _one_error_line(capsys)
+    assert err == (f"stewart-sim: error: {grid}: grid point 0 (friction.viscous = -1.0): scene key "
+                   "'friction.viscous': must be >= 0, got -1.0\n")
+    assert not out.exists()
+
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
+def test_a_swallowed_sigint_still_stops_the_set(tmp_path) -> None:
+    """Ctrl-C raised where Python cannot propagate it ("Exception ignored in ..."): the set
+    is not moved into place and the command still ends as interrupted."""
+    from stewart_sim import outputs
+
+    class Swallowed:
+        def __del__(self):
+            outputs.sigint_handler(signal.SIGINT, None)   # raised in __del__: ignored
+
+    out = tmp_path / "out"
+    outputs.reset_interrupt()
+    try:
+        with pytest.raises(outputs.Interrupted) as info:
+            with outputs.result_set(out) as stage:
+                (stage / "run.csv").write_text("t\n")
+                obj = Swallowed()
+                del obj
+        assert info.value.kept == f"nothing new written, {out} not created"
+    finally:
+        outputs.reset_interrupt()
+    assert not out.exists() and _partials(out) == []
