@@ -14,6 +14,7 @@ an existing file as it was.
 from __future__ import annotations
 
 import argparse
+import importlib
 import math
 import sys
 from pathlib import Path
@@ -37,7 +38,8 @@ DEFAULT_SCENE = Path("scenes") / "micro_manipulator.toml"
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status (0 ok, 1 I/O failure, 2 bad input,
     130 Ctrl-C)."""
-    parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser(argv[0] if argv else None)
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # --help, usage errors: argparse has printed the message
@@ -101,8 +103,9 @@ def _fail(message: str, status: int) -> int:
     return status
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser with its subcommands."""
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The argument parser with its subcommands (`command`, the one asked for: a command kept
+    in its own module gets its full arguments only then, see _add_lazy)."""
     parser = argparse.ArgumentParser(
         prog=PROG, description="Dynamics of Stewart platforms (Kane's method).",
         epilog="Exit status: 0 ok, 2 usage error or bad scene/trajectory/pose, 1 a file could "
@@ -162,8 +165,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--feedforward", choices=("none", "constant_load", "kane"),
                    help="override the scene's controller.feedforward")
     p.add_argument("--link", choices=("serial", "udp"),
-                   help="run the controller against the emulated device (hil.device, served "
-                        "in a thread) over a pseudo-terminal (serial) or loopback UDP instead "
+                   help="run the controller against the emulated device (hil.device, in its "
+                        "own process) over a pseudo-terminal (serial) or loopback UDP instead "
                         "of the in-process plant; writes run.csv and summary.md")
     p.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep",
                    help="with --link: lockstep (deterministic, one exchange per controller "
@@ -268,6 +271,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="MAVLink 2 signing key, 64 hex digits: unsigned or badly signed frames "
                         "are rejected and counted")
     p.set_defaults(run=cmd_device)
+    _add_lazy(sub, command, "simulate", "open-loop forward dynamics from rack forces")
+    _add_lazy(sub, command, "trajectory", "write a trajectory file (waypoints or a named move)")
+    _add_lazy(sub, command, "case", "run a stiff or extreme scene's [case] against its expectation")
     return parser
 
 
@@ -580,3 +586,17 @@ def cmd_scene_info(args: argparse.Namespace) -> None:
     from stewart_sim.scene_info import describe_model
 
     print(describe_model(model))
+
+
+_LAZY = {"simulate": "stewart_sim.simulate", "trajectory": "stewart_sim.trajectory",
+         "case": "stewart_sim.case_report"}
+
+
+def _add_lazy(sub, command: str | None, name: str, help_text: str) -> None:
+    """A command defined by its own module's add_parser (stewart_sim.simulate, .trajectory,
+    .case_report): that module (and numpy, scipy, matplotlib with it) is imported only when the
+    command is the one asked for, so `--help` stays fast; otherwise a stub lists it."""
+    if command == name:
+        importlib.import_module(_LAZY[name]).add_parser(sub)
+    else:
+        sub.add_parser(name, help=help_text)

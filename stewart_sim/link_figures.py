@@ -8,7 +8,7 @@
   LOCKSTEP in lockstep), device -> host one LEG_STATE per step (plus LOCKSTEP in lockstep),
   DRIVE_STATUS at f / 10 and HEARTBEAT at 1 Hz.
 * `measure_latency`: round trips PARAM_REQUEST_READ -> PARAM_VALUE and (lockstep) setpoint +
-  LOCKSTEP -> LEG_STATE with the device served in a thread over a pseudo-terminal and over UDP.
+  LOCKSTEP -> LEG_STATE with the device in its own process over a pseudo-terminal and over UDP.
 * `degradation`: real-time runs (setpoints at the controller rate) through the link
   emulator on the wall clock with added latency or loss; RMS / max leg tracking error.
 

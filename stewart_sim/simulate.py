@@ -27,7 +27,7 @@ from stewart_fmu.model import Model
 from stewart_fmu.plant import Plant
 from stewart_fmu.scene import load_scene
 from stewart_fmu.stability import default_options
-from stewart_sim.result_set import result_set
+from stewart_sim.outputs import result_set
 
 FORCE_COLUMNS = io.FORCE_COLUMNS                      # t, sigma1..sigma6
 MOTION_COLUMNS = ("t", *POSE, *(f"d{c}" for c in POSE), *(f"l{i}" for i in range(1, 7)))

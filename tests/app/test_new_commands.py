@@ -239,3 +239,20 @@ def test_case_needs_a_case_table(tmp_path):
     shutil.copy(MICRO, tmp_path / "m.toml")
     with pytest.raises(SystemExit):
         parser().parse_args(["case", str(tmp_path / "m.toml"), "--duration", "0"])
+
+
+def test_the_command_line_runs_the_new_commands(tmp_path, capsys):
+    """stewart-sim lists simulate, trajectory and case in --help (without importing them) and
+    runs each through cli.main with its module's own arguments."""
+    from stewart_sim import cli
+
+    assert cli.main(["--help"]) == 0
+    listed = capsys.readouterr().out
+    assert all(name in listed for name in ("simulate", "trajectory", "case"))
+    out = tmp_path / "t.csv"
+    assert cli.main(["trajectory", str(MICRO), "--move", "demo", "--duration", "0.2",
+                     "--out", str(out)]) == 0
+    assert out.read_text().startswith("t,x,y,z,")
+    assert cli.main(["simulate", str(MICRO), "--forces", str(tmp_path / "missing.csv"),
+                     "--out", str(tmp_path / "sim")]) == 2     # one line, exit 2
+    assert "missing.csv" in capsys.readouterr().err
