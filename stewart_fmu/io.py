@@ -95,47 +95,61 @@ def read_trajectory(path: str | Path, progress: Callable[[int], None] | None = N
 
     Rows are parsed in blocks of CHUNK_ROWS; `progress(rows_read)` is called after each block.
     """
+    data = read_samples(path, TRAJECTORY_COLUMNS, "trajectory", progress=progress)
+    return data[:, 0].copy(), data[:, 1:7].copy(), data[:, 7:13].copy(), data[:, 13:19].copy()
+
+
+def read_samples(path: str | Path, columns: tuple[str, ...], what: str, *, prefix: bool = False,
+                 min_rows: int = 1, progress: Callable[[int], None] | None = None) -> np.ndarray:
+    """The (N, len(columns)) numbers of a time-indexed CSV (trajectories, forces, waypoints):
+    its header is `columns` (with `prefix`, starts with them and further columns are ignored),
+    every value finite, t strictly increasing, at least `min_rows` samples. Errors
+    (TrajectoryError) name the file, the line and the column."""
     path = Path(path)
     try:
         with path.open(newline="") as fh:
             reader = csv.reader(fh)
             try:
-                data = _read_rows(path, reader, progress)
+                data = _read_rows(path, reader, columns, prefix, progress)
             except csv.Error as exc:
                 raise TrajectoryError(
                     f"{path}: line {reader.line_num}: not valid CSV: {exc}") from None
     except OSError as exc:
-        raise TrajectoryError(f"{path}: cannot read trajectory: {exc.strerror or exc}") from None
+        raise TrajectoryError(f"{path}: cannot read {what}: {exc.strerror or exc}") from None
     except UnicodeDecodeError as exc:
         raise TrajectoryError(f"{path}: not a text file: {exc}") from None
+    if data.shape[0] < min_rows:
+        count = {1: "one", 2: "two"}.get(min_rows, str(min_rows))
+        raise TrajectoryError(f"{path}: need {count} or more samples, got {data.shape[0]}")
     bad = np.argwhere(~np.isfinite(data))
     if bad.size:
         r, c = bad[0]
         raise TrajectoryError(
-            f"{path}: line {r + 2}, column '{TRAJECTORY_COLUMNS[c]}': non-finite value {data[r, c]}")
+            f"{path}: line {r + 2}, column '{columns[c]}': non-finite value {data[r, c]}")
     t = data[:, 0]
     if np.any(np.diff(t) <= 0):
         r = int(np.flatnonzero(np.diff(t) <= 0)[0]) + 3
         raise TrajectoryError(f"{path}: line {r}, column 't': time must increase strictly")
-    return t, data[:, 1:7].copy(), data[:, 7:13].copy(), data[:, 13:19].copy()
+    return data
 
 
-def _read_rows(path: Path, reader: Iterator[list[str]],
+def _read_rows(path: Path, reader: Iterator[list[str]], columns: tuple[str, ...], prefix: bool,
                progress: Callable[[int], None] | None) -> np.ndarray:
-    """Check the header, then parse the rows block by block into an (N, 19) array."""
+    """Check the header, then parse the rows block by block into an (N, len(columns)) array."""
     header = next(reader, None)
     if header is None:
-        raise TrajectoryError(f"{path}: empty file, expected header {','.join(TRAJECTORY_COLUMNS)}")
-    _check_header(path, tuple(c.strip() for c in header))
-    width = len(TRAJECTORY_COLUMNS)
+        raise TrajectoryError(f"{path}: empty file, expected header {','.join(columns)}")
+    header = tuple(c.strip() for c in header)
+    _check_header(path, header[:len(columns)] if prefix else header, columns, prefix)
+    width, n = len(header), len(columns)
     blocks, block = [], []
     for r, row in enumerate(reader, start=2):
         if len(row) != width:
             raise TrajectoryError(f"{path}: line {r} has {len(row)} fields, expected {width}")
         try:
-            block.append([float(cell) for cell in row])
+            block.append([float(cell) for cell in row[:n]])
         except ValueError:
-            raise _bad_cell(path, r, row) from None
+            raise _bad_cell(path, r, row, columns) from None
         if len(block) == CHUNK_ROWS:
             blocks.append(np.array(block))
             block = []
@@ -148,25 +162,26 @@ def _read_rows(path: Path, reader: Iterator[list[str]],
     return np.concatenate(blocks)
 
 
-def _check_header(path: Path, header: tuple[str, ...]) -> None:
-    """The header must be exactly the contract's trajectory columns, in order."""
-    if header != TRAJECTORY_COLUMNS:
-        missing = [c for c in TRAJECTORY_COLUMNS if c not in header]
-        extra = [c for c in header if c not in TRAJECTORY_COLUMNS]
+def _check_header(path: Path, header: tuple[str, ...], columns: tuple[str, ...],
+                  prefix: bool) -> None:
+    """The header must be exactly `columns`, in order (with prefix: start with them)."""
+    if header != columns:
+        missing = [c for c in columns if c not in header]
+        extra = [c for c in header if c not in columns]
         raise TrajectoryError(
-            f"{path}: header must be {','.join(TRAJECTORY_COLUMNS)}; "
+            f"{path}: header must {'start with' if prefix else 'be'} {','.join(columns)}; "
             f"missing {missing or 'none'}, unexpected {extra or 'none'}"
             + ("" if missing or extra else ", columns out of order"))
 
 
-def _bad_cell(path: Path, line: int, row: list[str]) -> TrajectoryError:
+def _bad_cell(path: Path, line: int, row: list[str], columns: tuple[str, ...]) -> TrajectoryError:
     """The error for the first cell of a row that is not a number."""
-    for c, cell in enumerate(row):
+    for c, cell in enumerate(row[:len(columns)]):
         try:
             float(cell)
         except ValueError:
             return TrajectoryError(
-                f"{path}: line {line}, column '{TRAJECTORY_COLUMNS[c]}': not a number: {cell!r}")
+                f"{path}: line {line}, column '{columns[c]}': not a number: {cell!r}")
     return TrajectoryError(f"{path}: line {line}: not a number")
 
 

@@ -13,14 +13,13 @@ all or nothing.
 from __future__ import annotations
 
 import argparse
-import csv
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from stewart_fmu import io
-from stewart_fmu.errors import StewartError, TrajectoryError
+from stewart_fmu.errors import StewartError
 from stewart_fmu.integrators import INTEGRATORS
 from stewart_fmu.io import POSE
 from stewart_fmu.model import Model
@@ -66,40 +65,9 @@ def cmd(args: argparse.Namespace) -> None:
 
 
 def read_forces(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """t (N,) and sigma (N, 6) from a forces CSV; errors name the line and column."""
-    try:
-        with path.open(newline="") as fh:
-            rows = list(csv.reader(fh))
-    except OSError as exc:
-        raise TrajectoryError(f"{path}: cannot read forces: {exc.strerror or exc}") from None
-    except (UnicodeDecodeError, csv.Error) as exc:
-        raise TrajectoryError(f"{path}: not a CSV text file: {exc}") from None
-    if not rows:
-        raise TrajectoryError(f"{path}: empty file, expected header {','.join(FORCE_COLUMNS)}")
-    header = tuple(c.strip() for c in rows[0])
-    if header[:7] != FORCE_COLUMNS:
-        raise TrajectoryError(f"{path}: header must start with {','.join(FORCE_COLUMNS)}, "
-                              f"got {','.join(header[:7]) or 'nothing'}")
-    data = np.empty((len(rows) - 1, 7))
-    for r, row in enumerate(rows[1:]):
-        if len(row) != len(header):
-            raise TrajectoryError(f"{path}: line {r + 2} has {len(row)} fields, expected {len(header)}")
-        for c in range(7):
-            try:
-                data[r, c] = float(row[c])
-            except ValueError:
-                raise TrajectoryError(f"{path}: line {r + 2}, column '{FORCE_COLUMNS[c]}': not a "
-                                      f"number: {row[c]!r}") from None
-    if data.shape[0] < 2:
-        raise TrajectoryError(f"{path}: need two or more samples, got {data.shape[0]}")
-    bad = np.argwhere(~np.isfinite(data))
-    if bad.size:
-        r, c = bad[0]
-        raise TrajectoryError(f"{path}: line {r + 2}, column '{FORCE_COLUMNS[c]}': non-finite "
-                              f"value {data[r, c]}")
-    if np.any(np.diff(data[:, 0]) <= 0):
-        r = int(np.flatnonzero(np.diff(data[:, 0]) <= 0)[0]) + 3
-        raise TrajectoryError(f"{path}: line {r}, column 't': time must increase strictly")
+    """t (N,) and sigma (N, 6) from a forces CSV (columns t,sigma1..sigma6, further columns
+    ignored: `inverse` output works); errors name the line and column."""
+    data = io.read_samples(path, FORCE_COLUMNS, "forces", prefix=True, min_rows=2)
     return data[:, 0].copy(), data[:, 1:].copy()
 
 

@@ -20,7 +20,6 @@ TRAJECTORY_COLUMNS) and feeds `stewart-sim inverse` as it is.
 from __future__ import annotations
 
 import argparse
-import csv
 import math
 from pathlib import Path
 
@@ -29,7 +28,7 @@ import numpy as np
 from controller.moves import DEMO_DURATION, DEMO_RATE, RUN_HOLD, RUN_MOVE, demo_trajectory, move_and_hold
 from controller.trajectory import Trajectory, leg_references, waypoints
 from stewart_fmu import io
-from stewart_fmu.errors import StewartError, TrajectoryError
+from stewart_fmu.errors import StewartError
 from stewart_fmu.io import POSE, writing
 from stewart_fmu.model import Model
 from stewart_fmu.scene import load_scene
@@ -120,34 +119,7 @@ def waypoint_trajectory(path: Path, rate: float) -> Trajectory:
 
 def read_waypoints(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """t (N,) and poses (N, 6) of a CSV whose header starts with t,x,y,z,thx,thy,thz."""
-    try:
-        with path.open(newline="") as fh:
-            rows = list(csv.reader(fh))
-    except OSError as exc:
-        raise TrajectoryError(f"{path}: cannot read waypoints: {exc.strerror or exc}") from None
-    except (UnicodeDecodeError, csv.Error) as exc:
-        raise TrajectoryError(f"{path}: not a CSV text file: {exc}") from None
-    if not rows or tuple(c.strip() for c in rows[0][:7]) != WAYPOINT_COLUMNS:
-        raise TrajectoryError(f"{path}: header must start with {','.join(WAYPOINT_COLUMNS)}")
-    width = len(rows[0])
-    data = np.empty((len(rows) - 1, 7))
-    for r, row in enumerate(rows[1:]):
-        if len(row) != width:
-            raise TrajectoryError(f"{path}: line {r + 2} has {len(row)} fields, expected {width}")
-        for c in range(7):
-            try:
-                data[r, c] = float(row[c])
-            except ValueError:
-                raise TrajectoryError(f"{path}: line {r + 2}, column '{WAYPOINT_COLUMNS[c]}': "
-                                      f"not a number: {row[c]!r}") from None
-            if not math.isfinite(data[r, c]):
-                raise TrajectoryError(f"{path}: line {r + 2}, column '{WAYPOINT_COLUMNS[c]}': "
-                                      f"non-finite value {row[c]!r}")
-    if data.shape[0] < 2:
-        raise TrajectoryError(f"{path}: need two or more waypoints, got {data.shape[0]}")
-    if np.any(np.diff(data[:, 0]) <= 0):
-        r = int(np.flatnonzero(np.diff(data[:, 0]) <= 0)[0]) + 3
-        raise TrajectoryError(f"{path}: line {r}, column 't': time must increase strictly")
+    data = io.read_samples(path, WAYPOINT_COLUMNS, "waypoints", prefix=True, min_rows=2)
     return data[:, 0].copy(), data[:, 1:].copy()
 
 
