@@ -11,7 +11,7 @@ Closed loop over the link
 -------------------------
 The reference is a pose trajectory sampled at the controller rate (`controller.trajectory`);
 the host sends its leg references (`leg_references`: lengths and rates) and the feed-forward
-force F of the configured mode with its rate dF/dt (`controller.cosim.feedforward_force`:
+force F of the configured mode with its rate dF/dt (`controller.feedforward.feedforward_force`:
 ``kane``, the Kane inverse dynamics; ``constant_load``, m lddot + b ldot of the axis model;
 ``none``: no force, the FORCE_VALID flag cleared). The device applies R i + L di/dt + Ke ldot
 with i = F / Kf, as the in-process loop does, so lockstep over the link equals
@@ -310,7 +310,7 @@ class LinkReference:
 
 def link_reference(model: Model, config: ControllerConfig, traj: Trajectory) -> LinkReference:
     """Leg references of `traj`, the feed-forward force of config.feedforward and its rate
-    (controller.cosim.feedforward_force: the in-process loop's feedforward)."""
+    (controller.feedforward.feedforward_force: the in-process loop's feedforward)."""
     refs = leg_references(model, traj)
     force = feedforward_force(model, config, axis_model(model, config.motor, config.load_mass),
                               traj, refs)

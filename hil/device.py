@@ -7,11 +7,11 @@ one controller period per `tick()`, and returns the messages it wants to send (p
 
 Physics and servo loops
 -----------------------
-The plant is `stewart_fmu.plant.Plant` (behind `controller.cosim.InProcessPlant`), the drive
+The plant is `stewart_fmu.plant.Plant` (behind `controller.plants.InProcessPlant`), the drive
 controllers are `controller.axis.AxisControllers` and `MotorCurrents` with the gains that
 `controller.design.tune_pid` gives for the scene's [controller] table (through
-`controller.cosim.design_axis`, which also refuses an unstable sampled loop). The device starts at
-the scene's home pose with the drives holding it: `controller.cosim.start_at_equilibrium` (the
+`controller.design.design_axis`, which also refuses an unstable sampled loop). The device starts at
+the scene's home pose with the drives holding it: `controller.feedforward.start_at_equilibrium` (the
 master's bumpless start, a private function of that module, called here rather than copied) sets
 the motor currents and the integrals for a static hold. One tick: measure leg lengths and rates,
 PID voltages (+ optional feed-forward), advance the motor currents, step the plant by the
@@ -306,7 +306,7 @@ class Device:
     def _set_feedforward(self, v_ff: np.ndarray | None, static: np.ndarray | None) -> None:
         """Bumpless transfer: when a feed-forward stream begins (or ends: hold, watchdog, homing,
         a setpoint without force) the integral hands its static part R i + Ke ldot_ref over (or
-        takes it back), as controller.cosim.start_at_equilibrium does at the start of a run."""
+        takes it back), as controller.feedforward.start_at_equilibrium does at the start of a run."""
         ki = self.ctrl.gains.ki
         if ki > 0 and (static is None) != (self._ff_static is None):
             old = 0.0 if self._ff_static is None else self._ff_static
