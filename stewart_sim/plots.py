@@ -170,7 +170,8 @@ def drive_figure(table: np.ndarray, voltage_limit: float, current_limit: float,
             ax.fill_between(t[k], 0, 1, where=sat[k], transform=ax.get_xaxis_transform(),
                             color="tab:red", alpha=0.12, lw=0, step="mid")
     axes[0].legend([f"leg {i + 1}" for i in range(6)], ncol=6, fontsize="small", loc="best")
-    notes = [f"voltage limit ±{voltage_limit:g} V", "dotted: feedforward part"]
+    v_peak = float(np.max(np.abs(_columns(table, "voltage"))))
+    notes = [f"voltage limit ±{voltage_limit:g} V, peak {v_peak:.3g} V", "dotted: feedforward part"]
     if np.any(sat):
         notes.append(f"shaded: an axis saturated ({np.count_nonzero(sat)} samples)")
     axes[0].set_title("motor voltage V_i (" + "; ".join(notes) + ")", fontsize=9)
