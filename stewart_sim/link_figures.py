@@ -197,12 +197,13 @@ def report(out: Path, model, config, n: int = 500, **cases) -> Path:
     for r in rows:
         lines.append(f"| {1e3 * r['latency']:g} | {r['loss']:g} | {1e6 * r['rms']:.1f} | "
                      f"{1e6 * r['max']:.1f} | {r['lost']:g} | {r['setpoints_lost']:g} |")
-    lines += ["", "Loss barely moves the RMS: it is taken over the LEG_STATEs that arrive (a lost "
-              "state is missing from it, not an error), and a lost setpoint holds the previous "
-              "one for one 1 ms period, which the servo (tens of Hz of bandwidth) hardly sees; "
-              "the max shows the loss (runs of lost setpoints). Single wall-clock runs scatter "
-              "by a factor of two or more (a GIL stall can make one run ten times worse), so "
-              "loss rows within that spread of the 0 % row do not mean loss helps."]
+    lines += ["", "Loss changes the error less than runs scatter: the RMS is taken over the "
+              "LEG_STATEs that arrive (a lost state is missing from it, not an error), and a "
+              "lost setpoint holds the previous one for one 1 ms period, which the servo (tens "
+              "of Hz of bandwidth) hardly sees; the host sends its setpoints as punctually with "
+              "loss as without. Single 0.5 s wall-clock runs without loss or latency scatter by "
+              "a factor of two or more (a GIL stall can make one run ten times worse), so a "
+              "loss row below the 0 % row is within that scatter, not a benefit of loss."]
     plot(rows, out / "tracking_vs_link.png")
     lines += ["", "![tracking vs link](tracking_vs_link.png)", ""]
     return write_text(out / "figures.md", "\n".join(lines))
