@@ -117,16 +117,16 @@ def motion_figure(table: np.ndarray, title: str):
     fig = Figure(figsize=(10, 8), layout="constrained")
     axes = fig.subplots(3, 1, sharex=True)
     t = table["t"]
+    from stewart_sim.plots import plot_line   # each line decimated for drawing (MAX_POINTS)
     for c in ("x", "y", "z"):
-        axes[0].plot(t, table[c], label=c)
+        plot_line(axes[0], t, table[c], label=c)
     for c in ("thx", "thy", "thz"):
-        axes[1].plot(t, table[c], label=f"θ{c[2]}")
+        plot_line(axes[1], t, table[c], label=f"θ{c[2]}")
     for i in range(1, 7):
-        axes[2].plot(t, table[f"l{i}"], label=f"l{i}")
+        plot_line(axes[2], t, table[f"l{i}"], label=f"l{i}")
     for ax, (what, unit) in zip(axes, (("position", "m"), ("orientation", "rad"), ("leg length", "m"))):
-        ax.set_ylabel(f"{what} ({unit})")
+        ax.set(ylabel=f"{what} ({unit})", xlabel="time t (s)")
         ax.grid(True, alpha=0.3)
         ax.legend(ncol=6, fontsize="small", loc="best")
-    axes[-1].set_xlabel("time t (s)")
     fig.suptitle(title)
     return fig

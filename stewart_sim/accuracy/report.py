@@ -57,7 +57,7 @@ def work_precision_figure(res: AccuracyResults) -> Figure:
         ax.loglog(r["run_time"], np.maximum(r["pose_error"], 1e-17), marker=MARKERS[method],
                   ms=4, lw=1, label=method)
     _floor(ax, res.floor)
-    ax.set(xlabel="run time (s)", ylabel="relative pose error",
+    ax.set(xlabel="run time (s)", ylabel="relative pose error (-)",
            title=f"open loop, {res.case.times[-1]:g} s, forces held {res.case.comm_step * 1e3:g} ms")
     ax.legend(fontsize="small", ncol=2)
     ax = axes[1]
@@ -68,7 +68,7 @@ def work_precision_figure(res: AccuracyResults) -> Figure:
                   label=f"{order.method}: order {order.measured:.2f} (theory {order.theory})"
                   if np.isfinite(order.measured) else f"{order.method}: order not measurable")
     _floor(ax, res.floor)
-    ax.set(xlabel="internal step h (s)", ylabel="relative pose error",
+    ax.set(xlabel="internal step h (s)", ylabel="relative pose error (-)",
            title="fixed-step methods: convergence")
     ax.legend(fontsize="small")
     if res.closed_loop is not None:
@@ -78,7 +78,7 @@ def work_precision_figure(res: AccuracyResults) -> Figure:
         for r in c:
             ax.annotate(f"{r['step'] * 1e3:g} ms", (r["run_time"], r["pose_error"]),
                         fontsize=8, xytext=(4, 4), textcoords="offset points")
-        ax.set(xlabel="run time (s)", ylabel="relative pose error",
+        ax.set(xlabel="run time (s)", ylabel="relative pose error (-)",
                title=f"closed loop, {res.closed_loop_duration:g} s: communication step")
         ax.legend(fontsize="small")
     for a in axes:
@@ -112,7 +112,8 @@ def summary_text(res: AccuracyResults) -> str:
         "and rotation separately, the larger), force error over every part of the rack force's "
         "breakdown (`Plant.outputs.parts`) relative to the peak force. Run time: "
         f"time.perf_counter around the whole run, best of {res.repeats} or more (short runs "
-        "repeat for 0.2 s). Adaptive methods: "
+        "repeat for 0.2 s), after one untimed warm-up run of the same setting (discarded, so "
+        "one-time costs never count, also with --repeats 1). Adaptive methods: "
         f"atol = {ATOL_RATIO:g} rtol, steps up to the communication step.",
         "",
         f"Reference: {REFERENCE.method} at rtol {REFERENCE.rtol:g} (atol {REFERENCE.atol:g}), "
@@ -178,7 +179,7 @@ def _closed_loop_lines(res: AccuracyResults) -> list[str]:
         f"at half the step differs from it by {res.closed_loop_check:.2g}. Tracking error: the "
         "largest translational pose error against the reference trajectory, relative to the "
         "range. Run time: the compiled loop's wall time, best of "
-        f"{res.repeats} or more.",
+        f"{res.repeats} or more, after one untimed warm-up loop at the same step.",
         "", "| step (ms) | pose error vs reference loop | tracking error | run time (ms) | "
         "x real time |", "|---|---|---|---|---|"]
     for r in res.closed_loop:

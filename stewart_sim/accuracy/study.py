@@ -34,7 +34,6 @@ from stewart_fmu.errors import IntegrationError, TrajectoryError
 from stewart_fmu.integrators import FIXED_STEP, INTEGRATORS, IntegratorOptions
 from stewart_fmu.model import Model
 from stewart_fmu.plant import Plant, StepRejected
-from stewart_fmu.stability import default_options
 
 COMM_STEP = 0.05          # s: open-loop communication step (forces held over it)
 HORIZON = 1.0             # s: open-loop horizon
@@ -121,10 +120,19 @@ def simulate(case: OpenLoopCase, options: IntegratorOptions) -> np.ndarray:
     return states
 
 
-def best_of(run: Callable[[], tuple[object, float]], repeats: int) -> tuple[object, float]:
+def best_of(run: Callable[[], tuple[object, float]], repeats: int, warmup: bool = True
+            ) -> tuple[object, float]:
     """run() -> (result, seconds): the last result and the least seconds over at least
     `repeats` calls, more while they took under MIN_TIMING (unless repeats is 1: one call),
-    fewer once past TIME_BUDGET."""
+    fewer once past TIME_BUDGET.
+
+    Warm-up: with `warmup` (the default) one call of the same run comes first, untimed and
+    discarded, so one-time costs (loading the plant's C core and scipy's solvers, first
+    allocations, caches) never count in a timing, also with --repeats 1 where the timed call
+    is the only one. (Measured with the C core: the first call is no slower than the next
+    ones any more, so this only guards against such costs coming back.)"""
+    if warmup:
+        run()
     best, spent, calls, result = np.inf, 0.0, 0, None
     min_time = MIN_TIMING if repeats > 1 else 0.0
     while calls < max(1, repeats) or (spent < min_time and calls < MAX_REPEATS):
@@ -135,13 +143,14 @@ def best_of(run: Callable[[], tuple[object, float]], repeats: int) -> tuple[obje
     return result, best
 
 
-def timed(run: Callable[[], object], repeats: int) -> tuple[object, float]:
-    """(result, best perf_counter wall time) of run(), see best_of."""
+def timed(run: Callable[[], object], repeats: int, warmup: bool = True) -> tuple[object, float]:
+    """(result, best perf_counter wall time) of run() after an untimed warm-up call, see
+    best_of."""
     def clocked():
         start = time.perf_counter()
         result = run()
         return result, time.perf_counter() - start
-    return best_of(clocked, repeats)
+    return best_of(clocked, repeats, warmup)
 
 
 def breakdown(case: OpenLoopCase, states: np.ndarray) -> np.ndarray:
@@ -192,7 +201,7 @@ def open_loop_sweep(case: OpenLoopCase, ref: Reference, settings: Sequence[Integ
                     repeats: int = 3, progress: ProgressFn | None = None) -> np.ndarray:
     """One row per setting: method, step (fixed-step methods) or rtol, errors, run time (s)."""
     rows = np.zeros(len(settings), dtype=OPEN_LOOP_FIELDS)
-    simulate(case, default_options(case.model))   # load the compiled kernels before timing
+    # every timed setting gets its own untimed warm-up call first (timed -> best_of)
     for k, o in enumerate(settings):
         fixed = o.method in FIXED_STEP
         try:
@@ -256,7 +265,7 @@ def closed_loop_sweep(model: Model, steps: Sequence[float] = CLOSED_LOOP_STEPS,
     the reference is the Richardson extrapolation 2 q(h) - q(2h) at h = reference_step; its
     check is its difference from the same extrapolation at h / 2."""
 
-    fine, ref_q, coarse = (_closed_loop(model, h, duration, 1)[0]
+    fine, ref_q, coarse = (_closed_loop(model, h, duration, 1, warmup=False)[0]  # untimed
                            for h in (reference_step / 2, reference_step, 2 * reference_step))
     reference = 2 * ref_q[::2] - coarse
     ranges = (float(np.max(np.ptp(reference[:, :3], axis=0))),
@@ -285,9 +294,10 @@ def closed_loop_order(rows: np.ndarray) -> float:
     return float(np.polyfit(np.log(ok["step"]), np.log(ok["pose_error"]), 1)[0]) if len(ok) > 1 else np.nan
 
 
-def _closed_loop(model: Model, step: float, duration: float, repeats: int):
+def _closed_loop(model: Model, step: float, duration: float, repeats: int, warmup: bool = True):
     """(pose (N, 6), max translational tracking error (m), least loop wall time (s)) of the
-    `run` reference tracked with the scene's controllers at communication step `step`."""
+    `run` reference tracked with the scene's controllers at communication step `step`; the
+    timed loops come after an untimed warm-up loop of the same step (best_of)."""
 
     config = replace(controller_config(model), rate=1.0 / step)
     traj = run_reference(model, config, duration)
@@ -295,7 +305,7 @@ def _closed_loop(model: Model, step: float, duration: float, repeats: int):
     def run():
         result = run_closed_loop(model, config, traj)
         return result, result.summary.wall_time
-    result, wall = best_of(run, repeats)
+    result, wall = best_of(run, repeats, warmup)
     q = np.column_stack([result.table[c] for c in ("x", "y", "z", "thx", "thy", "thz")])
     return q, float(np.max(result.summary.pose_max[:3])), wall
 

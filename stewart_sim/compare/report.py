@@ -104,8 +104,8 @@ def comparison_figure(comparisons: Sequence[Comparison]) -> Figure:
         ax.text(0.5, 0.5, "no run completed", transform=ax.transAxes, ha="center")
         ax.plot([min(p.mass_ratio for c in comparisons for p in c.points)] * 2, [1e-6, 1.0],
                 alpha=0)  # keeps the log axes valid
-    ax.set(xscale="log", yscale="log", xlabel="drive inertia over constant load  m_d / m_load",
-           ylabel="max leg error / leg excursion of the move",
+    ax.set(xscale="log", yscale="log", xlabel="drive inertia over constant load  m_d / m_load (-)",
+           ylabel="max leg error / leg excursion of the move (-)",
            title="closed-loop tracking (★ scene's own gear ratio, ○ drive saturates, "
                  "◇ own ratio without Coulomb"
                  + (", dotted line: design infeasible or run failed)"
@@ -114,8 +114,8 @@ def comparison_figure(comparisons: Sequence[Comparison]) -> Figure:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize="x-small", loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2)
     bx.axhline(HOLDS, color="tab:red", ls="--", lw=1, label=f"assumption holds below {HOLDS:g}")
-    bx.set(xscale="log", yscale="log", xlabel="m_d / m_load",
-           ylabel="coupling  max ||[m](q) − m_load·1|| / (m_load + m_d)",
+    bx.set(xscale="log", yscale="log", xlabel="m_d / m_load (-)",
+           ylabel="coupling  max ||[m](q) − m_load·1|| / (m_load + m_d) (-)",
            title="inertia the constant-load design leaves out")
     bx.grid(True, which="both", alpha=0.3)
     bx.legend(fontsize="small")

@@ -128,7 +128,7 @@ def levels_figure(results: PaperResults) -> Figure:
         ax.yaxis.set_major_formatter(LogFormatter())
         ax.yaxis.set_minor_formatter(LogFormatter(labelOnlyBase=False, minor_thresholds=(1, 0.5)))
         ax.set_xticks(legs, [f"σ{i}" for i in legs])
-        ax.set_xlabel("actuator")
+        ax.set_xlabel("actuator i (leg number)")
         ax.set_ylabel("peak |σ| over the move (N)")
         ax.set_title(f"({PANEL[k]}) {trajectory_label(results.trajectories[name])}", fontsize=9)
         ax.grid(True, axis="y", alpha=0.3)

@@ -8,9 +8,11 @@ from typing import Mapping, Sequence
 import numpy as np
 from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
+from matplotlib.ticker import FixedLocator, FuncFormatter
 
 from controller.moves import demo_amplitudes
 from stewart_fmu.dynamics import inverse_dynamics
+from stewart_fmu.fmu.variables import SCENE_KEYS
 from stewart_fmu.io import POSE
 from stewart_fmu.model import Model
 from stewart_sim.sweep.evaluate import reachable
@@ -21,6 +23,39 @@ DEFAULT_SLICE_SPAN = 6.0     # without [envelope]: +- this many demo amplitudes 
 METRIC = {"inverse": ("sigma_max", "peak actuator force max|σ_i| (N)", "peak_force.png"),
           "envelope": ("sigma_max", "peak force over the workspace (N)", "peak_force.png"),
           "closed_loop": ("leg_err_rms", "RMS leg tracking error (m)", "tracking_error.png")}
+# Units of the keys a sweep may vary: the scene's from stewart_fmu.fmu.variables.SCENE_KEYS,
+# the rest (controller/config.py ControllerConfig, controller/drive.py Motor, the sweep's
+# trajectory and case tables) here, the one place the plots take them from.
+AXIS_UNITS = {
+    "controller.rate": "Hz", "controller.bandwidth": "Hz", "controller.phase_margin": "deg",
+    "controller.load_mass": "kg",
+    "controller.motor.resistance": "ohm", "controller.motor.inductance": "H",
+    "controller.motor.torque_constant": "N m/A", "controller.motor.back_emf": "V s/rad",
+    "controller.motor.current_limit": "A", "controller.motor.voltage_limit": "V",
+    "trajectory.duration": "s", "case.duration": "s", "case.step": "s",
+    "case.force_scale": "1", "case.acceleration": "m/s2",
+}
+
+
+def axis_label(key: str) -> str:
+    """'platform.mass (kg)': a swept key with its unit ('-' for dimensionless, '?' unknown)."""
+    entry = SCENE_KEYS.get(key)
+    unit = entry[2] if entry is not None else AXIS_UNITS.get(key)
+    return f"{key} ({'-' if unit == '1' else unit or '?'})"
+
+
+def colorbar_ticks(cbar, lo: float, hi: float, log: bool, n: int = 5) -> None:
+    """n ticks spread evenly (geometrically with a log norm) over [lo, hi], 3 significant
+    digits: a LogLocator over less than a decade draws one tick or none."""
+    if not (np.isfinite(lo) and np.isfinite(hi)) or hi <= lo:
+        return
+    ticks = np.geomspace(lo, hi, n) if log else np.linspace(lo, hi, n)
+    cbar.locator = FixedLocator(ticks)
+    cbar.formatter = FuncFormatter(lambda v, _: f"{v:.3g}")
+    cbar.minorticks_off()
+    cbar.update_ticks()
+
+
 X_PREFERRED = ("drive.gear_ratio",)
 COLOUR_PREFERRED = ("platform.mass",)
 
@@ -39,8 +74,11 @@ def results_figure(table: Mapping[str, np.ndarray], grid: GridSpec, title: str) 
     kw = {"c": table[c][ok], "cmap": "viridis"} if c else {}
     sc = ax.scatter(xs, table[metric][ok], s=12, **kw)
     if c:
-        fig.colorbar(sc, ax=ax, label=c)
-    ax.set(xlabel=x or "point", ylabel=label)
+        cbar = fig.colorbar(sc, ax=ax, label=axis_label(c))
+        values = np.asarray(table[c][ok], float)
+        if values.size:
+            colorbar_ticks(cbar, float(values.min()), float(values.max()), False)
+    ax.set(xlabel=axis_label(x) if x else "point (index)", ylabel=label)
     for name, scale in (("x", x), ("y", metric)):
         values = table[scale][ok] if scale else xs
         if values.size and np.all(values > 0) and values.max() / values.min() > 20:
@@ -96,7 +134,7 @@ def workspace_figures(model: Model, envelope: EnvelopeSettings | None) -> tuple[
     cases = f"{len(acc)} load case{'s' if len(acc) > 1 else ''} (qdd)"
     env = _map(av, bv, force.reshape(shape), a, b, "max |σ_i| (N)",
                f"{where}\nforce envelope: static + {cases}; blank: outside the stroke", False)
-    sing = _map(av, bv, np.where(ok, cond, np.nan).reshape(shape), a, b, "cond(J)",
+    sing = _map(av, bv, np.where(ok, cond, np.nan).reshape(shape), a, b, "cond(J) (-)",
                 f"{where}\nsingularity map: condition number of the leg Jacobian", True)
     return env, sing
 
@@ -108,7 +146,9 @@ def _map(av, bv, values, a: str, b: str, label: str, title: str, log: bool) -> F
     norm = LogNorm(finite.min(), finite.max()) if log and finite.size and finite.min() > 0 else None
     mesh = ax.pcolormesh(av, bv, np.ma.masked_invalid(values), shading="auto", norm=norm,
                          cmap="magma_r" if log else "viridis")
-    fig.colorbar(mesh, ax=ax, label=label)
+    cbar = fig.colorbar(mesh, ax=ax, label=label)
+    if finite.size:
+        colorbar_ticks(cbar, float(finite.min()), float(finite.max()), norm is not None)
     unit = lambda n: "rad" if n.startswith("th") else "m"  # noqa: E731
     ax.set(xlabel=f"{a} offset from home ({unit(a)})", ylabel=f"{b} offset from home ({unit(b)})")
     ax.set_title(title, fontsize=9)
