@@ -86,7 +86,7 @@ def main(argv: list[str] | None = None) -> None:
         print(f"{name:<22} {inv * 1e9:>7,.0f} ns {inv_full / inv:>7.2f} {fwd * 1e9:>7,.0f} ns "
               f"{fwd_full / fwd:>7.2f}")
     print("[friction] and [drive] cost a few flops per leg, below this machine's timing noise; "
-          "that they are skipped\n(parameters never read) is shown by tests/"
+          "that they are skipped\n(parameters never read) is shown by tests/stewart_fmu/"
           "test_dynamics_physics.py::test_absent_effects_are_not_computed")
     S = inverse_dynamics(model, Q, QD, QDD)
     q, qd, qdd, s = Q[1], QD[1], QDD[1], S[1]

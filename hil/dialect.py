@@ -10,7 +10,7 @@ Files
 ``hil/mavlink_stewart.py``
     The Python module generated from it by pymavlink's own generator (``mavgen``, language
     ``Python3``, wire protocol 2.0, schema validation on). It is checked in and needs only the
-    standard library at run time. ``tests/test_hil_dialect.py`` regenerates it and requires a
+    standard library at run time. ``tests/hil/test_dialect.py`` regenerates it and requires a
     byte-identical result. The generator writes no timestamp and no path (only the XML file
     *basenames* and the module name, which is why :func:`generate` always writes a file named
     ``mavlink_stewart.py``), so the output is reproducible for a given pymavlink version; a
