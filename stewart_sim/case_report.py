@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 from stewart_fmu.scene import load_scene
+from stewart_sim.argtypes import positive_seconds
 from stewart_sim.cases import Case, CaseResult, case_of, run_case
 
 MISMATCH_STATUS = 1
@@ -28,20 +29,10 @@ def add_parser(sub) -> None:
                     "it, with where) against the outcome the case expects, with its figures. "
                     "Exit status 0 when they agree, 1 when they do not.")
     p.add_argument("scene", metavar="SCENE", help="scene file (TOML) with a [case] table")
-    p.add_argument("--duration", type=_seconds, default=None, metavar="S",
+    p.add_argument("--duration", type=positive_seconds, default=None, metavar="S",
                    help="run this long instead of the case's duration (e.g. a short look at "
                         "the hour-long hold)")
     p.set_defaults(run=cmd)
-
-
-def _seconds(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"must be a finite number of seconds > 0, got {text!r}")
-    return value
 
 
 def cmd(args: argparse.Namespace) -> int:

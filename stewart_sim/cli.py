@@ -15,10 +15,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import math
 import sys
 from pathlib import Path
 from typing import Sequence
+
+from stewart_sim.argtypes import number, positive_seconds
 
 # Only the standard library up here: `--help` and `--version` must answer at once. Each command
 # imports what it needs (numpy, the C core, matplotlib, scipy, dask, fmpy, pymavlink) when it
@@ -138,7 +139,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                                    "and the paper rerun into DIR/paper/.")
     p.add_argument("scene", metavar="SCENE", help="scene file (TOML)")
     p.add_argument("--out", required=True, metavar="DIR", help="output directory")
-    p.add_argument("--duration", type=_positive_seconds, default=DEMO_DURATION, metavar="SECONDS",
+    p.add_argument("--duration", type=positive_seconds, default=DEMO_DURATION, metavar="SECONDS",
                    help=f"length of the demonstration move (default {DEMO_DURATION:g} s, "
                         f"sampled at {DEMO_RATE:g} Hz)")
     p.set_defaults(run=cmd_demo)
@@ -154,7 +155,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                    help="drive this FMU (export-fmu of the same scene) through fmpy instead of "
                         "the in-process plant")
     p.add_argument("--out", required=True, metavar="DIR", help="output directory")
-    p.add_argument("--duration", type=_positive_seconds, default=DEMO_DURATION, metavar="SECONDS",
+    p.add_argument("--duration", type=positive_seconds, default=DEMO_DURATION, metavar="SECONDS",
                    help=f"length of the run (default {DEMO_DURATION:g} s): the move out and "
                         f"back take {100 * RUN_MOVE:g} %% of it each, the holds after them "
                         f"{100 * RUN_HOLD:g} %% each")
@@ -196,9 +197,9 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                                    "and summary.md into DIR.")
     p.add_argument("scene", metavar="SCENE", help="scene file (TOML)")
     p.add_argument("--out", required=True, metavar="DIR", help="output directory")
-    p.add_argument("--horizon", type=_positive_seconds, default=HORIZON, metavar="SECONDS",
+    p.add_argument("--horizon", type=positive_seconds, default=HORIZON, metavar="SECONDS",
                    help=f"open-loop simulated time (default {HORIZON:g} s)")
-    p.add_argument("--comm-step", type=_positive_seconds, default=COMM_STEP, metavar="SECONDS",
+    p.add_argument("--comm-step", type=positive_seconds, default=COMM_STEP, metavar="SECONDS",
                    help=f"open-loop communication step: the forces are held over it and the "
                         f"fixed-step methods divide it (default {COMM_STEP:g} s)")
     p.add_argument("--fine", action="store_true",
@@ -206,7 +207,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     p.add_argument("--repeats", type=_repeats, default=3, metavar="N",
                    help="time each run N times or more (runs under 0.2 s repeat until then), keep "
                         "the best; 1: a single timing (default 3)")
-    p.add_argument("--closed-loop-duration", type=_positive_seconds,
+    p.add_argument("--closed-loop-duration", type=positive_seconds,
                    default=CLOSED_LOOP_DURATION, metavar="SECONDS",
                    help=f"length of the closed-loop runs (default {CLOSED_LOOP_DURATION:g} s)")
     p.add_argument("--no-closed-loop", action="store_true",
@@ -262,7 +263,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                             "whoever sends to it")
     where.add_argument("--pty", action="store_true",
                        help="open a pseudo-terminal and print its path on the first line")
-    p.add_argument("--watchdog", type=_positive_seconds, default=0.2, metavar="SECONDS",
+    p.add_argument("--watchdog", type=positive_seconds, default=0.2, metavar="SECONDS",
                    help="safe stop (hold) after this long without a valid setpoint while armed "
                         "(default 0.2 s)")
     p.add_argument("--lockstep", action="store_true",
@@ -287,24 +288,9 @@ def _version() -> str:
         return "unknown (not installed)"
 
 
-def _number(convert, what: str, ok, rule: str):
-    """An argparse type: `convert(text)` that must satisfy `ok`, else a message saying `rule`."""
-    def parse(text: str):
-        try:
-            value = convert(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"not {what}: {text!r}") from None
-        if not ok(value):
-            raise argparse.ArgumentTypeError(f"must be {rule}, got {text!r}")
-        return value
-    return parse
-
-
-_positive_seconds = _number(float, "a number", lambda v: math.isfinite(v) and v > 0,
-                            "a finite number of seconds > 0")
-_sweep_points = _number(int, "an integer", lambda v: 1 <= v <= 100, "1 to 100")
-_repeats = _number(int, "an integer", lambda v: 1 <= v <= 20, "1 to 20")
-_workers = _number(int, "an integer", lambda v: 1 <= v <= 1024, "1 to 1024")
+_sweep_points = number(int, "an integer", lambda v: 1 <= v <= 100, "1 to 100")
+_repeats = number(int, "an integer", lambda v: 1 <= v <= 20, "1 to 20")
+_workers = number(int, "an integer", lambda v: 1 <= v <= 1024, "1 to 1024")
 
 
 # Each command imports its pipeline when it runs (start-up time of every other command); the

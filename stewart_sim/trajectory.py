@@ -20,7 +20,6 @@ TRAJECTORY_COLUMNS) and feeds `stewart-sim inverse` as it is.
 from __future__ import annotations
 
 import argparse
-import math
 from pathlib import Path
 
 import numpy as np
@@ -32,6 +31,7 @@ from stewart_fmu.errors import StewartError
 from stewart_fmu.io import POSE, writing
 from stewart_fmu.model import Model
 from stewart_fmu.scene import load_scene
+from stewart_sim.argtypes import positive_rate, positive_seconds
 
 MOVES = ("demo", "run", "quintic")
 WAYPOINT_COLUMNS = ("t", *POSE)
@@ -53,25 +53,13 @@ def add_parser(sub) -> None:
                            "rest at both ends")
     what.add_argument("--move", choices=MOVES, help="one of the project's moves from rest at home")
     p.add_argument("--out", required=True, metavar="T.csv", help="trajectory to write (atomically)")
-    p.add_argument("--rate", type=_positive("a rate in Hz"), default=None, metavar="HZ",
+    p.add_argument("--rate", type=positive_rate, default=None, metavar="HZ",
                    help=f"sample rate (default {DEMO_RATE:g} Hz; --move run: the scene's "
                         "controller rate if it has a [controller] table)")
-    p.add_argument("--duration", type=_positive("a number of seconds"), default=None, metavar="S",
+    p.add_argument("--duration", type=positive_seconds, default=None, metavar="S",
                    help=f"length of the move (default {DEMO_DURATION:g} s; not with --waypoints, "
                         "whose times set it)")
     p.set_defaults(run=cmd)
-
-
-def _positive(what: str):
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"not {what}: {text!r}") from None
-        if not (math.isfinite(value) and value > 0):
-            raise argparse.ArgumentTypeError(f"must be finite and > 0, got {text!r}")
-        return value
-    return parse
 
 
 def cmd(args: argparse.Namespace) -> None:
