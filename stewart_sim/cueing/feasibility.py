@@ -148,8 +148,8 @@ def _crossings(t: np.ndarray, quantity: str, values: np.ndarray, limit: float,
         edges = np.diff(np.r_[0, past[:, col].astype(np.int8), 0])
         starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
         for k, end in zip(starts, ends):
-            out.append(Violation(float(t[k]), int(k), None if values.shape[1] == 1 else int(col) + 1,
-                                 quantity, float(values[k, col]), float(limit), UNITS[quantity],
+            out.append(Violation(float(t[k]), int(k), _leg(values, col), quantity,
+                                 float(values[k, col]), float(limit), UNITS[quantity],
                                  float((end - k) * dt)))
     return out
 
@@ -159,4 +159,9 @@ def _margin(t: np.ndarray, quantity: str, values: np.ndarray, limit: float, side
     ratio = limit / values if side < 0 else (np.abs(values) if side == 0 else values) / limit
     k, col = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
     return Margin(quantity, float(ratio[k, col]), float(values[k, col]), float(limit),
-                  UNITS[quantity], float(t[k]), int(k), None if values.shape[1] == 1 else int(col) + 1)
+                  UNITS[quantity], float(t[k]), int(k), _leg(values, col))
+
+
+def _leg(values: np.ndarray, col) -> int | None:
+    """Leg number 1..6 of a column, None for a per-pose quantity (one column)."""
+    return None if values.shape[1] == 1 else int(col) + 1

@@ -46,7 +46,8 @@ class VehicleMotion:
             raise MotionError(f"vehicle motion: t must have shape (N,) with N >= 2, got {t.shape}")
         for name, a in (("specific_force", f), ("angular_velocity", w)):
             if a.shape != (t.size, 3):
-                raise MotionError(f"vehicle motion: {name} must have shape ({t.size}, 3), got {a.shape}")
+                raise MotionError(f"vehicle motion: {name} must have shape ({t.size}, 3), "
+                                  f"got {a.shape}")
         data = np.column_stack([t, f, w])
         _check_samples(data, "vehicle motion", first_line=0)
         for name, a in (("t", t), ("specific_force", f), ("angular_velocity", w)):
@@ -76,6 +77,14 @@ def write_motion(path: str | Path, motion: VehicleMotion) -> Path:
     return write_csv(path, named_array({c: cols[:, k] for k, c in enumerate(MOTION_COLUMNS)}))
 
 
+def first_irregular_step(t: np.ndarray) -> int | None:
+    """The first sample k whose step t[k] - t[k-1] is not positive or differs from the first
+    step by more than UNIFORM_TOLERANCE (relative); None when t is uniform and increasing."""
+    steps = np.diff(np.asarray(t, dtype=float))
+    bad = (steps <= 0) | (np.abs(steps - steps[0]) > UNIFORM_TOLERANCE * steps[0])
+    return int(np.flatnonzero(bad)[0]) + 1 if np.any(bad) else None
+
+
 def _check_samples(data: np.ndarray, where: str, first_line: int) -> None:
     """Every value finite, t strictly increasing with a constant step. `first_line` is the
     file line of row 0 (0: arrays, name the sample instead)."""
@@ -86,12 +95,12 @@ def _check_samples(data: np.ndarray, where: str, first_line: int) -> None:
     if bad.size:
         r, c = bad[0]
         raise MotionError(f"{where}: {at(r, MOTION_COLUMNS[c])}: non-finite value {data[r, c]}")
+    r = first_irregular_step(data[:, 0])
+    if r is None:
+        return
     steps = np.diff(data[:, 0])
-    if np.any(steps <= 0):
-        r = int(np.flatnonzero(steps <= 0)[0]) + 1
+    if steps[r - 1] <= 0:
         raise MotionError(f"{where}: {at(r, 't')}: time must increase strictly")
-    off = np.abs(steps - steps[0]) > UNIFORM_TOLERANCE * steps[0]
-    if np.any(off):
-        r = int(np.flatnonzero(off)[0]) + 1
-        raise MotionError(f"{where}: {at(r, 't')}: sampling must be uniform: step "
-                          f"{float(steps[r - 1])!r} s differs from the first step {float(steps[0])!r} s")
+    raise MotionError(f"{where}: {at(r, 't')}: sampling must be uniform: step "
+                      f"{float(steps[r - 1])!r} s differs from the first step "
+                      f"{float(steps[0])!r} s")

@@ -45,7 +45,7 @@ from scipy import signal
 
 from stewart_fmu.rotations import euler_motion
 
-from .motion import MotionError, VehicleMotion
+from .motion import MotionError, VehicleMotion, first_irregular_step
 
 OTOLITH_TAU = (13.2, 5.33, 0.66)   # s: tau_a, tau_L, tau_S (every axis)
 CANAL_TAU_L = (6.1, 5.3, 10.2)     # s: roll, pitch, yaw
@@ -165,7 +165,8 @@ def perception(vehicle: VehicleMotion, t, q, qd, qdd, gravity) -> Perception:
                           f"samples from {vehicle.t[0]!r} s, step {vehicle.dt!r} s)")
     q = np.asarray(q, dtype=float)
     f_del, w_del = delivered_motion(t, q, qd, qdd, gravity)
-    pv_f, pv_w = otolith(t, vehicle.specific_force), semicircular_canals(t, vehicle.angular_velocity)
+    pv_f = otolith(t, vehicle.specific_force)
+    pv_w = semicircular_canals(t, vehicle.angular_velocity)
     pd_f, pd_w = otolith(t, f_del), semicircular_canals(t, w_del)
     rest = np.array([0.0, 0.0, np.linalg.norm(gravity)]) * _static_gain(otolith_num_den())
     false_f = _false_cues(pd_f - rest, pv_f - rest, OTOLITH_THRESHOLD)
@@ -197,11 +198,13 @@ def _perceive(t, x, models, name: str) -> np.ndarray:
     t = np.asarray(t, dtype=float)
     x = np.asarray(x, dtype=float)
     if t.ndim != 1 or t.size < 2 or x.shape != (t.size, 3):
-        raise MotionError(f"{name}: need t (N,), N >= 2, and values (N, 3); got {t.shape}, {x.shape}")
-    steps = np.diff(t)
-    dt = (t[-1] - t[0]) / steps.size
-    if not dt > 0 or not np.all(np.abs(steps - dt) <= 1e-6 * dt):
-        raise MotionError(f"{name}: the times must be uniformly sampled")
+        raise MotionError(f"{name}: need t (N,), N >= 2, and values (N, 3); "
+                          f"got {t.shape}, {x.shape}")
+    k = first_irregular_step(t)
+    if k is not None:
+        raise MotionError(f"{name}: the times must be uniformly sampled and increasing "
+                          f"(sample {k}, t = {float(t[k])!r} s)")
+    dt = (t[-1] - t[0]) / (t.size - 1)
     out = np.empty_like(x)
     for k, (num, den) in enumerate(models):
         gain, coeffs, poles = zoh_parallel(num, den, dt)
@@ -223,10 +226,11 @@ def zoh_parallel(num, den, dt: float) -> tuple[float, np.ndarray, np.ndarray]:
     poles = np.roots(den)
     if np.any(np.abs(poles.imag) > 0) or np.unique(poles.real).size != poles.size \
             or np.any(poles.real >= 0) or np.trim_zeros(num, "f").size >= den.size:
-        raise ValueError("zoh_parallel needs a strictly proper model with distinct stable real poles")
+        raise ValueError("zoh_parallel needs a strictly proper model with distinct stable "
+                         "real poles")
     p = poles.real
     coeffs = np.polyval(num, p) / (p * np.polyval(np.polyder(den), p))
-    return float(num[-1] / den[-1]), coeffs, np.exp(p * dt)
+    return _static_gain((num, den)), coeffs, np.exp(p * dt)
 
 
 def _check_axis(axis: int) -> None:

@@ -5,8 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stewart_sim.cueing.motion import MOTION_COLUMNS, MotionError, VehicleMotion, read_motion, write_motion
 from stewart_fmu.errors import StewartError
+from stewart_sim.cueing.motion import (
+    MOTION_COLUMNS,
+    MotionError,
+    VehicleMotion,
+    read_motion,
+    write_motion,
+)
 from tests.helpers import ROOT
 from tools.vehicle_motions import MOTIONS
 
