@@ -25,7 +25,7 @@ import numpy as np
 from controller.config import controller_config
 from controller.drive import axis_model
 from stewart_fmu.dynamics import inverse_dynamics
-from stewart_fmu.errors import SceneError
+from stewart_fmu.errors import TrajectoryError
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.model import Model
 
@@ -96,18 +96,22 @@ def feasibility(model: Model, t, q, qd, qdd, *, cond_limit: float = COND_LIMIT) 
     qdd (N, 6), Euler-angle rates) against the scene's limits; every crossing is reported at
     its first sample with its leg."""
     t = np.asarray(t, dtype=float)
+    if t.ndim != 1 or t.size < 2 or np.shape(q) != (t.size, 6):
+        raise TrajectoryError(f"feasibility: need t (N,), N >= 2, and q, qd, qdd (N, 6); got "
+                              f"{t.shape} and {np.shape(q)}")
     kin = inverse_kinematics(model, q, qd, qdd)
     sigma = inverse_dynamics(replace(model, leg_min=None, leg_max=None), q, qd, qdd)
     current = voltage = force_limit = current_limit = voltage_limit = None
     note = None
-    try:
+    if model.extra.get("controller") is None:
+        note = ("the scene has no [controller] table (the motor's ratings): current, voltage "
+                "and the force limit not computed")
+    elif model.drive is None:
+        note = ("the scene has no [drive] table (gearbox and pinion): current, voltage and the "
+                "force limit not computed")
+    else:
         config = controller_config(model)
         axis = axis_model(model, config.motor, config.load_mass)
-    except SceneError as exc:
-        if model.extra.get("controller") is not None and model.drive is not None:
-            raise
-        note = f"current and voltage not computed: {exc.reason}"
-    else:
         current = sigma / axis.force_constant
         current_rate = np.gradient(current, t, axis=0)
         voltage = axis.voltage(current, current_rate, kin.rates)

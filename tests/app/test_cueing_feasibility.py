@@ -9,6 +9,7 @@ import pytest
 
 from stewart_fmu import scene_from_dict
 from stewart_fmu.dynamics import inverse_dynamics
+from stewart_fmu.errors import SceneError
 from stewart_sim.cueing.feasibility import COND_LIMIT, feasibility
 from tests.helpers import level_model, scene_dict
 
@@ -198,3 +199,21 @@ def test_a_scene_without_stroke_limits_checks_no_stroke():
     t, q, qd, qdd = _sine(model, 2, 0.1, 0.5)
     r = feasibility(model, t, q, qd, qdd)
     assert not any(m.quantity.startswith("stroke") for m in r.margins)
+
+
+def test_a_scene_with_a_controller_but_no_drive_says_why():
+    data = scene_dict("sim")
+    del data["drive"]
+    model = scene_from_dict(data)
+    t, q, qd, qdd = _sine(model, 2, 0.1, 0.5)
+    r = feasibility(model, t, q, qd, qdd)
+    assert r.current is None and "[drive]" in r.drive_note
+
+
+def test_a_malformed_controller_table_is_an_error_not_a_note():
+    data = scene_dict("sim")
+    data["controller"]["motor"]["resistance"] = -1.0
+    model = scene_from_dict(data)
+    t, q, qd, qdd = _sine(model, 2, 0.1, 0.5)
+    with pytest.raises(SceneError, match="controller.motor.resistance"):
+        feasibility(model, t, q, qd, qdd)
