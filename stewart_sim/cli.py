@@ -275,6 +275,8 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     _add_lazy(sub, command, "simulate", "open-loop forward dynamics from rack forces")
     _add_lazy(sub, command, "trajectory", "write a trajectory file (waypoints or a named move)")
     _add_lazy(sub, command, "case", "run a stiff or extreme scene's [case] against its expectation")
+    _add_lazy(sub, command, "cue", "motion cueing: vehicle motion -> platform trajectory, "
+                                   "perception and limits")
     return parser
 
 
@@ -575,6 +577,7 @@ def cmd_scene_info(args: argparse.Namespace) -> None:
 
 
 _LAZY = {"simulate": "stewart_sim.simulate", "trajectory": "stewart_sim.trajectory",
+         "cue": "stewart_sim.cueing.command",
          "case": "stewart_sim.case_report"}
 
 
