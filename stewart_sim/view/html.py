@@ -79,7 +79,7 @@ def static_view_html(view: ViewData) -> str:
     data = {"live": None, "ghost": view.q_ref is not None, "geometry": g.to_json(),
             "scene": scene_commands(g, view.q_ref is not None),
             "lut": colour_table().tolist(), "force_scale": scale, "frames": frames,
-            "meta": {"fps": view.fps, "frames": view.frames,
+            "meta": {"fps": view.fps, "frames": view.frames, "speed": view.speed,
                      "source_samples": view.source_samples, "source": view.source}}
     span = float(view.t[-1] - view.t[0])
     subtitle = (f"{span:.6g} s, {view.frames} frames at {view.fps:g} frames/s of simulated time "

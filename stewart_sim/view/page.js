@@ -216,6 +216,7 @@
     const frame = (k) => ({t: t[k], q: six(q, k), q_ref: qr ? six(qr, k) : null,
                            lengths: six(ln, k), forces: six(fo, k), cond: co[k],
                            at_limit: Array.from(lim.subarray(6 * k, 6 * k + 6))});
+    if (DATA.meta.speed) el("speed").value = String(DATA.meta.speed);
     const slider = el("slider");
     slider.max = n - 1;
     let k = 0, playing = false, clock = 0, last = null;
