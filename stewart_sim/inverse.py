@@ -22,25 +22,20 @@ CHUNK_SAMPLES = 50_000       # samples per block of the pose check and of the dy
 
 def run_inverse(model: Model, trajectory: Path, out: Path, parts: bool, progress: Progress,
                 keep: bool = False, view: Path | None = None) -> tuple[int, np.ndarray | None]:
-    """Read, check every pose, compute and write the forces; the table too if `keep`; the 3D
-    view into `view` (its forces by inverse dynamics at its frames, the same numbers as the
-    file's at those samples). The view is written first and removed again if the forces
-    cannot be written: both or neither."""
+    """Read, check every pose, compute and write the forces; the table too if `keep`; then the
+    3D view into `view` (its forces by inverse dynamics at its frames: the file's numbers at
+    those samples). The forces file is the contract's output and comes first: a view that
+    cannot be written is an OutputError naming it, the forces file stays written."""
     t, q, qd, qdd = io.read_trajectory(
         trajectory, progress=lambda rows: progress.update(f"reading {trajectory}", rows))
     cond = check_trajectory(model, t, q, trajectory, progress)
+    kept: list[np.ndarray] = []
+    chunks = force_chunks(model, (t, q, qd, qdd), cond, parts, trajectory, progress)
+    with writing(out):
+        io.write_csv_chunks(out, _keep(chunks, kept) if keep else chunks)
     if view is not None:
         write_beside(view, trajectory_view(model, t, q, qd, qdd, source=out.name,
                                            title=f"{model.name}: {out.name}"))
-    kept: list[np.ndarray] = []
-    chunks = force_chunks(model, (t, q, qd, qdd), cond, parts, trajectory, progress)
-    try:
-        with writing(out):
-            io.write_csv_chunks(out, _keep(chunks, kept) if keep else chunks)
-    except BaseException:
-        if view is not None:
-            view.unlink(missing_ok=True)
-        raise
     return t.size, (np.concatenate(kept) if keep else None)
 
 
