@@ -54,9 +54,10 @@
     const R = rotation(q);
     const x = [q[0], q[1], q[2]];
     const add = (a, b, s) => [a[0] + s * b[0], a[1] + s * b[1], a[2] + s * b[2]];
+    const half = G.plate_thickness / 2;
     const out = {
-      "base": matrix(Y_TO_Z, [0, 0, TOP]),
-      "platform": matrix(mul(R, Y_TO_Z), add(x, apply(R, [0, 0, UNDER]), 1)),
+      "base": matrix(Y_TO_Z, [0, 0, TOP - half]),
+      "platform": matrix(mul(R, Y_TO_Z), add(x, apply(R, [0, 0, UNDER + half]), 1)),
     };
     for (let i = 0; i < 6; i++) {
       const a = G.base_joints[i];

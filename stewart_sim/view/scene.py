@@ -97,13 +97,15 @@ def scene_commands(g: ViewGeometry, with_ghost: bool) -> list[dict]:
     """Every command that builds the scene, in order."""
     size = g.size
     z_mid = 0.55 * float(g.home[2])
+    floor = float(np.min(g.base_joints[:, 2])) - 1.05 * g.plate_thickness
     # meshcat's camera lives in /Cameras/default/rotated (y up): a point (x, y, z) of N is
     # (x, z, -y) there. The orbit target is /Cameras/default's origin.
     eye = np.array([1.45, -1.9, 0.95]) * size
     cmds = [
         set_property("/Background", "top_color", [0.97, 0.98, 1.0]),
         set_property("/Background", "bottom_color", [0.80, 0.84, 0.90]),
-        set_transform("/Grid", np.diag([size / 2, size / 2, size / 2, 1.0])),  # 10 x size wide
+        # the floor grid (5 x size wide) just under the base plate, not through it
+        set_transform("/Grid", _translation([0.0, 0.0, floor]) @ np.diag([size / 4] * 3 + [1.0])),
         set_transform("/Axes", np.diag([size / 2, size / 2, size / 2, 1.0])),
         set_transform("/Cameras/default", _translation([0.0, 0.0, z_mid])),
         set_property("/Cameras/default/rotated/<object>", "position",
