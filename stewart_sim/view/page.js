@@ -106,7 +106,7 @@
   }
 
   // --- one frame, through the viewer's commands ------------------------------------------
-  const PLATE = [0x8f / 255, 0xa3 / 255, 0xb8 / 255, 1];
+  const PLATE = [...DATA.plate_rgb, 1];
   const ALARM = [0.85, 0.12, 0.12, 1];
   const cmd = (c) => viewer.handle_command(c);
   const setT = (path, m) => cmd({type: "set_transform", path: path, matrix: m});
