@@ -6,7 +6,7 @@ need for those forces (controller/drive.py):
     i = sigma / Kf                   Kf = Kt zeta / r  (AxisModel.force_constant)
     V = R i + L di/dt + Ke' ldot     Ke' = Ke zeta / r (AxisModel.voltage)
 
-di/dt by central differences over the samples (np.gradient, as the controller's feedforward).
+(AxisModel.drive_for, as the controller's feedforward: di/dt by central differences.)
 Limits: the stroke [leg_min, leg_max] of [geometry]; cond(J) (scaled as in
 stewart_fmu.kinematics) below `cond_limit`; |i| and |V| below [controller.motor]'s
 current_limit and voltage_limit; |sigma| below Kf x current_limit, the most force the drive
@@ -112,9 +112,7 @@ def feasibility(model: Model, t, q, qd, qdd, *, cond_limit: float = COND_LIMIT) 
     else:
         config = controller_config(model)
         axis = axis_model(model, config.motor, config.load_mass)
-        current = sigma / axis.force_constant
-        current_rate = np.gradient(current, t, axis=0)
-        voltage = axis.voltage(current, current_rate, kin.rates)
+        voltage, current = axis.drive_for(t, sigma, kin.rates)
         current_limit, voltage_limit = config.motor.current_limit, config.motor.voltage_limit
         force_limit = axis.force_constant * current_limit
     checks = {"stroke_min": (kin.lengths, model.leg_min, -1),

@@ -33,9 +33,12 @@ def _step_closed_form(numerator, taus, t):
     return y
 
 
+K = 0.4   # Young & Meiry's otolith gain
+
+
 def _otolith_h(s):
     tau_a, tau_l, tau_s = 13.2, 5.33, 0.66
-    return (tau_a * s + 1) / ((tau_l * s + 1) * (tau_s * s + 1))
+    return K * (tau_a * s + 1) / ((tau_l * s + 1) * (tau_s * s + 1))
 
 
 def _canal_h(s, tau_l):
@@ -44,7 +47,7 @@ def _canal_h(s, tau_l):
 
 def test_the_published_time_constants_and_thresholds():
     # Young & Meiry / Young & Oman as Reid & Nahon tabulate them (cited in the module doc).
-    assert v.OTOLITH_TAU == (13.2, 5.33, 0.66)
+    assert v.OTOLITH_GAIN == 0.4 and v.OTOLITH_TAU == (13.2, 5.33, 0.66)
     assert v.CANAL_TAU_L == (6.1, 5.3, 10.2) and v.CANAL_TAU_S == 0.1 and v.CANAL_TAU_A == 30.0
     np.testing.assert_allclose(v.OTOLITH_THRESHOLD, [0.17, 0.17, 0.28])
     np.testing.assert_allclose(np.degrees(v.CANAL_THRESHOLD), [3.0, 3.6, 2.6])
@@ -52,7 +55,10 @@ def test_the_published_time_constants_and_thresholds():
 
 def test_transfer_function_objects_have_the_models_gains_and_poles():
     oto = v.otolith_tf()
-    assert float(np.real(oto.dcgain())) == pytest.approx(1.0, rel=1e-12)
+    assert float(np.real(oto.dcgain())) == pytest.approx(K, rel=1e-12)
+    # between the breaks the gain peaks at 0.89 (0.5 rad/s), below K tau_a / tau_L = 0.99
+    gains = [abs(complex(oto(1j * w))) for w in np.logspace(-3, 2, 501)]
+    assert max(gains) == pytest.approx(0.8908, abs=1e-4)
     np.testing.assert_allclose(np.sort(oto.poles().real), [-1 / 0.66, -1 / 5.33], rtol=1e-12)
     np.testing.assert_allclose(oto.zeros().real, [-1 / 13.2], rtol=1e-12)
     for axis, tau_l in enumerate((6.1, 5.3, 10.2)):
@@ -72,18 +78,18 @@ def test_otolith_step_response_is_the_closed_form_at_every_sample():
     y = v.otolith(t, x)
     tau_a, tau_l, tau_s = v.OTOLITH_TAU
     tt = t[k0:] - t[k0]
-    closed = _step_closed_form(lambda s: tau_a * s + 1, (tau_l, tau_s), tt)
-    # by hand, too: 1 + (ta - tl)/(tl - ts) e^{-t/tl} - (ta - ts)/(tl - ts) e^{-t/ts}
-    by_hand = (1 + (tau_a - tau_l) / (tau_l - tau_s) * np.exp(-tt / tau_l)
-               - (tau_a - tau_s) / (tau_l - tau_s) * np.exp(-tt / tau_s))
+    closed = _step_closed_form(lambda s: K * (tau_a * s + 1), (tau_l, tau_s), tt)
+    # by hand, too: K (1 + (ta - tl)/(tl - ts) e^{-t/tl} - (ta - ts)/(tl - ts) e^{-t/ts})
+    by_hand = K * (1 + (tau_a - tau_l) / (tau_l - tau_s) * np.exp(-tt / tau_l)
+                   - (tau_a - tau_s) / (tau_l - tau_s) * np.exp(-tt / tau_s))
     np.testing.assert_allclose(closed, by_hand, rtol=0, atol=1e-12)
     np.testing.assert_allclose(y[:k0], 0.0, atol=0)
     for axis, amp in enumerate((1.0, -2.0, 0.5)):
         np.testing.assert_allclose(y[k0:, axis], amp * closed, rtol=0, atol=1e-9 * abs(amp))
-    # Steady state: a sustained specific force is perceived at its own value (gain 1); the
-    # overshoot tau_a / tau_L = 2.48 is the otolith's lead.
-    np.testing.assert_allclose(y[-1], [1.0, -2.0, 0.5], rtol=1e-12)
-    assert y[:, 0].max() > 2.0
+    # Steady state: a sustained specific force settles at K of its value; on the way the
+    # otolith's lead (tau_a / tau_L = 2.48) takes it to ~K tau_a / tau_L = 0.99.
+    np.testing.assert_allclose(y[-1], K * np.array([1.0, -2.0, 0.5]), rtol=1e-12)
+    assert 0.8 < y[:, 0].max() < 1.0
 
 
 def test_canal_step_response_is_the_closed_form_and_adapts_to_zero():
@@ -120,7 +126,7 @@ def test_sine_response_matches_the_transfer_function_at_the_break_frequencies(mo
     tau_a, tau_l, tau_s = 13.2, 5.33, 0.66
     if model == "otolith":
         freqs = [1 / tau_a, 1 / tau_l, 1 / tau_s]
-        cases = [(_otolith_h, lambda s: tau_a * s + 1, (tau_l, tau_s))] * 3
+        cases = [(_otolith_h, lambda s: K * (tau_a * s + 1), (tau_l, tau_s))] * 3
         run = v.otolith
     else:
         freqs = [1 / 30.0, 1 / 6.1, 1.0, 1 / 0.1]
@@ -188,7 +194,7 @@ def test_delivered_angular_velocity_is_the_body_rate_of_the_rotation():
 def test_tilt_is_perceived_as_the_equivalent_sustained_acceleration(a):
     # The tilt-coordination premise: a platform pitched nose up by asin(a/g) at rest gives
     # f_x = a, as a vehicle accelerating forward at a; the otolith's x output of the two is
-    # the same in steady state (and a itself: static gain 1).
+    # the same in steady state (K a: the static gain).
     t = np.arange(0, 120 + DT / 2, DT)
     n, k0 = t.size, 500
     q = np.tile([0.0, 0.0, 2.3, 0.0, 0.0, 0.0], (n, 1))
@@ -200,7 +206,7 @@ def test_tilt_is_perceived_as_the_equivalent_sustained_acceleration(a):
     f_vehicle[k0:, 0] = a
     p_platform, p_vehicle = v.otolith(t, f_platform), v.otolith(t, f_vehicle)
     np.testing.assert_allclose(p_platform[k0:, 0], p_vehicle[k0:, 0], rtol=1e-12, atol=1e-12)
-    assert p_platform[-1, 0] == pytest.approx(a, rel=2e-5)
+    assert p_platform[-1, 0] == pytest.approx(K * a, rel=1e-9)
 
 
 def _vehicle(t, fx=None, wz=None):
@@ -266,7 +272,7 @@ def test_heave_cues_count_from_one_g():
                      GRAVITY)
     assert np.all(p.perceived_delivered_f[:, 2] > 0)
     assert p.false_cue_time_f[2] == pytest.approx(
-        np.count_nonzero(np.abs(p.perceived_vehicle_f[:, 2] - G) > 0.28) * DT)
+        np.count_nonzero(np.abs(p.perceived_vehicle_f[:, 2] - K * G) > 0.28) * DT)
     assert p.false_cue_time_f[2] > 1.0
 
 
