@@ -16,9 +16,15 @@ from pathlib import Path
 
 from stewart_fmu.scene import load_scene
 
+from stewart_sim.view.command import VIEW_FILE, write_beside
+from stewart_sim.view.data import view_data
+from stewart_sim.view.sources import run_table_view
+
 from .motion import read_motion
 from .report import write_cue_report
 from .study import MODES, CueStudy, cue_study
+
+RACK = "rack force σ (inverse dynamics of the cue, incl. drive)"
 
 
 def add_parser(sub) -> None:
@@ -43,6 +49,8 @@ def add_parser(sub) -> None:
                    help="also run the other cueing modes and compare them in summary.md")
     p.add_argument("--track", action="store_true",
                    help="also run the scene's closed loop ([controller]) on the cue, as `run`")
+    p.add_argument("--no-view", dest="view", action="store_false",
+                   help=f"do not write the 3D view ({VIEW_FILE})")
     p.set_defaults(run=cmd)
 
 
@@ -55,9 +63,26 @@ def cmd(args: argparse.Namespace) -> None:
                       progress=lambda stage: print(f"{stage} ...", file=sys.stderr, flush=True))
     out = Path(args.out)
     title = f"{model.name}: {Path(args.motion).name}, {args.mode} cue"
-    for path in write_cue_report(study, out, title):
-        print(f"wrote {path}")
+    lines: list[str] = []
+
+    def view(stage: Path) -> list[str]:
+        lines.append(write_beside(stage / VIEW_FILE, cue_view(study, title)))
+        return [VIEW_FILE]
+
+    for path in write_cue_report(study, out, title, extra=view if args.view else None):
+        print(f"wrote {path}" + (f": {lines[0]}" if path.name == VIEW_FILE else ""))
     print(verdict(study))
+
+
+def cue_view(study: CueStudy, title: str):
+    """The 3D view: the closed loop with the cue as its ghost when it ran, else the cue with
+    the rack forces of its inverse dynamics."""
+    if study.tracking is not None:
+        return run_table_view(study.model, study.tracking.table, title=f"{title}, closed loop",
+                              source="tracking.csv")
+    run = study.runs[0]
+    return view_data(study.model, run.cue.t, run.cue.q, run.feasibility.sigma,
+                     force_label=RACK, title=title, source="trajectory.csv")
 
 
 def verdict(study: CueStudy) -> str:

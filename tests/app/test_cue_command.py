@@ -133,7 +133,9 @@ def test_cli_writes_the_set_and_says_the_verdict(tmp_path):
     done = _cli("cue", str(SIM), "--motion", str(MOTIONS[0]), "--out", str(out))
     assert done.returncode == 0, done.stderr
     assert "classical: inside every limit" in done.stdout
-    assert (out / "trajectory.csv").exists() and (out / "summary.md").exists()
+    for name in ("trajectory.csv", "summary.md", "view.html"):
+        assert (out / name).exists(), name
+    assert "view.html: " in done.stdout and " frames at 30 frames/s from 1201 samples" in done.stdout
 
 
 def test_cli_bad_motion_file_is_one_line_and_exit_2(tmp_path):
