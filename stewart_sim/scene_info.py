@@ -84,12 +84,13 @@ def _describe_cueing(model: Model) -> str:
     if "cueing" not in model.extra:
         return "cueing: none (motion cueing uses the defaults of stewart_sim/cueing/config.py)"
     c = cueing_config(model)
-    return (f"cueing: classical washout; translational gain {format_vector(c.translational_gain)}, "
-            f"limit {format_vector(c.translational_limit)} m/s^2, high-pass order "
+    return (f"cueing: classical washout; translational gain "
+            f"{format_vector(c.translational_gain)}, limit "
+            f"{format_vector(c.translational_limit)} m/s^2, high-pass order "
             f"{c.translational_order} at {format_vector(c.translational_frequency)} rad/s, damping "
             f"{format_vector(c.translational_damping)}"
-            + (f", first-order break {format_vector(c.translational_first_order)} rad/s"
-               if c.translational_order == 3 else "")
+            + (f", first-order break {format_vector(c.translational_first_order)} "
+               "rad/s" if c.translational_order == 3 else "")
             + f"; tilt low-pass {c.tilt_frequency:g} rad/s, damping {c.tilt_damping:g}, rate "
             f"limit {c.tilt_rate_limit:.6g} rad/s ({np.rad2deg(c.tilt_rate_limit):.3g} deg/s), "
             f"limit {c.tilt_limit:g} rad; rotational gain {format_vector(c.rotational_gain)}, "

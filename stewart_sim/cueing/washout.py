@@ -1,8 +1,9 @@
 """The classical washout: vehicle specific force and angular velocity -> platform pose.
 
 Reid, L. D. and Nahon, M. A., "Flight simulation motion-base drive algorithms", Parts 1-3,
-UTIAS Reports 296, 307, 319 (1985-86); Nahon, M. A. and Reid, L. D., "Simulator motion-drive
-algorithms: a designer's perspective", J. Guidance, Control, and Dynamics 13(2), 1990.
+UTIAS Reports, University of Toronto (1985-86); Nahon, M. A. and Reid, L. D., "Simulator
+motion-drive algorithms: a designer's perspective", J. Guidance, Control, and Dynamics 13(2),
+1990.
 Three channels, as there:
 
 - translational: the specific force's deviation from rest is scaled and limited per axis,

@@ -21,6 +21,7 @@ from stewart_fmu.rotations import euler_motion
 from stewart_sim.cueing.config import DEFAULTS, CueingConfig, cueing_config
 from stewart_sim.cueing.motion import VehicleMotion
 from stewart_sim.cueing.washout import classical_washout, high_pass_denominator
+from stewart_sim.scene_info import describe_model
 from tests.helpers import level_model, scene_dict
 
 G = 9.81
@@ -289,3 +290,14 @@ def test_cueing_must_be_a_table():
     with pytest.raises(SceneError) as err:
         cueing_config(scene_from_dict(data))
     assert err.value.key == "cueing"
+
+
+def test_scene_info_shows_the_cueing_table():
+    data = scene_dict("sim")
+    data["cueing"]["rotational_order"] = 1
+    text = describe_model(scene_from_dict(data))
+    line = next(x for x in text.splitlines() if x.startswith("cueing:"))
+    assert "classical washout" in line and "rotational gain [0.5, 0.5, 0.5]" in line
+    assert "high-pass order 1 at [1, 1, 1] rad/s" in line and "tilt low-pass 4 rad/s" in line
+    del data["cueing"]
+    assert "cueing: none" in describe_model(scene_from_dict(data))
