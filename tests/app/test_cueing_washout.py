@@ -19,10 +19,10 @@ from stewart_fmu.errors import SceneError
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.rotations import euler_motion
 from stewart_sim.cueing.config import DEFAULTS, CueingConfig, cueing_config
-from stewart_sim.cueing.motion import VehicleMotion
+from stewart_sim.cueing.motion import VehicleMotion, read_motion
 from stewart_sim.cueing.washout import classical_washout, high_pass_denominator
 from stewart_sim.scene_info import describe_model
-from tests.helpers import level_model, scene_dict
+from tests.helpers import ROOT, level_model, scene_dict
 
 G = 9.81
 GRAVITY = np.array([0.0, 0.0, -G])
@@ -243,6 +243,16 @@ def test_defaults_keep_the_motion_simulator_inside_its_stroke(name):
     margin = min(lengths.min() - model.leg_min, model.leg_max - lengths.max())
     assert margin > 0.3                                      # m, room for stronger motions
     assert np.max(np.abs(cue.q[:, :3] - model.home[:3])) > 0.005  # the platform did move
+
+
+@pytest.mark.parametrize("name", ["braking_car", "lane_change", "takeoff"])
+def test_defaults_keep_the_shipped_motions_inside_the_stroke(name):
+    """scenes/motions/*.csv (tools/vehicle_motions.py) through the scene's [cueing] table."""
+    model = level_model("sim", "full")
+    mo = read_motion(ROOT / "scenes" / "motions" / f"{name}.csv")
+    cue = classical_washout(cueing_config(model), mo, model.home, model.gravity)
+    lengths = inverse_kinematics(model, cue.q).lengths
+    assert min(lengths.min() - model.leg_min, model.leg_max - lengths.max()) > 0.3
 
 
 def test_scene_table_holds_the_defaults():
