@@ -48,8 +48,9 @@ class CueingConfig:
     of 0.5 (the usual scaling of a full-size simulator), tuned so that
     scenes/motion_simulator.toml stays inside its stroke for the shipped vehicle motions
     (braking, lane change, take-off roll and rotation; tests/app/cueing). The tilt rate
-    limit is the 3 deg/s perception threshold of tilt (Groen & Bles 2004, J. Vestibular
-    Research 14; Reid & Nahon 1985 limit the tilt rate for the same reason).
+    limit is the 3 deg/s perception threshold of tilt (Groen & Bles 2004, "How to use body
+    tilt for the simulation of linear self motion", J. Vestibular Research 14); the classical
+    algorithm limits the tilt rate so that the tilt itself goes unnoticed (Reid & Nahon 1985).
     """
 
     translational_gain: tuple[float, float, float] = (0.5, 0.5, 0.5)

@@ -7,9 +7,8 @@ velocity and acceleration of one filter are read off one state (no finite differ
 
 Discretisation: the input is taken as piecewise linear between its samples (first-order hold,
 "triangle hold"; Franklin, Powell & Workman, Digital Control of Dynamic Systems, 3rd ed.,
-Sec. 6.3.2), and the state is propagated EXACTLY for that input through the matrix
-exponential of the augmented system [x; u; delta_u] (the same formula as
-scipy.signal.lsim with interp=True):
+ch. 6), and the state is propagated EXACTLY for that input through the matrix exponential of
+the augmented system [x; u; delta_u] (the same formula as scipy.signal.lsim with interp=True):
 
     x_{k+1} = Ad x_k + G0 u_k + G1 u_{k+1},   Ad = e^{A h}.
 

@@ -1,8 +1,9 @@
 """The classical washout: vehicle specific force and angular velocity -> platform pose.
 
 Reid, L. D. and Nahon, M. A., "Flight simulation motion-base drive algorithms", Parts 1-3,
-UTIAS Reports 296, 307, 319 (1985-86); Nahon, M. A. and Reid, L. D., "Simulator motion-drive
-algorithms: a designer's perspective", J. Guidance, Control, and Dynamics 13(2), 1990.
+UTIAS Reports, University of Toronto (1985-86); Nahon, M. A. and Reid, L. D., "Simulator
+motion-drive algorithms: a designer's perspective", J. Guidance, Control, and Dynamics 13(2),
+1990.
 Three channels, as there:
 
 - translational: the specific force's deviation from rest is scaled and limited per axis,
@@ -130,25 +131,29 @@ def tilt_coordination(config: CueingConfig, f_xy: np.ndarray, g: float,
 
 def rate_limit(cmd: np.ndarray, cmd_d: np.ndarray, cmd_dd: np.ndarray, limit: float,
                h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The command followed at a rate of at most `limit`: equal to it (with its rate and
-    acceleration) while it can be, else moving towards it at +-limit (acceleration 0).
-    Each sample moves by at most limit * h, so no step exceeds the limit."""
-    n, m = cmd.shape
-    out, out_d, out_dd = np.zeros((n, m)), np.zeros((n, m)), np.zeros((n, m))
-    step = limit * h
-    for j in range(m):
-        c, cd, cdd = cmd[:, j].tolist(), cmd_d[:, j].tolist(), cmd_dd[:, j].tolist()
-        x, xs, xds, xdds = 0.0, [0.0] * n, [0.0] * n, [0.0] * n
-        for k in range(n):
-            if k:
-                x = x + min(max(c[k] - x, -step), step)
-            xs[k] = x
-            if x == c[k] and abs(cd[k]) <= limit:
-                xds[k], xdds[k] = cd[k], cdd[k]
-            else:
-                gap = c[k] - x if x != c[k] else cd[k]
-                xds[k] = math.copysign(limit, gap)
-        out[:, j], out_d[:, j], out_dd[:, j] = xs, xds, xdds
+    """The command (starting at its first sample) followed at a rate of at most `limit`:
+    equal to it while it can be (its rate clipped to +-limit, its acceleration 0 where
+    clipped), else moving towards it by limit * h per sample (rate +-limit, acceleration 0)
+    until it catches up. No sample moves by more than limit * h."""
+    n, step = cmd.shape[0], limit * h
+    out = cmd.copy()
+    out_d = np.clip(cmd_d, -limit, limit)
+    out_dd = np.where(np.abs(cmd_d) > limit, 0.0, cmd_dd)
+    for j in range(cmd.shape[1]):
+        c = cmd[:, j].tolist()
+        k = 0
+        # Only where the command steps further than the limit does the tilt fall behind; the
+        # lag is followed sample by sample until the tilt meets the command again.
+        for start in np.flatnonzero(np.abs(np.diff(cmd[:, j])) > step).tolist():
+            if start < k:
+                continue
+            x, k = c[start], start + 1
+            while k < n:
+                x += min(max(c[k] - x, -step), step)
+                if x == c[k]:
+                    break
+                out[k, j], out_d[k, j], out_dd[k, j] = x, math.copysign(limit, c[k] - x), 0.0
+                k += 1
     return out, out_d, out_dd
 
 
@@ -172,23 +177,37 @@ def _euler_kinematics(w_hp: np.ndarray, tilt: np.ndarray, tilt_d: np.ndarray, h:
                       t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Cue angles (tilt added) and their rates: the high-passed part beta integrates
     betadot = T(beta + tilt) w_hp by Heun's method; the rates stored are T at the corrected
-    angles (the next step's predictor slope)."""
+    angles (the next step's predictor slope). T written out (_body_to_euler_rates) for speed."""
     n = w_hp.shape[0]
     p, q, r = (w_hp[:, i].tolist() for i in range(3))
     tx, ty = tilt[:, 0].tolist(), tilt[:, 1].tolist()
     bx, by, bz = [0.0] * n, [0.0] * n, [0.0] * n
     dx, dy, dz = [0.0] * n, [0.0] * n, [0.0] * n
-    rates = _body_to_euler_rates
-    dx[0], dy[0], dz[0] = rates(tx[0], ty[0], p[0], q[0], r[0], t[0])
+    dx[0], dy[0], dz[0] = _body_to_euler_rates(tx[0], ty[0], p[0], q[0], r[0], t[0])
     half = 0.5 * h
+    sin, cos, tan = math.sin, math.cos, math.tan
     for k in range(n - 1):
         j = k + 1
-        x0, y0, z0, ex, ey, ez = bx[k], by[k], bz[k], dx[k], dy[k], dz[k]
-        px, py, pz = rates(x0 + h * ex + tx[j], y0 + h * ey + ty[j], p[j], q[j], r[j], t[j])
-        bx[j] = x1 = x0 + half * (ex + px)
-        by[j] = y1 = y0 + half * (ey + py)
-        bz[j] = z0 + half * (ez + pz)
-        dx[j], dy[j], dz[j] = rates(x1 + tx[j], y1 + ty[j], p[j], q[j], r[j], t[j])
+        pj, qj, rj = p[j], q[j], r[j]
+        ex, ey, ez = dx[k], dy[k], dz[k]
+        # predictor: Euler step, then T at the predicted angles
+        phi, th = bx[k] + h * ex + tx[j], by[k] + h * ey + ty[j]
+        ct = cos(th)
+        if -GIMBAL_LIMIT < ct < GIMBAL_LIMIT:
+            _body_to_euler_rates(phi, th, pj, qj, rj, t[j])       # raises, naming the time
+        sp, cp = sin(phi), cos(phi)
+        m = qj * sp + rj * cp
+        bx[j] = x1 = bx[k] + half * (ex + pj + tan(th) * m)
+        by[j] = y1 = by[k] + half * (ey + qj * cp - rj * sp)
+        bz[j] = bz[k] + half * (ez + m / ct)
+        # corrector's rates: T at the corrected angles
+        phi, th = x1 + tx[j], y1 + ty[j]
+        ct = cos(th)
+        if -GIMBAL_LIMIT < ct < GIMBAL_LIMIT:
+            _body_to_euler_rates(phi, th, pj, qj, rj, t[j])
+        sp, cp = sin(phi), cos(phi)
+        m = qj * sp + rj * cp
+        dx[j], dy[j], dz[j] = pj + tan(th) * m, qj * cp - rj * sp, m / ct
     ang = np.column_stack([np.add(bx, tx), np.add(by, ty), bz])
     return ang, np.column_stack([np.add(dx, tilt_d[:, 0]), np.add(dy, tilt_d[:, 1]), dz])
 
