@@ -122,7 +122,7 @@ def serve(device: Device, transport, realtime: bool | None = None,
             behind = late > max_lag
             st.late.add(late)
             st.max_late = max(st.max_late, late)
-            if _drain(device, transport, transport.recv(0.0), st):   # input first, then tick
+            if _drain(device, transport, transport.recv(0.0), st, peers):   # input, then tick
                 last_input = clock()
             st.messages_out += _send_all(device, transport, device.tick())
             st.ticks += 1
