@@ -204,6 +204,36 @@ def test_watchdog_by_the_wall_clock_not_by_caught_up_ticks(model):
     assert dev.k == 400 and k_sp < 100
 
 
+class WaitLog(SimTransport):
+    """SimTransport that logs every recv timeout (how the loop waits)."""
+
+    def __init__(self, clock: SimClock) -> None:
+        super().__init__(clock)
+        self.timeouts: list[float] = []
+
+    def recv(self, timeout: float = 0.0) -> bytes:
+        self.timeouts.append(timeout)
+        return super().recv(timeout)
+
+
+def test_real_time_rate_sleeps_between_ticks(model):
+    """1000 ticks take 1 s of (simulated) wall time, spent waiting in the transport until each
+    tick is due (select, not a spin: a few recv calls per tick), and the telemetry goes out at
+    its rates. The wall-clock figures (lateness, busy share) are benchmarks/bench_realtime_jitter.py's."""
+    clock = SimClock()
+    tr = WaitLog(clock)
+    dev = Device(model)
+    start = clock.t
+    st = serve(dev, tr, True, max_ticks=1000, clock=clock)
+    assert st.ticks == dev.k == 1000 and st.overruns == 0 and st.late.misses == 0
+    assert clock.t - start == pytest.approx(1.0, abs=1e-9) == st.wall
+    waits = [t for t in tr.timeouts if t > 0]
+    assert sum(waits) == pytest.approx(1.0, abs=1e-9)       # all of it waiting for input
+    assert len(tr.timeouts) <= 2 * st.ticks + 1              # one wait + one drain per tick
+    names = [m.get_type() for f in tr.sent for m in Receiver(ms).feed(f)]
+    assert names.count("LEG_STATE") == 100 and names.count("HEARTBEAT") == 1   # 100 Hz, 1 Hz
+
+
 def test_watchdog_in_process_counts_ticks(model):
     dev = Device(model, watchdog=0.05)
     dev.receive(ms.MAVLink_command_long_message(1, 1, ms.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1,
