@@ -276,8 +276,9 @@ def _simulated_realtime(model, config, ref, latency):
 
 def test_realtime_error_grows_with_latency(model, config, realtime_ref):
     """The real-time loop through the link emulator on a simulated clock (deterministic; the
-    wall-clock figure is `python -m stewart_sim.link_figures`): 5 ms each way delays the
-    host's view of the legs by 5 ms and the setpoints by 5 ms, so the error grows."""
+    wall-clock figure is `python -m stewart_sim.link_figures`): with 5 ms each way the
+    setpoints reach the device 5 ms late and its states come back 5 ms late, so in host time
+    the legs lag the reference and the error grows."""
     base = _simulated_realtime(model, config, realtime_ref, 0.0)
     late = _simulated_realtime(model, config, realtime_ref, 0.005)
     print(f"\nreal time, emulated link, simulated clock: RMS {base.rms * 1e3:.4f} mm without "
