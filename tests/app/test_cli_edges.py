@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stewart_sim import cli, limits, progress
+from stewart_sim import cli, limits, outputs, progress
 from stewart_sim.outputs import MANIFEST
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -190,12 +190,19 @@ def test_unreadable_grid_exit_2(kind, tmp_path, capsys) -> None:
     (["accuracy", "--comm-step", "1e-9"], "--horizon"),
     (["accuracy", "--closed-loop-duration", "1e6"], "--closed-loop-duration"),
 ])
-def test_too_long_refused_before_work(args, option, tmp_path, capsys) -> None:
-    """A run whose samples would not fit the memory budget: the limit and why, in one line."""
+def test_too_long_refused_before_work(args, option, tmp_path, capsys, monkeypatch) -> None:
+    """A run whose samples would not fit the memory budget: the limit and why, in one line,
+    before any work (every command works inside its result set, which is never opened)."""
     out = tmp_path / "out"
-    start = time.monotonic()
+    opened = []
+
+    def result_set(*a, **kw):
+        opened.append(a)
+        raise AssertionError("the result set was opened: work began before the refusal")
+
+    monkeypatch.setattr(outputs, "result_set", result_set)
     assert cli.main([args[0], str(MICRO), "--out", str(out), *args[1:]]) == 2
-    assert time.monotonic() - start < 10
+    assert opened == []
     err = _one_error_line(capsys)
     assert f"{option} " in err and f"at most {limits.MAX_SAMPLES:,}" in err
     assert "memory budget of 2 GiB" in err
