@@ -1,0 +1,1 @@
+"""Views of runs in the browser: the live view of the emulated device (live)."""
