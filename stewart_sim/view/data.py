@@ -1,0 +1,84 @@
+"""The frames a view shows: a run's samples decimated to a frame rate, with the leg lengths,
+cond(J), stroke-limit and singularity marks of each frame (data only; html.py writes the page).
+
+Decimation keeps source samples (no interpolation): frame k is the first sample at or after
+t0 + k / fps, and the last sample is always kept. Lengths, cond(J) and the marks are those of
+the frames' samples (stewart_fmu.kinematics on the frame poses), so an hour's run costs what its
+frames cost, not what its samples cost.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from stewart_fmu.errors import StewartError
+from stewart_fmu.kinematics import inverse_kinematics
+from stewart_fmu.model import Model
+from stewart_sim.view.geometry import ViewGeometry, at_stroke_limit, view_geometry
+
+DEFAULT_FPS = 30.0   # frames per second of simulated time: smooth to the eye, 4 s -> 121 frames
+
+
+@dataclass(frozen=True, eq=False)
+class ViewData:
+    """A view: the geometry, the frames (one row per frame) and what they were made from."""
+
+    geometry: ViewGeometry
+    t: np.ndarray            # (F,) s
+    q: np.ndarray            # (F, 6) actual pose
+    q_ref: np.ndarray | None  # (F, 6) reference pose (closed-loop runs), or None
+    lengths: np.ndarray      # (F, 6) m
+    forces: np.ndarray       # (F, 6) N
+    cond: np.ndarray         # (F,) scaled cond(J)
+    at_limit: np.ndarray     # (F, 6) bool: leg within the margin of a stroke limit
+    force_label: str         # what the forces are, e.g. "actuator force sigma (inverse dynamics)"
+    force_peak: float        # max |force| over every source sample (N)
+    title: str
+    source: str              # the file or directory the frames come from
+    source_samples: int
+    fps: float               # the frame rate asked for (frames per second of simulated time)
+
+    @property
+    def frames(self) -> int:
+        return int(self.t.size)
+
+
+def frame_indices(t: np.ndarray, fps: float) -> np.ndarray:
+    """Indices of the source samples shown at `fps` (see the module doc); t increasing."""
+    t = np.asarray(t, dtype=float)
+    if t.size == 0:
+        raise StewartError("view: no samples to show")
+    if not (np.isfinite(fps) and fps > 0):
+        raise StewartError(f"view: --fps must be a positive number, got {fps}")
+    span = float(t[-1] - t[0])
+    grid = t[0] + np.arange(int(np.floor(span * fps + 1e-9)) + 1) / fps
+    idx = np.minimum(np.searchsorted(t, grid - 1e-12 * max(1.0, abs(span))), t.size - 1)
+    return np.unique(np.r_[idx, t.size - 1])
+
+
+def view_data(model: Model, t, q, forces, q_ref=None, *, fps: float = DEFAULT_FPS,
+              force_label: str = "actuator force sigma", title: str | None = None,
+              source: str = "") -> ViewData:
+    """The view of samples t (N,), poses q (N, 6), forces (N, 6) and, for closed-loop runs, the
+    reference poses q_ref (N, 6), decimated to `fps`."""
+    t = np.asarray(t, dtype=float)
+    q = np.asarray(q, dtype=float)
+    forces = np.asarray(forces, dtype=float)
+    n = t.size
+    for name, arr in (("q", q), ("forces", forces)) + (() if q_ref is None else (("q_ref", q_ref),)):
+        if np.shape(arr) != (n, 6):
+            raise StewartError(f"view: {name} must be ({n}, 6), got {np.shape(arr)}")
+    if n > 1 and np.any(np.diff(t) <= 0):
+        raise StewartError(f"view: {source or 'the samples'}: times must increase")
+    idx = frame_indices(t, fps)
+    geometry = view_geometry(model)
+    kin = inverse_kinematics(model, q[idx])
+    finite = forces[np.isfinite(forces)]
+    return ViewData(
+        geometry=geometry, t=t[idx], q=q[idx],
+        q_ref=None if q_ref is None else np.asarray(q_ref, dtype=float)[idx],
+        lengths=kin.lengths, forces=forces[idx], cond=kin.cond,
+        at_limit=at_stroke_limit(geometry, kin.lengths), force_label=force_label,
+        force_peak=float(np.max(np.abs(finite))) if finite.size else 0.0,
+        title=title or model.name, source=source, source_samples=n, fps=float(fps))

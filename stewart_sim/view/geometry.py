@@ -1,0 +1,175 @@
+"""What the 3D view draws of a scene, and where every object sits for a pose.
+
+The mechanism is drawn as the contract describes it (docs/CONVENTIONS): a base plate through
+the base joints a_i, a platform plate through the platform joints p_i (in C, moved by the pose
+q = (x, y, z, thx, thy, thz), R = Rz Ry Rx), and each leg as its two rigid parts: the cylinder
+(lower part A_i) from a_i along u_i and the piston (upper part B_i) from the platform joint
+x + R p_i back along u_i.
+
+Part lengths (the scene gives none, so this is the view's choice, to scale with the stroke):
+the cylinder is `leg_min` long (the retracted leg: the body's length) and the piston is the
+stroke `leg_max - leg_min` long, so the two parts just meet at full extension and the piston's
+lower end shows how much stroke is used. A scene without stroke limits gets 0.75 and 1.25 times
+its home leg lengths as the limits for this purpose.
+
+The page (stewart_sim/view/page.js) computes the same transforms per frame; `object_transforms`
+is the reference the browser tests hold it to. Every matrix is 4x4, homogeneous, in N (metres),
+for meshcat's objects, whose cylinders have their axis along their local y (three.js).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from controller.config import controller_config
+from stewart_fmu.kinematics import inverse_kinematics
+from stewart_fmu.model import Model
+from stewart_fmu.rotations import euler_motion
+
+# cond(J) (scaled, stewart_fmu.kinematics) above which a pose is marked near-singular: the
+# emulated device's default SP_COND_MAX (hil.device.COND_MAX; a test holds them equal).
+COND_WARN = 100.0
+# A leg within this fraction of its stroke of leg_min or leg_max is marked at its limit.
+STROKE_MARGIN = 0.01
+
+
+@dataclass(frozen=True, eq=False)
+class ViewGeometry:
+    """Everything the page needs of a scene to draw it (metres, newtons)."""
+
+    name: str
+    base_joints: np.ndarray       # (6, 3) a_i in N
+    platform_joints: np.ndarray   # (6, 3) p_i in C
+    home: np.ndarray              # (6,) pose
+    leg_min: float                # stroke limits (the scene's, or 0.75 / 1.25 x home lengths)
+    leg_max: float
+    stroke_limits: bool           # whether the scene declares leg_min and leg_max
+    cylinder_length: float        # lower part A_i: leg_min
+    piston_length: float          # upper part B_i: leg_max - leg_min
+    cylinder_radius: float
+    piston_radius: float
+    joint_radius: float
+    base_radius: float            # plate radii: through the joints, with a margin
+    platform_radius: float
+    plate_thickness: float
+    force_scale: float | None     # the drive's peak force (N), for the live colour bar, or None
+    cond_warn: float = COND_WARN
+    stroke_margin: float = STROKE_MARGIN
+
+    @property
+    def size(self) -> float:
+        """A length that frames the mechanism (base radius or home height, the larger)."""
+        return max(self.base_radius, float(self.home[2]))
+
+    def to_json(self) -> dict:
+        """Plain lists and numbers (the page's JSON)."""
+        out = {}
+        for name, value in vars(self).items():
+            out[name] = value.tolist() if isinstance(value, np.ndarray) else value
+        return out
+
+
+def view_geometry(model: Model) -> ViewGeometry:
+    """The view's geometry of a scene (see the module doc for the parts' lengths)."""
+    home_lengths = inverse_kinematics(model, model.home, with_cond=False).lengths
+    declared = model.leg_min is not None and model.leg_max is not None
+    lo = model.leg_min if model.leg_min is not None else 0.75 * float(np.min(home_lengths))
+    hi = model.leg_max if model.leg_max is not None else 1.25 * float(np.max(home_lengths))
+    base_r = float(np.max(np.linalg.norm(model.base_joints[:, :2], axis=1)))
+    plat_r = float(np.max(np.linalg.norm(model.platform_joints[:, :2], axis=1)))
+    # Radii in proportion to the platform's size: legs read as legs, not as rods or pillars.
+    cyl_r = 0.07 * plat_r
+    return ViewGeometry(
+        name=model.name, base_joints=np.array(model.base_joints),
+        platform_joints=np.array(model.platform_joints), home=np.array(model.home),
+        leg_min=float(lo), leg_max=float(hi), stroke_limits=declared,
+        cylinder_length=float(lo), piston_length=float(hi - lo),
+        cylinder_radius=cyl_r, piston_radius=0.55 * cyl_r, joint_radius=1.25 * cyl_r,
+        base_radius=1.15 * base_r, platform_radius=1.15 * plat_r,
+        plate_thickness=0.12 * plat_r, force_scale=drive_peak_force(model))
+
+
+def drive_peak_force(model: Model) -> float | None:
+    """The peak rack force of the scene's drives (Kt zeta / r x current limit, N), when the
+    scene has a [drive] and a [controller] with its motor; else None."""
+    if model.drive is None or "controller" not in model.extra:
+        return None
+    motor = controller_config(model).motor
+    return float(motor.torque_constant * motor.current_limit * model.drive.force_per_torque)
+
+
+def rotation(q) -> np.ndarray:
+    """R = Rz(thz) Ry(thy) Rx(thx) of one pose (stewart_fmu.rotations)."""
+    Q = np.asarray(q, dtype=float).reshape(1, 6)
+    R, om, al = np.empty((1, 3, 3)), np.empty((1, 3)), np.empty((1, 3))
+    zero = np.zeros_like(Q)
+    euler_motion(Q, zero, zero, R, om, al)
+    return R[0]
+
+
+def axis_to(u: np.ndarray) -> np.ndarray:
+    """The smallest rotation taking the y axis onto the unit vector u (Rodrigues); a half turn
+    about x when u is -y. Legs are axisymmetric: the spin about their axis is not drawn."""
+    y = np.array([0.0, 1.0, 0.0])
+    c = float(np.dot(y, u))
+    if c < -1.0 + 1e-12:
+        return np.diag([1.0, -1.0, -1.0])
+    k = np.cross(y, u)
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + K + K @ K / (1.0 + c)
+
+
+def homogeneous(R: np.ndarray, p) -> np.ndarray:
+    """The 4x4 matrix of rotation R and translation p."""
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = p
+    return T
+
+
+# The plates are meshcat cylinders (axis along local y) turned to stand on z.
+_Y_TO_Z = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+
+
+def object_transforms(geometry: ViewGeometry, q) -> dict[str, np.ndarray]:
+    """Every moving and fixed object's 4x4 transform in N for pose q: "base", "platform",
+    "legs/<i>/cylinder", "legs/<i>/piston" (i = 1..6), the joints "joints/base/<i>" and
+    "joints/platform/<i>". Each part is centred on its own length, so its ends are at the
+    joint (cylinder at a_i, piston at x + R p_i) and at the part's length along the leg."""
+    q = np.asarray(q, dtype=float)
+    R = rotation(q)
+    x = q[:3]
+    g = geometry
+    top = np.mean(g.base_joints[:, 2])
+    under = np.mean(g.platform_joints[:, 2])
+    # The plates are centred on their joints' plane: the joints sit half in them.
+    out = {"base": homogeneous(_Y_TO_Z, [0.0, 0.0, top]),
+           "platform": homogeneous(R @ _Y_TO_Z, x + R @ [0.0, 0.0, under])}
+    for i in range(6):
+        a = g.base_joints[i]
+        p = x + R @ g.platform_joints[i]
+        u = (p - a) / np.linalg.norm(p - a)
+        turn = axis_to(u)
+        out[f"legs/{i + 1}/cylinder"] = homogeneous(turn, a + u * g.cylinder_length / 2)
+        out[f"legs/{i + 1}/piston"] = homogeneous(turn, p - u * g.piston_length / 2)
+        out[f"joints/base/{i + 1}"] = homogeneous(np.eye(3), a)
+        out[f"joints/platform/{i + 1}"] = homogeneous(np.eye(3), p)
+    return out
+
+
+def part_ends(transform: np.ndarray, length: float) -> tuple[np.ndarray, np.ndarray]:
+    """The two end points of a part of `length` along its local y, centred (for tests and
+    checks): transform applied to (0, -length/2, 0) and (0, +length/2, 0)."""
+    lo = transform @ np.array([0.0, -length / 2, 0.0, 1.0])
+    hi = transform @ np.array([0.0, length / 2, 0.0, 1.0])
+    return lo[:3], hi[:3]
+
+
+def at_stroke_limit(geometry: ViewGeometry, lengths) -> np.ndarray:
+    """Which legs are within stroke_margin of the stroke of either limit (bool, same shape)."""
+    l = np.asarray(lengths, dtype=float)
+    if not geometry.stroke_limits:
+        return np.zeros(l.shape, dtype=bool)
+    band = geometry.stroke_margin * (geometry.leg_max - geometry.leg_min)
+    return (l <= geometry.leg_min + band) | (l >= geometry.leg_max - band)

@@ -1,0 +1,121 @@
+"""The view's scene as meshcat commands: the objects (set_object, in the three.js JSON that
+meshcat-python's geometry classes lower to), the camera, lights, background and grid
+(set_transform, set_property). The page hands each to meshcat's `Viewer.handle_command`.
+
+Built here as plain dicts rather than through meshcat-python's classes: importing those starts
+with meshcat's server side (zmq, tornado, IPython), which a file writer has no use for.
+
+Paths: "/stewart/<key>" for the actual mechanism and "/ghost/<key>" for the reference pose,
+with the keys of geometry.object_transforms; "/stewart/limits/<i>" marks a leg at a stroke limit.
+"""
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+from stewart_sim.view.geometry import ViewGeometry
+
+PLATE = 0x8fa3b8      # brushed aluminium, a little blue
+BASE = 0x5b6470
+PISTON = 0xd9dde2     # polished rod
+JOINT = 0x2b2f36
+LIMIT = 0xff8c00      # the stroke-limit mark
+GHOST = 0xffffff
+GHOST_OPACITY = 0.28
+
+_ids = itertools.count()
+
+
+def _uuid(kind: str) -> str:
+    return f"stewart-{kind}-{next(_ids)}"
+
+
+def mesh(geometry: dict, colour: int, opacity: float = 1.0) -> dict:
+    """A three.js Mesh object (JSON, version 4.5) with a Phong material."""
+    g = {"uuid": _uuid("geometry"), **geometry}
+    m = {"uuid": _uuid("material"), "type": "MeshPhongMaterial", "color": colour,
+         "reflectivity": 0.5, "shininess": 60, "side": 2, "transparent": opacity < 1.0,
+         "opacity": opacity, "depthWrite": opacity >= 1.0}
+    return {"metadata": {"version": 4.5, "type": "Object"},
+            "geometries": [g], "materials": [m],
+            "object": {"uuid": _uuid("object"), "type": "Mesh", "geometry": g["uuid"],
+                       "material": m["uuid"], "matrix": np.eye(4).flatten().tolist()}}
+
+
+def cylinder(height: float, radius: float) -> dict:
+    """A cylinder along local y, centred (three.js CylinderGeometry)."""
+    return {"type": "CylinderGeometry", "radiusTop": radius, "radiusBottom": radius,
+            "height": height, "radialSegments": 48}
+
+
+def sphere(radius: float) -> dict:
+    return {"type": "SphereGeometry", "radius": radius, "widthSegments": 24,
+            "heightSegments": 16}
+
+
+def set_object(path: str, obj: dict) -> dict:
+    return {"type": "set_object", "path": path, "object": obj}
+
+
+def set_property(path: str, name: str, value) -> dict:
+    return {"type": "set_property", "path": path, "property": name, "value": value}
+
+
+def set_transform(path: str, matrix: np.ndarray) -> dict:
+    """meshcat's set_transform: the 4x4 column by column (three.js Matrix4.fromArray)."""
+    return {"type": "set_transform", "path": path,
+            "matrix": np.asarray(matrix, dtype=float).T.flatten().tolist()}
+
+
+def mechanism(prefix: str, g: ViewGeometry, ghost: bool) -> list[dict]:
+    """set_object commands of the plates, the legs' two parts and the joints under `prefix`."""
+    op = GHOST_OPACITY if ghost else 1.0
+    colour = (lambda c: GHOST if ghost else c)
+    cmds = [set_object(f"{prefix}/platform",
+                       mesh(cylinder(g.plate_thickness, g.platform_radius), colour(PLATE), op))]
+    if not ghost:
+        cmds.append(set_object(f"{prefix}/base",
+                               mesh(cylinder(g.plate_thickness, g.base_radius), BASE)))
+    for i in range(1, 7):
+        cmds.append(set_object(f"{prefix}/legs/{i}/cylinder",
+                               mesh(cylinder(g.cylinder_length, g.cylinder_radius),
+                                    colour(0xdddddd), op)))
+        cmds.append(set_object(f"{prefix}/legs/{i}/piston",
+                               mesh(cylinder(g.piston_length, g.piston_radius), colour(PISTON), op)))
+        if not ghost:
+            for end in ("base", "platform"):
+                cmds.append(set_object(f"{prefix}/joints/{end}/{i}",
+                                       mesh(sphere(g.joint_radius), JOINT)))
+            cmds.append(set_object(f"{prefix}/limits/{i}",
+                                   mesh(sphere(2.4 * g.joint_radius), LIMIT, 0.6)))
+            cmds.append(set_property(f"{prefix}/limits/{i}", "visible", False))
+    return cmds
+
+
+def scene_commands(g: ViewGeometry, with_ghost: bool) -> list[dict]:
+    """Every command that builds the scene, in order."""
+    size = g.size
+    z_mid = 0.55 * float(g.home[2])
+    # meshcat's camera lives in /Cameras/default/rotated (y up): a point (x, y, z) of N is
+    # (x, z, -y) there. The orbit target is /Cameras/default's origin.
+    eye = np.array([1.45, -1.9, 0.95]) * size
+    cmds = [
+        set_property("/Background", "top_color", [0.97, 0.98, 1.0]),
+        set_property("/Background", "bottom_color", [0.80, 0.84, 0.90]),
+        set_transform("/Grid", np.diag([size / 2, size / 2, size / 2, 1.0])),  # 10 x size wide
+        set_transform("/Axes", np.diag([size / 2, size / 2, size / 2, 1.0])),
+        set_transform("/Cameras/default", _translation([0.0, 0.0, z_mid])),
+        set_property("/Cameras/default/rotated/<object>", "position",
+                     [float(eye[0]), float(eye[2]), float(-eye[1])]),
+    ]
+    cmds += mechanism("/stewart", g, ghost=False)
+    if with_ghost:
+        cmds += mechanism("/ghost", g, ghost=True)
+    return cmds
+
+
+def _translation(p) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, 3] = p
+    return T
