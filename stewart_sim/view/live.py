@@ -3,7 +3,8 @@
 A stdlib `ThreadingHTTPServer` in a daemon thread, bound to 127.0.0.1 only (never a wildcard
 address: the device and its picture stay on this machine), serves two things:
 
-* ``/``: the page, the same 3D picture as the static view, which polls ``/state``;
+* ``/``: the page, the same 3D picture as the static view (stewart_sim.view.html
+  `live_view_html` over the scene's `view_geometry`), which polls ``/state``;
 * ``/state``: the device's newest snapshot (hil.observe.Snapshot) as JSON
   ``{"t", "q", "q_ref", "lengths", "forces", "cond", "armed", "tick"}`` in the contract's
   units (s, m, rad, N; q_ref is null while the device holds, a non-finite number is null).
@@ -27,6 +28,8 @@ from types import TracebackType
 from hil.observe import Latest, Snapshot
 from stewart_fmu.errors import StewartError
 from stewart_fmu.model import Model
+from stewart_sim.view.geometry import view_geometry
+from stewart_sim.view.html import live_view_html
 
 LOOPBACK = "127.0.0.1"
 STATE_PATH = "/state"
@@ -55,13 +58,8 @@ def _finite(values: tuple[float, ...]) -> list[float | None]:
 
 
 def live_page(model: Model) -> str:
-    """The page served at ``/``: a placeholder (the state as text) until the 3D page lands."""
-    return (f"<!DOCTYPE html><html><head><meta charset=\"utf-8\"><title>{model.name}: live"
-            "</title></head><body><pre id=\"state\">waiting for the device</pre><script>"
-            f"async function poll(){{try{{const r=await fetch('{STATE_PATH}');"
-            "document.getElementById('state').textContent="
-            "JSON.stringify(await r.json(),null,1);}catch(e){}setTimeout(poll,50);}poll();"
-            "</script></body></html>")
+    """The page served at ``/``: the static view's 3D picture of `model`, fed by ``/state``."""
+    return live_view_html(view_geometry(model), state_url=STATE_PATH)
 
 
 class _Handler(BaseHTTPRequestHandler):
