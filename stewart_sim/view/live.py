@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import json
 import math
+import socket
 import threading
 from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
@@ -100,12 +101,31 @@ class _Server(ThreadingHTTPServer):
         self.page, self.latest = page, latest
         bound = self.server_address[1]
         self.hosts = {f"{LOOPBACK}:{bound}", f"localhost:{bound}"}
-        self._cache_lock = threading.Lock()
+        self._lock = threading.Lock()
         self._cached: tuple[Snapshot | None, bytes] | None = None
+        self._open: set[socket.socket] = set()   # connections being served (keep-alive)
+
+    def finish_request(self, request, client_address) -> None:
+        with self._lock:
+            self._open.add(request)
+        try:
+            super().finish_request(request, client_address)
+        finally:
+            with self._lock:
+                self._open.discard(request)
+
+    def hang_up(self) -> None:
+        """End every open connection (a polling page's keep-alive): their threads see EOF."""
+        with self._lock:
+            for conn in self._open:
+                try:
+                    conn.shutdown(socket.SHUT_RDWR)
+                except OSError:
+                    pass
 
     def state_bytes(self) -> bytes:
         snap = self.latest.latest()
-        with self._cache_lock:
+        with self._lock:
             if self._cached is None or self._cached[0] is not snap:
                 self._cached = (snap, json.dumps(state_document(snap)).encode())
             return self._cached[1]
@@ -144,11 +164,12 @@ class LiveView:
             self._thread.start()
 
     def close(self) -> None:
-        """Stop serving and release the port (idempotent)."""
+        """Stop serving, end open connections and release the port (idempotent)."""
         if self._thread is not None:
             self._server.shutdown()
             self._thread.join()
             self._thread = None
+        self._server.hang_up()
         self._server.server_close()
 
     def __enter__(self) -> "LiveView":

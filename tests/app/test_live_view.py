@@ -91,7 +91,12 @@ def test_answers_on_127_0_0_1_only(model):
         assert refused("127.0.0.2", port)
         for address in other_addresses():
             assert refused(address, port), address
+        kept = http.client.HTTPConnection("127.0.0.1", port, timeout=5)   # a page's keep-alive
+        kept.request("GET", "/state")
+        assert kept.getresponse().read()
     assert refused("127.0.0.1", port)            # closed with the block
+    assert kept.sock.recv(1) == b""              # and the open connection ended (EOF)
+    kept.close()
 
 
 def test_page_state_and_refusals_have_their_content_types(model):
