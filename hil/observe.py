@@ -25,7 +25,7 @@ class Snapshot:
     q_ref: tuple[float, ...] | None     # pose of the setpoint being followed (None: holding)
     lengths: tuple[float, ...]          # leg lengths, m
     forces: tuple[float, ...]           # actuator (rack) forces, N
-    cond: float                         # cond(J) at q (scaled as stewart_fmu.kinematics); inf if q is not finite
+    cond: float                         # cond(J) at q (stewart_fmu.kinematics); inf: q not finite
     armed: bool
 
 

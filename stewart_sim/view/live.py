@@ -66,7 +66,7 @@ def live_page(model: Model) -> str:
 class _Handler(BaseHTTPRequestHandler):
     protocol_version = "HTTP/1.1"
     timeout = IDLE_TIMEOUT
-    server: "_Server"
+    server: _Server
 
     def do_GET(self) -> None:  # noqa: N802 (the http.server name)
         if self.headers.get("Host") not in self.server.hosts:
@@ -172,7 +172,7 @@ class LiveView:
         self._server.hang_up()
         self._server.server_close()
 
-    def __enter__(self) -> "LiveView":
+    def __enter__(self) -> LiveView:
         return self
 
     def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None,

@@ -6,11 +6,13 @@ transform the page shows is the geometry's for the published pose (the same 4x4 
 reason, where Chromium or Playwright is missing."""
 from __future__ import annotations
 
+import io
 import shutil
 import time
 
 import numpy as np
 import pytest
+from PIL import Image  # matplotlib's dependency
 
 pytest.importorskip("pymavlink")
 sync_api = pytest.importorskip("playwright.sync_api", reason="playwright is not installed "
@@ -57,9 +59,6 @@ PLATFORM_PIXEL = """() => {
 
 def _patch(png: bytes, centre, half: int = 60) -> np.ndarray:
     """The RGB pixels of a square around `centre` in a screenshot."""
-    import io
-    from PIL import Image  # matplotlib's dependency
-
     img = np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(int)
     x, y = int(round(centre[0])), int(round(centre[1]))
     return img[max(0, y - half): y + half, max(0, x - half): x + half]

@@ -12,8 +12,8 @@ from hil.device import Device, DeviceError  # noqa: E402
 from hil.observe import Latest  # noqa: E402
 from stewart_fmu.dynamics import inverse_dynamics  # noqa: E402
 from stewart_fmu.kinematics import condition_number, inverse_kinematics  # noqa: E402
-from tests.hil.test_device import SCENE, arm, setpoint  # noqa: E402
 from stewart_fmu.scene import load_scene  # noqa: E402
+from tests.hil.test_device import SCENE, arm, setpoint  # noqa: E402
 
 OFFSET = np.array([0.001, -0.0005, 0.001, 0.01, -0.01, 0.02])   # m, rad: inside the stroke
 
