@@ -124,6 +124,8 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                    help="written atomically: t,sigma1..sigma6,cond[,<part>1..<part>6 ...]")
     p.add_argument("--parts", action="store_true",
                    help="add the breakdown of sigma by contribution (the parts the scene has)")
+    p.add_argument("--no-view", action="store_true",
+                   help="do not write the 3D view (by default FORCES.html beside FORCES.csv: stewart-sim view)")
     p.set_defaults(run=cmd_inverse)
 
     p = sub.add_parser("paper", help="rerun the paper's Section 3 experiments",
@@ -132,6 +134,8 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                    help=f"scene file (default: {DEFAULT_SCENE}, from the current directory or "
                         "the source checkout)")
     p.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    p.add_argument("--no-view", action="store_true",
+                   help="do not write the 3D view (by default DIR/view.html: the six moves)")
     p.set_defaults(run=cmd_paper)
 
     p = sub.add_parser("demo", help="demonstration run (what `make demo` does)",
@@ -142,6 +146,8 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     p.add_argument("--duration", type=positive_seconds, default=DEMO_DURATION, metavar="SECONDS",
                    help=f"length of the demonstration move (default {DEMO_DURATION:g} s, "
                         f"sampled at {DEMO_RATE:g} Hz)")
+    p.add_argument("--no-view", action="store_true",
+                   help="do not write the 3D view (by default DIR/view.html and DIR/paper/view.html)")
     p.set_defaults(run=cmd_demo)
 
     p = sub.add_parser("run", help="closed-loop run: per-axis controllers around the plant",
@@ -172,6 +178,8 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     p.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep",
                    help="with --link: lockstep (deterministic, one exchange per controller "
                         "step; default) or realtime (wall clock, link delays visible)")
+    p.add_argument("--no-view", action="store_true",
+                   help="do not write the 3D view (by default DIR/view.html)")
     p.set_defaults(run=cmd_run)
 
     p = sub.add_parser("compare", help="constant-load vs Kane control over a gear-ratio sweep",
@@ -278,6 +286,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     _add_lazy(sub, command, "simulate", "open-loop forward dynamics from rack forces")
     _add_lazy(sub, command, "trajectory", "write a trajectory file (waypoints or a named move)")
     _add_lazy(sub, command, "case", "run a stiff or extreme scene's [case] against its expectation")
+    _add_lazy(sub, command, "view", "3D view of a run or trajectory as one HTML file")
     return parser
 
 
@@ -319,12 +328,16 @@ def cmd_inverse(args: argparse.Namespace) -> None:
     from stewart_sim.progress import Progress
 
     model = _load(args.scene)
+    out = Path(args.out)
+    view = None if args.no_view else out.with_suffix(".html")
     progress = Progress()
     try:
-        n, _ = run_inverse(model, Path(args.trajectory), Path(args.out), args.parts, progress)
+        n, _ = run_inverse(model, Path(args.trajectory), out, args.parts, progress, view=view)
     finally:
         progress.close()
     print(f"wrote {args.out}: {n} samples" + (" with the breakdown by part" if args.parts else ""))
+    if view is not None:
+        print(f"wrote {view}")
 
 
 # --- paper -----------------------------------------------------------------------------------
@@ -336,7 +349,7 @@ def cmd_paper(args: argparse.Namespace) -> None:
     model = _load(resolve_scene(args.scene))
     out = Path(args.out)
     with result_set(out) as stage:
-        report, results = run_paper(model, stage)
+        report, results = run_paper(model, stage, view=not args.no_view)
     print_verdicts(results)
     print(f"wrote {out / report.relative_to(stage)}")
 
@@ -356,15 +369,20 @@ def resolve_scene(scene: str | None) -> Path:
                                f"({Path.cwd()}) or at {checkout}")
 
 
-def run_paper(model, out: Path):
-    """Rerun the paper's experiments into the directory `out`; returns (report.md, results)."""
+def run_paper(model, out: Path, view: bool = True):
+    """Rerun the paper's experiments into the directory `out` (with the view of its six moves);
+    returns (report.md, results)."""
     from stewart_fmu.io import writing
     from stewart_sim.paper.report import write_paper_report
     from stewart_sim.paper.study import run_paper_experiments
+    from stewart_sim.view.command import VIEW_FILE, write_beside
+    from stewart_sim.view.sources import paper_view
 
     results = run_paper_experiments(model)
     with writing(out):
         paths = write_paper_report(results, out)
+    if view:
+        write_beside(out / VIEW_FILE, paper_view(results, source="the paper rerun"))
     return next(p for p in paths if p.name == "report.md"), results
 
 
@@ -386,16 +404,18 @@ def cmd_demo(args: argparse.Namespace) -> None:
     check_samples("--duration", args.duration, DEMO_RATE)
     out = Path(args.out)
     with result_set(out) as stage:
-        written, results = run_demo(model, stage, args.duration)
+        written, results = run_demo(model, stage, args.duration, view=not args.no_view)
     if results is not None:
         print_verdicts(results)
     for path in _written(stage, out, written):
         print(f"wrote {path}")
 
 
-def run_demo(model, out: Path, duration: float):
-    """Demonstration trajectory, its forces (the `inverse` path), their plot, the paper rerun,
-    into the directory `out`; returns (the files, the paper's results or None)."""
+def run_demo(model, out: Path, duration: float, view: bool = True):
+    """Demonstration trajectory, its forces (the `inverse` path), their plot, the 3D view, the
+    paper rerun, into the directory `out`; returns (the files, the paper's results or None)."""
+    import numpy as np
+
     from controller.moves import demo_trajectory
     from stewart_fmu import io
     from stewart_fmu.dynamics import present_parts
@@ -403,6 +423,8 @@ def run_demo(model, out: Path, duration: float):
     from stewart_sim.inverse import run_inverse
     from stewart_sim.plots import forces_figure, save_figure
     from stewart_sim.progress import Progress
+    from stewart_sim.view.command import VIEW_FILE, write_beside
+    from stewart_sim.view.sources import trajectory_view
 
     t, q, qd, qdd = demo_trajectory(model, duration)
     traj = out / "demo_trajectory.csv"
@@ -419,11 +441,18 @@ def run_demo(model, out: Path, duration: float):
     with writing(png):
         save_figure(forces_figure(table, present_parts(model), title), png)
     written, results = [traj, forces, png], None
+    if view:
+        sigma = np.column_stack([table[f"sigma{i}"] for i in range(1, 7)])
+        write_beside(out / VIEW_FILE, trajectory_view(
+            model, t, q, qd, qdd, forces=sigma, title=title, source=forces.name))
+        written.append(out / VIEW_FILE)
     if model.legs is None or model.drive is None:
         print("paper rerun skipped: it needs the scene's [legs] and [drive]", file=sys.stderr)
     else:
-        report, results = run_paper(model, out / "paper")
+        report, results = run_paper(model, out / "paper", view)
         written.append(report)
+        if view:
+            written.append(out / "paper" / VIEW_FILE)
     return written, results
 
 
@@ -440,6 +469,7 @@ def cmd_run(args: argparse.Namespace) -> None:
     from stewart_sim.limits import check_samples
     from stewart_sim.outputs import result_set
     from stewart_sim.run import ANY_RUN_FILES, check_format, run_closed_loop_files, run_files
+    from stewart_sim.view.command import VIEW_FILE
 
     config = controller_config(model)
     if args.feedforward is not None:
@@ -459,13 +489,15 @@ def cmd_run(args: argparse.Namespace) -> None:
         if args.format != "csv":
             raise StewartError("run --link: --format parquet is not supported over the link")
         with result_set(out, ANY_RUN_FILES) as stage:
-            run_link_files(model, config, args.duration, stage, args.link, args.mode)
-        names = LINK_FILES
+            run_link_files(model, config, args.duration, stage, args.link, args.mode,
+                           view=not args.no_view)
+        names = [n for n in LINK_FILES if not (args.no_view and n == VIEW_FILE)]
     else:
-        names = run_files(args.format)
+        names = run_files(args.format, not args.no_view)
         with result_set(out, ANY_RUN_FILES) as stage:
             run_closed_loop_files(model, config, args.duration, stage,
-                                  Path(args.fmu) if args.fmu else None, args.format)
+                                  Path(args.fmu) if args.fmu else None, args.format,
+                                  not args.no_view)
     print((out / "summary.md").read_text(encoding="utf-8"), end="")
     for name in names:
         print(f"wrote {out / name}")
@@ -594,7 +626,7 @@ def cmd_scene_info(args: argparse.Namespace) -> None:
 
 
 _LAZY = {"simulate": "stewart_sim.simulate", "trajectory": "stewart_sim.trajectory",
-         "case": "stewart_sim.case_report"}
+         "case": "stewart_sim.case_report", "view": "stewart_sim.view.command"}
 
 
 def _add_lazy(sub, command: str | None, name: str, help_text: str) -> None:

@@ -14,13 +14,18 @@ from stewart_fmu.io import writing
 from stewart_fmu.kinematics import check_poses
 from stewart_fmu.model import Model
 from stewart_sim.progress import Progress
+from stewart_sim.view.command import write_beside
+from stewart_sim.view.sources import trajectory_view
 
 CHUNK_SAMPLES = 50_000       # samples per block of the pose check and of the dynamics
 
 
 def run_inverse(model: Model, trajectory: Path, out: Path, parts: bool, progress: Progress,
-                keep: bool = False) -> tuple[int, np.ndarray | None]:
-    """Read, check every pose, compute and write the forces; the table too if `keep`."""
+                keep: bool = False, view: Path | None = None) -> tuple[int, np.ndarray | None]:
+    """Read, check every pose, compute and write the forces; the table too if `keep`; then the
+    3D view into `view` (its forces by inverse dynamics at its frames: the file's numbers at
+    those samples). The forces file is the contract's output and comes first: a view that
+    cannot be written is an OutputError naming it, the forces file stays written."""
     t, q, qd, qdd = io.read_trajectory(
         trajectory, progress=lambda rows: progress.update(f"reading {trajectory}", rows))
     cond = check_trajectory(model, t, q, trajectory, progress)
@@ -28,6 +33,9 @@ def run_inverse(model: Model, trajectory: Path, out: Path, parts: bool, progress
     chunks = force_chunks(model, (t, q, qd, qdd), cond, parts, trajectory, progress)
     with writing(out):
         io.write_csv_chunks(out, _keep(chunks, kept) if keep else chunks)
+    if view is not None:
+        write_beside(view, trajectory_view(model, t, q, qd, qdd, source=out.name,
+                                           title=f"{model.name}: {out.name}"))
     return t.size, (np.concatenate(kept) if keep else None)
 
 

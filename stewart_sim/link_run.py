@@ -22,6 +22,8 @@ from hil.spawn import device_process
 from stewart_fmu import io as sio
 from stewart_fmu.model import Model
 from stewart_sim.link_figures import run_figure
+from stewart_sim.view.command import VIEW_FILE, write_beside
+from stewart_sim.view.sources import run_table_view
 
 
 def link_summary_text(model: Model, run: LinkRun, ref: LinkReference, link: str) -> str:
@@ -50,15 +52,15 @@ def link_summary_text(model: Model, run: LinkRun, ref: LinkReference, link: str)
     return "\n".join(lines)
 
 
-LINK_FILES = ("run.csv", "run_link.png", "summary.md")
+LINK_FILES = ("run.csv", "run_link.png", "summary.md", VIEW_FILE)
 
 
 def run_link_files(model: Model, config: ControllerConfig, duration: float, out, link: str,
-                   mode: str) -> tuple[LinkRun, LinkReference]:
+                   mode: str, view: bool = True) -> tuple[LinkRun, LinkReference]:
     """`run --link serial|udp --mode lockstep|realtime`: the device run as its own process
     (`stewart-sim device`, see hil.spawn) over a pseudo-terminal (``serial``) or loopback UDP,
     the `run` reference (controller.moves.run_reference) over the link; run.csv,
-    run_link.png and summary.md into `out`."""
+    run_link.png, summary.md and (`view`) view.html into `out`."""
     if link not in ("serial", "udp") or mode not in ("lockstep", "realtime"):
         raise LinkError(f"run: --link serial|udp and --mode lockstep|realtime, got {link}, {mode}")
     if model.source is None:
@@ -87,4 +89,8 @@ def run_link_files(model: Model, config: ControllerConfig, duration: float, out,
         run_figure(run.table, f"{model.name}: closed loop over {where}, {mode}",
                    out / "run_link.png")
         sio.write_text(out / "summary.md", text)
+        if view:
+            title = f"{model.name}: closed loop over {where}, {mode}"
+            write_beside(out / VIEW_FILE, run_table_view(model, run.table, title=title,
+                                                         source="run.csv"))
     return run, ref

@@ -24,17 +24,20 @@ from stewart_sim.compare.study import compare_drive_inertia, regime
 from stewart_sim.plots import drive_figure, leg_errors_figure, save_figure, tracking_figure
 from stewart_sim.progress import Progress
 from stewart_sim.scene_info import format_vector
+from stewart_sim.view.command import VIEW_FILE, write_beside
+from stewart_sim.view.sources import run_table_view
 
-RUN_FILES = ("run.csv", "run_tracking.png", "run_errors.png", "run_forces.png", "summary.md")
+RUN_FILES = ("run.csv", "run_tracking.png", "run_errors.png", "run_forces.png", "summary.md",
+             VIEW_FILE)
 FORMATS = ("csv", "parquet")
 # Every file a `run` may write (in-process, --fmu, --link: link_run.LINK_FILES): a rerun removes
 # them all from an earlier set written without the manifest (outputs.MANIFEST).
 ANY_RUN_FILES = (*RUN_FILES, "run.parquet", "run_link.png")
 
 
-def run_files(fmt: str = "csv") -> tuple[str, ...]:
-    """The files `run` writes with the table in format `fmt`."""
-    return (f"run.{fmt}", *RUN_FILES[1:])
+def run_files(fmt: str = "csv", view: bool = True) -> tuple[str, ...]:
+    """The files `run` writes with the table in format `fmt` (and the 3D view)."""
+    return (f"run.{fmt}", *(n for n in RUN_FILES[1:] if view or n != VIEW_FILE))
 
 
 def check_format(fmt: str) -> None:
@@ -59,9 +62,9 @@ def write_parquet(path: Path, table: np.ndarray) -> Path:
 
 
 def run_closed_loop_files(model: Model, config, duration: float, out: Path,
-                          fmu: Path | None = None, fmt: str = "csv"):
-    """Run the closed loop (in-process plant, or the FMU) and write run_files(fmt) into `out`
-    (progress covers the writing: a long run's CSV takes seconds); returns
+                          fmu: Path | None = None, fmt: str = "csv", view: bool = True):
+    """Run the closed loop (in-process plant, or the FMU) and write run_files(fmt, view) into
+    `out` (progress covers the writing: a long run's CSV takes seconds); returns
     (ClosedLoopResult, reference)."""
     check_format(fmt)
     traj = run_reference(model, config, duration)
@@ -100,6 +103,11 @@ def run_closed_loop_files(model: Model, config, duration: float, out: Path,
                 save_figure(figure(), out / name)
             progress.update("plotting", len(figures), len(figures), unit="figures")
             io.write_text(out / "summary.md", run_summary(model, result, traj, where))
+            if view:
+                progress.update("writing the view", 0, 1, unit="files")
+                write_beside(out / VIEW_FILE, run_table_view(
+                    model, result.table, title=title, source=f"run.{fmt}"))
+                progress.update("writing the view", 1, 1, unit="files")
     finally:
         progress.close()
     return result, traj

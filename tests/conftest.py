@@ -7,6 +7,7 @@ import os
 import pytest
 
 from stewart_fmu import Model, scene_from_dict
+from tests.browser import launch_browser
 from tests.helpers import RESIDUALS, level_dict, level_model, scene_dict
 
 
@@ -41,6 +42,14 @@ def make_level():
         d = level_dict(data, level)
         return d, scene_from_dict(d)
     return make
+
+
+@pytest.fixture(scope="session")
+def browser():
+    """One headless Chromium (Playwright) for the session; installs Debian's chromium when
+    there is none and we may (tests/browser.py), else skips the test saying why."""
+    with launch_browser() as b:
+        yield b
 
 
 def pytest_terminal_summary(terminalreporter, exitstatus, config):

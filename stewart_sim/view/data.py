@@ -38,6 +38,7 @@ class ViewData:
     source: str              # the file or directory the frames come from
     source_samples: int
     fps: float               # the frame rate asked for (frames per second of simulated time)
+    speed: float = 1.0       # the page's initial playback speed (simulated s per second)
 
     @property
     def frames(self) -> int:
@@ -59,9 +60,12 @@ def frame_indices(t: np.ndarray, fps: float) -> np.ndarray:
 
 def view_data(model: Model, t, q, forces, q_ref=None, *, fps: float = DEFAULT_FPS,
               force_label: str = "actuator force sigma", title: str | None = None,
-              source: str = "") -> ViewData:
+              source: str = "", source_samples: int | None = None,
+              force_peak: float | None = None, speed: float = 1.0) -> ViewData:
     """The view of samples t (N,), poses q (N, 6), forces (N, 6) and, for closed-loop runs, the
-    reference poses q_ref (N, 6), decimated to `fps`."""
+    reference poses q_ref (N, 6), decimated to `fps`. Samples already decimated (at the same
+    fps) are kept as they are: give the count they came from (`source_samples`) and the peak
+    force over all of them (`force_peak`; default: over the samples given)."""
     t = np.asarray(t, dtype=float)
     q = np.asarray(q, dtype=float)
     forces = np.asarray(forces, dtype=float)
@@ -80,5 +84,8 @@ def view_data(model: Model, t, q, forces, q_ref=None, *, fps: float = DEFAULT_FP
         q_ref=None if q_ref is None else np.asarray(q_ref, dtype=float)[idx],
         lengths=kin.lengths, forces=forces[idx], cond=kin.cond,
         at_limit=at_stroke_limit(geometry, kin.lengths), force_label=force_label,
-        force_peak=float(np.max(np.abs(finite))) if finite.size else 0.0,
-        title=title or model.name, source=source, source_samples=n, fps=float(fps))
+        force_peak=(force_peak if force_peak is not None
+                    else float(np.max(np.abs(finite))) if finite.size else 0.0),
+        title=title or model.name, source=source,
+        source_samples=n if source_samples is None else int(source_samples), fps=float(fps),
+        speed=float(speed))

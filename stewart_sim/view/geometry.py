@@ -143,9 +143,11 @@ def object_transforms(geometry: ViewGeometry, q) -> dict[str, np.ndarray]:
     g = geometry
     top = np.mean(g.base_joints[:, 2])
     under = np.mean(g.platform_joints[:, 2])
-    # The plates are centred on their joints' plane: the joints sit half in them.
-    out = {"base": homogeneous(_Y_TO_Z, [0.0, 0.0, top]),
-           "platform": homogeneous(R @ _Y_TO_Z, x + R @ [0.0, 0.0, under])}
+    # Each plate has its inner face on its joints' plane (the base below its joints, the
+    # platform above its own): the joints sit on the faces the legs leave from.
+    half = g.plate_thickness / 2
+    out = {"base": homogeneous(_Y_TO_Z, [0.0, 0.0, top - half]),
+           "platform": homogeneous(R @ _Y_TO_Z, x + R @ [0.0, 0.0, under + half])}
     for i in range(6):
         a = g.base_joints[i]
         p = x + R @ g.platform_joints[i]

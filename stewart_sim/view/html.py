@@ -22,7 +22,7 @@ from stewart_fmu.io import write_text
 from stewart_sim.view.colours import colour_table, nice_ceiling
 from stewart_sim.view.data import ViewData
 from stewart_sim.view.geometry import ViewGeometry
-from stewart_sim.view.scene import scene_commands
+from stewart_sim.view.scene import PLATE, rgb, scene_commands
 
 _HERE = Path(__file__).resolve().parent
 LIVE_PERIOD_MS = 50     # the live page asks for a state every 50 ms (20 Hz)
@@ -46,14 +46,18 @@ def _b64(a: np.ndarray, dtype) -> str:
 
 
 def _page(title: str, subtitle: str, force_label: str, status: str, geometry: ViewGeometry,
-          data: dict) -> str:
-    """page.html filled in: one pass, so no inserted text is read as a placeholder."""
+          ghost: bool, force_scale: float | None, source: dict) -> str:
+    """page.html filled in (one pass, so no inserted text is read as a placeholder); its data:
+    the scene's commands, the colour map and the frame source (frames, or the live URL)."""
+    data = {"geometry": geometry.to_json(), "scene": scene_commands(geometry, ghost),
+            "ghost": ghost, "lut": colour_table().tolist(), "force_scale": force_scale,
+            "plate_rgb": rgb(PLATE), "live": None, **source}
     text = json.dumps(data, separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
     parts = {
         "TITLE": html.escape(title), "SUBTITLE": html.escape(subtitle),
         "FORCE_LABEL": html.escape(force_label), "STATUS": html.escape(status),
         "COND_WARN": f"{geometry.cond_warn:g}",
-        "GHOST_NOTE": "<br>translucent: the reference pose" if data["ghost"] else "",
+        "GHOST_NOTE": "<br>translucent: the reference pose" if ghost else "",
         "DATA": text, "MESHCAT": meshcat_viewer_js(),
         "PAGE_JS": (_HERE / "page.js").read_text(encoding="utf-8"),
     }
@@ -76,17 +80,15 @@ def static_view_html(view: ViewData) -> str:
               "q_ref": None if view.q_ref is None else _b64(view.q_ref, "<f4"),
               "lengths": _b64(view.lengths, "<f4"), "forces": _b64(view.forces, "<f4"),
               "cond": _b64(view.cond, "<f4"), "at_limit": _b64(view.at_limit, "u1")}
-    data = {"live": None, "ghost": view.q_ref is not None, "geometry": g.to_json(),
-            "scene": scene_commands(g, view.q_ref is not None),
-            "lut": colour_table().tolist(), "force_scale": scale, "frames": frames,
-            "meta": {"fps": view.fps, "frames": view.frames,
-                     "source_samples": view.source_samples, "source": view.source}}
+    meta = {"fps": view.fps, "frames": view.frames, "speed": view.speed,
+            "source_samples": view.source_samples, "source": view.source}
     span = float(view.t[-1] - view.t[0])
     subtitle = (f"{span:.6g} s, {view.frames} frames at {view.fps:g} frames/s of simulated time "
                 f"from {view.source_samples} samples"
                 + (f" of {view.source}" if view.source else ""))
     status = "drag: orbit, right-drag: pan, wheel: zoom"
-    return _page(view.title, subtitle, view.force_label, status, g, data)
+    return _page(view.title, subtitle, view.force_label, status, g, view.q_ref is not None,
+                 scale, {"frames": frames, "meta": meta})
 
 
 def live_view_html(geometry: ViewGeometry, state_url: str = "/state") -> str:
@@ -94,11 +96,9 @@ def live_view_html(geometry: ViewGeometry, state_url: str = "/state") -> str:
     frame as JSON {"t": s, "q": [6], "q_ref": [6] or null, "lengths": [6], "forces": [6],
     "cond": float} and shows it with the static page's code. The colour bar spans the drives'
     peak force (geometry.force_scale), or grows with the largest force seen."""
-    data = {"live": {"state_url": state_url, "period_ms": LIVE_PERIOD_MS}, "ghost": True,
-            "geometry": geometry.to_json(), "scene": scene_commands(geometry, True),
-            "lut": colour_table().tolist(), "force_scale": geometry.force_scale}
     return _page(f"{geometry.name}: live", f"polling {state_url} every {LIVE_PERIOD_MS} ms",
-                 "actuator force", "live: connecting", geometry, data)
+                 "actuator force", "live: connecting", geometry, True, geometry.force_scale,
+                 {"live": {"state_url": state_url, "period_ms": LIVE_PERIOD_MS}})
 
 
 def write_view(path: str | Path, view: ViewData) -> int:

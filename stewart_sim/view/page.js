@@ -54,9 +54,10 @@
     const R = rotation(q);
     const x = [q[0], q[1], q[2]];
     const add = (a, b, s) => [a[0] + s * b[0], a[1] + s * b[1], a[2] + s * b[2]];
+    const half = G.plate_thickness / 2;
     const out = {
-      "base": matrix(Y_TO_Z, [0, 0, TOP]),
-      "platform": matrix(mul(R, Y_TO_Z), add(x, apply(R, [0, 0, UNDER]), 1)),
+      "base": matrix(Y_TO_Z, [0, 0, TOP - half]),
+      "platform": matrix(mul(R, Y_TO_Z), add(x, apply(R, [0, 0, UNDER + half]), 1)),
     };
     for (let i = 0; i < 6; i++) {
       const a = G.base_joints[i];
@@ -105,7 +106,7 @@
   }
 
   // --- one frame, through the viewer's commands ------------------------------------------
-  const PLATE = [0x8f / 255, 0xa3 / 255, 0xb8 / 255, 1];
+  const PLATE = [...DATA.plate_rgb, 1];
   const ALARM = [0.85, 0.12, 0.12, 1];
   const cmd = (c) => viewer.handle_command(c);
   const setT = (path, m) => cmd({type: "set_transform", path: path, matrix: m});
@@ -216,6 +217,7 @@
     const frame = (k) => ({t: t[k], q: six(q, k), q_ref: qr ? six(qr, k) : null,
                            lengths: six(ln, k), forces: six(fo, k), cond: co[k],
                            at_limit: Array.from(lim.subarray(6 * k, 6 * k + 6))});
+    if (DATA.meta.speed) el("speed").value = String(DATA.meta.speed);
     const slider = el("slider");
     slider.max = n - 1;
     let k = 0, playing = false, clock = 0, last = null;

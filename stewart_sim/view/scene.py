@@ -10,8 +10,6 @@ with the keys of geometry.object_transforms; "/stewart/limits/<i>" marks a leg a
 """
 from __future__ import annotations
 
-import itertools
-
 import numpy as np
 
 from stewart_sim.view.geometry import ViewGeometry
@@ -24,22 +22,21 @@ LIMIT = 0xff8c00      # the stroke-limit mark
 GHOST = 0xffffff
 GHOST_OPACITY = 0.28
 
-_ids = itertools.count()
+def rgb(colour: int) -> list[float]:
+    """0xRRGGBB as [r, g, b] in [0, 1] (meshcat's set_property "color" takes these, and alpha)."""
+    return [((colour >> shift) & 0xFF) / 255 for shift in (16, 8, 0)]
 
 
-def _uuid(kind: str) -> str:
-    return f"stewart-{kind}-{next(_ids)}"
-
-
-def mesh(geometry: dict, colour: int, opacity: float = 1.0) -> dict:
-    """A three.js Mesh object (JSON, version 4.5) with a Phong material."""
-    g = {"uuid": _uuid("geometry"), **geometry}
-    m = {"uuid": _uuid("material"), "type": "MeshPhongMaterial", "color": colour,
+def mesh(path: str, geometry: dict, colour: int, opacity: float = 1.0) -> dict:
+    """The three.js Mesh object (JSON, version 4.5) with a Phong material to put at `path`
+    (its uuids are made from the path: the same scene gives the same page)."""
+    g = {"uuid": f"{path}#geometry", **geometry}
+    m = {"uuid": f"{path}#material", "type": "MeshPhongMaterial", "color": colour,
          "reflectivity": 0.5, "shininess": 60, "side": 2, "transparent": opacity < 1.0,
          "opacity": opacity, "depthWrite": opacity >= 1.0}
     return {"metadata": {"version": 4.5, "type": "Object"},
             "geometries": [g], "materials": [m],
-            "object": {"uuid": _uuid("object"), "type": "Mesh", "geometry": g["uuid"],
+            "object": {"uuid": f"{path}#object", "type": "Mesh", "geometry": g["uuid"],
                        "material": m["uuid"], "matrix": np.eye(4).flatten().tolist()}}
 
 
@@ -54,8 +51,9 @@ def sphere(radius: float) -> dict:
             "heightSegments": 16}
 
 
-def set_object(path: str, obj: dict) -> dict:
-    return {"type": "set_object", "path": path, "object": obj}
+def set_object(path: str, geometry: dict, colour: int, opacity: float = 1.0) -> dict:
+    """meshcat's set_object of a mesh at `path`."""
+    return {"type": "set_object", "path": path, "object": mesh(path, geometry, colour, opacity)}
 
 
 def set_property(path: str, name: str, value) -> dict:
@@ -72,23 +70,19 @@ def mechanism(prefix: str, g: ViewGeometry, ghost: bool) -> list[dict]:
     """set_object commands of the plates, the legs' two parts and the joints under `prefix`."""
     op = GHOST_OPACITY if ghost else 1.0
     colour = (lambda c: GHOST if ghost else c)
-    cmds = [set_object(f"{prefix}/platform",
-                       mesh(cylinder(g.plate_thickness, g.platform_radius), colour(PLATE), op))]
+    cmds = [set_object(f"{prefix}/platform", cylinder(g.plate_thickness, g.platform_radius),
+                       colour(PLATE), op)]
     if not ghost:
-        cmds.append(set_object(f"{prefix}/base",
-                               mesh(cylinder(g.plate_thickness, g.base_radius), BASE)))
+        cmds.append(set_object(f"{prefix}/base", cylinder(g.plate_thickness, g.base_radius), BASE))
     for i in range(1, 7):
         cmds.append(set_object(f"{prefix}/legs/{i}/cylinder",
-                               mesh(cylinder(g.cylinder_length, g.cylinder_radius),
-                                    colour(0xdddddd), op)))
+                               cylinder(g.cylinder_length, g.cylinder_radius), colour(0xdddddd), op))
         cmds.append(set_object(f"{prefix}/legs/{i}/piston",
-                               mesh(cylinder(g.piston_length, g.piston_radius), colour(PISTON), op)))
+                               cylinder(g.piston_length, g.piston_radius), colour(PISTON), op))
         if not ghost:
             for end in ("base", "platform"):
-                cmds.append(set_object(f"{prefix}/joints/{end}/{i}",
-                                       mesh(sphere(g.joint_radius), JOINT)))
-            cmds.append(set_object(f"{prefix}/limits/{i}",
-                                   mesh(sphere(2.4 * g.joint_radius), LIMIT, 0.6)))
+                cmds.append(set_object(f"{prefix}/joints/{end}/{i}", sphere(g.joint_radius), JOINT))
+            cmds.append(set_object(f"{prefix}/limits/{i}", sphere(2.4 * g.joint_radius), LIMIT, 0.6))
             cmds.append(set_property(f"{prefix}/limits/{i}", "visible", False))
     return cmds
 
@@ -97,13 +91,15 @@ def scene_commands(g: ViewGeometry, with_ghost: bool) -> list[dict]:
     """Every command that builds the scene, in order."""
     size = g.size
     z_mid = 0.55 * float(g.home[2])
+    floor = float(np.min(g.base_joints[:, 2])) - 1.05 * g.plate_thickness
     # meshcat's camera lives in /Cameras/default/rotated (y up): a point (x, y, z) of N is
     # (x, z, -y) there. The orbit target is /Cameras/default's origin.
     eye = np.array([1.45, -1.9, 0.95]) * size
     cmds = [
         set_property("/Background", "top_color", [0.97, 0.98, 1.0]),
         set_property("/Background", "bottom_color", [0.80, 0.84, 0.90]),
-        set_transform("/Grid", np.diag([size / 2, size / 2, size / 2, 1.0])),  # 10 x size wide
+        # the floor grid (5 x size wide) just under the base plate, not through it
+        set_transform("/Grid", _translation([0.0, 0.0, floor]) @ np.diag([size / 4] * 3 + [1.0])),
         set_transform("/Axes", np.diag([size / 2, size / 2, size / 2, 1.0])),
         set_transform("/Cameras/default", _translation([0.0, 0.0, z_mid])),
         set_property("/Cameras/default/rotated/<object>", "position",

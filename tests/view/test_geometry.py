@@ -48,7 +48,7 @@ def test_leg_parts_end_at_the_joints(fixture, request):
             np.testing.assert_allclose(T[f"joints/base/{i + 1}"][:3, 3], a, atol=1e-15)
 
 
-def test_transforms_are_rigid_and_plates_pass_through_joints(micro_model):
+def test_transforms_are_rigid_and_plates_hold_the_joints(micro_model):
     g = view_geometry(micro_model)
     for q in poses("micro", 10):
         T = object_transforms(g, q)
@@ -56,17 +56,18 @@ def test_transforms_are_rigid_and_plates_pass_through_joints(micro_model):
             np.testing.assert_allclose(M[:3, :3] @ M[:3, :3].T, np.eye(3), atol=1e-12)
             assert np.linalg.det(M[:3, :3]) == pytest.approx(1.0)
             np.testing.assert_array_equal(M[3], [0, 0, 0, 1])
-        # the platform plate's axis (its local y) is the platform's z axis, and its plane holds
-        # every platform joint
+        # the platform plate's axis (its local y) is the platform's z axis, and its lower face
+        # (half its thickness below its centre) holds every platform joint
         P = T["platform"]
         R = rotation(q)
         np.testing.assert_allclose(P[:3, 1], R[:, 2], atol=1e-12)
         for i in range(6):
             joint = T[f"joints/platform/{i + 1}"][:3, 3]
-            assert abs(np.dot(joint - P[:3, 3], P[:3, 1])) < 1e-12
+            assert np.dot(joint - P[:3, 3], P[:3, 1]) == pytest.approx(-g.plate_thickness / 2,
+                                                                       abs=1e-12)
     B = object_transforms(g, micro_model.home)["base"]
-    for a in micro_model.base_joints:
-        assert abs(np.dot(a - B[:3, 3], B[:3, 1])) < 1e-15
+    for a in micro_model.base_joints:      # the base plate's top face holds the base joints
+        assert np.dot(a - B[:3, 3], B[:3, 1]) == pytest.approx(g.plate_thickness / 2, abs=1e-15)
 
 
 def test_parts_meet_at_full_extension(micro_model):
