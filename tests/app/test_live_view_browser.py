@@ -1,22 +1,17 @@
-"""The live view as a person sees it: headless Chromium (Debian's `chromium`, driven by
-Playwright) loads the page of `stewart_sim.view.live` while the device is ticked by hand (device
-time, deterministic), and sees the platform move when a setpoint arrives: the platform's
+"""The live view as a person sees it: headless Chromium (the session's `browser` fixture,
+tests/browser.py) loads the page of `stewart_sim.view.live` while the device is ticked by hand
+(device time, deterministic), and sees the platform move when a setpoint arrives: the platform's
 transform the page shows is the geometry's for the published pose (the same 4x4 as Python's
 `object_transforms`), and the pixels around the platform's projection change. Skipped, with the
-reason, where Chromium or Playwright is missing."""
+reason, where Chromium or Playwright cannot be had."""
 from __future__ import annotations
 
-import io
-import shutil
 import time
 
 import numpy as np
 import pytest
-from PIL import Image  # matplotlib's dependency
 
 pytest.importorskip("pymavlink")
-sync_api = pytest.importorskip("playwright.sync_api", reason="playwright is not installed "
-                               "(pip install -e '.[test]')")
 
 from hil.device import Device  # noqa: E402
 from hil.observe import Latest  # noqa: E402
@@ -24,14 +19,11 @@ from stewart_fmu.kinematics import inverse_kinematics  # noqa: E402
 from stewart_fmu.scene import load_scene  # noqa: E402
 from stewart_sim.view.geometry import object_transforms, view_geometry  # noqa: E402
 from stewart_sim.view.live import LiveView, live_page  # noqa: E402
+from tests.browser import VIEWPORT, canvas_pixels, settle  # noqa: E402
 from tests.hil.test_device import SCENE, arm, setpoint  # noqa: E402
 
-CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
-pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="no chromium on PATH (Debian: "
-                                "apt-get install chromium)")
 MOVE = np.array([0.0, 0.0, 0.012, 0.0, 0.0, 0.35])   # 12 mm up and 20 deg about z: visible
-WAIT = 30.0                                           # s, the longest wait for the page
-SIZE = {"width": 800, "height": 600}
+WAIT = 60.0                                           # s, the longest wait for the page
 
 
 def _wait_shown(page, t: float) -> dict:
@@ -41,39 +33,26 @@ def _wait_shown(page, t: float) -> dict:
         shown = page.evaluate("() => window.stewartView && window.stewartView.ready "
                               "&& window.stewartView.shown()")
         if shown and abs(shown["t"] - t) < 1e-9:
-            page.evaluate("() => new Promise(r => requestAnimationFrame(() => "
-                          "requestAnimationFrame(r)))")   # drawn, not only set
+            settle(page)                                  # drawn, not only set
             return shown
         time.sleep(0.05)
     raise AssertionError(f"the page did not show t = {t} within {WAIT} s")
 
 
+# where the platform's centre is drawn, in the canvas's pixels (the viewer's camera projection)
 PLATFORM_PIXEL = """() => {
   const v = window.stewartView.viewer;
   const o = v.scene_tree.find(["stewart", "platform"]).object;
   const p = o.getWorldPosition(new o.position.constructor()).project(v.camera);
   const c = v.renderer.domElement.getBoundingClientRect();
-  return [c.left + (p.x + 1) / 2 * c.width, c.top + (1 - p.y) / 2 * c.height];
+  return [(p.x + 1) / 2 * c.width, (1 - p.y) / 2 * c.height];
 }"""
 
 
-def _patch(png: bytes, centre, half: int = 60) -> np.ndarray:
-    """The RGB pixels of a square around `centre` in a screenshot."""
-    img = np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(int)
+def _patch(img: np.ndarray, centre, half: int = 60) -> np.ndarray:
+    """The pixels of a square around `centre` in the canvas image."""
     x, y = int(round(centre[0])), int(round(centre[1]))
-    return img[max(0, y - half): y + half, max(0, x - half): x + half]
-
-
-@pytest.fixture(scope="module")
-def browser():
-    with sync_api.sync_playwright() as p:
-        try:
-            b = p.chromium.launch(executable_path=CHROMIUM, args=["--no-sandbox",
-                                                                  "--use-gl=swiftshader"])
-        except sync_api.Error as exc:
-            pytest.skip(f"chromium does not start under playwright: {exc}")
-        yield b
-        b.close()
+    return img[max(0, y - half): y + half, max(0, x - half): x + half].astype(int)
 
 
 def test_live_page_shows_the_platform_move_when_a_setpoint_arrives(browser):
@@ -85,12 +64,12 @@ def test_live_page_shows_the_platform_move_when_a_setpoint_arrives(browser):
     target = np.asarray(model.home, dtype=float) + MOVE
     with LiveView(live_page(model), latest, 0) as view:
         view.start()
-        page = browser.new_page(viewport=SIZE)
+        page = browser.new_page(viewport=VIEWPORT)
         page.goto(view.url)
         # the text panels hidden: the pixels compared are the 3D scene's, not changing text
         page.add_style_tag(content=".panel, .dg.ac { visibility: hidden !important; }")
         before = _wait_shown(page, 0.0)
-        shot0 = page.screenshot()
+        shot0 = canvas_pixels(page)
         pixel0 = page.evaluate(PLATFORM_PIXEL)
         assert before["q_ref"] is None
         dev.receive(arm())
@@ -99,7 +78,7 @@ def test_live_page_shows_the_platform_move_when_a_setpoint_arrives(browser):
             dev.tick()
         t1 = latest.latest().t
         after = _wait_shown(page, t1)
-        shot1 = page.screenshot()
+        shot1 = canvas_pixels(page)
         pixel1 = page.evaluate(PLATFORM_PIXEL)
         page.close()
     q1 = np.array(after["q"])
