@@ -73,6 +73,13 @@ with `step = k` and LOCKSTEP(step=k) echoed, all stamped with the device time af
 Steps are numbered from 0; a repeated step is answered again without ticking (the host may
 resend after a loss), any other step number is refused with a STATUSTEXT.
 
+Observers
+---------
+`Device.observe(latest, hz)` makes every tick that ends a 1/hz interval publish a
+`hil.observe.Snapshot` (time, pose, the pose of the followed setpoint, leg lengths, rack forces,
+cond(J)) into a `hil.observe.Latest` that other threads read (the live view of `stewart-sim
+device --view`); without an observer a tick pays one attribute test.
+
 Telemetry and frames
 --------------------
 HEARTBEAT at 1 Hz (MAV_TYPE_GENERIC, MAV_AUTOPILOT_GENERIC; base mode SAFETY_ARMED while armed,
@@ -102,6 +109,7 @@ from controller.plants import InProcessPlant, PlantStepError
 from controller.trajectory import QUINTIC_PEAK_RATE, Trajectory, leg_references, minimum_jerk
 from hil import mavlink_stewart as ms
 from hil.framing import Receiver
+from hil.observe import OBSERVE_HZ, Latest, Snapshot
 from hil import limits, protocol
 from hil.signing import SignedDecoder, Verifier, wall_timestamp
 from stewart_fmu.errors import IntegrationError, StewartError
@@ -235,6 +243,8 @@ class Device:
         self.design_gains, self.design_motor = self.ctrl.gains, self.ctrl.axis.motor
         self.bounds = limits.bounds(self.leg_min, self.leg_max, self.ctrl.axis, self.ctrl.gains)
         self._ff_static: np.ndarray | None = None   # R i + Ke ldot_ref of the feed-forward in use
+        # the pose of the setpoint being followed (observers' ghost); None while holding or homing
+        self.reference_pose: np.ndarray | None = None
         self._start_holding(np.asarray(model.home, dtype=float), 0.0)
 
         self.k = 0                       # ticks done; device time = k / rate
@@ -256,6 +266,9 @@ class Device:
         # real time (set by serve): the monotonic wall clock the watchdog runs on; None: ticks
         self.clock: Callable[[], float] | None = None
         self._last_setpoint_wall = 0.0
+        # observers (hil.observe): a snapshot every _observe_every ticks into _observer
+        self._observer: Latest | None = None
+        self._observe_every = 1
         self.params = self._parameters()
 
     # --- set-up --------------------------------------------------------------------------
@@ -299,6 +312,7 @@ class Device:
     def _hold(self) -> None:
         """References: the leg lengths measured now, at rest, no feed-forward."""
         self.l_ref = self.plant.outputs.lengths.copy()
+        self.reference_pose = None
         self.ldot_ref = np.zeros(6)
         self._set_feedforward(None, None)
         self._homing = None
@@ -383,6 +397,31 @@ class Device:
         self.mav.seq = (self.mav.seq + 1) % 256   # MAVLink's per-sender sequence, every frame
         return frame
 
+    # --- observers -----------------------------------------------------------------------
+
+    def observe(self, latest: Latest | None, hz: float = OBSERVE_HZ) -> None:
+        """Publish a snapshot into `latest` now and then every rate/hz ticks (at most every
+        tick); None stops publishing. The cost falls on one tick in rate/hz (hil.observe)."""
+        why = self._check_rate(hz)
+        if why is None and hz <= 0:
+            why = f"rate must be > 0 Hz, got {hz!r}"
+        if why:
+            raise DeviceError(f"observe: {why}")
+        self._observe_every = max(1, round(self.rate / hz))
+        self._observer = latest
+        if latest is not None:
+            latest.publish(self.snapshot())
+
+    def snapshot(self) -> Snapshot:
+        """The state now: time, pose, the pose of the setpoint followed, leg lengths, rack
+        forces, cond(J) at the pose (stewart_fmu.kinematics.condition_number), armed."""
+        o = self.plant.outputs
+        ref = self.reference_pose
+        return Snapshot(self.k, self.k / self.rate, tuple(o.q.tolist()),
+                        None if ref is None else tuple(ref.tolist()), tuple(o.lengths.tolist()),
+                        tuple(self.plant.rack_force.tolist()), condition_number(self.model, o.q),
+                        self.armed)
+
     # --- input ---------------------------------------------------------------------------
 
     def feed(self, data: bytes) -> list[Any]:
@@ -459,6 +498,7 @@ class Device:
             return out
         self._homing = None
         self._last_pose = pose
+        self.reference_pose = pose
         self.l_ref = np.array(msg.length, dtype=float)
         self.ldot_ref = (np.array(msg.rate, dtype=float) if flags & ms.STEWART_SETPOINT_FLAG_RATE_VALID
                          else np.zeros(6))
@@ -563,6 +603,7 @@ class Device:
         stroke = (self.leg_max - self.leg_min) if math.isfinite(self.leg_max) else 1.0
         duration = max(HOMING_MIN_TIME, QUINTIC_PEAK_RATE * d / (HOMING_SPEED * stroke))
         self._homing = (l0, self.home_lengths.copy(), self.k, max(1, round(duration * self.rate)))
+        self.reference_pose = None   # the reference moves in leg space, not along a pose
         self.watchdog_state = ms.STEWART_WATCHDOG_IDLE
         self._set_feedforward(None, None)
 
@@ -681,6 +722,8 @@ class Device:
             out += self._numeric_fault(good_q, exc)
         self.k += 1
         self.counters.ticks += 1
+        if self._observer is not None and self.k % self._observe_every == 0:
+            self._observer.publish(self.snapshot())
         out += self._telemetry(step)
         return self._limit_statustext(out)
 

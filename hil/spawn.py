@@ -20,12 +20,13 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import Iterator
+from typing import Callable, Iterator
 
 from controller.config import controller_config
 from hil.device import Device
 from hil.errors import LinkError
 from hil.link import pty_pair, udp_server
+from hil.observe import Latest
 from hil.serve import loopback_address, serve
 from hil.warmup import warm_up
 from stewart_fmu.errors import StewartError
@@ -107,14 +108,20 @@ def signing_key(text: str | None) -> bytes | None:
 
 
 def serve_device(model: Model, udp: str | None, watchdog: float = WATCHDOG,
-                 lockstep: bool = False, key_hex: str | None = None) -> None:
+                 lockstep: bool = False, key_hex: str | None = None, *,
+                 observer: Latest | None = None,
+                 ready: Callable[[], None] | None = None) -> None:
     """Serve the emulated device for `model` on loopback UDP (`udp`, "127.0.0.1:PORT") or, with
     udp None, a pseudo-terminal, until SIGINT or SIGTERM. The first line on stdout says where it
-    listens; a summary goes to stderr when it stops."""
+    listens; a summary goes to stderr when it stops. With `observer` the device publishes its
+    snapshots there (`Device.observe`, hil.observe); `ready` is called once that first line is
+    out, just before the loop starts (the caller announces what it serves beside the device)."""
     key = signing_key(key_hex)
     address = loopback_address(udp) if udp is not None else None
     config = controller_config(model)
     device = Device(model, config, watchdog=watchdog, signing_key=key, lockstep=lockstep)
+    if observer is not None:
+        device.observe(observer)
     warm = warm_up(model, config)   # every path run once before the ready line (hil.warmup)
     gc.collect()
     gc.freeze()                     # what exists now is never scanned again by the collector
@@ -133,6 +140,8 @@ def serve_device(model: Model, udp: str | None, watchdog: float = WATCHDOG,
               f"{'lockstep' if lockstep else 'real time'}, watchdog {watchdog:g} s"
               f"{', signed' if key else ''}, warmed in {warm:.3g} s; Ctrl-C stops",
               file=sys.stderr, flush=True)
+        if ready is not None:
+            ready()
         stats = serve(device, transport, not lockstep, stop)
     finally:
         for sig, old in handlers.items():

@@ -26,3 +26,10 @@ def _finite_positive(v: float) -> bool:
 
 positive_seconds = number(float, "a number", _finite_positive, "a finite number of seconds > 0")
 positive_rate = number(float, "a rate in Hz", _finite_positive, "a finite rate in Hz > 0")
+
+
+def _port(v: int) -> bool:
+    return 0 <= v <= 65535
+
+
+port = number(int, "a port number", _port, "a TCP port 1-65535, or 0 for any free one")

@@ -19,7 +19,7 @@ import sys
 from pathlib import Path
 from typing import Sequence
 
-from stewart_sim.argtypes import number, positive_seconds
+from stewart_sim.argtypes import number, port, positive_seconds
 
 # Only the standard library up here: `--help` and `--version` must answer at once. Each command
 # imports what it needs (numpy, the C core, matplotlib, scipy, dask, fmpy, pymavlink) when it
@@ -279,6 +279,9 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     p.add_argument("--signing-key", metavar="HEX",
                    help="MAVLink 2 signing key, 64 hex digits: unsigned or badly signed frames "
                         "are rejected and counted")
+    p.add_argument("--view", nargs="?", const=0, type=port, metavar="PORT",
+                   help="serve a live 3D view of the device in the browser on 127.0.0.1:PORT "
+                        "(no PORT or 0: any free port); the second line printed is its address")
     p.set_defaults(run=cmd_device)
     _add_lazy(sub, command, "simulate", "open-loop forward dynamics from rack forces")
     _add_lazy(sub, command, "trajectory", "write a trajectory file (waypoints or a named move)")
@@ -592,10 +595,26 @@ def cmd_export_fmu(args: argparse.Namespace) -> None:
 
 def cmd_device(args: argparse.Namespace) -> None:
     """`stewart-sim device SCENE (--udp 127.0.0.1:PORT | --pty) [--watchdog S] [--lockstep]
-    [--signing-key HEX]`: serve until SIGINT or SIGTERM, then return (exit status 0)."""
+    [--signing-key HEX] [--view [PORT]]`: serve until SIGINT or SIGTERM, then return (exit
+    status 0). With --view the live view (stewart_sim.view.live) listens on loopback from before
+    the device starts (a taken port fails at once) until the device stops; its address is the
+    line after the device's own."""
     from hil.spawn import serve_device  # pymavlink: only for this command
 
-    serve_device(_load(args.scene), args.udp, args.watchdog, args.lockstep, args.signing_key)
+    model = _load(args.scene)
+    if args.view is None:
+        serve_device(model, args.udp, args.watchdog, args.lockstep, args.signing_key)
+        return
+    from hil.observe import Latest
+    from stewart_sim.view.live import LiveView, live_page
+
+    latest = Latest()
+    with LiveView(live_page(model), latest, args.view) as view:
+        def ready() -> None:
+            view.start()
+            print(f"view: {view.url}", flush=True)
+        serve_device(model, args.udp, args.watchdog, args.lockstep, args.signing_key,
+                     observer=latest, ready=ready)
 
 
 # --- scene-info ------------------------------------------------------------------------------
