@@ -149,6 +149,7 @@
     writeText(f, limits, singular);
   }
 
+  const finite = (v) => typeof v === "number" && Number.isFinite(v);
   const mm = (v) => (1000 * v).toFixed(3).padStart(9);
   const deg = (v) => (180 / Math.PI * v).toFixed(3).padStart(9);
   const pose = (q) => q.slice(0, 3).map(mm).join("") + q.slice(3).map(deg).join("");
@@ -163,7 +164,8 @@
     lines.push("", "leg          " + [1, 2, 3, 4, 5, 6].map(i => String(i).padStart(9)).join(""));
     lines.push("length [mm]  " + f.lengths.map(mm).join(""));
     lines.push("force [N]    " + f.forces.map(v => v.toFixed(3).padStart(9)).join(""));
-    lines.push("", `cond(J) = ${f.cond.toPrecision(4)}  (marked above ${G.cond_warn})`);
+    const cond = finite(f.cond) ? f.cond.toPrecision(4) : "not finite";
+    lines.push("", `cond(J) = ${cond}  (marked above ${G.cond_warn})`);
     el("info").textContent = lines.join("\n");
     const warn = [];
     const legs = limits.map((b, i) => b ? i + 1 : 0).filter(i => i);
@@ -188,6 +190,13 @@
     requestAnimationFrame(() => requestAnimationFrame(() => { api.ready = true; }));
   }
 
+  function drawable(s) {
+    const six = (a) => Array.isArray(a) && a.length === 6 && a.every(finite);
+    return finite(s.t) && six(s.q) && six(s.lengths) && six(s.forces) &&
+           (s.q_ref === null || s.q_ref === undefined || six(s.q_ref)) &&
+           (s.cond === null || finite(s.cond));
+  }
+
   if (DATA.live) {
     el("player").style.display = "none";
     drawColourBar();
@@ -196,8 +205,17 @@
       try {
         const r = await fetch(DATA.live.state_url, {cache: "no-store"});
         if (!r.ok) throw new Error(`HTTP ${r.status}`);
-        show(await r.json());
-        el("status").textContent = `live: ${DATA.live.state_url}`;
+        const state = await r.json();
+        const where = `live: ${DATA.live.state_url}` +
+                      (state.armed === undefined ? "" : state.armed ? " (armed)" : " (disarmed)");
+        if (drawable(state)) {
+          show(state);
+          el("status").textContent = where;
+        } else {
+          // /state sends a non-finite number as null: keep the last good picture, say why
+          el("status").textContent = state.t === null ? `${where}: no state from the device yet`
+                                     : `${where}: state at t = ${state.t} not finite, not drawn`;
+        }
         failures = 0;
         if (!api.ready) ready();
       } catch (e) {

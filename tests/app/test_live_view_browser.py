@@ -14,7 +14,7 @@ import pytest
 pytest.importorskip("pymavlink")
 
 from hil.device import Device  # noqa: E402
-from hil.observe import Latest  # noqa: E402
+from hil.observe import Latest, Snapshot  # noqa: E402
 from stewart_fmu.kinematics import inverse_kinematics  # noqa: E402
 from stewart_fmu.scene import load_scene  # noqa: E402
 from stewart_sim.view.geometry import object_transforms, view_geometry  # noqa: E402
@@ -94,3 +94,36 @@ def test_live_page_shows_the_platform_move_when_a_setpoint_arrives(browser):
     assert p0.std() > 5.0, "a blank canvas where the platform should be"
     changed = np.mean(np.any(np.abs(p1 - p0) > 24, axis=2))
     assert changed > 0.05, changed
+
+
+def test_live_page_keeps_the_last_good_picture_when_the_state_is_not_finite(browser):
+    """/state sends a non-finite number as null (live.state_document): the page keeps drawing
+    the last finite state and says why in its status line, without a page error."""
+    model = load_scene(SCENE)
+    latest = Latest()
+    home = tuple(float(v) for v in model.home)
+    kin = inverse_kinematics(model, np.asarray(model.home, dtype=float))
+    good = Snapshot(tick=1, t=0.001, q=home, q_ref=None, lengths=tuple(kin.lengths.tolist()),
+                    forces=(1.0,) * 6, cond=float(kin.cond), armed=True)
+    with LiveView(live_page(model), latest, 0) as view:
+        view.start()
+        page = browser.new_page(viewport=VIEWPORT)
+        errors: list[str] = []
+        page.on("pageerror", lambda exc: errors.append(str(exc)))
+        page.goto(view.url)
+        page.wait_for_function("() => document.getElementById('status').textContent"
+                               ".includes('no state from the device yet')", timeout=WAIT * 1e3)
+        latest.publish(good)
+        _wait_shown(page, 0.001)
+        bad = Snapshot(tick=2, t=0.002, q=(float("nan"),) * 6, q_ref=None,
+                       lengths=(float("nan"),) * 6, forces=(float("inf"),) * 6,
+                       cond=float("inf"), armed=False)
+        latest.publish(bad)
+        page.wait_for_function("() => document.getElementById('status').textContent"
+                               ".includes('not finite, not drawn')", timeout=WAIT * 1e3)
+        shown = page.evaluate("window.stewartView.shown()")
+        status = page.evaluate("document.getElementById('status').textContent")
+        page.close()
+    assert shown["t"] == 0.001 and np.allclose(shown["q"], home)
+    assert "(disarmed)" in status and "t = 0.002" in status
+    assert errors == []
