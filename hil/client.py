@@ -212,14 +212,17 @@ class Client:
                 return ack.result
         raise LinkError(f"no COMMAND_ACK for command {cmd} after {retries + 1} tries")
 
-    def arm(self) -> bool:
-        return self.command(ms.MAV_CMD_COMPONENT_ARM_DISARM, 1) == ms.MAV_RESULT_ACCEPTED
+    def arm(self, timeout: float = TIMEOUT) -> bool:
+        return self.command(ms.MAV_CMD_COMPONENT_ARM_DISARM, 1,
+                            timeout=timeout) == ms.MAV_RESULT_ACCEPTED
 
-    def disarm(self) -> bool:
-        return self.command(ms.MAV_CMD_COMPONENT_ARM_DISARM, 0) == ms.MAV_RESULT_ACCEPTED
+    def disarm(self, timeout: float = TIMEOUT) -> bool:
+        return self.command(ms.MAV_CMD_COMPONENT_ARM_DISARM, 0,
+                            timeout=timeout) == ms.MAV_RESULT_ACCEPTED
 
-    def home(self) -> bool:
-        return self.command(ms.MAV_CMD_NAV_RETURN_TO_LAUNCH) == ms.MAV_RESULT_ACCEPTED
+    def home(self, timeout: float = TIMEOUT) -> bool:
+        return self.command(ms.MAV_CMD_NAV_RETURN_TO_LAUNCH,
+                            timeout=timeout) == ms.MAV_RESULT_ACCEPTED
 
     def _param_reply(self, name: str | None, timeout: float) -> Any | None:
         def match(m):

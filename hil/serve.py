@@ -5,7 +5,8 @@
 and sent at once, one frame per `send` (one datagram per message over UDP). In real time the
 device ticks at its controller rate by the monotonic clock: the loop waits in the transport's
 `recv` (select) until the next tick is due, so it sleeps rather than spins. Before every tick it
-drains all pending input (every datagram or byte already waiting is decoded and handled), so a
+drains all pending input (every datagram or byte already waiting is decoded and handled, and
+on a UDP server end seen by the peer rule of hil.peer, as any other input), so a
 backlog never delays a setpoint by more than the ticks it arrives between. Tick k (the one that
 takes device time from k / rate to (k + 1) / rate) is due at wall time start + (k + 1) / rate on
 the monotonic clock, and no tick is ever skipped: device time t maps to wall time start + t
@@ -122,7 +123,7 @@ def serve(device: Device, transport, realtime: bool | None = None,
             behind = late > max_lag
             st.late.add(late)
             st.max_late = max(st.max_late, late)
-            if _drain(device, transport, transport.recv(0.0), st):   # input first, then tick
+            if _drain(device, transport, transport.recv(0.0), st, peers):   # input, then tick
                 last_input = clock()
             st.messages_out += _send_all(device, transport, device.tick())
             st.ticks += 1

@@ -285,6 +285,8 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     _add_lazy(sub, command, "trajectory", "write a trajectory file (waypoints or a named move)")
     _add_lazy(sub, command, "case", "run a stiff or extreme scene's [case] against its expectation")
     _add_lazy(sub, command, "view", "3D view of a run or trajectory as one HTML file")
+    _add_lazy(sub, command, "cue", "motion cueing: vehicle motion -> platform trajectory, "
+                                   "perception and limits")
     return parser
 
 
@@ -615,7 +617,8 @@ def cmd_scene_info(args: argparse.Namespace) -> None:
 
 
 _LAZY = {"simulate": "stewart_sim.simulate", "trajectory": "stewart_sim.trajectory",
-         "case": "stewart_sim.case_report", "view": "stewart_sim.view.command"}
+         "case": "stewart_sim.case_report", "view": "stewart_sim.view.command",
+         "cue": "stewart_sim.cueing.command"}
 
 
 def _add_lazy(sub, command: str | None, name: str, help_text: str) -> None:

@@ -15,7 +15,7 @@ import pytest
 
 from controller.moves import demo_trajectory
 from stewart_fmu import io, load_scene
-from stewart_sim import cli, limits, progress
+from stewart_sim import cli, limits, outputs, progress
 from stewart_sim.outputs import MANIFEST
 from stewart_sim.view import command as view_command
 
@@ -233,8 +233,6 @@ def test_inverse_refuses_a_directory_or_a_page_over_its_forces(tmp_path, capsys)
 def test_sigint_while_the_pair_moves_in_is_held(tmp_path, monkeypatch) -> None:
     """Ctrl-C during the moves into place waits for them: both new files are in, the
     earlier ones gone, and Interrupted says so (exit 130 with that line)."""
-    from stewart_sim import outputs
-
     _earlier_pair(tmp_path)
     rename, sent = os.rename, []
 
@@ -341,12 +339,19 @@ def test_unreadable_grid_exit_2(kind, tmp_path, capsys) -> None:
     (["accuracy", "--comm-step", "1e-9"], "--horizon"),
     (["accuracy", "--closed-loop-duration", "1e6"], "--closed-loop-duration"),
 ])
-def test_too_long_refused_before_work(args, option, tmp_path, capsys) -> None:
-    """A run whose samples would not fit the memory budget: the limit and why, in one line."""
+def test_too_long_refused_before_work(args, option, tmp_path, capsys, monkeypatch) -> None:
+    """A run whose samples would not fit the memory budget: the limit and why, in one line,
+    before any work (every command works inside its result set, which is never opened)."""
     out = tmp_path / "out"
-    start = time.monotonic()
+    opened = []
+
+    def result_set(*a, **kw):
+        opened.append(a)
+        raise AssertionError("the result set was opened: work began before the refusal")
+
+    monkeypatch.setattr(outputs, "result_set", result_set)
     assert cli.main([args[0], str(MICRO), "--out", str(out), *args[1:]]) == 2
-    assert time.monotonic() - start < 10
+    assert opened == []
     err = _one_error_line(capsys)
     assert f"{option} " in err and f"at most {limits.MAX_SAMPLES:,}" in err
     assert "memory budget of 2 GiB" in err

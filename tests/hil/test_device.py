@@ -422,21 +422,6 @@ def test_common_only_client_over_udp_sees_heartbeat_attitude_and_parameters(mode
     assert st.ticks > 0 and st.messages_in == 2
 
 
-def test_real_time_rate_by_wall_clock(model):
-    dev = Device(model)
-    a, b = queue_pair()
-    thread, stop, result = serve_in_thread(dev, b, max_ticks=1000)
-    thread.join(10)
-    stop.set()
-    assert not thread.is_alive()
-    st = result[0]
-    print(f"\nreal time: {st.ticks} ticks in {st.wall:.4f} s, busy {st.busy / st.wall:.1%}, "
-          f"max late {st.max_late * 1e3:.3f} ms, overruns {st.overruns}")
-    assert st.ticks == 1000 and st.wall < 2.0 and st.wall > 0.95
-    assert st.busy / st.wall < 0.8  # sleeps between ticks, no busy spin
-    assert sum(1 for _ in iter(lambda: a.recv(0.0), b"")) > 200  # the telemetry went out
-
-
 def test_udp_addresses_are_loopback_only():
     assert loopback_address("127.0.0.1:14550") == ("127.0.0.1", 14550)
     assert loopback_address("localhost:0") == ("127.0.0.1", 0)

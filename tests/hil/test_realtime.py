@@ -13,6 +13,7 @@ pytest.importorskip("pymavlink")
 
 from hil import mavlink_stewart as ms  # noqa: E402
 from hil.device import Device  # noqa: E402
+from hil.framing import Receiver  # noqa: E402
 from hil.serve import serve  # noqa: E402
 from hil.timing import Lateness, gc_frozen, wait_until  # noqa: E402
 from hil.warmup import warm_up  # noqa: E402
@@ -112,6 +113,48 @@ def test_backlog_is_drained_before_the_next_tick(model):
     assert st.ticks == 10 and dev.k == 10 and st.messages_in == 41
 
 
+class SimUdpServer(SimTransport):
+    """An unconnected UDP server end (as hil.link.udp_server) on the simulated clock: every
+    datagram comes from SENDER; what is sent goes to `peer`, or nowhere while it is None."""
+
+    SENDER = ("127.0.0.1", 40000)
+    connected = False
+
+    def __init__(self, clock: SimClock) -> None:
+        super().__init__(clock)
+        self.follow_sender = True
+        self.peer = self.sender = None
+
+    def send(self, data: bytes) -> int:
+        return super().send(data) if self.peer is not None else 0
+
+    def recv(self, timeout: float = 0.0) -> bytes:
+        data = super().recv(timeout)
+        if data:
+            self.sender = self.SENDER
+        return data
+
+
+def test_first_datagram_drained_before_a_tick_makes_its_sender_the_peer(model):
+    """A host's first datagram that arrives while the loop catches up is taken by the drain
+    before a tick; the peer rule (hil.peer) must see it there too, or the device never answers
+    that host (its replies and telemetry would go nowhere)."""
+    clock = SimClock()
+    tr = SimUdpServer(clock)
+    dev = Recording(model, stall_at=50, stall=0.05, clock=clock)
+    mav = host()
+    t_req = clock.t + 0.0515    # arrives during the stall of tick 50: drained at the catch-up
+    tr.inbox.append((t_req, frame(mav, ms.MAVLink_param_request_list_message(1, 1))))
+    st = serve(dev, tr, True, max_ticks=200, clock=clock)
+    i = [t for t, _ in dev.handled_at].index("PARAM_REQUEST_LIST")
+    assert dev.handled_wall[i] > t_req + 0.04 and st.ticks == 200   # taken at the catch-up
+    assert tr.peer == SimUdpServer.SENDER and dev.counters.frames_valid == 1
+    replies = [m for f in tr.sent for m in Receiver(ms).feed(f)]
+    names = [m.get_type() for m in replies]
+    assert names.count("PARAM_VALUE") == len(dev.params)            # every parameter answered
+    assert names[:len(dev.params)] == ["PARAM_VALUE"] * len(dev.params)   # before telemetry
+
+
 def test_no_tick_skipped_after_a_stall_device_time_stays_on_the_wall_clock(model):
     clock = SimClock()
     tr = SimTransport(clock)
@@ -159,6 +202,36 @@ def test_watchdog_by_the_wall_clock_not_by_caught_up_ticks(model):
     # which the catch-up would have reached 0.05 s early)
     assert 0.2 <= trips[0] - wall_sp < 0.2 + 2 * dev.dt
     assert dev.k == 400 and k_sp < 100
+
+
+class WaitLog(SimTransport):
+    """SimTransport that logs every recv timeout (how the loop waits)."""
+
+    def __init__(self, clock: SimClock) -> None:
+        super().__init__(clock)
+        self.timeouts: list[float] = []
+
+    def recv(self, timeout: float = 0.0) -> bytes:
+        self.timeouts.append(timeout)
+        return super().recv(timeout)
+
+
+def test_real_time_rate_sleeps_between_ticks(model):
+    """1000 ticks take 1 s of (simulated) wall time, spent waiting in the transport until each
+    tick is due (select, not a spin: a few recv calls per tick), and the telemetry goes out at
+    its rates. The wall-clock figures (lateness, busy share) are benchmarks/bench_realtime_jitter.py's."""
+    clock = SimClock()
+    tr = WaitLog(clock)
+    dev = Device(model)
+    start = clock.t
+    st = serve(dev, tr, True, max_ticks=1000, clock=clock)
+    assert st.ticks == dev.k == 1000 and st.overruns == 0 and st.late.misses == 0
+    assert clock.t - start == pytest.approx(1.0, abs=1e-9) == st.wall
+    waits = [t for t in tr.timeouts if t > 0]
+    assert sum(waits) == pytest.approx(1.0, abs=1e-9)       # all of it waiting for input
+    assert len(tr.timeouts) <= 2 * st.ticks + 1              # one wait + one drain per tick
+    names = [m.get_type() for f in tr.sent for m in Receiver(ms).feed(f)]
+    assert names.count("LEG_STATE") == 100 and names.count("HEARTBEAT") == 1   # 100 Hz, 1 Hz
 
 
 def test_watchdog_in_process_counts_ticks(model):

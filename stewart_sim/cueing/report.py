@@ -1,0 +1,198 @@
+"""The files of `stewart-sim cue`: the platform trajectory (the `inverse` command's input
+format, so every other command takes it), forces and drives, the perception table, summary.md
+and the figures, written all or nothing.
+
+    trajectory.csv          t, x..thz, dx..dthz, ddx..ddthz of the first mode's cue
+    trajectory_<mode>.csv   the same for every further mode (--compare)
+    forces.csv              t, sigma1..6 (rack force incl. the drive term, N), cond,
+                            current1..6 (A), voltage1..6 (V) when the scene has its drives
+    perception.csv          t, per axis: vehicle, delivered, perceived vehicle, perceived
+                            delivered, false cue (0/1); f in m/s^2, w in rad/s
+    tracking.csv            the closed loop's table (as `run` writes it), with --track
+    summary.md              the figures (see summary_markdown)
+    cue_*.png               the figures (cueing/figures.py)
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from stewart_fmu import io
+from stewart_sim.outputs import result_set
+
+from .feasibility import Feasibility
+from .figures import FIGURES
+from .study import CueRun, CueStudy
+from .vestibular import AXES, Perception
+
+ROTATION_AXES = ("roll", "pitch", "yaw")
+
+
+def write_cue_report(study: CueStudy, out: Path, title: str,
+                     extra: Callable[[Path], list[str]] | None = None) -> list[Path]:
+    """Every file of the study into `out`, all or nothing; `extra(stage)` may add files (the
+    3D view) and returns their names."""
+    first = study.runs[0]
+    with result_set(out) as stage:
+        names = ["trajectory.csv", "forces.csv", "perception.csv", "summary.md"]
+        io.write_csv(stage / "trajectory.csv", trajectory_table(first))
+        for run in study.runs[1:]:
+            name = f"trajectory_{run.mode}.csv"
+            io.write_csv(stage / name, trajectory_table(run))
+            names.append(name)
+        io.write_csv(stage / "forces.csv", forces_table(first.feasibility))
+        io.write_csv(stage / "perception.csv", perception_table(first.perception))
+        if study.tracking is not None:
+            io.write_csv(stage / "tracking.csv", study.tracking.table)
+            names.append("tracking.csv")
+        from stewart_sim.plots import save_figure   # matplotlib: only when plotting
+        for name, make in FIGURES:
+            fig = make(study, title)
+            if fig is not None:
+                save_figure(fig, stage / name)
+                names.append(name)
+        if extra is not None:
+            names += extra(stage)
+        io.write_text(stage / "summary.md", summary_markdown(study, title))
+    return [out / n for n in names]
+
+
+def trajectory_table(run: CueRun) -> np.ndarray:
+    """The cue in the contract's trajectory columns."""
+    c = run.cue
+    return io.trajectory_table(c.t, c.q, c.qd, c.qdd)
+
+
+def forces_table(f: Feasibility) -> np.ndarray:
+    """t, sigma1..6, cond, then current1..6 and voltage1..6 when the drives were computed."""
+    cols = {"t": f.t, **{f"sigma{i + 1}": f.sigma[:, i] for i in range(6)}, "cond": f.cond}
+    for name, values in (("current", f.current), ("voltage", f.voltage)):
+        if values is not None:
+            cols.update({f"{name}{i + 1}": values[:, i] for i in range(6)})
+    return io.named_array(cols)
+
+
+def perception_table(p: Perception) -> np.ndarray:
+    """t, then for f (x, y, z) and w (roll, pitch, yaw): vehicle, delivered, the two perceived
+    signals and the false-cue flag."""
+    cols = {"t": p.t}
+    for prefix, axes, sig in (("f", AXES, "f"), ("w", ROTATION_AXES, "w")):
+        for k, axis in enumerate(axes):
+            base = f"{prefix}{axis}"
+            cols[f"{base}_vehicle"] = getattr(p, f"vehicle_{sig}")[:, k]
+            cols[f"{base}_delivered"] = getattr(p, f"delivered_{sig}")[:, k]
+            cols[f"{base}_perceived_vehicle"] = getattr(p, f"perceived_vehicle_{sig}")[:, k]
+            cols[f"{base}_perceived_delivered"] = getattr(p, f"perceived_delivered_{sig}")[:, k]
+            cols[f"{base}_false_cue"] = getattr(p, f"false_cue_{sig}")[:, k].astype(float)
+    return io.named_array(cols)
+
+
+# --- summary.md --------------------------------------------------------------------------------
+
+def summary_markdown(study: CueStudy, title: str) -> str:
+    """Perception error per axis and mode, false-cue time, workspace, limit margins, every
+    violation with its time and leg, the closed loop's tracking if run."""
+    m = study.motion
+    lines = [f"# {title}", "",
+             f"Vehicle motion: {m.t.size} samples over {m.t[-1] - m.t[0]:g} s "
+             f"({(m.t.size - 1) / (m.t[-1] - m.t[0]):g} Hz). Cue modes: "
+             + ", ".join(f"{r.mode} ({r.seconds:.3f} s to compute)" for r in study.runs)
+             + f"; the written trajectory is the {study.runs[0].mode} cue's.", ""]
+    lines += _perception_section(study.runs)
+    lines += _workspace_section(study.runs)
+    lines += _margins_section(study.runs)
+    for run in study.runs:
+        lines += _violations_section(run)
+    lines += _tracking_section(study)
+    return "\n".join(lines) + "\n"
+
+
+def _perception_section(runs: tuple[CueRun, ...]) -> list[str]:
+    p0 = runs[0].perception
+    head = ("| mode | " + " | ".join(f"f{a} (m/s²)" for a in AXES) + " | "
+            + " | ".join(f"ω {a} (deg/s)" for a in ROTATION_AXES) + " |")
+    lines = ["## Perceived-motion error (RMS of perceived delivered - perceived vehicle)", "",
+             head, "|" + "---|" * 7]
+    for r in runs:
+        p = r.perception
+        lines.append(f"| {r.mode} | " + " | ".join(f"{v:.3f}" for v in p.rms_f) + " | "
+                     + " | ".join(f"{np.degrees(v):.3f}" for v in p.rms_w) + " |")
+    lines += ["", "False cues (time the delivered motion is perceived above threshold with the "
+              "wrong sign; thresholds "
+              + ", ".join(f"f{a} {v:g} m/s²" for a, v in zip(AXES, p0.threshold_f)) + ", "
+              + ", ".join(f"{a} {np.degrees(v):.2g} deg/s"
+                          for a, v in zip(ROTATION_AXES, p0.threshold_w)) + "):", "",
+              "| mode | " + " | ".join(f"f{a} (s)" for a in AXES) + " | "
+              + " | ".join(f"ω {a} (s)" for a in ROTATION_AXES) + " |", "|" + "---|" * 7]
+    for r in runs:
+        p = r.perception
+        lines.append(f"| {r.mode} | " + " | ".join(f"{v:.2f}" for v in p.false_cue_time_f)
+                     + " | " + " | ".join(f"{v:.2f}" for v in p.false_cue_time_w) + " |")
+    return lines + [""]
+
+
+def _workspace_section(runs: tuple[CueRun, ...]) -> list[str]:
+    names = ("x (m)", "y (m)", "z (m)", "θx (deg)", "θy (deg)", "θz (deg)")
+    scale = np.array([1, 1, 1, *(np.degrees(1.0),) * 3])
+    lines = ["## Workspace used (cue pose, min .. max)", "",
+             "| mode | " + " | ".join(names) + " |", "|" + "---|" * 7]
+    for r in runs:
+        p = r.perception
+        lo, hi = p.workspace_min * scale, p.workspace_max * scale
+        lines.append(f"| {r.mode} | " + " | ".join(f"{a:.3f} .. {b:.3f}" for a, b in zip(lo, hi))
+                     + " |")
+    return lines + [""]
+
+
+def _margins_section(runs: tuple[CueRun, ...]) -> list[str]:
+    lines = ["## Limits (worst sample of the cue: value / limit)", "",
+             "| mode | quantity | worst | limit | use | at t (s) | leg |", "|" + "---|" * 7]
+    for r in runs:
+        for mg in r.feasibility.margins:
+            leg = "-" if mg.leg is None else str(mg.leg)
+            lines.append(f"| {r.mode} | {mg.quantity} | {_quantity(mg.value, mg.unit)} | "
+                         f"{_quantity(mg.limit, mg.unit)} | {100 * mg.ratio:.0f} % | {mg.t:.3f} "
+                         f"| {leg} |")
+        if r.feasibility.drive_note:
+            lines.append(f"| {r.mode} | current, voltage | - | - | - | - | "
+                         f"{r.feasibility.drive_note} |")
+    return lines + [""]
+
+
+def _quantity(value: float, unit: str) -> str:
+    """A value with its unit; dimensionless (cond) without one."""
+    return f"{value:.4g}" if unit in ("", "1", "-") else f"{value:.4g} {unit}"
+
+
+def _violations_section(run: CueRun) -> list[str]:
+    v = run.feasibility.violations
+    if not v:
+        return [f"## Violations ({run.mode}): none", ""]
+    lines = [f"## Violations ({run.mode}): {len(v)} (first sample of each crossing)", "",
+             "| t (s) | sample | leg | quantity | value | limit | lasted (s) |", "|" + "---|" * 7]
+    for x in v:
+        leg = "-" if x.leg is None else str(x.leg)
+        lines.append(f"| {x.t:.3f} | {x.sample} | {leg} | {x.quantity} | "
+                     f"{_quantity(x.value, x.unit)} | {_quantity(x.limit, x.unit)} | "
+                     f"{x.duration:.3f} |")
+    return lines + [""]
+
+
+def _tracking_section(study: CueStudy) -> list[str]:
+    if study.tracking is None:
+        return ([f"## Closed loop: not run ({study.tracking_note})", ""]
+                if study.tracking_note else [])
+    s = study.tracking.summary
+    c = study.tracking.config
+    return ["## Closed loop tracking the cue (the scene's [controller], as `run`)", "",
+            f"At {c.rate:g} Hz, feedforward {c.feedforward}: pose RMS error "
+            + ", ".join(f"{n} {v:.3g}" for n, v in zip(("x", "y", "z"), s.pose_rms[:3])) + " m, "
+            + ", ".join(f"{n} {np.degrees(v):.3g}" for n, v in zip(("θx", "θy", "θz"),
+                                                                   s.pose_rms[3:]))
+            + " deg; leg RMS error up to " + f"{1e3 * float(np.max(s.leg_rms)):.3g} mm "
+            f"(max {1e3 * float(np.max(s.leg_max)):.3g} mm); peak current "
+            f"{float(np.max(s.current_max)):.3g} A of {c.motor.current_limit:g} A; RMS voltage up "
+            f"to {float(np.max(s.voltage_rms)):.3g} V of {c.motor.voltage_limit:g} V; an axis "
+            f"saturated for {s.saturated_time:.3g} s.", ""]
