@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import csv
+import itertools
 import os
 import tempfile
 from contextlib import contextmanager
@@ -100,24 +101,24 @@ def read_trajectory(path: str | Path, progress: Callable[[int], None] | None = N
 
 
 def read_samples(path: str | Path, columns: tuple[str, ...], what: str, *, prefix: bool = False,
-                 min_rows: int = 1, progress: Callable[[int], None] | None = None) -> np.ndarray:
-    """The (N, len(columns)) numbers of a time-indexed CSV (trajectories, forces, waypoints):
-    its header is `columns` (with `prefix`, starts with them and further columns are ignored),
-    every value finite, t strictly increasing, at least `min_rows` samples. Errors
-    (TrajectoryError) name the file, the line and the column."""
+                 anywhere: bool = False, min_rows: int = 1,
+                 progress: Callable[[int], None] | None = None) -> np.ndarray:
+    """The (N, len(columns)) numbers of a time-indexed CSV (trajectories, forces, waypoints, run
+    tables), columns[0] the time: its header is `columns` (with `prefix`, starts with them;
+    with `anywhere`, holds each of them once, in any order; further columns are ignored), every
+    value finite, time strictly increasing, at least `min_rows` samples. Errors
+    (TrajectoryError) name the file, the line and the column.
+
+    Blocks of CHUNK_ROWS lines of plain numbers are parsed by numpy (np.loadtxt, about twice as
+    fast as csv + float()); a block numpy refuses is read again row by row, which
+    says where and why (or reads what numpy does not: quoted cells, digits with underscores),
+    so the values and the errors are those of csv + float() alone. `progress(rows_read)` is
+    called after each block."""
+    if prefix and anywhere:
+        raise ValueError("read_samples: prefix and anywhere exclude each other")
     path = Path(path)
-    try:
-        with path.open(newline="") as fh:
-            reader = csv.reader(fh)
-            try:
-                data = _read_rows(path, reader, columns, prefix, progress)
-            except csv.Error as exc:
-                raise TrajectoryError(
-                    f"{path}: line {reader.line_num}: not valid CSV: {exc}") from None
-    except OSError as exc:
-        raise TrajectoryError(f"{path}: cannot read {what}: {exc.strerror or exc}") from None
-    except UnicodeDecodeError as exc:
-        raise TrajectoryError(f"{path}: not a text file: {exc}") from None
+    with _reading(path, what), path.open(newline="") as fh:
+        data = _read_rows(path, fh, columns, prefix, anywhere, progress)
     if data.shape[0] < min_rows:
         count = {1: "one", 2: "two"}.get(min_rows, str(min_rows))
         raise TrajectoryError(f"{path}: need {count} or more samples, got {data.shape[0]}")
@@ -129,37 +130,126 @@ def read_samples(path: str | Path, columns: tuple[str, ...], what: str, *, prefi
     t = data[:, 0]
     if np.any(np.diff(t) <= 0):
         r = int(np.flatnonzero(np.diff(t) <= 0)[0]) + 3
-        raise TrajectoryError(f"{path}: line {r}, column 't': time must increase strictly")
+        raise TrajectoryError(
+            f"{path}: line {r}, column '{columns[0]}': time must increase strictly")
     return data
 
 
-def _read_rows(path: Path, reader: Iterator[list[str]], columns: tuple[str, ...], prefix: bool,
+def csv_header(path: str | Path, what: str) -> tuple[str, ...]:
+    """The column names of a CSV's header, stripped (none for an empty file); the errors of
+    read_samples for a file that cannot be read."""
+    path = Path(path)
+    with _reading(path, what), path.open(newline="") as fh:
+        header, _ = _header(path, fh)
+    return header or ()
+
+
+@contextmanager
+def _reading(path: Path, what: str) -> Iterator[None]:
+    """A file that cannot be opened or decoded: TrajectoryError naming it."""
+    try:
+        yield
+    except OSError as exc:
+        raise TrajectoryError(f"{path}: cannot read {what}: {exc.strerror or exc}") from None
+    except UnicodeDecodeError as exc:
+        raise TrajectoryError(f"{path}: not a text file: {exc}") from None
+
+
+def _header(path: Path, fh: IO[str]) -> tuple[tuple[str, ...] | None, int]:
+    """The first record of `fh`, stripped (None: an empty file), and the lines it took."""
+    reader = csv.reader(fh)
+    try:
+        row = next(reader, None)
+    except csv.Error as exc:
+        raise TrajectoryError(f"{path}: line {reader.line_num}: not valid CSV: {exc}") from None
+    return (None if row is None else tuple(c.strip() for c in row)), reader.line_num
+
+
+def _read_rows(path: Path, fh: IO[str], columns: tuple[str, ...], prefix: bool, anywhere: bool,
                progress: Callable[[int], None] | None) -> np.ndarray:
-    """Check the header, then parse the rows block by block into an (N, len(columns)) array."""
-    header = next(reader, None)
+    """Check the header, then parse the rows block by block into an (N, len(columns)) array:
+    numpy while the blocks are plain numbers, from the first block that is not row by row."""
+    header, lines_before = _header(path, fh)
     if header is None:
         raise TrajectoryError(f"{path}: empty file, expected header {','.join(columns)}")
-    header = tuple(c.strip() for c in header)
-    _check_header(path, header[:len(columns)] if prefix else header, columns, prefix)
-    width, n = len(header), len(columns)
-    blocks, block = [], []
-    for r, row in enumerate(reader, start=2):
-        if len(row) != width:
-            raise TrajectoryError(f"{path}: line {r} has {len(row)} fields, expected {width}")
-        try:
-            block.append([float(cell) for cell in row[:n]])
-        except ValueError:
-            raise _bad_cell(path, r, row, columns) from None
-        if len(block) == CHUNK_ROWS:
-            blocks.append(np.array(block))
-            block = []
-            if progress is not None:
-                progress(CHUNK_ROWS * len(blocks))
-    if block:
-        blocks.append(np.array(block))
+    picks = _picks(path, header, columns, prefix, anywhere)
+    blocks: list[np.ndarray] = []
+    rows = 0
+    while lines := list(itertools.islice(fh, CHUNK_ROWS)):
+        block = _numbers(lines, len(header), picks)
+        if block is None:   # the rest row by row (a quoted cell may span the block's end)
+            blocks += _rows_one_by_one(path, itertools.chain(lines, fh), columns, picks,
+                                       len(header), rows, lines_before + rows, progress)
+            break
+        blocks.append(block)
+        rows += len(lines)
+        if len(lines) == CHUNK_ROWS and progress is not None:
+            progress(rows)
     if not blocks:
         raise TrajectoryError(f"{path}: no samples after the header")
     return np.concatenate(blocks)
+
+
+def _picks(path: Path, header: tuple[str, ...], columns: tuple[str, ...], prefix: bool,
+           anywhere: bool) -> list[int]:
+    """Where each of `columns` stands in the header (which must hold them, see read_samples)."""
+    if not anywhere:
+        _check_header(path, header[:len(columns)] if prefix else header, columns, prefix)
+        return list(range(len(columns)))
+    missing = [c for c in columns if c not in header]
+    twice = [c for c in columns if header.count(c) > 1]
+    if missing or twice:
+        raise TrajectoryError(
+            f"{path}: header must hold {','.join(columns)} (in any order); "
+            f"missing {missing or 'none'}, more than once {twice or 'none'}")
+    return [header.index(c) for c in columns]
+
+
+def _numbers(lines: list[str], width: int, picks: list[int]) -> np.ndarray | None:
+    """The picked columns of `lines` if each is `width` plain numbers (no quotes), else None.
+
+    np.loadtxt converts a cell with PyOS_string_to_double, the function float() ends in, and
+    accepts a subset of what float() does (no underscores, ASCII digits only): where it
+    succeeds the values are float()'s. It skips blank lines, ignores extra fields and has no
+    field size limit, where the row-by-row reader refuses: hence the checks of each line."""
+    commas, limit = width - 1, csv.field_size_limit()
+    for line in lines:
+        if (line.count(",") != commas or '"' in line or len(line) > limit
+                or (not commas and not line.strip())):
+            return None
+    try:
+        return np.loadtxt(lines, dtype=float, delimiter=",", comments=None, usecols=picks,
+                          ndmin=2)
+    except ValueError:
+        return None
+
+
+def _rows_one_by_one(path: Path, lines: Iterable[str], columns: tuple[str, ...],
+                     picks: list[int], width: int, done: int, lines_before: int,
+                     progress: Callable[[int], None] | None) -> list[np.ndarray]:
+    """csv + float() on each row from sample `done` on (`lines_before` lines precede them):
+    the first row that is not `width` numbers raises TrajectoryError naming its line."""
+    reader = csv.reader(lines)
+    blocks, block = [], []
+    try:
+        for r, row in enumerate(reader, start=done + 2):
+            if len(row) != width:
+                raise TrajectoryError(f"{path}: line {r} has {len(row)} fields, expected {width}")
+            try:
+                block.append([float(row[k]) for k in picks])
+            except ValueError:
+                raise _bad_cell(path, r, [row[k] for k in picks], columns) from None
+            if len(block) == CHUNK_ROWS:
+                blocks.append(np.array(block))
+                block = []
+                if progress is not None:
+                    progress(done + CHUNK_ROWS * len(blocks))
+    except csv.Error as exc:
+        raise TrajectoryError(
+            f"{path}: line {lines_before + reader.line_num}: not valid CSV: {exc}") from None
+    if block:
+        blocks.append(np.array(block))
+    return blocks
 
 
 def _check_header(path: Path, header: tuple[str, ...], columns: tuple[str, ...],

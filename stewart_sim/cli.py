@@ -121,7 +121,8 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     p.add_argument("--trajectory", required=True, metavar="TRAJ.csv",
                    help="columns t,x,y,z,thx,thy,thz, their rates d*, accelerations dd*")
     p.add_argument("--out", required=True, metavar="FORCES.csv",
-                   help="written atomically: t,sigma1..sigma6,cond[,<part>1..<part>6 ...]")
+                   help="t,sigma1..sigma6,cond[,<part>1..<part>6 ...]; it and its view "
+                        "FORCES.html are written together or not at all")
     p.add_argument("--parts", action="store_true",
                    help="add the breakdown of sigma by contribution (the parts the scene has)")
     p.add_argument("--no-view", action="store_true",
@@ -326,15 +327,22 @@ def _written(stage: Path, out: Path, paths) -> list[Path]:
 
 def cmd_inverse(args: argparse.Namespace) -> None:
     """`stewart-sim inverse SCENE --trajectory TRAJ.csv --out FORCES.csv [--parts]`."""
+    from stewart_fmu.errors import StewartError
     from stewart_sim.inverse import run_inverse
+    from stewart_sim.outputs import file_set
     from stewart_sim.progress import Progress
 
     model = _load(args.scene)
     out = Path(args.out)
     view = None if args.no_view else out.with_suffix(".html")
+    if view == out:
+        raise StewartError(f"--out {out}: the 3D view would be written over it: give a .csv "
+                           "name, or --no-view")
     progress = Progress()
-    try:
-        n, _ = run_inverse(model, Path(args.trajectory), out, args.parts, progress, view=view)
+    try:   # the forces and their view: both files or neither (Ctrl-C: neither)
+        with file_set(out, *([view] if view else [])) as staged:
+            n, _ = run_inverse(model, Path(args.trajectory), staged[0], args.parts, progress,
+                               view=staged[1] if view else None)
     finally:
         progress.close()
     print(f"wrote {args.out}: {n} samples" + (" with the breakdown by part" if args.parts else ""))

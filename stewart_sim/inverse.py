@@ -24,8 +24,8 @@ def run_inverse(model: Model, trajectory: Path, out: Path, parts: bool, progress
                 keep: bool = False, view: Path | None = None) -> tuple[int, np.ndarray | None]:
     """Read, check every pose, compute and write the forces; the table too if `keep`; then the
     3D view into `view` (its forces by inverse dynamics at its frames: the file's numbers at
-    those samples). The forces file is the contract's output and comes first: a view that
-    cannot be written is an OutputError naming it, the forces file stays written."""
+    those samples). `out` and `view` are the caller's temporaries (cmd_inverse: an
+    outputs.file_set, so the two files appear together or not at all; demo: its result set)."""
     t, q, qd, qdd = io.read_trajectory(
         trajectory, progress=lambda rows: progress.update(f"reading {trajectory}", rows))
     cond = check_trajectory(model, t, q, trajectory, progress)

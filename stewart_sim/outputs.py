@@ -5,7 +5,9 @@ DIR (same file system: `.DIR.partial-XXXX`) and moves them into place at the end
 (`result_set`). The files of the set are listed in DIR/.stewart-sim-set; the next set written
 into DIR removes every file of the earlier one, so that DIR never mixes two runs. Files in DIR
 that belong to no set are left alone. SIGINT while the set is built removes the temporary
-directory and leaves DIR as it was; the moves themselves run with SIGINT held back.
+directory and leaves DIR as it was; the moves themselves run with SIGINT held back. A command
+that writes a few named files instead (`inverse`: FORCES.csv and FORCES.html) stages them the
+same way (`file_set`: `.FORCES.csv.partial-XXXX` beside them) and moves them in together.
 
 SIGINT is handled by `sigint_handler` (installed by cli.main): it records the signal and
 raises KeyboardInterrupt. A KeyboardInterrupt raised where Python cannot propagate it (a
@@ -21,7 +23,7 @@ import tempfile
 import threading
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterable, Iterator
+from typing import Callable, Iterable, Iterator
 
 from stewart_fmu.io import OutputError, write_text
 
@@ -69,27 +71,65 @@ def result_set(out: str | Path, known: Iterable[str] = ()) -> Iterator[Path]:
     existed = out.exists()
     if existed and not out.is_dir():
         raise OutputError(f"cannot write {out}: exists and is not a directory")
+    kept = f"{out} " + ("left as it was (the earlier set untouched)" if existed else "not created")
+    with _staged(out, out, kept, lambda stage: _commit(stage, out, set(known)),
+                 f"{out} holds the complete new set (Ctrl-C came while it was moved into "
+                 "place)") as stage:
+        yield stage
+
+
+@contextmanager
+def file_set(*paths: str | Path) -> Iterator[list[Path]]:
+    """Files of one directory written together or not at all (`inverse`: FORCES.csv and its
+    FORCES.html): yields a temporary path for each, in a temporary directory beside them; on
+    success they replace the files at once. On any error or Ctrl-C the temporaries go and
+    every file stays as it was (Interrupted says so); the files not given are left alone."""
+    paths = [Path(p) for p in paths]
+    directory = paths[0].parent
+    if any(p.parent != directory for p in paths) or len({p.name for p in paths}) < len(paths):
+        raise ValueError(f"file_set: {', '.join(map(str, paths))}: not distinct files of one "
+                         "directory")
+    for p in paths:
+        if p.is_dir():
+            raise OutputError(f"cannot write {p}: is a directory")
+    kept = ", ".join(f"{p} " + ("left as it was" if p.exists() else "not created")
+                     for p in paths)
+    names = [p.name for p in paths]
+    with _staged(paths[0], directory, kept,
+                 lambda stage: _swap(stage, directory, names, names,
+                                     Path(tempfile.mkdtemp(dir=stage, prefix=".old-"))),
+                 f"{' and '.join(map(str, paths))} written whole (Ctrl-C came while they "
+                 "were moved into place)") as stage:
+        yield [stage / name for name in names]
+
+
+@contextmanager
+def _staged(beside: Path, target: Path, kept: str, commit: Callable[[Path], None],
+            complete: str) -> Iterator[Path]:
+    """A temporary directory `.NAME.partial-XXXX` beside `beside` (same file system), moved
+    into place by `commit(stage)` with SIGINT held; removed in every case. `kept`: what a
+    Ctrl-C before the move left as it was; `complete`: the line for a Ctrl-C during it. An
+    OutputError raised inside names the file as it would be in `target`, not the temporary."""
     try:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        stage = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.partial-"))
+        beside.parent.mkdir(parents=True, exist_ok=True)
+        stage = Path(tempfile.mkdtemp(dir=beside.parent, prefix=f".{beside.name}.partial-"))
     except OSError as exc:
-        raise OutputError(f"cannot write {out}: {exc.strerror or exc}") from None
+        raise OutputError(f"cannot write {beside}: {exc.strerror or exc}") from None
     try:
         try:
             yield stage
             check_interrupted()
         except KeyboardInterrupt:
-            raise Interrupted(f"nothing new written, {out} "
-                              + ("left as it was (the earlier set untouched)" if existed
-                                 else "not created")) from None
+            raise Interrupted(f"nothing new written, {kept}") from None
+        except OutputError as exc:
+            raise OutputError(str(exc).replace(str(stage), str(target))) from None
         with _sigint_held() as held:
             try:
-                _commit(stage, out, set(known))
+                commit(stage)
             except OSError as exc:
-                raise OutputError(f"cannot write {out}: {exc.strerror or exc}") from None
+                raise OutputError(f"cannot write {beside}: {exc.strerror or exc}") from None
         if held:
-            raise Interrupted(f"{out} holds the complete new set (Ctrl-C came while it was "
-                              "moved into place)")
+            raise Interrupted(complete)
     finally:
         shutil.rmtree(stage, ignore_errors=True)
 
@@ -105,13 +145,23 @@ def _commit(stage: Path, out: Path, known: set[str]) -> None:
         return
     old = known | _manifest(out)
     trash = Path(tempfile.mkdtemp(dir=out, prefix=".old-"))
+    try:
+        _swap(stage, out, [*new, MANIFEST],
+              sorted((old | set(new) | {MANIFEST}) - {trash.name}), trash)
+    finally:
+        shutil.rmtree(trash, ignore_errors=True)
+
+
+def _swap(stage: Path, out: Path, new: Iterable[str], aside: Iterable[str], trash: Path) -> None:
+    """Move the files `aside` that are in `out` into `trash`, then `new` from `stage` into
+    `out`; on an OSError move them back (the earlier files where they were) and raise it."""
     moved_aside, moved_in = [], []
     try:
-        for name in sorted((old | set(new) | {MANIFEST}) - {trash.name}):
+        for name in aside:
             if os.path.lexists(out / name):
                 os.rename(out / name, trash / name)
                 moved_aside.append(name)
-        for name in [*new, MANIFEST]:
+        for name in new:
             os.rename(stage / name, out / name)
             moved_in.append(name)
     except OSError:
@@ -119,9 +169,7 @@ def _commit(stage: Path, out: Path, known: set[str]) -> None:
             os.rename(out / name, stage / name)
         for name in moved_aside:
             os.rename(trash / name, out / name)
-        shutil.rmtree(trash, ignore_errors=True)
         raise
-    shutil.rmtree(trash, ignore_errors=True)
 
 
 def _manifest(out: Path) -> set[str]:

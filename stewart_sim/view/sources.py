@@ -10,7 +10,6 @@ stewart_fmu.dynamics.inverse_dynamics, drive term included when the scene has a 
 """
 from __future__ import annotations
 
-import csv
 import re
 from pathlib import Path
 
@@ -18,7 +17,8 @@ import numpy as np
 
 from stewart_fmu.dynamics import inverse_dynamics
 from stewart_fmu.errors import KinematicsError, StewartError
-from stewart_fmu.io import FORCE_COLUMNS, POSE, TRAJECTORY_COLUMNS
+from stewart_fmu.io import (FORCE_COLUMNS, POSE, TRAJECTORY_COLUMNS, csv_header, read_samples,
+                            read_trajectory)
 from stewart_fmu.kinematics import forward_kinematics
 from stewart_fmu.model import Model
 from stewart_sim.paper.study import TRAJECTORIES, make_trajectory
@@ -30,41 +30,6 @@ LEGS = tuple(range(1, 7))
 # The paper's moves are 0.1 s long: frames every 1/PAPER_FPS s, played at PAPER_SPEED.
 PAPER_FPS = 300.0
 PAPER_SPEED = 0.1
-
-
-def read_columns(path: Path, names: tuple[str, ...]) -> np.ndarray:
-    """The named columns of a CSV (any order, others ignored) as (N, len(names)) floats: every
-    value finite, the first column (time) strictly increasing."""
-    try:
-        with path.open(newline="") as fh:
-            header = [c.strip() for c in next(csv.reader(fh), [])]
-    except (OSError, UnicodeDecodeError) as exc:
-        raise StewartError(f"{path}: cannot read: {getattr(exc, 'strerror', None) or exc}") from None
-    missing = [n for n in names if n not in header]
-    if missing:
-        raise StewartError(f"{path}: no column(s) {', '.join(missing)}")
-    try:
-        data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2,
-                          usecols=[header.index(n) for n in names])
-    except ValueError as exc:
-        raise StewartError(f"{path}: not a table of numbers: {exc}") from None
-    if data.shape[0] == 0:
-        raise StewartError(f"{path}: no samples after the header")
-    if not np.all(np.isfinite(data)):
-        r, c = np.argwhere(~np.isfinite(data))[0]
-        raise StewartError(f"{path}: line {r + 2}, column '{names[c]}': not finite")
-    if np.any(np.diff(data[:, 0]) <= 0):
-        r = int(np.flatnonzero(np.diff(data[:, 0]) <= 0)[0]) + 3
-        raise StewartError(f"{path}: line {r}, column '{names[0]}': time must increase strictly")
-    return data
-
-
-def csv_header(path: Path) -> list[str]:
-    try:
-        with path.open(newline="") as fh:
-            return [c.strip() for c in next(csv.reader(fh), [])]
-    except (OSError, UnicodeDecodeError) as exc:
-        raise StewartError(f"{path}: cannot read: {getattr(exc, 'strerror', None) or exc}") from None
 
 
 # --- in memory ---------------------------------------------------------------------------------
@@ -160,8 +125,8 @@ def read_run_table(path: Path) -> np.ndarray:
         names = arrow.column_names
         table = {n: arrow.column(n).to_numpy() for n in _run_columns(path, names)}
     else:
-        names = _run_columns(path, csv_header(path))
-        data = read_columns(path, names)
+        names = _run_columns(path, csv_header(path, "run table"))
+        data = read_samples(path, names, "run table", anywhere=True)
         table = {n: data[:, k] for k, n in enumerate(names)}
     out = np.empty(len(table["time"]), dtype=[(n, float) for n in table])
     for n, v in table.items():
@@ -186,7 +151,7 @@ def view_of(path: Path, model: Model, *, fps: float = DEFAULT_FPS,
         return _directory_view(path, model, fps)
     if not path.is_file():
         raise StewartError(f"{path}: no such file or directory")
-    header = csv_header(path) if path.suffix != ".parquet" else []
+    header = csv_header(path, "table") if path.suffix != ".parquet" else ()
     if path.suffix == ".parquet" or "time" in header:
         return run_table_view(model, read_run_table(path), fps=fps, source=str(path),
                               title=f"{model.name}: closed-loop run")
@@ -195,21 +160,19 @@ def view_of(path: Path, model: Model, *, fps: float = DEFAULT_FPS,
             raise StewartError(f"{path} holds forces but no poses: give --trajectory TRAJ.csv, "
                                "the trajectory they were computed from")
         return _forces_view(model, path, trajectory, fps)
-    if tuple(header) == TRAJECTORY_COLUMNS:
-        data = read_columns(path, TRAJECTORY_COLUMNS)
-        return trajectory_view(model, data[:, 0], data[:, 1:7], data[:, 7:13], data[:, 13:19],
-                               fps=fps, source=str(path), title=f"{model.name}: {path.name}")
+    if header == TRAJECTORY_COLUMNS:
+        return trajectory_view(model, *read_trajectory(path), fps=fps, source=str(path),
+                               title=f"{model.name}: {path.name}")
     raise StewartError(f"{path}: not a trajectory (t,x..ddthz), forces (t,sigma1..6) or run "
                        "table (time, ...) CSV")
 
 
 def _forces_view(model: Model, forces: Path, trajectory: Path, fps: float) -> ViewData:
-    f = read_columns(forces, FORCE_COLUMNS)
-    tr = read_columns(trajectory, TRAJECTORY_COLUMNS)
-    if f.shape[0] != tr.shape[0] or not np.allclose(f[:, 0], tr[:, 0], rtol=0, atol=1e-9):
+    f = read_samples(forces, FORCE_COLUMNS, "forces", prefix=True)
+    t, q, qd, qdd = read_trajectory(trajectory)
+    if f.shape[0] != t.size or not np.allclose(f[:, 0], t, rtol=0, atol=1e-9):
         raise StewartError(f"{forces} and {trajectory}: not the same sample times")
-    return trajectory_view(model, tr[:, 0], tr[:, 1:7], tr[:, 7:13], tr[:, 13:19], fps=fps,
-                           forces=f[:, 1:7], source=str(forces),
+    return trajectory_view(model, t, q, qd, qdd, fps=fps, forces=f[:, 1:7], source=str(forces),
                            title=f"{model.name}: {forces.name}")
 
 
@@ -234,7 +197,8 @@ def _paper_directory_view(directory: Path, model: Model) -> ViewData:
     t_all, q_all, f_all = [], [], []
     offset = 0.0
     for name in TRAJECTORIES:
-        data = read_columns(directory / f"{name}_level3.csv", FORCE_COLUMNS)
+        data = read_samples(directory / f"{name}_level3.csv", FORCE_COLUMNS, "forces",
+                            prefix=True)
         t = data[:, 0]
         q_all.append(make_trajectory(model, name, t).q)
         t_all.append(t + offset)

@@ -3,6 +3,7 @@ and exit 2, scene-info checking what run checks, start-up without the heavy impo
 from __future__ import annotations
 
 import csv
+import os
 import signal
 import subprocess
 import sys
@@ -12,8 +13,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from controller.moves import demo_trajectory
+from stewart_fmu import io, load_scene
 from stewart_sim import cli, limits, outputs, progress
 from stewart_sim.outputs import MANIFEST
+from stewart_sim.view import command as view_command
 
 ROOT = Path(__file__).resolve().parents[2]
 MICRO = ROOT / "scenes" / "micro_manipulator.toml"
@@ -32,9 +36,13 @@ def _partials(out: Path) -> list[Path]:
 
 
 def _interrupt(args: list[str], out: Path, ready) -> tuple[int, str]:
-    """Run `stewart-sim ARGS`, send SIGINT once ready(partial dir) holds, return (status, err)."""
+    """Run `stewart-sim ARGS`, send SIGINT once ready(partial dir) holds, return (status, err).
+    The console script imports the packages of this tree (PYTHONPATH before the editable
+    install's finder), as the in-process tests do."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        filter(None, [str(ROOT), os.environ.get("PYTHONPATH", "")]))}
     proc = subprocess.Popen([str(EXE), *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+                            text=True, env=env)
     try:
         deadline = time.monotonic() + WAIT
         while True:
@@ -116,6 +124,147 @@ def test_an_earlier_set_without_manifest_is_replaced_by_its_known_names(tmp_path
 def cli_run_files() -> tuple[str, ...]:
     from stewart_sim.run import RUN_FILES
     return RUN_FILES
+
+
+# --- inverse: FORCES.csv and FORCES.html together or not at all ------------------------------
+
+EARLIER_PAIR = {"F.csv": "t,sigma1\n0.0,1.0\n", "F.html": "<p>an earlier view</p>\n"}
+
+
+@pytest.fixture(scope="module")
+def long_traj(tmp_path_factory) -> Path:
+    """60 s of the demo move at 1 kHz: 60,001 samples, seconds of work for `inverse`."""
+    return _demo_file(tmp_path_factory.mktemp("traj"), 60.0)
+
+
+def _demo_file(d: Path, duration: float) -> Path:
+    path = d / "traj.csv"
+    io.write_csv(path, io.trajectory_table(*demo_trajectory(load_scene(MICRO), duration)))
+    return path
+
+
+def _earlier_pair(d: Path, names=EARLIER_PAIR) -> None:
+    for name in names:
+        (d / name).write_text(EARLIER_PAIR[name])
+
+
+def _inverse(traj: Path, out: Path) -> list[str]:
+    return ["inverse", str(MICRO), "--trajectory", str(traj), "--out", str(out)]
+
+
+@pytest.mark.parametrize("earlier", [["F.csv", "F.html"], ["F.csv"]], ids=["both", "csv_only"])
+@pytest.mark.parametrize("failure", ["disk full", "Ctrl-C"])
+def test_inverse_page_failing_leaves_the_earlier_files(failure, earlier, tmp_path, monkeypatch,
+                                                       capsys) -> None:
+    """The page fails after FORCES.csv is written (in its temporary): neither new file
+    appears, the earlier ones are as they were, no temporary is left; exit 1 naming the page
+    (not its temporary), or 130 saying what was kept."""
+    traj = _demo_file(tmp_path, 0.2)
+    work = tmp_path / "work"
+    work.mkdir()
+    _earlier_pair(work, earlier)
+    staged: list[Path] = []
+
+    def fail(path: Path, view) -> int:
+        staged.extend(path.parent.iterdir())           # what the temporary holds by now
+        if failure == "Ctrl-C":
+            raise KeyboardInterrupt
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(view_command, "write_view", fail)
+    status = cli.main(_inverse(traj, work / "F.csv"))
+    err = _one_error_line(capsys)
+    assert [p.name for p in staged] == ["F.csv"]                 # the forces were written
+    if failure == "Ctrl-C":
+        assert status == 130
+        kept = (f"{work / 'F.html'} left as it was" if "F.html" in earlier
+                else f"{work / 'F.html'} not created")
+        assert err == (f"stewart-sim: error: interrupted: nothing new written, "
+                       f"{work / 'F.csv'} left as it was, {kept}\n")
+    else:
+        assert status == 1
+        assert err == (f"stewart-sim: error: cannot write {work / 'F.html'}: "
+                       "No space left on device\n")
+    assert _listing(work) == {name: EARLIER_PAIR[name] for name in earlier}
+
+
+def test_inverse_commit_failing_puts_the_earlier_files_back(tmp_path, monkeypatch,
+                                                           capsys) -> None:
+    """The second move into place fails: the first is undone, the earlier pair is back."""
+    traj = _demo_file(tmp_path, 0.2)
+    work = tmp_path / "work"
+    work.mkdir()
+    _earlier_pair(work)
+    rename, failed = os.rename, []
+
+    def flaky(src, dst) -> None:   # moving the new page in fails, once
+        if Path(src).parent != work and Path(dst) == work / "F.html" and not failed:
+            failed.append(dst)
+            raise OSError(5, "Input/output error")
+        rename(src, dst)
+
+    monkeypatch.setattr(os, "rename", flaky)
+    assert cli.main(_inverse(traj, work / "F.csv")) == 1
+    assert _one_error_line(capsys) == (f"stewart-sim: error: cannot write {work / 'F.csv'}: "
+                                       "Input/output error\n")
+    assert _listing(work) == EARLIER_PAIR
+    monkeypatch.setattr(os, "rename", rename)
+    assert cli.main(_inverse(traj, work / "F.csv")) == 0        # and then both, new
+    assert sorted(_listing(work)) == ["F.csv", "F.html"]
+    assert (work / "F.csv").read_text().startswith("t,sigma1,")
+    assert (work / "F.html").read_text().startswith("<!DOCTYPE html>")
+    capsys.readouterr()
+
+
+def test_inverse_refuses_a_directory_or_a_page_over_its_forces(tmp_path, capsys) -> None:
+    """FORCES.html a directory: refused before any work; --out F.html: the page would
+    overwrite the forces."""
+    (tmp_path / "F.html").mkdir()
+    (tmp_path / "F.csv").write_text(EARLIER_PAIR["F.csv"])
+    assert cli.main(_inverse(tmp_path / "nope.csv", tmp_path / "F.csv")) == 1
+    assert _one_error_line(capsys) == (f"stewart-sim: error: cannot write {tmp_path / 'F.html'}: "
+                                       "is a directory\n")
+    assert (tmp_path / "F.csv").read_text() == EARLIER_PAIR["F.csv"]
+    assert cli.main(_inverse(tmp_path / "nope.csv", tmp_path / "G.html")) == 2
+    assert "the 3D view would be written over it" in _one_error_line(capsys)
+    assert _partials(tmp_path / "F.csv") == [] and not (tmp_path / "G.html").exists()
+
+
+def test_sigint_while_the_pair_moves_in_is_held(tmp_path, monkeypatch) -> None:
+    """Ctrl-C during the moves into place waits for them: both new files are in, the
+    earlier ones gone, and Interrupted says so (exit 130 with that line)."""
+    _earlier_pair(tmp_path)
+    rename, sent = os.rename, []
+
+    def rename_and_interrupt(src, dst) -> None:
+        if not sent:
+            sent.append(dst)
+            os.kill(os.getpid(), signal.SIGINT)
+        rename(src, dst)
+
+    monkeypatch.setattr(os, "rename", rename_and_interrupt)
+    with pytest.raises(outputs.Interrupted) as info:
+        with outputs.file_set(tmp_path / "F.csv", tmp_path / "F.html") as (csv_, page):
+            csv_.write_text("new forces\n")
+            page.write_text("new page\n")
+    assert sent and info.value.kept == (f"{tmp_path / 'F.csv'} and {tmp_path / 'F.html'} "
+                                        "written whole (Ctrl-C came while they were moved "
+                                        "into place)")
+    assert _listing(tmp_path) == {"F.csv": "new forces\n", "F.html": "new page\n"}
+
+
+def test_sigint_during_inverse_keeps_both_earlier_files(long_traj, tmp_path) -> None:
+    """A real Ctrl-C while FORCES.csv is being written (its temporary started): exit 130,
+    FORCES.csv and FORCES.html exactly the earlier ones, no temporary left."""
+    _earlier_pair(tmp_path)
+    out = tmp_path / "F.csv"
+    status, err = _interrupt(_inverse(long_traj, out), out, lambda d: any(d.iterdir()))
+    assert status == 130, err
+    assert err.rstrip().splitlines()[-1] == (
+        f"stewart-sim: error: interrupted: nothing new written, {out} left as it was, "
+        f"{tmp_path / 'F.html'} left as it was")
+    assert _listing(tmp_path) == EARLIER_PAIR
+    assert _partials(out) == []
 
 
 def test_out_is_a_file_exit_1(tmp_path, capsys) -> None:

@@ -156,7 +156,14 @@ def test_view_refuses_bad_input_in_one_line(tmp_path, capsys, model):
     bad = tmp_path / "bad.csv"
     bad.write_text(",".join(io.TRAJECTORY_COLUMNS) + "\n" + ",".join(["0"] * 18) + ",x\n")
     assert main(["view", str(bad), "--scene", MICRO, "-o", out]) == 2
-    assert "not a table of numbers" in _error(capsys)
+    assert f"{bad}: line 2, column 'ddthz': not a number: 'x'" in _error(capsys)
+    table = tmp_path / "table.csv"      # a run table: its columns by name, in any order
+    names = ["torque2", "time", *io.POSE, *(f"{c}_ref" for c in io.POSE),
+             *(f"torque{i}" for i in (1, 3, 4, 5, 6))]
+    table.write_text(",".join(names) + "\n" + ",".join(["1"] + ["0"] * 18) + "\n"
+                     + ",".join(["nan", "0.1"] + ["0"] * 17) + "\n")
+    assert main(["view", str(table), "--scene", MICRO, "-o", out]) == 2
+    assert f"{table}: line 3, column 'torque2': non-finite value nan" in _error(capsys)
     run = tmp_path / "run"
     run.mkdir()
     (run / "summary.md").write_text("- scene: `no/such/scene.toml`\n")
