@@ -147,8 +147,10 @@ def _workspace_section(runs: tuple[CueRun, ...]) -> list[str]:
 
 
 def _margins_section(runs: tuple[CueRun, ...]) -> list[str]:
-    lines = ["## Limits (worst sample of the cue: value / limit)", "",
-             "| mode | quantity | worst | limit | use | at t (s) | leg |", "|" + "---|" * 7]
+    lines = ["## Limits (worst sample of the cue)", "",
+             "ratio: value / limit (for stroke_min, limit / value); 100 % or more is past the "
+             "limit.", "",
+             "| mode | quantity | worst | limit | ratio | at t (s) | leg |", "|" + "---|" * 7]
     for r in runs:
         for mg in r.feasibility.margins:
             leg = "-" if mg.leg is None else str(mg.leg)
