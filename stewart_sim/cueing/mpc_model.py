@@ -1,0 +1,201 @@
+"""The linear prediction model of the model-predictive cueing (stewart_sim/cueing/optimal.py).
+
+One MPC step of length dt, zero-order hold on the inputs (Dagdelen et al. 2009, "Model-based
+predictive motion cueing strategy for vehicle driving simulators", Control Eng. Practice 17;
+Garrett and Best 2013, "Model predictive driving simulator motion cueing algorithm with
+actuator-based constraints", Vehicle System Dynamics 51). States, all deviations from the
+neutral pose `home`:
+
+    x = (dq (6), qd (6), xv)      dq = q - home in the contract's pose coordinates (Euler angles),
+                                  qd their rates, xv the vestibular states
+    u = qdd (6)                   translational and Euler-angle accelerations, held over the step
+
+The vestibular models (otolith per specific-force axis, semicircular canal per angular-velocity
+axis, each a transfer function) run on the ERROR between what the platform delivers and what the
+vehicle does: they are linear, so perceived(platform) - perceived(vehicle) = perceived(platform -
+vehicle), and one set of states carries the perceived-motion error. Their input is
+
+    s = [f_C - f_vehicle; omega_C - omega_vehicle]
+    f_C     = R^T (a - g)   ~  f_0 + F_q dq + F_u u      (gravity tilt, linearised at home)
+    omega_C = R^T E thd     ~  F_v qd
+
+With R = Rz Ry Rx at home = identity and g = (0, 0, -G): R^T w ~ w - theta x w, so
+f_C ~ a - g + theta x g = (a_x - G thy, a_y + G thx, a_z + G): a positive pitch (nose down about
++Y, y to the left) delivers f_x = -G sin(thy), which is the braking cue. The matrices are not
+typed in: `linearise` takes them by central differences of the exact expressions, so the signs
+follow the contract's R, not a convention copied from a paper.
+
+The leg lengths and the rack forces are linearised at home the same way, from our own inverse
+kinematics and inverse dynamics (every effect the scene declares): l ~ l_home + L_q dq and
+sigma ~ sigma_hold + S_q dq + S_v qd + S_a u. What the linearisation leaves out (the tilt's sine,
+the Jacobian's change over the workspace, Coriolis forces, Coulomb friction) the MPC adds back as
+known offsets evaluated on its previous prediction (optimal.py), so only vectors change between
+steps.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+from scipy.linalg import expm, solve_continuous_lyapunov
+from scipy.signal import tf2ss
+
+from stewart_fmu.dynamics import inverse_dynamics
+from stewart_fmu.kinematics import inverse_kinematics
+from stewart_fmu.model import Model
+from stewart_fmu.rotations import euler_motion
+
+NP = 12          # platform states: dq (6), qd (6)
+NU = 6           # inputs: qdd
+NS = 6           # vestibular inputs / perceived outputs: f (3), omega (3)
+_STEP = 1e-6     # central-difference step (m, rad, m/s ...): the functions are smooth there
+
+
+@dataclass(frozen=True)
+class Linearisation:
+    """The mechanism and the delivered motion linearised at the neutral pose (see module doc)."""
+
+    home: np.ndarray          # (6,) neutral pose
+    gravity: np.ndarray       # (3,) in N
+    lengths: np.ndarray       # (6,) leg lengths at home, m
+    length_q: np.ndarray      # (6, 6) dl / dq
+    sigma_hold: np.ndarray    # (6,) rack forces holding home, N
+    sigma_q: np.ndarray       # (6, 6) dsigma / dq, N / (m or rad)
+    sigma_qd: np.ndarray      # (6, 6) dsigma / dqd (viscous friction; Coulomb left to offsets)
+    sigma_qdd: np.ndarray     # (6, 6) dsigma / dqdd (the mass matrix in pose coordinates)
+    force_neutral: np.ndarray  # (3,) f_C at home at rest: R^T (-g), m/s^2
+    force_q: np.ndarray       # (3, 6) df_C / dq (gravity tilt)
+    force_qdd: np.ndarray     # (3, 6) df_C / dqdd
+    rate_qd: np.ndarray       # (3, 6) domega_C / dqd
+
+
+def delivered(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, gravity: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """Specific force R^T (a - g) and angular velocity R^T E thd in the platform frame C, (N, 3)
+    each, for pose rows (N, 6): what the platform's occupant feels at C's origin."""
+    Q, QD, QDD = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, qd, qdd))
+    n = Q.shape[0]
+    R, om, al = np.empty((n, 3, 3)), np.empty((n, 3)), np.empty((n, 3))
+    euler_motion(Q, QD, QDD, R, om, al)
+    f = np.einsum("nji,nj->ni", R, QDD[:, :3] - gravity)
+    w = np.einsum("nji,nj->ni", R, om)
+    return f, w
+
+
+def _jacobian(fun, x0: np.ndarray) -> np.ndarray:
+    """d fun / dx at x0 by central differences (fun maps (6,) -> (m,))."""
+    cols = []
+    for j in range(x0.size):
+        e = np.zeros_like(x0)
+        e[j] = _STEP
+        cols.append((fun(x0 + e) - fun(x0 - e)) / (2 * _STEP))
+    return np.stack(cols, axis=1)
+
+
+def linearise(model: Model, home: np.ndarray, gravity: np.ndarray) -> Linearisation:
+    """Leg lengths, rack forces and delivered motion linearised at `home`, at rest, through
+    stewart_fmu's inverse kinematics and inverse dynamics (the scene's declared effects).
+
+    dsigma/dqd excludes Coulomb friction (coulomb sign(ldot_i) along leg i has no slope at rest,
+    only a jump): the derivative is taken of sigma minus that term, keeping the viscous one."""
+    home = np.asarray(home, dtype=float)
+    g = np.asarray(gravity, dtype=float)
+    z = np.zeros(6)
+    length = (lambda q: inverse_kinematics(model, q, with_cond=False).lengths)
+    length_q = _jacobian(length, home)
+    coulomb = model.friction.coulomb if model.friction is not None else 0.0
+
+    def sigma_smooth(qd):
+        # Coulomb's part is coulomb * sign(ldot): zero at rest, a jump either side of it.
+        rates = inverse_kinematics(model, home, qd, with_cond=False).rates
+        return inverse_dynamics(model, home, qd, z) - coulomb * np.sign(rates)
+
+    return Linearisation(
+        home=home, gravity=g, lengths=length(home), length_q=length_q,
+        sigma_hold=inverse_dynamics(model, home, z, z),
+        sigma_q=_jacobian(lambda q: inverse_dynamics(model, q, z, z), home),
+        sigma_qd=_jacobian(sigma_smooth, z),
+        sigma_qdd=_jacobian(lambda a: inverse_dynamics(model, home, z, a), z),
+        force_neutral=delivered(home, z, z, g)[0][0],
+        force_q=_jacobian(lambda q: delivered(q, z, z, g)[0][0], home),
+        force_qdd=_jacobian(lambda a: delivered(home, z, a, g)[0][0], z),
+        rate_qd=_jacobian(lambda qd: delivered(home, qd, z, g)[1][0], z))
+
+
+@dataclass(frozen=True)
+class PredictionModel:
+    """x+ = A x + B u + E w over one step dt (exact zero-order-hold discretisation), perceived
+    error y = C x + D u + G w; w = (delivered minus vehicle specific force and angular velocity,
+    beyond the linear part in x and u), held over the step."""
+
+    dt: float
+    A: np.ndarray   # (n, n)
+    B: np.ndarray   # (n, 6)
+    E: np.ndarray   # (n, 6)
+    C: np.ndarray   # (6, n)
+    D: np.ndarray   # (6, 6)
+    G: np.ndarray   # (6, 6)
+
+    @property
+    def n(self) -> int:
+        return self.A.shape[0]
+
+
+def vestibular_state_space(channels: Sequence[tuple[Sequence[float], Sequence[float]]]
+                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Block-diagonal (A, B, C, D) of six single-input single-output transfer functions
+    (num, den), in the order f_x, f_y, f_z, omega_x, omega_y, omega_z."""
+    blocks = [_scaled(*tf2ss(np.asarray(num, float), np.asarray(den, float)))
+              for num, den in channels]
+    sizes = [b[0].shape[0] for b in blocks]
+    n = sum(sizes)
+    A, B, C = np.zeros((n, n)), np.zeros((n, len(blocks))), np.zeros((len(blocks), n))
+    D = np.zeros((len(blocks), len(blocks)))
+    i = 0
+    for k, (a, b, c, d) in enumerate(blocks):
+        m = a.shape[0]
+        A[i:i + m, i:i + m], B[i:i + m, k], C[k, i:i + m], D[k, k] = a, b[:, 0], c[0], d[0, 0]
+        i += m
+    return A, B, C, D
+
+
+def _scaled(a, b, c, d):
+    """The same transfer function with each state divided by its RMS response to unit white
+    noise (the square root of the controllability Gramian's diagonal): the companion form's
+    states span orders of magnitude (a canal's 5 ms pole puts 200 in its output row), which
+    the QP's solver would see as a badly scaled Hessian."""
+    gramian = solve_continuous_lyapunov(a, -b @ b.T)
+    T = np.sqrt(np.clip(np.diag(gramian), 0.0, None))
+    T = np.where(T > 0, T, 1.0)
+    return a * T[None, :] / T[:, None], b / T[:, None], c * T[None, :], d
+
+
+def prediction_model(lin: Linearisation, channels, dt: float) -> PredictionModel:
+    """The augmented continuous model (double integrators per pose coordinate, vestibular
+    transfer functions on the delivered-minus-vehicle motion) discretised exactly for a
+    zero-order hold on u and w over dt (matrix exponential of the augmented system)."""
+    Av, Bv, Cv, Dv = vestibular_state_space(channels)
+    nv = Av.shape[0]
+    n = NP + nv
+    Fx = np.zeros((NS, NP))          # s = Fx [dq; qd] + Fu u + w
+    Fx[:3, :6] = lin.force_q
+    Fx[3:, 6:] = lin.rate_qd
+    Fu = np.zeros((NS, NU))
+    Fu[:3] = lin.force_qdd
+    Ac = np.zeros((n, n))
+    Ac[:6, 6:12] = np.eye(6)
+    Ac[NP:, :NP] = Bv @ Fx
+    Ac[NP:, NP:] = Av
+    Bc = np.zeros((n, NU))
+    Bc[6:12] = np.eye(6)
+    Bc[NP:] = Bv @ Fu
+    Ec = np.zeros((n, NS))
+    Ec[NP:] = Bv
+    M = np.zeros((n + NU + NS, n + NU + NS))
+    M[:n, :n], M[:n, n:n + NU], M[:n, n + NU:] = Ac, Bc, Ec
+    Phi = expm(M * dt)
+    C = np.zeros((NS, n))
+    C[:, :NP] = Dv @ Fx
+    C[:, NP:] = Cv
+    return PredictionModel(dt, Phi[:n, :n], Phi[:n, n:n + NU], Phi[:n, n + NU:], C, Dv @ Fu, Dv)
