@@ -74,6 +74,14 @@ class AxisModel:
         m = self.motor
         return m.resistance * current + m.inductance * current_rate + self.emf_constant * ldot
 
+    def drive_for(self, t, force, ldot) -> tuple[np.ndarray, np.ndarray]:
+        """(voltage, current) that deliver the rack forces `force` (N, 6) at rack speeds `ldot`
+        sampled at times t: i = F / Kf and V = R i + L di/dt + Ke' ldot, di/dt by central
+        differences over the samples."""
+        current = force / self.force_constant
+        di = np.gradient(force, t, axis=0) / self.force_constant
+        return self.voltage(current, di, ldot), current
+
     def state_space(self) -> ct.StateSpace:
         """States (x, v, i), input voltage V, outputs (x, v)."""
         L, R = self.motor.inductance, self.motor.resistance

@@ -29,9 +29,7 @@ def feedforward_voltage(model: Model, config: ControllerConfig, axis: AxisModel,
     force = feedforward_force(model, config, axis, traj, refs)
     if force is None:
         return np.zeros_like(refs.l), np.zeros_like(refs.l)
-    current = force / axis.force_constant
-    di = np.gradient(force, traj.t, axis=0) / axis.force_constant
-    return axis.voltage(current, di, refs.ldot), current
+    return axis.drive_for(traj.t, force, refs.ldot)
 
 
 def start_at_equilibrium(model, traj, refs, gains, ctrl, motors, i_ff0, plant) -> None:

@@ -15,7 +15,8 @@ from .model import DriveParams, FrictionParams, LegParams, Model, TransmissionPa
 
 DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
 # Tables the project defines on top of the contract; each owner module validates its own.
-PROJECT_TABLES = frozenset({"trajectory", "controller", "link", "solver", "device", "case"})
+PROJECT_TABLES = frozenset({"trajectory", "controller", "link", "solver", "device", "case",
+                            "cueing"})
 _TOP_KEYS = {"name", "gravity", "geometry", "platform", "legs", "drive", "friction",
              "transmission"}
 _TABLE_KEYS = {

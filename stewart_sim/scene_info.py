@@ -1,5 +1,6 @@
 """`scene-info`: the model a scene builds, as text, checked as `run` and `inverse` check it
-(the scene, and its [controller] table when it has one), with every table it has."""
+(the scene, and its [controller] and [cueing] tables when it has them), with every table it
+has."""
 from __future__ import annotations
 
 import numpy as np
@@ -10,8 +11,10 @@ from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.model import Model
 from stewart_fmu.scene import PROJECT_TABLES
 
+from .cueing.config import cueing_config
+
 # Project tables scene-info names without describing (their owners check them when used).
-_OTHER_TABLES = sorted(PROJECT_TABLES - {"controller", "case"})
+_OTHER_TABLES = sorted(PROJECT_TABLES - {"controller", "case", "cueing"})
 
 
 def describe_model(model: Model) -> str:
@@ -30,6 +33,7 @@ def describe_model(model: Model) -> str:
         f"cond(J) at home: {kin.cond:.6g} (rotational columns scaled by "
         f"{model.characteristic_length:.6g} m)",
         _describe_transmission(model), _describe_controller(model), _describe_case(model),
+        _describe_cueing(model),
     ]
     others = [t for t in _OTHER_TABLES if t in model.extra]
     if others:
@@ -73,6 +77,27 @@ def _describe_case(model: Model) -> str:
     return (f"case: {t['kind']}, motion {t['motion']} for {float(t['duration']):g} s, expected "
             f"outcome {t['expect']}" + (f" ({extra})" if extra else "")
             + f": {t['description']}")
+
+
+def _describe_cueing(model: Model) -> str:
+    """The [cueing] table as the washout reads it (SceneError as the washout says it)."""
+    if "cueing" not in model.extra:
+        return "cueing: none (motion cueing uses the defaults of stewart_sim/cueing/config.py)"
+    c = cueing_config(model)
+    return (f"cueing: classical washout; translational gain "
+            f"{format_vector(c.translational_gain)}, limit "
+            f"{format_vector(c.translational_limit)} m/s^2, high-pass order "
+            f"{c.translational_order} at {format_vector(c.translational_frequency)} rad/s, damping "
+            f"{format_vector(c.translational_damping)}"
+            + (f", first-order break {format_vector(c.translational_first_order)} "
+               "rad/s" if c.translational_order == 3 else "")
+            + f"; tilt low-pass {c.tilt_frequency:g} rad/s, damping {c.tilt_damping:g}, rate "
+            f"limit {c.tilt_rate_limit:.6g} rad/s ({np.rad2deg(c.tilt_rate_limit):.3g} deg/s), "
+            f"limit {c.tilt_limit:g} rad; rotational gain {format_vector(c.rotational_gain)}, "
+            f"limit {format_vector(c.rotational_limit)} rad/s, high-pass order "
+            f"{c.rotational_order} at {format_vector(c.rotational_frequency)} rad/s"
+            + (f", damping {format_vector(c.rotational_damping)}" if c.rotational_order == 2
+               else ""))
 
 
 def _describe_legs(model: Model) -> str:
