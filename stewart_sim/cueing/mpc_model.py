@@ -34,17 +34,19 @@ steps.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Sequence
 
 import numpy as np
 from scipy.linalg import expm, solve_continuous_lyapunov
 from scipy.signal import tf2ss
 
+from controller.drive import AxisModel
 from stewart_fmu.dynamics import inverse_dynamics
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.model import Model
-from stewart_fmu.rotations import euler_motion
+
+from .vestibular import delivered_motion
 
 NP = 12          # platform states: dq (6), qd (6)
 NU = 6           # inputs: qdd
@@ -54,16 +56,10 @@ _STEP = 1e-6     # central-difference step (m, rad, m/s ...): the functions are 
 
 @dataclass(frozen=True)
 class Linearisation:
-    """The mechanism and the delivered motion linearised at the neutral pose (see module doc)."""
+    """The delivered motion linearised at the neutral pose, at rest (see the module doc)."""
 
     home: np.ndarray          # (6,) neutral pose
     gravity: np.ndarray       # (3,) in N
-    lengths: np.ndarray       # (6,) leg lengths at home, m
-    length_q: np.ndarray      # (6, 6) dl / dq
-    sigma_hold: np.ndarray    # (6,) rack forces holding home, N
-    sigma_q: np.ndarray       # (6, 6) dsigma / dq, N / (m or rad)
-    sigma_qd: np.ndarray      # (6, 6) dsigma / dqd (viscous friction; Coulomb left to offsets)
-    sigma_qdd: np.ndarray     # (6, 6) dsigma / dqdd (the mass matrix in pose coordinates)
     force_neutral: np.ndarray  # (3,) f_C at home at rest: R^T (-g), m/s^2
     force_q: np.ndarray       # (3, 6) df_C / dq (gravity tilt)
     force_qdd: np.ndarray     # (3, 6) df_C / dqdd
@@ -72,15 +68,9 @@ class Linearisation:
 
 def delivered(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, gravity: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray]:
-    """Specific force R^T (a - g) and angular velocity R^T E thd in the platform frame C, (N, 3)
-    each, for pose rows (N, 6): what the platform's occupant feels at C's origin."""
-    Q, QD, QDD = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, qd, qdd))
-    n = Q.shape[0]
-    R, om, al = np.empty((n, 3, 3)), np.empty((n, 3)), np.empty((n, 3))
-    euler_motion(Q, QD, QDD, R, om, al)
-    f = np.einsum("nji,nj->ni", R, QDD[:, :3] - gravity)
-    w = np.einsum("nji,nj->ni", R, om)
-    return f, w
+    """vestibular.delivered_motion (R^T (a - g), R^T E thd in C) of pose rows (N, 6)."""
+    Q = np.atleast_2d(np.asarray(q, dtype=float))
+    return delivered_motion(np.zeros(Q.shape[0]), Q, qd, qdd, gravity)
 
 
 def _jacobian(fun, x0: np.ndarray) -> np.ndarray:
@@ -93,34 +83,77 @@ def _jacobian(fun, x0: np.ndarray) -> np.ndarray:
     return np.stack(cols, axis=1)
 
 
-def linearise(model: Model, home: np.ndarray, gravity: np.ndarray) -> Linearisation:
-    """Leg lengths, rack forces and delivered motion linearised at `home`, at rest, through
-    stewart_fmu's inverse kinematics and inverse dynamics (the scene's declared effects).
-
-    dsigma/dqd excludes Coulomb friction (coulomb sign(ldot_i) along leg i has no slope at rest,
-    only a jump): the derivative is taken of sigma minus that term, keeping the viscous one."""
+def linearise(home: np.ndarray, gravity: np.ndarray) -> Linearisation:
+    """The delivered specific force and angular velocity linearised at `home`, at rest."""
     home = np.asarray(home, dtype=float)
     g = np.asarray(gravity, dtype=float)
     z = np.zeros(6)
-    length = (lambda q: inverse_kinematics(model, q, with_cond=False).lengths)
-    length_q = _jacobian(length, home)
-    coulomb = model.friction.coulomb if model.friction is not None else 0.0
-
-    def sigma_smooth(qd):
-        # Coulomb's part is coulomb * sign(ldot): zero at rest, a jump either side of it.
-        rates = inverse_kinematics(model, home, qd, with_cond=False).rates
-        return inverse_dynamics(model, home, qd, z) - coulomb * np.sign(rates)
-
     return Linearisation(
-        home=home, gravity=g, lengths=length(home), length_q=length_q,
-        sigma_hold=inverse_dynamics(model, home, z, z),
-        sigma_q=_jacobian(lambda q: inverse_dynamics(model, q, z, z), home),
-        sigma_qd=_jacobian(sigma_smooth, z),
-        sigma_qdd=_jacobian(lambda a: inverse_dynamics(model, home, z, a), z),
-        force_neutral=delivered(home, z, z, g)[0][0],
+        home=home, gravity=g, force_neutral=delivered(home, z, z, g)[0][0],
         force_q=_jacobian(lambda q: delivered(q, z, z, g)[0][0], home),
         force_qdd=_jacobian(lambda a: delivered(home, z, a, g)[0][0], z),
         rate_qd=_jacobian(lambda qd: delivered(home, qd, z, g)[1][0], z))
+
+
+@dataclass(frozen=True)
+class LegLinearisation:
+    """Leg lengths, rack forces and drive voltages at K points (q, qd, qdd), with their
+    Jacobians in x = (q, qd) (12) and u = qdd (6): value(x, u) ~ value + d_x dx + d_u du."""
+
+    lengths: np.ndarray         # (K, 6) m
+    length_q: np.ndarray        # (K, 6, 6) dl / dq
+    sigma: np.ndarray           # (K, 6) N, rack force (inverse_dynamics: every declared effect)
+    sigma_x: np.ndarray         # (K, 6, 12)
+    sigma_u: np.ndarray         # (K, 6, 6) (the mass matrix in pose coordinates)
+    voltage: np.ndarray | None  # (K, 6) V: R sigma / Kf + Ke' ldot (None: no drive model)
+    voltage_x: np.ndarray | None
+    voltage_u: np.ndarray | None
+
+
+def leg_linearisation(model: Model, axis: AxisModel | None, q, qd, qdd) -> LegLinearisation:
+    """Values and Jacobians of the leg quantities at each point, by central differences in q
+    and qd and an exact difference in qdd (sigma is affine in qdd), all points and
+    perturbations in one batch through stewart_fmu's inverse kinematics and dynamics.
+
+    The Jacobians leave Coulomb friction out (coulomb sign(ldot_i) along leg i is a jump, no
+    slope, at rest): its value is in `sigma`, so a linear model through the point carries it.
+    The stroke does not stop the dynamics here (as in feasibility.py): a prediction that leans
+    on the stroke's slack is still linearised."""
+    Q, QD, QDD = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, qd, qdd))
+    K = Q.shape[0]
+    eye = np.eye(6) * _STEP
+    # rows: base, q + e_j, q - e_j, qd + e_j, qd - e_j, qdd + e_j (j = 0..5): 31 per point
+    dq = np.concatenate([np.zeros((1, 6)), eye, -eye, np.zeros((18, 6))])
+    dqd = np.concatenate([np.zeros((13, 6)), eye, -eye, np.zeros((6, 6))])
+    dqdd = np.concatenate([np.zeros((25, 6)), eye])
+    P = dq.shape[0]
+    Qb = (Q[:, None] + dq[None]).reshape(-1, 6)
+    QDb = (QD[:, None] + dqd[None]).reshape(-1, 6)
+    QDDb = (QDD[:, None] + dqdd[None]).reshape(-1, 6)
+    kin = inverse_kinematics(model, Qb, QDb, with_cond=False)
+    free = replace(model, leg_min=None, leg_max=None)
+    sigma = inverse_dynamics(free, Qb, QDb, QDDb)
+    coulomb = model.friction.coulomb if model.friction is not None else 0.0
+    smooth = (sigma - coulomb * np.sign(kin.rates)).reshape(K, P, 6)
+    L = kin.lengths.reshape(K, P, 6)
+
+    def central(a, first):
+        return np.transpose(a[:, first:first + 6] - a[:, first + 6:first + 12], (0, 2, 1)) \
+            / (2 * _STEP)
+
+    sigma_x = np.concatenate([central(smooth, 1), central(smooth, 13)], axis=2)
+    sigma_u = np.transpose(smooth[:, 25:31] - smooth[:, :1], (0, 2, 1)) / _STEP
+    out = dict(lengths=L[:, 0], length_q=central(L, 1), sigma=sigma.reshape(K, P, 6)[:, 0],
+               sigma_x=sigma_x, sigma_u=sigma_u, voltage=None, voltage_x=None, voltage_u=None)
+    if axis is not None:
+        ohm = axis.motor.resistance / axis.force_constant
+        rates = kin.rates.reshape(K, P, 6)
+        v_smooth = ohm * smooth + axis.emf_constant * rates
+        out.update(voltage=axis.voltage(out["sigma"] / axis.force_constant, 0.0, rates[:, 0]),
+                   voltage_x=np.concatenate([central(v_smooth, 1), central(v_smooth, 13)],
+                                            axis=2),
+                   voltage_u=ohm * sigma_u)
+    return LegLinearisation(**out)
 
 
 @dataclass(frozen=True)

@@ -57,14 +57,19 @@ from stewart_fmu.model import Model
 
 from .config import CueingConfig
 from .motion import VehicleMotion
-from .vestibular import ANGULAR_VELOCITY_THRESHOLD, CANAL, OTOLITH, SPECIFIC_FORCE_THRESHOLD
+from .mpc_model import NP, NU, LegLinearisation, Linearisation, PredictionModel, delivered, \
+    leg_linearisation, linearise, prediction_model
+from .vestibular import CANAL_THRESHOLD, OTOLITH_THRESHOLD, canal_num_den, otolith_num_den
 from .washout import Cue
-from .mpc_model import NP, NU, Linearisation, PredictionModel, delivered, linearise, \
-    prediction_model
 
-VEHICLE_REST = np.array([0.0, 0.0, 9.81])  # the motion format's specific force at rest
-VESTIBULAR_CHANNELS = (OTOLITH,) * 3 + (CANAL,) * 3
-SOLVED = ("solved",)  # OSQP statuses whose solution is applied as is
+# f_x, f_y, f_z, omega_x, omega_y, omega_z: the models perception() runs
+VESTIBULAR_CHANNELS = tuple(otolith_num_den(k) for k in range(3)) + tuple(
+    canal_num_den(k) for k in range(3))
+
+
+# rho adapted every 25 iterations, not after a fraction of the setup time (OSQP's default):
+# the same problem then takes the same path whatever the machine's load.
+OSQP_SETTINGS = {"adaptive_rho_interval": 25, "rho": 0.01}
 
 
 @dataclass(frozen=True)
@@ -90,7 +95,7 @@ class OptimalOptions:
     acceleration_weight: tuple[float, float, float] = (0.01, 0.01, 0.01)
     angular_acceleration_weight: tuple[float, float, float] = (0.01, 0.01, 0.01)
     slack_weight: tuple[float, float] = (1e3, 1e3)   # linear, quadratic, per fraction of range
-    tolerance: float = 1e-6            # OSQP eps_abs = eps_rel
+    tolerance: float = 1e-3            # OSQP eps_abs = eps_rel (then polished: active set exact)
     max_iter: int = 20000
 
 
@@ -151,7 +156,8 @@ def mechanism_limits(model: Model, tilt_rate: float | None) -> Limits:
     scene has both (otherwise those limits are not imposed)."""
     axis = None
     if model.drive is not None and "controller" in model.extra:
-        axis = axis_model(model, controller_config(model).motor)
+        config = controller_config(model)
+        axis = axis_model(model, config.motor, config.load_mass)
     return Limits(model.leg_min, model.leg_max,
                   None if axis is None else axis.force_constant * axis.motor.current_limit,
                   None if axis is None else axis.motor.voltage_limit, axis, tilt_rate)
@@ -171,170 +177,178 @@ def interval_means(t: np.ndarray, y: np.ndarray, edges: np.ndarray) -> np.ndarra
     return np.diff(at, axis=0) / np.diff(edges)[:, None]
 
 
+class _Triplets:
+    """A sparse matrix assembled from blocks of (row, column, value) once, whose values can be
+    refilled in the same order and handed to OSQP as the CSC data of the same pattern."""
+
+    def __init__(self):
+        self.rows, self.cols, self.vals, self.blocks = [], [], [], {}
+        self.size = 0
+
+    def add(self, name, r0: int, c0: int, block: np.ndarray) -> None:
+        """Dense block at (r0, c0), every entry kept in the pattern (zeros too)."""
+        r, c = np.meshgrid(np.arange(block.shape[0]), np.arange(block.shape[1]), indexing="ij")
+        self.rows.append(r0 + r.ravel())
+        self.cols.append(c0 + c.ravel())
+        self.vals.append(block.ravel().astype(float))
+        if name is not None:
+            self.blocks.setdefault(name, []).append(slice(self.size, self.size + block.size))
+        self.size += block.size
+
+    def csc(self, shape) -> sp.csc_matrix:
+        rows, cols = np.concatenate(self.rows), np.concatenate(self.cols)
+        self.order = np.lexsort((rows, cols))
+        self.data = np.concatenate(self.vals)
+        A = sp.csc_matrix((self.data[self.order], (rows[self.order], cols[self.order])),
+                          shape=shape)
+        if A.nnz != self.data.size:
+            raise ValueError("overlapping blocks in the QP matrix")
+        A.data[:] = self.data[self.order]   # explicit zeros kept: the pattern is fixed
+        return A
+
+    def refill(self, name: str, blocks: np.ndarray) -> None:
+        """New values of the named blocks, (count, rows, cols), in the order they were added."""
+        for sl, b in zip(self.blocks[name], blocks):
+            self.data[sl] = b.ravel()
+
+    def csc_data(self) -> np.ndarray:
+        return self.data[self.order]
+
+
 class _Qp:
-    """The sparse QP of one horizon, built once; `solve` updates its vectors only.
+    """The sparse QP of one horizon. P and the dynamics are built once; the leg rows (stroke,
+    force, voltage) are re-linearised on the predicted trajectory every step (their values
+    change, not their pattern); q, l, u carry the vehicle motion and the offsets.
 
-    Variables z = (x_0..x_N, u_0..u_{N-1}, s_0..s_{N-1}); s_k = (stroke, force, voltage) slacks
-    of step k (both ends of the step share them)."""
+    Variables z = (x_0..x_N, u_0..u_{N-1}, s_0..s_{N-1}); s_k >= 0 relaxes the stroke at k+1."""
 
-    def __init__(self, pm: PredictionModel, lin: Linearisation, lim: Limits, steps: int,
+    def __init__(self, pm: PredictionModel, lim: Limits, legs: LegLinearisation, steps: int,
                  weights: np.ndarray, state_weights: np.ndarray, input_weights: np.ndarray,
                  slack_weight: tuple[float, float], margins: dict[str, float],
                  tolerance: float, max_iter: int):
-        self.pm, self.lin, self.lim, self.N, self._margin = pm, lin, lim, steps, margins
-        # Rows in units of their own range (stroke half-range, force and voltage limits), so
-        # the slacks are fractions and OSQP sees rows of one size.
-        span = (lim.leg_max - lim.leg_min) / 2 if None not in (lim.leg_min, lim.leg_max) else 1.0
-        self.scale = np.array([span, lim.force or 1.0, lim.voltage or 1.0])
+        self.pm, self.lim, self.N, self.margin = pm, lim, steps, margins
         n, N = pm.n, steps
         self.nx, self.nu0, self.ns0 = (N + 1) * n, (N + 1) * n, (N + 1) * n + N * NU
         nz = self.ns0 + N
         self.nz = nz
-        xi = (lambda k: k * n)
-        ui = (lambda k: self.nu0 + k * NU)
-        si = (lambda k: self.ns0 + k)
+        xi, ui, si = (lambda k: k * n), (lambda k: self.nu0 + k * NU), (lambda k: self.ns0 + k)
+        # Rows in units of their own range (stroke half-range, force and voltage limits), so
+        # the slack is a fraction and OSQP sees rows of one size.
+        self.span = (lim.leg_max - lim.leg_min) / 2 if None not in (lim.leg_min, lim.leg_max) \
+            else 1.0
         W = np.diag(weights)
         Cy, Dy = pm.C, pm.D
-        P = sp.lil_matrix((nz, nz))
+        P = _Triplets()
         for k in range(N + 1):
             Qx = Cy.T @ W @ Cy
             Qx[:NP, :NP] += np.diag(state_weights)
-            P[xi(k):xi(k) + n, xi(k):xi(k) + n] = Qx
+            P.add(None, xi(k), xi(k), np.triu(Qx))
             if k < N:
-                P[ui(k):ui(k) + NU, ui(k):ui(k) + NU] = Dy.T @ W @ Dy + np.diag(input_weights)
-                P[xi(k):xi(k) + n, ui(k):ui(k) + NU] = Cy.T @ W @ Dy
-                P[ui(k):ui(k) + NU, xi(k):xi(k) + n] = Dy.T @ W @ Cy
-                P[si(k), si(k)] = slack_weight[1]
-        self.P = sp.triu(P.tocsc(), format="csc")
-        self._grad = np.hstack([Cy, Dy]).T @ W @ pm.G       # (n + 6, 6): d q / d w
-        self._slack_lin = slack_weight[0]
-        A_blocks, self.sections = [], {}
-        r0 = 0
+                P.add(None, xi(k), ui(k), Cy.T @ W @ Dy)
+                P.add(None, ui(k), ui(k), np.triu(Dy.T @ W @ Dy + np.diag(input_weights)))
+                P.add(None, si(k), si(k), np.array([[slack_weight[1]]]))
+        self.P = sp.csc_matrix(sp.triu(P.csc((nz, nz))))
+        self.grad = np.hstack([Cy, Dy]).T @ W @ pm.G       # d q / d w, (n + 6, 6)
+        A, self.sections, r0 = _Triplets(), {}, 0
 
-        def add(name, mat):
+        def section(name, m):
             nonlocal r0
-            A_blocks.append(mat)
-            self.sections[name] = slice(r0, r0 + mat.shape[0])
-            r0 += mat.shape[0]
+            self.sections[name] = slice(r0, r0 + m)
+            r0 += m
+            return self.sections[name].start
 
-        def block(m):
-            return sp.lil_matrix((m, nz))
-
-        B0 = block(n)
-        B0[:, 0:n] = np.eye(n)
-        add("init", B0)
-        Bd = block(N * n)
+        r = section("init", n)
+        A.add(None, r, 0, np.eye(n))
+        r = section("dynamics", N * n)
         for k in range(N):
-            Bd[k * n:(k + 1) * n, xi(k):xi(k) + n] = pm.A
-            Bd[k * n:(k + 1) * n, ui(k):ui(k) + NU] = pm.B
-            Bd[k * n:(k + 1) * n, xi(k + 1):xi(k + 1) + n] = -np.eye(n)
-        add("dynamics", Bd)
-        Lq = lin.length_q
+            A.add(None, r + k * n, xi(k), pm.A)
+            A.add(None, r + k * n, ui(k), pm.B)
+            A.add(None, r + k * n, xi(k + 1), -np.eye(n))
         if lim.leg_min is not None or lim.leg_max is not None:
-            lo, hi = block(6 * N), block(6 * N)
-            for k in range(N):
-                for M in (lo, hi):
-                    M[6 * k:6 * k + 6, xi(k + 1):xi(k + 1) + 6] = Lq / self.scale[0]
-                lo[6 * k:6 * k + 6, si(k)] = 1.0
-                hi[6 * k:6 * k + 6, si(k)] = -1.0
-            add("stroke_lo", lo)
-            add("stroke_hi", hi)
+            for name, sign in (("stroke_lo", 1.0), ("stroke_hi", -1.0)):
+                r = section(name, 6 * N)
+                for k in range(N):
+                    A.add("stroke", r + 6 * k, xi(k + 1), legs.length_q[k] / self.span)
+                    A.add(None, r + 6 * k, si(k), np.full((6, 1), sign))
         if lim.axis is not None:
-            ax = lim.axis
-            # rack force and voltage as linear maps of (dq, qd) and u
-            Fx = np.hstack([lin.sigma_q, lin.sigma_qd])
-            Fu = lin.sigma_qdd
-            Vx = ax.motor.resistance / ax.force_constant * Fx
-            Vx[:, 6:] += ax.emf_constant * Lq
-            Vu = ax.motor.resistance / ax.force_constant * Fu
-            Bf, Bv = block(12 * N), block(6 * N)
+            r = section("force", 12 * N)
             for k in range(N):
                 for end in (0, 1):
-                    r = 12 * k + 6 * end
-                    Bf[r:r + 6, xi(k + end):xi(k + end) + NP] = Fx / self.scale[1]
-                    Bf[r:r + 6, ui(k):ui(k) + NU] = Fu / self.scale[1]
-                Bv[6 * k:6 * k + 6, xi(k + 1):xi(k + 1) + NP] = Vx / self.scale[2]
-                Bv[6 * k:6 * k + 6, ui(k):ui(k) + NU] = Vu / self.scale[2]
-            add("force", Bf)
-            add("voltage", Bv)
-        if lim.tilt_rate is not None:
-            Bt = block(2 * N)
+                    A.add("force", r + 12 * k + 6 * end, xi(k + end), np.zeros((6, NP)))
+                    A.add("force", r + 12 * k + 6 * end, ui(k), np.zeros((6, NU)))
+            r = section("voltage", 6 * N)
             for k in range(N):
-                Bt[2 * k, xi(k + 1) + 9] = 1.0     # roll rate  thx'
-                Bt[2 * k + 1, xi(k + 1) + 10] = 1.0  # pitch rate thy'
-            add("tilt_rate", Bt)
-        Bs = block(N)
-        Bs[:, self.ns0:] = np.eye(N)
-        add("slack", Bs)
-        self.A = sp.vstack([b.tocsr() for b in A_blocks]).tocsc()
-        self.m = self.A.shape[0]
-        self.l = np.full(self.m, -np.inf)
-        self.u = np.full(self.m, np.inf)
+                A.add("voltage", r + 6 * k, xi(k + 1), np.zeros((6, NP)))
+                A.add("voltage", r + 6 * k, ui(k), np.zeros((6, NU)))
+        if lim.tilt_rate is not None:
+            r = section("tilt_rate", 2 * N)
+            for k in range(N):
+                A.add(None, r + 2 * k, xi(k + 1) + 9, np.array([[1.0, 0.0]]))   # roll rate
+                A.add(None, r + 2 * k + 1, xi(k + 1) + 10, np.array([[1.0]]))  # pitch rate
+        r = section("slack", N)
+        A.add(None, r, self.ns0, np.eye(N))
+        self.Atrip = A
+        self.A = A.csc((r0, nz))
+        self.m = r0
+        self.l, self.u = np.full(self.m, -np.inf), np.full(self.m, np.inf)
         self.l[self.sections["slack"]] = 0.0
         self.q = np.zeros(nz)
-        self.q[self.ns0:] = self._slack_lin
+        self.q[self.ns0:] = slack_weight[0]
+        self.xi, self.ui = xi, ui
         self.solver = osqp.OSQP()
         self.solver.setup(self.P, self.q, self.A, self.l, self.u, verbose=False, polishing=True,
                           eps_abs=tolerance, eps_rel=tolerance, max_iter=max_iter,
-                          warm_starting=True)
-        self.xi, self.ui, self.si = xi, ui, si
+                          warm_starting=True, **OSQP_SETTINGS)
 
-    def shift(self, z: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The solution (z, y) moved one step on: the warm start of the next horizon, the last
-        step repeated (its input set to zero)."""
-        n, N = self.pm.n, self.N
-        X = z[:self.nx].reshape(N + 1, n)
-        U = z[self.nu0:self.ns0].reshape(N, NU)
-        S = z[self.ns0:]
-        zs = np.r_[X[1:].ravel(), X[-1], U[1:].ravel(), np.zeros(NU), S[1:], 0.0]
-        ys = y.copy()
-        for name, sl in self.sections.items():
-            if name == "init":
-                continue
-            per = (sl.stop - sl.start) // N
-            part = y[sl]
-            ys[sl] = np.r_[part[per:], part[-per:]]
-        return zs, ys
-
-    def solve(self, x0: np.ndarray, w: np.ndarray, offsets: dict[str, np.ndarray],
-              vehicle_rate: np.ndarray, guess: tuple[np.ndarray, np.ndarray] | None):
-        """One horizon: x0 the state now, w (N+1, 6) the known inputs, offsets the non-linear
-        corrections ('length' (N, 6) at k=1..N, 'force', 'voltage' (N, 2, 6) at both ends),
-        vehicle_rate (N, 2) the vehicle's roll and pitch rates at k=1..N."""
-        pm, N, n, lim, lin = self.pm, self.N, self.pm.n, self.lim, self.lin
-        q, l, u = self.q, self.l, self.u
+    def solve(self, x0: np.ndarray, w: np.ndarray, xbar: np.ndarray, ubar: np.ndarray,
+              start: LegLinearisation, end: LegLinearisation, vehicle_rate: np.ndarray):
+        """One horizon: x0 the state now, w (N+1, 6) the known vestibular inputs, the leg rows
+        linearised at the predicted (xbar (N+1, 12), ubar (N, 6)): `start` at (x_k, u_k) and
+        `end` at (x_k+1, u_k), k = 0..N-1; vehicle_rate (N, 2) the vehicle's roll and pitch
+        rates at k = 1..N."""
+        pm, N, n, lim = self.pm, self.N, self.pm.n, self.lim
+        q, l, u, S = self.q, self.l, self.u, self.sections
         for k in range(N + 1):
-            g = self._grad @ w[k]
+            g = self.grad @ w[k]
             q[self.xi(k):self.xi(k) + n] = g[:n]
             if k < N:
                 q[self.ui(k):self.ui(k) + NU] = g[n:]
-        S = self.sections
         l[S["init"]] = u[S["init"]] = x0
-        rhs = -(w[:N] @ pm.E.T).ravel()
-        l[S["dynamics"]] = u[S["dynamics"]] = rhs
+        l[S["dynamics"]] = u[S["dynamics"]] = -(w[:N] @ pm.E.T).ravel()
         if "stroke_lo" in S:
-            base = lin.lengths + offsets["length"]
-            lo = -np.inf if lim.leg_min is None else lim.leg_min + self._margin["stroke"]
-            hi = np.inf if lim.leg_max is None else lim.leg_max - self._margin["stroke"]
-            l[S["stroke_lo"]] = (lo - base).ravel() / self.scale[0]
-            u[S["stroke_hi"]] = (hi - base).ravel() / self.scale[0]
+            # l(x) ~ l(xbar) + L_q (dq - dqbar) within [leg_min + margin, leg_max - margin]
+            self.Atrip.refill("stroke", np.concatenate([end.length_q, end.length_q])
+                              / self.span)
+            base = end.lengths - np.einsum("kij,kj->ki", end.length_q, xbar[1:, :6])
+            lo = -np.inf if lim.leg_min is None else lim.leg_min + self.margin["stroke"]
+            hi = np.inf if lim.leg_max is None else lim.leg_max - self.margin["stroke"]
+            l[S["stroke_lo"]] = (lo - base).ravel() / self.span
+            u[S["stroke_hi"]] = (hi - base).ravel() / self.span
         if "force" in S:
-            hold = lin.sigma_hold
-            fmax = lim.force - self._margin["force"]
-            l[S["force"]] = (-fmax - hold - offsets["force"]).ravel() / self.scale[1]
-            u[S["force"]] = (fmax - hold - offsets["force"]).ravel() / self.scale[1]
-            ax = lim.axis
-            vhold = ax.motor.resistance / ax.force_constant * hold
-            vmax = lim.voltage - self._margin["voltage"]
-            l[S["voltage"]] = (-vmax - vhold - offsets["voltage"][:, 1]).ravel() / self.scale[2]
-            u[S["voltage"]] = (vmax - vhold - offsets["voltage"][:, 1]).ravel() / self.scale[2]
+            fmax = lim.force - self.margin["force"]
+            vmax = lim.voltage - self.margin["voltage"]
+            blocks, base = [], np.empty((N, 2, 6))
+            for e, (lin, xs) in enumerate(((start, xbar[:-1]), (end, xbar[1:]))):
+                base[:, e] = lin.sigma - np.einsum("kij,kj->ki", lin.sigma_x, xs) \
+                    - np.einsum("kij,kj->ki", lin.sigma_u, ubar)
+            for k in range(N):
+                for lin in (start, end):
+                    blocks += [lin.sigma_x[k] / lim.force, lin.sigma_u[k] / lim.force]
+            self.Atrip.refill("force", blocks)
+            l[S["force"]] = (-fmax - base).ravel() / lim.force
+            u[S["force"]] = (fmax - base).ravel() / lim.force
+            vbase = end.voltage - np.einsum("kij,kj->ki", end.voltage_x, xbar[1:]) \
+                - np.einsum("kij,kj->ki", end.voltage_u, ubar)
+            self.Atrip.refill("voltage", [b for k in range(N) for b in
+                                          (end.voltage_x[k] / lim.voltage,
+                                           end.voltage_u[k] / lim.voltage)])
+            l[S["voltage"]] = (-vmax - vbase).ravel() / lim.voltage
+            u[S["voltage"]] = (vmax - vbase).ravel() / lim.voltage
         if "tilt_rate" in S:
             l[S["tilt_rate"]] = (vehicle_rate - lim.tilt_rate).ravel()
             u[S["tilt_rate"]] = (vehicle_rate + lim.tilt_rate).ravel()
-        self.solver.update(q=q, l=l, u=u)
-        if guess is not None:
-            self.solver.warm_start(x=guess[0], y=guess[1])
-        return self.solver.solve()
+        self.solver.update(q=q, l=l, u=u, Ax=self.Atrip.csc_data())
+        return self.solver.solve()   # warm-started from the previous step's solution
 
 
 @dataclass(frozen=True)
@@ -361,7 +375,7 @@ def optimal_cueing(model: Model, config: CueingConfig, motion: VehicleMotion, ho
     vehicle and the platform perceive from rest). Each MPC step applies the first move of the
     horizon's optimum; a step OSQP does not solve applies the previous plan's next move (counted
     in the status)."""
-    start = time.perf_counter()
+    clock = time.perf_counter()
     if not (options.rate > 0 and options.horizon > 0):
         raise StewartError(f"MPC rate and horizon must be > 0, got {options.rate}, {options.horizon}")
     home, g = np.asarray(home, dtype=float), np.asarray(gravity, dtype=float)
@@ -372,8 +386,8 @@ def optimal_cueing(model: Model, config: CueingConfig, motion: VehicleMotion, ho
     tilt_rate = options.tilt_rate_limit if options.tilt_rate_limit is not None \
         else config.tilt_rate_limit
     lim = mechanism_limits(model, tilt_rate)
-    lin = linearise(model, home, g)
-    thresholds = np.r_[SPECIFIC_FORCE_THRESHOLD, ANGULAR_VELOCITY_THRESHOLD]
+    lin = linearise(home, g)
+    thresholds = np.r_[OTOLITH_THRESHOLD, CANAL_THRESHOLD]
     pm = prediction_model(lin, VESTIBULAR_CHANNELS, dt)
     pw = options.perception_weight
     weights = np.r_[np.full(3, pw[0]), np.full(3, pw[1])] / thresholds**2
@@ -383,20 +397,19 @@ def optimal_cueing(model: Model, config: CueingConfig, motion: VehicleMotion, ho
     margins = {"stroke": options.stroke_margin,
                "force": 0.0 if lim.force is None else options.force_margin * lim.force,
                "voltage": 0.0 if lim.voltage is None else options.voltage_margin * lim.voltage}
-    qp = _Qp(pm, lin, lim, N, weights, state_weights, input_weights, options.slack_weight,
-             margins, options.tolerance, options.max_iter)
+    n = pm.n
+    X = np.zeros((N + 1, n))          # the prediction the rows are linearised on
+    U = np.zeros((N, NU))
+    qp = _Qp(pm, lim, leg_rows(model, lim, home, X[:, :NP], U)[1], N, weights, state_weights,
+             input_weights, options.slack_weight, margins, options.tolerance, options.max_iter)
     edges = t[0] + dt * np.arange(M + N + 1)
     # Means of the deviation from rest, then rest added back: a vehicle at rest stays exactly
     # at rest through the sums (zero motion gives the neutral pose exactly).
-    rest = np.r_[VEHICLE_REST, 0.0, 0.0, 0.0]
+    rest = np.r_[0.0, 0.0, np.linalg.norm(g), 0.0, 0.0, 0.0]   # as perception() takes it
     sampled = np.hstack([np.asarray(motion.specific_force, float),
                          np.asarray(motion.angular_velocity, float)]) - rest
     vehicle = interval_means(t, sampled, edges)
-    n = pm.n
     x = np.zeros(n)
-    X = np.zeros((N + 1, n))          # the prediction the corrections are taken on
-    U = np.zeros((N, NU))
-    guess = None
     record = {"dq": np.empty((M, 6)), "qd": np.empty((M, 6)), "qdd": np.empty((M, 6)),
               "it": np.zeros(M, int), "time": np.zeros(M), "slack": np.zeros(M),
               "error": np.empty((M, 6))}
@@ -404,9 +417,11 @@ def optimal_cueing(model: Model, config: CueingConfig, motion: VehicleMotion, ho
     for j in range(M):
         window = vehicle[j:j + N + 1] if options.preview else np.repeat(vehicle[j:j + 1], N + 1, 0)
         X[0] = x
-        offsets, nonlinear = corrections(model, lin, lim, home, X[:, :NP], U)
+        nonlinear = known_inputs(lin, home, X[:, :NP], U)
         w = np.vstack([nonlinear, nonlinear[-1:]]) - rest - window
-        res = qp.solve(x, w, offsets, 0.5 * (window[:-1, 3:5] + window[1:, 3:5]), guess)
+        start, end = leg_rows(model, lim, home, X[:, :NP], U)
+        res = qp.solve(x, w, X[:, :NP], U, start, end,
+                       0.5 * (window[:-1, 3:5] + window[1:, 3:5]))
         status.append(res.info.status)
         record["it"][j], record["time"][j] = res.info.iter, res.info.solve_time
         z = res.x
@@ -414,21 +429,18 @@ def optimal_cueing(model: Model, config: CueingConfig, motion: VehicleMotion, ho
         if usable:
             Z = z[:qp.nx].reshape(N + 1, n)
             Uz = z[qp.nu0:qp.ns0].reshape(N, NU)
-            record["slack"][j] = z[qp.ns0] * qp.scale[0]
-            guess = qp.shift(z, res.y)
+            record["slack"][j] = z[qp.ns0] * qp.span
         else:   # keep flying the previous plan
             Z, Uz = X, U
-            guess = None
         u0 = Uz[0]
         # the applied step, with its corrections taken on itself
         x_lin = pm.A @ x + pm.B @ u0
         step = np.vstack([x[:NP], x_lin[:NP]])
-        _, w0 = corrections(model, lin, lim, home, step, u0[None])
-        w0 = w0[0] - rest - vehicle[j]
+        w0 = known_inputs(lin, home, step, u0[None])[0] - rest - vehicle[j]
         record["error"][j] = pm.C @ x + pm.D @ u0 + pm.G @ w0
         record["dq"][j], record["qd"][j], record["qdd"][j] = x[:6], x[6:NP], u0
         x = x_lin + pm.E @ w0
-        # shift: the next step's prediction and warm start
+        # shift: the next step linearises on the rest of this plan
         X = np.vstack([Z[1:], Z[-1:]])
         U = np.vstack([Uz[1:], np.zeros((1, NU))])
     plan = Plan(t[0] + dt * np.arange(M), record["dq"], record["qd"], record["qdd"])
@@ -440,53 +452,35 @@ def optimal_cueing(model: Model, config: CueingConfig, motion: VehicleMotion, ho
         ("force", lim.force is not None), ("voltage", lim.voltage is not None),
         ("tilt_rate", lim.tilt_rate is not None)) if on)
     diag = Diagnostics(plan.t, record["it"], record["time"], tuple(status), record["slack"],
-                       record["error"], limits, time.perf_counter() - start, qp.nz, qp.m)
+                       record["error"], limits, time.perf_counter() - clock, qp.nz, qp.m)
     return OptimalResult(cue, plan, diag)
 
 
-def corrections(model: Model, lin: Linearisation, lim: Limits, home: np.ndarray,
-                xp: np.ndarray, u: np.ndarray) -> tuple[dict[str, np.ndarray], np.ndarray]:
-    """The non-linear remainders on a predicted platform trajectory xp (K+1, 12) = (dq, qd) at
-    the step ends and u (K, 6) on the steps: exact minus linearised leg lengths (K, 6) at
-    k = 1..K, rack forces and voltages (K, 2, 6) at both ends of each step, and the known
-    vestibular input (K, 6): delivered specific force (its neutral value included) and angular
-    velocity beyond their linear part, the mean of both ends of the step.
-
-    Poses outside the stroke (a prediction that used slack) keep the linear force model there:
-    the inverse dynamics refuses them."""
+def known_inputs(lin: Linearisation, home: np.ndarray, xp: np.ndarray, u: np.ndarray
+                 ) -> np.ndarray:
+    """The vestibular input beyond its linear part on a platform trajectory xp (K+1, 12) =
+    (dq, qd) at the step ends with u (K, 6) on the steps: delivered specific force (its neutral
+    value included) and angular velocity minus their linearisation at home, the mean of both
+    ends of each step, (K, 6). With the vehicle's motion subtracted this is the w of the
+    prediction model: the tilt's sine and the yaw's mixing of the axes enter here."""
     dq, qd = xp[:, :6], xp[:, 6:NP]
     K = u.shape[0]
-    Q = home + dq
-    kin = inverse_kinematics(model, Q, qd, with_cond=False)
-    offsets = {"length": kin.lengths[1:] - (lin.lengths + dq[1:] @ lin.length_q.T)}
-    ends = (slice(0, K), slice(1, K + 1))
-    if lim.axis is not None:
-        ax = lim.axis
-        force, volt = np.zeros((K, 2, 6)), np.zeros((K, 2, 6))
-        lo = -np.inf if lim.leg_min is None else lim.leg_min
-        hi = np.inf if lim.leg_max is None else lim.leg_max
-        inside = np.all((kin.lengths >= lo) & (kin.lengths <= hi), axis=1)
-        for e, sl in enumerate(ends):
-            ok = np.flatnonzero(inside[sl])
-            if ok.size == 0:
-                continue
-            qs, qds = Q[sl][ok], qd[sl][ok]
-            try:
-                sigma = inverse_dynamics(model, qs, qds, u[ok])
-            except StrokeLimitError:   # a pose on the stroke's edge: linear model there
-                continue
-            lin_sigma = (lin.sigma_hold + dq[sl][ok] @ lin.sigma_q.T + qds @ lin.sigma_qd.T
-                         + u[ok] @ lin.sigma_qdd.T)
-            force[ok, e] = sigma - lin_sigma
-            rates = kin.rates[sl][ok]
-            exact_v = ax.voltage(sigma / ax.force_constant, 0.0, rates)
-            lin_v = (ax.motor.resistance / ax.force_constant * lin_sigma
-                     + ax.emf_constant * (qds @ lin.length_q.T))
-            volt[ok, e] = exact_v - lin_v
-        offsets["force"], offsets["voltage"] = force, volt
     w = np.zeros((K, 6))
-    for sl in ends:
-        f, om = delivered(Q[sl], qd[sl], u, lin.gravity)
+    for sl in (slice(0, K), slice(1, K + 1)):
+        f, om = delivered(home + dq[sl], qd[sl], u, lin.gravity)
         w[:, :3] += 0.5 * (f - dq[sl] @ lin.force_q.T - u @ lin.force_qdd.T)
         w[:, 3:] += 0.5 * (om - qd[sl] @ lin.rate_qd.T)
-    return offsets, w
+    return w
+
+
+def leg_rows(model: Model, lim: Limits, home: np.ndarray, xp: np.ndarray, u: np.ndarray
+             ) -> tuple[LegLinearisation, LegLinearisation]:
+    """The leg quantities linearised at the start (x_k, u_k) and the end (x_k+1, u_k) of each
+    step of a predicted trajectory (xp (K+1, 12), u (K, 6))."""
+    Q, QD = home + xp[:, :6], xp[:, 6:NP]
+    both = leg_linearisation(model, lim.axis, np.vstack([Q[:-1], Q[1:]]),
+                             np.vstack([QD[:-1], QD[1:]]), np.vstack([u, u]))
+    K = u.shape[0]
+    half = [LegLinearisation(*(None if a is None else a[sl] for a in vars(both).values()))
+            for sl in (slice(0, K), slice(K, 2 * K))]
+    return half[0], half[1]
