@@ -25,12 +25,14 @@ f_C ~ a - g + theta x g = (a_x - G thy, a_y + G thx, a_z + G): a positive pitch 
 typed in: `linearise` takes them by central differences of the exact expressions, so the signs
 follow the contract's R, not a convention copied from a paper.
 
-The leg lengths and the rack forces are linearised at home the same way, from our own inverse
-kinematics and inverse dynamics (every effect the scene declares): l ~ l_home + L_q dq and
-sigma ~ sigma_hold + S_q dq + S_v qd + S_a u. What the linearisation leaves out (the tilt's sine,
-the Jacobian's change over the workspace, Coriolis forces, Coulomb friction) the MPC adds back as
-known offsets evaluated on its previous prediction (optimal.py), so only vectors change between
-steps.
+The leg lengths, rack forces and drive voltages are linearised by `leg_linearisation` through
+our own inverse kinematics and inverse dynamics (every effect the scene declares), not at home
+but at every point of the MPC's predicted trajectory (optimal.py re-linearises them each step):
+far from home the mass matrix in pose coordinates and the leg Jacobian change too much for one
+linearisation (the braking car's surge of 1.7 m took 1.47x the force limit with the home one).
+What the home linearisation of the delivered motion leaves out (the tilt's sine, the yaw's
+mixing of the axes) enters as a known input evaluated on the previous prediction, so the cost
+matrix is built once.
 """
 from __future__ import annotations
 

@@ -15,23 +15,25 @@ constraints", Vehicle System Dynamics 51: 1151-1172), with the limits taken from
   (weight 1 / threshold^2), a washout term on position, velocity, yaw and the angular rates
   (never on roll and pitch: a sustained tilt is the cue of a sustained specific force), the
   input effort, and an exact penalty on the constraint slacks.
-* Constraints, linearised at the neutral pose: the six leg lengths within the stroke minus a
-  margin (l ~ l_home + L_q dq), the rack forces within Kf I_max (sigma ~ sigma_hold + S_q dq +
-  S_v qd + S_a qdd, from stewart_fmu.dynamics.inverse_dynamics: every effect the scene declares),
-  the drive voltage R sigma / Kf + Ke' ldot within V_max (controller.drive's motor; the inductive
-  L di/dt is left out: with L/R = 10 ms on the shipped simulator it acts within one MPC step),
-  forces and voltages at both ends of every step, and the tilt rate: the platform's roll and
-  pitch rates may differ from the vehicle's by at most the tilt-rate limit (the rotation the
-  occupant feels that the vehicle does not make stays below the canals' threshold).
-* Non-linearity: each step evaluates the exact leg lengths, rack forces, voltages and delivered
-  motion on the previous solution's prediction (shifted by one step) and adds the difference to
-  the linear model as known offsets: one fixed-Jacobian SQP iteration per step. The QP's matrices
-  are built once; per step only its vectors change (OSQP update + warm start). At a steady
-  state the prediction is the state, so the steady state is exact: a sustained specific force f
-  ends as the tilt asin(f / g), not its small-angle f / g.
-* Stroke, force and voltage are soft (slack with a linear and a quadratic penalty, exact when
-  the hard problem is feasible), so a step whose linear model cannot be met still has a
-  solution; the slack used is reported. The tilt-rate limit is hard.
+* Constraints: the six leg lengths within the stroke minus a margin, the rack forces within
+  Kf I_max (stewart_fmu.dynamics.inverse_dynamics: every effect the scene declares, the drives'
+  reflected inertia included), the drive voltage R sigma / Kf + Ke' ldot within V_max minus a
+  margin (controller.drive's motor; the inductive L di/dt is left out: L/R = 10 ms on the
+  shipped simulator, within one MPC step), forces at both ends of every step, voltages at
+  their ends, and the tilt rate: the platform's roll and pitch rates may differ from the
+  vehicle's by at most the tilt-rate limit (the rotation the occupant feels that the vehicle
+  does not make stays below the canals' threshold).
+* Non-linearity (a real-time iteration of sequential QP): each step re-linearises the leg rows
+  (value and Jacobians, mpc_model.leg_linearisation) at every point of the previous solution's
+  prediction, shifted by one step; the QP's pattern is built once and OSQP gets new values
+  (a refactorisation) and vectors. The delivered specific force and angular velocity are
+  linearised at home in the cost, their remainder (the tilt's sine) evaluated on the same
+  prediction as a known input: at a steady state the prediction is the state, so a sustained
+  specific force f ends as the tilt asin(f / g), not its small-angle f / g.
+* The stroke is soft (a slack with a linear and a quadratic penalty, exact when the hard
+  problem is feasible), so a prediction that cannot stop in time still has a solution; the
+  slack used is reported. Force, voltage and tilt rate are hard; a step OSQP does not solve
+  flies the previous plan (counted in the diagnostics' status).
 * Preview: with `preview=True` (default) the future vehicle motion over the horizon is known
   (a recorded motion, as in Garrett and Best's offline case); with False the current vehicle
   motion is held over the horizon (the real-time case of Dagdelen et al.).
@@ -42,7 +44,7 @@ qdd are consistent at any sample rate; the cue is resampled at the motion's own 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import osqp
@@ -87,7 +89,8 @@ class OptimalOptions:
     force_margin: float = 0.05         # fraction of Kf I_max kept free
     voltage_margin: float = 0.05       # fraction of V_max kept free
     tilt_rate_limit: float | None = None   # rad/s; None: the [cueing] table's
-    perception_weight: tuple[float, float] = (1.0, 1.0)      # specific force, angular velocity
+    # per axis: specific force x, y, z, angular velocity x, y, z
+    perception_weight: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0, 1.0, 1.0)
     position_weight: tuple[float, float, float] = (1.0, 1.0, 1.0)
     velocity_weight: tuple[float, float, float] = (1.0, 1.0, 1.0)
     yaw_weight: float = 1.0
@@ -348,7 +351,7 @@ class _Qp:
             l[S["tilt_rate"]] = (vehicle_rate - lim.tilt_rate).ravel()
             u[S["tilt_rate"]] = (vehicle_rate + lim.tilt_rate).ravel()
         self.solver.update(q=q, l=l, u=u, Ax=self.Atrip.csc_data())
-        return self.solver.solve()   # warm-started from the previous step's solution
+        return self.solver.solve(raise_error=False)   # warm-started from the previous step's solution
 
 
 @dataclass(frozen=True)
@@ -374,7 +377,8 @@ def optimal_cueing(model: Model, config: CueingConfig, motion: VehicleMotion, ho
     The platform starts at rest at `home` with the perceived error's states at zero (both the
     vehicle and the platform perceive from rest). Each MPC step applies the first move of the
     horizon's optimum; a step OSQP does not solve applies the previous plan's next move (counted
-    in the status)."""
+    in the status). The Cue's `tilt` is the whole roll and pitch: the MPC does not split them
+    into a tilt and a rotational channel."""
     clock = time.perf_counter()
     if not (options.rate > 0 and options.horizon > 0):
         raise StewartError(f"MPC rate and horizon must be > 0, got {options.rate}, {options.horizon}")
@@ -389,8 +393,7 @@ def optimal_cueing(model: Model, config: CueingConfig, motion: VehicleMotion, ho
     lin = linearise(home, g)
     thresholds = np.r_[OTOLITH_THRESHOLD, CANAL_THRESHOLD]
     pm = prediction_model(lin, VESTIBULAR_CHANNELS, dt)
-    pw = options.perception_weight
-    weights = np.r_[np.full(3, pw[0]), np.full(3, pw[1])] / thresholds**2
+    weights = np.asarray(options.perception_weight, dtype=float) / thresholds**2
     state_weights = np.r_[options.position_weight, 0.0, 0.0, options.yaw_weight,
                           options.velocity_weight, options.rate_weight]
     input_weights = np.r_[options.acceleration_weight, options.angular_acceleration_weight]
