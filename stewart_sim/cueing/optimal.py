@@ -71,7 +71,7 @@ VESTIBULAR_CHANNELS = tuple(otolith_num_den(k) for k in range(3)) + tuple(
 
 # rho adapted every 25 iterations, not after a fraction of the setup time (OSQP's default):
 # the same problem then takes the same path whatever the machine's load.
-OSQP_SETTINGS = {"adaptive_rho_interval": 25, "rho": 0.01}
+OSQP_SETTINGS = {"adaptive_rho_interval": 25, "rho": 0.01, "polishing": True}
 
 
 @dataclass(frozen=True)
@@ -299,7 +299,7 @@ class _Qp:
         self.q[self.ns0:] = slack_weight[0]
         self.xi, self.ui = xi, ui
         self.solver = osqp.OSQP()
-        self.solver.setup(self.P, self.q, self.A, self.l, self.u, verbose=False, polishing=True,
+        self.solver.setup(self.P, self.q, self.A, self.l, self.u, verbose=False,
                           eps_abs=tolerance, eps_rel=tolerance, max_iter=max_iter,
                           warm_starting=True, **OSQP_SETTINGS)
 
