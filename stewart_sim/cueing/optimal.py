@@ -98,6 +98,11 @@ class OptimalOptions:
     acceleration_weight: tuple[float, float, float] = (0.01, 0.01, 0.01)
     angular_acceleration_weight: tuple[float, float, float] = (0.01, 0.01, 0.01)
     slack_weight: tuple[float, float] = (1e3, 1e3)   # linear, quadratic, per fraction of range
+    # the washout weights at the horizon's last step, times this: what the horizon leaves
+    # beyond its end is the platform's state, so it must not be left drifting (without it, a
+    # sustained tilt's small f_z loss kept the platform 0.1-0.4 m up, accelerating upward at
+    # the end of every horizon)
+    terminal_weight: float = 100.0
     tolerance: float = 1e-3            # OSQP eps_abs = eps_rel (then polished: active set exact)
     max_iter: int = 20000
 
@@ -228,7 +233,7 @@ class _Qp:
     def __init__(self, pm: PredictionModel, lim: Limits, legs: LegLinearisation, steps: int,
                  weights: np.ndarray, state_weights: np.ndarray, input_weights: np.ndarray,
                  slack_weight: tuple[float, float], margins: dict[str, float],
-                 tolerance: float, max_iter: int):
+                 tolerance: float, max_iter: int, terminal_weight: float):
         self.pm, self.lim, self.N, self.margin = pm, lim, steps, margins
         n, N = pm.n, steps
         self.nx, self.nu0, self.ns0 = (N + 1) * n, (N + 1) * n, (N + 1) * n + N * NU
@@ -244,7 +249,7 @@ class _Qp:
         P = _Triplets()
         for k in range(N + 1):
             Qx = Cy.T @ W @ Cy
-            Qx[:NP, :NP] += np.diag(state_weights)
+            Qx[:NP, :NP] += np.diag(state_weights) * (terminal_weight if k == N else 1.0)
             P.add(None, xi(k), xi(k), np.triu(Qx))
             if k < N:
                 P.add(None, xi(k), ui(k), Cy.T @ W @ Dy)
@@ -404,7 +409,8 @@ def optimal_cueing(model: Model, config: CueingConfig, motion: VehicleMotion, ho
     X = np.zeros((N + 1, n))          # the prediction the rows are linearised on
     U = np.zeros((N, NU))
     qp = _Qp(pm, lim, leg_rows(model, lim, home, X[:, :NP], U)[1], N, weights, state_weights,
-             input_weights, options.slack_weight, margins, options.tolerance, options.max_iter)
+             input_weights, options.slack_weight, margins, options.tolerance, options.max_iter,
+             options.terminal_weight)
     edges = t[0] + dt * np.arange(M + N + 1)
     # Means of the deviation from rest, then rest added back: a vehicle at rest stays exactly
     # at rest through the sums (zero motion gives the neutral pose exactly).
