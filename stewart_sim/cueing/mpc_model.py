@@ -36,8 +36,8 @@ matrix is built once.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from typing import Sequence
 
 import numpy as np
 from scipy.linalg import expm, solve_continuous_lyapunov
@@ -145,8 +145,9 @@ def leg_linearisation(model: Model, axis: AxisModel | None, q, qd, qdd) -> LegLi
 
     sigma_x = np.concatenate([central(smooth, 1), central(smooth, 13)], axis=2)
     sigma_u = np.transpose(smooth[:, 25:31] - smooth[:, :1], (0, 2, 1)) / _STEP
-    out = dict(lengths=L[:, 0], length_q=central(L, 1), sigma=sigma.reshape(K, P, 6)[:, 0],
-               sigma_x=sigma_x, sigma_u=sigma_u, voltage=None, voltage_x=None, voltage_u=None)
+    out = {"lengths": L[:, 0], "length_q": central(L, 1), "sigma": sigma.reshape(K, P, 6)[:, 0],
+           "sigma_x": sigma_x, "sigma_u": sigma_u, "voltage": None, "voltage_x": None,
+           "voltage_u": None}
     if axis is not None:
         ohm = axis.motor.resistance / axis.force_constant
         rates = kin.rates.reshape(K, P, 6)
@@ -206,7 +207,9 @@ def _scaled(a, b, c, d):
     return a * T[None, :] / T[:, None], b / T[:, None], c * T[None, :], d
 
 
-def prediction_model(lin: Linearisation, channels, dt: float) -> PredictionModel:
+def prediction_model(lin: Linearisation,
+                     channels: Sequence[tuple[Sequence[float], Sequence[float]]],
+                     dt: float) -> PredictionModel:
     """The augmented continuous model (double integrators per pose coordinate, vestibular
     transfer functions on the delivered-minus-vehicle motion) discretised exactly for a
     zero-order hold on u and w over dt (matrix exponential of the augmented system)."""

@@ -52,16 +52,28 @@ import scipy.sparse as sp
 
 from controller.config import controller_config
 from controller.drive import AxisModel, axis_model
-from stewart_fmu.dynamics import inverse_dynamics
-from stewart_fmu.errors import StewartError, StrokeLimitError
-from stewart_fmu.kinematics import inverse_kinematics
+from stewart_fmu.errors import StewartError
 from stewart_fmu.model import Model
 
 from .config import CueingConfig
 from .motion import VehicleMotion
-from .mpc_model import NP, NU, LegLinearisation, Linearisation, PredictionModel, delivered, \
-    leg_linearisation, linearise, prediction_model
-from .vestibular import CANAL_THRESHOLD, OTOLITH_THRESHOLD, canal_num_den, otolith_num_den
+from .mpc_model import (
+    NP,
+    NU,
+    LegLinearisation,
+    Linearisation,
+    PredictionModel,
+    delivered,
+    leg_linearisation,
+    linearise,
+    prediction_model,
+)
+from .vestibular import (
+    CANAL_THRESHOLD,
+    OTOLITH_THRESHOLD,
+    canal_num_den,
+    otolith_num_den,
+)
 from .washout import Cue
 
 # f_x, f_y, f_z, omega_x, omega_y, omega_z: the models perception() runs
@@ -115,6 +127,8 @@ class Diagnostics:
     iterations: np.ndarray           # (M,) OSQP iterations
     solve_time: np.ndarray           # (M,) s, OSQP's own solve time
     status: tuple[str, ...]          # (M,) OSQP status of each step
+    polished: np.ndarray             # (M,) bool: solved exactly on its active set (else: to
+                                     # the tolerance / 100, after a failed polish)
     slack: np.ndarray                # (M,) stroke slack of the applied step, m (0: kept)
     predicted_error: np.ndarray      # (M, 6) perceived error of the applied step (model)
     limits: tuple[str, ...]          # the limits imposed: "stroke", "force", "voltage", "tilt_rate"
@@ -235,6 +249,7 @@ class _Qp:
                  slack_weight: tuple[float, float], margins: dict[str, float],
                  tolerance: float, max_iter: int, terminal_weight: float):
         self.pm, self.lim, self.N, self.margin = pm, lim, steps, margins
+        self.tolerance = tolerance
         n, N = pm.n, steps
         self.nx, self.nu0, self.ns0 = (N + 1) * n, (N + 1) * n, (N + 1) * n + N * NU
         nz = self.ns0 + N
@@ -291,8 +306,9 @@ class _Qp:
         if lim.tilt_rate is not None:
             r = section("tilt_rate", 2 * N)
             for k in range(N):
-                A.add(None, r + 2 * k, xi(k + 1) + 9, np.array([[1.0, 0.0]]))   # roll rate
-                A.add(None, r + 2 * k + 1, xi(k + 1) + 10, np.array([[1.0]]))  # pitch rate
+                # roll and pitch rates, in units of the limit
+                A.add(None, r + 2 * k, xi(k + 1) + 9, np.array([[1.0, 0.0]]) / lim.tilt_rate)
+                A.add(None, r + 2 * k + 1, xi(k + 1) + 10, np.array([[1.0]]) / lim.tilt_rate)
         r = section("slack", N)
         A.add(None, r, self.ns0, np.eye(N))
         self.Atrip = A
@@ -353,10 +369,17 @@ class _Qp:
             l[S["voltage"]] = (-vmax - vbase).ravel() / lim.voltage
             u[S["voltage"]] = (vmax - vbase).ravel() / lim.voltage
         if "tilt_rate" in S:
-            l[S["tilt_rate"]] = (vehicle_rate - lim.tilt_rate).ravel()
-            u[S["tilt_rate"]] = (vehicle_rate + lim.tilt_rate).ravel()
+            l[S["tilt_rate"]] = (vehicle_rate / lim.tilt_rate - 1.0).ravel()
+            u[S["tilt_rate"]] = (vehicle_rate / lim.tilt_rate + 1.0).ravel()
         self.solver.update(q=q, l=l, u=u, Ax=self.Atrip.csc_data())
-        return self.solver.solve(raise_error=False)   # warm-started from the previous step's solution
+        res = self.solver.solve(raise_error=False)   # warm-started from the previous solution
+        if res.info.status == "solved" and res.info.status_polish != 1:
+            # polishing (the exact solve on the active set) failed: the hard limits then hold
+            # to the tolerance only, so the step is solved on, 100x tighter, from there
+            self.solver.update_settings(eps_abs=self.tolerance / 100, eps_rel=self.tolerance / 100)
+            res = self.solver.solve(raise_error=False)
+            self.solver.update_settings(eps_abs=self.tolerance, eps_rel=self.tolerance)
+        return res
 
 
 @dataclass(frozen=True)
@@ -382,14 +405,14 @@ def optimal_cueing(model: Model, config: CueingConfig, motion: VehicleMotion, ho
     The platform starts at rest at `home` with the perceived error's states at zero (both the
     vehicle and the platform perceive from rest). Each MPC step applies the first move of the
     horizon's optimum; a step OSQP does not solve applies the previous plan's next move (counted
-    in the status). The Cue's `tilt` is the whole roll and pitch: the MPC does not split them
-    into a tilt and a rotational channel."""
+    in the status). The Cue's `tilt` is the whole roll and pitch from home: the MPC does not
+    split them into a tilt and a rotational channel."""
     clock = time.perf_counter()
     if not (options.rate > 0 and options.horizon > 0):
         raise StewartError(f"MPC rate and horizon must be > 0, got {options.rate}, {options.horizon}")
     home, g = np.asarray(home, dtype=float), np.asarray(gravity, dtype=float)
     dt = 1.0 / options.rate
-    N = max(1, int(round(options.horizon * options.rate)))
+    N = max(1, round(options.horizon * options.rate))
     t = np.asarray(motion.t, dtype=float)
     M = max(1, int(np.ceil((t[-1] - t[0]) / dt - 1e-9)))
     tilt_rate = options.tilt_rate_limit if options.tilt_rate_limit is not None \
@@ -421,7 +444,7 @@ def optimal_cueing(model: Model, config: CueingConfig, motion: VehicleMotion, ho
     x = np.zeros(n)
     record = {"dq": np.empty((M, 6)), "qd": np.empty((M, 6)), "qdd": np.empty((M, 6)),
               "it": np.zeros(M, int), "time": np.zeros(M), "slack": np.zeros(M),
-              "error": np.empty((M, 6))}
+              "error": np.empty((M, 6)), "polished": np.zeros(M, bool)}
     status = []
     for j in range(M):
         window = vehicle[j:j + N + 1] if options.preview else np.repeat(vehicle[j:j + 1], N + 1, 0)
@@ -433,6 +456,7 @@ def optimal_cueing(model: Model, config: CueingConfig, motion: VehicleMotion, ho
                        0.5 * (window[:-1, 3:5] + window[1:, 3:5]))
         status.append(res.info.status)
         record["it"][j], record["time"][j] = res.info.iter, res.info.solve_time
+        record["polished"][j] = res.info.status_polish == 1
         z = res.x
         usable = res.info.status.startswith("solved") and np.all(np.isfinite(z))
         if usable:
@@ -455,13 +479,13 @@ def optimal_cueing(model: Model, config: CueingConfig, motion: VehicleMotion, ho
     plan = Plan(t[0] + dt * np.arange(M), record["dq"], record["qd"], record["qdd"])
     dq, qd, qdd = plan.sample(t)
     q = home + dq
-    cue = Cue(t=t, q=q, qd=qd, qdd=qdd, tilt=q[:, 3:5].copy())
+    cue = Cue(t=t, q=q, qd=qd, qdd=qdd, tilt=dq[:, 3:5].copy())
     limits = tuple(name for name, on in (
         ("stroke", lim.leg_min is not None or lim.leg_max is not None),
         ("force", lim.force is not None), ("voltage", lim.voltage is not None),
         ("tilt_rate", lim.tilt_rate is not None)) if on)
-    diag = Diagnostics(plan.t, record["it"], record["time"], tuple(status), record["slack"],
-                       record["error"], limits, time.perf_counter() - clock, qp.nz, qp.m)
+    diag = Diagnostics(plan.t, record["it"], record["time"], tuple(status), record["polished"],
+                       record["slack"], record["error"], limits, time.perf_counter() - clock, qp.nz, qp.m)
     return OptimalResult(cue, plan, diag)
 
 
