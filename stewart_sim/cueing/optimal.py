@@ -13,8 +13,9 @@ constraints", Vehicle System Dynamics 51: 1151-1172), with the limits taken from
   error, exactly discretised.
 * Cost over the horizon: the perceived error per axis in units of its perception threshold
   (weight 1 / threshold^2), a washout term on position, velocity, yaw and the angular rates
-  (never on roll and pitch: a sustained tilt is the cue of a sustained specific force), the
-  input effort, and an exact penalty on the constraint slacks.
+  (never on roll and pitch: a sustained tilt is the cue of a sustained specific force), 100x
+  on the horizon's last step (what lies beyond the horizon must not be left drifting), the
+  input effort, and an exact penalty on the stroke slack.
 * Constraints: the six leg lengths within the stroke minus a margin, the rack forces within
   Kf I_max (stewart_fmu.dynamics.inverse_dynamics: every effect the scene declares, the drives'
   reflected inertia included), the drive voltage R sigma / Kf + Ke' ldot within V_max minus a
