@@ -85,6 +85,7 @@ VESTIBULAR_CHANNELS = tuple(otolith_num_den(k) for k in range(3)) + tuple(
 # rho adapted every 25 iterations, not after a fraction of the setup time (OSQP's default):
 # the same problem then takes the same path whatever the machine's load.
 OSQP_SETTINGS = {"adaptive_rho_interval": 25, "rho": 0.01, "polishing": True}
+REFINE_ITERATIONS = 500
 
 
 @dataclass(frozen=True)
@@ -128,8 +129,8 @@ class Diagnostics:
     iterations: np.ndarray           # (M,) OSQP iterations
     solve_time: np.ndarray           # (M,) s, OSQP's own solve time
     status: tuple[str, ...]          # (M,) OSQP status of each step
-    polished: np.ndarray             # (M,) bool: solved exactly on its active set (else: to
-                                     # the tolerance / 100, after a failed polish)
+    polished: np.ndarray             # (M,) bool: solved exactly on its active set (else to
+                                     # the tolerance, or its tenth after a failed polish)
     slack: np.ndarray                # (M,) stroke slack of the applied step, m (0: kept)
     predicted_error: np.ndarray      # (M, 6) perceived error of the applied step (model)
     limits: tuple[str, ...]          # the limits imposed: "stroke", "force", "voltage", "tilt_rate"
@@ -250,7 +251,7 @@ class _Qp:
                  slack_weight: tuple[float, float], margins: dict[str, float],
                  tolerance: float, max_iter: int, terminal_weight: float):
         self.pm, self.lim, self.N, self.margin = pm, lim, steps, margins
-        self.tolerance = tolerance
+        self.tolerance, self.max_iter = tolerance, max_iter
         n, N = pm.n, steps
         self.nx, self.nu0, self.ns0 = (N + 1) * n, (N + 1) * n, (N + 1) * n + N * NU
         nz = self.ns0 + N
@@ -376,10 +377,15 @@ class _Qp:
         res = self.solver.solve(raise_error=False)   # warm-started from the previous solution
         if res.info.status == "solved" and res.info.status_polish != 1:
             # polishing (the exact solve on the active set) failed: the hard limits then hold
-            # to the tolerance only, so the step is solved on, 100x tighter, from there
-            self.solver.update_settings(eps_abs=self.tolerance / 100, eps_rel=self.tolerance / 100)
-            res = self.solver.solve(raise_error=False)
-            self.solver.update_settings(eps_abs=self.tolerance, eps_rel=self.tolerance)
+            # to the tolerance only, so the step is solved on from there, 10x tighter, for at
+            # most REFINE_ITERATIONS more (kept if it gets there, else the first solution)
+            self.solver.update_settings(eps_abs=self.tolerance / 10, eps_rel=self.tolerance / 10,
+                                        max_iter=REFINE_ITERATIONS)
+            refined = self.solver.solve(raise_error=False)
+            self.solver.update_settings(eps_abs=self.tolerance, eps_rel=self.tolerance,
+                                        max_iter=self.max_iter)
+            if refined.info.status == "solved":
+                return refined
         return res
 
 
