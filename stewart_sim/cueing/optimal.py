@@ -1,0 +1,526 @@
+"""Model-predictive motion cueing: the platform motion that minimises the perceived-motion error
+within the mechanism's real limits, over a receding horizon, solved by OSQP.
+
+The formulation follows Dagdelen et al. 2009 ("Model-based predictive motion cueing strategy for
+vehicle driving simulators", Control Engineering Practice 17: 995-1003) and Garrett and Best
+2013 ("Model predictive driving simulator motion cueing algorithm with actuator-based
+constraints", Vehicle System Dynamics 51: 1151-1172), with the limits taken from our own model:
+
+* Prediction (mpc_model.py): the pose and its Euler-angle rates as double integrators driven by
+  the accelerations u = qdd (zero-order hold at the MPC rate), and the vestibular models
+  (otolith, semicircular canals) driven by the delivered-minus-vehicle specific force and
+  angular velocity, gravity tilt included. One vestibular state therefore carries the perceived
+  error, exactly discretised.
+* Cost over the horizon: the perceived error per axis in units of its perception threshold
+  (weight 1 / threshold^2), a washout term on position, velocity, yaw and the angular rates
+  (never on roll and pitch: a sustained tilt is the cue of a sustained specific force), 100x
+  on the horizon's last step (what lies beyond the horizon must not be left drifting), the
+  input effort, and an exact penalty on the stroke slack.
+* Constraints: the six leg lengths within the stroke minus a margin, the rack forces within
+  Kf I_max (stewart_fmu.dynamics.inverse_dynamics: every effect the scene declares, the drives'
+  reflected inertia included), the drive voltage R sigma / Kf + Ke' ldot within V_max minus a
+  margin (controller.drive's motor; the inductive L di/dt is left out: L/R = 10 ms on the
+  shipped simulator, within one MPC step), forces at both ends of every step, voltages at
+  their ends, and the tilt rate: the platform's roll and pitch rates may differ from the
+  vehicle's by at most the tilt-rate limit (the rotation the occupant feels that the vehicle
+  does not make stays below the canals' threshold).
+* Non-linearity (a real-time iteration of sequential QP): each step re-linearises the leg rows
+  (value and Jacobians, mpc_model.leg_linearisation) at every point of the previous solution's
+  prediction, shifted by one step; the QP's pattern is built once and OSQP gets new values
+  (a refactorisation) and vectors. The delivered specific force and angular velocity are
+  linearised at home in the cost, their remainder (the tilt's sine) evaluated on the same
+  prediction as a known input: at a steady state the prediction is the state, so a sustained
+  specific force f ends as the tilt asin(f / g), not its small-angle f / g.
+* The stroke is soft (a slack with a linear and a quadratic penalty, exact when the hard
+  problem is feasible), so a prediction that cannot stop in time still has a solution; the
+  slack used is reported. Force, voltage and tilt rate are hard; a step OSQP does not solve
+  flies the previous plan (counted in the diagnostics' status).
+* Preview: with `preview=True` (default) the future vehicle motion over the horizon is known
+  (a recorded motion, as in Garrett and Best's offline case); with False the current vehicle
+  motion is held over the horizon (the real-time case of Dagdelen et al.).
+
+The applied accelerations are integrated exactly (piecewise constant), so the returned q, qd,
+qdd are consistent at any sample rate; the cue is resampled at the motion's own times.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import osqp
+import scipy.sparse as sp
+
+from controller.config import controller_config
+from controller.drive import AxisModel, axis_model
+from stewart_fmu.errors import StewartError
+from stewart_fmu.model import Model
+
+from .config import CueingConfig
+from .motion import VehicleMotion
+from .mpc_model import (
+    NP,
+    NU,
+    LegLinearisation,
+    Linearisation,
+    PredictionModel,
+    delivered,
+    leg_linearisation,
+    linearise,
+    prediction_model,
+)
+from .vestibular import (
+    CANAL_THRESHOLD,
+    OTOLITH_THRESHOLD,
+    canal_num_den,
+    otolith_num_den,
+)
+from .washout import Cue
+
+# f_x, f_y, f_z, omega_x, omega_y, omega_z: the models perception() runs
+VESTIBULAR_CHANNELS = tuple(otolith_num_den(k) for k in range(3)) + tuple(
+    canal_num_den(k) for k in range(3))
+
+
+# rho adapted every 25 iterations, not after a fraction of the setup time (OSQP's default):
+# the same problem then takes the same path whatever the machine's load.
+OSQP_SETTINGS = {"adaptive_rho_interval": 25, "rho": 0.01, "polishing": True}
+REFINE_ITERATIONS = 500
+
+
+@dataclass(frozen=True)
+class OptimalOptions:
+    """The MPC's rate, horizon, margins and weights (defaults: the shipped motion simulator).
+
+    Weights are per unit of: position m, velocity m/s, yaw rad, angular rate rad/s,
+    acceleration m/s^2, angular acceleration rad/s^2; the perceived error is counted in
+    perception thresholds (its weight is `perception_weight` / threshold^2)."""
+
+    rate: float = 20.0                 # Hz, MPC steps
+    horizon: float = 2.0               # s
+    preview: bool = True               # future vehicle motion known over the horizon
+    stroke_margin: float = 0.02        # m, kept from each end of the stroke
+    force_margin: float = 0.05         # fraction of Kf I_max kept free
+    voltage_margin: float = 0.05       # fraction of V_max kept free
+    tilt_rate_limit: float | None = None   # rad/s; None: the [cueing] table's
+    # per axis: specific force x, y, z, angular velocity x, y, z
+    perception_weight: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0, 1.0, 1.0)
+    position_weight: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    velocity_weight: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    yaw_weight: float = 1.0
+    rate_weight: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    acceleration_weight: tuple[float, float, float] = (0.01, 0.01, 0.01)
+    angular_acceleration_weight: tuple[float, float, float] = (0.01, 0.01, 0.01)
+    slack_weight: tuple[float, float] = (1e3, 1e3)   # linear, quadratic, per fraction of range
+    # the washout weights at the horizon's last step, times this: what the horizon leaves
+    # beyond its end is the platform's state, so it must not be left drifting (without it, a
+    # sustained tilt's small f_z loss kept the platform 0.1-0.4 m up, accelerating upward at
+    # the end of every horizon)
+    terminal_weight: float = 100.0
+    tolerance: float = 1e-3            # OSQP eps_abs = eps_rel (then polished: active set exact)
+    max_iter: int = 20000
+
+
+@dataclass(frozen=True)
+class Diagnostics:
+    """How the receding-horizon solves went: per MPC step, and totals."""
+
+    t: np.ndarray                    # (M,) MPC step times, s
+    iterations: np.ndarray           # (M,) OSQP iterations
+    solve_time: np.ndarray           # (M,) s, OSQP's own solve time
+    status: tuple[str, ...]          # (M,) OSQP status of each step
+    polished: np.ndarray             # (M,) bool: solved exactly on its active set (else to
+                                     # the tolerance, or its tenth after a failed polish)
+    slack: np.ndarray                # (M,) stroke slack of the applied step, m (0: kept)
+    predicted_error: np.ndarray      # (M, 6) perceived error of the applied step (model)
+    limits: tuple[str, ...]          # the limits imposed: "stroke", "force", "voltage", "tilt_rate"
+    wall_time: float                 # s, the whole run
+    variables: int
+    constraints: int
+
+    @property
+    def status_counts(self) -> dict[str, int]:
+        names, counts = np.unique(np.asarray(self.status), return_counts=True)
+        return {str(n): int(c) for n, c in zip(names, counts)}
+
+
+@dataclass(frozen=True)
+class Plan:
+    """The applied moves on the MPC grid: state at t_k (dq, qd) and the acceleration held on
+    [t_k, t_k+1). Integrated exactly by `sample`."""
+
+    t: np.ndarray     # (M,)
+    dq: np.ndarray    # (M, 6) pose minus home
+    qd: np.ndarray    # (M, 6)
+    qdd: np.ndarray   # (M, 6)
+
+    def sample(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(dq, qd, qdd) at times t: q = q_k + qd_k tau + qdd_k tau^2 / 2 on each step."""
+        dt = self.t[1] - self.t[0] if self.t.size > 1 else 1.0
+        k = np.clip(np.floor((t - self.t[0]) / dt + 1e-9).astype(int), 0, self.t.size - 1)
+        tau = (t - self.t[k])[:, None]
+        a = self.qdd[k]
+        return self.dq[k] + self.qd[k] * tau + 0.5 * a * tau**2, self.qd[k] + a * tau, a
+
+
+@dataclass(frozen=True)
+class Limits:
+    """The mechanism's limits the MPC keeps (None: the scene does not declare it)."""
+
+    leg_min: float | None
+    leg_max: float | None
+    force: float | None       # N, Kf I_max (rack force)
+    voltage: float | None     # V
+    axis: AxisModel | None
+    tilt_rate: float | None   # rad/s
+
+
+def mechanism_limits(model: Model, tilt_rate: float | None) -> Limits:
+    """Stroke from [geometry]; force and voltage from [controller.motor] and [drive] when the
+    scene has both (otherwise those limits are not imposed)."""
+    axis = None
+    if model.drive is not None and "controller" in model.extra:
+        config = controller_config(model)
+        axis = axis_model(model, config.motor, config.load_mass)
+    return Limits(model.leg_min, model.leg_max,
+                  None if axis is None else axis.force_constant * axis.motor.current_limit,
+                  None if axis is None else axis.motor.voltage_limit, axis, tilt_rate)
+
+
+def interval_means(t: np.ndarray, y: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """Mean of the sampled signal y (N, m) (linear between samples, held past the ends) over
+    each [edges[j], edges[j+1]): the zero-order-hold input that carries the same impulse."""
+    t_ext = np.r_[t, max(edges[-1], t[-1]) + 1.0]
+    y_ext = np.vstack([y, y[-1]])
+    cum = np.vstack([np.zeros(y.shape[1]),
+                     np.cumsum(0.5 * (y_ext[1:] + y_ext[:-1]) * np.diff(t_ext)[:, None], axis=0)])
+    e = np.clip(edges, t[0], None)
+    at = np.stack([np.interp(e, t_ext, cum[:, i]) for i in range(y.shape[1])], axis=1)
+    # before the first sample, the first value is held
+    at += (edges - e)[:, None] * y[0]
+    return np.diff(at, axis=0) / np.diff(edges)[:, None]
+
+
+class _Triplets:
+    """A sparse matrix assembled from blocks of (row, column, value) once, whose values can be
+    refilled in the same order and handed to OSQP as the CSC data of the same pattern."""
+
+    def __init__(self):
+        self.rows, self.cols, self.vals, self.blocks = [], [], [], {}
+        self.size = 0
+
+    def add(self, name, r0: int, c0: int, block: np.ndarray) -> None:
+        """Dense block at (r0, c0), every entry kept in the pattern (zeros too)."""
+        r, c = np.meshgrid(np.arange(block.shape[0]), np.arange(block.shape[1]), indexing="ij")
+        self.rows.append(r0 + r.ravel())
+        self.cols.append(c0 + c.ravel())
+        self.vals.append(block.ravel().astype(float))
+        if name is not None:
+            self.blocks.setdefault(name, []).append(slice(self.size, self.size + block.size))
+        self.size += block.size
+
+    def csc(self, shape) -> sp.csc_matrix:
+        rows, cols = np.concatenate(self.rows), np.concatenate(self.cols)
+        self.order = np.lexsort((rows, cols))
+        self.data = np.concatenate(self.vals)
+        A = sp.csc_matrix((self.data[self.order], (rows[self.order], cols[self.order])),
+                          shape=shape)
+        if A.nnz != self.data.size:
+            raise ValueError("overlapping blocks in the QP matrix")
+        A.data[:] = self.data[self.order]   # explicit zeros kept: the pattern is fixed
+        return A
+
+    def refill(self, name: str, blocks: np.ndarray) -> None:
+        """New values of the named blocks, (count, rows, cols), in the order they were added."""
+        for sl, b in zip(self.blocks[name], blocks):
+            self.data[sl] = b.ravel()
+
+    def csc_data(self) -> np.ndarray:
+        return self.data[self.order]
+
+
+class _Qp:
+    """The sparse QP of one horizon. P and the dynamics are built once; the leg rows (stroke,
+    force, voltage) are re-linearised on the predicted trajectory every step (their values
+    change, not their pattern); q, l, u carry the vehicle motion and the offsets.
+
+    Variables z = (x_0..x_N, u_0..u_{N-1}, s_0..s_{N-1}); s_k >= 0 relaxes the stroke at k+1."""
+
+    def __init__(self, pm: PredictionModel, lim: Limits, legs: LegLinearisation, steps: int,
+                 weights: np.ndarray, state_weights: np.ndarray, input_weights: np.ndarray,
+                 slack_weight: tuple[float, float], margins: dict[str, float],
+                 tolerance: float, max_iter: int, terminal_weight: float):
+        self.pm, self.lim, self.N, self.margin = pm, lim, steps, margins
+        self.tolerance, self.max_iter = tolerance, max_iter
+        n, N = pm.n, steps
+        self.nx, self.nu0, self.ns0 = (N + 1) * n, (N + 1) * n, (N + 1) * n + N * NU
+        nz = self.ns0 + N
+        self.nz = nz
+        xi, ui, si = (lambda k: k * n), (lambda k: self.nu0 + k * NU), (lambda k: self.ns0 + k)
+        # Rows in units of their own range (stroke half-range, force and voltage limits), so
+        # the slack is a fraction and OSQP sees rows of one size.
+        self.span = (lim.leg_max - lim.leg_min) / 2 if None not in (lim.leg_min, lim.leg_max) \
+            else 1.0
+        W = np.diag(weights)
+        Cy, Dy = pm.C, pm.D
+        P = _Triplets()
+        for k in range(N + 1):
+            Qx = Cy.T @ W @ Cy
+            Qx[:NP, :NP] += np.diag(state_weights) * (terminal_weight if k == N else 1.0)
+            P.add(None, xi(k), xi(k), np.triu(Qx))
+            if k < N:
+                P.add(None, xi(k), ui(k), Cy.T @ W @ Dy)
+                P.add(None, ui(k), ui(k), np.triu(Dy.T @ W @ Dy + np.diag(input_weights)))
+                P.add(None, si(k), si(k), np.array([[slack_weight[1]]]))
+        self.P = sp.csc_matrix(sp.triu(P.csc((nz, nz))))
+        self.grad = np.hstack([Cy, Dy]).T @ W @ pm.G       # d q / d w, (n + 6, 6)
+        A, self.sections, r0 = _Triplets(), {}, 0
+
+        def section(name, m):
+            nonlocal r0
+            self.sections[name] = slice(r0, r0 + m)
+            r0 += m
+            return self.sections[name].start
+
+        r = section("init", n)
+        A.add(None, r, 0, np.eye(n))
+        r = section("dynamics", N * n)
+        for k in range(N):
+            A.add(None, r + k * n, xi(k), pm.A)
+            A.add(None, r + k * n, ui(k), pm.B)
+            A.add(None, r + k * n, xi(k + 1), -np.eye(n))
+        if lim.leg_min is not None or lim.leg_max is not None:
+            for name, sign in (("stroke_lo", 1.0), ("stroke_hi", -1.0)):
+                r = section(name, 6 * N)
+                for k in range(N):
+                    A.add("stroke", r + 6 * k, xi(k + 1), legs.length_q[k] / self.span)
+                    A.add(None, r + 6 * k, si(k), np.full((6, 1), sign))
+        if lim.axis is not None:
+            r = section("force", 12 * N)
+            for k in range(N):
+                for end in (0, 1):
+                    A.add("force", r + 12 * k + 6 * end, xi(k + end), np.zeros((6, NP)))
+                    A.add("force", r + 12 * k + 6 * end, ui(k), np.zeros((6, NU)))
+            r = section("voltage", 6 * N)
+            for k in range(N):
+                A.add("voltage", r + 6 * k, xi(k + 1), np.zeros((6, NP)))
+                A.add("voltage", r + 6 * k, ui(k), np.zeros((6, NU)))
+        if lim.tilt_rate is not None:
+            r = section("tilt_rate", 2 * N)
+            for k in range(N):
+                # roll and pitch rates, in units of the limit
+                A.add(None, r + 2 * k, xi(k + 1) + 9, np.array([[1.0, 0.0]]) / lim.tilt_rate)
+                A.add(None, r + 2 * k + 1, xi(k + 1) + 10, np.array([[1.0]]) / lim.tilt_rate)
+        r = section("slack", N)
+        A.add(None, r, self.ns0, np.eye(N))
+        self.Atrip = A
+        self.A = A.csc((r0, nz))
+        self.m = r0
+        self.l, self.u = np.full(self.m, -np.inf), np.full(self.m, np.inf)
+        self.l[self.sections["slack"]] = 0.0
+        self.q = np.zeros(nz)
+        self.q[self.ns0:] = slack_weight[0]
+        self.xi, self.ui = xi, ui
+        self.solver = osqp.OSQP()
+        self.solver.setup(self.P, self.q, self.A, self.l, self.u, verbose=False,
+                          eps_abs=tolerance, eps_rel=tolerance, max_iter=max_iter,
+                          warm_starting=True, **OSQP_SETTINGS)
+
+    def solve(self, x0: np.ndarray, w: np.ndarray, xbar: np.ndarray, ubar: np.ndarray,
+              start: LegLinearisation, end: LegLinearisation, vehicle_rate: np.ndarray):
+        """One horizon: x0 the state now, w (N+1, 6) the known vestibular inputs, the leg rows
+        linearised at the predicted (xbar (N+1, 12), ubar (N, 6)): `start` at (x_k, u_k) and
+        `end` at (x_k+1, u_k), k = 0..N-1; vehicle_rate (N, 2) the vehicle's roll and pitch
+        rates at k = 1..N."""
+        pm, N, n, lim = self.pm, self.N, self.pm.n, self.lim
+        q, l, u, S = self.q, self.l, self.u, self.sections
+        for k in range(N + 1):
+            g = self.grad @ w[k]
+            q[self.xi(k):self.xi(k) + n] = g[:n]
+            if k < N:
+                q[self.ui(k):self.ui(k) + NU] = g[n:]
+        l[S["init"]] = u[S["init"]] = x0
+        l[S["dynamics"]] = u[S["dynamics"]] = -(w[:N] @ pm.E.T).ravel()
+        if "stroke_lo" in S:
+            # l(x) ~ l(xbar) + L_q (dq - dqbar) within [leg_min + margin, leg_max - margin]
+            self.Atrip.refill("stroke", np.concatenate([end.length_q, end.length_q])
+                              / self.span)
+            base = end.lengths - np.einsum("kij,kj->ki", end.length_q, xbar[1:, :6])
+            lo = -np.inf if lim.leg_min is None else lim.leg_min + self.margin["stroke"]
+            hi = np.inf if lim.leg_max is None else lim.leg_max - self.margin["stroke"]
+            l[S["stroke_lo"]] = (lo - base).ravel() / self.span
+            u[S["stroke_hi"]] = (hi - base).ravel() / self.span
+        if "force" in S:
+            fmax = lim.force - self.margin["force"]
+            vmax = lim.voltage - self.margin["voltage"]
+            blocks, base = [], np.empty((N, 2, 6))
+            for e, (lin, xs) in enumerate(((start, xbar[:-1]), (end, xbar[1:]))):
+                base[:, e] = lin.sigma - np.einsum("kij,kj->ki", lin.sigma_x, xs) \
+                    - np.einsum("kij,kj->ki", lin.sigma_u, ubar)
+            for k in range(N):
+                for lin in (start, end):
+                    blocks += [lin.sigma_x[k] / lim.force, lin.sigma_u[k] / lim.force]
+            self.Atrip.refill("force", blocks)
+            l[S["force"]] = (-fmax - base).ravel() / lim.force
+            u[S["force"]] = (fmax - base).ravel() / lim.force
+            vbase = end.voltage - np.einsum("kij,kj->ki", end.voltage_x, xbar[1:]) \
+                - np.einsum("kij,kj->ki", end.voltage_u, ubar)
+            self.Atrip.refill("voltage", [b for k in range(N) for b in
+                                          (end.voltage_x[k] / lim.voltage,
+                                           end.voltage_u[k] / lim.voltage)])
+            l[S["voltage"]] = (-vmax - vbase).ravel() / lim.voltage
+            u[S["voltage"]] = (vmax - vbase).ravel() / lim.voltage
+        if "tilt_rate" in S:
+            l[S["tilt_rate"]] = (vehicle_rate / lim.tilt_rate - 1.0).ravel()
+            u[S["tilt_rate"]] = (vehicle_rate / lim.tilt_rate + 1.0).ravel()
+        self.solver.update(q=q, l=l, u=u, Ax=self.Atrip.csc_data())
+        res = self.solver.solve(raise_error=False)   # warm-started from the previous solution
+        if res.info.status == "solved" and res.info.status_polish != 1:
+            # polishing (the exact solve on the active set) failed: the hard limits then hold
+            # to the tolerance only, so the step is solved on from there, 10x tighter, for at
+            # most REFINE_ITERATIONS more (kept if it gets there, else the first solution)
+            self.solver.update_settings(eps_abs=self.tolerance / 10, eps_rel=self.tolerance / 10,
+                                        max_iter=REFINE_ITERATIONS)
+            refined = self.solver.solve(raise_error=False)
+            self.solver.update_settings(eps_abs=self.tolerance, eps_rel=self.tolerance,
+                                        max_iter=self.max_iter)
+            if refined.info.status == "solved":
+                return refined
+        return res
+
+
+@dataclass(frozen=True)
+class OptimalResult:
+    """The optimal cue on the motion's times, the applied plan on the MPC grid, the solver's
+    record."""
+
+    cue: Cue
+    plan: Plan
+    diagnostics: Diagnostics
+
+
+def optimal_cue(model: Model, config: CueingConfig, motion: VehicleMotion, home, gravity, *,
+                options: OptimalOptions = OptimalOptions()) -> Cue:
+    """The model-predictive cue (the same Cue as classical_washout gives): see the module doc."""
+    return optimal_cueing(model, config, motion, home, gravity, options=options).cue
+
+
+def optimal_cueing(model: Model, config: CueingConfig, motion: VehicleMotion, home, gravity, *,
+                   options: OptimalOptions = OptimalOptions()) -> OptimalResult:
+    """The receding-horizon cue for a vehicle motion, with the plan and the solver's record.
+
+    The platform starts at rest at `home` with the perceived error's states at zero (both the
+    vehicle and the platform perceive from rest). Each MPC step applies the first move of the
+    horizon's optimum; a step OSQP does not solve applies the previous plan's next move (counted
+    in the status). The Cue's `tilt` is the whole roll and pitch from home: the MPC does not
+    split them into a tilt and a rotational channel."""
+    clock = time.perf_counter()
+    if not (options.rate > 0 and options.horizon > 0):
+        raise StewartError(f"MPC rate and horizon must be > 0, got {options.rate}, {options.horizon}")
+    home, g = np.asarray(home, dtype=float), np.asarray(gravity, dtype=float)
+    dt = 1.0 / options.rate
+    N = max(1, round(options.horizon * options.rate))
+    t = np.asarray(motion.t, dtype=float)
+    M = max(1, int(np.ceil((t[-1] - t[0]) / dt - 1e-9)))
+    tilt_rate = options.tilt_rate_limit if options.tilt_rate_limit is not None \
+        else config.tilt_rate_limit
+    lim = mechanism_limits(model, tilt_rate)
+    lin = linearise(home, g)
+    thresholds = np.r_[OTOLITH_THRESHOLD, CANAL_THRESHOLD]
+    pm = prediction_model(lin, VESTIBULAR_CHANNELS, dt)
+    weights = np.asarray(options.perception_weight, dtype=float) / thresholds**2
+    state_weights = np.r_[options.position_weight, 0.0, 0.0, options.yaw_weight,
+                          options.velocity_weight, options.rate_weight]
+    input_weights = np.r_[options.acceleration_weight, options.angular_acceleration_weight]
+    margins = {"stroke": options.stroke_margin,
+               "force": 0.0 if lim.force is None else options.force_margin * lim.force,
+               "voltage": 0.0 if lim.voltage is None else options.voltage_margin * lim.voltage}
+    n = pm.n
+    X = np.zeros((N + 1, n))          # the prediction the rows are linearised on
+    U = np.zeros((N, NU))
+    qp = _Qp(pm, lim, leg_rows(model, lim, home, X[:, :NP], U)[1], N, weights, state_weights,
+             input_weights, options.slack_weight, margins, options.tolerance, options.max_iter,
+             options.terminal_weight)
+    edges = t[0] + dt * np.arange(M + N + 1)
+    # Means of the deviation from rest, then rest added back: a vehicle at rest stays exactly
+    # at rest through the sums (zero motion gives the neutral pose exactly).
+    rest = np.r_[0.0, 0.0, np.linalg.norm(g), 0.0, 0.0, 0.0]   # as perception() takes it
+    sampled = np.hstack([np.asarray(motion.specific_force, float),
+                         np.asarray(motion.angular_velocity, float)]) - rest
+    vehicle = interval_means(t, sampled, edges)
+    x = np.zeros(n)
+    record = {"dq": np.empty((M, 6)), "qd": np.empty((M, 6)), "qdd": np.empty((M, 6)),
+              "it": np.zeros(M, int), "time": np.zeros(M), "slack": np.zeros(M),
+              "error": np.empty((M, 6)), "polished": np.zeros(M, bool)}
+    status = []
+    for j in range(M):
+        window = vehicle[j:j + N + 1] if options.preview else np.repeat(vehicle[j:j + 1], N + 1, 0)
+        X[0] = x
+        nonlinear = known_inputs(lin, home, X[:, :NP], U)
+        w = np.vstack([nonlinear, nonlinear[-1:]]) - rest - window
+        start, end = leg_rows(model, lim, home, X[:, :NP], U)
+        res = qp.solve(x, w, X[:, :NP], U, start, end,
+                       0.5 * (window[:-1, 3:5] + window[1:, 3:5]))
+        status.append(res.info.status)
+        record["it"][j], record["time"][j] = res.info.iter, res.info.solve_time
+        record["polished"][j] = res.info.status_polish == 1
+        z = res.x
+        usable = res.info.status.startswith("solved") and np.all(np.isfinite(z))
+        if usable:
+            Z = z[:qp.nx].reshape(N + 1, n)
+            Uz = z[qp.nu0:qp.ns0].reshape(N, NU)
+            record["slack"][j] = z[qp.ns0] * qp.span
+        else:   # keep flying the previous plan
+            Z, Uz = X, U
+        u0 = Uz[0]
+        # the applied step, with its corrections taken on itself
+        x_lin = pm.A @ x + pm.B @ u0
+        step = np.vstack([x[:NP], x_lin[:NP]])
+        w0 = known_inputs(lin, home, step, u0[None])[0] - rest - vehicle[j]
+        record["error"][j] = pm.C @ x + pm.D @ u0 + pm.G @ w0
+        record["dq"][j], record["qd"][j], record["qdd"][j] = x[:6], x[6:NP], u0
+        x = x_lin + pm.E @ w0
+        # shift: the next step linearises on the rest of this plan
+        X = np.vstack([Z[1:], Z[-1:]])
+        U = np.vstack([Uz[1:], np.zeros((1, NU))])
+    plan = Plan(t[0] + dt * np.arange(M), record["dq"], record["qd"], record["qdd"])
+    dq, qd, qdd = plan.sample(t)
+    q = home + dq
+    cue = Cue(t=t, q=q, qd=qd, qdd=qdd, tilt=dq[:, 3:5].copy())
+    limits = tuple(name for name, on in (
+        ("stroke", lim.leg_min is not None or lim.leg_max is not None),
+        ("force", lim.force is not None), ("voltage", lim.voltage is not None),
+        ("tilt_rate", lim.tilt_rate is not None)) if on)
+    diag = Diagnostics(plan.t, record["it"], record["time"], tuple(status), record["polished"],
+                       record["slack"], record["error"], limits, time.perf_counter() - clock, qp.nz, qp.m)
+    return OptimalResult(cue, plan, diag)
+
+
+def known_inputs(lin: Linearisation, home: np.ndarray, xp: np.ndarray, u: np.ndarray
+                 ) -> np.ndarray:
+    """The vestibular input beyond its linear part on a platform trajectory xp (K+1, 12) =
+    (dq, qd) at the step ends with u (K, 6) on the steps: delivered specific force (its neutral
+    value included) and angular velocity minus their linearisation at home, the mean of both
+    ends of each step, (K, 6). With the vehicle's motion subtracted this is the w of the
+    prediction model: the tilt's sine and the yaw's mixing of the axes enter here."""
+    dq, qd = xp[:, :6], xp[:, 6:NP]
+    K = u.shape[0]
+    w = np.zeros((K, 6))
+    for sl in (slice(0, K), slice(1, K + 1)):
+        f, om = delivered(home + dq[sl], qd[sl], u, lin.gravity)
+        w[:, :3] += 0.5 * (f - dq[sl] @ lin.force_q.T - u @ lin.force_qdd.T)
+        w[:, 3:] += 0.5 * (om - qd[sl] @ lin.rate_qd.T)
+    return w
+
+
+def leg_rows(model: Model, lim: Limits, home: np.ndarray, xp: np.ndarray, u: np.ndarray
+             ) -> tuple[LegLinearisation, LegLinearisation]:
+    """The leg quantities linearised at the start (x_k, u_k) and the end (x_k+1, u_k) of each
+    step of a predicted trajectory (xp (K+1, 12), u (K, 6))."""
+    Q, QD = home + xp[:, :6], xp[:, 6:NP]
+    both = leg_linearisation(model, lim.axis, np.vstack([Q[:-1], Q[1:]]),
+                             np.vstack([QD[:-1], QD[1:]]), np.vstack([u, u]))
+    K = u.shape[0]
+    half = [LegLinearisation(*(None if a is None else a[sl] for a in vars(both).values()))
+            for sl in (slice(0, K), slice(K, 2 * K))]
+    return half[0], half[1]
