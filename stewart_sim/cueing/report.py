@@ -100,6 +100,7 @@ def summary_markdown(study: CueStudy, title: str) -> str:
              f"({(m.t.size - 1) / (m.t[-1] - m.t[0]):g} Hz). Cue modes: "
              + ", ".join(f"{r.mode} ({r.seconds:.3f} s to compute)" for r in study.runs)
              + f"; the written trajectory is the {study.runs[0].mode} cue's.", ""]
+    lines += _solver_lines(study.runs)
     lines += _perception_section(study.runs)
     lines += _workspace_section(study.runs)
     lines += _margins_section(study.runs)
@@ -107,6 +108,22 @@ def summary_markdown(study: CueStudy, title: str) -> str:
         lines += _violations_section(run)
     lines += _tracking_section(study)
     return "\n".join(lines) + "\n"
+
+
+def _solver_lines(runs: tuple[CueRun, ...]) -> list[str]:
+    """The optimal mode's QP record: how many steps were solved, polished, its time."""
+    lines = []
+    for r in runs:
+        d = r.solver
+        if d is None:
+            continue
+        solved = sum(s == "solved" for s in d.status)
+        lines.append(f"Optimal cueing: {len(d.status)} MPC steps ({d.variables} variables, "
+                     f"{d.constraints} constraints, limits {', '.join(d.limits)}): {solved} "
+                     f"solved, {int(np.sum(d.polished))} polished; OSQP "
+                     f"{float(np.sum(d.solve_time)):.2f} s of {d.wall_time:.2f} s; stroke slack "
+                     f"up to {1e3 * float(np.max(d.slack)):.2f} mm.")
+    return lines + ([""] if lines else [])
 
 
 def _perception_section(runs: tuple[CueRun, ...]) -> list[str]:

@@ -33,10 +33,11 @@ from stewart_fmu.model import Model
 from .config import CueingConfig, cueing_config
 from .feasibility import Feasibility, feasibility
 from .motion import VehicleMotion
+from .optimal import Diagnostics, optimal_cueing
 from .vestibular import Perception, perception
 from .washout import Cue, classical_washout
 
-MODES = ("classical",)
+MODES = ("classical", "optimal")
 
 
 @dataclass(frozen=True)
@@ -48,6 +49,7 @@ class CueRun:
     perception: Perception
     feasibility: Feasibility
     seconds: float            # wall time to compute the cue (reported, never judged)
+    solver: Diagnostics | None = None   # the optimal mode's QP record
 
 
 @dataclass(frozen=True)
@@ -78,13 +80,13 @@ def cue_study(model: Model, motion: VehicleMotion, modes: tuple[str, ...] = ("cl
         if progress:
             progress(f"cueing ({mode})")
         start = time.perf_counter()
-        cue = make_cue(mode, model, config, motion)
+        cue, solver = make_cue(mode, model, config, motion)
         seconds = time.perf_counter() - start
         if progress:
             progress(f"perception and feasibility ({mode})")
         runs.append(CueRun(mode, cue, perception(motion, cue.t, cue.q, cue.qd, cue.qdd,
                                                  model.gravity),
-                           feasibility(model, cue.t, cue.q, cue.qd, cue.qdd), seconds))
+                           feasibility(model, cue.t, cue.q, cue.qd, cue.qdd), seconds, solver))
     tracking, note = None, None
     if track:
         if progress:
@@ -93,11 +95,16 @@ def cue_study(model: Model, motion: VehicleMotion, modes: tuple[str, ...] = ("cl
     return CueStudy(model, config, motion, tuple(runs), tracking, note)
 
 
-def make_cue(mode: str, model: Model, config: CueingConfig, motion: VehicleMotion) -> Cue:
-    """The cue of one mode."""
+def make_cue(mode: str, model: Model, config: CueingConfig,
+             motion: VehicleMotion) -> tuple[Cue, Diagnostics | None]:
+    """The cue of one mode, and the optimal mode's solver record (None for classical)."""
+    home = np.asarray(model.home, dtype=float)
+    gravity = np.asarray(model.gravity, dtype=float)
     if mode == "classical":
-        return classical_washout(config, motion, np.asarray(model.home, dtype=float),
-                                 np.asarray(model.gravity, dtype=float))
+        return classical_washout(config, motion, home, gravity), None
+    if mode == "optimal":
+        result = optimal_cueing(model, config, motion, home, gravity)
+        return result.cue, result.diagnostics
     raise CueError(f"cue: mode {mode!r} unknown: one of {', '.join(MODES)}")
 
 
@@ -115,7 +122,7 @@ def track_cue(model: Model, config: CueingConfig, motion: VehicleMotion,
                       "loop refuses such a reference before its first step")
     controller = controller_config(model)
     fine = resample(motion, controller.rate)
-    cue = make_cue(run.mode, model, config, fine)
+    cue, _ = make_cue(run.mode, model, config, fine)
     return run_closed_loop(model, controller, Trajectory(cue.t, cue.q, cue.qd, cue.qdd)), None
 
 

@@ -116,11 +116,31 @@ def test_the_cue_at_the_controller_rate_agrees_with_the_sampled_one(model):
     config = cueing_config(model)
     for path in MOTIONS:
         motion = read_motion(path)
-        coarse = make_cue("classical", model, config, motion)
-        fine = make_cue("classical", model, config, resample(motion, 1000.0))
+        coarse, _ = make_cue("classical", model, config, motion)
+        fine, _ = make_cue("classical", model, config, resample(motion, 1000.0))
         k = np.round((coarse.t - coarse.t[0]) * 1000.0).astype(int)
         np.testing.assert_allclose(fine.t[k], coarse.t, rtol=0, atol=1e-12)
         np.testing.assert_allclose(fine.q[k], coarse.q, rtol=0, atol=RATE_AGREEMENT)
+
+
+def test_compare_writes_both_cues_and_both_fly_inside_the_limits(model, tmp_path):
+    """--compare: the optimal cue beside the classical one; both inside every limit, the
+    optimal one's QP record in the summary, its trajectory in the inverse format."""
+    study = cue_study(model, read_motion(ROOT / "scenes" / "motions" / "lane_change.csv"),
+                      ("classical", "optimal"))
+    classical, optimal = study.runs
+    assert optimal.solver is not None and set(optimal.solver.status) == {"solved"}
+    for run in study.runs:
+        assert run.feasibility.violations == (), run.mode
+    out = tmp_path / "out"
+    write_cue_report(study, out, "t")
+    t, q, _, _ = io.read_trajectory(out / "trajectory_optimal.csv")
+    np.testing.assert_array_equal(q, optimal.cue.q)
+    summary = (out / "summary.md").read_text()
+    assert "Optimal cueing: 240 MPC steps" in summary
+    assert "| optimal |" in summary and "Violations (optimal): none" in summary
+    # the mode that optimises perception perceives the lane change's main axis better
+    assert optimal.perception.rms_f[1] < classical.perception.rms_f[1]
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess:
