@@ -91,6 +91,13 @@ def minimum_jerk(u, duration: float):
     return s, sd, sdd
 
 
+def quintic_step(t, start: float, duration: float):
+    """The minimum-jerk step from 0 (before `start`) to 1 (after `start + duration`) at times
+    t, with its first and second time derivatives (arrays like t)."""
+    u = np.clip((np.asarray(t, dtype=float) - start) / duration, 0.0, 1.0)
+    return minimum_jerk(u, duration)
+
+
 def quintic_duration(d: np.ndarray, max_rate, max_acceleration) -> float:
     """The shortest quintic duration with peak rates and accelerations within the limits."""
     if max_rate is None or max_acceleration is None:

@@ -10,7 +10,9 @@ from pathlib import Path
 
 import numpy as np
 
+from controller.trajectory import quintic_step
 from stewart_fmu import Model, scene_from_dict
+from stewart_sim.cueing.motion import VehicleMotion
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES_DIR = ROOT / "scenes"
@@ -202,3 +204,15 @@ def record(name: str, worst: float, tol: float) -> None:
     """Keep the worst residual of check `name` (and its tolerance) for the session summary."""
     prev = RESIDUALS.get(name, (0.0, tol))[0]
     RESIDUALS[name] = (max(prev, float(worst)), tol)
+
+
+def smooth_step(t: np.ndarray, t0: float, width: float) -> np.ndarray:
+    """0 before t0, 1 after t0 + width, C^2 in between (the project's one quintic)."""
+    return quintic_step(t, t0, width)[0]
+
+
+def vehicle_motion(t: np.ndarray, f_dev=None, w=None, g: float = 9.81):
+    """A VehicleMotion from the specific force's deviation from rest and the angular velocity."""
+    f = np.zeros((t.size, 3)) if f_dev is None else np.array(f_dev, dtype=float)
+    f[:, 2] += g
+    return VehicleMotion(t, f, np.zeros((t.size, 3)) if w is None else np.asarray(w, float))

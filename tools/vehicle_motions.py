@@ -2,7 +2,7 @@
 stewart_sim/cueing/motion.py: t,fx,fy,fz,wx,wy,wz, vehicle frame x forward, y left, z up).
 
 Each motion is built kinematically: an acceleration profile of the vehicle's path (smooth
-steps are the project's quintic, controller.trajectory.minimum_jerk), the body's attitude
+steps are the project's quintic, controller.trajectory.quintic_step), the body's attitude
 (suspension pitch and roll as damped second-order responses to the acceleration, or the
 aircraft's commanded pitch), and from both the specific force the occupant feels,
 
@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 from scipy import signal
 
-from controller.trajectory import minimum_jerk
+from controller.trajectory import quintic_step
 from stewart_sim.cueing.motion import VehicleMotion, write_motion
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -38,7 +38,7 @@ def braking_car() -> VehicleMotion:
     t = _times(12.0)
     v0, decel, t0, t_on, t_off = 80 / 3.6, 0.8 * G, 3.0, 0.3, 0.15
     hold = v0 / decel - (t_on + t_off) / 2   # the area under the deceleration is v0
-    ax = -decel * (_step(t, t0, t_on)[0] - _step(t, t0 + t_on + hold, t_off)[0])
+    ax = -decel * (quintic_step(t, t0, t_on)[0] - quintic_step(t, t0 + t_on + hold, t_off)[0])
     pitch, pitch_rate = _second_order(t, np.radians(2.0) * -ax / G, 1.5, 0.3)  # nose down > 0
     s_n = np.column_stack([ax, np.zeros_like(t), np.full_like(t, G)])
     f = np.einsum("nji,nj->ni", _ry(pitch), s_n)
@@ -75,17 +75,17 @@ def takeoff() -> VehicleMotion:
     t = _times(45.0)
     t_thrust, t_rot, rot_time, rot_ramp = 2.0, 32.0, 10.0 / 3.0, 0.5
     t_lof = t_rot + 2.5
-    roll_accel = (0.3 * G * _step(t, t_thrust, 3.0)[0]
-                  - 0.05 * G * _step(t, t_thrust + 3.0, t_rot - t_thrust - 3.0)[0])
-    accel = roll_accel - (roll_accel[_index(t, t_lof)] - 0.05 * G) * _step(t, t_lof, 3.0)[0]
+    roll_accel = (0.3 * G * quintic_step(t, t_thrust, 3.0)[0]
+                  - 0.05 * G * quintic_step(t, t_thrust + 3.0, t_rot - t_thrust - 3.0)[0])
+    accel = roll_accel - (roll_accel[_index(t, t_lof)] - 0.05 * G) * quintic_step(t, t_lof, 3.0)[0]
     speed = np.r_[0.0, np.cumsum((accel[1:] + accel[:-1]) / 2 * np.diff(t))]
-    gamma_s, gamma_sd, _ = _step(t, t_lof, 8.0)
+    gamma_s, gamma_sd, _ = quintic_step(t, t_lof, 8.0)
     gamma, gamma_rate = np.radians(6.0) * gamma_s, np.radians(6.0) * gamma_sd
     # Pitch rate: 3 deg/s with 0.5 s quintic ramps; its area is 3 deg/s x rot_time = 10 deg.
-    rate = np.radians(3.0) * (_step(t, t_rot, rot_ramp)[0]
-                              - _step(t, t_rot + rot_time, rot_ramp)[0])
+    rate = np.radians(3.0) * (quintic_step(t, t_rot, rot_ramp)[0]
+                              - quintic_step(t, t_rot + rot_time, rot_ramp)[0])
     pitch = np.r_[0.0, np.cumsum((rate[1:] + rate[:-1]) / 2 * np.diff(t))]
-    on_ground = 1.0 - _step(t, t_lof, 0.5)[0]
+    on_ground = 1.0 - quintic_step(t, t_lof, 0.5)[0]
     phases = (0.0, 1.1, 2.3)
     bumps = sum(a * np.sin(2 * np.pi * fr * t + ph)
                 for a, fr, ph in zip((0.25, 0.15, 0.10), (1.3, 2.7, 4.1), phases))
@@ -108,12 +108,6 @@ def _times(duration: float) -> np.ndarray:
 
 def _index(t: np.ndarray, at: float) -> int:
     return int(np.searchsorted(t, at))
-
-
-def _step(t: np.ndarray, start: float, duration: float):
-    """The quintic step from 0 to 1 over [start, start + duration] and its derivatives."""
-    u = np.clip((t - start) / duration, 0.0, 1.0)
-    return minimum_jerk(u, duration)
 
 
 def _sine_pulse(t: np.ndarray, start: float, period: float) -> np.ndarray:

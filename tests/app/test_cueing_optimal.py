@@ -16,7 +16,7 @@ from stewart_fmu import scene_from_dict
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_sim.cueing.config import DEFAULTS, cueing_config
 from stewart_sim.cueing.feasibility import feasibility
-from stewart_sim.cueing.motion import VehicleMotion, read_motion
+from stewart_sim.cueing.motion import read_motion
 from stewart_sim.cueing.mpc_model import linearise, prediction_model
 from stewart_sim.cueing.optimal import (
     VESTIBULAR_CHANNELS,
@@ -26,7 +26,8 @@ from stewart_sim.cueing.optimal import (
 )
 from stewart_sim.cueing.vestibular import delivered_motion, perception
 from stewart_sim.cueing.washout import Cue, classical_washout
-from tests.helpers import ROOT, scene_dict
+from tests.helpers import ROOT, scene_dict, smooth_step
+from tests.helpers import vehicle_motion as motion
 
 G = 9.81
 GRAVITY = np.array([0.0, 0.0, -G])
@@ -39,15 +40,6 @@ def sim():
     return scene_from_dict(scene_dict("sim"))
 
 
-def smooth_step(t: np.ndarray, t0: float, width: float) -> np.ndarray:
-    x = np.clip((t - t0) / width, 0.0, 1.0)
-    return x ** 3 * (10 - 15 * x + 6 * x * x)
-
-
-def motion(t: np.ndarray, f_dev=None, w=None) -> VehicleMotion:
-    f = np.zeros((t.size, 3)) if f_dev is None else np.array(f_dev, dtype=float)
-    f[:, 2] += G
-    return VehicleMotion(t, f, np.zeros((t.size, 3)) if w is None else np.asarray(w, float))
 
 
 def all_solved(result) -> None:

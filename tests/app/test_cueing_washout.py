@@ -22,24 +22,14 @@ from stewart_sim.cueing.config import DEFAULTS, CueingConfig, cueing_config
 from stewart_sim.cueing.motion import VehicleMotion, read_motion
 from stewart_sim.cueing.washout import classical_washout, high_pass_denominator
 from stewart_sim.scene_info import describe_model
-from tests.helpers import ROOT, level_model, scene_dict
+from tests.helpers import ROOT, level_model, scene_dict, smooth_step
+from tests.helpers import vehicle_motion as motion
 
 G = 9.81
 GRAVITY = np.array([0.0, 0.0, -G])
 HOME = np.array([0.0, 0.0, 2.3, 0.0, 0.0, 0.0])
 
 
-def smooth_step(t: np.ndarray, t0: float, width: float) -> np.ndarray:
-    """0 before t0, 1 after t0 + width, C^2 in between (quintic smoothstep)."""
-    x = np.clip((t - t0) / width, 0.0, 1.0)
-    return x ** 3 * (10 - 15 * x + 6 * x * x)
-
-
-def motion(t: np.ndarray, f_dev=None, w=None) -> VehicleMotion:
-    """Vehicle motion from the specific force's deviation from rest and the angular velocity."""
-    f = np.zeros((t.size, 3)) if f_dev is None else np.array(f_dev, dtype=float)
-    f[:, 2] += G
-    return VehicleMotion(t, f, np.zeros((t.size, 3)) if w is None else np.asarray(w, float))
 
 
 def frames(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray):
