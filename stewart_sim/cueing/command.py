@@ -11,10 +11,10 @@ in summary.md and on the terminal.
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 from stewart_fmu.scene import load_scene
+from stewart_sim.progress import Progress
 
 from stewart_sim.view.command import VIEW_FILE, write_beside
 from stewart_sim.view.data import view_data
@@ -59,8 +59,13 @@ def cmd(args: argparse.Namespace) -> None:
     model = load_scene(args.scene)
     motion = read_motion(Path(args.motion))
     modes = (args.mode, *(m for m in MODES if m != args.mode)) if args.compare else (args.mode,)
-    study = cue_study(model, motion, modes, track=args.track,
-                      progress=lambda stage: print(f"{stage} ...", file=sys.stderr, flush=True))
+    progress = Progress()
+    try:
+        study = cue_study(model, motion, modes, track=args.track,
+                          progress=lambda stage, done, total: progress.update(stage, done, total,
+                                                                              unit="steps"))
+    finally:
+        progress.close()
     out = Path(args.out)
     title = f"{model.name}: {Path(args.motion).name}, {args.mode} cue"
     lines: list[str] = []

@@ -45,6 +45,7 @@ qdd are consistent at any sample rate; the cue is resampled at the motion's own 
 from __future__ import annotations
 
 import time
+from typing import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -406,14 +407,16 @@ def optimal_cue(model: Model, config: CueingConfig, motion: VehicleMotion, home,
 
 
 def optimal_cueing(model: Model, config: CueingConfig, motion: VehicleMotion, home, gravity, *,
-                   options: OptimalOptions = OptimalOptions()) -> OptimalResult:
+                   options: OptimalOptions = OptimalOptions(),
+                   progress: Callable[[int, int], None] | None = None) -> OptimalResult:
     """The receding-horizon cue for a vehicle motion, with the plan and the solver's record.
 
     The platform starts at rest at `home` with the perceived error's states at zero (both the
     vehicle and the platform perceive from rest). Each MPC step applies the first move of the
     horizon's optimum; a step OSQP does not solve applies the previous plan's next move (counted
     in the status). The Cue's `tilt` is the whole roll and pitch from home: the MPC does not
-    split them into a tilt and a rotational channel."""
+    split them into a tilt and a rotational channel. `progress(steps_done, steps)` is called
+    after each MPC step."""
     clock = time.perf_counter()
     if not (options.rate > 0 and options.horizon > 0):
         raise StewartError(f"MPC rate and horizon must be > 0, got {options.rate}, {options.horizon}")
@@ -478,6 +481,8 @@ def optimal_cueing(model: Model, config: CueingConfig, motion: VehicleMotion, ho
         step = np.vstack([x[:NP], x_lin[:NP]])
         w0 = known_inputs(lin, home, step, u0[None])[0] - rest - vehicle[j]
         record["error"][j] = pm.C @ x + pm.D @ u0 + pm.G @ w0
+        if progress is not None:
+            progress(j + 1, M)
         record["dq"][j], record["qd"][j], record["qdd"][j] = x[:6], x[6:NP], u0
         x = x_lin + pm.E @ w0
         # shift: the next step linearises on the rest of this plan

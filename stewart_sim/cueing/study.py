@@ -71,45 +71,53 @@ class CueError(StewartError):
 
 def cue_study(model: Model, motion: VehicleMotion, modes: tuple[str, ...] = ("classical",),
               track: bool = False,
-              progress: Callable[[str], None] | None = None) -> CueStudy:
+              progress: Callable[[str, int, int], None] | None = None) -> CueStudy:
     """Cue the motion with each mode (the first is the primary), then perception and
-    feasibility of each; the closed loop on the primary cue if `track`."""
+    feasibility of each; the closed loop on the primary cue if `track`.
+    `progress(stage, done, total)` follows the work (MPC steps, closed-loop samples)."""
     config = cueing_config(model)
     runs = []
     for mode in modes:
-        if progress:
-            progress(f"cueing ({mode})")
         start = time.perf_counter()
-        cue, solver = make_cue(mode, model, config, motion)
+        cue, solver = make_cue(mode, model, config, motion, _stage(progress, f"cueing ({mode})"))
         seconds = time.perf_counter() - start
         if progress:
-            progress(f"perception and feasibility ({mode})")
+            progress(f"perception and feasibility ({mode})", 0, 1)
         runs.append(CueRun(mode, cue, perception(motion, cue.t, cue.q, cue.qd, cue.qdd,
                                                  model.gravity),
                            feasibility(model, cue.t, cue.q, cue.qd, cue.qdd), seconds, solver))
     tracking, note = None, None
     if track:
-        if progress:
-            progress("closed loop")
-        tracking, note = track_cue(model, config, motion, runs[0])
+        tracking, note = track_cue(model, config, motion, runs[0], progress)
     return CueStudy(model, config, motion, tuple(runs), tracking, note)
 
 
-def make_cue(mode: str, model: Model, config: CueingConfig,
-             motion: VehicleMotion) -> tuple[Cue, Diagnostics | None]:
-    """The cue of one mode, and the optimal mode's solver record (None for classical)."""
+def _stage(progress: Callable[[str, int, int], None] | None,
+           stage: str) -> Callable[[int, int], None] | None:
+    """progress(done, total) of one named stage."""
+    if progress is None:
+        return None
+    return lambda done, total: progress(stage, done, total)
+
+
+def make_cue(mode: str, model: Model, config: CueingConfig, motion: VehicleMotion,
+             progress: Callable[[int, int], None] | None = None
+             ) -> tuple[Cue, Diagnostics | None]:
+    """The cue of one mode, and the optimal mode's solver record (None for classical);
+    `progress(done, total)` follows the optimal mode's MPC steps."""
     home = np.asarray(model.home, dtype=float)
     gravity = np.asarray(model.gravity, dtype=float)
     if mode == "classical":
         return classical_washout(config, motion, home, gravity), None
     if mode == "optimal":
-        result = optimal_cueing(model, config, motion, home, gravity)
+        result = optimal_cueing(model, config, motion, home, gravity, progress=progress)
         return result.cue, result.diagnostics
     raise CueError(f"cue: mode {mode!r} unknown: one of {', '.join(MODES)}")
 
 
-def track_cue(model: Model, config: CueingConfig, motion: VehicleMotion,
-              run: CueRun) -> tuple[ClosedLoopResult | None, str | None]:
+def track_cue(model: Model, config: CueingConfig, motion: VehicleMotion, run: CueRun,
+              progress: Callable[[str, int, int], None] | None = None
+              ) -> tuple[ClosedLoopResult | None, str | None]:
     """The scene's closed loop ([controller] table) on the run's cue recomputed at the
     controller's rate; (None, why) when the cue leaves the stroke (the loop would refuse it
     before its first step) or the scene has no controller."""
@@ -122,8 +130,10 @@ def track_cue(model: Model, config: CueingConfig, motion: VehicleMotion,
                       "loop refuses such a reference before its first step")
     controller = controller_config(model)
     fine = resample(motion, controller.rate)
-    cue, _ = make_cue(run.mode, model, config, fine)
-    return run_closed_loop(model, controller, Trajectory(cue.t, cue.q, cue.qd, cue.qdd)), None
+    cue, _ = make_cue(run.mode, model, config, fine,
+                      _stage(progress, f"cueing ({run.mode}) at {controller.rate:g} Hz"))
+    return run_closed_loop(model, controller, Trajectory(cue.t, cue.q, cue.qd, cue.qdd),
+                           progress=_stage(progress, "closed loop")), None
 
 
 def resample(motion: VehicleMotion, rate: float) -> VehicleMotion:
