@@ -11,7 +11,7 @@ from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.model import Model
 from stewart_fmu.scene import PROJECT_TABLES
 
-from .cueing.config import cueing_config
+from .cueing.config import OPTIMAL, cueing_config, optimal_options
 
 # Project tables scene-info names without describing (their owners check them when used).
 _OTHER_TABLES = sorted(PROJECT_TABLES - {"controller", "case", "cueing"})
@@ -35,6 +35,8 @@ def describe_model(model: Model) -> str:
         _describe_transmission(model), _describe_controller(model), _describe_case(model),
         _describe_cueing(model),
     ]
+    if OPTIMAL in (model.extra.get("cueing") or {}):
+        lines.append(_describe_optimal(model))
     others = [t for t in _OTHER_TABLES if t in model.extra]
     if others:
         lines.append("other tables: " + ", ".join(f"[{t}]" for t in others))
@@ -98,6 +100,24 @@ def _describe_cueing(model: Model) -> str:
             f"{c.rotational_order} at {format_vector(c.rotational_frequency)} rad/s"
             + (f", damping {format_vector(c.rotational_damping)}" if c.rotational_order == 2
                else ""))
+
+
+def _describe_optimal(model: Model) -> str:
+    """The [cueing.optimal] sub-table as the model-predictive cueing reads it."""
+    o = optimal_options(model)
+    tilt = ("the [cueing] tilt_rate_limit" if o.tilt_rate_limit is None
+            else f"{o.tilt_rate_limit:.6g} rad/s")
+    return (f"cueing.optimal: model-predictive cueing at {o.rate:g} Hz over {o.horizon:g} s "
+            f"({round(o.horizon * o.rate)} steps), preview {'on' if o.preview else 'off'}; "
+            f"margins: stroke {o.stroke_margin:g} m, force {o.force_margin:g}, voltage "
+            f"{o.voltage_margin:g}; tilt rate limit {tilt}; weights: perception "
+            f"{format_vector(o.perception_weight)}, position {format_vector(o.position_weight)}, "
+            f"velocity {format_vector(o.velocity_weight)}, yaw {o.yaw_weight:g}, rate "
+            f"{format_vector(o.rate_weight)}, acceleration "
+            f"{format_vector(o.acceleration_weight)}, angular acceleration "
+            f"{format_vector(o.angular_acceleration_weight)}, slack "
+            f"{format_vector(o.slack_weight)}, terminal {o.terminal_weight:g}; OSQP tolerance "
+            f"{o.tolerance:g}, at most {o.max_iter} iterations")
 
 
 def _describe_legs(model: Model) -> str:

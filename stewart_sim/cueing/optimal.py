@@ -57,7 +57,7 @@ from controller.drive import AxisModel, axis_model
 from stewart_fmu.errors import StewartError
 from stewart_fmu.model import Model
 
-from .config import CueingConfig
+from .config import CueingConfig, OptimalOptions
 from .motion import VehicleMotion
 from .mpc_model import (
     NP,
@@ -87,39 +87,6 @@ VESTIBULAR_CHANNELS = tuple(otolith_num_den(k) for k in range(3)) + tuple(
 # the same problem then takes the same path whatever the machine's load.
 OSQP_SETTINGS = {"adaptive_rho_interval": 25, "rho": 0.01, "polishing": True}
 REFINE_ITERATIONS = 500
-
-
-@dataclass(frozen=True)
-class OptimalOptions:
-    """The MPC's rate, horizon, margins and weights (defaults: the shipped motion simulator).
-
-    Weights are per unit of: position m, velocity m/s, yaw rad, angular rate rad/s,
-    acceleration m/s^2, angular acceleration rad/s^2; the perceived error is counted in
-    perception thresholds (its weight is `perception_weight` / threshold^2)."""
-
-    rate: float = 20.0                 # Hz, MPC steps
-    horizon: float = 2.0               # s
-    preview: bool = True               # future vehicle motion known over the horizon
-    stroke_margin: float = 0.02        # m, kept from each end of the stroke
-    force_margin: float = 0.05         # fraction of Kf I_max kept free
-    voltage_margin: float = 0.05       # fraction of V_max kept free
-    tilt_rate_limit: float | None = None   # rad/s; None: the [cueing] table's
-    # per axis: specific force x, y, z, angular velocity x, y, z
-    perception_weight: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0, 1.0, 1.0)
-    position_weight: tuple[float, float, float] = (1.0, 1.0, 1.0)
-    velocity_weight: tuple[float, float, float] = (1.0, 1.0, 1.0)
-    yaw_weight: float = 1.0
-    rate_weight: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    acceleration_weight: tuple[float, float, float] = (0.01, 0.01, 0.01)
-    angular_acceleration_weight: tuple[float, float, float] = (0.01, 0.01, 0.01)
-    slack_weight: tuple[float, float] = (1e3, 1e3)   # linear, quadratic, per fraction of range
-    # the washout weights at the horizon's last step, times this: what the horizon leaves
-    # beyond its end is the platform's state, so it must not be left drifting (without it, a
-    # sustained tilt's small f_z loss kept the platform 0.1-0.4 m up, accelerating upward at
-    # the end of every horizon)
-    terminal_weight: float = 100.0
-    tolerance: float = 1e-3            # OSQP eps_abs = eps_rel (then polished: active set exact)
-    max_iter: int = 20000
 
 
 @dataclass(frozen=True)

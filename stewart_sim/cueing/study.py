@@ -30,7 +30,7 @@ from controller.trajectory import Trajectory
 from stewart_fmu.errors import StewartError
 from stewart_fmu.model import Model
 
-from .config import CueingConfig, cueing_config
+from .config import CueingConfig, cueing_config, optimal_options
 from .feasibility import Feasibility, feasibility
 from .motion import VehicleMotion
 from .optimal import Diagnostics, optimal_cueing
@@ -103,14 +103,16 @@ def _stage(progress: Callable[[str, int, int], None] | None,
 def make_cue(mode: str, model: Model, config: CueingConfig, motion: VehicleMotion,
              progress: Callable[[int, int], None] | None = None
              ) -> tuple[Cue, Diagnostics | None]:
-    """The cue of one mode, and the optimal mode's solver record (None for classical);
-    `progress(done, total)` follows the optimal mode's MPC steps."""
+    """The cue of one mode, and the optimal mode's solver record (None for classical); the
+    optimal mode runs with the scene's [cueing.optimal] options. `progress(done, total)`
+    follows the optimal mode's MPC steps."""
     home = np.asarray(model.home, dtype=float)
     gravity = np.asarray(model.gravity, dtype=float)
     if mode == "classical":
         return classical_washout(config, motion, home, gravity), None
     if mode == "optimal":
-        result = optimal_cueing(model, config, motion, home, gravity, progress=progress)
+        result = optimal_cueing(model, config, motion, home, gravity,
+                                options=optimal_options(model), progress=progress)
         return result.cue, result.diagnostics
     raise CueError(f"cue: mode {mode!r} unknown: one of {', '.join(MODES)}")
 
