@@ -116,7 +116,7 @@ class OptimalOptions:
     rate_weight: tuple[float, float, float] = (0.0, 0.0, 0.0)
     acceleration_weight: tuple[float, float, float] = (0.01, 0.01, 0.01)
     angular_acceleration_weight: tuple[float, float, float] = (0.01, 0.01, 0.01)
-    slack_weight: tuple[float, float] = (1e3, 1e3)   # linear, quadratic, per fraction of range
+    slack_weight: tuple[float, float] = (1e3, 1e3)   # linear, quadratic, per fraction of half-range
     # the washout weights at the horizon's last step, times this: what the horizon leaves
     # beyond its end is the platform's state, so it must not be left drifting (without it, a
     # sustained tilt's small f_z loss kept the platform 0.1-0.4 m up, accelerating upward at

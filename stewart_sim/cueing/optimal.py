@@ -39,6 +39,9 @@ constraints", Vehicle System Dynamics 51: 1151-1172), with the limits taken from
   (a recorded motion, as in Garrett and Best's offline case); with False the current vehicle
   motion is held over the horizon (the real-time case of Dagdelen et al.).
 
+The rate, horizon, margins, weights and solver settings are OptimalOptions (config.py): the
+scene's [cueing.optimal] table, read by config.optimal_options.
+
 The applied accelerations are integrated exactly (piecewise constant), so the returned q, qd,
 qdd are consistent at any sample rate; the cue is resampled at the motion's own times.
 """
