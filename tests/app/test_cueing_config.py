@@ -7,6 +7,7 @@ shows the sub-table."""
 from __future__ import annotations
 
 import dataclasses
+import json
 import re
 import subprocess
 import sys
@@ -187,3 +188,21 @@ def test_scene_info_shows_the_sub_table():
     data = scene_dict("sim")
     del data["cueing"]["optimal"]
     assert "cueing.optimal:" not in describe_model(scene_from_dict(data))
+
+
+def test_every_key_is_documented_with_its_default():
+    """docs/scene-format.md's [cueing.optimal] table lists exactly the OptimalOptions fields,
+    each with the default OptimalOptions() holds (tilt_rate_limit: the [cueing] one)."""
+    doc = (ROOT / "docs" / "scene-format.md").read_text()
+    section = doc.split("### `[cueing.optimal]`", 1)[1].split("\n## ", 1)[0]
+    rows = {m.group(1): m.group(2) for m in
+            re.finditer(r"^\| `(\w+)` \| [^|]+ \| ([^|]+) \|", section, re.MULTILINE)}
+    assert set(rows) == {f.name for f in dataclasses.fields(OptimalOptions)}
+    for name, text in rows.items():
+        default = getattr(OptimalOptions(), name)
+        if default is None:
+            assert "tilt_rate_limit" in text
+        elif isinstance(default, bool):
+            assert text.strip() == str(default).lower()
+        else:
+            assert np.array_equal(np.atleast_1d(json.loads(text)), np.atleast_1d(default)), name
