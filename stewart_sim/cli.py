@@ -39,21 +39,21 @@ DEFAULT_SCENE = Path("scenes") / "micro_manipulator.toml"
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status (0 ok, 1 I/O failure, 2 bad input,
     130 Ctrl-C)."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    parser = build_parser(argv[0] if argv else None)
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit as exc:  # --help, usage errors: argparse has printed the message
-        return exc.code if isinstance(exc.code, int) else 2
-    # Ctrl-C is caught before anything beyond the standard library is imported (an interrupt
-    # inside an import waits for it to return: stewart_sim/interrupt.py)
+    # Ctrl-C is caught from the start, before anything beyond the standard library is imported
+    # (an interrupt inside an import waits for it to return: stewart_sim/interrupt.py)
     from stewart_sim import interrupt
 
     interrupt.reset_interrupt()
     restore = _catch_sigint(interrupt.sigint_handler)
     try:
+        argv = list(sys.argv[1:] if argv is None else argv)
+        parser = build_parser(argv[0] if argv else None)
+        try:
+            args = parser.parse_args(argv)
+        except SystemExit as exc:  # --help, usage errors: argparse has printed the message
+            return exc.code if isinstance(exc.code, int) else 2
         return _run(args)
-    except KeyboardInterrupt:          # while the packages below were imported
+    except KeyboardInterrupt:          # while parsing, or while the packages were imported
         return _fail(f"interrupted: {KEPT}", 130)
     finally:
         restore()

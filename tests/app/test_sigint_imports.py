@@ -3,7 +3,8 @@
 A real SIGINT is raised (signal.raise_signal) from inside the import system at a chosen point,
 in a child process running the command line, so the moment is exact: no timing. Each point is
 one where a KeyboardInterrupt raised on the spot did damage before stewart_sim/interrupt.py
-held it back until the import returned: numpy turned it into an ImportError traceback,
+held it back until the import returned and cli.main installed it first: the parser's import
+ended in a traceback, numpy turned it into an ImportError traceback,
 matplotlib's ft2font was left half initialised ("Fatal Python error" and an abort at exit), and
 one escaping an exec of source text (a dataclass) made Python end the process by SIGINT
 instead of our exit status 130.
@@ -58,6 +59,8 @@ class Trigger:
             return None
         if point == "numpy-c-init" and name == "numpy.exceptions":   # asked by numpy's C init
             fire()
+        elif point == "parser" and name == "importlib.metadata":     # --version's, at start
+            fire()
         elif point == "ft2font-c-init" and name == "matplotlib.ft2font":
             sys.settrace(in_ft2font_init)
         elif point == "dataclass-exec" and name == "stewart_sim.paper":
@@ -73,7 +76,7 @@ sys.exit(status)
 '''
 
 
-@pytest.mark.parametrize("point", ["numpy-c-init", "ft2font-c-init", "dataclass-exec"])
+@pytest.mark.parametrize("point", ["parser", "numpy-c-init", "ft2font-c-init", "dataclass-exec"])
 def test_sigint_inside_an_import_exits_130_with_one_line(point, tmp_path) -> None:
     """SIGINT at `point` of `paper`'s imports: status 130 (not an abort, not killed by
     SIGINT), stderr exactly the one line saying what was kept, the earlier set untouched."""
