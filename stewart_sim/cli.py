@@ -39,22 +39,36 @@ DEFAULT_SCENE = Path("scenes") / "micro_manipulator.toml"
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status (0 ok, 1 I/O failure, 2 bad input,
     130 Ctrl-C)."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    parser = build_parser(argv[0] if argv else None)
+    # Ctrl-C is caught from the start, before anything beyond the standard library is imported
+    # (an interrupt inside an import waits for it to return: stewart_sim/interrupt.py)
+    from stewart_sim import interrupt
+
+    interrupt.reset_interrupt()
+    restore = _catch_sigint(interrupt.sigint_handler)
     try:
-        args = parser.parse_args(argv)
-    except SystemExit as exc:  # --help, usage errors: argparse has printed the message
-        return exc.code if isinstance(exc.code, int) else 2
+        argv = list(sys.argv[1:] if argv is None else argv)
+        parser = build_parser(argv[0] if argv else None)
+        try:
+            args = parser.parse_args(argv)
+        except SystemExit as exc:  # --help, usage errors: argparse has printed the message
+            return exc.code if isinstance(exc.code, int) else 2
+        return _run(args)
+    except KeyboardInterrupt:          # while parsing, or while the packages were imported
+        return _fail(f"interrupted: {KEPT}", 130)
+    finally:
+        restore()
+
+
+def _run(args: argparse.Namespace) -> int:
+    """Run the command parsed, SIGINT caught; returns the exit status (see main)."""
     # imported after parsing: --help, --version and usage errors need none of the packages
     from stewart_fmu.errors import StewartError
     from stewart_fmu.io import OutputError
-    from stewart_sim import outputs
+    from stewart_sim import interrupt, outputs
 
-    outputs.reset_interrupt()
-    restore = _catch_sigint(outputs.sigint_handler)
     try:
         args.run(args)
-        outputs.check_interrupted()   # a Ctrl-C swallowed in a callback still ends with 130
+        interrupt.check_interrupted()   # a Ctrl-C swallowed in a callback still ends with 130
     except outputs.Interrupted as exc:   # one line: interrupted, and what was kept
         return _fail(f"interrupted: {exc.kept}", 130)
     except KeyboardInterrupt:
@@ -66,8 +80,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _fail(str(exc), 2)
     except OutputError as exc:
         return _fail(str(exc), 1)
-    finally:
-        restore()
     return 0
 
 
@@ -76,7 +88,7 @@ KEPT = "nothing new written (an earlier output is left as it was)"  # on Ctrl-C
 
 def _catch_sigint(handler):
     """Install `handler` for SIGINT (main thread only) and hide the "Exception ignored"
-    report of a KeyboardInterrupt raised inside a callback (outputs.interrupted() keeps it);
+    report of a KeyboardInterrupt raised inside a callback (interrupt.interrupted() keeps it);
     returns the function that restores both."""
     import signal
 

@@ -9,8 +9,8 @@ directory and leaves DIR as it was; the moves themselves run with SIGINT held ba
 that writes a few named files instead (`inverse`: FORCES.csv and FORCES.html) stages them the
 same way (`file_set`: `.FORCES.csv.partial-XXXX` beside them) and moves them in together.
 
-SIGINT is handled by `sigint_handler` (installed by cli.main): it records the signal and
-raises KeyboardInterrupt. A KeyboardInterrupt raised where Python cannot propagate it (a
+SIGINT is handled by `sigint_handler` (stewart_sim/interrupt.py, installed by cli.main): it
+records the signal and raises KeyboardInterrupt (inside an import: when the import returns). A KeyboardInterrupt raised where Python cannot propagate it (a
 callback from C, a destructor: "Exception ignored in ...") is therefore not lost: the flag
 stops the set before it is moved into place, and the command still exits 130.
 """
@@ -26,11 +26,9 @@ from pathlib import Path
 from typing import Callable, Iterable, Iterator
 
 from stewart_fmu.io import OutputError, write_text
+from stewart_sim.interrupt import check_interrupted
 
 MANIFEST = ".stewart-sim-set"   # names of the files of the set in DIR, one a line
-
-_interrupted = threading.Event()
-
 
 class Interrupted(KeyboardInterrupt):
     """Ctrl-C, with the line saying what was kept (cli.main prints it and exits 130)."""
@@ -38,28 +36,6 @@ class Interrupted(KeyboardInterrupt):
     def __init__(self, kept: str):
         super().__init__(kept)
         self.kept = kept
-
-
-def sigint_handler(signum, frame) -> None:
-    """SIGINT: remember it (see the module doc), then interrupt like Python's default."""
-    _interrupted.set()
-    raise KeyboardInterrupt
-
-
-def reset_interrupt() -> None:
-    """Forget an earlier SIGINT (a new command starts)."""
-    _interrupted.clear()
-
-
-def interrupted() -> bool:
-    """Whether SIGINT arrived since the command started (also when it was swallowed)."""
-    return _interrupted.is_set()
-
-
-def check_interrupted() -> None:
-    """Raise KeyboardInterrupt if SIGINT arrived, even if the exception was swallowed."""
-    if _interrupted.is_set():
-        raise KeyboardInterrupt
 
 
 @contextmanager

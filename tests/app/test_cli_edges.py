@@ -15,7 +15,7 @@ import pytest
 
 from controller.moves import demo_trajectory
 from stewart_fmu import io, load_scene
-from stewart_sim import cli, limits, outputs, progress
+from stewart_sim import cli, interrupt, limits, outputs, progress
 from stewart_sim.outputs import MANIFEST
 from stewart_sim.view import command as view_command
 
@@ -524,10 +524,10 @@ def test_a_swallowed_sigint_still_stops_the_set(tmp_path) -> None:
 
     class Swallowed:
         def __del__(self):
-            outputs.sigint_handler(signal.SIGINT, None)   # raised in __del__: ignored
+            interrupt.sigint_handler(signal.SIGINT, None)   # raised in __del__: ignored
 
     out = tmp_path / "out"
-    outputs.reset_interrupt()
+    interrupt.reset_interrupt()
     try:
         with pytest.raises(outputs.Interrupted) as info:
             with outputs.result_set(out) as stage:
@@ -536,5 +536,5 @@ def test_a_swallowed_sigint_still_stops_the_set(tmp_path) -> None:
                 del obj
         assert info.value.kept == f"nothing new written, {out} not created"
     finally:
-        outputs.reset_interrupt()
+        interrupt.reset_interrupt()
     assert not out.exists() and _partials(out) == []

@@ -1,0 +1,82 @@
+"""Ctrl-C as KeyboardInterrupt, but never in the middle of an import.
+
+`sigint_handler` (installed by cli.main before it imports anything beyond the standard library)
+records the signal and raises KeyboardInterrupt, as Python's default handler does, except while
+a module is being imported. There an exception does damage the program cannot undo: CPython
+turns it into another error (numpy: ImportError "PyCapsule_Import could not import module
+datetime"; a class body: RuntimeError "Error calling __set_name__"), a C extension is left half
+initialised (matplotlib's pybind11 ft2font: "ImportError: initialization failed", then "Fatal
+Python error: PyThreadState_Get" and an abort when the interpreter finalises), or, escaping an
+exec of source text (dataclasses, namedtuple), it marks the interrupt unhandled so that Python
+ends the process by SIGINT after our exit status 130 was chosen. So inside an import the
+handler only arms a profile hook that raises the KeyboardInterrupt when the outermost import
+returns: the module is then whole, and the interrupt leaves the command as simply as anywhere
+else. Only the standard library is imported here (cli.main imports this module first).
+"""
+from __future__ import annotations
+
+import sys
+import threading
+from types import FrameType
+
+_interrupted = threading.Event()
+_deferred: list[FrameType] = []   # the import frame a SIGINT waits for (one at a time)
+
+# the files of the frozen import system: a frame of theirs on the stack means an import runs
+_IMPORT_FILES = ("<frozen importlib._bootstrap>", "<frozen importlib._bootstrap_external>")
+
+
+def sigint_handler(signum: int, frame: FrameType | None) -> None:
+    """SIGINT: remember it, then interrupt like Python's default, or, inside an import, as
+    soon as the import returns (see the module doc)."""
+    _interrupted.set()
+    outermost = _outermost_import(frame)
+    if outermost is None:
+        raise KeyboardInterrupt
+    _raise_on_return(outermost)
+
+
+def reset_interrupt() -> None:
+    """Forget an earlier SIGINT (a new command starts)."""
+    _interrupted.clear()
+
+
+def interrupted() -> bool:
+    """Whether SIGINT arrived since the command started (also when it was swallowed)."""
+    return _interrupted.is_set()
+
+
+def check_interrupted() -> None:
+    """Raise KeyboardInterrupt if SIGINT arrived, even if the exception was swallowed."""
+    if _interrupted.is_set():
+        raise KeyboardInterrupt
+
+
+def _outermost_import(frame: FrameType | None) -> FrameType | None:
+    """The oldest frame of the import system on the stack of `frame`, or None: imports nest
+    (a module's body, or a C extension's initialisation, imports others), and only when the
+    outermost returns is every module it started whole."""
+    outermost = None
+    while frame is not None:
+        if frame.f_code.co_filename in _IMPORT_FILES:
+            outermost = frame
+        frame = frame.f_back
+    return outermost
+
+
+def _raise_on_return(frame: FrameType) -> None:
+    """Raise KeyboardInterrupt when `frame` returns (or ends by an exception): a profile hook,
+    not a trace hook, so that a coverage tracer or debugger keeps working; a profiler that was
+    running is put back."""
+    if _deferred:          # a second Ctrl-C in the same import: the first already waits
+        return
+    previous = sys.getprofile()
+
+    def hook(f: FrameType, event: str, arg: object) -> None:
+        if f is frame and event == "return":
+            sys.setprofile(previous)
+            _deferred.clear()
+            raise KeyboardInterrupt
+
+    _deferred.append(frame)
+    sys.setprofile(hook)
