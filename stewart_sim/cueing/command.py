@@ -11,6 +11,7 @@ in summary.md and on the terminal.
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 from stewart_fmu.scene import load_scene
@@ -96,7 +97,7 @@ def verdict(study: CueStudy) -> str:
     for r in study.runs:
         p = r.perception
         rms = (f"RMS perceived error f {', '.join(f'{v:.3g}' for v in p.rms_f)} m/s², "
-               f"ω {', '.join(f'{v * 57.29577951308232:.3g}' for v in p.rms_w)} deg/s")
+               f"ω {', '.join(f'{math.degrees(v):.3g}' for v in p.rms_w)} deg/s")
         v = r.feasibility.violations
         if not v:
             lines.append(f"{r.mode}: inside every limit; {rms}")

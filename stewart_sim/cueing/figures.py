@@ -9,13 +9,12 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from stewart_sim.plots import LEG_COLOURS, plot_leg_forces, plot_line, tracking_figure
+from stewart_sim.plots import plot_leg_forces, plot_line, tracking_figure
 
 from .study import CueStudy
-from .vestibular import AXES
+from .vestibular import AXES, ROTATION_AXES
 
 MODE_COLOURS = ("tab:blue", "tab:orange", "tab:green")
-ROTATION_AXES = ("roll", "pitch", "yaw")
 
 
 def specific_force_figure(study: CueStudy, title: str) -> Figure:
@@ -113,8 +112,6 @@ def _limited(ax: Axes, t, values, name: str, limit, what: str, unit: str) -> Non
                      f"({100 * peak / limit:.0f} %)", fontsize=9)
     else:
         ax.set_title(f"{name}: peak {peak:.4g} {unit}", fontsize=9)
-    for i, line in enumerate(ax.get_lines()[:6]):
-        line.set_color(LEG_COLOURS[i])
 
 
 def tracking(study: CueStudy, title: str) -> Figure | None:

@@ -25,9 +25,7 @@ from stewart_sim.outputs import result_set
 from .feasibility import Feasibility
 from .figures import FIGURES
 from .study import CueRun, CueStudy
-from .vestibular import AXES, Perception
-
-ROTATION_AXES = ("roll", "pitch", "yaw")
+from .vestibular import AXES, ROTATION_AXES, Perception
 
 
 def write_cue_report(study: CueStudy, out: Path, title: str,

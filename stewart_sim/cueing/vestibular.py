@@ -56,7 +56,8 @@ CANAL_TAU_S = 0.1                  # s
 CANAL_TAU_A = 30.0                 # s
 OTOLITH_THRESHOLD = np.array([0.17, 0.17, 0.28])           # m/s^2, x, y, z
 CANAL_THRESHOLD = np.radians([3.0, 3.6, 2.6])              # rad/s, roll, pitch, yaw
-AXES = ("x", "y", "z")
+AXES = ("x", "y", "z")                                    # specific force
+ROTATION_AXES = ("roll", "pitch", "yaw")                  # angular velocity
 
 
 def otolith_num_den(axis: int = 0) -> tuple[np.ndarray, np.ndarray]:
