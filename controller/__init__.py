@@ -1,1 +1,1 @@
-"""Global-space trajectories, per-axis drive controllers and the co-simulation master (issue 4)."""
+"""Global-space trajectories, per-axis drive controllers and the co-simulation master."""

@@ -1,1 +1,1 @@
-"""Serial/MAVLink link layer and the emulated micro-manipulator (issue 5)."""
+"""Serial/MAVLink link layer and the emulated micro-manipulator."""

@@ -119,7 +119,7 @@ def load(path: str | os.PathLike | None = None) -> ModuleType:
 def attach(mf, dialect: ModuleType | None = None):
     """Make the mavutil connection ``mf`` speak our dialect (MAVLink 2); return ``mf``.
 
-    Replaces ``mf.mav`` by ``dialect.MAVLink`` bound to ``mf`` (keeping source ids, robust
+    Replaces ``mf.mav`` by the dialect's ``MAVLink`` bound to ``mf`` (keeping source ids, robust
     parsing and callbacks) and disables mavutil's protocol auto-switch.
     Call it before any traffic (a new ``mav`` starts with fresh sequence numbers and parser state,
     and without signing: set signing up afterwards with ``mf.setup_signing(...)``).

@@ -17,7 +17,7 @@ OBSERVE_HZ = 60.0   # default snapshot rate: a screen's frame rate; the loop run
 
 @dataclass(frozen=True)
 class Snapshot:
-    """The device's state at one tick, in the contract's units (m, rad, N; CONVENTIONS.md)."""
+    """The device's state at one tick, in the contract's units (m, rad, N; docs/conventions.md)."""
 
     tick: int                           # ticks done; t = tick / rate
     t: float                            # device time, s

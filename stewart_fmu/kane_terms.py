@@ -2,11 +2,11 @@
 
 This is the readable form of the model: partial velocities of every body with respect to the
 generalized speeds ldot, the inertia forces and torques of every body, and their dot products.
-The compiled kernel in `kane.py` computes the same generalized forces through a reduction to the
+The C core (native/src/kane.c) computes the same generalized forces through a reduction to the
 platform twist; tests hold the two to 1e-10. Use these functions to inspect the model (a mass
 matrix, the velocity terms at a state); use `dynamics` for speed.
 
-Sign convention (see kane.py): K* = -([m] lddot + b), K = g + [a] sigma + f, K* + K = 0.
+Sign convention (docs/conventions.md): K* = -([m] lddot + b), K = g + [a] sigma + f, K* + K = 0.
 """
 from __future__ import annotations
 

@@ -14,7 +14,7 @@ A case scene carries a [case] table (validated in stewart_fmu.scene):
     acceleration = [10, 0, ...]    # accelerate: constant pose acceleration from rest at home
     target = [0, 0, 0.12, ...]     # ramp: quintic move from home to this pose
 
-Motions: "hold" simulates the plant forward (stepper.Plant) under constant rack forces;
+Motions: "hold" simulates the plant forward (plant.Plant) under constant rack forces;
 "accelerate" and "ramp" check every pose and compute the inverse dynamics (an error stops at
 the first bad sample, naming its index and time); "closed_loop" runs the scene's controllers
 on the `stewart-sim run` reference. Each run returns a CaseResult: "ok" with the figures

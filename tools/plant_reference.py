@@ -1,6 +1,6 @@
 """Record the plant's results on every shipped scene into tests/data/plant_reference.npz.
 
-Written once, at commit 5a10cb2, by the numba kernels that the C core (stewart_fmu/native)
+Written once, at commit 5a10cb2, by the compiled Python kernels that the C core (stewart_fmu/native)
 replaced; tests/stewart_fmu/test_plant_reference.py holds the C core to it (1e-12 relative), so
 the port stays checked against the implementation it replaced. What is recorded, per scene (the
 shipped, stiff and extreme scenes), from seeded states near home: inverse_dynamics,

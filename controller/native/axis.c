@@ -5,7 +5,7 @@
 #include <math.h>
 #include "axis.h"
 
-/* Python's min(a, b) / max(a, b) as numba compiles them: the first argument unless the second
+/* Python's min(a, b) / max(a, b): the first argument unless the second
    compares smaller (larger), so a NaN first argument passes through. */
 #define PY_MIN(a, b) ((b) < (a) ? (b) : (a))
 #define PY_MAX(a, b) ((b) > (a) ? (b) : (a))

@@ -69,7 +69,7 @@ class CueingConfig:
     lower, rotational breaks about 1 rad/s, damping 1 (no overshoot in the washout)), gains
     of 0.5 (the usual scaling of a full-size simulator), tuned so that
     scenes/motion_simulator.toml stays inside its stroke for the shipped vehicle motions
-    (braking, lane change, take-off roll and rotation; tests/app/cueing). The tilt rate
+    (braking, lane change, take-off roll and rotation; tests/app/test_cueing_*.py). The tilt rate
     limit is the 3 deg/s perception threshold of tilt (Groen & Bles 2004, "How to use body
     tilt for the simulation of linear self motion", J. Vestibular Research 14); the classical
     algorithm limits the tilt rate so that the tilt itself goes unnoticed (Reid & Nahon 1985).

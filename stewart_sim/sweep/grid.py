@@ -9,7 +9,7 @@ a full grid or a seeded Latin hypercube over dotted scene, controller and trajec
     [trajectory]                      # inverse and closed_loop
     kind = "demo"                     # "demo" | "run" | "file" (see sweep_eval)
     duration = 1.0                    # s (demo, run)
-    rate = 1000.0                     # Hz (demo; the closed loop runs at controller.rate)
+    rate = 1000.0                     # Hz (demo; the closed loop runs at [controller] rate)
     file = "traj.csv"                 # kind = "file": a trajectory CSV (contract columns)
     [envelope]                        # envelope: pose grid about home (offsets, m or rad)
     x = [-0.02, 0.02]                 # any of x, y, z, thx, thy, thz; the others stay at home

@@ -1,6 +1,6 @@
 """What the 3D view draws of a scene, and where every object sits for a pose.
 
-The mechanism is drawn as the contract describes it (docs/CONVENTIONS): a base plate through
+The mechanism is drawn as the contract describes it (docs/conventions.md): a base plate through
 the base joints a_i, a platform plate through the platform joints p_i (in C, moved by the pose
 q = (x, y, z, thx, thy, thz), R = Rz Ry Rx), and each leg as its two rigid parts: the cylinder
 (lower part A_i) from a_i along u_i and the piston (upper part B_i) from the platform joint

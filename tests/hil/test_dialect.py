@@ -1,4 +1,4 @@
-"""The stewart MAVLink dialect (issue 5, item 1): pinned XML, generation, wire format, compatibility."""
+"""The stewart MAVLink dialect: pinned XML, generation, wire format, compatibility."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The exported FMU (stewart_fmu.fmu.export_fmu) under real importers: fmpy (validation,
+"""The exported FMU (stewart_fmu.fmu.export.export_fmu) under real importers: fmpy (validation,
 simulate_fmu, the low-level FMU2Slave) and DNV's libcosim (libcosimpy), each checked against
 the in-process plant (stewart_fmu.plant.Plant) driven the same way.
 

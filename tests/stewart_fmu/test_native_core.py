@@ -4,7 +4,7 @@ What the public API's tests do not reach: cond(J) by the core's SVD against nump
 singular pose; the plant step's refusals (energy gain where Plant raises, a non-finite state,
 the bound on its work) and the run holder (core.Run) against single steps. The physics
 (tests/stewart_fmu/test_dynamics_physics.py and the others) runs on this core through the public
-API, and tests/stewart_fmu/test_plant_reference.py holds it to the numba kernels it replaced.
+API, and tests/stewart_fmu/test_plant_reference.py holds it to the kernels it replaced.
 """
 from __future__ import annotations
 
@@ -25,7 +25,7 @@ SCENES_DIR = Path(__file__).resolve().parents[2] / "scenes"
 
 
 def test_condition_number_towards_fichters_singularity():
-    """cond(J) on the yaw move onto Fichter's singular pose (scenes/extreme/singular_move):
+    """cond(J) on the yaw move onto Fichter's singular pose (scenes/extreme/singular_move.toml):
     C (one-sided Jacobi) equals numpy's SVD of the C core's scaled J to 1e-10 relative while cond <= 3e4; closer in,
     both carry the relative error eps * cond of the smallest singular value, so the test
     asks 1e-15 * cond, and at the singular pose both lie far above COND_LIMIT."""

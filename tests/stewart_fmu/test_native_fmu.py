@@ -1,4 +1,4 @@
-"""The native FMU (stewart_fmu.fmu.export_fmu): C core + C FMI layer, FMI 2.0 and 3.0.
+"""The native FMU (stewart_fmu.fmu.export.export_fmu): C core + C FMI layer, FMI 2.0 and 3.0.
 
 Checked against the in-process plant (stewart_fmu.plant.Plant) driven the same way: same
 inputs held over each step, same communication points. Agreement is measured as in

@@ -1,7 +1,7 @@
-"""The plant on the C core against the numba kernels it replaced, on every shipped scene.
+"""The plant on the C core against the compiled Python kernels it replaced, on every shipped scene.
 
 tests/data/plant_reference.npz was recorded by tools/plant_reference.py at commit 5a10cb2 from
-the numba kernels (inverse dynamics, the force breakdown, forward dynamics, leg state, cond(J),
+those kernels (inverse dynamics, the force breakdown, forward dynamics, leg state, cond(J),
 energy terms, and 20 Plant steps of 1 ms with rk4, euler and dopri5, including where a step is
 refused and why). The same computation on today's plant must agree to 1e-12 relative (per
 quantity, to its largest entry), and refuse the same steps with the same status.

@@ -271,7 +271,7 @@ fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boo
         model_log(inst, M_ERROR, "fmi2GetBooleanStatus: only fmi2Terminated, with a value pointer");
         return fmi2Error;
     }
-    /* After a discarded step: true, as the pythonfmu FMU did. The state is intact and a master
+    /* After a discarded step: true. The state is intact and a master
      * that rolls back may carry on, but a master that retries the same step (fmpy's
      * simulate_fmu) would otherwise loop forever; it ends at the last successful time. */
     *value = inst->discarded ? fmi2True : fmi2False;

@@ -14,7 +14,7 @@ static int finite6(const double a[6])
     return 1;
 }
 
-/* The error of a failed sample (dynamics._classify): a non-finite input explains any failure;
+/* The error of a failed sample: a non-finite input explains any failure;
    otherwise an overflowed output means a near-singular pose. */
 int sw_classify(int status, const double a[6], const double b[6], const double c[6])
 {
@@ -23,7 +23,7 @@ int sw_classify(int status, const double a[6], const double b[6], const double c
     return status == STEWART_OVERFLOW ? STEWART_SINGULAR : status;
 }
 
-/* mu_i of Eq. 9: the force friction opposes to extension (np.sign as numba compiles it:
+/* mu_i of Eq. 9: the force friction opposes to extension (its sign:
    1, -1, or the argument itself for +-0 and NaN). */
 static double friction(const double *p, double ld)
 {
@@ -43,7 +43,7 @@ static double drive_force(const double *p, double ldd)
 }
 
 /* rhs <- J^-T rhs with the LU of the scaled J^T; rhs in the factors' row order, its moments
-   scaled like J^T here (dynamics._solve_jt). */
+   scaled like J^T here. */
 static void solve_jt(const double *p, sw_ws *ws, double *rhs)
 {
     const double ic = 1.0 / P(CHAR_LENGTH);
@@ -111,8 +111,8 @@ int sw_parts_sample(const double *p, const double q[6], const double qd[6],
     return ok ? STEWART_OK : STEWART_OVERFLOW;
 }
 
-/* (M_nu + m_d J^T J) nudot = J^T (sigma - mu - m_d lddot_0) + K*_0 + K_g, then Euler rates
-   (dynamics._forward_sample). */
+/* (M_nu + m_d J^T J) nudot = J^T (sigma - mu - m_d lddot_0) + K*_0 + K_g, then Euler
+   rates. */
 int sw_forward_sample(const double *p, const double q[6], const double qd[6],
                       const double sigma[6], sw_ws *ws, double out[6])
 {

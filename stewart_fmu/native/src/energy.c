@@ -1,5 +1,5 @@
 /* energy.c -- mechanical energy of the plant state and the power balance of a step
-   (energy._energy_terms, stability.step_energy). E = T + V_g + V_s with T = nu^T M_nu nu / 2
+   (stewart_energy_terms, stewart_step_energy). E = T + V_g + V_s with T = nu^T M_nu nu / 2
    (+ m_d sd^2 / 2 per motor with a transmission), V_g = -sum m g . r, V_s = k (s - l)^2 / 2;
    with the rack forces F held, dE = F . dd - D, D >= 0 the dissipation. */
 #include <math.h>
@@ -81,7 +81,7 @@ int stewart_step_energy(const double *params, const double *y1, const double e0[
     scale = e0[0] + e1[0] + e0[2] + e1[2] + fabs(work) + 1e-9 * (fabs(e0[1]) + fabs(e1[1]));
     if (P(COULOMB) > 0.0) {
         /* the friction's sign changes inside the step: its work bound also counts the path
-           the legs would cover at their end rates (stability.step_energy's h sum |ldot_i|) */
+           the legs would cover at their end rates (h sum |ldot_i|) */
         double l1[6], ld1[6], om1[3];
         stewart_leg_state(params, y1, y1 + 6, l1, ld1, om1);
         for (i = 0; i < 6; ++i)

@@ -4,7 +4,7 @@
 
 #include "../include/stewart.h"
 
-/* Python's builtin min(a, b) / max(a, b) as numba compiles them: the first argument unless the
+/* Python's builtin min(a, b) / max(a, b): the first argument unless the
    second compares smaller (larger); a NaN in the second argument is never taken. */
 #define PY_MIN(a, b) ((b) < (a) ? (b) : (a))
 #define PY_MAX(a, b) ((b) > (a) ? (b) : (a))
@@ -12,7 +12,7 @@
 /* Six zeros: a pose row at rest. */
 static const double SW_ZERO6[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
 
-/* Scratch of one sample (dynamics._workspace): R, omega, alpha, unit vectors U, lever arms
+/* Scratch of one sample: R, omega, alpha, unit vectors U, lever arms
    Rr = R p_i, leg rows (l, ldot, lddot), J^T (scaled, rows stored where order[1] says), the
    generalized forces gen (4 x 6), a right-hand side and the twist mass matrix. order carries
    from sample to sample (see linalg.c, sw_lu_factor). All matrices row-major. */

@@ -1,5 +1,5 @@
 /* kane.c -- Kane's equations of the paper (Eqs. 1-14) reduced to the platform twist
-   nu = (v, omega) (kane.py): the generalized inertia and gravity forces per body group and
+   nu = (v, omega): the generalized inertia and gravity forces per body group and
    the twist-space mass matrix. Leg space follows with J (ldot = J nu):
    K*_l = J^-T K*_nu, [m] = J^-T M_nu J^-1. */
 #include <math.h>
@@ -41,17 +41,18 @@ static void platform_inertia(const double *p, const double *R, const double *om,
     g[5] = R[6] * t0 + R[7] * t1 + R[8] * t2;
 }
 
-/* Generalized inertia (Eqs. 3-7) and gravity (Eq. 8) forces on the twist (kane.twist_forces):
+/* Generalized inertia (Eqs. 3-7) and gravity (Eq. 8) forces on the twist:
    ws->gen rows 0 platform inertia, 1 lower legs, 2 upper legs, 3 gravity; also U, Rr, the leg
    rows (l, ldot, lddot) and J^T with its rotational rows divided by the characteristic length,
    row r stored at ws->order[6 + r]. x, v, acc: pose, velocity, acceleration (entries 0-2 used),
    al the angular acceleration; ws->R and ws->om must hold the orientation. Returns OK, or
    STROKE when a leg is outside its limits.
 
-   Layout for speed, arithmetic as kane.py: the per-leg terms are computed leg-parallel over
+   Layout for speed, arithmetic as the Python kernel it replaced (held to it by
+   tests/stewart_fmu/test_plant_reference.py): the per-leg terms are computed leg-parallel over
    arrays of six (loops the compiler vectorizes), each leg's contribution [f; r x f] to a body
-   group is kept, and the contributions are then summed over the legs in leg order 0..5 as the
-   Python kernel accumulates them, so every result is the same to the last bit. */
+   group is kept, and the contributions are then summed over the legs in leg order 0..5 as that
+   kernel accumulated them, so every result is the same to the last bit. */
 int sw_twist_forces(const double *p, const double x[6], const double v[6], const double acc[6],
                     const double al[3], sw_ws *ws)
 {
@@ -182,7 +183,7 @@ int sw_twist_forces(const double *p, const double x[6], const double v[6], const
 }
 
 /* M_nu = M_platform + sum_i S_i^T (M_leg,i + m_d u u^T) S_i, S_i = [I, -[r_i]x]
-   (kane.twist_mass_matrix); M_leg = m_B uu^T + (k / l^2) P, k = m_A c_A^2 + m_B (l - c_B)^2
+   M_leg = m_B uu^T + (k / l^2) P, k = m_A c_A^2 + m_B (l - c_B)^2
    + I_tA + I_tB. Reads ws->R, U, Rr, leg; writes ws->Mt, all of it when `full`, else only
    its lower triangle (all that sw_cholesky_solve reads; each entry computed as in full). */
 void sw_twist_mass_matrix(const double *p, sw_ws *ws, int full)

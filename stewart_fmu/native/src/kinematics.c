@@ -1,5 +1,5 @@
-/* kinematics.c -- leg state, the leg Jacobian and its condition number (kinematics.py,
-   dynamics._leg_state). ldot = J nu, row i = [u_i, (R p_i) x u_i]. */
+/* kinematics.c -- leg state, the leg Jacobian and its condition number (wrapped by
+   kinematics.py and dynamics.leg_state). ldot = J nu, row i = [u_i, (R p_i) x u_i]. */
 #include <math.h>
 #include "internal.h"
 
@@ -20,7 +20,7 @@ int stewart_leg_state(const double *params, const double q[6], const double qd[6
     return st;
 }
 
-/* J rows [u_i, scale (r_i x u_i)] (kinematics._jacobian_rows). */
+/* J rows [u_i, scale (r_i x u_i)]. */
 static void jacobian_rows(const sw_ws *ws, double scale, double J[36])
 {
     int i;

@@ -1,9 +1,9 @@
-/* linalg.c -- small dense 6x6 solves (linalg.py) and the singular values of a 6x6 (for cond(J),
+/* linalg.c -- small dense 6x6 solves and the singular values of a 6x6 (for cond(J),
    kinematics.condition_number). No allocation; row-major. */
 #include <math.h>
 #include "internal.h"
 
-/* LU of a 6x6 with partial pivoting in place (linalg.lu_factor); returns min |pivot| (0 when
+/* LU of a 6x6 with partial pivoting in place; returns min |pivot| (0 when
    singular). order[k] names the row stored in row k, order[6 + r] is where row r is stored;
    ties of |pivot| go to the smaller row name, so the factors do not depend on the storage. */
 double sw_lu_factor(double A[36], int order[12])
@@ -46,7 +46,7 @@ double sw_lu_factor(double A[36], int order[12])
     return pmin;
 }
 
-/* Solve in place with the factors of sw_lu_factor (linalg.lu_solve): b[k] is the entry of row
+/* Solve in place with the factors of sw_lu_factor: b[k] is the entry of row
    order[k]; the solution comes in the natural order. */
 void sw_lu_solve(const double LU[36], double b[6])
 {
@@ -65,8 +65,7 @@ void sw_lu_solve(const double LU[36], double b[6])
     }
 }
 
-/* Solve A x = b in place for symmetric positive-definite A (overwritten); 0 if not SPD
-   (linalg.cholesky_solve). */
+/* Solve A x = b in place for symmetric positive-definite A (overwritten); 0 if not SPD. */
 int sw_cholesky_solve(double A[36], double b[6])
 {
     int i, j, k;

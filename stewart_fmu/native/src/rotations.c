@@ -1,5 +1,5 @@
 /* rotations.c -- R = Rz(thz) Ry(thy) Rx(thx), omega = E thd, alpha = E thdd + Edot thd
-   (rotations.orientation), and E^-1 (rotations.solve_rate_matrix). */
+   (rotations.euler_motion in numpy), and E^-1 (rotations.solve_rate_matrix). */
 #include <math.h>
 #include "internal.h"
 

@@ -15,7 +15,7 @@ void stewart_leg_side_params(const double *params, double out[STEWART_N_PARAMS])
         out[STEWART_P_HAS_DRIVE] = 0.0;
 }
 
-/* R, omega, U, Rr and the leg rows (l, ld) at y's pose and rates (transmission.leg_kinematics). */
+/* R, omega, U, Rr and the leg rows (l, ld) at y's pose and rates. */
 int sw_leg_kinematics(const double *pl, const double *y, sw_ws *ws)
 {
     sw_orientation(y, y + 6, SW_ZERO6, ws->R, ws->om, ws->al, ws->trig);
@@ -27,7 +27,7 @@ static double spring(const double *p, const double *y, const sw_ws *ws, int i)
     return P(STIFFNESS) * (y[12 + i] - ws->leg[3 * i]) + P(DAMPING) * (y[18 + i] - ws->leg[3 * i + 1]);
 }
 
-/* dy = (qd, qdd, sd, sdd) of the 24-state plant (transmission.compliant_derivative). */
+/* dy = (qd, qdd, sd, sdd) of the 24-state plant. */
 static int compliant_derivative(const double *p, const double *pl, const double *y,
                                 const double F[6], sw_ws *ws, double *dy)
 {
