@@ -66,7 +66,8 @@ def _tracked() -> tuple[str, ...]:
     build outputs (cffi's generated _core.c, _axis.c)."""
     try:
         out = subprocess.run(["git", "ls-files", "--cached", "--others", "--exclude-standard"],
-                             cwd=ROOT, capture_output=True, text=True, check=True).stdout.split("\n")
+                             cwd=ROOT, capture_output=True, text=True, check=True).stdout
+        out = out.split("\n")
     except (OSError, subprocess.CalledProcessError):
         out = [p.relative_to(ROOT).as_posix() for p in ROOT.rglob("*") if p.is_file()
                and not set(p.relative_to(ROOT).parts) & set(SKIPPED) and ".egg-info" not in str(p)
@@ -167,9 +168,11 @@ def _module_names(module: str) -> dict[str, ast.AST]:
     return names
 
 
-def _members(cls: ast.ClassDef, module: str, seen: frozenset[str] = frozenset()) -> set[str] | None:
-    """A class's members (its body and every self.x it assigns); None when a base is not ours."""
-    out = set(_names(cls.body))
+def _members(cls: ast.ClassDef, module: str,
+             seen: frozenset[str] = frozenset()) -> tuple[set[str], bool]:
+    """A class's members (its body, every self.x it assigns, those of its bases in the module),
+    and whether that is all of them (False when a base is defined elsewhere)."""
+    out, complete = set(_names(cls.body)), True
     for node in ast.walk(cls):
         if (isinstance(node, ast.Attribute) and isinstance(node.ctx, ast.Store)
                 and isinstance(node.value, ast.Name) and node.value.id == "self"):
@@ -177,12 +180,11 @@ def _members(cls: ast.ClassDef, module: str, seen: frozenset[str] = frozenset())
     for base in cls.bases:
         found = _module_names(module).get(base.id) if isinstance(base, ast.Name) else None
         if not isinstance(found, ast.ClassDef) or base.id in seen:
-            return None
-        more = _members(found, module, seen | {cls.name})
-        if more is None:
-            return None
-        out |= more
-    return out
+            complete = False
+            continue
+        more, whole = _members(found, module, seen | {cls.name})
+        out, complete = out | more, complete and whole
+    return out, complete
 
 
 def _resolve(module: str, rest: list[str], lenient: bool) -> str | None:
@@ -194,13 +196,14 @@ def _resolve(module: str, rest: list[str], lenient: bool) -> str | None:
     names = _module_names(module)
     found = names.get(rest[0])
     if found is None:
-        if lenient and any(rest[0] in (_members(c, module) or {rest[0]})
+        # a bare module's name is also its instances' (`model.params`): a member of its classes
+        if lenient and any(rest[0] in _members(c, module)[0]
                            for c in names.values() if isinstance(c, ast.ClassDef)):
             return None
         return f"{module} has no {rest[0]}"
     if isinstance(found, ast.ClassDef) and len(rest) > 1:
-        members = _members(found, module)
-        if members is not None and rest[1] not in members:
+        members, complete = _members(found, module)
+        if complete and rest[1] not in members:
             return f"{module}.{rest[0]} has no {rest[1]}"
     return None
 
@@ -268,7 +271,8 @@ def _c_comments(path: Path):
     while i < n:
         c = text[i]
         if text.startswith("/*", i) or text.startswith("//", i):
-            end = text.find("*/", i + 2) + 2 if c == "/" and text[i + 1] == "*" else text.find("\n", i)
+            block = text[i + 1] == "*"
+            end = text.find("*/", i + 2) + 2 if block else text.find("\n", i)
             end = n if end < 2 else end
             for k, part in enumerate(text[i:end].split("\n")):
                 yield line + k, part
@@ -343,7 +347,7 @@ def test_the_resolver_tells_good_from_stale():
     assert _check_dotted("stewart_fmu.native._core.lib") is None
     assert _check_dotted("Plant.do_step") is None and _check_dotted("Plant.no_such_member")
     assert _check_dotted("stewart_fmu.model._no_such_name")
-    assert _check_dotted("kane.STROKE")
+    assert _check_dotted("kane.STROKE") and _check_dotted("integrators._derivative")
     assert _check_dotted("linalg.py") and _check_dotted("CONVENTIONS.md")
     assert _check_dotted("README.md") is None and _check_dotted("summary.md") is None
     assert _check_dotted("stepper.Plant.do_step")

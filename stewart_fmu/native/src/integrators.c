@@ -17,7 +17,7 @@ static const double DP_A[7][6] = {
 static const double DP_E[7] = {71.0 / 57600, 0, -71.0 / 16695, 71.0 / 1920,
                                 -17253.0 / 339200, 22.0 / 525, -1.0 / 40};
 
-/* y = y0 advanced over h with n classic RK4 steps (integrators.rk4_advance). */
+/* y = y0 advanced over h with n classic RK4 steps. */
 static int rk4_advance(const double *p, const double *pl, int ny, const double *y0, double *y,
                        const double F[6], double h, long n)
 {
@@ -47,7 +47,7 @@ static int rk4_advance(const double *p, const double *pl, int ny, const double *
 }
 
 /* y = y0 advanced over h with n semi-implicit (symplectic) Euler steps: velocities first, then
-   positions with the new velocities (integrators.euler_advance). */
+   positions with the new velocities. */
 static int euler_advance(const double *p, const double *pl, int ny, const double *y0,
                          double *y, const double F[6], double h, long n)
 {
@@ -72,8 +72,8 @@ static int euler_advance(const double *p, const double *pl, int ny, const double
     return STEWART_OK;
 }
 
-/* y = y0 advanced over h with error-controlled Dormand-Prince 5(4) steps
-   (integrators.dopri5_advance). *dt_io: the step to try in, the next one out; *steps,
+/* y = y0 advanced over h with error-controlled Dormand-Prince 5(4) steps.
+   *dt_io: the step to try in, the next one out; *steps,
    *rejected: internal steps taken and rejected. */
 static int dopri5_advance(const double *p, const double *pl, int ny, const double *y0,
                           double *y, const double F[6], double h, double *dt_io, double rtol,

@@ -1,4 +1,4 @@
-/* transmission.c -- the plant's right-hand side y' = f(y, F) (integrators._derivative) and the
+/* transmission.c -- the plant's right-hand side y' = f(y, F) (integrators.derivative) and the
    compliant transmission (transmission.py): each drive's inertia m_d on its own coordinate s_i,
    sprung to its leg, f_i = k (s_i - l_i) + c (sd_i - ld_i), m_d sdd_i = F_i - f_i; the legs
    and platform move under f as under sigma of a drive-less model. */
