@@ -26,10 +26,11 @@ from stewart_fmu.dynamics import forward_dynamics, inverse_dynamics_parts, leg_s
 from stewart_fmu.energy import DRIVEN, energy_terms
 from stewart_fmu.errors import IntegrationError, StewartError, TrajectoryError
 from stewart_fmu.integrators import COMPILED, IntegratorOptions, derivative, scipy_advance
-from stewart_fmu.kinematics import check_poses, condition_number, inverse_kinematics
+from stewart_fmu.kinematics import check_poses, condition_number
 from stewart_fmu.model import Model
 from stewart_fmu.stability import advice, default_options, internal_step
-from stewart_fmu.status import ENERGY_GAIN, STATE_NONFINITE, why
+from stewart_fmu.native import core
+from stewart_fmu.status import ENERGY_GAIN, STATE_NONFINITE, STEP_TOO_SMALL, TOO_MANY_STEPS
 from stewart_fmu.step import (
     check_step,
     plant_step,
@@ -290,15 +291,12 @@ class Plant:
             raise CallSequenceError(f"do_step: current_time {current_time!r} is not the "
                                     f"component's time {t!r}")
         status = self._advance(step_size)
-        if status == STATE_NONFINITE:
-            self._unstable(current_time, step_size, "the state became non-finite")
-        if status == ENERGY_GAIN:
-            self._unstable(current_time, step_size,
-                           f"the energy grew by {self._excess:.3g} J more than the rack forces "
-                           f"supplied (allowed {self._allowed:.3g} J)")
+        if status in (STATE_NONFINITE, ENERGY_GAIN):
+            self._unstable(current_time, step_size, status)
         if status:
-            self._check_stiff(current_time, step_size, why(status))
-            raise StepRejected(self._rejection(status, current_time, step_size), current_time,
+            if self.options.method == "rk4":  # past its stability limit explains a failed step
+                self._unstable(current_time, step_size, status, always=False)
+            raise StepRejected(self._refusal(status, current_time, step_size), current_time,
                                status)
         self._energy, self._energy_next = self._energy_next, self._energy
         self._y, self._next = self._next, self._y
@@ -325,30 +323,23 @@ class Plant:
         self._excess, self._allowed = r.excess, r.allowed
         return r.status
 
-    def _check_stiff(self, t: float, h: float, why: str) -> None:
-        """A fixed-step method past its stability limit explains a failed step: say so."""
-        if self.options.method == "rk4":
-            self._unstable(t, h, why, always=False)
+    def _refusal(self, status: int, t: float, h: float) -> str:
+        """The core's message of a refused step (the FMU logs the same), with advice for the
+        methods only Plant has."""
+        text = core.refusal(self.model.native, self.options.method, t, h, status, self._y,
+                            self._rack, self._excess, self._allowed)
+        if status in (TOO_MANY_STEPS, STEP_TOO_SMALL):
+            text += "; a stiff plant: try 'Radau' or 'BDF'"
+        return text
 
-    def _unstable(self, t: float, h: float, why: str, always: bool = True) -> None:
-        """Raise IntegrationError naming time, method, step and advice (when `always` is
+    def _unstable(self, t: float, h: float, status: int, always: bool = True) -> None:
+        """Raise IntegrationError: the refusal, the internal step and advice (when `always` is
         False, only if the internal step exceeds the stable RK4 step at the state)."""
         step = internal_step(self.options, h)
         stable, text = advice(self.model, self._y, self._rack)
         if always or step > stable:  # stable is inf where the Jacobian cannot be evaluated
-            raise IntegrationError(
-                f"integration unstable in the step from t = {t!r} s by {h!r} s "
-                f"({self.options.method}, internal step {step:.3g} s): {why}; {text}",
-                t, self.options.method, step, stable)
-
-    def _rejection(self, status: int, t: float, h: float) -> str:
-        q, qd = self._y[:6], self._y[6:12]
-        lengths = inverse_kinematics(self.model, q, with_cond=False).lengths
-        return (f"step from t = {t!r} s by {h!r} s rejected ({self.options.method}): "
-                f"{why(status)}; state at the start of the step: "
-                f"q = {q.tolist()}, qd = {qd.tolist()}, leg lengths = {lengths.tolist()} m "
-                f"(stroke [{self.model.leg_min}, {self.model.leg_max}]), rack force = "
-                f"{self._rack.tolist()} N")
+            raise IntegrationError(f"{self._refusal(status, t, h)}; internal step {step:.3g} s: "
+                                   f"{text}", t, self.options.method, step, stable)
 
     # --- state -----------------------------------------------------------------------------
 

@@ -217,6 +217,15 @@ def step(params, opts, y0, y1, rack, h, e0, e1, step_guess=None):
     return st, sg[0], ev[0], ex[0], al[0]
 
 
+def refusal(params, method: str, t: float, h: float, status: int, y, rack, excess: float = 0.0,
+            allowed: float = 0.0) -> str:
+    """The message of a refused step (stewart_refusal): y and rack at the start of the step."""
+    buf = ffi.new("char[1024]")
+    lib.stewart_refusal(buf, 1024, _p(params), method.encode(), t, h, status, _buf(y), _buf(rack),
+                        excess, allowed)
+    return ffi.string(buf).decode()
+
+
 class Run:
     """One plant run in C (a stewart_data the caller owns, mjData style): the state, its energy
     terms, the dopri5 step guess and the held rack forces live in C memory; `y`, `energy` and

@@ -395,21 +395,6 @@ int model_terminate(Instance *c) {
 
 /* ---- stepping ------------------------------------------------------------------------------- */
 
-static const char *why(int status) {
-    switch (status) {
-    case STEWART_NONFINITE: return "the state became non-finite";
-    case STEWART_STROKE: return "a leg left its stroke";
-    case STEWART_SINGULAR: return "the Jacobian became singular";
-    case STEWART_GIMBAL: return "the pitch reached +-90 degrees (Euler-rate singularity)";
-    case STEWART_OVERFLOW: return "the accelerations overflowed";
-    case STEWART_TOO_MANY_STEPS: return "the integrator needed too many internal steps";
-    case STEWART_STEP_TOO_SMALL: return "the integrator's step fell below its minimum (stiff)";
-    case STEWART_UNSTABLE: return "integration unstable: the energy grew more than the rack forces supplied";
-    case STEWART_STATE_NONFINITE: return "integration unstable: the state became non-finite";
-    default: return "unknown status";
-    }
-}
-
 int model_do_step(Instance *c, double t, double h, double *last_time) {
     PlantData *d = &c->d;
     stewart_options o;
@@ -427,13 +412,6 @@ int model_do_step(Instance *c, double t, double h, double *last_time) {
         return M_ERROR;
     }
     o = options(c);
-    if (o.method != STEWART_DOPRI5 && !(h / o.max_step <= (double)o.max_steps)) {
-        model_log(c, M_DISCARD, "doStep from t = %.17g s by %.17g s discarded (%s): it needs %.3g internal "
-                  "steps of at most %g s, more than max_steps = %ld; take smaller communication steps",
-                  t, h, METHODS[d->method], ceil(h / o.max_step), o.max_step, o.max_steps);
-        c->discarded = 1;
-        return M_DISCARD;
-    }
     update_rack(c);
     if (!d->energy_valid) {
         stewart_energy_terms(d->p, d->y, d->energy);
@@ -444,16 +422,9 @@ int model_do_step(Instance *c, double t, double h, double *last_time) {
     d->step_guess = guess;  /* as Plant: the adaptive step guess follows even a rejected step */
     d->evaluations += evaluations;
     if (status != STEWART_OK) {
-        const double *q = d->y;
-        if (status == STEWART_UNSTABLE)
-            model_log(c, M_DISCARD, "doStep from t = %.17g s by %.17g s discarded (%s): %s (by %.3g J, allowed "
-                      "%.3g J); state kept at the start of the step", t, h, METHODS[d->method], why(status),
-                      excess, allowed);
-        else
-            model_log(c, M_DISCARD, "doStep from t = %.17g s by %.17g s discarded (%s): %s; state kept at the "
-                      "start of the step: q = (%.6g, %.6g, %.6g, %.6g, %.6g, %.6g), rack force = (%.6g, %.6g, "
-                      "%.6g, %.6g, %.6g, %.6g) N", t, h, METHODS[d->method], why(status), q[0], q[1], q[2],
-                      q[3], q[4], q[5], c->rack[0], c->rack[1], c->rack[2], c->rack[3], c->rack[4], c->rack[5]);
+        char msg[1024];
+        stewart_refusal(msg, sizeof msg, d->p, METHODS[d->method], t, h, status, d->y, c->rack, excess, allowed);
+        model_log(c, M_DISCARD, "%s", msg);
         c->discarded = 1;
         return M_DISCARD;
     }

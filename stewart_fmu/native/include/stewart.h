@@ -241,6 +241,38 @@ int stewart_data_step(const double *params, const stewart_options *o, stewart_da
 int stewart_data_run(const double *params, const stewart_options *o, stewart_data *d,
                      const double rack[6], double h, long n, long *done);
 
+/* ==== words: status names, what they mean, the refusal of a step (status.c) ============== */
+#include <stddef.h>
+
+/* Status codes of the component (component.c) and of its serialized state, after the core's. */
+enum {
+    STEWART_BAD_CALL = 110,      /* a call the component's phase does not allow */
+    STEWART_BAD_STEP = 111,      /* a step size that is not finite and > 0 */
+    STEWART_BAD_TIME = 112,      /* a current time that is not the component's */
+    STEWART_BAD_STATE = 113,     /* serialized state: wrong size, magic or version */
+    STEWART_STATE_FOREIGN = 114, /* serialized state of another model (its key differs) */
+    STEWART_STATE_CORRUPT = 115, /* serialized state: checksum mismatch */
+    STEWART_STATE_INVALID = 116  /* a state whose values are out of range or not finite */
+};
+
+/* The status's name ("STROKE") and what it means to a user ("a leg left its stroke"); NULL
+   for a code that is not a status. */
+const char *stewart_status_name(int status);
+const char *stewart_status_why(int status);
+
+/* x as Python's repr writes a float (shortest round trip), into out. */
+void stewart_format_double(char out[32], double x);
+
+/* THE message of a refused step, for every caller (the FMU's log, Plant's StepRejected and
+   IntegrationError): "doStep from t = T s by H s discarded (METHOD): WHY; state kept at the
+   start of the step: q = (...), qd = (...), leg lengths = (...) m (stroke [lo, hi] m), rack
+   force = (...) N", with "(by X J, allowed Y J)" after WHY for STEWART_UNSTABLE. y: the state
+   at the start of the step, rack: the held rack forces. Writes at most size bytes (always
+   terminated) and returns the length written. */
+size_t stewart_refusal(char *buf, size_t size, const double *params, const char *method, double t,
+                       double h, int status, const double *y, const double rack[6], double excess,
+                       double allowed);
+
 #ifdef __cplusplus
 }
 #endif
