@@ -17,6 +17,14 @@ TOO_MANY_STEPS = lib.STEWART_TOO_MANY_STEPS    # 100: more than max_steps intern
 STEP_TOO_SMALL = lib.STEWART_STEP_TOO_SMALL    # 101: the adaptive step fell below its minimum
 ENERGY_GAIN = lib.STEWART_UNSTABLE             # 102: the step's check: energy grew beyond the work
 STATE_NONFINITE = lib.STEWART_STATE_NONFINITE  # 103: the step's check: the new state is not finite
+# The component's (native/src/component.c): a call or its arguments refused, a state refused.
+BAD_CALL = lib.STEWART_BAD_CALL                # 110: the call is not allowed in this phase
+BAD_STEP = lib.STEWART_BAD_STEP                # 111: a step size not finite and > 0
+BAD_TIME = lib.STEWART_BAD_TIME                # 112: a current time not the component's
+BAD_STATE = lib.STEWART_BAD_STATE              # 113: serialized state: size, magic, version
+STATE_FOREIGN = lib.STEWART_STATE_FOREIGN      # 114: serialized state of another model
+STATE_CORRUPT = lib.STEWART_STATE_CORRUPT      # 115: serialized state: checksum mismatch
+STATE_INVALID = lib.STEWART_STATE_INVALID      # 116: a state out of range or not finite
 
 
 def _table(fn) -> dict[int, str]:

@@ -192,7 +192,7 @@ def energy_terms(params, y, out=None):
 
 
 def step_energy(params, y1, e0, e1, rack, tol, h):
-    """(finite, excess, allowed) the power balance of a step of length h (step.py) (e1 written)."""
+    """(finite, excess, allowed) the power balance of a step of length h (stability.py) (e1 written)."""
     ex, al = ffi.new("double *"), ffi.new("double *")
     ok = lib.stewart_step_energy(_p(params), _buf(y1), _buf(e0), _buf(e1),
                                  _buf(rack), tol, h, ex, al)

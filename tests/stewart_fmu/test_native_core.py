@@ -8,6 +8,7 @@ API, and tests/stewart_fmu/test_plant_reference.py holds it to the numba kernels
 """
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -85,8 +86,7 @@ def test_stewart_step_detects_energy_gain_where_the_plant_raises():
     assert ok and ref_ex > ref_al
     assert excess == ref_ex and allowed == ref_al
     plant = plant_for(model, "rk4", 1e-3, model.home, F)
-    plant._y = y0.copy()
-    plant._energy = None
+    plant.set_state(replace(plant.get_state(), y=y0.copy()))
     with pytest.raises(IntegrationError):
         plant.do_step(plant.time, 1e-3)
     # the same step with max_step below the stability limit passes
