@@ -183,3 +183,22 @@ def test_non_finite_rates_at_rest_are_refused():
     qd = np.zeros(6)
     qd[0] = np.nan
     assert core.inverse_dynamics(P, q, qd, np.zeros(6))[1] == core.NONFINITE
+
+
+def test_every_status_code_has_one_name_and_its_words():
+    """The one status table (native/src/status.c): every status code stewart.h declares has a
+    name (its STEWART_ constant's) and words, and stewart_fmu.status reads them from there."""
+    import re
+
+    from stewart_fmu import status
+
+    header = (Path(__file__).resolve().parents[2] / "stewart_fmu" / "native" / "include"
+              / "stewart.h").read_text()
+    declared = {name: int(value) for name, value in
+                re.findall(r"\bSTEWART_(\w+)\s*=\s*(\d+)\s*,?\s*(?:/\*|\n|$)", header)
+                if not name.startswith(("PART_", "PH_", "CALL_", "RK4", "EULER", "DOPRI5"))}
+    assert {"OK", "STROKE", "UNSTABLE", "BAD_CALL", "STATE_INVALID"} <= set(declared)
+    assert status.NAME == {code: name for name, code in declared.items()}
+    for code in declared.values():
+        assert status.WHY[code] == core.ffi.string(core.lib.stewart_status_why(code)).decode()
+    assert status.why(99) == "status 99"  # not a status: its number
