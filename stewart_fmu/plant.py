@@ -313,10 +313,13 @@ class Plant:
                    np.ascontiguousarray(torque, dtype=np.float64))
 
     def _hold(self, name: str, force, torque) -> None:
-        if lib.stewart_component_set_inputs(self._s, ffi.NULL if force is None else _buf(force),
-                                            ffi.NULL if torque is None else _buf(torque),
-                                            self._drive_gain):
+        status = lib.stewart_component_set_inputs(self._s, ffi.NULL if force is None else _buf(force),
+                                                  ffi.NULL if torque is None else _buf(torque),
+                                                  self._drive_gain)
+        if status == BAD_CALL:
             self._refuse_call(name, lib.STEWART_CALL_SET_INPUT)
+        if status:
+            raise TrajectoryError(f"{name}: the inputs must be finite (kept the old ones)")
         self._cache.clear()
 
     @property

@@ -1,5 +1,7 @@
 /* The Stewart-platform plant as an FMU (see model.h): parameters and their validation, inputs,
- * outputs computed on demand, the life cycle, doStep over stewart_step, FMU states.
+ * outputs computed on demand, FMU states. The life cycle, its call-sequence rules, the state,
+ * the step and its refusal message, and the serialized form are the component's
+ * (native/src/component.c, which stewart_fmu.plant.Plant wraps too).
  *
  * The physics is the C core (stewart.h); this file only keeps the FMI semantics, as the
  * Modelica Association's Reference FMUs do: a call out of order, an unknown value reference, a
