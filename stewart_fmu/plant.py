@@ -86,7 +86,7 @@ def _view(field) -> np.ndarray:
     return np.frombuffer(ffi.buffer(field), dtype=np.float64)
 
 
-def _to_component(state: PlantState):
+def _to_component(state: PlantState, call: str):
     """A stewart_component holding `state` (rack = force: set_state recomputes it)."""
     c = ffi.new("stewart_component *")
     try:
@@ -101,7 +101,7 @@ def _to_component(state: PlantState):
                             ("initial", state.initial)):
             _view(getattr(c, name))[:] = value
     except (ValueError, TypeError):
-        raise CallSequenceError("set_state: not a state of a Plant (phase or sizes)") from None
+        raise CallSequenceError(f"{call}: not a state of a Plant (phase or sizes)") from None
     return c
 
 
@@ -406,7 +406,7 @@ class Plant:
         """Restore a state after the component's sanity check (phase, sizes, finite values)."""
         if not isinstance(state, PlantState):
             raise CallSequenceError(f"set_state: expected a PlantState, got {type(state).__name__}")
-        status = lib.stewart_component_load(self._s, _to_component(state), self._p)
+        status = lib.stewart_component_load(self._s, _to_component(state, "set_state"), self._p)
         if status:
             raise CallSequenceError(f"set_state: not a state of this plant: {why(status)}")
         lib.stewart_component_hold(self._s, self._drive_gain)
@@ -418,7 +418,7 @@ class Plant:
         size, key, FNV-1a checksum, then the state's fields as they lie in memory)."""
         size = lib.stewart_serialized_size(0)
         out = ffi.new("char[]", size)
-        lib.stewart_serialize(_to_component(state), ffi.NULL, 0, _KEY, out, size)
+        lib.stewart_serialize(_to_component(state, "serialize_state"), ffi.NULL, 0, _KEY, out, size)
         return ffi.buffer(out)[:]
 
     @staticmethod
