@@ -21,7 +21,7 @@ from stewart_fmu.io import POSE, named_array
 from stewart_fmu.model import Model
 from stewart_fmu.native import core
 from stewart_fmu.stability import ENERGY_TOL, default_options, internal_step
-from stewart_fmu.status import ENERGY_GAIN, STATE_NONFINITE, why
+from stewart_fmu.status import ENERGY_GAIN, STATE_NONFINITE
 from stewart_fmu.transmission import initial_state
 
 from .axis import AxisControllers, MotorCurrents
@@ -164,18 +164,15 @@ def _run_compiled(model, traj, refs, v_ff, ctrl, motors, bound, rec, progress, o
     if status == DIVERGED:
         raise _diverged(float(traj.t[k]), np.abs(refs.l[k] - rec.data["l"][k]), bound)
     status = _STATUS.get(status, status)
-    if status in (ENERGY_GAIN, STATE_NONFINITE):  # numerically unstable: as Plant.do_step says
-        step = internal_step(o, float(traj.t[k + 1] - traj.t[k]))
-        raise IntegrationError(
-            f"integration unstable in the step from t = {float(traj.t[k])!r} s ({o.method}, "
-            f"internal step {step:.3g} s): {why(status)}", float(traj.t[k]), o.method, step)
-    if status:
-        raise PlantStepError(
-            f"plant refused the step at t = {float(traj.t[k])!r} s: "
-            f"{why(status)}; state at the start of the step: "
-            f"q = {rec.data['q'][k].tolist()}, leg lengths = {rec.data['l'][k].tolist()} m "
-            f"(stroke [{model.leg_min}, {model.leg_max}]), motor torques = "
-            f"{rec.data['tau'][k].tolist()} N m")
+    if status:  # the state in d is the failed step's start: the core's one refusal message
+        t_k, h = float(traj.t[k]), float(traj.t[k + 1] - traj.t[k])
+        y = np.frombuffer(ffi.buffer(d.y), dtype=np.float64)[:d.n]
+        rack = 0.0 + model.drive.force_per_torque * rec.data["tau"][k]  # as closed_loop_run
+        text = core.refusal(P, o.method, t_k, h, status, y, rack, d.excess, d.allowed)
+        if status in (ENERGY_GAIN, STATE_NONFINITE):  # numerically unstable: as Plant.do_step
+            step = internal_step(o, h)
+            raise IntegrationError(f"{text}; internal step {step:.3g} s", t_k, o.method, step)
+        raise PlantStepError(text)
     return wall
 
 

@@ -52,7 +52,7 @@ class IntegratorOptions:
 def advance(params, options: IntegratorOptions, y0: np.ndarray, y1: np.ndarray, F: np.ndarray,
             h: float) -> int:
     """y1 = y0 advanced over h with a compiled method (the core's stewart_advance, no energy
-    check; Plant steps through plant.Plant / step.plant_step instead); its status."""
+    check; Plant steps through the component's stewart_component_do_step instead); its status."""
     status, _, _ = core.advance(core.native_params(params), options.native(),
                                 np.ascontiguousarray(y0, dtype=float), y1,
                                 np.ascontiguousarray(F, dtype=float), h)

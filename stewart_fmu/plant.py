@@ -1,46 +1,56 @@
 """The plant as an FMI 2.0 co-simulation component, in-process.
 
-`Plant` follows the FMI life cycle (instantiate, setup experiment, initialization mode, set
-inputs, do_step, get outputs, get/set/serialize state, reset, terminate) and checks the call
-sequence itself, as the FMI Reference FMUs do. Each step is the C core's (step.plant_step), the
-same step the exported FMU's binary takes.
+`Plant` is the Python face of the C component the exported FMU wraps (native/src/component.c):
+its life cycle (instantiate, setup experiment, initialization mode, set inputs, do_step, get
+outputs, get/set/serialize state, reset, terminate) follows the component's one table of
+call-sequence rules; its state (phase, time, y, held inputs, adaptive step guess, initial
+values) lives in the component's plain-data struct; a state is serialized in the component's
+format, and a refused step is described by the component's message. Each step is the C core's
+stewart_step, the same step the exported FMU's binary takes.
 
 State is (t, y) plus the held inputs and the adaptive step guess: everything a master needs
 to roll back exactly (`get_state` / `set_state`, `serialize_state` / `deserialize_state`);
 y = (q, qd), and with a compliant transmission (q, qd, s, sd) (see transmission.py).
 
-Every step is checked for numerical instability (stability.py): a non-finite state, or energy
-growing beyond the work of the held rack forces (power balance), raises IntegrationError with
-the time, the integrator, its step and advice, and leaves the state at the start of the step.
+Every step is checked for numerical instability (the core's power balance): a non-finite
+state, or energy growing beyond the work of the held rack forces, raises IntegrationError with
+the time, the integrator, its step and advice (stability.advice), and leaves the state at the
+start of the step. Python keeps what C cannot do: scipy's methods (integrators.scipy_advance,
+whose result the component checks and takes as its own step), the stiffness advice, the
+typed errors, and the outputs derived on demand.
 """
 from __future__ import annotations
 
 import math
-import struct
-import zlib
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from stewart_fmu.dynamics import forward_dynamics, inverse_dynamics_parts, leg_state, present_parts
-from stewart_fmu.energy import DRIVEN, energy_terms
 from stewart_fmu.errors import IntegrationError, StewartError, TrajectoryError
 from stewart_fmu.integrators import COMPILED, IntegratorOptions, derivative, scipy_advance
-from stewart_fmu.kinematics import check_poses, condition_number, inverse_kinematics
+from stewart_fmu.kinematics import check_poses, condition_number
 from stewart_fmu.model import Model
-from stewart_fmu.stability import advice, default_options, internal_step
-from stewart_fmu.status import ENERGY_GAIN, STATE_NONFINITE, why
-from stewart_fmu.step import (
-    check_step,
-    plant_step,
+from stewart_fmu.native.core import ffi, lib
+from stewart_fmu.stability import ENERGY_TOL, advice, default_options, internal_step
+from stewart_fmu.status import (
+    BAD_CALL,
+    BAD_STEP,
+    BAD_TIME,
+    ENERGY_GAIN,
+    STATE_NONFINITE,
+    STEP_TOO_SMALL,
+    TOO_MANY_STEPS,
+    why,
 )
-from stewart_fmu.transmission import initial_state, spring_forces
+from stewart_fmu.transmission import spring_forces
 
-STATE_VERSION = 2        # 2: plain data with a checksum (1 was a pickle)
-_MAGIC = b"STEWART-PLANT"
-_HEADER = "<13sIBI"
-_HEAD_SIZE = struct.calcsize(_HEADER)
-PHASES = ("instantiated", "initialization", "stepping", "terminated")
+STATE_VERSION = lib.STEWART_STATE_VERSION   # 3: the component's format (2 was Plant's own)
+PHASES = tuple(ffi.string(lib.stewart_phase_name(p)).decode() for p in range(lib.STEWART_N_PHASES))
+_NAME = b"stewart_fmu.plant.Plant"
+_KEY = lib.stewart_hash(_NAME, len(_NAME))   # the key of Plant's serialized states
+_MESSAGE = 1024                              # bytes of a refusal message
+_buf = ffi.from_buffer
 
 
 class CallSequenceError(StewartError):
@@ -58,7 +68,8 @@ class StepRejected(StewartError):
 
 @dataclass(frozen=True)
 class PlantState:
-    """Everything needed to restore a Plant exactly (immutable; arrays are copies)."""
+    """Everything needed to restore a Plant exactly (immutable; arrays are copies): the fields
+    of the component's state (stewart_component) as Python values."""
 
     phase: str
     time: float
@@ -68,6 +79,35 @@ class PlantState:
     step_guess: float        # next internal step of the adaptive method (s)
     start_time: float
     initial: np.ndarray      # (12,) the initial q, qd of this experiment
+
+
+def _view(field) -> np.ndarray:
+    """A numpy view of a double array inside the component's struct (no copy)."""
+    return np.frombuffer(ffi.buffer(field), dtype=np.float64)
+
+
+def _to_component(state: PlantState, call: str):
+    """A stewart_component holding `state` (rack = force: set_state recomputes it)."""
+    c = ffi.new("stewart_component *")
+    try:
+        phase = PHASES.index(state.phase)
+        y = np.asarray(state.y, dtype=np.float64)
+        if y.ndim != 1 or y.size > lib.STEWART_MAX_STATE:
+            raise ValueError
+        c.phase, c.n, c.time, c.start_time = phase, y.size, state.time, state.start_time
+        c.step_guess = state.step_guess
+        _view(c.y)[:y.size] = y
+        for name, value in (("sigma", state.force), ("tau", state.torque), ("rack", state.force),
+                            ("initial", state.initial)):
+            _view(getattr(c, name))[:] = value
+    except (ValueError, TypeError):
+        raise CallSequenceError(f"{call}: not a state of a Plant (phase or sizes)") from None
+    return c
+
+
+def _from_component(c) -> PlantState:
+    return PlantState(PHASES[c.phase], c.time, _view(c.y)[:c.n].copy(), _view(c.sigma).copy(),
+                      _view(c.tau).copy(), c.step_guess, c.start_time, _view(c.initial).copy())
 
 
 class Outputs:
@@ -156,8 +196,16 @@ class Plant:
         self._leg_model = (model if model.transmission is None
                            else replace(model, drive=None, transmission=None))
         self._drive_gain = model.drive.force_per_torque if model.drive is not None else 0.0
-        self._initial = np.r_[model.home, np.zeros(6)]
-        self._set_fresh()
+        self._params = model.native
+        self._p = self._params.ptr
+        self._s = s = ffi.new("stewart_component *")
+        self._initial, self._force, self._torque, self._rack, self._yall = (
+            _view(f) for f in (s.initial, s.sigma, s.tau, s.rack, s.y))
+        self._message = ffi.new("char[]", _MESSAGE)
+        self._do_step = lib.stewart_component_do_step
+        self._cache: dict = {}
+        self._outputs = Outputs(self)
+        self._reset(np.r_[model.home, np.zeros(6)])
 
     @property
     def options(self) -> IntegratorOptions:
@@ -168,100 +216,110 @@ class Plant:
         self._options = value
         self._native_options = value.native() if value.method in COMPILED else None
 
-    # --- life cycle ------------------------------------------------------------------------
+    # --- life cycle: the component's (stewart_component_*), its rules and its refusals --------
 
-    def _set_fresh(self) -> None:
-        self._phase = "instantiated"
-        self._start = 0.0
-        self._t = 0.0
-        self._y = self._initial.copy()
-        self._force = np.zeros(6)
-        self._torque = np.zeros(6)
-        self._rack = np.zeros(6)
-        self._step_guess = self.options.max_step
-        self._next = np.empty(self.model.state_size)  # the step's result; swapped on success
-        self._energy: np.ndarray | None = None        # energy_terms of _y (power balance)
-        self._energy_next = np.empty(DRIVEN + 6)      # ... of _next (swapped on success)
-        self._excess = self._allowed = 0.0            # the last step's power balance (J)
-        self.evaluations = 0          # right-hand-side evaluations so far
-        self._cache: dict = {}
-        self._outputs = Outputs(self)
+    def _reset(self, initial: np.ndarray) -> None:
+        lib.stewart_component_reset(self._s, self._p, _buf(initial), _buf(np.zeros(6)),
+                                    self.options.max_step)
+        self._changed()
+
+    def _changed(self) -> None:
+        """After the state's size or values changed in C: the views and the cache follow."""
+        n = self._s.n
+        self._y = self._yall[:n]
+        self._next = np.empty(n)      # scipy's result, checked by the component
+        self._cache.clear()
+
+    def _refuse_call(self, name: str, call: int) -> None:
+        lib.stewart_call_refusal(self._message, _MESSAGE, name.encode(), call, self._s.phase)
+        raise CallSequenceError(ffi.string(self._message).decode())
+
+    def _require(self, name: str, call: int) -> None:
+        if not lib.stewart_allowed(call, self._s.phase):
+            self._refuse_call(name, call)
 
     @property
     def phase(self) -> str:
-        return self._phase
+        return PHASES[self._s.phase]
 
     @property
     def time(self) -> float:
-        return self._t
+        return self._s.time
+
+    @property
+    def evaluations(self) -> int:
+        """Right-hand-side evaluations so far (kept by set_state, zeroed by reset)."""
+        return self._s.evaluations
 
     def setup_experiment(self, start_time: float = 0.0, tolerance: float | None = None) -> None:
         """Start time and (optionally) the integrator's relative tolerance."""
-        self._require("setup_experiment", "instantiated")
+        self._require("setup_experiment", lib.STEWART_CALL_SETUP)
         _finite_scalar("start_time", start_time)
         if tolerance is not None:
             if not (math.isfinite(tolerance) and tolerance > 0):
                 raise CallSequenceError(f"setup_experiment: tolerance must be > 0, got {tolerance}")
             self.options = replace(self.options, rtol=tolerance)
-        self._start = self._t = float(start_time)
+        lib.stewart_component_setup(self._s, float(start_time))
 
     def enter_initialization_mode(self) -> None:
-        self._require("enter_initialization_mode", "instantiated")
-        self._phase = "initialization"
+        if lib.stewart_component_enter_init(self._s):
+            self._refuse_call("enter_initialization_mode", lib.STEWART_CALL_ENTER_INIT)
 
     def set_initial(self, q=None, qd=None) -> None:
         """Initial pose and pose rates (before or during initialization mode)."""
-        self._require("set_initial", "instantiated", "initialization")
-        for name, value, sl in (("q", q, slice(0, 6)), ("qd", qd, slice(6, 12))):
-            if value is not None:
-                self._initial[sl] = _finite_vector(name, value)
-        self._y = self._initial_state()
-
-    def _initial_state(self) -> np.ndarray:
-        """y at the initial q, qd; a transmission starts preloaded with the held rack force."""
-        return initial_state(self.model, self._initial[:6], self._initial[6:], self._rack)
+        self._require("set_initial", lib.STEWART_CALL_SET_PARAMETER)
+        q, qd = (None if v is None else _finite_vector(name, v) for name, v in (("q", q), ("qd", qd)))
+        lib.stewart_component_set_initial(self._s, self._p, ffi.NULL if q is None else _buf(q),
+                                          ffi.NULL if qd is None else _buf(qd))
+        self._changed()
 
     def exit_initialization_mode(self) -> None:
-        """Check the initial pose (stroke, singularity) and start stepping."""
-        self._require("exit_initialization_mode", "initialization")
-        check_poses(self.model, self._y[:6])
-        self._y = self._initial_state()
-        self._energy = None
-        self._phase = "stepping"
-        self._cache.clear()
+        """Check the initial pose (stroke, singularity) and start stepping; a pose that fails
+        leaves the component failed (reset to start again), as the FMU."""
+        self._require("exit_initialization_mode", lib.STEWART_CALL_EXIT_INIT)
+        try:
+            check_poses(self.model, self._initial[:6].copy())
+        except StewartError:
+            lib.stewart_component_fail(self._s)
+            raise
+        lib.stewart_component_exit_init(self._s, self._p)
+        self._changed()
 
     def terminate(self) -> None:
-        self._require("terminate", "initialization", "stepping")
-        self._phase = "terminated"
+        if lib.stewart_component_terminate(self._s):
+            self._refuse_call("terminate", lib.STEWART_CALL_TERMINATE)
 
     def reset(self) -> None:
         """Back to the state right after instantiation (options and initial values kept)."""
-        self._set_fresh()
+        self._reset(self._initial.copy())
 
     # --- inputs and outputs ----------------------------------------------------------------
 
     def set_force(self, sigma) -> None:
         """Rack forces sigma_i (N) held from now on."""
-        self._require("set_force", "instantiated", "initialization", "stepping")
-        self._force = _finite_vector("force", sigma)
-        self._inputs_changed()
+        self._hold("set_force", _finite_vector("force", sigma), None)
 
     def set_torque(self, tau) -> None:
         """Motor torques (N m), added to the rack force as zeta / r * tau (needs a [drive])."""
-        self._require("set_torque", "instantiated", "initialization", "stepping")
+        self._require("set_torque", lib.STEWART_CALL_SET_INPUT)
         if self.model.drive is None:
             raise CallSequenceError("set_torque: the scene has no [drive]: set rack forces instead")
-        self._torque = _finite_vector("torque", tau)
-        self._inputs_changed()
+        self._hold("set_torque", None, _finite_vector("torque", tau))
 
     def hold_inputs(self, force: np.ndarray, torque: np.ndarray) -> None:
-        """Set both inputs without copying or checking them (an adapter that already checked
-        each value, e.g. the FMU slave); use set_force / set_torque otherwise."""
-        self._force, self._torque = force.copy(), torque.copy()
-        self._inputs_changed()
+        """Set both inputs (an adapter that already checked each value, e.g. the FMU slave);
+        use set_force / set_torque otherwise."""
+        self._hold("hold_inputs", np.ascontiguousarray(force, dtype=np.float64),
+                   np.ascontiguousarray(torque, dtype=np.float64))
 
-    def _inputs_changed(self) -> None:
-        self._rack = self._force + self._drive_gain * self._torque
+    def _hold(self, name: str, force, torque) -> None:
+        status = lib.stewart_component_set_inputs(self._s, ffi.NULL if force is None else _buf(force),
+                                                  ffi.NULL if torque is None else _buf(torque),
+                                                  self._drive_gain)
+        if status == BAD_CALL:
+            self._refuse_call(name, lib.STEWART_CALL_SET_INPUT)
+        if status:
+            raise TrajectoryError(f"{name}: the inputs must be finite (kept the old ones)")
         self._cache.clear()
 
     @property
@@ -281,122 +339,98 @@ class Plant:
 
     def do_step(self, current_time: float, step_size: float) -> None:
         """Advance from current_time (the component's time) by step_size > 0."""
-        if self._phase != "stepping":
-            self._require("do_step", "stepping")
-        t = self._t
-        if not (step_size > 0 and math.isfinite(step_size)):
-            raise CallSequenceError(f"do_step: step_size must be finite and > 0, got {step_size!r}")
-        if not abs(current_time - t) <= 1e-9 * max(1.0, abs(t)):  # also catches NaN
-            raise CallSequenceError(f"do_step: current_time {current_time!r} is not the "
-                                    f"component's time {t!r}")
-        status = self._advance(step_size)
-        if status == STATE_NONFINITE:
-            self._unstable(current_time, step_size, "the state became non-finite")
-        if status == ENERGY_GAIN:
-            self._unstable(current_time, step_size,
-                           f"the energy grew by {self._excess:.3g} J more than the rack forces "
-                           f"supplied (allowed {self._allowed:.3g} J)")
-        if status:
-            self._check_stiff(current_time, step_size, why(status))
-            raise StepRejected(self._rejection(status, current_time, step_size), current_time,
-                               status)
-        self._energy, self._energy_next = self._energy_next, self._energy
-        self._y, self._next = self._next, self._y
-        self._t = current_time + step_size
-        self._cache.clear()
-
-    def _advance(self, h: float) -> int:
-        """self._next = self._y advanced by h and checked (step.plant_step); its status."""
-        o, model = self.options, self.model
-        if self._energy is None:
-            self._energy = energy_terms(model, self._y)
-        if o.method in COMPILED:
-            r = plant_step(model.native, self._native_options, self._y, self._next, self._rack,
-                           h, self._energy, self._energy_next, self._step_guess)
-            self._step_guess = r.step_guess
+        if self._native_options is not None:
+            status = self._do_step(self._s, self._p, self._native_options, current_time,
+                                   step_size)
         else:
-            status, calls = scipy_advance(model.native, self._y, self._next, self._rack, h, o)
-            self.evaluations += calls
-            if status:
-                return status
-            r = check_step(model.native, self._next, self._energy, self._energy_next,
-                           self._rack, h)
-        self.evaluations += r.evaluations
-        self._excess, self._allowed = r.excess, r.allowed
-        return r.status
+            status = self._scipy_step(current_time, step_size)
+        if status:
+            self._refused(status, current_time, step_size)
+        if self._cache:
+            self._cache.clear()
 
-    def _check_stiff(self, t: float, h: float, why: str) -> None:
-        """A fixed-step method past its stability limit explains a failed step: say so."""
-        if self.options.method == "rk4":
-            self._unstable(t, h, why, always=False)
+    def _scipy_step(self, t: float, h: float) -> int:
+        """A scipy method's step: the component checks the call, Python integrates, the
+        component checks the result (finite, power balance) and takes it."""
+        s = self._s
+        status = lib.stewart_component_begin_step(s, self._p, t, h)
+        if status:
+            return status
+        status, calls = scipy_advance(self._params, self._y, self._next, self._rack, h,
+                                      self.options)
+        s.evaluations += calls
+        if status:
+            s.excess = s.allowed = 0.0
+            return status
+        return lib.stewart_component_end_step(s, self._p, _buf(self._next), t, h, ENERGY_TOL)
 
-    def _unstable(self, t: float, h: float, why: str, always: bool = True) -> None:
-        """Raise IntegrationError naming time, method, step and advice (when `always` is
+    def _refused(self, status: int, t: float, h: float) -> None:
+        """Raise the typed error of a refused do_step (the state stays at the step's start)."""
+        if status == BAD_CALL:
+            self._refuse_call("do_step", lib.STEWART_CALL_DO_STEP)
+        if status == BAD_STEP:
+            raise CallSequenceError(f"do_step: step_size {why(status)}, got {h!r}")
+        if status == BAD_TIME:
+            raise CallSequenceError(f"do_step: current_time {t!r} {why(status)} {self.time!r}")
+        if status in (STATE_NONFINITE, ENERGY_GAIN):
+            self._unstable(t, h, status)
+        if self.options.method == "rk4":  # past its stability limit explains a failed step
+            self._unstable(t, h, status, always=False)
+        raise StepRejected(self._refusal(status, t, h), t, status)
+
+    def _refusal(self, status: int, t: float, h: float) -> str:
+        """The component's message of a refused step (the FMU logs the same), with advice for
+        the methods only Plant has."""
+        lib.stewart_component_refusal(self._message, _MESSAGE, self._s, self._p,
+                                      self.options.method.encode(), t, h, status)
+        text = ffi.string(self._message).decode()
+        if status in (TOO_MANY_STEPS, STEP_TOO_SMALL):
+            text += "; a stiff plant: try 'Radau' or 'BDF'"
+        return text
+
+    def _unstable(self, t: float, h: float, status: int, always: bool = True) -> None:
+        """Raise IntegrationError: the refusal, the internal step and advice (when `always` is
         False, only if the internal step exceeds the stable RK4 step at the state)."""
         step = internal_step(self.options, h)
         stable, text = advice(self.model, self._y, self._rack)
         if always or step > stable:  # stable is inf where the Jacobian cannot be evaluated
-            raise IntegrationError(
-                f"integration unstable in the step from t = {t!r} s by {h!r} s "
-                f"({self.options.method}, internal step {step:.3g} s): {why}; {text}",
-                t, self.options.method, step, stable)
+            raise IntegrationError(f"{self._refusal(status, t, h)}; internal step {step:.3g} s: "
+                                   f"{text}", t, self.options.method, step, stable)
 
-    def _rejection(self, status: int, t: float, h: float) -> str:
-        q, qd = self._y[:6], self._y[6:12]
-        lengths = inverse_kinematics(self.model, q, with_cond=False).lengths
-        return (f"step from t = {t!r} s by {h!r} s rejected ({self.options.method}): "
-                f"{why(status)}; state at the start of the step: "
-                f"q = {q.tolist()}, qd = {qd.tolist()}, leg lengths = {lengths.tolist()} m "
-                f"(stroke [{self.model.leg_min}, {self.model.leg_max}]), rack force = "
-                f"{self._rack.tolist()} N")
-
-    # --- state -----------------------------------------------------------------------------
+    # --- state: the component's plain data and its one serialized format --------------------
 
     def get_state(self) -> PlantState:
-        return PlantState(self._phase, self._t, self._y.copy(), self._force.copy(),
-                          self._torque.copy(), self._step_guess, self._start,
-                          self._initial.copy())
+        return _from_component(self._s)
 
     def set_state(self, state: PlantState) -> None:
+        """Restore a state after the component's sanity check (phase, sizes, finite values)."""
         if not isinstance(state, PlantState):
             raise CallSequenceError(f"set_state: expected a PlantState, got {type(state).__name__}")
-        self._phase, self._t, self._start = state.phase, state.time, state.start_time
-        self._y, self._force, self._torque = state.y.copy(), state.force.copy(), state.torque.copy()
-        self._step_guess, self._initial = state.step_guess, state.initial.copy()
-        self._energy = None
-        self._inputs_changed()
+        status = lib.stewart_component_load(self._s, _to_component(state, "set_state"), self._p)
+        if status:
+            raise CallSequenceError(f"set_state: not a state of this plant: {why(status)}")
+        lib.stewart_component_hold(self._s, self._drive_gain)
+        self._changed()
 
     @staticmethod
     def serialize_state(state: PlantState) -> bytes:
-        """Plain data, never code: magic, version, phase, state size, the floats of the state
-        (little-endian float64), then a CRC-32 of all that."""
-        head = struct.pack(_HEADER, _MAGIC, STATE_VERSION, PHASES.index(state.phase), state.y.size)
-        body = np.concatenate([[state.time, state.start_time, state.step_guess], state.y,
-                               state.force, state.torque, state.initial]).astype("<f8").tobytes()
-        return head + body + struct.pack("<I", zlib.crc32(head + body))
+        """Plain data, never code: the component's format (stewart_serialize: magic, version,
+        size, key, FNV-1a checksum, then the state's fields as they lie in memory)."""
+        size = lib.stewart_serialized_size(0)
+        out = ffi.new("char[]", size)
+        lib.stewart_serialize(_to_component(state, "serialize_state"), ffi.NULL, 0, _KEY, out, size)
+        return ffi.buffer(out)[:]
 
     @staticmethod
     def deserialize_state(data: bytes) -> PlantState:
         """The state serialize_state wrote; CallSequenceError for any other bytes."""
-        if not isinstance(data, (bytes, bytearray)) or len(data) < _HEAD_SIZE + 4:
-            raise CallSequenceError("deserialize_state: not a serialized plant state (too short)")
-        data = bytes(data)
-        if struct.unpack("<I", data[-4:])[0] != zlib.crc32(data[:-4]):
-            raise CallSequenceError("deserialize_state: checksum mismatch (corrupted or foreign state)")
-        magic, version, phase, n = struct.unpack(_HEADER, data[:_HEAD_SIZE])
-        if magic != _MAGIC or version != STATE_VERSION:
-            raise CallSequenceError(f"deserialize_state: not a plant state of version {STATE_VERSION}")
-        values = np.frombuffer(data[_HEAD_SIZE:-4], dtype="<f8").astype(float)
-        if n not in (12, 24) or phase >= len(PHASES) or values.size != 3 + n + 24:
-            raise CallSequenceError("deserialize_state: inconsistent sizes in the state")
-        y, rest = values[3:3 + n], values[3 + n:]
-        return PlantState(PHASES[phase], float(values[0]), y.copy(), rest[:6].copy(),
-                          rest[6:12].copy(), float(values[2]), float(values[1]), rest[12:24].copy())
-
-    def _require(self, call: str, *phases: str) -> None:
-        if self._phase not in phases:
-            raise CallSequenceError(f"{call} is not allowed in phase '{self._phase}' "
-                                    f"(allowed in: {', '.join(phases)})")
+        if not isinstance(data, (bytes, bytearray)):
+            raise CallSequenceError("deserialize_state: not a serialized plant state (not bytes)")
+        c = ffi.new("stewart_component *")
+        status = lib.stewart_deserialize(_buf(data), len(data), _KEY, c, ffi.NULL, 0)
+        if status:
+            raise CallSequenceError(f"deserialize_state: not a serialized plant state: {why(status)}")
+        return _from_component(c)
 
 
 def _finite_scalar(name: str, value) -> None:

@@ -1,6 +1,16 @@
 """Stiffness and instability: the linearised plant's spectral radius, the explicit stability
 limit it sets, the default integrator that respects it, and the advice an unstable step gets
-(the step's power-balance check itself is the C core's: see step.py).
+(the step's power-balance check itself is the C core's, below).
+
+The check is the step's power balance (native/src/energy.c, stewart_step_energy): with the rack
+forces F held, the work W = F . (d1 - d0) on the driven coordinates (energy.py) and
+dE - W = -(dissipation) <= 0 for an accurate step; allowed: ENERGY_TOL of the energy exchanged,
+plus the Coulomb work bound coulomb (sum |dd| + h sum |ld1|): the friction's sign changes inside
+a step (a leg at rest, or reversing) are integrated to O(1) of the work it does over the step's
+path, which its displacement alone underestimates when the step ends moving (a platform starting
+from rest against 150 N of Coulomb friction gains ~3e-6 J of such spurious energy in a 1 ms RK4
+step). A non-finite result (STATE_NONFINITE) or a larger gain (ENERGY_GAIN) fails the step; the
+component (native/src/component.c) keeps the state at its start.
 
 The stiff modes of this plant are linear in the state near any point (viscous friction c / m,
 transmission springs sqrt(k / m), damper c / m), so the spectral radius rho of the Jacobian of

@@ -192,7 +192,7 @@ def energy_terms(params, y, out=None):
 
 
 def step_energy(params, y1, e0, e1, rack, tol, h):
-    """(finite, excess, allowed) the power balance of a step of length h (step.py) (e1 written)."""
+    """(finite, excess, allowed) the power balance of a step of length h (stability.py) (e1 written)."""
     ex, al = ffi.new("double *"), ffi.new("double *")
     ok = lib.stewart_step_energy(_p(params), _buf(y1), _buf(e0), _buf(e1),
                                  _buf(rack), tol, h, ex, al)
@@ -215,6 +215,15 @@ def step(params, opts, y0, y1, rack, h, e0, e1, step_guess=None):
     st = lib.stewart_step(_p(params), opts, _buf(y0), _buf(y1), _buf(rack), h, sg,
                           ev, _buf(e0), _buf(e1), ex, al)
     return st, sg[0], ev[0], ex[0], al[0]
+
+
+def refusal(params, method: str, t: float, h: float, status: int, y, rack, excess: float = 0.0,
+            allowed: float = 0.0) -> str:
+    """The message of a refused step (stewart_refusal): y and rack at the start of the step."""
+    buf = ffi.new("char[1024]")
+    lib.stewart_refusal(buf, 1024, _p(params), method.encode(), t, h, status, _buf(y), _buf(rack),
+                        excess, allowed)
+    return ffi.string(buf).decode()
 
 
 class Run:

@@ -591,7 +591,7 @@ def test_controller_not_a_table():
 
 
 def test_compiled_loop_refuses_an_energy_gaining_step_as_plant_does():
-    """One plant step (stewart_fmu.step.plant_step) with one check: a compliant transmission
+    """One plant step (the core's stewart_step) with one check: a compliant transmission
     (1e7 N/m; RK4 stable below ~0.35 ms) stepped with RK4 at 0.5 ms gains energy in its first
     step. The compiled in-process loop and the Python loop around Plant (InProcessPlant) both
     refuse it with IntegrationError at the same time, method and internal step."""

@@ -637,6 +637,7 @@ def test_stroke_limit_discard_rollback_and_carry_on(micro):
         with pytest.raises(StepRejected) as rej:
             ref.step(t_bad, steps[k_bad], push)
         assert rej.value.time == t_bad
+        assert str(rej.value) == discards[0][2]   # one refusal message (stewart_refusal)
         # Roll back, lower the force, carry on.
         s.fmu.setFMUstate(good)
         s.fmu.freeFMUstate(good)

@@ -8,6 +8,7 @@ API, and tests/stewart_fmu/test_plant_reference.py holds it to the kernels it re
 """
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -85,8 +86,7 @@ def test_stewart_step_detects_energy_gain_where_the_plant_raises():
     assert ok and ref_ex > ref_al
     assert excess == ref_ex and allowed == ref_al
     plant = plant_for(model, "rk4", 1e-3, model.home, F)
-    plant._y = y0.copy()
-    plant._energy = None
+    plant.set_state(replace(plant.get_state(), y=y0.copy()))
     with pytest.raises(IntegrationError):
         plant.do_step(plant.time, 1e-3)
     # the same step with max_step below the stability limit passes
@@ -183,3 +183,22 @@ def test_non_finite_rates_at_rest_are_refused():
     qd = np.zeros(6)
     qd[0] = np.nan
     assert core.inverse_dynamics(P, q, qd, np.zeros(6))[1] == core.NONFINITE
+
+
+def test_every_status_code_has_one_name_and_its_words():
+    """The one status table (native/src/status.c): every status code stewart.h declares has a
+    name (its STEWART_ constant's) and words, and stewart_fmu.status reads them from there."""
+    import re
+
+    from stewart_fmu import status
+
+    header = (Path(__file__).resolve().parents[2] / "stewart_fmu" / "native" / "include"
+              / "stewart.h").read_text()
+    declared = {name: int(value) for name, value in
+                re.findall(r"\bSTEWART_(\w+)\s*=\s*(\d+)\s*,?\s*(?:/\*|\n|$)", header)
+                if not name.startswith(("PART_", "PH_", "CALL_", "RK4", "EULER", "DOPRI5"))}
+    assert {"OK", "STROKE", "UNSTABLE", "BAD_CALL", "STATE_INVALID"} <= set(declared)
+    assert status.NAME == {code: name for name, code in declared.items()}
+    for code in declared.values():
+        assert status.WHY[code] == core.ffi.string(core.lib.stewart_status_why(code)).decode()
+    assert status.why(99) == "status 99"  # not a status: its number

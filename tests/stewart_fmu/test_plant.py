@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import math
 import tomllib
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -123,6 +124,50 @@ def test_rollback_reproduces_the_run_bit_for_bit(method):
     assert np.array_equal(_run(other, 30), first)
     with pytest.raises(CallSequenceError, match="not a serialized plant state"):
         Plant.deserialize_state(b"garbage")
+
+
+def test_serialized_state_refuses_corrupted_foreign_and_invalid_bytes():
+    """The component's format: every single-bit flip, a truncation, an extension, the key of
+    another model and a state with a NaN are refused (CallSequenceError naming the reason);
+    the intact bytes load. set_state refuses a running state of the wrong size for the model."""
+    model = load_scene(SCENES / "micro_manipulator.toml")
+    plant = _started(model)
+    _run(plant, 5)
+    state = plant.get_state()
+    blob = Plant.serialize_state(state)
+    assert Plant.deserialize_state(blob).y.tolist() == state.y.tolist()
+    for k in range(len(blob)):
+        for bit in (0, 7):
+            bad = bytearray(blob)
+            bad[k] ^= 1 << bit
+            with pytest.raises(CallSequenceError, match="not a serialized plant state: "):
+                Plant.deserialize_state(bytes(bad))
+    for bad, why in ((blob[:-1], "wrong size"), (blob + b"\0", "wrong size"),
+                     (b"STWSTATE" + blob[8:16] + bytes(8) + blob[24:], "different model")):
+        with pytest.raises(CallSequenceError, match=why):
+            Plant.deserialize_state(bad)
+    nan_y = state.y.copy()
+    nan_y[3] = math.nan
+    with pytest.raises(CallSequenceError, match="not finite"):
+        Plant.deserialize_state(Plant.serialize_state(replace(state, y=nan_y)))
+    with pytest.raises(CallSequenceError, match="not a state of this plant"):
+        plant.set_state(replace(state, y=np.zeros(24)))
+    assert np.array_equal(plant.get_state().y, state.y)
+
+
+def test_call_rules_are_the_components_one_table():
+    """Plant's refusals of out-of-order calls come from the component's rule table: every
+    phase a call's refusal names is one stewart_allowed accepts, and no other."""
+    from stewart_fmu.native.core import lib
+    from stewart_fmu.plant import PHASES
+
+    model = load_scene(SCENES / "micro_manipulator.toml")
+    plant = Plant(model)
+    with pytest.raises(CallSequenceError) as info:
+        plant.do_step(0.0, H)
+    allowed = str(info.value).split("(allowed in: ")[1].rstrip(")").split(", ")
+    assert allowed == [p for i, p in enumerate(PHASES) if lib.stewart_allowed(lib.STEWART_CALL_DO_STEP, i)]
+    assert allowed == ["stepping"]
 
 
 def test_reset_returns_to_a_fresh_component():

@@ -9,10 +9,9 @@
 #include "model.h"
 
 #define INSTANCE_MAGIC 0x46324d55u /* "F2MU" */
-#define BIT(p) (1u << (p))
-#define ANY (BIT(PH_INSTANTIATED) | BIT(PH_INITIALIZATION) | BIT(PH_STEPPING) | BIT(PH_TERMINATED) | BIT(PH_FAILED))
-/* Getters: from initialization mode on (FMI 2.0.4 / 3.0 state machines, as the Reference FMUs). */
-#define GETTABLE (ANY & ~BIT(PH_INSTANTIATED))
+/* Each call names its rule of the component's one table (native/src/component.c, RULES). */
+#define ANY STEWART_CALL_ANY
+#define GETTABLE STEWART_CALL_GET
 
 typedef struct {
     unsigned magic;
@@ -35,15 +34,15 @@ static void fmi2_log(Instance *c, int status, const char *category, const char *
     f->logger(f->env, c->name ? c->name : "", (fmi2Status)status, category, escaped);
 }
 
-static Instance *get(fmi2Component c, const char *call, unsigned phases) {
+static Instance *get(fmi2Component c, const char *call, int rule) {
     Fmi2Instance *f = (Fmi2Instance *)c;
     if (!f || f->magic != INSTANCE_MAGIC) return NULL;
-    if (model_require(&f->inst, call, phases)) return NULL;
+    if (model_require(&f->inst, call, rule)) return NULL;
     return &f->inst;
 }
 
-#define GET(CALL, PHASES)                            \
-    Instance *inst = get(c, CALL, PHASES);           \
+#define GET(CALL, RULE)                            \
+    Instance *inst = get(c, CALL, RULE);           \
     if (!inst) return fmi2Error
 
 const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
@@ -94,24 +93,24 @@ void fmi2FreeInstance(fmi2Component c) {
 
 fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
                                fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime) {
-    GET("fmi2SetupExperiment", BIT(PH_INSTANTIATED));
+    GET("fmi2SetupExperiment", STEWART_CALL_SETUP);
     (void)stopTimeDefined;
     (void)stopTime;
     return (fmi2Status)model_setup(inst, toleranceDefined, tolerance, startTime);
 }
 
 fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
-    GET("fmi2EnterInitializationMode", BIT(PH_INSTANTIATED));
+    GET("fmi2EnterInitializationMode", STEWART_CALL_ENTER_INIT);
     return (fmi2Status)model_enter_init(inst);
 }
 
 fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
-    GET("fmi2ExitInitializationMode", BIT(PH_INITIALIZATION));
+    GET("fmi2ExitInitializationMode", STEWART_CALL_EXIT_INIT);
     return (fmi2Status)model_exit_init(inst);
 }
 
 fmi2Status fmi2Terminate(fmi2Component c) {
-    GET("fmi2Terminate", BIT(PH_STEPPING));
+    GET("fmi2Terminate", STEWART_CALL_TERMINATE);
     return (fmi2Status)model_terminate(inst);
 }
 
@@ -242,31 +241,31 @@ fmi2Status fmi2CancelStep(fmi2Component c) {
 }
 
 fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value) {
-    GET("fmi2GetStatus", BIT(PH_STEPPING) | BIT(PH_TERMINATED));
+    GET("fmi2GetStatus", STEWART_CALL_STATUS);
     (void)value;
     model_log(inst, M_ERROR, "fmi2GetStatus: status kind %d not provided (doStep is synchronous)", (int)s);
     return fmi2Error;
 }
 
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value) {
-    GET("fmi2GetRealStatus", BIT(PH_STEPPING) | BIT(PH_TERMINATED));
+    GET("fmi2GetRealStatus", STEWART_CALL_STATUS);
     if (s != fmi2LastSuccessfulTime || !value) {
         model_log(inst, M_ERROR, "fmi2GetRealStatus: only fmi2LastSuccessfulTime, with a value pointer");
         return fmi2Error;
     }
-    *value = inst->d.time;
+    *value = inst->d.s.time;
     return fmi2OK;
 }
 
 fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *value) {
-    GET("fmi2GetIntegerStatus", BIT(PH_STEPPING) | BIT(PH_TERMINATED));
+    GET("fmi2GetIntegerStatus", STEWART_CALL_STATUS);
     (void)value;
     model_log(inst, M_ERROR, "fmi2GetIntegerStatus: status kind %d not provided", (int)s);
     return fmi2Error;
 }
 
 fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value) {
-    GET("fmi2GetBooleanStatus", BIT(PH_STEPPING) | BIT(PH_TERMINATED));
+    GET("fmi2GetBooleanStatus", STEWART_CALL_STATUS);
     if (s != fmi2Terminated || !value) {
         model_log(inst, M_ERROR, "fmi2GetBooleanStatus: only fmi2Terminated, with a value pointer");
         return fmi2Error;
@@ -279,7 +278,7 @@ fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boo
 }
 
 fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *value) {
-    GET("fmi2GetStringStatus", BIT(PH_STEPPING) | BIT(PH_TERMINATED));
+    GET("fmi2GetStringStatus", STEWART_CALL_STATUS);
     (void)value;
     model_log(inst, M_ERROR, "fmi2GetStringStatus: status kind %d not provided", (int)s);
     return fmi2Error;

@@ -11,10 +11,9 @@
 #include "model.h"
 
 #define INSTANCE_MAGIC 0x46334d55u /* "F3MU" */
-#define BIT(p) (1u << (p))
-#define ANY (BIT(PH_INSTANTIATED) | BIT(PH_INITIALIZATION) | BIT(PH_STEPPING) | BIT(PH_TERMINATED) | BIT(PH_FAILED))
-/* Getters: from initialization mode on (FMI 2.0.4 / 3.0 state machines, as the Reference FMUs). */
-#define GETTABLE (ANY & ~BIT(PH_INSTANTIATED))
+/* Each call names its rule of the component's one table (native/src/component.c, RULES). */
+#define ANY STEWART_CALL_ANY
+#define GETTABLE STEWART_CALL_GET
 
 typedef struct {
     unsigned magic;
@@ -29,15 +28,15 @@ static void fmi3_log(Instance *c, int status, const char *category, const char *
     if (f->logger) f->logger(f->env, (fmi3Status)status, category, message);
 }
 
-static Instance *get(fmi3Instance c, const char *call, unsigned phases) {
+static Instance *get(fmi3Instance c, const char *call, int rule) {
     Fmi3Instance *f = (Fmi3Instance *)c;
     if (!f || f->magic != INSTANCE_MAGIC) return NULL;
-    if (model_require(&f->inst, call, phases)) return NULL;
+    if (model_require(&f->inst, call, rule)) return NULL;
     return &f->inst;
 }
 
-#define GET(CALL, PHASES)                            \
-    Instance *inst = get(instance, CALL, PHASES);    \
+#define GET(CALL, RULE)                            \
+    Instance *inst = get(instance, CALL, RULE);    \
     if (!inst) return fmi3Error
 
 static fmi3Status refuse(fmi3Instance instance, const char *call, const char *why) {
@@ -128,21 +127,21 @@ void fmi3FreeInstance(fmi3Instance instance) {
 
 fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean toleranceDefined, fmi3Float64 tolerance,
                                        fmi3Float64 startTime, fmi3Boolean stopTimeDefined, fmi3Float64 stopTime) {
-    GET("fmi3EnterInitializationMode", BIT(PH_INSTANTIATED));
+    GET("fmi3EnterInitializationMode", STEWART_CALL_ENTER_INIT);
     (void)stopTimeDefined, (void)stopTime;
     if (model_setup(inst, toleranceDefined, tolerance, startTime)) return fmi3Error;
     return (fmi3Status)model_enter_init(inst);
 }
 
 fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) {
-    GET("fmi3ExitInitializationMode", BIT(PH_INITIALIZATION));
+    GET("fmi3ExitInitializationMode", STEWART_CALL_EXIT_INIT);
     return (fmi3Status)model_exit_init(inst);
 }
 
 fmi3Status fmi3EnterEventMode(fmi3Instance instance) { NOT_CS("fmi3EnterEventMode"); }
 
 fmi3Status fmi3Terminate(fmi3Instance instance) {
-    GET("fmi3Terminate", BIT(PH_STEPPING));
+    GET("fmi3Terminate", STEWART_CALL_TERMINATE);
     return (fmi3Status)model_terminate(inst);
 }
 

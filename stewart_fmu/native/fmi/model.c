@@ -1,5 +1,7 @@
 /* The Stewart-platform plant as an FMU (see model.h): parameters and their validation, inputs,
- * outputs computed on demand, the life cycle, doStep over stewart_step, FMU states.
+ * outputs computed on demand, FMU states. The life cycle, its call-sequence rules, the state,
+ * the step and its refusal message, and the serialized form are the component's
+ * (native/src/component.c, which stewart_fmu.plant.Plant wraps too).
  *
  * The physics is the C core (stewart.h); this file only keeps the FMI semantics, as the
  * Modelica Association's Reference FMUs do: a call out of order, an unknown value reference, a
@@ -16,8 +18,6 @@
 #include "model.h"
 
 #define MAX_STEPS 10000L             /* internal steps per doStep (IntegratorOptions.max_steps) */
-#define TIME_EPS 1e-9                /* relative tolerance of currentCommunicationPoint */
-#define BIT(p) (1u << (p))
 
 static const char *const METHODS[] = {"rk4", "euler", "dopri5"};
 
@@ -147,16 +147,11 @@ int model_set_debug_logging(Instance *c, int on, size_t n, const char *const cat
 
 /* ---- life cycle ----------------------------------------------------------------------------- */
 
-static const char *const PHASES[PH_COUNT] = {"instantiated", "initialization mode", "step mode",
-                                            "terminated", "error (initialization failed)"};
-
-const char *model_phase_name(int phase) {
-    return phase >= 0 && phase < PH_COUNT ? PHASES[phase] : "invalid";
-}
-
-int model_require(Instance *c, const char *call, unsigned phases) {
-    if (phases & BIT(c->d.phase)) return M_OK;
-    model_log(c, M_ERROR, "%s is not allowed in %s", call, model_phase_name(c->d.phase));
+int model_require(Instance *c, const char *call, int rule) {
+    char msg[256];
+    if (stewart_allowed(rule, c->d.s.phase)) return M_OK;
+    stewart_call_refusal(msg, sizeof msg, call, rule, c->d.s.phase);
+    model_log(c, M_ERROR, "%s", msg);
     return M_ERROR;
 }
 
@@ -167,17 +162,22 @@ static void clear_outputs(Instance *c) {
 
 static void update_rack(Instance *c) {
     double gain = has_drive() ? c->d.par[VR_GEAR_RATIO] / c->d.par[VR_PINION_RADIUS] : 0.0;
-    int i;
-    for (i = 0; i < 6; i++) c->rack[i] = c->d.sigma[i] + gain * c->d.tau[i];
+    stewart_component_hold(&c->d.s, gain);
+}
+
+/* q0, qd0 of the parameter values, as the component's initial values. */
+static const double *initial_values(const Instance *c, double q0[12]) {
+    memcpy(q0, c->d.par + VR_Q0, 6 * sizeof(double));
+    memcpy(q0 + 6, c->d.par + VR_QD0, 6 * sizeof(double));
+    return q0;
 }
 
 void model_reset(Instance *c) {
+    double q0[12];
     memset(&c->d, 0, sizeof c->d);
     memcpy(c->d.par, STEWART_START, sizeof c->d.par);
-    memcpy(c->d.sigma, STEWART_START_SIGMA, sizeof c->d.sigma);  /* tau starts at 0 */
-    c->d.phase = PH_INSTANTIATED;
     c->d.method = STEWART_START_METHOD;
-    c->d.step_guess = c->d.par[VR_MAX_STEP];
+    stewart_component_reset(&c->d.s, NULL, initial_values(c, q0), STEWART_START_SIGMA, c->d.par[VR_MAX_STEP]);
     clear_outputs(c);
     update_rack(c);
 }
@@ -206,14 +206,13 @@ int model_setup(Instance *c, int tolerance_defined, double tolerance, double sta
     }
     c->d.tolerance_defined = tolerance_defined != 0;
     c->d.tolerance = tolerance_defined ? tolerance : 0.0;
-    c->d.start_time = c->d.time = start_time;
-    return M_OK;
+    return stewart_component_setup(&c->d.s, start_time) == STEWART_OK ? M_OK : M_ERROR;
 }
 
 int model_enter_init(Instance *c) {
-    c->d.phase = PH_INITIALIZATION;
+    int status = stewart_component_enter_init(&c->d.s);
     clear_outputs(c);
-    return M_OK;
+    return status == STEWART_OK ? M_OK : M_ERROR;
 }
 
 /* model.py _pack: the packed parameter vector from the parameter values. */
@@ -373,96 +372,52 @@ int model_exit_init(Instance *c) {
     PlantData *d = &c->d;
     const char *call = "exitInitializationMode";
     if (validate(c, call, d->par, d->p) || check_pose(c, call, "the initial pose q0", d->p, d->par + VR_Q0)) {
-        d->phase = PH_FAILED;
+        stewart_component_fail(&d->s);
         clear_outputs(c);
         return M_ERROR;
     }
     update_rack(c);
-    d->n = stewart_initial_state(d->p, d->par + VR_Q0, d->par + VR_QD0, c->rack, d->y);
-    d->energy_valid = 0;
-    d->time = d->start_time;
-    d->phase = PH_STEPPING;
+    initial_values(c, d->s.initial);
+    stewart_component_exit_init(&d->s, d->p);
     clear_outputs(c);
     model_log(c, M_OK, "%s: %s at t = %.17g s, %s, max_step %g s", call,
-              has_transmission() ? "24 states" : "12 states", d->time, METHODS[d->method], d->par[VR_MAX_STEP]);
+              has_transmission() ? "24 states" : "12 states", d->s.time, METHODS[d->method], d->par[VR_MAX_STEP]);
     return M_OK;
 }
 
 int model_terminate(Instance *c) {
-    c->d.phase = PH_TERMINATED;
-    return M_OK;
+    return stewart_component_terminate(&c->d.s) == STEWART_OK ? M_OK : M_ERROR;
 }
 
 /* ---- stepping ------------------------------------------------------------------------------- */
 
-static const char *why(int status) {
-    switch (status) {
-    case STEWART_NONFINITE: return "the state became non-finite";
-    case STEWART_STROKE: return "a leg left its stroke";
-    case STEWART_SINGULAR: return "the Jacobian became singular";
-    case STEWART_GIMBAL: return "the pitch reached +-90 degrees (Euler-rate singularity)";
-    case STEWART_OVERFLOW: return "the accelerations overflowed";
-    case STEWART_TOO_MANY_STEPS: return "the integrator needed too many internal steps";
-    case STEWART_STEP_TOO_SMALL: return "the integrator's step fell below its minimum (stiff)";
-    case STEWART_UNSTABLE: return "integration unstable: the energy grew more than the rack forces supplied";
-    case STEWART_STATE_NONFINITE: return "integration unstable: the state became non-finite";
-    default: return "unknown status";
-    }
-}
-
 int model_do_step(Instance *c, double t, double h, double *last_time) {
     PlantData *d = &c->d;
-    stewart_options o;
-    double y1[STEWART_MAX_STATE], e1[STEWART_N_ENERGY], guess, excess = 0.0, allowed = 0.0;
-    long evaluations = 0;
+    stewart_options o = options(c);
+    char msg[1024];
     int status;
-    if (last_time) *last_time = d->time;
-    if (model_require(c, "doStep", BIT(PH_STEPPING))) return M_ERROR;
-    if (!(h > 0 && isfinite(h))) {
-        model_log(c, M_ERROR, "doStep: communicationStepSize must be finite and > 0, got %.17g", h);
-        return M_ERROR;
-    }
-    if (!(fabs(t - d->time) <= TIME_EPS * fmax(1.0, fabs(d->time)))) {
-        model_log(c, M_ERROR, "doStep: currentCommunicationPoint %.17g is not the FMU's time %.17g", t, d->time);
-        return M_ERROR;
-    }
-    o = options(c);
-    if (o.method != STEWART_DOPRI5 && !(h / o.max_step <= (double)o.max_steps)) {
-        model_log(c, M_DISCARD, "doStep from t = %.17g s by %.17g s discarded (%s): it needs %.3g internal "
-                  "steps of at most %g s, more than max_steps = %ld; take smaller communication steps",
-                  t, h, METHODS[d->method], ceil(h / o.max_step), o.max_step, o.max_steps);
-        c->discarded = 1;
-        return M_DISCARD;
-    }
+    if (last_time) *last_time = d->s.time;
     update_rack(c);
-    if (!d->energy_valid) {
-        stewart_energy_terms(d->p, d->y, d->energy);
-        d->energy_valid = 1;
-    }
-    guess = d->step_guess;
-    status = stewart_step(d->p, &o, d->y, y1, c->rack, h, &guess, &evaluations, d->energy, e1, &excess, &allowed);
-    d->step_guess = guess;  /* as Plant: the adaptive step guess follows even a rejected step */
-    d->evaluations += evaluations;
-    if (status != STEWART_OK) {
-        const double *q = d->y;
-        if (status == STEWART_UNSTABLE)
-            model_log(c, M_DISCARD, "doStep from t = %.17g s by %.17g s discarded (%s): %s (by %.3g J, allowed "
-                      "%.3g J); state kept at the start of the step", t, h, METHODS[d->method], why(status),
-                      excess, allowed);
-        else
-            model_log(c, M_DISCARD, "doStep from t = %.17g s by %.17g s discarded (%s): %s; state kept at the "
-                      "start of the step: q = (%.6g, %.6g, %.6g, %.6g, %.6g, %.6g), rack force = (%.6g, %.6g, "
-                      "%.6g, %.6g, %.6g, %.6g) N", t, h, METHODS[d->method], why(status), q[0], q[1], q[2],
-                      q[3], q[4], q[5], c->rack[0], c->rack[1], c->rack[2], c->rack[3], c->rack[4], c->rack[5]);
+    status = stewart_component_do_step(&d->s, d->p, &o, t, h);
+    switch (status) {
+    case STEWART_OK:
+        if (last_time) *last_time = d->s.time;
+        c->have_legs = c->have_cond = c->have_parts = c->discarded = 0;
+        return M_OK;
+    case STEWART_BAD_CALL: return model_require(c, "doStep", STEWART_CALL_DO_STEP);
+    case STEWART_BAD_STEP:
+        model_log(c, M_ERROR, "doStep: communicationStepSize %s, got %.17g", stewart_status_why(status), h);
+        return M_ERROR;
+    case STEWART_BAD_TIME:
+        model_log(c, M_ERROR, "doStep: currentCommunicationPoint %.17g %s %.17g", t, stewart_status_why(status),
+                  d->s.time);
+        return M_ERROR;
+    default:  /* a step the plant cannot take: the state stays at its start */
+        stewart_component_refusal(msg, sizeof msg, &d->s, d->p, METHODS[d->method], t, h, status);
+        model_log(c, M_DISCARD, "%s", msg);
         c->discarded = 1;
         return M_DISCARD;
     }
-    memcpy(d->y, y1, (size_t)d->n * sizeof(double));
-    memcpy(d->energy, e1, sizeof e1);
-    d->time = t + h;
-    if (last_time) *last_time = d->time;
-    c->have_legs = c->have_cond = c->have_parts = c->discarded = 0;
-    return M_OK;
 }
 
 /* ---- outputs ---------------------------------------------------------------------------------- */
@@ -471,13 +426,12 @@ int model_do_step(Instance *c, double t, double h, double *last_time) {
  * before exitInitializationMode those of the values set so far (if they are valid). */
 static int output_source(Instance *c, const double **p, const double **y) {
     PlantData *d = &c->d;
-    static const unsigned LATE = BIT(PH_STEPPING) | BIT(PH_TERMINATED);
-    if (BIT(d->phase) & LATE) {
+    if (d->s.phase == STEWART_PH_STEPPING || d->s.phase == STEWART_PH_TERMINATED) {
         *p = d->p;
-        *y = d->y;
+        *y = d->s.y;
         return M_OK;
     }
-    if (d->phase == PH_FAILED) {
+    if (d->s.phase == STEWART_PH_FAILED) {
         model_log(c, M_ERROR, "getReal: no outputs: initialization failed (see the log)");
         return M_ERROR;
     }
@@ -492,12 +446,12 @@ static int output_source(Instance *c, const double **p, const double **y) {
         }
         c->log = log;
         update_rack(c);
-        d->n = stewart_initial_state(c->lp, d->par + VR_Q0, d->par + VR_QD0, c->rack, d->y);
+        d->s.n = stewart_initial_state(c->lp, d->par + VR_Q0, d->par + VR_QD0, d->s.rack, d->s.y);
         c->have_initial = 1;
         c->have_legs = c->have_cond = c->have_parts = 0;
     }
     *p = c->lp;
-    *y = d->y;
+    *y = d->s.y;
     return M_OK;
 }
 
@@ -522,7 +476,7 @@ static int output(Instance *c, unsigned vr, double *value) {
         *value = c->cond;
     } else if (vr >= VR_RACK && vr < VR_RACK + 6) {
         update_rack(c);
-        *value = c->rack[vr - VR_RACK];
+        *value = c->d.s.rack[vr - VR_RACK];
     } else {
         if (!c->have_parts) {
             double dy[STEWART_MAX_STATE], qdd[6];
@@ -535,11 +489,11 @@ static int output(Instance *c, unsigned vr, double *value) {
                 memcpy(pl, p, sizeof pl);
                 pl[STEWART_P_HAS_DRIVE] = pl[STEWART_P_DRIVE_MASS] = 0.0;
                 pl[STEWART_P_HAS_TRANSMISSION] = pl[STEWART_P_STIFFNESS] = pl[STEWART_P_DAMPING] = 0.0;
-                stewart_derivative(p, y, c->rack, dy);
+                stewart_derivative(p, y, c->d.s.rack, dy);
                 stewart_inverse_dynamics_parts(pl, y, y + 6, dy + 6, c->parts);
                 for (i = 0; i < 6; i++) c->parts[STEWART_PART_DRIVES * 6 + i] = p[STEWART_P_DRIVE_MASS] * dy[18 + i];
             } else {
-                stewart_forward_dynamics(p, y, y + 6, c->rack, qdd);
+                stewart_forward_dynamics(p, y, y + 6, c->d.s.rack, qdd);
                 stewart_inverse_dynamics_parts(p, y, y + 6, qdd, c->parts);
             }
             c->have_parts = 1;
@@ -567,9 +521,9 @@ int model_get_real(Instance *c, const unsigned vr[], size_t n, double value[]) {
         if (kind == K_PARAM) {
             value[k] = c->d.par[vr[k]];
         } else if (kind == K_TIME) {
-            value[k] = c->d.time;
+            value[k] = c->d.s.time;
         } else if (kind == K_INPUT) {
-            value[k] = vr[k] < VR_TAU ? c->d.sigma[vr[k] - VR_SIGMA] : c->d.tau[vr[k] - VR_TAU];
+            value[k] = vr[k] < VR_TAU ? c->d.s.sigma[vr[k] - VR_SIGMA] : c->d.s.tau[vr[k] - VR_TAU];
         } else if (kind == K_OUTPUT) {
             if (output(c, vr[k], &value[k])) return M_ERROR;
         } else {
@@ -582,7 +536,7 @@ int model_get_real(Instance *c, const unsigned vr[], size_t n, double value[]) {
 }
 
 int model_set_real(Instance *c, const unsigned vr[], size_t n, const double value[]) {
-    static const unsigned EARLY = BIT(PH_INSTANTIATED) | BIT(PH_INITIALIZATION);
+    int phase = c->d.s.phase;
     size_t k;
     char name[64];
     if (check_args(c, "setReal", vr, n, value)) return M_ERROR;
@@ -599,21 +553,21 @@ int model_set_real(Instance *c, const unsigned vr[], size_t n, const double valu
                       kind == K_TIME ? "the independent variable" : "an output");
             return M_ERROR;
         }
-        if (kind == K_PARAM && !(BIT(c->d.phase) & EARLY)) {
+        if (kind == K_PARAM && !stewart_allowed(STEWART_CALL_SET_PARAMETER, phase)) {
             model_log(c, M_ERROR, "setReal: parameter %s is fixed: it can only be set before exitInitializationMode "
-                      "(now in %s)", vr_name(vr[k], name), model_phase_name(c->d.phase));
+                      "(now in %s)", vr_name(vr[k], name), stewart_phase_name(phase));
             return M_ERROR;
         }
-        if (kind == K_INPUT && !(BIT(c->d.phase) & (EARLY | BIT(PH_STEPPING)))) {
+        if (kind == K_INPUT && !stewart_allowed(STEWART_CALL_SET_INPUT, phase)) {
             model_log(c, M_ERROR, "setReal: input %s cannot be set in %s", vr_name(vr[k], name),
-                      model_phase_name(c->d.phase));
+                      stewart_phase_name(phase));
             return M_ERROR;
         }
         if (!isfinite(value[k])) {
             model_log(c, M_ERROR, "setReal: %s = %g at t = %.17g s is not finite: rejected, the value stays %.17g",
-                      vr_name(vr[k], name), value[k], c->d.time,
+                      vr_name(vr[k], name), value[k], c->d.s.time,
                       kind == K_PARAM ? c->d.par[vr[k]]
-                                      : (vr[k] < VR_TAU ? c->d.sigma[vr[k] - VR_SIGMA] : c->d.tau[vr[k] - VR_TAU]));
+                                      : (vr[k] < VR_TAU ? c->d.s.sigma[vr[k] - VR_SIGMA] : c->d.s.tau[vr[k] - VR_TAU]));
             return M_ERROR;
         }
     }
@@ -622,9 +576,9 @@ int model_set_real(Instance *c, const unsigned vr[], size_t n, const double valu
             c->d.par[vr[k]] = value[k];
             c->have_initial = 0;
         } else if (vr[k] < VR_TAU) {
-            c->d.sigma[vr[k] - VR_SIGMA] = value[k];
+            c->d.s.sigma[vr[k] - VR_SIGMA] = value[k];
         } else {
-            c->d.tau[vr[k] - VR_TAU] = value[k];
+            c->d.s.tau[vr[k] - VR_TAU] = value[k];
         }
     }
     if (n) {
@@ -655,7 +609,7 @@ int model_set_string(Instance *c, const unsigned vr[], size_t n, const char *con
     }
     for (k = 0; k < n; k++) {
         if (vr[k] != VR_METHOD) return model_wrong_type(c, "setString", vr + k, 1);
-        if (model_require(c, "setString(solver.method)", BIT(PH_INSTANTIATED) | BIT(PH_INITIALIZATION)))
+        if (model_require(c, "setString(solver.method)", STEWART_CALL_SET_PARAMETER))
             return M_ERROR;
         method[k] = -1;
         for (j = 0; j < 3; j++)
@@ -684,31 +638,17 @@ int model_wrong_type(Instance *c, const char *call, const unsigned vr[], size_t 
 /* ---- FMU states ------------------------------------------------------------------------------- */
 
 #define STATE_MAGIC 0x53545750u   /* "STWP" */
-#define STATE_VERSION 1u
+#define TAIL offsetof(PlantData, method)  /* the FMU's own data after the component's */
 
 typedef struct {
     unsigned magic;
     PlantData d;
 } State;
 
-typedef struct {
-    char magic[8];          /* "STWFMUS\0" */
-    uint32_t version;
-    uint32_t payload;       /* sizeof(PlantData) */
-    uint64_t token;         /* FNV-1a of the instantiation token */
-    uint64_t checksum;      /* FNV-1a of the payload */
-} Header;
-
-static uint64_t fnv1a(const unsigned char *b, size_t n, uint64_t h) {
-    size_t i;
-    for (i = 0; i < n; i++) {
-        h ^= b[i];
-        h *= 1099511628211ull;
-    }
-    return h;
+/* The serialized states' key: this FMU's instantiation token. */
+static unsigned long long token_key(void) {
+    return stewart_hash(STEWART_MODEL_TOKEN, strlen(STEWART_MODEL_TOKEN));
 }
-
-#define FNV_START 14695981039346656037ull
 
 int model_get_state(Instance *c, void **state) {
     State *s;
@@ -731,21 +671,20 @@ int model_get_state(Instance *c, void **state) {
     return M_OK;
 }
 
-/* A state's content is usable: enums in range, sizes consistent, finite where it matters. */
+/* A state's content is usable: the component's check (stewart_component_check), the method in
+ * range and, for a running plant, valid parameters packed as they are. */
 static int sane(Instance *c, const char *call, const PlantData *d) {
-    int i, ok = d->phase >= 0 && d->phase < PH_COUNT && d->method >= 0 && d->method <= 2 &&
-                isfinite(d->time) && isfinite(d->start_time);
-    if (ok && (d->phase == PH_STEPPING || d->phase == PH_TERMINATED)) {
-        /* a running plant: valid parameters packed as they are, a finite state of their size */
+    int running = d->s.phase == STEWART_PH_STEPPING || d->s.phase == STEWART_PH_TERMINATED;
+    int ok = d->method >= 0 && d->method <= 2 && (d->tolerance_defined == 0 || d->tolerance_defined == 1) &&
+             stewart_component_check(&d->s, running ? d->p : NULL) == STEWART_OK;
+    if (ok && running) {
         double p[STEWART_N_PARAMS];
         InstanceLogger log = c->log;
         c->log = NULL;
-        ok = validate(c, call, d->par, p) == M_OK && memcmp(p, d->p, sizeof p) == 0 &&
-             d->n == stewart_state_size(d->p);
+        ok = validate(c, call, d->par, p) == M_OK && memcmp(p, d->p, sizeof p) == 0;
         c->log = log;
-        for (i = 0; ok && i < d->n; i++) ok = isfinite(d->y[i]);
     }
-    if (!ok) model_log(c, M_ERROR, "%s: the state is not a valid state of this FMU", call);
+    if (!ok) model_log(c, M_ERROR, "%s: not a valid state of this FMU: %s", call, stewart_status_why(STEWART_STATE_INVALID));
     return ok ? M_OK : M_ERROR;
 }
 
@@ -756,8 +695,8 @@ int model_set_state(Instance *c, const void *state) {
         return M_ERROR;
     }
     if (sane(c, "setFMUstate", &s->d)) return M_ERROR;
-    c->d = s->d;
-    c->d.energy_valid = 0;  /* as Plant.set_state: the energy terms are recomputed from y */
+    stewart_component_load(&c->d.s, &s->d.s, s->d.p);  /* as Plant.set_state */
+    memcpy((char *)&c->d + TAIL, (const char *)&s->d + TAIL, sizeof(PlantData) - TAIL);
     clear_outputs(c);
     update_rack(c);
     return M_OK;
@@ -774,11 +713,10 @@ int model_free_state(Instance *c, void **state) {
     return M_OK;
 }
 
-size_t model_serialized_size(void) { return sizeof(Header) + sizeof(PlantData); }
+size_t model_serialized_size(void) { return stewart_serialized_size(sizeof(PlantData) - TAIL); }
 
 int model_serialize(Instance *c, const void *state, unsigned char *out, size_t size) {
     const State *s = (const State *)state;
-    Header h;
     if (!s || s->magic != STATE_MAGIC || !out) {
         model_log(c, M_ERROR, "serializeFMUstate: %s", !out ? "the buffer is NULL" : "not a state of this FMU");
         return M_ERROR;
@@ -788,21 +726,14 @@ int model_serialize(Instance *c, const void *state, unsigned char *out, size_t s
                   (unsigned long)model_serialized_size());
         return M_ERROR;
     }
-    memset(&h, 0, sizeof h);
-    memcpy(h.magic, "STWFMUS", 8);
-    h.version = STATE_VERSION;
-    h.payload = (uint32_t)sizeof(PlantData);
-    h.token = fnv1a((const unsigned char *)STEWART_MODEL_TOKEN, strlen(STEWART_MODEL_TOKEN), FNV_START);
-    h.checksum = fnv1a((const unsigned char *)&s->d, sizeof s->d, FNV_START);
-    memcpy(out, &h, sizeof h);
-    memcpy(out + sizeof h, &s->d, sizeof s->d);
+    stewart_serialize(&s->d.s, (const char *)&s->d + TAIL, sizeof(PlantData) - TAIL, token_key(), out, size);
     return M_OK;
 }
 
 int model_deserialize(Instance *c, const unsigned char *in, size_t size, void **state) {
-    Header h;
     State *s;
     PlantData d;
+    int status;
     if (!in || !state) {
         model_log(c, M_ERROR, "deserializeFMUstate: %s is NULL", !in ? "serializedState" : "FMUstate");
         return M_ERROR;
@@ -812,19 +743,10 @@ int model_deserialize(Instance *c, const unsigned char *in, size_t size, void **
                   (unsigned long)model_serialized_size());
         return M_ERROR;
     }
-    memcpy(&h, in, sizeof h);
-    memcpy(&d, in + sizeof h, sizeof d);
-    if (memcmp(h.magic, "STWFMUS", 8) != 0 || h.version != STATE_VERSION || h.payload != sizeof(PlantData)) {
-        model_log(c, M_ERROR, "deserializeFMUstate: not a serialized state of this FMU (magic or version %u)",
-                  (unsigned)h.version);
-        return M_ERROR;
-    }
-    if (h.token != fnv1a((const unsigned char *)STEWART_MODEL_TOKEN, strlen(STEWART_MODEL_TOKEN), FNV_START)) {
-        model_log(c, M_ERROR, "deserializeFMUstate: the state belongs to a different FMU");
-        return M_ERROR;
-    }
-    if (h.checksum != fnv1a((const unsigned char *)&d, sizeof d, FNV_START)) {
-        model_log(c, M_ERROR, "deserializeFMUstate: checksum mismatch: the state is corrupted");
+    memset(&d, 0, sizeof d);
+    status = stewart_deserialize(in, size, token_key(), &d.s, (char *)&d + TAIL, sizeof(PlantData) - TAIL);
+    if (status != STEWART_OK) {
+        model_log(c, M_ERROR, "deserializeFMUstate: not a serialized state of this FMU: %s", stewart_status_why(status));
         return M_ERROR;
     }
     if (sane(c, "deserializeFMUstate", &d)) return M_ERROR;

@@ -58,8 +58,6 @@
 #define VR_PARTS 237           /* force.<part>[1..6], parts in STEWART_PART_* order: 36 */
 #define VR_END 273
 
-enum { PH_INSTANTIATED, PH_INITIALIZATION, PH_STEPPING, PH_TERMINATED, PH_FAILED, PH_COUNT };
-
 /* ---- the generated scene file ---------------------------------------------------------------- */
 extern const char STEWART_MODEL_TOKEN[];            /* guid / instantiationToken */
 extern const double STEWART_START[VR_N_PAR];        /* start values of the parameters */
@@ -69,23 +67,14 @@ extern const int STEWART_START_METHOD;              /* stewart_method */
 
 /* ---- the instance ------------------------------------------------------------------------------ */
 /* Everything a rollback restores: plain data (no pointers), copied as is into FMU states and
- * serialized byte for byte. */
+ * serialized in the component's format (stewart_serialize: s, then the rest as its extra). */
 typedef struct {
-    int phase;
+    stewart_component s;        /* life cycle, inputs, state: the component (stewart.h) */
     int method;                 /* stewart_method */
     int tolerance_defined;
-    int energy_valid;           /* energy holds the terms of y */
-    int n;                      /* state size, 12 or 24 (valid from exitInitializationMode) */
-    int reserved;               /* keeps the struct free of padding */
     double tolerance;
-    double start_time, time;
-    double step_guess;
-    long evaluations;
     double par[VR_N_PAR];       /* parameter values by value reference */
-    double sigma[6], tau[6];
     double p[STEWART_N_PARAMS]; /* packed parameters (valid from exitInitializationMode) */
-    double y[STEWART_MAX_STATE];
-    double energy[STEWART_N_ENERGY];
 } PlantData;
 
 typedef enum { LOG_EVENTS = 1, LOG_WARNING = 2, LOG_DISCARD = 4, LOG_ERROR = 8, LOG_FATAL = 16,
@@ -102,7 +91,7 @@ struct Instance {
     /* outputs computed on demand (not part of the state; cleared whenever y or inputs change) */
     int have_legs, have_cond, have_parts, have_initial;
     int discarded;              /* the last doStep was discarded (FMI 2.0 fmi2Terminated status) */
-    double l[6], ldot[6], omega[3], cond, parts[36], rack[6];
+    double l[6], ldot[6], omega[3], cond, parts[36];
     double lp[STEWART_N_PARAMS]; /* packed parameters for outputs before initialization ends */
     /* importer glue */
     char *name;
@@ -121,8 +110,7 @@ void model_log(Instance *c, int status, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)))
 #endif
     ;
-const char *model_phase_name(int phase);
-int model_require(Instance *c, const char *call, unsigned phases); /* bit 1 << PH_*: M_OK/M_ERROR */
+int model_require(Instance *c, const char *call, int rule); /* stewart_call rule: M_OK/M_ERROR */
 int model_set_debug_logging(Instance *c, int on, size_t n, const char *const categories[]);
 
 int model_setup(Instance *c, int tolerance_defined, double tolerance, double start_time);
@@ -137,7 +125,7 @@ int model_get_string(Instance *c, const unsigned vr[], size_t n, const char *val
 int model_set_string(Instance *c, const unsigned vr[], size_t n, const char *const value[]);
 int model_wrong_type(Instance *c, const char *call, const unsigned vr[], size_t n);
 
-/* FMU states: a heap copy of PlantData; serialized as header + PlantData. */
+/* FMU states: a heap copy of PlantData; serialized by the component (stewart_serialize). */
 int model_get_state(Instance *c, void **state);
 int model_set_state(Instance *c, const void *state);
 int model_free_state(Instance *c, void **state);

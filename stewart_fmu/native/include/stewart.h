@@ -241,6 +241,153 @@ int stewart_data_step(const double *params, const stewart_options *o, stewart_da
 int stewart_data_run(const double *params, const stewart_options *o, stewart_data *d,
                      const double rack[6], double h, long n, long *done);
 
+/* ==== words: status names, what they mean, the refusal of a step (status.c) ============== */
+#include <stddef.h>
+
+/* Status codes of the component (component.c) and of its serialized state, after the core's. */
+enum {
+    STEWART_BAD_CALL = 110,      /* a call the component's phase does not allow */
+    STEWART_BAD_STEP = 111,      /* a step size that is not finite and > 0 */
+    STEWART_BAD_TIME = 112,      /* a current time that is not the component's */
+    STEWART_BAD_STATE = 113,     /* serialized state: wrong size, magic or version */
+    STEWART_STATE_FOREIGN = 114, /* serialized state of another model (its key differs) */
+    STEWART_STATE_CORRUPT = 115, /* serialized state: checksum mismatch */
+    STEWART_STATE_INVALID = 116  /* a state whose values are out of range or not finite */
+};
+
+/* The status's name ("STROKE") and what it means to a user ("a leg left its stroke"); NULL
+   for a code that is not a status. */
+const char *stewart_status_name(int status);
+const char *stewart_status_why(int status);
+
+/* x as Python's repr writes a float (shortest round trip), into out. */
+void stewart_format_double(char out[32], double x);
+
+/* THE message of a refused step, for every caller (the FMU's log, Plant's StepRejected and
+   IntegrationError): "doStep from t = T s by H s discarded (METHOD): WHY; state kept at the
+   start of the step: q = (...), qd = (...), leg lengths = (...) m (stroke [lo, hi] m), rack
+   force = (...) N", with "(by X J, allowed Y J)" after WHY for STEWART_UNSTABLE. y: the state
+   at the start of the step, rack: the held rack forces. Writes at most size bytes (always
+   terminated) and returns the length written. */
+size_t stewart_refusal(char *buf, size_t size, const double *params, const char *method, double t,
+                       double h, int status, const double *y, const double rack[6], double excess,
+                       double allowed);
+
+/* ==== the component: the FMI life cycle, its state as plain data, one serialized form ====== */
+/* component.c: what the exported FMU (fmi/model.c) and stewart_fmu.plant.Plant both wrap. The
+   phases and the call-sequence rules are those of the FMI 2.0 / 3.0 co-simulation state
+   machines (as the Reference FMUs' MASK_* table states them); a call in a phase its rule does not
+   allow returns STEWART_BAD_CALL and changes nothing. */
+typedef enum { STEWART_PH_INSTANTIATED = 0, STEWART_PH_INITIALIZATION = 1, STEWART_PH_STEPPING = 2,
+               STEWART_PH_TERMINATED = 3, STEWART_PH_FAILED = 4 } stewart_phase;
+#define STEWART_N_PHASES 5
+
+/* The calls the rules name, and the phases each is allowed in. */
+typedef enum {
+    STEWART_CALL_SETUP = 0,         /* setupExperiment: instantiated */
+    STEWART_CALL_ENTER_INIT = 1,    /* enterInitializationMode: instantiated */
+    STEWART_CALL_EXIT_INIT = 2,     /* exitInitializationMode: initialization */
+    STEWART_CALL_SET_PARAMETER = 3, /* parameters, the initial state, the method: instantiated,
+                                       initialization */
+    STEWART_CALL_SET_INPUT = 4,     /* rack forces, torques: instantiated, initialization, stepping */
+    STEWART_CALL_GET = 5,           /* getters: every phase but instantiated */
+    STEWART_CALL_DO_STEP = 6,       /* stepping */
+    STEWART_CALL_STATUS = 7,        /* getStatus: stepping, terminated */
+    STEWART_CALL_TERMINATE = 8,     /* stepping */
+    STEWART_CALL_ANY = 9            /* reset, logging, states: every phase */
+} stewart_call;
+#define STEWART_N_CALLS 10
+
+/* Everything a rollback restores, as plain data (no pointers, no padding): copied as is into
+   saved states and serialized byte for byte. */
+typedef struct {
+    int phase;                          /* stewart_phase */
+    int n;                              /* state size: 12, or 24 with a transmission */
+    int energy_valid;                   /* energy holds the terms of y */
+    int reserved;                       /* zero (keeps the doubles aligned without padding) */
+    long long evaluations;              /* right-hand-side evaluations (kept by a load) */
+    double start_time, time;            /* s */
+    double step_guess;                  /* dopri5's next internal step (s) */
+    double initial[12];                 /* the initial q, qd of this experiment */
+    double sigma[6], tau[6];            /* held inputs: rack forces (N), motor torques (N m) */
+    double rack[6];                     /* sigma + zeta / r tau (stewart_component_hold) */
+    double y[STEWART_MAX_STATE];        /* plant state (n values) */
+    double energy[STEWART_N_ENERGY];    /* energy terms of y, when energy_valid */
+    double excess, allowed;             /* the last step's power balance (J) */
+} stewart_component;
+
+/* The phase's name ("stepping"); "invalid" for a number that is not a phase. */
+const char *stewart_phase_name(int phase);
+
+/* 1 if the rules allow call in phase, else 0. */
+int stewart_allowed(int call, int phase);
+
+/* The message of a refused call: "NAME is not allowed in phase 'P' (allowed in: A, B)". */
+size_t stewart_call_refusal(char *buf, size_t size, const char *name, int call, int phase);
+
+/* Back to right after instantiation: phase instantiated, time 0, tau 0, the given initial
+   q, qd (12) and sigma, step_guess = max_step; y the initial state at params (with the rack
+   force's preload), or (q, qd) when params is NULL. */
+void stewart_component_reset(stewart_component *s, const double *params, const double initial[12],
+                             const double sigma[6], double max_step);
+
+/* The life cycle. Each checks its rule first (STEWART_BAD_CALL) and then its arguments
+   (STEWART_NONFINITE for a non-finite value); on any status but OK nothing changes. */
+int stewart_component_setup(stewart_component *s, double start_time);
+int stewart_component_enter_init(stewart_component *s);
+/* The initial q and / or qd (either may be NULL: kept); y becomes their initial state. */
+int stewart_component_set_initial(stewart_component *s, const double *params, const double *q,
+                                  const double *qd);
+/* Stepping from the initial state at the start time. The caller has checked the initial pose
+   (stroke, singularity) and calls stewart_component_fail instead when it is not valid. */
+int stewart_component_exit_init(stewart_component *s, const double *params);
+void stewart_component_fail(stewart_component *s);  /* initialization failed: phase failed */
+int stewart_component_terminate(stewart_component *s);
+
+/* The held inputs (sigma or tau may be NULL: kept); rack = sigma + gain tau, gain = zeta / r
+   (0 without a drive). stewart_component_hold recomputes rack alone (no rule, no check). */
+int stewart_component_set_inputs(stewart_component *s, const double *sigma, const double *tau,
+                                 double gain);
+void stewart_component_hold(stewart_component *s, double gain);
+
+/* THE step of the component: the rule, h finite and > 0, t the component's time (relative
+   1e-9), then stewart_step with o from y; on OK y, energy and time = t + h advance, on any
+   other status the state stays at the start of the step (step_guess, evaluations, excess and
+   allowed follow the attempt). Status: BAD_CALL, BAD_STEP, BAD_TIME, or stewart_step's. */
+int stewart_component_do_step(stewart_component *s, const double *params, const stewart_options *o,
+                              double t, double h);
+/* The same step in two halves, for a method the core does not have (scipy's, integrated by
+   the caller from y with the held rack forces): begin checks as do_step does; end runs the
+   step's check (finite, power balance with tol) on y1 and accepts it as do_step does. */
+int stewart_component_begin_step(stewart_component *s, const double *params, double t, double h);
+int stewart_component_end_step(stewart_component *s, const double *params, const double *y1,
+                               double t, double h, double tol);
+
+/* stewart_refusal for the component's state at the start of the step. */
+size_t stewart_component_refusal(char *buf, size_t size, const stewart_component *s,
+                                 const double *params, const char *method, double t, double h,
+                                 int status);
+
+/* The sanity of a state: the phase a phase, n 12 or 24 (and, with params, the size of a
+   running plant's state), the times, inputs, initial values and y finite. OK or
+   STEWART_STATE_INVALID. */
+int stewart_component_check(const stewart_component *s, const double *params);
+/* s = from after stewart_component_check (s's evaluations are kept; energy recomputed). */
+int stewart_component_load(stewart_component *s, const stewart_component *from, const double *params);
+
+/* ---- serialized state: header (magic "STWSTATE", version, payload size, key, FNV-1a
+   checksum of header and payload), then the component, then `extra` (the caller's own plain
+   data: the FMU's parameter values). key names the model the state belongs to. */
+#define STEWART_STATE_VERSION 3
+unsigned long long stewart_hash(const void *data, size_t n);  /* 64-bit FNV-1a */
+size_t stewart_serialized_size(size_t extra_size);
+int stewart_serialize(const stewart_component *s, const void *extra, size_t extra_size,
+                      unsigned long long key, void *out, size_t size);
+/* OK, or BAD_STATE (size, magic, version), STATE_FOREIGN (key), STATE_CORRUPT (checksum),
+   STATE_INVALID (stewart_component_check without params); s and extra written on OK only. */
+int stewart_deserialize(const void *in, size_t size, unsigned long long key, stewart_component *s,
+                        void *extra, size_t extra_size);
+
 #ifdef __cplusplus
 }
 #endif

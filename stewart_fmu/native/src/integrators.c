@@ -165,7 +165,7 @@ int stewart_advance(const double *params, const stewart_options *o, const double
     int status;
     stewart_leg_side_params(params, pl);
     if (o->method == STEWART_RK4 || o->method == STEWART_EULER) {
-        /* n = max(1, ceil(h / max_step - 1e-9)) as Plant._advance; refused beyond max_steps */
+        /* n = max(1, ceil(h / max_step - 1e-9)) as stability.internal_step; refused beyond max_steps */
         const double nf = ceil(h / o->max_step - 1e-9);
         long n;
         if (!(nf <= (double)o->max_steps)) {

@@ -1,4 +1,4 @@
-/* step.c -- THE plant step (plant.Plant.do_step without its call-sequence checks): the
+/* step.c -- THE plant step (component.c's do_step without its call-sequence checks): the
    integrator's advance, then the finiteness and power-balance check of stewart_step_energy.
    Also the default options and a caller-owned per-run state (stewart_data). */
 #include "internal.h"
