@@ -71,6 +71,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from controller.axis import AxisControllers, MotorCurrents
 from controller.config import ControllerConfig, controller_config
 from controller.design import PidGains
 from controller.plants import PlantStepError
@@ -134,9 +135,10 @@ class Device:
             raise DeviceError(f"watchdog must be a finite time in [{lo:g}, {hi:g}] s, got {watchdog!r}")
         self.settings = params.Settings(float(watchdog))
         self.lockstep = bool(lockstep)
+        known = sorted(self.settings.rates)   # hil.telemetry.TELEMETRY's streams
         for name, hz in (telemetry or {}).items():
-            if name not in self.settings.rates:
-                raise DeviceError(f"telemetry: unknown stream {name!r} (known: {sorted(self.settings.rates)})")
+            if name not in known:
+                raise DeviceError(f"telemetry: unknown stream {name!r} (known: {known})")
             why = params.check_rate(hz)
             if why:
                 raise DeviceError(f"telemetry {name}: {why}")
@@ -153,7 +155,6 @@ class Device:
 
         self.servo = Servo(model, self.config)
         self.plant = self.servo.plant
-        self.analysis = self.servo.analysis
         self.leg_min = model.leg_min if model.leg_min is not None else 0.0
         self.leg_max = model.leg_max if model.leg_max is not None else math.inf
         self.home_lengths = inverse_kinematics(model, model.home, with_cond=False).lengths.copy()
@@ -225,20 +226,16 @@ class Device:
         return self.settings.watchdog
 
     @property
-    def cond_max(self) -> float:
-        return self.settings.cond_max
-
-    @property
     def rates(self) -> dict[str, float]:
         """Telemetry rates (Hz) by stream name (parameters SR_*)."""
         return self.settings.rates
 
     @property
-    def ctrl(self):  # controller.axis.AxisControllers
+    def ctrl(self) -> AxisControllers:
         return self.servo.ctrl
 
     @property
-    def motors(self):  # controller.axis.MotorCurrents
+    def motors(self) -> MotorCurrents:
         return self.servo.motors
 
     @property
@@ -253,11 +250,6 @@ class Device:
     def l_ref(self) -> np.ndarray:
         """The leg lengths the drives follow now."""
         return self.servo.l_ref
-
-    @property
-    def reference_pose(self) -> np.ndarray | None:
-        """The pose of the setpoint followed; None while holding or homing."""
-        return self.servo.reference_pose
 
     @property
     def time(self) -> float:
