@@ -161,7 +161,7 @@ class Device:
         self.bounds = limits.bounds(self.leg_min, self.leg_max, self.servo.ctrl.axis,
                                     self.servo.design_gains)
 
-        self.mode = Mode.DISARMED
+        self._mode = Mode.DISARMED        # moved only by _fire (hil.modes.transition)
         self.k = 0                       # ticks done; device time = k / rate
         self._last_setpoint_k = 0
         self._last_pose = np.asarray(model.home, dtype=float).copy()
@@ -212,13 +212,18 @@ class Device:
     # --- state ---------------------------------------------------------------------------
 
     @property
+    def mode(self) -> Mode:
+        """The device's mode (hil.modes)."""
+        return self._mode
+
+    @property
     def armed(self) -> bool:
-        return modes.armed(self.mode)
+        return modes.armed(self._mode)
 
     @property
     def watchdog_state(self) -> int:
         """The watchdog's state as DRIVE_STATUS sends it (STEWART_WATCHDOG_*)."""
-        return modes.WATCHDOG_STATE[self.mode]
+        return modes.WATCHDOG_STATE[self._mode]
 
     @property
     def watchdog(self) -> float:
@@ -264,9 +269,9 @@ class Device:
 
     def _fire(self, event: Event) -> str | None:
         """Move the mode as hil.modes.transition says; the refusal (mode unchanged) or None."""
-        t = modes.transition(self.mode, event)
+        t = modes.transition(self._mode, event)
         if t.refusal is None:
-            self.mode = t.mode
+            self._mode = t.mode
             if t.mode is Mode.DISARMED:
                 self._ignored_said = False
         return t.refusal
@@ -363,7 +368,7 @@ class Device:
         if why is not None:
             self.counters.setpoints_refused += 1
             return self._say_once(ms.MAV_SEVERITY_WARNING, f"refused: {why}", key="refused")
-        was = self.mode
+        was = self._mode
         why = self._fire(Event.SETPOINT)
         if why is not None:
             self.counters.setpoints_ignored += 1
@@ -534,13 +539,13 @@ class Device:
     def tick(self, step: int | None = None) -> list[Any]:
         """Advance one controller period; the telemetry due (in lockstep: with `step`)."""
         out: list[Any] = []
-        if self.mode is Mode.TRACKING and self._watchdog_expired():
+        if self._mode is Mode.TRACKING and self._watchdog_expired():
             self._fire(Event.WATCHDOG_EXPIRED)
             self.servo.hold()
             self.counters.watchdog_trips += 1
             out += self._statustext(ms.MAV_SEVERITY_CRITICAL,
                                     f"watchdog: no setpoint for {self.settings.watchdog:g} s: holding")
-        if self.mode is Mode.HOMING and self.servo.homing_reference(self.k, self.rate):
+        if self._mode is Mode.HOMING and self.servo.homing_reference(self.k, self.rate):
             self._fire(Event.HOMING_DONE)
         good_q = self.plant.outputs.q.copy()
         try:
@@ -612,11 +617,11 @@ class Device:
     # --- messages (hil.telemetry builds them) --------------------------------------------
 
     def heartbeat(self) -> Any:
-        return telemetry.heartbeat(self.mode, self.lockstep)
+        return telemetry.heartbeat(self._mode, self.lockstep)
 
     def sys_status(self) -> Any:
         c = self.counters
-        return telemetry.sys_status(self.mode, self.load, self.link_errors, c.setpoints_refused,
+        return telemetry.sys_status(self._mode, self.load, self.link_errors, c.setpoints_refused,
                                     c.signing_rejected, c.watchdog_trips, c.faults)
 
     @property
@@ -631,7 +636,7 @@ class Device:
 
     def drive_status(self) -> Any:
         s = self.servo
-        return telemetry.drive_status(self._usec(), self.mode, s.voltage, s.motors.current,
+        return telemetry.drive_status(self._usec(), self._mode, s.voltage, s.motors.current,
                                       s.saturated, self.counters.setpoints_refused,
                                       self.rx.stats.crc_errors + self.counters.signing_rejected)
 

@@ -24,7 +24,7 @@ import numpy as np
 
 from controller.axis import AxisControllers, MotorCurrents, servo_step
 from controller.config import ControllerConfig
-from controller.design import PidGains, design_axis
+from controller.design import design_axis
 from controller.feedforward import start_at_equilibrium
 from controller.plants import InProcessPlant
 from controller.trajectory import QUINTIC_PEAK_RATE, Trajectory, leg_references, minimum_jerk
@@ -41,7 +41,7 @@ class Servo:
     def __init__(self, model: Model, config: ControllerConfig) -> None:
         self.model = model
         self.dt = config.dt
-        axis, gains, self.analysis = design_axis(model, config)
+        axis, gains, _ = design_axis(model, config)
         self.ctrl = AxisControllers(gains, axis, self.dt)
         self.motors = MotorCurrents(axis, self.dt)
         self.port = InProcessPlant(model)
@@ -154,10 +154,6 @@ class Servo:
         self.ctrl.gains = self.design_gains
         self.set_motor("voltage_limit", self.design_motor.voltage_limit)
         self.set_motor("current_limit", self.design_motor.current_limit)
-
-    @property
-    def gains(self) -> PidGains:
-        return self.ctrl.gains
 
     def restart_after_failure(self, good_q: np.ndarray, last_pose: np.ndarray, t: float) -> None:
         """Restart at rest at the last good pose (else at `last_pose`, else home), at the plant's
