@@ -387,12 +387,11 @@ class Device:
             self.servo.hold()
             return out
         self._last_pose = pose
-        valid = (lambda flag, values: np.array(values, dtype=float) if flags & flag else None)
-        force = valid(ms.STEWART_SETPOINT_FLAG_FORCE_VALID, msg.force)
+        force = _flagged(flags, ms.STEWART_SETPOINT_FLAG_FORCE_VALID, msg.force)
         self.servo.follow(np.array(msg.length, dtype=float),
-                          valid(ms.STEWART_SETPOINT_FLAG_RATE_VALID, msg.rate), pose, force,
-                          None if force is None else valid(ms.STEWART_SETPOINT_FLAG_FORCE_RATE_VALID,
-                                                           msg.force_rate))
+                          _flagged(flags, ms.STEWART_SETPOINT_FLAG_RATE_VALID, msg.rate), pose, force,
+                          None if force is None else
+                          _flagged(flags, ms.STEWART_SETPOINT_FLAG_FORCE_RATE_VALID, msg.force_rate))
         return out
 
     def _validate(self, msg: Any, flags: int) -> tuple[str | None, np.ndarray | None]:
@@ -668,3 +667,8 @@ class Device:
             self._said.clear()
         self._said[key] = self.k
         return self._statustext(severity, text)
+
+
+def _flagged(flags: int, flag: int, values: Any) -> np.ndarray | None:
+    """A setpoint's field as an array when its validity flag is set, else None."""
+    return np.array(values, dtype=float) if flags & flag else None
