@@ -11,10 +11,11 @@ the sampling of the integral and the zero-order hold.
 leg rate held (first-order ODE), clamps it at the current limit, and returns the step's mean
 torque, which the plant receives as its motor-torque input.
 
-The arithmetic lives in two C functions (controller/native/axis.c: `pid_voltages`,
-`advance_currents`) shared by these classes (the master's Python loop, e.g. around an FMU, and
-the emulated device) and by the master's C loop (`closed_loop_run`), so both loops compute the
-same numbers.
+`servo_step` is one servo sample of the six drives (the PID voltages, then the currents over
+the sample): the master's Python loop (controller.cosim, e.g. around an FMU) and the emulated
+device (hil.servo) both take their sample from it. The arithmetic lives in two C functions
+(controller/native/axis.c: `pid_voltages`, `advance_currents`) shared by these classes and by the
+master's C loop (`closed_loop_run`), so every loop computes the same numbers.
 """
 from __future__ import annotations
 
@@ -77,3 +78,13 @@ class MotorCurrents:
                              m.current_limit, self.decay, self.mean_decay, _buf(self.current),
                              _buf(_f64(voltage)), _buf(_f64(ldot)), _buf(torque), _buf(limited))
         return torque, limited
+
+
+def servo_step(ctrl: AxisControllers, motors: MotorCurrents, l_ref: np.ndarray,
+               ldot_ref: np.ndarray, l: np.ndarray, ldot: np.ndarray,
+               v_ff: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One servo sample from the measured leg lengths and rates: (the voltages, the mean motor
+    torques over the sample, the axes saturated in voltage or limited in current)."""
+    v, sat = ctrl.step(l_ref, ldot_ref, l, ldot, v_ff)
+    torque, limited = motors.step(v, ldot)
+    return v, torque, sat | limited

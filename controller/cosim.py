@@ -24,7 +24,7 @@ from stewart_fmu.stability import ENERGY_TOL, default_options, internal_step
 from stewart_fmu.status import ENERGY_GAIN, STATE_NONFINITE
 from stewart_fmu.transmission import initial_state
 
-from .axis import AxisControllers, MotorCurrents
+from .axis import AxisControllers, MotorCurrents, servo_step
 from .config import ControllerConfig
 from .design import Analysis, PidGains, UnstableLoopError, check_stable, tune_pid
 from .drive import AxisModel, axis_model
@@ -94,12 +94,11 @@ def run_closed_loop(model: Model, config: ControllerConfig, traj: Trajectory,
 
 
 def _run_ports(plant, traj, refs, v_ff, ctrl, motors, bound, rec, progress) -> None:
-    """The master's loop in Python, around any PlantPort (e.g. an FMU)."""
+    """The master's loop in Python, around any PlantPort (e.g. an FMU): one servo_step per sample."""
     for k, t in enumerate(traj.t):
         l, ldot, q = plant.measure()
-        v, sat = ctrl.step(refs.l[k], refs.ldot[k], l, ldot, v_ff[k])
-        torque, limited = motors.step(v, ldot)
-        rec.add(k, l, ldot, q, v, motors.current, torque, sat | limited)
+        v, torque, saturated = servo_step(ctrl, motors, refs.l[k], refs.ldot[k], l, ldot, v_ff[k])
+        rec.add(k, l, ldot, q, v, motors.current, torque, saturated)
         err = np.abs(refs.l[k] - l)
         if np.any(err > bound) or not np.all(np.isfinite(err)):
             raise _diverged(float(t), err, bound)

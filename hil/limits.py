@@ -68,7 +68,8 @@ class Bounds:
 
     def setpoint(self, msg: Any, flags: int, rate_flag: int, force_flag: int,
                  force_rate_flag: int) -> str | None:
-        """Why a (finite) setpoint is out of bounds, or None. Lengths: checked by the caller."""
+        """Why a (finite) setpoint is out of bounds (legs numbered 1..6), or None. Lengths:
+        checked by the caller."""
         checks = []
         if flags & rate_flag:
             checks.append(("rate", msg.rate, self.rate_max, "m/s"))
@@ -80,7 +81,7 @@ class Bounds:
             a = np.abs(np.asarray(values, dtype=float))
             i = int(np.argmax(a))
             if not a[i] <= bound:
-                return f"leg {i} {what} {values[i]:.3g} {unit}, bound {bound:.3g}"
+                return f"leg {i + 1} {what} {values[i]:.3g} {unit}, bound {bound:.3g}"
         return None
 
 

@@ -52,9 +52,9 @@ class PeerGuard:
             return 0
         dev.counters.peer_changes += 1
         signed = dev.verifier is not None
-        msgs = dev._limit_statustext(dev._say_once(
-            ms.MAV_SEVERITY_NOTICE if signed else ms.MAV_SEVERITY_WARNING,
-            f"peer {_fmt(old)} -> {_fmt(sender)}" + (" (signed)" if signed else ""), key="peer"))
+        msgs = dev.say(ms.MAV_SEVERITY_NOTICE if signed else ms.MAV_SEVERITY_WARNING,
+                       f"peer {_fmt(old)} -> {_fmt(sender)}" + (" (signed)" if signed else ""),
+                       key="peer")
         frames = [dev.pack(m) for m in msgs]
         for peer in (old, sender):
             tr.peer = peer

@@ -30,7 +30,7 @@ from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.model import Model
 
 COND_LIMIT = 100.0  # scaled cond(J) above this counts as near-singular: the emulated device's
-                    # default SP_COND_MAX (hil/device.py), forces then amplify ~100x
+                    # default SP_COND_MAX (hil/params.py), forces then amplify ~100x
 QUANTITIES = ("stroke_min", "stroke_max", "cond", "force", "current", "voltage")
 UNITS = {"stroke_min": "m", "stroke_max": "m", "cond": "1", "force": "N", "current": "A",
          "voltage": "V"}

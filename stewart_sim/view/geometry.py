@@ -28,7 +28,7 @@ from stewart_fmu.model import Model
 from stewart_fmu.rotations import euler_motion
 
 # cond(J) (scaled, stewart_fmu.kinematics) above which a pose is marked near-singular: the
-# emulated device's default SP_COND_MAX (hil.device.COND_MAX; a test holds them equal).
+# emulated device's default SP_COND_MAX (hil.params.COND_MAX; a test holds them equal).
 COND_WARN = 100.0
 # A leg within this fraction of its stroke of leg_min or leg_max is marked at its limit.
 STROKE_MARGIN = 0.01

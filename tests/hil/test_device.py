@@ -24,7 +24,8 @@ from pymavlink.dialects.v20 import common as pm_common  # noqa: E402
 
 from controller.trajectory import leg_references, quintic  # noqa: E402
 from hil import mavlink_stewart as ms  # noqa: E402
-from hil.device import Device, ned_attitude, rotation  # noqa: E402
+from hil.device import Device  # noqa: E402
+from hil.telemetry import ned_attitude, rotation  # noqa: E402
 from hil.errors import LinkError  # noqa: E402
 from hil.framing import Receiver  # noqa: E402
 from hil.link import (  # noqa: E402
@@ -149,6 +150,22 @@ def test_watchdog_fires_after_the_set_time_and_the_platform_stops(model):
     # the next valid setpoint resumes
     out = dev.receive(setpoint(1000, hold))
     assert texts(out) == ["watchdog: setpoints resumed"] and dev.watchdog_state == ms.STEWART_WATCHDOG_OK
+
+
+@pytest.mark.parametrize("leg", range(6))
+def test_refusals_number_the_legs_1_to_6(model, leg):
+    """The leg a refusal names is counted from 1, as in every table and plot (l1..l6)."""
+    dev = Device(model)
+    dev.receive(arm())
+    l0 = dev.plant.outputs.lengths.copy()
+    past = l0.copy()
+    past[leg] = model.leg_max + 1e-4
+    assert texts(dev.receive(setpoint(1, past)))[0].startswith(f"refused: leg {leg + 1} at ")
+    for _ in range(101):  # past the refusal's repeat time (0.1 s)
+        dev.tick()
+    rates = np.zeros(6)
+    rates[leg] = 1e3   # m/s: far beyond any drive
+    assert texts(dev.receive(setpoint(2, l0, rates)))[0].startswith(f"refused: leg {leg + 1} rate ")
 
 
 def test_out_of_range_setpoints_are_refused_and_never_applied(model):

@@ -13,7 +13,9 @@ import pytest
 pytest.importorskip("pymavlink")
 
 from hil import mavlink_stewart as ms  # noqa: E402
-from hil.device import Device, ned_attitude  # noqa: E402
+from hil.device import Device  # noqa: E402
+from hil.modes import Mode  # noqa: E402
+from hil.telemetry import ned_attitude  # noqa: E402
 from hil.framing import Receiver  # noqa: E402
 from hil.protocol import param_encode_int, statustext_chunks  # noqa: E402
 from stewart_fmu.scene import load_scene  # noqa: E402
@@ -74,7 +76,7 @@ def test_command_int_is_handled_like_command_long(model):
     assert types(out)[0] == "COMMAND_ACK" and out[0].result == ms.MAV_RESULT_ACCEPTED and dev.armed
     assert out[0].target_system == 255 or out[0].command == ms.MAV_CMD_COMPONENT_ARM_DISARM
     out = dev.receive(command_int(ms.MAV_CMD_NAV_RETURN_TO_LAUNCH))
-    assert out[0].result == ms.MAV_RESULT_ACCEPTED and dev._homing is not None
+    assert out[0].result == ms.MAV_RESULT_ACCEPTED and dev.mode is Mode.HOMING
     out = dev.receive(command_int(ms.MAV_CMD_COMPONENT_ARM_DISARM, 0))
     assert out[0].result == ms.MAV_RESULT_ACCEPTED and not dev.armed
     assert dev.receive(command_int(ms.MAV_CMD_DO_SET_HOME))[0].result == ms.MAV_RESULT_UNSUPPORTED

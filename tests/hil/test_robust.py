@@ -127,7 +127,8 @@ def test_absurd_finite_setpoints_are_refused(model, field, value, flags):
         kw["force"] = [0.0] * 6
     out = dev.receive(full_setpoint(1, l0, flags=flags, **kw))
     assert dev.counters.setpoints_refused == 1, texts(out)
-    assert texts(out)[0].startswith("refused: leg 2") and f"{value:.3g}" in texts(out)[0]
+    # the value sits at index 2: the third leg, numbered 1..6 as in every table
+    assert texts(out)[0].startswith("refused: leg 3") and f"{value:.3g}" in texts(out)[0]
     for _ in range(100):
         dev.tick()
     assert np.max(np.abs(dev.plant.outputs.lengths - l0)) < 1e-12
@@ -217,8 +218,8 @@ def test_numerical_failure_in_the_loop_gives_a_safe_hold(model):
     step makes the integration fail; the device holds the last good pose, disarms, says so
     once (CRITICAL) and keeps serving with the designed gains and rated limits."""
     dev = Device(model)
-    dev._set_motor("voltage_limit", 1e6)
-    dev._set_motor("current_limit", 1e6)
+    dev.servo.set_motor("voltage_limit", 1e6)
+    dev.servo.set_motor("current_limit", 1e6)
     dev.ctrl.gains = replace(dev.ctrl.gains, kp=1e9)
     dev.receive(arm())
     l0 = dev.plant.outputs.lengths.copy()

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hil.device import COND_MAX
+from hil.params import COND_MAX
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_sim.view.geometry import (
     COND_WARN,
