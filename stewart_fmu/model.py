@@ -13,22 +13,21 @@ from typing import Any, Mapping
 import numpy as np
 
 from .native.core import NativeParams
+from .table import N_PARAMS, offset
 
-# Layout of Model.params, the flat float64 vector the compiled kernels read.
-P_HAS_LEGS, P_HAS_DRIVE, P_HAS_FRICTION = 0, 1, 2
-P_GRAVITY = 3            # 3 values
-P_MASS, P_INERTIA = 6, 7  # platform mass, 3 principal moments
-P_LOWER = 10             # mass, com, transverse, axial
-P_UPPER = 14             # mass, com, transverse, axial
-P_DRIVE_MASS = 18        # reflected drive inertia m_d = zeta^2 I / r^2
-P_VISCOUS, P_COULOMB = 19, 20
-P_LEG_MIN, P_LEG_MAX = 21, 22
-P_CHAR_LENGTH = 23       # scales rotational Jacobian columns for cond(J)
-P_BASE = 24              # 18 values: a_i rows
-P_PLATFORM = 42          # 18 values: p_i rows
-P_HAS_TRANSMISSION = 60  # compliant transmission: the drive inertia on its own coordinate
-P_STIFFNESS, P_DAMPING = 61, 62
-N_PARAMS = 63
+# Layout of Model.params, the flat float64 vector the compiled kernels read: the offsets of
+# the table (native/include/stewart_table.h, STEWART_PARAMS), read from the core.
+P_HAS_LEGS, P_HAS_DRIVE, P_HAS_FRICTION = offset("HAS_LEGS"), offset("HAS_DRIVE"), offset("HAS_FRICTION")
+P_GRAVITY = offset("GRAVITY")
+P_MASS, P_INERTIA = offset("MASS"), offset("INERTIA")
+P_LOWER, P_UPPER = offset("LOWER"), offset("UPPER")      # mass, com, transverse, axial
+P_DRIVE_MASS = offset("DRIVE_MASS")                      # reflected drive inertia m_d
+P_VISCOUS, P_COULOMB = offset("VISCOUS"), offset("COULOMB")
+P_LEG_MIN, P_LEG_MAX = offset("LEG_MIN"), offset("LEG_MAX")
+P_CHAR_LENGTH = offset("CHAR_LENGTH")
+P_BASE, P_PLATFORM = offset("BASE"), offset("PLATFORM")
+P_HAS_TRANSMISSION = offset("HAS_TRANSMISSION")
+P_STIFFNESS, P_DAMPING = offset("STIFFNESS"), offset("DAMPING")
 
 
 @dataclass(frozen=True)

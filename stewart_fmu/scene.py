@@ -11,7 +11,9 @@ import numpy as np
 from stewart_fmu.kinematics import check_poses
 
 from .errors import KinematicsError, SceneError, SceneKeyError
+from . import table
 from .model import DriveParams, FrictionParams, LegParams, Model, TransmissionParams
+from .table import BOUND_NONNEG, BOUND_POS, BOUND_WORDS
 
 DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
 # Tables the project defines on top of the contract; each owner module validates its own.
@@ -52,10 +54,14 @@ def load_scene(path: str | Path, overrides: Mapping[str, Any] | None = None) -> 
 
 def read_scene_dict(path: str | Path) -> dict[str, Any]:
     """The parsed TOML of a scene file, not yet checked (SceneError: missing, not TOML)."""
+    return parse_scene_bytes(read_scene_bytes(path), path)
+
+
+def read_scene_bytes(path: str | Path) -> bytes:
+    """A scene file's bytes, as given (SceneError: missing, not a file, unreadable)."""
     path = Path(path)
     try:
-        with path.open("rb") as fh:
-            return tomllib.load(fh)
+        return path.read_bytes()
     except FileNotFoundError:
         raise SceneError("<file>", f"no such scene file: {path}") from None
     except IsADirectoryError:
@@ -63,6 +69,12 @@ def read_scene_dict(path: str | Path) -> dict[str, Any]:
     except OSError as exc:
         raise SceneError("<file>", f"cannot read the scene file: {exc.strerror or exc}",
                          str(path)) from None
+
+
+def parse_scene_bytes(text: bytes, path: str | Path) -> dict[str, Any]:
+    """The parsed TOML of a scene file's bytes, not yet checked (SceneError: not TOML)."""
+    try:
+        return tomllib.loads(text.decode())
     except UnicodeDecodeError as exc:
         raise SceneError("<file>", f"not a text (TOML) file: {exc.reason} at byte {exc.start}",
                          str(path)) from None
@@ -104,11 +116,11 @@ def scene_from_dict(data: Mapping[str, Any], source: str | None = None) -> Model
     base = v.points(geo, "geometry.base_joints")
     top = v.points(geo, "geometry.platform_joints")
     home = v.vector(geo, "geometry.home", 6)
-    leg_min = v.number(geo, "geometry.leg_min", positive=True, optional=True)
-    leg_max = v.number(geo, "geometry.leg_max", positive=True, optional=True)
+    leg_min = v.number(geo, "geometry.leg_min", optional=True)
+    leg_max = v.number(geo, "geometry.leg_max", optional=True)
     if leg_min is not None and leg_max is not None and leg_min >= leg_max:
         v.fail("geometry.leg_max", f"must exceed leg_min ({leg_max} <= {leg_min})")
-    mass = v.number(plat, "platform.mass", positive=True)
+    mass = v.number(plat, "platform.mass")
     inertia = v.principal_inertia(plat, "platform.inertia")
     model = Model(
         name=name, gravity=gravity, base_joints=base, platform_joints=top, home=home,
@@ -128,11 +140,9 @@ def _legs(v: "_Validator", data: Mapping[str, Any]) -> LegParams | None:
         return None
     parts = {}
     for part in ("lower", "upper"):
-        parts[f"{part}_mass"] = v.number(t, f"legs.{part}_mass", nonnegative=True)
-        parts[f"{part}_com"] = v.number(t, f"legs.{part}_com", nonnegative=True)
+        parts[f"{part}_mass"] = v.number(t, f"legs.{part}_mass")
+        parts[f"{part}_com"] = v.number(t, f"legs.{part}_com")
         trans, axial = v.vector(t, f"legs.{part}_inertia", 2)
-        if trans < 0 or axial < 0:
-            v.fail(f"legs.{part}_inertia", f"moments must be >= 0, got {[trans, axial]}")
         if axial > 2 * trans:
             v.fail(f"legs.{part}_inertia",
                    f"axial moment {axial} exceeds twice the transverse {trans}: no rigid body has it")
@@ -144,7 +154,7 @@ def _drive(v: "_Validator", data: Mapping[str, Any]) -> DriveParams | None:
     t = v.table(data, "drive")
     if t is None:
         return None
-    return DriveParams(**{k: v.number(t, f"drive.{k}", positive=True)
+    return DriveParams(**{k: v.number(t, f"drive.{k}")
                           for k in ("gear_ratio", "rotor_inertia", "pinion_radius")})
 
 
@@ -152,7 +162,7 @@ def _friction(v: "_Validator", data: Mapping[str, Any]) -> FrictionParams | None
     t = v.table(data, "friction")
     if t is None:
         return None
-    return FrictionParams(**{k: v.number(t, f"friction.{k}", nonnegative=True)
+    return FrictionParams(**{k: v.number(t, f"friction.{k}")
                              for k in ("viscous", "coulomb")})
 
 
@@ -163,8 +173,8 @@ def _transmission(v: "_Validator", data: Mapping[str, Any]) -> TransmissionParam
         return None
     if data.get("drive") is None:
         v.fail("transmission", "needs the [drive] table: the motor side moves the drive inertia")
-    return TransmissionParams(v.number(t, "transmission.stiffness", positive=True),
-                              v.number(t, "transmission.damping", nonnegative=True))
+    return TransmissionParams(v.number(t, "transmission.stiffness"),
+                              v.number(t, "transmission.damping"))
 
 
 def _check_case(v: "_Validator", data: Mapping[str, Any]) -> None:
@@ -241,10 +251,8 @@ class _Validator:
         x = float(x)
         if not math.isfinite(x):
             self.fail_key(dotted, f"must be finite, got {x}")
-        if positive and x <= 0:
-            self.fail_key(dotted, f"must be > 0, got {x}")
-        if nonnegative and x < 0:
-            self.fail_key(dotted, f"must be >= 0, got {x}")
+        self._bound(dotted, np.array(x), BOUND_POS if positive else BOUND_NONNEG if nonnegative
+                    else table.bound(dotted))
         return x
 
     def vector(self, t: Mapping[str, Any], dotted: str, n: int, default=None) -> np.ndarray:
@@ -290,4 +298,11 @@ class _Validator:
             bad(f"wrong shape: expected {shape}, got {arr.shape}")
         if not np.all(np.isfinite(arr)):
             bad(f"must be finite, got {np.asarray(x).tolist()}")
+        self._bound(dotted, arr, table.bound(dotted))
         return arr
+
+    def _bound(self, dotted: str, arr: np.ndarray, rule: int) -> None:
+        """The key's lower bound (table.bound: the one table's, for the plant keys)."""
+        low = arr <= 0 if rule == BOUND_POS else arr < 0 if rule == BOUND_NONNEG else np.zeros(1, bool)
+        if np.any(low):
+            self.fail_key(dotted, f"must be {BOUND_WORDS[rule]}, got {arr.tolist()}")

@@ -17,7 +17,8 @@ import zipfile
 from pathlib import Path
 
 from ..errors import StewartError
-from ..scene import read_scene_dict, scene_from_dict
+from ..model import Model
+from ..scene import parse_scene_bytes, read_scene_bytes, scene_from_dict
 from . import model_description, variables
 
 MODEL_IDENTIFIER = "StewartPlant"
@@ -80,14 +81,23 @@ def core_sources(native: Path = NATIVE) -> list[str]:
 
 
 def export_fmu(scene_path: str | Path, out_path: str | Path, fmi_version: int = 2) -> Path:
-    """Build the FMU of a scene at out_path; returns out_path.
+    """Build the FMU of a scene file at out_path; returns out_path. The file is read once: its
+    bytes are the FMU's resources/scene.toml and its Model the FMU's variables.
 
     SceneError for a bad scene (nothing written), CompilerNotFoundError without a C compiler,
     BuildError if compiling fails."""
     if fmi_version not in (2, 3):
         raise ValueError(f"fmi_version must be 2 or 3, got {fmi_version!r}")
-    data = read_scene_dict(scene_path)
-    scene_from_dict(data, source=str(scene_path))   # validates; raises SceneError
+    text = read_scene_bytes(scene_path)
+    model = scene_from_dict(parse_scene_bytes(text, scene_path), source=str(scene_path))
+    return export_model(model, text, out_path, fmi_version)
+
+
+def export_model(model: Model, scene_text: bytes, out_path: str | Path, fmi_version: int = 2) -> Path:
+    """Build the FMU of a scene's Model at out_path (scene_text: the scene file as given, kept
+    as resources/scene.toml for `run --fmu`'s check); returns out_path."""
+    if fmi_version not in (2, 3):
+        raise ValueError(f"fmi_version must be 2 or 3, got {fmi_version!r}")
     compiler = find_compiler()
     folder, ext = platform_folder(fmi_version)
     out = Path(out_path)
@@ -99,12 +109,13 @@ def export_fmu(scene_path: str | Path, out_path: str | Path, fmi_version: int = 
         for rel in core + FMI_SOURCES[fmi_version][:-1] + FMI_HEADERS[fmi_version]:
             (src / rel).parent.mkdir(parents=True, exist_ok=True)
             shutil.copyfile(NATIVE / rel, src / rel)
-        (src / "fmi" / "scene.c").write_text(variables.scene_c_source(data, fmi_version))
+        table = variables.variables(model, fmi_version)
+        (src / "fmi" / "scene.c").write_text(variables.scene_c_source(model, table, fmi_version))
         if fmi_version == 3:
             (src / "buildDescription.xml").write_bytes(
                 model_description.build_description_xml(MODEL_IDENTIFIER, c_files))
         (root / "modelDescription.xml").write_bytes(
-            model_description.build(data, fmi_version, MODEL_IDENTIFIER, c_files))
+            model_description.build(model, table, fmi_version, MODEL_IDENTIFIER, c_files))
         binary = root / "binaries" / folder / f"{MODEL_IDENTIFIER}{ext}"
         binary.parent.mkdir(parents=True)
         flags = [f for f in CFLAGS if not (ext == ".dll" and f == "-fPIC")]
@@ -113,10 +124,10 @@ def export_fmu(scene_path: str | Path, out_path: str | Path, fmi_version: int = 
         if proc.returncode != 0 or not binary.exists():
             raise BuildError(f"compiling the FMU failed ({' '.join(cmd)}):\n{proc.stderr[-4000:]}")
         (root / "resources").mkdir()   # the scene as given: `run --fmu` checks it matches
-        (root / "resources" / SCENE_RESOURCE).write_bytes(Path(scene_path).read_bytes())
+        (root / "resources" / SCENE_RESOURCE).write_bytes(scene_text)
         doc = root / "documentation"
         doc.mkdir()
-        (doc / "index.html").write_text(_documentation(data, fmi_version))
+        (doc / "index.html").write_text(_documentation(model.name, fmi_version))
         packed = Path(tmp) / "packed.fmu"
         with zipfile.ZipFile(packed, "w", zipfile.ZIP_DEFLATED) as z:
             for path in sorted(root.rglob("*")):
@@ -127,8 +138,8 @@ def export_fmu(scene_path: str | Path, out_path: str | Path, fmi_version: int = 
     return out
 
 
-def _documentation(data, fmi_version: int) -> str:
-    return (f"<html><body><h1>{data.get('name', 'Stewart plant')} (FMI {fmi_version}.0)</h1>"
+def _documentation(name: str, fmi_version: int) -> str:
+    return (f"<html><body><h1>{name} (FMI {fmi_version}.0)</h1>"
             "<p>Stewart platform plant: inputs sigma[1..6] (rack forces, N) and, with a drive, "
             "tau[1..6] (motor torques, N m), held over each communication step; sigma starts at "
             "the static force holding the home pose and tau at 0, so the platform stays put "

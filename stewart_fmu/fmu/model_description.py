@@ -4,9 +4,10 @@ adds the independent variable `time`); outputs are calculated, parameters fixed 
 from __future__ import annotations
 
 import datetime
-from typing import Any, Iterable, Mapping
+from typing import Iterable
 from xml.etree.ElementTree import Element, SubElement, indent, tostring
 
+from ..model import Model
 from . import variables as V
 
 GENERATION_TOOL = "stewart-sim native FMU export"
@@ -30,17 +31,18 @@ def _log_categories(root: Element) -> None:
         SubElement(cats, "Category", {"name": name, "description": what})
 
 
-def build(data: Mapping[str, Any], fmi_version: int, model_identifier: str,
+def build(model: Model, table: list[V.Variable], fmi_version: int, model_identifier: str,
           sources: list[str]) -> bytes:
-    """The model description of a parsed scene (UTF-8 XML bytes)."""
+    """The model description of a scene's Model with its variables (V.variables(model,
+    fmi_version)), as UTF-8 XML bytes."""
     if fmi_version not in (2, 3):
         raise ValueError(f"fmi_version must be 2 or 3, got {fmi_version!r}")
-    table = V.variables(data, fmi_version)
     stamp = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
-    attrs = {"modelName": str(data.get("name", "stewart-plant")), "description": DESCRIPTION,
+    attrs = {"modelName": model.name, "description": DESCRIPTION,
              "generationTool": GENERATION_TOOL, "generationDateAndTime": stamp,
              "variableNamingConvention": "structured"}
-    token = V.token(data, fmi_version)
+    token = V.token(table, fmi_version)
+    rtol = next(x.start for x in table if x.vr == V.VR_RTOL and x.causality == "parameter")
     if fmi_version == 2:
         root = Element("fmiModelDescription", {"fmiVersion": "2.0", "guid": token, **attrs,
                                                "numberOfEventIndicators": "0"})
@@ -62,7 +64,7 @@ def build(data: Mapping[str, Any], fmi_version: int, model_identifier: str,
     _log_categories(root)
     SubElement(root, "DefaultExperiment", {
         "startTime": "0.0", "stopTime": _num(V.STOP_TIME),
-        "tolerance": _num(V.solver_defaults(data)["rtol"]), "stepSize": _num(V.STEP_SIZE)})
+        "tolerance": _num(rtol), "stepSize": _num(V.STEP_SIZE)})
     mv = SubElement(root, "ModelVariables")
     outputs, index = [], {}
     for k, var in enumerate(table):

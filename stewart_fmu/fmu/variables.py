@@ -1,11 +1,12 @@
-"""The one table of the native FMU's variables: names, value references, units, descriptions.
+"""The native FMU's variables: the table of native/include/stewart_table.h, for one Model.
 
-Names and meanings are those of the first (pythonfmu) FMU: every numeric value of
-the scene's plant tables as a fixed parameter, q0/qd0, solver settings, inputs sigma[1..6] (and
+Names, value references, shapes, units and descriptions are the table's (read from the core by
+stewart_fmu/table.py); this module gives them the scene's values: every numeric value of the
+scene's plant tables as a fixed parameter, q0/qd0, solver settings, inputs sigma[1..6] (and
 tau[1..6] with a [drive]), outputs l, ldot, pose, rates, twist, cond, rack_force, force.<part>.
-Value references are fixed (stewart_fmu/native/fmi/model.h defines the same numbers); a scene
-declares the subset its tables give. This module also writes the scene's C file (start values,
-declared value references, instantiation token) that the export compiles with the plant.
+A scene declares the subset its tables give. This module also writes the scene's C file (start
+values, declared value references, instantiation token) that the export compiles with the plant.
+Everything is computed from the Model (the scene read and checked once).
 """
 from __future__ import annotations
 
@@ -16,9 +17,9 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..dynamics import PARTS, inverse_dynamics, present_parts
-from ..io import POSE
-from ..scene import DEFAULT_GRAVITY, scene_from_dict
+from .. import table
+from ..dynamics import inverse_dynamics, present_parts
+from ..model import Model
 from ..stability import default_options
 
 # Base-unit exponents (kg, m, s, rad) of every unit the FMU uses.
@@ -31,34 +32,23 @@ UNITS: dict[str, dict[str, int]] = {
 POSE_UNITS = ("m", "m", "m", "rad", "rad", "rad")
 RATE_UNITS = ("m/s", "m/s", "m/s", "rad/s", "rad/s", "rad/s")
 
-# Scene keys: dotted key -> (first value reference, shape, unit, description). model.h VR_*.
+
+
+def _shape(g: table.VariableGroup) -> tuple[int, ...]:
+    if g.shape > 0:
+        return (g.count // g.shape, g.shape)
+    return (g.count,) if g.count > 1 else ()
+
+
+# Scene keys: dotted key -> (first value reference, shape, unit, description), from the table.
 SCENE_KEYS: dict[str, tuple[int, tuple[int, ...], str | None, str]] = {
-    "gravity": (1, (3,), "m/s2", "gravity in N"),
-    "geometry.base_joints": (4, (6, 3), "m", "base joint a_i in N"),
-    "geometry.platform_joints": (22, (6, 3), "m", "platform joint p_i in C"),
-    "geometry.home": (40, (6,), None, "home pose (x, y, z, thx, thy, thz)"),
-    "geometry.leg_min": (46, (), "m", "shortest leg length (stroke)"),
-    "geometry.leg_max": (47, (), "m", "longest leg length (stroke)"),
-    "platform.mass": (48, (), "kg", "platform mass"),
-    "platform.inertia": (49, (3,), "kg.m2", "platform principal moments about its centre of mass"),
-    "legs.lower_mass": (52, (), "kg", "lower leg part (cylinder) mass"),
-    "legs.lower_com": (53, (), "m", "lower part centre of mass from the base joint"),
-    "legs.lower_inertia": (54, (2,), "kg.m2", "lower part [transverse, axial] moments"),
-    "legs.upper_mass": (56, (), "kg", "upper leg part (piston) mass"),
-    "legs.upper_com": (57, (), "m", "upper part centre of mass from the platform joint"),
-    "legs.upper_inertia": (58, (2,), "kg.m2", "upper part [transverse, axial] moments"),
-    "drive.gear_ratio": (60, (), "1", "gearbox reduction ratio zeta"),
-    "drive.rotor_inertia": (61, (), "kg.m2", "motor rotor inertia"),
-    "drive.pinion_radius": (62, (), "m", "rack-and-pinion radius"),
-    "friction.viscous": (63, (), "N.s/m", "viscous friction of each prismatic joint"),
-    "friction.coulomb": (64, (), "N", "Coulomb friction of each prismatic joint"),
-    "transmission.stiffness": (65, (), "N/m", "transmission stiffness, motor to leg (leg axis)"),
-    "transmission.damping": (66, (), "N.s/m", "transmission damping, motor to leg (leg axis)"),
-}
-VR_TIME, VR_Q0, VR_QD0, VR_RTOL, VR_ATOL, VR_MAX_STEP, VR_N_PAR, VR_METHOD = 0, 67, 73, 79, 80, 81, 82, 82
-VR_SIGMA, VR_TAU = 100, 106
+    key: (g.vr, _shape(g), g.unit if g.unit not in ("", "pose") else None, g.description)
+    for key, g in table.scene_groups().items()}
+VR_TIME, VR_N_PAR, VR_METHOD = table.VR_TIME, table.VR_N_PAR, table.VR_METHOD
+VR_Q0, VR_QD0, VR_RTOL, VR_ATOL, VR_MAX_STEP = (table.vr(i) for i in ("Q0", "QD0", "RTOL", "ATOL", "MAX_STEP"))
+VR_SIGMA, VR_TAU = table.vr("SIGMA"), table.vr("TAU")
 VR_L, VR_LDOT, VR_Q, VR_QD, VR_V, VR_OMEGA, VR_COND, VR_RACK, VR_PARTS = (
-    200, 206, 212, 218, 224, 227, 230, 231, 237)
+    table.vr(i) for i in ("L", "LDOT", "Q_X", "QD_X", "V", "OMEGA", "COND", "RACK", "FORCE_PLATFORM"))
 METHODS = ("rk4", "euler", "dopri5")
 LOG_CATEGORIES = {"logEvents": "initialization and step events",
                   "logStatusWarning": "warnings", "logStatusDiscard": "discarded steps, with the reason",
@@ -88,6 +78,7 @@ class Variable:
 
 
 def lookup(data: Mapping[str, Any], dotted: str):
+    """The value at a dotted key of a parsed scene, None where absent."""
     node: Any = data
     for part in dotted.split("."):
         if not isinstance(node, Mapping) or part not in node:
@@ -96,39 +87,57 @@ def lookup(data: Mapping[str, Any], dotted: str):
     return node
 
 
-def _indices(shape: tuple[int, ...]) -> list[tuple[int, ...]]:
-    if len(shape) == 1:
-        return [(i,) for i in range(shape[0])]
-    return [(i, j) for i in range(shape[0]) for j in range(shape[1])]
+def scene_value(model: Model, key: str) -> Any:
+    """The value the scene gave a key of its plant tables, as the Model holds it (None when the
+    scene has no such key): [geometry] and gravity are Model attributes, [platform] its
+    platform_* ones, the other tables their parameter objects."""
+    tab, _, name = key.rpartition(".")
+    if tab in ("", "geometry"):
+        return getattr(model, name)
+    if tab == "platform":
+        return getattr(model, f"platform_{name}")
+    params = getattr(model, tab)
+    return None if params is None else getattr(params, name)
 
 
-def scene_parameters(data: Mapping[str, Any]) -> list[Variable]:
-    """Every numeric value of the scene's plant tables, as a fixed parameter (gravity always)."""
+def _unit(g: table.VariableGroup, idx: tuple[int, ...]) -> str | None:
+    if g.unit in ("pose", "rate"):
+        return (POSE_UNITS if g.unit == "pose" else RATE_UNITS)[idx[0]]
+    return g.unit or None
+
+
+def _group(g: table.VariableGroup, value: Any, causality: str | None = None) -> list[Variable]:
+    """The scalar variables of one group holding `value` (None: outputs, no start); a per-leg
+    parameter given as one number is the one variable under the group's plain name."""
+    arr = np.zeros(_shape(g)) if value is None else np.asarray(value, dtype=float)
+    start = (lambda x: None) if value is None else float
+    if arr.ndim == 0:
+        return [Variable(g.name, g.vr, causality or g.causality, _unit(g, (0,)), g.description,
+                         start(arr))]
     out = []
-    for dotted, (vr, shape, unit, what) in SCENE_KEYS.items():
-        value = lookup(data, dotted)
-        if value is None:
-            if dotted != "gravity":
-                continue
-            value = list(DEFAULT_GRAVITY)
-        if not shape:
-            out.append(Variable(dotted, vr, "parameter", unit, what, float(value)))
-            continue
-        for k, idx in enumerate(_indices(shape)):
-            element = ",".join(str(i + 1) for i in idx)
-            u = POSE_UNITS[idx[0]] if dotted == "geometry.home" else unit
-            v: Any = value
-            for i in idx:
-                v = v[i]
-            out.append(Variable(f"{dotted}[{element}]", vr + k, "parameter", u,
-                                f"{what}, element [{element}]", float(v)))
+    for k, idx in enumerate(np.ndindex(arr.shape)):
+        element = ",".join(str(i + 1) for i in idx)
+        what = f"{g.description}, leg {element}" if g.shape == table.PER_LEG else \
+            f"{g.description}, element [{element}]"
+        out.append(Variable(f"{g.name}[{element}]", g.vr + k, causality or g.causality,
+                            _unit(g, idx), what, start(arr[idx])))
     return out
 
 
-def solver_defaults(data: Mapping[str, Any]) -> dict[str, Any]:
+def scene_parameters(model: Model) -> list[Variable]:
+    """Every numeric value of the scene's plant tables, as a fixed parameter (gravity always)."""
+    out = []
+    for key, g in table.scene_groups().items():
+        value = scene_value(model, key)
+        if value is not None:
+            out += _group(g, value)
+    return out
+
+
+def solver_defaults(model: Model) -> dict[str, Any]:
     """The solver parameters' start values: stability.default_options of the scene's model,
     the integrator Plant(model) and the closed loop take (a stiff scene's step is smaller)."""
-    o = default_options(scene_from_dict(data))
+    o = default_options(model)
     return {"method": o.method, "rtol": o.rtol, "atol": o.atol, "max_step": o.max_step}
 
 
@@ -136,66 +145,46 @@ def solver_defaults(data: Mapping[str, Any]) -> dict[str, Any]:
 STOP_TIME, STEP_SIZE = 1.0, 1e-3
 
 
-def hold_forces(data: Mapping[str, Any]) -> list[float]:
+def hold_forces(model: Model) -> list[float]:
     """The start values of sigma[1..6]: the static rack forces that hold the platform at its home
     pose (inverse_dynamics at home, zero rates and accelerations), so that an importer that
     never sets the inputs sees the platform stay put. With a [drive] the tau inputs start at 0
     (at rest the drive adds no force): sigma alone carries the hold."""
-    model = scene_from_dict(data)
     zero = np.zeros(6)
     return [float(x) for x in inverse_dynamics(model, np.asarray(model.home, dtype=float), zero, zero)]
 
 
-def variables(data: Mapping[str, Any], fmi_version: int = 2) -> list[Variable]:
-    """The FMU's variables for a parsed scene, in model-description order."""
-    solver = solver_defaults(data)
-    home = [float(x) for x in lookup(data, "geometry.home")]
+def variables(model: Model, fmi_version: int = 2, solver: Mapping[str, Any] | None = None,
+              hold: list[float] | None = None) -> list[Variable]:
+    """The FMU's variables for a scene's Model, in model-description order (solver and hold:
+    solver_defaults and hold_forces when already computed)."""
+    solver = solver_defaults(model) if solver is None else solver
+    hold = hold_forces(model) if hold is None else hold
+    g = table.GROUPS
     v = [Variable("time", VR_TIME, "independent", "s", "simulation time")] if fmi_version == 3 else []
-    v += scene_parameters(data)
-    v += [Variable(f"q0[{k + 1}]", VR_Q0 + k, "parameter", u, f"initial {c}", home[k])
-          for k, (c, u) in enumerate(zip(POSE, POSE_UNITS))]
-    v += [Variable(f"qd0[{k + 1}]", VR_QD0 + k, "parameter", u, f"initial rate of {c}", 0.0)
-          for k, (c, u) in enumerate(zip(POSE, RATE_UNITS))]
-    v += [Variable("solver.rtol", VR_RTOL, "parameter", None, "integrator relative tolerance (dopri5)",
-                   solver["rtol"]),
-          Variable("solver.atol", VR_ATOL, "parameter", None, "integrator absolute tolerance (dopri5)",
-                   solver["atol"]),
-          Variable("solver.max_step", VR_MAX_STEP, "parameter", "s", "largest internal step (s)",
-                   solver["max_step"]),
-          Variable("solver.method", VR_METHOD, "parameter", None,
-                   f"integrator: one of {', '.join(METHODS)}", solver["method"], "String")]
-    hold = hold_forces(data)
-    v += [Variable(f"sigma[{i}]", VR_SIGMA + i - 1, "input", "N",
-                   f"actuator force of leg {i} at the rack (starts at the force holding home)", hold[i - 1])
-          for i in range(1, 7)]
-    if "drive" in data:
-        v += [Variable(f"tau[{i}]", VR_TAU + i - 1, "input", "N.m", f"motor torque of leg {i}", 0.0)
-              for i in range(1, 7)]
-    return v + outputs(data)
+    v += scene_parameters(model)
+    v += _group(g["Q0"], model.home) + _group(g["QD0"], np.zeros(6))
+    v += _group(g["RTOL"], solver["rtol"]) + _group(g["ATOL"], solver["atol"])
+    v += _group(g["MAX_STEP"], solver["max_step"])
+    m = g["METHOD"]
+    v.append(Variable(m.name, m.vr, "parameter", None, m.description, solver["method"], "String"))
+    v += _group(g["SIGMA"], hold)
+    if model.drive is not None:
+        v += _group(g["TAU"], np.zeros(6))
+    return v + outputs(model)
 
 
-def outputs(data: Mapping[str, Any]) -> list[Variable]:
-    """Leg lengths and rates, pose and rates, twist, cond, rack forces and their breakdown."""
-    o = lambda name, vr, unit, what: Variable(name, vr, "output", unit, what)  # noqa: E731
-    v = [o(f"l[{i}]", VR_L + i - 1, "m", f"length of leg {i}") for i in range(1, 7)]
-    v += [o(f"ldot[{i}]", VR_LDOT + i - 1, "m/s", f"rate of leg {i}") for i in range(1, 7)]
-    v += [o(c, VR_Q + k, u, f"platform pose {c}") for k, (c, u) in enumerate(zip(POSE, POSE_UNITS))]
-    v += [o(f"d{c}", VR_QD + k, u, f"rate of {c}") for k, (c, u) in enumerate(zip(POSE, RATE_UNITS))]
-    v += [o(f"v[{k + 1}]", VR_V + k, "m/s", "platform velocity in N") for k in range(3)]
-    v += [o(f"omega[{k + 1}]", VR_OMEGA + k, "rad/s", "platform angular velocity in N") for k in range(3)]
-    v.append(o("cond", VR_COND, "1", "condition number of the leg Jacobian (scaled)"))
-    v += [o(f"rack_force[{i}]", VR_RACK + i - 1, "N", f"total force at rack {i} (sigma + zeta/r tau)")
-          for i in range(1, 7)]
-    for part in present_parts(scene_from_dict(data)):
-        base = VR_PARTS + 6 * PARTS.index(part)
-        v += [o(f"force.{part}[{i}]", base + i - 1, "N", f"part of rack force {i} spent on {part}")
-              for i in range(1, 7)]
-    return v
+def outputs(model: Model) -> list[Variable]:
+    """Leg lengths and rates, pose and rates, twist, cond, rack forces and their breakdown (the
+    parts of the effects the model has)."""
+    parts = {f"force.{p}" for p in present_parts(model)}
+    return [x for g in table.VARIABLES if g.causality == "output"
+            and (not g.name.startswith("force.") or g.name in parts) for x in _group(g, None)]
 
 
-def token(data: Mapping[str, Any], fmi_version: int) -> str:
+def token(table_: list[Variable], fmi_version: int) -> str:
     """Instantiation token (guid): a hash of the variable table and start values."""
-    text = repr([(x.name, x.vr, x.unit, x.start) for x in variables(data, fmi_version)])
+    text = repr([(x.name, x.vr, x.unit, x.start) for x in table_])
     h = hashlib.sha256(f"stewart-native-fmu/1/{fmi_version}/{text}".encode()).hexdigest()
     return "{" + f"{h[:8]}-{h[8:12]}-{h[12:16]}-{h[16:20]}-{h[20:32]}" + "}"
 
@@ -206,22 +195,25 @@ def _c_double(x: float) -> str:
     return x.hex() if x != 0 else "0.0"
 
 
-def scene_c_source(data: Mapping[str, Any], fmi_version: int) -> str:
-    """The scene's C file: start values and declared parameters by value reference, the token."""
+def scene_c_source(model: Model, table_: list[Variable], fmi_version: int) -> str:
+    """The scene's C file: start values and declared parameters by value reference, the token
+    (table_: variables(model, fmi_version))."""
     start = [0.0] * VR_N_PAR
     declared = [0] * VR_N_PAR
-    for var in variables(data, fmi_version):
+    for var in table_:
         if var.type == "Real" and var.causality in ("parameter", "independent") and var.vr < VR_N_PAR:
             start[var.vr] = 0.0 if var.start is None else float(var.start)
             declared[var.vr] = 1
+    by_name = {var.name: var for var in table_}
     rows = ",\n    ".join(f"{_c_double(x)} /* {k} */" for k, x in enumerate(start))
-    sigma = ", ".join(_c_double(x) for x in hold_forces(data))
+    sigma = ", ".join(_c_double(by_name[f"sigma[{i}]"].start) for i in range(1, 7))
     flags = ", ".join(str(f) for f in declared)
-    return (f"/* Generated by stewart_fmu.fmu.export for scene {data.get('name', '?')!r} "
+    method = by_name[table.GROUPS["METHOD"].name].start
+    return (f"/* Generated by stewart_fmu.fmu.export for scene {model.name!r} "
             f"(FMI {fmi_version}.0): do not edit. */\n"
             "#include <math.h>\n\n#include \"model.h\"\n\n"
-            f"const char STEWART_MODEL_TOKEN[] = \"{token(data, fmi_version)}\";\n"
-            f"const int STEWART_START_METHOD = {METHODS.index(solver_defaults(data)['method'])};\n"
+            f"const char STEWART_MODEL_TOKEN[] = \"{token(table_, fmi_version)}\";\n"
+            f"const int STEWART_START_METHOD = {METHODS.index(method)};\n"
             f"const unsigned char STEWART_DECLARED[VR_N_PAR] = {{{flags}}};\n"
             f"const double STEWART_START[VR_N_PAR] = {{\n    {rows}\n}};\n"
             f"const double STEWART_START_SIGMA[6] = {{{sigma}}};\n")

@@ -20,19 +20,22 @@ CFLAGS = ["-std=c99", "-O2", "-ffp-contract=off", "-fno-math-errno"]
 
 
 def _cdef() -> str:
-    """The declarations of stewart.h for cffi: preprocessor lines and comments dropped, the
-    #define constants turned into cffi's `#define NAME ...` form."""
-    text = (HERE / "include" / "stewart.h").read_text()
-    text = re.sub(r"/\*.*?\*/", "", text, flags=re.S)
-    out = []
-    for line in text.splitlines():
+    """The declarations of stewart.h for cffi, which expands no macro: comments and
+    preprocessor lines dropped (continuations included), the object-like #define constants of
+    stewart.h and stewart_table.h declared (floating-point ones as `static const double`, the
+    others as `#define NAME ...`: cffi reads their values from the compiled core), and the
+    X-macro expansions of stewart.h replaced by the names they define (STEWART_P_* of the
+    STEWART_PARAMS table, STEWART_N_PARAMS)."""
+    header = _joined(HERE / "include" / "stewart.h")
+    table = _joined(HERE / "include" / "stewart_table.h")
+    out = [_constant(line) for line in table.splitlines() if line.strip().startswith("#define")]
+    for line in header.splitlines():
         s = line.strip()
-        if s.startswith("#define") and len(s.split()) >= 3:
-            _, name, value = s.split(None, 2)
-            if re.fullmatch(r"\d+", value):        # integer constants (array sizes too)
-                out.append(f"#define {name} {value}")
-            else:                                   # floating-point limits
-                out.append(f"static const double {name};")
+        if s.startswith("#define"):
+            out.append(_constant(s))
+        elif "STEWART_PARAMS(" in s:
+            out += [f"#define STEWART_P_{name} ..." for name in _table_names(table, "STEWART_PARAMS")]
+            out.append("#define STEWART_N_PARAMS ...")
         elif s.startswith("#") or s in ('extern "C" {', "}") or not s:
             continue
         else:
@@ -45,6 +48,31 @@ def _cdef() -> str:
         args = re.sub(r"\b(?:const\s+)?double\s*\*\s*(\w+)", r"void *\1", m.group(0))
         return re.sub(r"\b(?:const\s+)?double\s+(\w+)\s*\[[^\]]*\]", r"void *\1", args)
     return re.sub(r"\([^()]*\)", untyped, decls)
+
+
+def _constant(line: str) -> str:
+    """cffi's form of an object-like #define ("" for a function-like macro or a guard)."""
+    define = re.fullmatch(r"#define\s+(\w+)\s+(.+?)\s*", line.strip())
+    if not define:
+        return ""
+    name, value = define.groups()
+    if re.fullmatch(r"\d+", value):          # integer literals (array sizes too)
+        return f"#define {name} {value}"
+    if re.fullmatch(r"[-+]?[\d.]+([eE][-+]?\d+)?", value):   # floating-point limits
+        return f"static const double {name};"
+    return f"#define {name} ..."             # an expression: its value comes from C
+
+
+def _joined(path: Path) -> str:
+    """A header's text without comments, continuation lines joined."""
+    text = re.sub(r"/\*.*?\*/", "", path.read_text(), flags=re.S)
+    return re.sub(r"\\\n", " ", text)
+
+
+def _table_names(table: str, macro: str) -> list[str]:
+    """The NAME column of an X-macro table of stewart_table.h (its entries' first arguments)."""
+    body = re.search(rf"#define {macro}\(X\)(.*)", table).group(1)
+    return re.findall(r"\bX\(\s*(\w+)\s*,", body)
 
 
 def _relative(path: Path) -> str:

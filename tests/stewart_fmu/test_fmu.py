@@ -85,11 +85,6 @@ class Exported:
         return [v.name for v in self.md.modelVariables if v.causality == "output"]
 
 
-def scene_dict_of(model: Model) -> dict:
-    with open(model.source, "rb") as fh:
-        return tomllib.load(fh)
-
-
 def _export(scene: Path, folder: Path) -> Exported:
     path = export_fmu(scene, folder / f"{scene.stem}.fmu")
     unzipdir = Path(extract(str(path), str(folder / scene.stem)))
@@ -192,7 +187,7 @@ class Reference:
         if q0 is not None or qd0 is not None:
             self.plant.set_initial(q0, qd0)
         self.plant.exit_initialization_mode()
-        self.vars = fmu_outputs(scene_dict_of(model))
+        self.vars = fmu_outputs(model)
 
     def outputs(self) -> np.ndarray:
         """The plant's outputs under the FMU's output names (the FMU's one variable table)."""
@@ -309,7 +304,7 @@ def _check_description(ex: Exported) -> None:
     for name, unit in expect.items():
         assert variables[name].unit == unit, name
     # The outputs are exactly the ones stewart_fmu.fmu.variables declares for the scene's parts.
-    assert ex.output_names == [v.name for v in fmu_outputs(ex.data)]
+    assert ex.output_names == [v.name for v in fmu_outputs(ex.model)]
 
 
 @pytest.mark.parametrize("stem", [s.stem for s in SCENES])

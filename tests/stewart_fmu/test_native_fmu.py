@@ -313,7 +313,7 @@ def test_fmpy_validate_finds_nothing_and_parameters_are_the_scene(fmus, case):
     cs = b.md.coSimulation
     assert cs.canGetAndSetFMUstate and cs.canSerializeFMUstate and cs.canHandleVariableCommunicationStepSize
     assert not cs.needsExecutionTool
-    expected = {v.name: v for v in V.variables(b.data, b.version)}
+    expected = {v.name: v for v in V.variables(b.model, b.version)}
     assert [v.name for v in b.md.modelVariables] == list(expected)
     for var in b.md.modelVariables:
         want = expected[var.name]

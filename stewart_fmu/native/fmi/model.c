@@ -23,32 +23,16 @@ static const char *const METHODS[] = {"rk4", "euler", "dopri5"};
 
 /* ---- names of value references ------------------------------------------------------------ */
 
-typedef struct { unsigned vr, count, cols; const char *name; } Group;
+typedef struct { unsigned vr, count; int shape; const char *name; } Group;
 
+#define GROUP(ID, NAME, COUNT, SHAPE, ...) {VR_##ID, COUNT, SHAPE, NAME},
+#define STRING_GROUP(ID, NAME, WHAT) {VR_##ID, 1, STEWART_STRING, NAME},
 static const Group GROUPS[] = {
-    {VR_GRAVITY, 3, 0, "gravity"}, {VR_BASE, 18, 3, "geometry.base_joints"},
-    {VR_PLATFORM, 18, 3, "geometry.platform_joints"}, {VR_HOME, 6, 0, "geometry.home"},
-    {VR_LEG_MIN, 1, 0, "geometry.leg_min"}, {VR_LEG_MAX, 1, 0, "geometry.leg_max"},
-    {VR_MASS, 1, 0, "platform.mass"}, {VR_INERTIA, 3, 0, "platform.inertia"},
-    {VR_LOWER_MASS, 1, 0, "legs.lower_mass"}, {VR_LOWER_COM, 1, 0, "legs.lower_com"},
-    {VR_LOWER_INERTIA, 2, 0, "legs.lower_inertia"}, {VR_UPPER_MASS, 1, 0, "legs.upper_mass"},
-    {VR_UPPER_COM, 1, 0, "legs.upper_com"}, {VR_UPPER_INERTIA, 2, 0, "legs.upper_inertia"},
-    {VR_GEAR_RATIO, 1, 0, "drive.gear_ratio"}, {VR_ROTOR_INERTIA, 1, 0, "drive.rotor_inertia"},
-    {VR_PINION_RADIUS, 1, 0, "drive.pinion_radius"}, {VR_VISCOUS, 1, 0, "friction.viscous"},
-    {VR_COULOMB, 1, 0, "friction.coulomb"}, {VR_STIFFNESS, 1, 0, "transmission.stiffness"},
-    {VR_DAMPING, 1, 0, "transmission.damping"}, {VR_Q0, 6, 0, "q0"}, {VR_QD0, 6, 0, "qd0"},
-    {VR_RTOL, 1, 0, "solver.rtol"}, {VR_ATOL, 1, 0, "solver.atol"},
-    {VR_MAX_STEP, 1, 0, "solver.max_step"}, {VR_METHOD, 1, 0, "solver.method"},
-    {VR_SIGMA, 6, 0, "sigma"}, {VR_TAU, 6, 0, "tau"}, {VR_L, 6, 0, "l"}, {VR_LDOT, 6, 0, "ldot"},
-    {VR_Q, 1, 0, "x"}, {VR_Q + 1, 1, 0, "y"}, {VR_Q + 2, 1, 0, "z"}, {VR_Q + 3, 1, 0, "thx"},
-    {VR_Q + 4, 1, 0, "thy"}, {VR_Q + 5, 1, 0, "thz"}, {VR_QD, 1, 0, "dx"}, {VR_QD + 1, 1, 0, "dy"},
-    {VR_QD + 2, 1, 0, "dz"}, {VR_QD + 3, 1, 0, "dthx"}, {VR_QD + 4, 1, 0, "dthy"},
-    {VR_QD + 5, 1, 0, "dthz"}, {VR_V, 3, 0, "v"}, {VR_OMEGA, 3, 0, "omega"},
-    {VR_COND, 1, 0, "cond"}, {VR_RACK, 6, 0, "rack_force"},
-    {VR_PARTS, 6, 0, "force.platform"}, {VR_PARTS + 6, 6, 0, "force.lower_legs"},
-    {VR_PARTS + 12, 6, 0, "force.upper_legs"}, {VR_PARTS + 18, 6, 0, "force.drives"},
-    {VR_PARTS + 24, 6, 0, "force.gravity"}, {VR_PARTS + 30, 6, 0, "force.friction"},
+    STEWART_FMU_SCENE(GROUP) STEWART_FMU_SETTINGS(GROUP) STEWART_FMU_STRINGS(STRING_GROUP)
+    STEWART_FMU_INPUTS(GROUP) STEWART_FMU_OUTPUTS(GROUP)
 };
+
+static int has(unsigned vr);
 
 /* The variable's name in the model description ("?" for none). */
 static const char *vr_name(unsigned vr, char buf[64]) {
@@ -57,10 +41,11 @@ static const char *vr_name(unsigned vr, char buf[64]) {
         const Group *g = &GROUPS[k];
         if (vr >= g->vr && vr < g->vr + g->count) {
             unsigned i = vr - g->vr;
-            if (g->count == 1)
+            /* a per-leg parameter given once for all legs has the group's plain name */
+            if (g->count == 1 || (g->shape == STEWART_PER_LEG && g->vr < VR_N_PAR && !has(g->vr + 1)))
                 snprintf(buf, 64, "%s", g->name);
-            else if (g->cols)
-                snprintf(buf, 64, "%s[%u,%u]", g->name, i / g->cols + 1, i % g->cols + 1);
+            else if (g->shape > 0)
+                snprintf(buf, 64, "%s[%u,%u]", g->name, i / (unsigned)g->shape + 1, i % (unsigned)g->shape + 1);
             else
                 snprintf(buf, 64, "%s[%u]", g->name, i + 1);
             return buf;
@@ -96,8 +81,8 @@ static int vr_kind(unsigned vr) {
     if (vr == VR_METHOD) return K_METHOD;
     if (vr >= VR_SIGMA && vr < VR_SIGMA + 6) return K_INPUT;
     if (vr >= VR_TAU && vr < VR_TAU + 6) return has_drive() ? K_INPUT : K_UNKNOWN;
-    if (vr >= VR_L && vr < VR_PARTS) return K_OUTPUT;
-    if (vr >= VR_PARTS && vr < VR_END) return part_present((int)((vr - VR_PARTS) / 6)) ? K_OUTPUT : K_UNKNOWN;
+    if (vr >= VR_L && vr < VR_FORCE_PLATFORM) return K_OUTPUT;
+    if (vr >= VR_FORCE_PLATFORM && vr < VR_END) return part_present((int)((vr - VR_FORCE_PLATFORM) / 6)) ? K_OUTPUT : K_UNKNOWN;
     return K_UNKNOWN;
 }
 
@@ -215,51 +200,38 @@ int model_enter_init(Instance *c) {
     return status == STEWART_OK ? M_OK : M_ERROR;
 }
 
-/* model.py _pack: the packed parameter vector from the parameter values. */
+/* The packed parameter vector from the parameter values (Model.params of stewart_fmu/model.py):
+ * the entries of STEWART_PARAMS with a SOURCE copied from their variables when declared, the
+ * COMPUTED ones derived here. */
+#define VR_COMPUTED VR_TIME  /* never a parameter: marks the COMPUTED entries */
+#define PACKED_ROW(NAME, COUNT, SOURCE, ...) {STEWART_P_##NAME, COUNT, VR_##SOURCE},
+static const struct { int offset, count; unsigned vr; } PACKED[] = {STEWART_PARAMS(PACKED_ROW)};
+
 static void pack(const double *par, double *p) {
+    size_t k;
     int i;
     double sum = 0.0;
     memset(p, 0, STEWART_N_PARAMS * sizeof(double));
+    for (k = 0; k < sizeof PACKED / sizeof PACKED[0]; k++) {
+        unsigned vr = PACKED[k].vr;
+        int once = PACKED[k].count > 1 && !has(vr + 1);  /* a per-leg key given for all legs */
+        if (vr == VR_COMPUTED || !has(vr)) continue;
+        for (i = 0; i < PACKED[k].count; i++) p[PACKED[k].offset + i] = par[vr + (once ? 0u : (unsigned)i)];
+    }
     p[STEWART_P_HAS_LEGS] = has_legs();
     p[STEWART_P_HAS_DRIVE] = has_drive();
     p[STEWART_P_HAS_FRICTION] = has_friction();
-    for (i = 0; i < 3; i++) p[STEWART_P_GRAVITY + i] = par[VR_GRAVITY + i];
-    p[STEWART_P_MASS] = par[VR_MASS];
-    for (i = 0; i < 3; i++) p[STEWART_P_INERTIA + i] = par[VR_INERTIA + i];
-    if (has_legs()) {
-        p[STEWART_P_LOWER] = par[VR_LOWER_MASS];
-        p[STEWART_P_LOWER + 1] = par[VR_LOWER_COM];
-        p[STEWART_P_LOWER + 2] = par[VR_LOWER_INERTIA];
-        p[STEWART_P_LOWER + 3] = par[VR_LOWER_INERTIA + 1];
-        p[STEWART_P_UPPER] = par[VR_UPPER_MASS];
-        p[STEWART_P_UPPER + 1] = par[VR_UPPER_COM];
-        p[STEWART_P_UPPER + 2] = par[VR_UPPER_INERTIA];
-        p[STEWART_P_UPPER + 3] = par[VR_UPPER_INERTIA + 1];
-    }
+    p[STEWART_P_HAS_TRANSMISSION] = has_transmission();
     if (has_drive()) {
         double g = par[VR_GEAR_RATIO], r = par[VR_PINION_RADIUS];
         p[STEWART_P_DRIVE_MASS] = g * g * par[VR_ROTOR_INERTIA] / (r * r);
     }
-    if (has_friction()) {
-        p[STEWART_P_VISCOUS] = par[VR_VISCOUS];
-        p[STEWART_P_COULOMB] = par[VR_COULOMB];
-    }
-    if (has_transmission()) {
-        p[STEWART_P_HAS_TRANSMISSION] = 1.0;
-        p[STEWART_P_STIFFNESS] = par[VR_STIFFNESS];
-        p[STEWART_P_DAMPING] = par[VR_DAMPING];
-    }
-    p[STEWART_P_LEG_MIN] = has(VR_LEG_MIN) ? par[VR_LEG_MIN] : 0.0;
-    p[STEWART_P_LEG_MAX] = has(VR_LEG_MAX) ? par[VR_LEG_MAX] : INFINITY;
+    if (!has(VR_LEG_MAX)) p[STEWART_P_LEG_MAX] = INFINITY;
     for (i = 0; i < 6; i++) {  /* np.mean(np.linalg.norm(platform_joints, axis=1)) */
         const double *pj = par + VR_PLATFORM + 3 * i;
         sum += sqrt(pj[0] * pj[0] + pj[1] * pj[1] + pj[2] * pj[2]);
     }
     p[STEWART_P_CHAR_LENGTH] = sum / 6.0;
-    for (i = 0; i < 18; i++) {
-        p[STEWART_P_BASE + i] = par[VR_BASE + i];
-        p[STEWART_P_PLATFORM + i] = par[VR_PLATFORM + i];
-    }
 }
 
 /* kinematics.check_poses for one pose: within the stroke and cond(J) below the limit. */
@@ -285,7 +257,14 @@ static int check_pose(Instance *c, const char *call, const char *what, const dou
     return M_OK;
 }
 
-/* The physical rules of stewart_fmu/scene.py, naming the parameter that breaks one. */
+/* The per-key bounds of the table (BOUND of STEWART_FMU_SCENE and _SETTINGS). */
+#define BOUND_ROW(ID, NAME, COUNT, SHAPE, UNIT, BOUND, ...) {VR_##ID, COUNT, STEWART_BOUND_##BOUND},
+static const struct { unsigned vr, count; int bound; } BOUNDS[] = {
+    STEWART_FMU_SCENE(BOUND_ROW) STEWART_FMU_SETTINGS(BOUND_ROW)
+};
+
+/* The rules of a scene (stewart_fmu/scene.py), naming the parameter that breaks one: finite
+ * values, the per-key bounds of the table, then the rules between keys. */
 static int validate(Instance *c, const char *call, const double *v, double *p) {
     char name[64];
     unsigned vr;
@@ -314,11 +293,14 @@ static int validate(Instance *c, const char *call, const double *v, double *p) {
                          j + 1, a[0], a[1], a[2]);
             }
     }
-    if (has(VR_LEG_MIN) && !(v[VR_LEG_MIN] > 0)) FAIL(VR_LEG_MIN, "must be > 0, got %g", v[VR_LEG_MIN]);
-    if (has(VR_LEG_MAX) && !(v[VR_LEG_MAX] > 0)) FAIL(VR_LEG_MAX, "must be > 0, got %g", v[VR_LEG_MAX]);
+    for (k = 0; k < (int)(sizeof BOUNDS / sizeof BOUNDS[0]); k++)  /* the per-key bounds */
+        for (vr = BOUNDS[k].vr; vr < BOUNDS[k].vr + BOUNDS[k].count; vr++) {
+            if (!has(vr)) continue;
+            if (BOUNDS[k].bound == STEWART_BOUND_POS && !(v[vr] > 0)) FAIL(vr, "must be > 0, got %g", v[vr]);
+            if (BOUNDS[k].bound == STEWART_BOUND_NONNEG && v[vr] < 0) FAIL(vr, "must be >= 0, got %g", v[vr]);
+        }
     if (has(VR_LEG_MIN) && has(VR_LEG_MAX) && v[VR_LEG_MIN] >= v[VR_LEG_MAX])
         FAIL(VR_LEG_MAX, "must exceed leg_min (%g <= %g)", v[VR_LEG_MAX], v[VR_LEG_MIN]);
-    if (!(v[VR_MASS] > 0)) FAIL(VR_MASS, "must be > 0, got %g", v[VR_MASS]);
     for (i = 0; i < 3; i++)
         if (!(v[VR_INERTIA + i] > 0))
             FAIL(VR_INERTIA + i, "is not positive definite: principal moment %g must be > 0", v[VR_INERTIA + i]);
@@ -328,29 +310,13 @@ static int validate(Instance *c, const char *call, const double *v, double *p) {
             FAIL(VR_INERTIA, "(moments %g, %g, %g) breaks the triangle inequality: no rigid body has them", a, b, d);
     }
     if (has_legs()) {
-        unsigned part[2][3] = {{VR_LOWER_MASS, VR_LOWER_COM, VR_LOWER_INERTIA},
-                               {VR_UPPER_MASS, VR_UPPER_COM, VR_UPPER_INERTIA}};
+        unsigned part[2] = {VR_LOWER_INERTIA, VR_UPPER_INERTIA};
         for (k = 0; k < 2; k++) {
-            double tr = v[part[k][2]], ax = v[part[k][2] + 1];
-            if (v[part[k][0]] < 0) FAIL(part[k][0], "must be >= 0, got %g", v[part[k][0]]);
-            if (v[part[k][1]] < 0) FAIL(part[k][1], "must be >= 0, got %g", v[part[k][1]]);
-            if (tr < 0 || ax < 0) FAIL(part[k][2], "moments must be >= 0, got [%g, %g]", tr, ax);
+            double tr = v[part[k]], ax = v[part[k] + 1];
             if (ax > 2 * tr)
-                FAIL(part[k][2] + 1, "axial moment %g exceeds twice the transverse %g: no rigid body has it", ax, tr);
+                FAIL(part[k] + 1, "axial moment %g exceeds twice the transverse %g: no rigid body has it", ax, tr);
         }
     }
-    if (has_drive())
-        for (vr = VR_GEAR_RATIO; vr <= VR_PINION_RADIUS; vr++)
-            if (!(v[vr] > 0)) FAIL(vr, "must be > 0, got %g", v[vr]);
-    if (has_friction())
-        for (vr = VR_VISCOUS; vr <= VR_COULOMB; vr++)
-            if (v[vr] < 0) FAIL(vr, "must be >= 0, got %g", v[vr]);
-    if (has_transmission()) {
-        if (!(v[VR_STIFFNESS] > 0)) FAIL(VR_STIFFNESS, "must be > 0, got %g", v[VR_STIFFNESS]);
-        if (v[VR_DAMPING] < 0) FAIL(VR_DAMPING, "must be >= 0, got %g", v[VR_DAMPING]);
-    }
-    for (vr = VR_RTOL; vr <= VR_MAX_STEP; vr++)
-        if (!(v[vr] > 0)) FAIL(vr, "must be finite and > 0, got %g", v[vr]);
 #undef FAIL
     pack(v, p);
     if (check_pose(c, call, "parameter geometry.home", p, v + VR_HOME)) return M_ERROR;
@@ -458,14 +424,14 @@ static int output_source(Instance *c, const double **p, const double **y) {
 static int output(Instance *c, unsigned vr, double *value) {
     const double *p, *y;
     if (output_source(c, &p, &y)) return M_ERROR;
-    if ((vr >= VR_L && vr < VR_Q) || (vr >= VR_OMEGA && vr < VR_OMEGA + 3)) {
+    if ((vr >= VR_L && vr < VR_Q_X) || (vr >= VR_OMEGA && vr < VR_OMEGA + 3)) {
         if (!c->have_legs) {
             stewart_leg_state(p, y, y + 6, c->l, c->ldot, c->omega);
             c->have_legs = 1;
         }
-        *value = vr < VR_LDOT ? c->l[vr - VR_L] : vr < VR_Q ? c->ldot[vr - VR_LDOT] : c->omega[vr - VR_OMEGA];
-    } else if (vr >= VR_Q && vr < VR_Q + 12) {
-        *value = y[vr - VR_Q];
+        *value = vr < VR_LDOT ? c->l[vr - VR_L] : vr < VR_Q_X ? c->ldot[vr - VR_LDOT] : c->omega[vr - VR_OMEGA];
+    } else if (vr >= VR_Q_X && vr < VR_Q_X + 12) {
+        *value = y[vr - VR_Q_X];
     } else if (vr >= VR_V && vr < VR_V + 3) {
         *value = y[6 + vr - VR_V];
     } else if (vr == VR_COND) {
@@ -498,7 +464,7 @@ static int output(Instance *c, unsigned vr, double *value) {
             }
             c->have_parts = 1;
         }
-        *value = c->parts[vr - VR_PARTS];
+        *value = c->parts[vr - VR_FORCE_PLATFORM];
     }
     return M_OK;
 }

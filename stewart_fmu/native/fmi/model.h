@@ -1,8 +1,8 @@
 /* The Stewart-platform plant as an FMU: value references, the instance, and the calls the
  * shared FMI 2.0 / 3.0 layers (fmi2Functions.c, fmi3Functions.c) make on it (model.c).
  *
- * Value references are fixed by this header and mirrored by stewart_fmu/native_fmu/variables.py
- * (the one table of names, units and descriptions). A scene declares a subset: parameters of
+ * Names, value references, units and descriptions are the table of ../include/stewart_table.h
+ * (stewart_fmu/fmu/variables.py reads the same table from the core). A scene declares a subset: parameters of
  * absent tables, tau without a [drive] and force parts of absent effects are unknown value
  * references of that FMU. The generated scene file (scene.c, written by the export) holds the
  * start values, which value references are declared, and the instantiation token. */
@@ -13,50 +13,19 @@
 
 #include "../include/stewart.h"
 
-/* ---- value references ---------------------------------------------------------------------- */
-/* Parameters (Real, fixed): par[vr] of the instance, vr in [1, VR_N_PAR). */
-#define VR_GRAVITY 1           /* gravity[1..3] */
-#define VR_BASE 4              /* geometry.base_joints[i,j]: 18, row-major */
-#define VR_PLATFORM 22         /* geometry.platform_joints[i,j]: 18 */
-#define VR_HOME 40             /* geometry.home[1..6] */
-#define VR_LEG_MIN 46
-#define VR_LEG_MAX 47
-#define VR_MASS 48             /* platform.mass */
-#define VR_INERTIA 49          /* platform.inertia[1..3] */
-#define VR_LOWER_MASS 52
-#define VR_LOWER_COM 53
-#define VR_LOWER_INERTIA 54    /* 2 */
-#define VR_UPPER_MASS 56
-#define VR_UPPER_COM 57
-#define VR_UPPER_INERTIA 58    /* 2 */
-#define VR_GEAR_RATIO 60
-#define VR_ROTOR_INERTIA 61
-#define VR_PINION_RADIUS 62
-#define VR_VISCOUS 63
-#define VR_COULOMB 64
-#define VR_STIFFNESS 65
-#define VR_DAMPING 66
-#define VR_Q0 67               /* q0[1..6] */
-#define VR_QD0 73              /* qd0[1..6] */
-#define VR_RTOL 79             /* solver.rtol */
-#define VR_ATOL 80             /* solver.atol */
-#define VR_MAX_STEP 81         /* solver.max_step */
-#define VR_N_PAR 82
-#define VR_METHOD 82           /* solver.method (String parameter) */
-/* Inputs (Real, continuous). */
-#define VR_SIGMA 100           /* sigma[1..6] */
-#define VR_TAU 106             /* tau[1..6], only with a [drive] */
-/* Outputs (Real, continuous, calculated on demand). */
-#define VR_L 200               /* l[1..6] */
-#define VR_LDOT 206            /* ldot[1..6] */
-#define VR_Q 212               /* x, y, z, thx, thy, thz */
-#define VR_QD 218              /* dx ... dthz */
-#define VR_V 224               /* v[1..3] */
-#define VR_OMEGA 227           /* omega[1..3] */
-#define VR_COND 230
-#define VR_RACK 231            /* rack_force[1..6] */
-#define VR_PARTS 237           /* force.<part>[1..6], parts in STEWART_PART_* order: 36 */
-#define VR_END 273
+/* ---- value references: the FMU variable groups of stewart_table.h -------------------------- */
+/* VR_<ID>: the first value reference of each group. Parameters (Real, fixed) are par[vr] of the
+ * instance, vr in [1, VR_N_PAR); VR_METHOD the String parameter; then inputs, then outputs up
+ * to VR_END. */
+#define VR_PARAMETER(ID, ...) VR_##ID = STEWART_VR(PARAMETERS, stewart_fmu_parameters, ID),
+#define VR_INPUT(ID, ...) VR_##ID = STEWART_VR(INPUTS, stewart_fmu_inputs, ID),
+#define VR_OUTPUT(ID, ...) VR_##ID = STEWART_VR(OUTPUTS, stewart_fmu_outputs, ID),
+enum {
+    STEWART_FMU_SCENE(VR_PARAMETER) STEWART_FMU_SETTINGS(VR_PARAMETER)
+    STEWART_FMU_INPUTS(VR_INPUT) STEWART_FMU_OUTPUTS(VR_OUTPUT)
+    VR_TIME = STEWART_VR_TIME, VR_N_PAR = STEWART_VR_N_PARAMETERS, VR_METHOD = STEWART_VR_METHOD,
+    VR_END = STEWART_VR_N_OUTPUTS
+};
 
 /* ---- the generated scene file ---------------------------------------------------------------- */
 extern const char STEWART_MODEL_TOKEN[];            /* guid / instantiationToken */

@@ -1,54 +1,58 @@
 /*
  * stewart.h -- the numerical core of the Stewart-platform plant in plain C99 (libm only).
  *
- * A port of the numba kernels of stewart_fmu/ (model.py, rotations.py, linalg.py,
- * kinematics.py, kane.py, dynamics.py, transmission.py, integrators.py, energy.py,
- * stability.py) with the same arithmetic, status codes and parameter layout. Equation numbers
- * refer to the paper (shared/reference/kane-stewart-paper.md), as the Python docstrings do.
+ * Python reaches it through cffi (stewart_fmu/native/core.py); the FMU compiles it with the FMI
+ * layer (stewart_fmu/native/fmi). Equation numbers refer to the paper (Kane's method for the
+ * Stewart platform), as the Python docstrings do.
  *
- * Conventions (shared/CONVENTIONS.md): SI units; pose q = (x, y, z, thx, thy, thz) with
+ * Conventions (docs/conventions.md): SI units; pose q = (x, y, z, thx, thy, thz) with
  * R = Rz(thz) Ry(thy) Rx(thx); qd, qdd are the Euler-angle RATES and their derivatives;
  * sigma is the force at the rack, including m_d lddot when the model has a [drive] (Eq. 12).
  *
  * Reentrant: no global mutable state. The model is the const packed parameter vector
- * `params` (STEWART_N_PARAMS doubles, built by stewart_fmu.model._pack, i.e. Model.params);
- * per-run state (y, energy terms, dopri5 step guess) belongs to the caller (stewart_data is a
- * ready-made holder). No function allocates memory; scratch space is on the stack.
+ * `params` (STEWART_N_PARAMS doubles in the layout of stewart_table.h, built by Model.params of
+ * stewart_fmu/model.py); per-run state (y, energy terms, dopri5 step guess) belongs to the
+ * caller (stewart_data is a ready-made holder). No function allocates memory; scratch space is
+ * on the stack.
  *
  * Plant state y: 12 doubles (q, qd), or 24 (q, qd, s, sd) when the model has a compliant
- * transmission (params[STEWART_P_HAS_TRANSMISSION] != 0; see transmission.py).
+ * transmission (params[STEWART_P_HAS_TRANSMISSION] != 0; see stewart_fmu/transmission.py).
  */
 #ifndef STEWART_H
 #define STEWART_H
+
+#include "stewart_table.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-/* ---- packed parameters: the layout of stewart_fmu/model.py (P_*) ---------------------- */
-#define STEWART_N_PARAMS 63           /* model.N_PARAMS */
-#define STEWART_P_HAS_LEGS 0          /* model.P_HAS_LEGS: 1.0 when the scene has [legs] */
-#define STEWART_P_HAS_DRIVE 1         /* model.P_HAS_DRIVE */
-#define STEWART_P_HAS_FRICTION 2      /* model.P_HAS_FRICTION */
-#define STEWART_P_GRAVITY 3           /* model.P_GRAVITY: 3 values, in N */
-#define STEWART_P_MASS 6              /* model.P_MASS: platform mass */
-#define STEWART_P_INERTIA 7           /* model.P_INERTIA: 3 principal moments, in C */
-#define STEWART_P_LOWER 10            /* model.P_LOWER: mass, com, transverse, axial */
-#define STEWART_P_UPPER 14            /* model.P_UPPER: mass, com, transverse, axial */
-#define STEWART_P_DRIVE_MASS 18       /* model.P_DRIVE_MASS: m_d = zeta^2 I / r^2 (Eq. 14) */
-#define STEWART_P_VISCOUS 19          /* model.P_VISCOUS */
-#define STEWART_P_COULOMB 20          /* model.P_COULOMB */
-#define STEWART_P_LEG_MIN 21          /* model.P_LEG_MIN (0 when unlimited) */
-#define STEWART_P_LEG_MAX 22          /* model.P_LEG_MAX (inf when unlimited) */
-#define STEWART_P_CHAR_LENGTH 23      /* model.P_CHAR_LENGTH: scales J's rotational columns */
-#define STEWART_P_BASE 24             /* model.P_BASE: 18 values, a_i rows in N */
-#define STEWART_P_PLATFORM 42         /* model.P_PLATFORM: 18 values, p_i rows in C */
-#define STEWART_P_HAS_TRANSMISSION 60 /* model.P_HAS_TRANSMISSION */
-#define STEWART_P_STIFFNESS 61        /* model.P_STIFFNESS (N/m, reflected to the leg) */
-#define STEWART_P_DAMPING 62          /* model.P_DAMPING (N s/m) */
+/* ---- packed parameters: STEWART_PARAMS of stewart_table.h ------------------------------- */
+/* STEWART_P_<NAME>: the offset of each entry; STEWART_N_PARAMS: the vector's length. */
+#define STEWART_X_OFFSET(NAME, ...) STEWART_P_##NAME = STEWART_OFFSET(NAME),
+enum { STEWART_PARAMS(STEWART_X_OFFSET) STEWART_N_PARAMS = (int)(sizeof(stewart_param_layout) / sizeof(double)) };
+
+/* The tables compiled into the core (src/table.c), for the Python side. */
+typedef struct {
+    const char *name;         /* NAME of STEWART_PARAMS: STEWART_P_<name> */
+    int offset, count;
+    const char *source;       /* the ID of the FMU scene variable it holds, or "COMPUTED" */
+    const char *unit, *description;
+} stewart_param_info;
+typedef struct {
+    const char *id;           /* ID of STEWART_FMU_*: VR_<id> of fmi/model.h */
+    const char *name;         /* the variable's (group's) name in the model description */
+    int vr, count, shape, bound;
+    int scene;                /* 1: a scene key of the plant tables (STEWART_FMU_SCENE) */
+    const char *causality, *unit, *description;
+} stewart_variable_info;
+extern const stewart_param_info stewart_param_table[];
+extern const int stewart_param_table_size;
+extern const stewart_variable_info stewart_variable_table[];
+extern const int stewart_variable_table_size;
 
 #define STEWART_MAX_STATE 24          /* longest plant state y */
-#define STEWART_N_ENERGY 9            /* energy terms: T, V_g, V_s, d_1..d_6 (energy.py) */
+#define STEWART_N_ENERGY 9            /* energy terms: T, V_g, V_s, d_1..d_6 (energy.KINETIC ...) */
 #define STEWART_ENERGY_KINETIC 0      /* energy.KINETIC */
 #define STEWART_ENERGY_POTENTIAL 1    /* energy.POTENTIAL */
 #define STEWART_ENERGY_SPRING 2       /* energy.SPRING */
@@ -59,26 +63,26 @@ extern "C" {
 enum { STEWART_PART_PLATFORM = 0, STEWART_PART_LOWER_LEGS = 1, STEWART_PART_UPPER_LEGS = 2,
        STEWART_PART_DRIVES = 3, STEWART_PART_GRAVITY = 4, STEWART_PART_FRICTION = 5 };
 
-/* ---- status codes: identical to the Python side ----------------------------------------- */
+/* ---- status codes: stewart_fmu/status.py reads them ----------------------------------------- */
 enum {
-    STEWART_OK = 0,              /* dynamics.OK */
+    STEWART_OK = 0,              /* status.OK */
     STEWART_NONFINITE = 1,       /* status.NONFINITE: a non-finite input */
-    STEWART_STROKE = 2,          /* kane.STROKE: a leg outside [leg_min, leg_max] */
-    STEWART_SINGULAR = 3,        /* dynamics.SINGULAR: J^T LU pivot < SINGULAR_PIVOT, or the
+    STEWART_STROKE = 2,          /* status.STROKE: a leg outside [leg_min, leg_max] */
+    STEWART_SINGULAR = 3,        /* status.SINGULAR: J^T LU pivot < SINGULAR_PIVOT, or the
                                     twist mass matrix not positive definite */
-    STEWART_GIMBAL = 4,          /* dynamics.GIMBAL: |cos thy| < GIMBAL_LIMIT */
-    STEWART_OVERFLOW = 5,        /* dynamics.OVERFLOW: a non-finite output from finite inputs
+    STEWART_GIMBAL = 4,          /* status.GIMBAL: |cos thy| < GIMBAL_LIMIT */
+    STEWART_OVERFLOW = 5,        /* status.OVERFLOW: a non-finite output from finite inputs
                                     (batch/single calls report it as SINGULAR, as Python does) */
-    STEWART_TOO_MANY_STEPS = 100,/* integrators.TOO_MANY_STEPS */
-    STEWART_STEP_TOO_SMALL = 101,/* integrators.STEP_TOO_SMALL */
+    STEWART_TOO_MANY_STEPS = 100,/* status.TOO_MANY_STEPS */
+    STEWART_STEP_TOO_SMALL = 101,/* status.STEP_TOO_SMALL */
     STEWART_UNSTABLE = 102,      /* status.ENERGY_GAIN: the step gained energy beyond the rack
-                                    forces' work (power balance of stability.step_energy) */
+                                    forces' work (power balance of stewart_step_energy) */
     STEWART_STATE_NONFINITE = 103 /* status.STATE_NONFINITE: stewart_step's check found the
                                     integrated state not finite */
 };
 
-/* ---- limits (same values as the Python constants) ---------------------------------------- */
-#define STEWART_SINGULAR_PIVOT 1e-10  /* dynamics.SINGULAR_PIVOT */
+/* ---- limits ------------------------------------------------------------------------------ */
+#define STEWART_SINGULAR_PIVOT 1e-10  /* smallest LU pivot of a regular J^T */
 #define STEWART_GIMBAL_LIMIT 1e-9     /* rotations.GIMBAL_LIMIT */
 #define STEWART_COND_LIMIT 1e10       /* kinematics.COND_LIMIT */
 #define STEWART_ENERGY_TOL 1e-3       /* stability.ENERGY_TOL */
@@ -101,24 +105,24 @@ stewart_options stewart_default_options(void);
 /* Length of the plant state y: 12, or 24 with a compliant transmission. */
 int stewart_state_size(const double *params);
 
-/* The leg side of a compliant transmission (transmission.leg_side_params): params with
+/* The leg side of a compliant transmission: params with
    P_HAS_DRIVE cleared when P_HAS_TRANSMISSION is set, else a plain copy. */
 void stewart_leg_side_params(const double *params, double out[STEWART_N_PARAMS]);
 
-/* ---- kinematics (kinematics.py, rotations.py) -------------------------------------------- */
+/* ---- kinematics (stewart_fmu/kinematics.py, rotations.py) ------------------------------- */
 /* R = Rz Ry Rx (row-major 3x3), omega = E thd and alpha = E thdd + Edot thd in N. qdd may be
    NULL (zero). */
 void stewart_orientation(const double q[6], const double qd[6], const double *qdd,
                          double R[9], double omega[3], double alpha[3]);
 
-/* Leg lengths l, rates ldot and the platform angular velocity omega (dynamics._leg_state).
+/* Leg lengths l, rates ldot and the platform angular velocity omega (dynamics.leg_state).
    Returns STEWART_OK or STEWART_STROKE (outputs are filled either way). */
 int stewart_leg_state(const double *params, const double q[6], const double qd[6],
                       double l[6], double ldot[6], double omega[3]);
 
 /* The leg Jacobian J (row-major 6x6), ldot = J (v, omega), rows [u_i, (R p_i) x u_i];
    `scaled` != 0 divides the rotational columns by the characteristic length
-   (kinematics._scaled_jacobian). Returns OK or STROKE (J filled either way). */
+   (the scaling of kinematics.condition_number). Returns OK or STROKE (J filled either way). */
 int stewart_jacobian(const double *params, const double q[6], int scaled, double J[36]);
 
 /* cond(J) of the scaled Jacobian (kinematics.condition_number): ratio of the extreme singular
@@ -126,20 +130,20 @@ int stewart_jacobian(const double *params, const double q[6], int scaled, double
    NONFINITE for a non-finite q. The pose counts as singular when cond >= STEWART_COND_LIMIT. */
 int stewart_condition_number(const double *params, const double q[6], double *cond);
 
-/* ---- Kane's equations (kane.py) ----------------------------------------------------------- */
+/* ---- Kane's equations (src/kane.c; stewart_fmu/kane_terms.py is their term-by-term form) -- */
 /* Generalized inertia (Eqs. 3-7) and gravity (Eq. 8) forces reduced to the platform twist, by
    body group: gen rows 0 platform inertia, 1 lower legs, 2 upper legs, 3 gravity (4x6,
    row-major); also the leg rows (l, ldot, lddot) as leg[6*3]. Returns OK or STROKE. */
 int stewart_twist_forces(const double *params, const double q[6], const double qd[6],
                          const double qdd[6], double gen[24], double leg[18]);
 
-/* Twist-space mass matrix M_nu (kane.twist_mass_matrix), 6x6 row-major, at pose q.
+/* Twist-space mass matrix M_nu, 6x6 row-major, at pose q.
    Returns OK or STROKE (filled either way). */
 int stewart_mass_matrix(const double *params, const double q[6], double M[36]);
 
-/* ---- dynamics (dynamics.py) --------------------------------------------------------------- */
+/* ---- dynamics (stewart_fmu/dynamics.py) --------------------------------------------------- */
 /* Rack forces sigma (Eq. 12): sigma = J^-T (-K*_nu - K_g,nu) + mu + m_d lddot (Eqs. 9-12).
-   Status: OK, NONFINITE, STROKE, SINGULAR (as dynamics._inverse_one). */
+   Status: OK, NONFINITE, STROKE, SINGULAR. */
 int stewart_inverse_dynamics(const double *params, const double q[6], const double qd[6],
                              const double qdd[6], double sigma[6]);
 
@@ -166,8 +170,8 @@ long stewart_forward_dynamics_batch(const double *params, long n, const double *
                                     const double *QD, const double *SIGMA, double *QDD,
                                     int *status);
 
-/* ---- plant (transmission.py, integrators.py) ---------------------------------------------- */
-/* dy = y' at y with the rack forces held (integrators._derivative); y of stewart_state_size.
+/* ---- plant (stewart_fmu/transmission.py, integrators.py) --------------------------------- */
+/* dy = y' at y with the rack forces held (integrators.derivative); y of stewart_state_size.
    Status of the forward kernel: OK, STROKE, SINGULAR, GIMBAL, OVERFLOW (not classified). */
 int stewart_derivative(const double *params, const double *y, const double rack[6], double *dy);
 
@@ -179,11 +183,11 @@ int stewart_spring_forces(const double *params, const double *y, double f[6]);
 int stewart_initial_state(const double *params, const double q[6], const double qd[6],
                           const double *rack, double *y);
 
-/* ---- energy (energy.py, stability.py) ----------------------------------------------------- */
-/* out = (T, V_g, V_s, d_1..d_6) at y (energy._energy_terms). */
+/* ---- energy (stewart_fmu/energy.py, step.py) ---------------------------------------------- */
+/* out = (T, V_g, V_s, d_1..d_6) at y (energy.energy_terms). */
 void stewart_energy_terms(const double *params, const double *y, double out[STEWART_N_ENERGY]);
 
-/* The power balance of a step of length h (stability.step_energy): returns 0 if y1 is
+/* The power balance of a step of length h (step.check_step): returns 0 if y1 is
    non-finite, else 1 with e1 = energy terms of y1, *excess = dE - F.(d1 - d0) and
    *allowed = tol * (energy exchanged) + coulomb * (sum |d1 - d0| + h sum |ldot_i(y1)|) (the
    second sum only with coulomb > 0). The step is unstable when !(excess <= allowed). */
@@ -191,7 +195,7 @@ int stewart_step_energy(const double *params, const double *y1, const double e0[
                         double e1[9], const double rack[6], double tol, double h,
                         double *excess, double *allowed);
 
-/* ---- integration (integrators.py) --------------------------------------------------------- */
+/* ---- integration (stewart_fmu/integrators.py) --------------------------------------------- */
 /* y1 = y0 advanced over h with the rack forces held (zero-order hold); y0 is not modified.
    rk4 / euler: n = max(1, ceil(h / max_step - 1e-9)) fixed sub-steps (TOO_MANY_STEPS if
    n > max_steps); dopri5: error-controlled steps starting from *step_guess, which returns the
@@ -203,7 +207,7 @@ int stewart_advance(const double *params, const stewart_options *o, const double
                     double *y1, const double rack[6], double h, double *step_guess,
                     long *evaluations);
 
-/* THE plant step (Plant.do_step without the call-sequence checks): stewart_advance, then the
+/* THE plant step (plant.Plant.do_step without the call-sequence checks): stewart_advance, then the
    finiteness and power-balance check of stewart_step_energy with o->energy_tol. e0: energy
    terms of y0 (stewart_energy_terms, or the e1 of the previous accepted step); e1 receives
    those of y1. excess / allowed may be NULL. Status: that of stewart_advance, else

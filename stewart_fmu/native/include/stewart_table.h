@@ -1,0 +1,168 @@
+/*
+ * stewart_table.h -- the one table of the plant's packed parameters and of its FMU variables,
+ * written once as X-macros (the pattern of MuJoCo's mjxmacro.h) and expanded wherever a layer
+ * needs it: stewart.h (the STEWART_P_* offsets, STEWART_N_PARAMS), src/table.c (the same
+ * table compiled into the core, which stewart_fmu/model.py and stewart_fmu/fmu/variables.py
+ * read), fmi/model.h and fmi/model.c (value references, names, packing, bound checks).
+ * tests/stewart_fmu/test_table.py fails when a layer spells a name, offset or value reference
+ * this file does not hold. Units and names follow docs/conventions.md.
+ *
+ * Offsets and value references are computed, never written: each entry takes COUNT doubles
+ * after the previous one (the layout structs below), so a parameter that becomes per leg
+ * changes one COUNT here and every layer follows.
+ */
+#ifndef STEWART_TABLE_H
+#define STEWART_TABLE_H
+
+#include <stddef.h>
+
+/* Lower bound of a value (checked per key by the scene reader and by the FMU's validation). */
+#define STEWART_BOUND_ANY 0      /* any finite number */
+#define STEWART_BOUND_NONNEG 1   /* >= 0 */
+#define STEWART_BOUND_POS 2      /* > 0 */
+
+/* Shape of an FMU variable group beyond its COUNT: COLS > 0 is a matrix of COUNT / COLS rows;
+   STEWART_VECTOR a plain vector (a scalar when COUNT is 1); STEWART_PER_LEG six values, one
+   per leg, or one value for all legs (a scene that gives one number declares the group's
+   first value reference alone, under the group's plain name). */
+#define STEWART_VECTOR 0
+#define STEWART_PER_LEG (-1)
+#define STEWART_STRING (-2)      /* one String value (STEWART_FMU_STRINGS) */
+
+/* Packed parameters, in layout order: X(NAME, COUNT, SOURCE, UNIT, DESCRIPTION).
+   SOURCE: the FMU scene variable (ID of STEWART_FMU_SCENE) whose values the entry holds as
+   they are, COUNT values from its first (a per-leg key given once fills all six); COMPUTED
+   when the packing derives the values. UNIT "1" for flags, "" for mixed units. */
+#define STEWART_PARAMS(X)                                                                      \
+    X(HAS_LEGS, 1, COMPUTED, "1", "1 when the scene has [legs], else 0")                       \
+    X(HAS_DRIVE, 1, COMPUTED, "1", "1 when the scene has [drive], else 0")                     \
+    X(HAS_FRICTION, 1, COMPUTED, "1", "1 when the scene has [friction], else 0")               \
+    X(GRAVITY, 3, GRAVITY, "m/s2", "gravity in N")                                             \
+    X(MASS, 1, MASS, "kg", "platform mass")                                                    \
+    X(INERTIA, 3, INERTIA, "kg.m2", "platform principal moments in C")                         \
+    X(LOWER, 4, LOWER_MASS, "", "lower leg part: mass, centre of mass, transverse and axial moments") \
+    X(UPPER, 4, UPPER_MASS, "", "upper leg part: mass, centre of mass, transverse and axial moments") \
+    X(DRIVE_MASS, 1, COMPUTED, "kg", "reflected drive inertia m_d = zeta^2 I / r^2 (Eq. 14)")  \
+    X(VISCOUS, 1, VISCOUS, "N.s/m", "viscous friction of each prismatic joint")                \
+    X(COULOMB, 1, COULOMB, "N", "Coulomb friction of each prismatic joint")                    \
+    X(LEG_MIN, 1, LEG_MIN, "m", "shortest leg (0 when unlimited)")                             \
+    X(LEG_MAX, 1, LEG_MAX, "m", "longest leg (inf when unlimited)")                            \
+    X(CHAR_LENGTH, 1, COMPUTED, "m", "mean platform-joint radius: scales J's rotational columns") \
+    X(BASE, 18, BASE, "m", "base joints a_i in N, rows")                                       \
+    X(PLATFORM, 18, PLATFORM, "m", "platform joints p_i in C, rows")                           \
+    X(HAS_TRANSMISSION, 1, COMPUTED, "1", "1 when the scene has [transmission], else 0")       \
+    X(STIFFNESS, 1, STIFFNESS, "N/m", "transmission stiffness (leg axis)")                     \
+    X(DAMPING, 1, DAMPING, "N.s/m", "transmission damping (leg axis)")
+
+/* FMU variables by group, value references from STEWART_VR_PARAMETERS, _INPUTS and _OUTPUTS
+   on (0 is time, FMI 3.0's independent variable): X(ID, NAME, COUNT, SHAPE, UNIT, BOUND,
+   DESCRIPTION). UNIT "pose" is m for x, y, z and rad for the angles, "rate" their rates;
+   "" none. The parameters are Real, fixed: first the scene keys of the plant tables (a scene
+   declares those of the tables it has), then the FMU's settings. */
+#define STEWART_FMU_SCENE(X)                                                                \
+    X(GRAVITY, "gravity", 3, STEWART_VECTOR, "m/s2", ANY, "gravity in N")                        \
+    X(BASE, "geometry.base_joints", 18, 3, "m", ANY, "base joint a_i in N")                      \
+    X(PLATFORM, "geometry.platform_joints", 18, 3, "m", ANY, "platform joint p_i in C")          \
+    X(HOME, "geometry.home", 6, STEWART_VECTOR, "pose", ANY, "home pose (x, y, z, thx, thy, thz)") \
+    X(LEG_MIN, "geometry.leg_min", 1, STEWART_VECTOR, "m", POS, "shortest leg length (stroke)")  \
+    X(LEG_MAX, "geometry.leg_max", 1, STEWART_VECTOR, "m", POS, "longest leg length (stroke)")   \
+    X(MASS, "platform.mass", 1, STEWART_VECTOR, "kg", POS, "platform mass")                      \
+    X(INERTIA, "platform.inertia", 3, STEWART_VECTOR, "kg.m2", ANY,                              \
+      "platform principal moments about its centre of mass")                                     \
+    X(LOWER_MASS, "legs.lower_mass", 1, STEWART_VECTOR, "kg", NONNEG, "lower leg part (cylinder) mass") \
+    X(LOWER_COM, "legs.lower_com", 1, STEWART_VECTOR, "m", NONNEG,                               \
+      "lower part centre of mass from the base joint")                                           \
+    X(LOWER_INERTIA, "legs.lower_inertia", 2, STEWART_VECTOR, "kg.m2", NONNEG,                   \
+      "lower part [transverse, axial] moments")                                                  \
+    X(UPPER_MASS, "legs.upper_mass", 1, STEWART_VECTOR, "kg", NONNEG, "upper leg part (piston) mass") \
+    X(UPPER_COM, "legs.upper_com", 1, STEWART_VECTOR, "m", NONNEG,                               \
+      "upper part centre of mass from the platform joint")                                       \
+    X(UPPER_INERTIA, "legs.upper_inertia", 2, STEWART_VECTOR, "kg.m2", NONNEG,                   \
+      "upper part [transverse, axial] moments")                                                  \
+    X(GEAR_RATIO, "drive.gear_ratio", 1, STEWART_VECTOR, "1", POS, "gearbox reduction ratio zeta") \
+    X(ROTOR_INERTIA, "drive.rotor_inertia", 1, STEWART_VECTOR, "kg.m2", POS, "motor rotor inertia") \
+    X(PINION_RADIUS, "drive.pinion_radius", 1, STEWART_VECTOR, "m", POS, "rack-and-pinion radius") \
+    X(VISCOUS, "friction.viscous", 1, STEWART_VECTOR, "N.s/m", NONNEG,                           \
+      "viscous friction of each prismatic joint")                                                \
+    X(COULOMB, "friction.coulomb", 1, STEWART_VECTOR, "N", NONNEG,                               \
+      "Coulomb friction of each prismatic joint")                                                \
+    X(STIFFNESS, "transmission.stiffness", 1, STEWART_VECTOR, "N/m", POS,                        \
+      "transmission stiffness, motor to leg (leg axis)")                                         \
+    X(DAMPING, "transmission.damping", 1, STEWART_VECTOR, "N.s/m", NONNEG,                       \
+      "transmission damping, motor to leg (leg axis)")
+
+/* The FMU's own parameters (Real, fixed), after the scene's: the start state and the solver. */
+#define STEWART_FMU_SETTINGS(X)                                                                  \
+    X(Q0, "q0", 6, STEWART_VECTOR, "pose", ANY, "initial pose")                                  \
+    X(QD0, "qd0", 6, STEWART_VECTOR, "rate", ANY, "initial pose rates")                          \
+    X(RTOL, "solver.rtol", 1, STEWART_VECTOR, "", POS, "integrator relative tolerance (dopri5)") \
+    X(ATOL, "solver.atol", 1, STEWART_VECTOR, "", POS, "integrator absolute tolerance (dopri5)") \
+    X(MAX_STEP, "solver.max_step", 1, STEWART_VECTOR, "s", POS, "largest internal step (s)")
+
+/* The String parameter, after the Real ones (value reference STEWART_VR_METHOD):
+   X(ID, NAME, DESCRIPTION). */
+#define STEWART_FMU_STRINGS(X) X(METHOD, "solver.method", "integrator: one of rk4, euler, dopri5")
+
+/* Inputs (Real, continuous): tau only with a [drive]. */
+#define STEWART_FMU_INPUTS(X)                                                                    \
+    X(SIGMA, "sigma", 6, STEWART_PER_LEG, "N", ANY,                                              \
+      "actuator force at the rack (starts at the force holding home)")                           \
+    X(TAU, "tau", 6, STEWART_PER_LEG, "N.m", ANY, "motor torque")
+
+/* Outputs (Real, continuous, calculated on demand); force.<part> in STEWART_PART_* order, only
+   the parts of the effects the scene declares. */
+#define STEWART_FMU_OUTPUTS(X)                                                                   \
+    X(L, "l", 6, STEWART_PER_LEG, "m", ANY, "leg length")                                        \
+    X(LDOT, "ldot", 6, STEWART_PER_LEG, "m/s", ANY, "leg rate")                                  \
+    X(Q_X, "x", 1, STEWART_VECTOR, "m", ANY, "platform pose x")                                    \
+    X(Q_Y, "y", 1, STEWART_VECTOR, "m", ANY, "platform pose y")                                    \
+    X(Q_Z, "z", 1, STEWART_VECTOR, "m", ANY, "platform pose z")                                    \
+    X(Q_THX, "thx", 1, STEWART_VECTOR, "rad", ANY, "platform pose thx")                            \
+    X(Q_THY, "thy", 1, STEWART_VECTOR, "rad", ANY, "platform pose thy")                            \
+    X(Q_THZ, "thz", 1, STEWART_VECTOR, "rad", ANY, "platform pose thz")                            \
+    X(QD_X, "dx", 1, STEWART_VECTOR, "m/s", ANY, "rate of x")                                      \
+    X(QD_Y, "dy", 1, STEWART_VECTOR, "m/s", ANY, "rate of y")                                      \
+    X(QD_Z, "dz", 1, STEWART_VECTOR, "m/s", ANY, "rate of z")                                      \
+    X(QD_THX, "dthx", 1, STEWART_VECTOR, "rad/s", ANY, "rate of thx")                              \
+    X(QD_THY, "dthy", 1, STEWART_VECTOR, "rad/s", ANY, "rate of thy")                              \
+    X(QD_THZ, "dthz", 1, STEWART_VECTOR, "rad/s", ANY, "rate of thz")                              \
+    X(V, "v", 3, STEWART_VECTOR, "m/s", ANY, "platform velocity in N")                           \
+    X(OMEGA, "omega", 3, STEWART_VECTOR, "rad/s", ANY, "platform angular velocity in N")         \
+    X(COND, "cond", 1, STEWART_VECTOR, "1", ANY, "condition number of the leg Jacobian (scaled)") \
+    X(RACK, "rack_force", 6, STEWART_PER_LEG, "N", ANY, "total force at the rack (sigma + zeta/r tau)") \
+    X(FORCE_PLATFORM, "force.platform", 6, STEWART_PER_LEG, "N", ANY, "rack force spent on the platform") \
+    X(FORCE_LOWER_LEGS, "force.lower_legs", 6, STEWART_PER_LEG, "N", ANY,                        \
+      "rack force spent on the lower legs")                                                      \
+    X(FORCE_UPPER_LEGS, "force.upper_legs", 6, STEWART_PER_LEG, "N", ANY,                        \
+      "rack force spent on the upper legs")                                                      \
+    X(FORCE_DRIVES, "force.drives", 6, STEWART_PER_LEG, "N", ANY, "rack force spent on the drives") \
+    X(FORCE_GRAVITY, "force.gravity", 6, STEWART_PER_LEG, "N", ANY, "rack force spent on gravity") \
+    X(FORCE_FRICTION, "force.friction", 6, STEWART_PER_LEG, "N", ANY, "rack force spent on friction")
+
+#define STEWART_VR_TIME 0          /* FMI 3.0's independent variable */
+#define STEWART_VR_PARAMETERS 1    /* first value reference of each section */
+#define STEWART_VR_INPUTS 100
+#define STEWART_VR_OUTPUTS 200
+
+/* ---- the layouts: one double array per entry, in table order ---------------------------- */
+#define STEWART_X_FIELD(NAME, COUNT, ...) double NAME[COUNT];
+#define STEWART_X_VARIABLE(ID, NAME, COUNT, ...) double ID[COUNT];
+typedef struct { STEWART_PARAMS(STEWART_X_FIELD) } stewart_param_layout;
+typedef struct {
+    STEWART_FMU_SCENE(STEWART_X_VARIABLE) STEWART_FMU_SETTINGS(STEWART_X_VARIABLE)
+} stewart_fmu_parameters;
+typedef struct { STEWART_FMU_INPUTS(STEWART_X_VARIABLE) } stewart_fmu_inputs;
+typedef struct { STEWART_FMU_OUTPUTS(STEWART_X_VARIABLE) } stewart_fmu_outputs;
+
+/* The offset of a packed entry, and the value reference of an FMU variable group
+   (SECTION: PARAMETERS, INPUTS or OUTPUTS; LAYOUT: the struct of that section). */
+#define STEWART_OFFSET(NAME) ((int)(offsetof(stewart_param_layout, NAME) / sizeof(double)))
+#define STEWART_VR(SECTION, LAYOUT, ID) \
+    (STEWART_VR_##SECTION + (int)(offsetof(LAYOUT, ID) / sizeof(double)))
+#define STEWART_VR_END(SECTION, LAYOUT) \
+    (STEWART_VR_##SECTION + (int)(sizeof(LAYOUT) / sizeof(double)))
+#define STEWART_VR_N_PARAMETERS STEWART_VR_END(PARAMETERS, stewart_fmu_parameters)
+#define STEWART_VR_METHOD STEWART_VR_N_PARAMETERS  /* the String parameter solver.method */
+#define STEWART_VR_N_OUTPUTS STEWART_VR_END(OUTPUTS, stewart_fmu_outputs)
+
+#endif /* STEWART_TABLE_H */

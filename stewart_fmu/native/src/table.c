@@ -1,0 +1,27 @@
+/* table.c -- the tables of stewart_table.h compiled into the core, for the Python side
+   (stewart_fmu/model.py reads the packed layout, stewart_fmu/fmu/variables.py the FMU
+   variables): one expansion of each X-macro table. */
+#include "../include/stewart.h"
+
+#define PARAM_ROW(NAME, COUNT, SOURCE, UNIT, WHAT) {#NAME, STEWART_P_##NAME, COUNT, #SOURCE, UNIT, WHAT},
+const stewart_param_info stewart_param_table[] = {STEWART_PARAMS(PARAM_ROW)};
+const int stewart_param_table_size = sizeof stewart_param_table / sizeof stewart_param_table[0];
+
+#define PARAMETER_ROW(ID, NAME, COUNT, SHAPE, UNIT, BOUND, WHAT, SCENE)                           \
+    {#ID, NAME, STEWART_VR(PARAMETERS, stewart_fmu_parameters, ID), COUNT, SHAPE,                 \
+     STEWART_BOUND_##BOUND, SCENE, "parameter", UNIT, WHAT},
+#define SCENE_ROW(...) PARAMETER_ROW(__VA_ARGS__, 1)
+#define SETTING_ROW(...) PARAMETER_ROW(__VA_ARGS__, 0)
+#define STRING_ROW(ID, NAME, WHAT)                                                                \
+    {#ID, NAME, STEWART_VR_METHOD, 1, STEWART_STRING, STEWART_BOUND_ANY, 0, "parameter", "", WHAT},
+#define INPUT_ROW(ID, NAME, COUNT, SHAPE, UNIT, BOUND, WHAT)                                      \
+    {#ID, NAME, STEWART_VR(INPUTS, stewart_fmu_inputs, ID), COUNT, SHAPE, STEWART_BOUND_##BOUND,  \
+     0, "input", UNIT, WHAT},
+#define OUTPUT_ROW(ID, NAME, COUNT, SHAPE, UNIT, BOUND, WHAT)                                     \
+    {#ID, NAME, STEWART_VR(OUTPUTS, stewart_fmu_outputs, ID), COUNT, SHAPE,                       \
+     STEWART_BOUND_##BOUND, 0, "output", UNIT, WHAT},
+const stewart_variable_info stewart_variable_table[] = {
+    STEWART_FMU_SCENE(SCENE_ROW) STEWART_FMU_SETTINGS(SETTING_ROW) STEWART_FMU_STRINGS(STRING_ROW)
+    STEWART_FMU_INPUTS(INPUT_ROW) STEWART_FMU_OUTPUTS(OUTPUT_ROW)};
+const int stewart_variable_table_size =
+    sizeof stewart_variable_table / sizeof stewart_variable_table[0];

@@ -1,0 +1,91 @@
+"""The one table of the plant (native/include/stewart_table.h), as the compiled core holds it.
+
+The packed parameter layout (PARAMS: offsets and counts of Model.params) and the FMU's variable
+groups (VARIABLES: names, value references, shapes, units, bounds) are written once, as C
+X-macros; this module reads them back from the core (src/table.c), as status.py reads the
+status codes, so that no Python module spells an offset or a value reference.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .native.core import ffi, lib
+
+# Bounds of a value, per key (stewart_table.h STEWART_BOUND_*): the rule and its words.
+BOUND_ANY, BOUND_NONNEG, BOUND_POS = lib.STEWART_BOUND_ANY, lib.STEWART_BOUND_NONNEG, lib.STEWART_BOUND_POS
+BOUND_WORDS = {BOUND_NONNEG: ">= 0", BOUND_POS: "> 0"}
+# Shapes beyond a group's count: a plain vector, or one value per leg (or one for all legs).
+VECTOR, PER_LEG, STRING = lib.STEWART_VECTOR, lib.STEWART_PER_LEG, lib.STEWART_STRING
+
+
+@dataclass(frozen=True)
+class Param:
+    """One entry of the packed parameter vector."""
+
+    name: str           # STEWART_P_<name>
+    offset: int
+    count: int
+    source: str         # the id of the FMU scene variable it holds, or "COMPUTED"
+    unit: str
+    description: str
+
+
+@dataclass(frozen=True)
+class VariableGroup:
+    """One group of FMU variables: a scalar, a vector, a matrix or six per-leg values."""
+
+    id: str             # VR_<id> of fmi/model.h
+    name: str           # the dotted name (for a parameter: its scene key)
+    vr: int             # the first value reference
+    count: int
+    shape: int          # VECTOR, PER_LEG, or the columns of a matrix
+    bound: int          # BOUND_*
+    scene: bool         # a scene key of the plant tables (its name is the dotted key)
+    causality: str      # parameter, input or output
+    unit: str           # "" none; "pose" / "rate": m or rad (/s) per pose component
+    description: str
+
+
+def _text(p) -> str:
+    return ffi.string(p).decode()
+
+
+def _read_params() -> dict[str, Param]:
+    rows = (lib.stewart_param_table[k] for k in range(lib.stewart_param_table_size))
+    return {_text(r.name): Param(_text(r.name), r.offset, r.count, _text(r.source),
+                                 _text(r.unit), _text(r.description)) for r in rows}
+
+
+def _read_variables() -> tuple[VariableGroup, ...]:
+    rows = (lib.stewart_variable_table[k] for k in range(lib.stewart_variable_table_size))
+    return tuple(VariableGroup(_text(r.id), _text(r.name), r.vr, r.count, r.shape, r.bound, bool(r.scene),
+                               _text(r.causality), _text(r.unit), _text(r.description))
+                 for r in rows)
+
+
+PARAMS: dict[str, Param] = _read_params()
+N_PARAMS: int = lib.STEWART_N_PARAMS
+VARIABLES: tuple[VariableGroup, ...] = _read_variables()
+GROUPS: dict[str, VariableGroup] = {g.id: g for g in VARIABLES}
+VR_TIME, VR_METHOD, VR_N_PAR = lib.STEWART_VR_TIME, lib.STEWART_VR_METHOD, lib.STEWART_VR_N_PARAMETERS
+
+
+def offset(name: str) -> int:
+    """STEWART_P_<name>: where a packed entry starts in Model.params."""
+    return PARAMS[name].offset
+
+
+def vr(group_id: str) -> int:
+    """VR_<id>: the first value reference of an FMU variable group."""
+    return GROUPS[group_id].vr
+
+
+def scene_groups() -> dict[str, VariableGroup]:
+    """The FMU parameters that are scene keys ("platform.mass", ...), by dotted key."""
+    return {g.name: g for g in VARIABLES if g.scene}
+
+
+def bound(key: str) -> int:
+    """The per-key bound of a scene key (BOUND_ANY for a key the table does not bound)."""
+    group = scene_groups().get(key)
+    return BOUND_ANY if group is None else group.bound

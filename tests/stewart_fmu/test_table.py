@@ -1,0 +1,142 @@
+"""The one table (native/include/stewart_table.h) is the only spelling of the packed layout and
+of the FMU's variables: every layer, C and Python, takes names, offsets and value references
+from it, and this test fails when one spells a name, offset or value reference the table does
+not hold."""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from stewart_fmu import model as M
+from stewart_fmu import scene, table
+from stewart_fmu.dynamics import PARTS
+from stewart_fmu.fmu import variables as V
+from stewart_fmu.io import POSE
+from stewart_fmu.native.core import lib
+from stewart_fmu.scene import load_scene
+
+ROOT = Path(__file__).resolve().parents[2]
+NATIVE = ROOT / "stewart_fmu" / "native"
+C_FILES = sorted([*NATIVE.glob("include/*.h"), *NATIVE.glob("src/*.[ch]"), *NATIVE.glob("fmi/*.[ch]")])
+PY_DIRS = ("stewart_fmu", "controller", "hil", "stewart_sim")
+SCENES = sorted((ROOT / "scenes").glob("*.toml"))
+# Names the expansions define beside the entries (stewart.h, fmi/model.h, fmi/model.c).
+P_EXTRA = {"N_PARAMS"}
+VR_EXTRA = {"TIME", "N_PAR", "METHOD", "END", "COMPUTED", "PARAMETER", "INPUT", "OUTPUT"}
+
+
+def _c_text(path: Path) -> str:
+    """A C file without its comments."""
+    return re.sub(r"/\*.*?\*/", " ", path.read_text(), flags=re.S)
+
+
+def test_layout_is_contiguous_and_model_offsets_are_the_tables():
+    """Entries follow one another from 0 to N_PARAMS; model.P_* are the table's offsets."""
+    at = 0
+    for p in table.PARAMS.values():
+        assert p.offset == at, p.name
+        assert getattr(M, f"P_{p.name}") == p.offset == getattr(lib, f"STEWART_P_{p.name}")
+        at += p.count
+    assert at == table.N_PARAMS == M.N_PARAMS == lib.STEWART_N_PARAMS
+    layout = {n[2:] for n in dir(M) if re.fullmatch(r"P_[A-Z_]+", n)}
+    assert layout == set(table.PARAMS), "model.py names a layout entry the table lacks"
+
+
+def test_packed_sources_are_scene_variables_with_the_same_unit_and_count():
+    scene_ids = {g.id: g for g in table.VARIABLES if g.scene}
+    for p in table.PARAMS.values():
+        if p.source == "COMPUTED":
+            continue
+        g = scene_ids[p.source]
+        assert p.unit in ("", g.unit), p.name
+        if p.count <= g.count:   # a per-leg key or a vector, packed as it is
+            assert p.count == g.count, p.name
+        else:                    # LOWER / UPPER: consecutive groups
+            groups = [x for x in table.VARIABLES if g.vr <= x.vr < g.vr + p.count]
+            assert sum(x.count for x in groups) == p.count and all(x.scene for x in groups), p.name
+
+
+def test_value_references_are_ordered_and_disjoint():
+    taken: set[int] = set()
+    for g in table.VARIABLES:
+        vrs = set(range(g.vr, g.vr + g.count))
+        assert not vrs & taken, g.name
+        taken |= vrs
+    assert table.VR_TIME not in taken
+    assert table.VR_METHOD == table.VR_N_PAR == max(
+        g.vr + g.count for g in table.VARIABLES if g.causality == "parameter" and g.shape != table.STRING)
+
+
+@pytest.mark.parametrize("path", C_FILES, ids=lambda p: p.name)
+def test_c_sources_name_only_table_entries(path):
+    """Every STEWART_P_* and VR_* a C file uses is an entry of the table (or a name the
+    expansions define), and no C file gives one a number."""
+    text = _c_text(path)
+    for name in set(re.findall(r"\bSTEWART_P_(\w+)", text)):
+        assert name in table.PARAMS or name in P_EXTRA or name.startswith("##"), f"{path.name}: STEWART_P_{name}"
+    for name in set(re.findall(r"\bVR_(\w+)", text)):
+        assert name in table.GROUPS or name in VR_EXTRA, f"{path.name}: VR_{name}"
+    literal = re.findall(r"#define\s+(?:STEWART_P_|VR_)\w+\s+\d", text)
+    assert not literal, f"{path.name} defines layout numbers: {literal}"
+    # no group name is spelled in the FMI layer: GROUPS and the bounds come from the table
+    if path.parent.name == "fmi":
+        spelled = {g.name for g in table.VARIABLES if "." in g.name} & set(re.findall(r'"([\w.]+)"', text))
+        assert not spelled, f"{path.name} spells {spelled}"
+
+
+def test_python_spells_no_layout_number():
+    """No Python module assigns a number to a P_* or VR_* name, nor indexes params by a
+    literal offset."""
+    pattern = re.compile(r"^\s*(?:P_|VR_)[\w, ]*=\s*\(?\s*\d", re.M)
+    found = []
+    for folder in PY_DIRS:
+        for path in (ROOT / folder).rglob("*.py"):
+            text = path.read_text()
+            found += [f"{path.relative_to(ROOT)}: {m.group(0).strip()}" for m in pattern.finditer(text)]
+            found += [f"{path.relative_to(ROOT)}: {m}" for m in re.findall(r"params\[\d+\]", text)]
+    assert not found
+
+
+def test_python_tables_are_the_tables():
+    """SCENE_KEYS and the scene reader's plant keys are the table's scene variables; the pose
+    outputs are io.POSE; force.<part> follow dynamics.PARTS and the core's STEWART_PART_*."""
+    assert set(V.SCENE_KEYS) == set(table.scene_groups())
+    for key, (vr, shape, _, _) in V.SCENE_KEYS.items():
+        g = table.scene_groups()[key]
+        assert vr == g.vr and int(np.prod(shape)) == g.count
+    plant_keys = {f"{t}.{k}" for t, (need, opt) in scene._TABLE_KEYS.items()
+                  if t in {"geometry", "platform", "legs", "drive", "friction", "transmission"}
+                  for k in need | opt}
+    assert plant_keys | {"gravity"} == set(table.scene_groups())
+    assert [table.GROUPS[f"Q_{c.upper()}"].name for c in POSE] == list(POSE)
+    assert [table.GROUPS[f"QD_{c.upper()}"].name for c in POSE] == [f"d{c}" for c in POSE]
+    forces = [g for g in table.VARIABLES if g.name.startswith("force.")]
+    assert [g.name for g in forces] == [f"force.{p}" for p in PARTS]
+    for g in forces:
+        part = getattr(lib, f"STEWART_PART_{g.name.split('.')[1].upper()}")
+        assert g.vr == table.vr("FORCE_PLATFORM") + 6 * part
+
+
+@pytest.mark.parametrize("path", SCENES, ids=lambda p: p.stem)
+@pytest.mark.parametrize("version", [2, 3])
+def test_fmu_variables_are_table_groups(path, version):
+    """Every variable of a scene's FMU lies in the group its name names, at the group's value
+    reference plus its element index (row-major)."""
+    model = load_scene(path)
+    groups = {g.name: g for g in table.VARIABLES}
+    for var in V.variables(model, version):
+        if var.name == "time":
+            assert var.vr == table.VR_TIME
+            continue
+        base, _, index = var.name.partition("[")
+        g = groups[base]
+        assert var.causality == g.causality and var.description
+        k = 0
+        if index:
+            idx = [int(i) - 1 for i in index.rstrip("]").split(",")]
+            k = idx[0] * g.shape + idx[1] if len(idx) == 2 else idx[0]
+        assert var.vr == g.vr + k, var.name
+        assert var.unit == (g.unit or None) or g.unit in ("pose", "rate"), var.name
