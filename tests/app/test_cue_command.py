@@ -1,4 +1,4 @@
-"""`stewart-sim cue` (stewart_sim/cueing/command.py, study.py, report.py): every shipped vehicle
+"""`stewart-sim cue` (stewart_sim/commands/cue.py, cueing/study.py, report.py): every shipped vehicle
 motion on the shipped motion simulator, the files and their agreement with the rest of the
 tool (the written trajectory through `inverse` gives the written forces), a motion made too
 strong reported with its first sample and leg, the closed loop tracking the cue, bad input."""
