@@ -45,9 +45,10 @@ def run(args: argparse.Namespace) -> None:
     from hil.spawn import serve_device  # pymavlink: only for this command
     from stewart_sim.scene_load import load
 
-    model = load(args.scene).model
+    scene = load(args.scene)
+    model, config = scene.model, scene.require_controller()
     if args.view is None:
-        serve_device(model, args.udp, args.watchdog, args.lockstep, args.signing_key)
+        serve_device(model, config, args.udp, args.watchdog, args.lockstep, args.signing_key)
         return
     from hil.observe import Latest
     from stewart_sim.view.live import LiveView, live_page
@@ -57,5 +58,5 @@ def run(args: argparse.Namespace) -> None:
         def ready() -> None:
             view.start()
             print(f"view: {view.url}", flush=True)
-        serve_device(model, args.udp, args.watchdog, args.lockstep, args.signing_key,
+        serve_device(model, config, args.udp, args.watchdog, args.lockstep, args.signing_key,
                      observer=latest, ready=ready)
