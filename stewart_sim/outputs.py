@@ -55,7 +55,7 @@ def result_set(out: str | Path, known: Iterable[str] = ()) -> Iterator[Path]:
 
 
 def written_in(stage: Path, out: Path, paths: Iterable[str | Path]) -> list[Path]:
-    """The paths written into the stage of a result_set, as they are in `out` once it is moved in."""
+    """The paths written into the stage of a result_set, as they are in `out` once moved in."""
     return [out / Path(p).relative_to(stage) for p in paths]
 
 

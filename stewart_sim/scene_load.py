@@ -14,12 +14,12 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping
 
-from stewart_fmu.errors import SceneError, SceneKeyError
+from stewart_fmu.errors import SceneError, SceneKeyError, StewartError
 from stewart_fmu.integrators import COMPILED, IntegratorOptions
 from stewart_fmu.model import Model
 from stewart_fmu.scene import load_scene
 from stewart_fmu.stability import default_options
-from stewart_sim.cueing.config import CueingConfig, OptimalOptions, cueing_config, optimal_options
+from stewart_sim.cueing.config import CueingConfig, OptimalOptions, cueing_tables
 
 if TYPE_CHECKING:   # the readers import control and the closed loop: only when a table is there
     from controller.config import ControllerConfig
@@ -50,6 +50,13 @@ class Scene:
                              self.model.source)
         return self.controller
 
+    def require_case(self) -> "Case":
+        """The [case] table (StewartError when the scene has none)."""
+        if self.case is None:
+            raise StewartError(f"scene {self.model.source or self.model.name} has no [case] "
+                               "table")
+        return self.case
+
 
 def load(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scene:
     """Read the scene file once and parse every table (SceneError names the dotted key)."""
@@ -68,8 +75,9 @@ def scene_of(model: Model) -> Scene:
         from stewart_sim.cases import case_of
 
         case = case_of(model)
-    return Scene(model, controller, cueing_config(model), optimal_options(model), case,
-                 solver_options(model), "solver" in extra)
+    cueing, optimal = cueing_tables(model)
+    return Scene(model, controller, cueing, optimal, case, solver_options(model),
+                 "solver" in extra)
 
 
 def solver_options(model: Model) -> IntegratorOptions:

@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from controller.moves import DEMO_RATE, RUN_HOLD, RUN_MOVE, demo_trajectory, move_and_hold
+from controller.config import ControllerConfig
 from controller.trajectory import Trajectory, leg_references, waypoints
 from stewart_fmu import io
 from stewart_fmu.errors import StewartError
@@ -35,17 +36,16 @@ MOVES = ("demo", "run", "quintic")
 WAYPOINT_COLUMNS = ("t", *POSE)
 
 
-def move(model: Model, name: str, duration: float, rate: float | None = None) -> Trajectory:
-    """The named move of the scene (MOVES), sampled at `rate` (None: the default)."""
+def move(model: Model, name: str, duration: float, rate: float | None = None,
+         controller: ControllerConfig | None = None) -> Trajectory:
+    """The named move of the scene (MOVES), sampled at `rate` (None: the default; for "run",
+    the rate of `controller`, the scene's [controller] table, when it has one)."""
     if name == "demo":
         rate = rate or DEMO_RATE
         return Trajectory(*demo_trajectory(model, duration, rate))
     if name == "run":
         if rate is None:
-            rate = DEMO_RATE
-            if "controller" in model.extra:
-                from controller.config import controller_config
-                rate = controller_config(model).rate
+            rate = DEMO_RATE if controller is None else controller.rate
         return move_and_hold(model, rate, RUN_MOVE * duration, RUN_HOLD * duration, back=True)
     if name == "quintic":
         return move_and_hold(model, rate or DEMO_RATE, duration, 0.0)

@@ -25,7 +25,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from controller.config import controller_config
+from controller.config import ControllerConfig
 from controller.cosim import run_closed_loop
 from controller.design import UnstableLoopError
 from controller.moves import demo_trajectory, run_reference
@@ -253,11 +253,13 @@ CLOSED_LOOP_FIELDS = [("step", "f8"), ("pose_error", "f8"), ("tracking_error", "
                       ("run_time", "f8"), ("stable", "f8")]
 
 
-def closed_loop_sweep(model: Model, steps: Sequence[float] = CLOSED_LOOP_STEPS,
+def closed_loop_sweep(model: Model, controller: ControllerConfig,
+                      steps: Sequence[float] = CLOSED_LOOP_STEPS,
                       duration: float = CLOSED_LOOP_DURATION,
                       reference_step: float = CLOSED_LOOP_REFERENCE, repeats: int = 3,
                       progress: ProgressFn | None = None) -> tuple[np.ndarray, float]:
-    """Rows per communication step: pose error against the reference loop (relative to the
+    """The scene's controllers (`controller`, its [controller] table) at several communication
+    steps. Rows per communication step: pose error against the reference loop (relative to the
     motion's range, as the open loop), the max translational tracking error (relative), the
     loop's run time and whether the sampled loop is stable; and the reference's own check.
 
@@ -265,7 +267,7 @@ def closed_loop_sweep(model: Model, steps: Sequence[float] = CLOSED_LOOP_STEPS,
     the reference is the Richardson extrapolation 2 q(h) - q(2h) at h = reference_step; its
     check is its difference from the same extrapolation at h / 2."""
 
-    fine, ref_q, coarse = (_closed_loop(model, h, duration, 1, warmup=False)[0]  # untimed
+    fine, ref_q, coarse = (_closed_loop(model, controller, h, duration, 1, warmup=False)[0]
                            for h in (reference_step / 2, reference_step, 2 * reference_step))
     reference = 2 * ref_q[::2] - coarse
     ranges = (float(np.max(np.ptp(reference[:, :3], axis=0))),
@@ -279,7 +281,7 @@ def closed_loop_sweep(model: Model, steps: Sequence[float] = CLOSED_LOOP_STEPS,
     rows = np.zeros(len(steps), dtype=CLOSED_LOOP_FIELDS)
     for k, h in enumerate(steps):
         try:
-            q, track, wall = _closed_loop(model, h, duration, repeats)
+            q, track, wall = _closed_loop(model, controller, h, duration, repeats)
             rows[k] = (h, pose_error(q, h), track / ranges[0], wall, 1.0)
         except UnstableLoopError:
             rows[k] = (h, np.nan, np.nan, np.nan, 0.0)
@@ -294,12 +296,13 @@ def closed_loop_order(rows: np.ndarray) -> float:
     return float(np.polyfit(np.log(ok["step"]), np.log(ok["pose_error"]), 1)[0]) if len(ok) > 1 else np.nan
 
 
-def _closed_loop(model: Model, step: float, duration: float, repeats: int, warmup: bool = True):
+def _closed_loop(model: Model, controller: ControllerConfig, step: float, duration: float,
+                 repeats: int, warmup: bool = True):
     """(pose (N, 6), max translational tracking error (m), least loop wall time (s)) of the
     `run` reference tracked with the scene's controllers at communication step `step`; the
     timed loops come after an untimed warm-up loop of the same step (best_of)."""
 
-    config = replace(controller_config(model), rate=1.0 / step)
+    config = replace(controller, rate=1.0 / step)
     traj = run_reference(model, config, duration)
 
     def run():
@@ -330,12 +333,13 @@ class AccuracyResults:
     repeats: int
 
 
-def accuracy_study(model: Model, horizon: float = HORIZON, comm_step: float = COMM_STEP,
+def accuracy_study(model: Model, controller: ControllerConfig | None,
+                   horizon: float = HORIZON, comm_step: float = COMM_STEP,
                    sweep: str = "default", repeats: int = 3,
                    closed_loop_duration: float | None = CLOSED_LOOP_DURATION,
                    progress: Callable[[str, int, int], None] | None = None) -> AccuracyResults:
-    """Open-loop work-precision of every integrator, orders, and (with a [controller] table
-    and a closed_loop_duration) the closed loop's communication steps."""
+    """Open-loop work-precision of every integrator, orders, and (with the scene's [controller]
+    table, `controller`, and a closed_loop_duration) the closed loop's communication steps."""
     def stage(name: str) -> ProgressFn | None:
         return None if progress is None else (lambda done, total: progress(name, done, total))
 
@@ -345,9 +349,9 @@ def accuracy_study(model: Model, horizon: float = HORIZON, comm_step: float = CO
     rows = open_loop_sweep(case, ref, settings_for(SWEEPS[sweep], comm_step), repeats,
                            stage("open loop"))
     closed, check = None, np.nan
-    if "controller" in model.extra and closed_loop_duration is not None:
-        closed, check = closed_loop_sweep(model, duration=closed_loop_duration, repeats=repeats,
-                                          progress=stage("closed loop"))
+    if controller is not None and closed_loop_duration is not None:
+        closed, check = closed_loop_sweep(model, controller, duration=closed_loop_duration,
+                                          repeats=repeats, progress=stage("closed loop"))
     return AccuracyResults(model.name, case, ref, floor, rows, convergence_orders(rows, floor),
                            convergence_orders(rows, floor, "force_error"), closed, check,
                            closed_loop_duration, sweep, repeats)

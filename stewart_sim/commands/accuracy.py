@@ -48,7 +48,7 @@ def run(args: argparse.Namespace) -> None:
     """Run the study, write its report, print the files."""
     from stewart_sim.scene_load import load
 
-    model = load(args.scene).model        # a bad scene file fails before the heavy imports
+    scene = load(args.scene)        # a bad scene file fails before the heavy imports
     from stewart_fmu.io import writing
     from stewart_sim.accuracy.report import write_accuracy_report
     from stewart_sim.accuracy.study import CLOSED_LOOP_REFERENCE, accuracy_study
@@ -66,8 +66,9 @@ def run(args: argparse.Namespace) -> None:
         progress = Progress()
         try:
             results = accuracy_study(
-                model, args.horizon, args.comm_step, "fine" if args.fine else "default",
-                args.repeats, None if args.no_closed_loop else args.closed_loop_duration,
+                scene.model, scene.controller, args.horizon, args.comm_step,
+                "fine" if args.fine else "default", args.repeats,
+                None if args.no_closed_loop else args.closed_loop_duration,
                 lambda stage_, done, total: progress.update(stage_, done, total, unit="runs"))
         finally:
             progress.close()

@@ -25,12 +25,12 @@ def add_parser(sub, help_text: str) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run the case, print the report; exit status 1 (SystemExit) on a mismatch, else 0."""
     from stewart_sim.case_report import MISMATCH_STATUS, agrees, report
-    from stewart_sim.cases import case_of, run_case
+    from stewart_sim.cases import run_case
     from stewart_sim.scene_load import load
 
-    model = load(args.scene).model
-    case = case_of(model)
-    result = run_case(model, duration=args.duration)
+    scene = load(args.scene)
+    model, case = scene.model, scene.require_case()
+    result = run_case(model, case, scene.controller, duration=args.duration)
     print(report(model.name, case, result, args.duration))
     if not agrees(case, result):
         raise SystemExit(MISMATCH_STATUS)

@@ -54,12 +54,13 @@ def run(args: argparse.Namespace) -> None:
     from stewart_sim.scene_load import load
     from stewart_sim.view.files import VIEW_FILE, write_beside
 
-    model = load(args.scene).model
+    scene = load(args.scene)
+    model = scene.model
     motion = read_motion(Path(args.motion))
     modes = (args.mode, *(m for m in MODES if m != args.mode)) if args.compare else (args.mode,)
     progress = Progress()
     try:
-        study = cue_study(model, motion, modes, track=args.track,
+        study = cue_study(scene, motion, modes, track=args.track,
                           progress=lambda stage, done, total: progress.update(stage, done, total,
                                                                               unit="steps"))
     finally:

@@ -34,6 +34,9 @@ def add_parser(sub, help_text: str) -> None:
 
 def run(args: argparse.Namespace) -> None:
     """Run the sweep, print its figures and the files."""
+    from stewart_sim.scene_load import load
+
+    load(args.scene)    # every table of the base scene checked before the cluster starts
     from stewart_sim.sweep.files import run_sweep_files  # dask: only for this command
 
     args.kept = (f"the points finished so far are kept in {args.out} (its chunk files), "

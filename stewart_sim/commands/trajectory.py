@@ -44,7 +44,8 @@ def run(args: argparse.Namespace) -> None:
     from stewart_sim.scene_load import load
     from stewart_sim.trajectory import checked, move, waypoint_trajectory, write_trajectory
 
-    model = load(args.scene).model
+    scene = load(args.scene)
+    model = scene.model
     if args.waypoints is not None:
         if args.duration is not None:
             raise StewartError("trajectory: --duration applies to --move only (the waypoint "
@@ -52,7 +53,7 @@ def run(args: argparse.Namespace) -> None:
         traj = waypoint_trajectory(Path(args.waypoints), args.rate or DEMO_RATE)
         what = f"spline through {args.waypoints}"
     else:
-        traj = move(model, args.move, args.duration or DEMO_DURATION, args.rate)
+        traj = move(model, args.move, args.duration or DEMO_DURATION, args.rate, scene.controller)
         what = f"{args.move} move"
     checked(model, traj)
     out = Path(args.out)

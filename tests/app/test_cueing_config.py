@@ -155,11 +155,12 @@ def test_the_scene_rate_reaches_the_solver():
     mo = motion(t, f_dev)
     model = scene_from_dict(with_optimal(rate=10, horizon=1.5))
     config = cueing_config(model)
-    cue, solver = make_cue("optimal", model, config, mo)
+    cue, solver = make_cue("optimal", scene_of(model), config, mo)
     assert solver is not None and solver.t.size == 120
     np.testing.assert_allclose(np.diff(solver.t), 0.1, rtol=0, atol=1e-12)
     assert solver.status_counts == {"solved": 120}
     direct = optimal_cueing(model, config, mo, model.home, model.gravity,
+                            controller=scene_of(model).controller,
                             options=OptimalOptions(rate=10.0, horizon=1.5))
     assert direct.diagnostics.t.size == 120
     np.testing.assert_array_equal(cue.q, direct.cue.q)
