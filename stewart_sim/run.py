@@ -21,7 +21,7 @@ from stewart_fmu.io import writing
 from stewart_fmu.model import Model
 from stewart_fmu.scene import scene_from_dict
 from stewart_sim.compare.report import write_comparison_report
-from stewart_sim.compare.study import compare_drive_inertia, regime
+from stewart_sim.compare.study import N_POINTS, compare_drive_inertia, regime
 from stewart_sim.plots import drive_figure, leg_errors_figure, save_figure, tracking_figure
 from stewart_sim.progress import Progress
 from stewart_sim.scene_info import format_vector
@@ -201,7 +201,7 @@ def run_summary(model: Model, result, traj, where: str) -> str:
     return "\n".join(lines)
 
 
-def run_compare(scenes: Sequence[Scene], out: Path, points: int = 8) -> list[Path]:
+def run_compare(scenes: Sequence[Scene], out: Path, points: int = N_POINTS) -> list[Path]:
     """The drive-inertia comparison of each scene (stewart_sim.compare.study), its files in `out`."""
     pairs = [(s.model, s.require_controller()) for s in scenes]  # every scene checked first
     results = []

@@ -37,6 +37,7 @@ from stewart_fmu.plant import Plant, StepRejected
 
 COMM_STEP = 0.05          # s: open-loop communication step (forces held over it)
 HORIZON = 1.0             # s: open-loop horizon
+REPEATS = 3               # timings per run, the best kept (runs under 0.2 s repeat until then)
 PERTURBATION = 0.05       # perturbation amplitude, a fraction of the peak planned force
 PERTURBATION_HZ = (0.7, 1.1, 0.9, 1.3, 0.8, 1.2)
 REFERENCE = IntegratorOptions("DOP853", rtol=1e-13, atol=1e-16)   # max_step: the comm step
@@ -198,7 +199,7 @@ OPEN_LOOP_FIELDS = [("method", "U12"), ("step", "f8"), ("rtol", "f8"), ("pose_er
 
 
 def open_loop_sweep(case: OpenLoopCase, ref: Reference, settings: Sequence[IntegratorOptions],
-                    repeats: int = 3, progress: ProgressFn | None = None) -> np.ndarray:
+                    repeats: int = REPEATS, progress: ProgressFn | None = None) -> np.ndarray:
     """One row per setting: method, step (fixed-step methods) or rtol, errors, run time (s)."""
     rows = np.zeros(len(settings), dtype=OPEN_LOOP_FIELDS)
     # every timed setting gets its own untimed warm-up call first (timed -> best_of)
@@ -256,7 +257,7 @@ CLOSED_LOOP_FIELDS = [("step", "f8"), ("pose_error", "f8"), ("tracking_error", "
 def closed_loop_sweep(model: Model, controller: ControllerConfig,
                       steps: Sequence[float] = CLOSED_LOOP_STEPS,
                       duration: float = CLOSED_LOOP_DURATION,
-                      reference_step: float = CLOSED_LOOP_REFERENCE, repeats: int = 3,
+                      reference_step: float = CLOSED_LOOP_REFERENCE, repeats: int = REPEATS,
                       progress: ProgressFn | None = None) -> tuple[np.ndarray, float]:
     """The scene's controllers (`controller`, its [controller] table) at several communication
     steps. Rows per communication step: pose error against the reference loop (relative to the
@@ -335,7 +336,7 @@ class AccuracyResults:
 
 def accuracy_study(model: Model, controller: ControllerConfig | None,
                    horizon: float = HORIZON, comm_step: float = COMM_STEP,
-                   sweep: str = "default", repeats: int = 3,
+                   sweep: str = "default", repeats: int = REPEATS,
                    closed_loop_duration: float | None = CLOSED_LOOP_DURATION,
                    progress: Callable[[str, int, int], None] | None = None) -> AccuracyResults:
     """Open-loop work-precision of every integrator, orders, and (with the scene's [controller]

@@ -14,8 +14,8 @@ _repeats = number(int, "an integer", lambda v: 1 <= v <= 20, "1 to 20")
 
 def add_parser(sub, help_text: str) -> None:
     """Register `accuracy` on the command line's subparsers."""
-    horizon, comm_step, closed_loop = literals("stewart_sim.accuracy.study", "HORIZON",
-                                               "COMM_STEP", "CLOSED_LOOP_DURATION")
+    horizon, comm_step, closed_loop, repeats = literals(
+        "stewart_sim.accuracy.study", "HORIZON", "COMM_STEP", "CLOSED_LOOP_DURATION", "REPEATS")
     p = sub.add_parser("accuracy", help=help_text,
                        description="Work-precision report: forward simulations of the scene "
                                    "with every integrator over a range of steps or tolerances "
@@ -33,9 +33,9 @@ def add_parser(sub, help_text: str) -> None:
                         f"fixed-step methods divide it (default {comm_step:g} s)")
     p.add_argument("--fine", action="store_true",
                    help="finer sweep: every decade of rtol from 1e-3 to 1e-12, more steps")
-    p.add_argument("--repeats", type=_repeats, default=3, metavar="N",
+    p.add_argument("--repeats", type=_repeats, default=repeats, metavar="N",
                    help="time each run N times or more (runs under 0.2 s repeat until then), keep "
-                        "the best; 1: a single timing (default 3)")
+                        f"the best; 1: a single timing (default {repeats})")
     p.add_argument("--closed-loop-duration", type=positive_seconds,
                    default=closed_loop, metavar="SECONDS",
                    help=f"length of the closed-loop runs (default {closed_loop:g} s)")

@@ -6,12 +6,14 @@ import argparse
 from pathlib import Path
 
 from stewart_sim.argtypes import number
+from stewart_sim.commands.constants import literals
 
 _points = number(int, "an integer", lambda v: 1 <= v <= 100, "1 to 100")
 
 
 def add_parser(sub, help_text: str) -> None:
     """Register `compare` on the command line's subparsers."""
+    (points,) = literals("stewart_sim.compare.study", "N_POINTS")
     p = sub.add_parser("compare", help=help_text,
                        description="Sweep each scene's gear ratio (m_d / m_load over "
                                    "0.1-100), re-tune the per-axis PID at every point and track "
@@ -19,9 +21,9 @@ def add_parser(sub, help_text: str) -> None:
                                    "kane; writes comparison.csv, comparison.png and report.md.")
     p.add_argument("scenes", metavar="SCENE", nargs="+", help="scene files (TOML)")
     p.add_argument("--out", required=True, metavar="DIR", help="output directory")
-    p.add_argument("--points", type=_points, default=8, metavar="N",
-                   help="log-spaced sweep points per scene (default 8; the scene's own gear "
-                        "ratio is added)")
+    p.add_argument("--points", type=_points, default=points, metavar="N",
+                   help=f"log-spaced sweep points per scene (default {points}; the scene's own "
+                        "gear ratio is added)")
     p.set_defaults(run=run)
 
 

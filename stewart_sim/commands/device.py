@@ -6,10 +6,12 @@ from __future__ import annotations
 import argparse
 
 from stewart_sim.argtypes import port, positive_seconds
+from stewart_sim.commands.constants import literals
 
 
 def add_parser(sub, help_text: str) -> None:
     """Register `device` on the command line's subparsers."""
+    (watchdog,) = literals("hil.spawn", "WATCHDOG")
     p = sub.add_parser("device", help=help_text,
                        description="Run the scene's plant and drive servo loops at the "
                                    "controller rate as an emulated device speaking MAVLink 2 "
@@ -24,9 +26,9 @@ def add_parser(sub, help_text: str) -> None:
                             "whoever sends to it")
     where.add_argument("--pty", action="store_true",
                        help="open a pseudo-terminal and print its path on the first line")
-    p.add_argument("--watchdog", type=positive_seconds, default=0.2, metavar="SECONDS",
+    p.add_argument("--watchdog", type=positive_seconds, default=watchdog, metavar="SECONDS",
                    help="safe stop (hold) after this long without a valid setpoint while armed "
-                        "(default 0.2 s)")
+                        f"(default {watchdog:g} s)")
     p.add_argument("--lockstep", action="store_true",
                    help="advance time only on LOCKSTEP messages (deterministic runs)")
     p.add_argument("--signing-key", metavar="HEX",

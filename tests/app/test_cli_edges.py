@@ -474,6 +474,14 @@ def test_help_defaults_are_the_librarys() -> None:
     assert literals("stewart_sim.accuracy.study", "HORIZON", "COMM_STEP",
                     "CLOSED_LOOP_DURATION") == (
         study.HORIZON, study.COMM_STEP, study.CLOSED_LOOP_DURATION)
+    from hil import spawn
+    from stewart_sim.compare import study as compare
+    from stewart_sim.view import data
+
+    assert literals("stewart_sim.accuracy.study", "REPEATS") == (study.REPEATS,)
+    assert literals("stewart_sim.compare.study", "N_POINTS") == (compare.N_POINTS,)
+    assert literals("hil.spawn", "WATCHDOG") == (spawn.WATCHDOG,)
+    assert literals("stewart_sim.view.data", "DEFAULT_FPS") == (data.DEFAULT_FPS,)
 
 
 def test_any_run_files_covers_the_link_run() -> None:

@@ -1,6 +1,7 @@
 """The `simulate`, `trajectory` and `case` commands (stewart_sim.simulate, .trajectory,
 .case_report), called through a local argparse parser built from their command modules'
-add_parser functions (stewart_sim.commands, the way stewart_sim/cli.py registers them) and through their pipeline functions."""
+add_parser functions (stewart_sim.commands, the way stewart_sim/cli.py registers them) and
+through their pipeline functions."""
 from __future__ import annotations
 
 import argparse
