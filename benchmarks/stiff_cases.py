@@ -7,7 +7,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from stewart_fmu import load_scene
+from stewart_sim.scene_load import load
 from stewart_sim.stiff_study import hour_drift, integrator_study
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
@@ -18,16 +18,17 @@ def main() -> None:
     parser.add_argument("--hour", type=float, default=3600.0, help="simulated seconds of the drift run")
     args = parser.parse_args()
     for path in sorted((SCENES / "stiff").glob("*.toml")):
-        model = load_scene(path)
-        print(f"\n{path.name}: {model.extra['case']['description']}")
+        scene = load(path)
+        model = scene.model
+        print(f"\n{path.name}: {scene.case.description}")
         print(f"| integrator | outcome | max error vs Radau 1e-10 | run time (s) | rhs evaluations |")
         print("|---|---|---|---|---|")
-        for r in integrator_study(model):
+        for r in integrator_study(model, scene.case, scene.controller):
             where = f" at t = {r.time:.3g} s" if r.time is not None else ""
             print(f"| {r.label} | {r.outcome}{where} | {r.error:.2e} | {r.wall:.3f} | {r.evaluations} |")
-    hour = load_scene(SCENES / "extreme" / "hour.toml")
+    hour = load(SCENES / "extreme" / "hour.toml")
     for step in (1e-3, 1e-2):
-        d = hour_drift(hour, args.hour, step)
+        d = hour_drift(hour.model, hour.case, args.hour, step)
         print(f"\nhour run, rk4 at {step:g} s over {d.duration:g} s: energy drift {d.energy_drift:.2e} "
               f"of the peak kinetic energy, orientation drift {d.orientation_drift:.2e} rad, "
               f"{d.wall:.1f} s wall")

@@ -125,7 +125,7 @@ def _run_compiled(model, traj, refs, v_ff, ctrl, motors, bound, rec, progress, o
     the loop's wall time."""
     g, m, ax = ctrl.gains, motors.axis.motor, motors.axis
     n = len(traj.t)
-    P = core.native_params(model.params)
+    P = model.native
     opts = core.options(o.method, o.rtol, o.atol, o.max_step, o.max_steps, ENERGY_TOL)
     d = ffi.new("stewart_data *")          # the plant's state, carried from call to call
     y = initial_state(model, traj.q[0], traj.qd[0], motors.current * ax.force_constant)

@@ -22,7 +22,7 @@ import time
 from pathlib import Path
 from typing import Callable, Iterator
 
-from controller.config import controller_config
+from controller.config import ControllerConfig, controller_config
 from hil.device import Device
 from hil.errors import LinkError
 from hil.link import pty_pair, udp_server
@@ -107,18 +107,18 @@ def signing_key(text: str | None) -> bytes | None:
     return key
 
 
-def serve_device(model: Model, udp: str | None, watchdog: float = WATCHDOG,
+def serve_device(model: Model, config: ControllerConfig, udp: str | None,
+                 watchdog: float = WATCHDOG,
                  lockstep: bool = False, key_hex: str | None = None, *,
                  observer: Latest | None = None,
                  ready: Callable[[], None] | None = None) -> None:
-    """Serve the emulated device for `model` on loopback UDP (`udp`, "127.0.0.1:PORT") or, with
+    """Serve the emulated device for `model` (its [controller] table: `config`) on loopback UDP (`udp`, "127.0.0.1:PORT") or, with
     udp None, a pseudo-terminal, until SIGINT or SIGTERM. The first line on stdout says where it
     listens; a summary goes to stderr when it stops. With `observer` the device publishes its
     snapshots there (`Device.observe`, hil.observe); `ready` is called once that first line is
     out, just before the loop starts (the caller announces what it serves beside the device)."""
     key = signing_key(key_hex)
     address = loopback_address(udp) if udp is not None else None
-    config = controller_config(model)
     device = Device(model, config, watchdog=watchdog, signing_key=key, lockstep=lockstep)
     if observer is not None:
         device.observe(observer)
@@ -170,7 +170,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--signing-key")
     args = parser.parse_args(argv)
     try:
-        serve_device(load_scene(args.scene), args.udp, args.watchdog, args.lockstep,
+        model = load_scene(args.scene)
+        serve_device(model, controller_config(model), args.udp, args.watchdog, args.lockstep,
                      args.signing_key)
     except StewartError as exc:
         print(f"device: {exc}", file=sys.stderr)

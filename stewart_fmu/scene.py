@@ -16,9 +16,9 @@ from .model import DriveParams, FrictionParams, LegParams, Model, TransmissionPa
 from .table import BOUND_NONNEG, BOUND_POS, BOUND_WORDS
 
 DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
-# Tables the project defines on top of the contract; each owner module validates its own.
-PROJECT_TABLES = frozenset({"trajectory", "controller", "link", "solver", "device", "case",
-                            "cueing"})
+# Tables the project defines on top of the contract, each read by a command (parsed once by
+# stewart_sim.scene_load: [controller], [cueing], [case], [solver]); any other table is refused.
+PROJECT_TABLES = frozenset({"controller", "case", "cueing", "solver"})
 _TOP_KEYS = {"name", "gravity", "geometry", "platform", "legs", "drive", "friction",
              "transmission"}
 _TABLE_KEYS = {

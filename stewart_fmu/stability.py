@@ -50,13 +50,15 @@ def spectral_radius(model: Model, y: np.ndarray, F: np.ndarray) -> float:
     NaN when a neighbouring state cannot be evaluated (stroke, singularity)."""
     p = model.params.copy()
     p[M.P_COULOMB] = 0.0
+    # packed for the core once for the 2 n derivatives below (the model's own when unchanged)
+    packed = model.native if np.array_equal(p, model.params) else core.native_params(p)
     scale = np.maximum(np.abs(y), model.characteristic_length)
     cols = []
     for j in range(y.shape[0]):
         e = np.zeros_like(y)
         e[j] = _FD * scale[j]
-        hi, s1 = derivative(p, y + e, F)
-        lo, s2 = derivative(p, y - e, F)
+        hi, s1 = derivative(packed, y + e, F)
+        lo, s2 = derivative(packed, y - e, F)
         if s1 != OK or s2 != OK:  # a neighbour leaves the valid region: no estimate
             return math.nan
         cols.append((hi - lo) / (2.0 * e[j]))

@@ -1,5 +1,5 @@
-"""`stewart-sim case SCENE [--duration S]`: run a shipped stiff or extreme scene's [case]
-(stewart_sim.cases.run_case) and report its outcome against the one the case expects.
+"""What `stewart-sim case SCENE [--duration S]` reports (stewart_sim.commands.case): a shipped
+stiff or extreme scene's [case] outcome (stewart_sim.cases.run_case) against the one it expects.
 
 Exit status: 0 when the outcome is the expected one (also when the expected outcome is an
 error, e.g. StrokeLimitError: the case shows that the error is caught), 1 when it is not (a
@@ -8,42 +8,13 @@ without a [case] table, a bad --duration) as for every command.
 """
 from __future__ import annotations
 
-import argparse
 import math
 
 import numpy as np
 
-from stewart_fmu.scene import load_scene
-from stewart_sim.argtypes import positive_seconds
-from stewart_sim.cases import Case, CaseResult, case_of, run_case
+from stewart_sim.cases import Case, CaseResult
 
 MISMATCH_STATUS = 1
-
-
-def add_parser(sub) -> None:
-    """Register `case` on the CLI's subparsers."""
-    p = sub.add_parser(
-        "case", help="run a stiff or extreme scene's [case] and check its outcome",
-        description="Run the [case] of a scene (scenes/stiff, scenes/extreme: a hold, a move or "
-                    "a closed loop) and report its outcome (ok, or the typed error that ended "
-                    "it, with where) against the outcome the case expects, with its figures. "
-                    "Exit status 0 when they agree, 1 when they do not.")
-    p.add_argument("scene", metavar="SCENE", help="scene file (TOML) with a [case] table")
-    p.add_argument("--duration", type=positive_seconds, default=None, metavar="S",
-                   help="run this long instead of the case's duration (e.g. a short look at "
-                        "the hour-long hold)")
-    p.set_defaults(run=cmd)
-
-
-def cmd(args: argparse.Namespace) -> int:
-    """Run the case, print the report; exit status 1 (SystemExit) on a mismatch, else 0."""
-    model = load_scene(args.scene)
-    case = case_of(model)
-    result = run_case(model, duration=args.duration)
-    print(report(model.name, case, result, args.duration))
-    if not agrees(case, result):
-        raise SystemExit(MISMATCH_STATUS)
-    return 0
 
 
 def agrees(case: Case, result: CaseResult) -> bool:

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from controller.config import controller_config
+from controller.config import ControllerConfig
 from controller.cosim import run_closed_loop
 from controller.moves import run_reference
 from controller.plants import InProcessPlant, PlantStepError
@@ -96,15 +96,16 @@ def case_trajectory(model: Model, case: Case, duration: float | None = None) -> 
     return quintic(model.home, case.target, 1.0 / case.step, duration)
 
 
-def run_case(model: Model, options: IntegratorOptions | None = None,
+def run_case(model: Model, case: Case, controller: ControllerConfig | None,
+             options: IntegratorOptions | None = None,
              duration: float | None = None) -> CaseResult:
-    """Run the model's case (optionally shorter, and with given plant integrator options)."""
-    case = case_of(model)
+    """Run the scene's case (its [case] table: `case`; its [controller] table: `controller`,
+    needed by a closed-loop case), optionally shorter and with given plant integrator options."""
     start = wallclock.perf_counter()
     if case.motion == "hold":
         result = simulate_hold(model, case, options, duration)
     elif case.motion == "closed_loop":
-        result = _closed_loop(model, case, options, duration)
+        result = _closed_loop(model, case, controller, options, duration)
     else:
         result = _inverse(model, case, duration)
     result.wall = wallclock.perf_counter() - start
@@ -158,10 +159,11 @@ def _inverse(model: Model, case: Case, duration: float | None) -> CaseResult:
                       extra={"trajectory": traj})
 
 
-def _closed_loop(model: Model, case: Case, options: IntegratorOptions | None,
-                 duration: float | None) -> CaseResult:
+def _closed_loop(model: Model, case: Case, config: ControllerConfig | None,
+                 options: IntegratorOptions | None, duration: float | None) -> CaseResult:
     """The scene's controllers on the `run` reference, through the in-process plant."""
-    config = controller_config(model)
+    if config is None:
+        raise StewartError("case: motion 'closed_loop' needs the scene's [controller] table")
     traj = run_reference(model, config, case.duration if duration is None else duration)
     port = InProcessPlant(model, options)
     try:

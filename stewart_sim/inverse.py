@@ -14,7 +14,7 @@ from stewart_fmu.io import writing
 from stewart_fmu.kinematics import check_poses
 from stewart_fmu.model import Model
 from stewart_sim.progress import Progress
-from stewart_sim.view.command import write_beside
+from stewart_sim.view.files import write_beside
 from stewart_sim.view.sources import trajectory_view
 
 CHUNK_SAMPLES = 50_000       # samples per block of the pose check and of the dynamics

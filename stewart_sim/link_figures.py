@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from controller.config import controller_config
+from controller.config import ControllerConfig
 from controller.moves import move_and_hold, run_reference
 from hil.budget import BAUDS, rate_table
 from hil.client import Client, connect_device, link_reference, run_lockstep, run_realtime
@@ -32,8 +32,8 @@ from hil.link import Impairments, LinkEmulator, WallClock, queue_pair
 from hil.serve import serve_in_thread
 from hil.spawn import device_process
 from stewart_fmu.io import write_text
-from stewart_fmu.scene import load_scene
 from stewart_sim.plots import plot_leg_forces, plot_line, save_figure
+from stewart_sim.scene_load import load
 
 # ---------------------------------------------------------------- measured
 
@@ -163,7 +163,7 @@ def run_link_figure(table: np.ndarray, title: str) -> Figure:
     return fig
 
 
-def report(out: Path, model, config, n: int = 500, **cases) -> Path:
+def report(out: Path, model, config: ControllerConfig, n: int = 500, **cases) -> Path:
     """figures.md and tracking_vs_link.png in `out`; `cases` go to `degradation`."""
 
     out.mkdir(parents=True, exist_ok=True)
@@ -215,9 +215,9 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(argv[0] if argv else "hil_figures")
     scene = argv[1] if len(argv) > 1 else str(Path(__file__).resolve().parents[1] / "scenes"
                                                  / "micro_manipulator.toml")
-    model = load_scene(scene)
+    loaded = load(scene)
     t0 = time.perf_counter()
-    path = report(out, model, controller_config(model))
+    path = report(out, loaded.model, loaded.require_controller())
     print(path.read_text())
     print(f"({time.perf_counter() - t0:.1f} s)")
     return 0

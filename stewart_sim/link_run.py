@@ -22,7 +22,7 @@ from hil.spawn import device_process
 from stewart_fmu import io as sio
 from stewart_fmu.model import Model
 from stewart_sim.link_figures import run_figure
-from stewart_sim.view.command import VIEW_FILE, write_beside
+from stewart_sim.view.files import VIEW_FILE, write_beside
 from stewart_sim.view.sources import run_table_view
 
 

@@ -54,6 +54,11 @@ def result_set(out: str | Path, known: Iterable[str] = ()) -> Iterator[Path]:
         yield stage
 
 
+def written_in(stage: Path, out: Path, paths: Iterable[str | Path]) -> list[Path]:
+    """The paths written into the stage of a result_set, as they are in `out` once moved in."""
+    return [out / Path(p).relative_to(stage) for p in paths]
+
+
 @contextmanager
 def file_set(*paths: str | Path) -> Iterator[list[Path]]:
     """Files of one directory written together or not at all (`inverse`: FORCES.csv and its

@@ -9,22 +9,24 @@ from typing import Sequence
 
 import numpy as np
 
-from controller.config import controller_config
+from controller.config import ControllerConfig
 from controller.cosim import run_closed_loop
 from controller.moves import RUN_HOLD, RUN_MOVE, run_reference
 from controller.plants import FmuPlant
 from stewart_fmu import io
 from stewart_fmu.errors import StewartError
 from stewart_fmu.fmu.export import SCENE_RESOURCE
+from stewart_fmu.integrators import IntegratorOptions
 from stewart_fmu.io import writing
 from stewart_fmu.model import Model
-from stewart_fmu.scene import load_scene, scene_from_dict
+from stewart_fmu.scene import scene_from_dict
 from stewart_sim.compare.report import write_comparison_report
-from stewart_sim.compare.study import compare_drive_inertia, regime
+from stewart_sim.compare.study import N_POINTS, compare_drive_inertia, regime
 from stewart_sim.plots import drive_figure, leg_errors_figure, save_figure, tracking_figure
 from stewart_sim.progress import Progress
 from stewart_sim.scene_info import format_vector
-from stewart_sim.view.command import VIEW_FILE, write_beside
+from stewart_sim.scene_load import Scene
+from stewart_sim.view.files import VIEW_FILE, write_beside
 from stewart_sim.view.sources import run_table_view
 
 RUN_FILES = ("run.csv", "run_tracking.png", "run_errors.png", "run_forces.png", "summary.md",
@@ -61,18 +63,19 @@ def write_parquet(path: Path, table: np.ndarray) -> Path:
     return io.atomic_write(path, lambda fh: pq.write_table(arrow, fh), binary=True)
 
 
-def run_closed_loop_files(model: Model, config, duration: float, out: Path,
-                          fmu: Path | None = None, fmt: str = "csv", view: bool = True):
-    """Run the closed loop (in-process plant, or the FMU) and write run_files(fmt, view) into
-    `out` (progress covers the writing: a long run's CSV takes seconds); returns
-    (ClosedLoopResult, reference)."""
+def run_closed_loop_files(model: Model, config: ControllerConfig, duration: float, out: Path,
+                          fmu: Path | None = None, fmt: str = "csv", view: bool = True,
+                          options: IntegratorOptions | None = None):
+    """Run the closed loop (in-process plant with `options`, the scene's [solver]; or the FMU)
+    and write run_files(fmt, view) into `out` (progress covers the writing: a long run's CSV
+    takes seconds); returns (ClosedLoopResult, reference)."""
     check_format(fmt)
     traj = run_reference(model, config, duration)
     plant = open_fmu(fmu, model) if fmu is not None else None
     progress = Progress()
     try:
         try:
-            result = run_closed_loop(model, config, traj, plant=plant,
+            result = run_closed_loop(model, config, traj, plant=plant, options=options,
                                      progress=lambda k, n: progress.update("closed loop", k, n))
             progress.update("closed loop", len(traj.t), len(traj.t))
         finally:
@@ -198,15 +201,13 @@ def run_summary(model: Model, result, traj, where: str) -> str:
     return "\n".join(lines)
 
 
-def run_compare(scenes: Sequence[Path], out: Path, points: int = 8) -> list[Path]:
+def run_compare(scenes: Sequence[Scene], out: Path, points: int = N_POINTS) -> list[Path]:
     """The drive-inertia comparison of each scene (stewart_sim.compare.study), its files in `out`."""
-
-    models = [load_scene(s) for s in scenes]        # every scene checked before any work
-    configs = [controller_config(m) for m in models]
+    pairs = [(s.model, s.require_controller()) for s in scenes]  # every scene checked first
     results = []
     progress = Progress()
     try:
-        for model, config in zip(models, configs):
+        for model, config in pairs:
             results.append(compare_drive_inertia(
                 model, config, n_points=points,
                 progress=lambda k, n, name=model.name: progress.update(

@@ -1,24 +1,24 @@
-"""`scene-info`: the model a scene builds, as text, checked as `run` and `inverse` check it
-(the scene, and its [controller] and [cueing] tables when it has them), with every table it
-has."""
+"""`scene-info`: the model a scene builds and its tables as every command reads them
+(stewart_sim.scene_load.Scene: the scene and its [controller], [cueing], [case] and [solver]
+tables, parsed once)."""
 from __future__ import annotations
 
 import numpy as np
 
-from controller.config import controller_config
+from controller.config import ControllerConfig
 from controller.drive import axis_model
+from stewart_fmu.integrators import IntegratorOptions
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.model import Model
-from stewart_fmu.scene import PROJECT_TABLES
 
-from .cueing.config import OPTIMAL, cueing_config, optimal_options
-
-# Project tables scene-info names without describing (their owners check them when used).
-_OTHER_TABLES = sorted(PROJECT_TABLES - {"controller", "case", "cueing"})
+from .cueing.config import OPTIMAL, CueingConfig, OptimalOptions
+from .scene_load import Scene
 
 
-def describe_model(model: Model) -> str:
-    """The model as text: name, effects, masses, m_d, home leg lengths, cond(J) at home."""
+def describe(scene: Scene) -> str:
+    """The scene as text: name, effects, masses, m_d, home leg lengths, cond(J) at home, and
+    its tables."""
+    model = scene.model
     kin = inverse_kinematics(model, model.home)
     lines = [
         f"scene: {model.name}" + (f" ({model.source})" if model.source else ""),
@@ -32,15 +32,20 @@ def describe_model(model: Model) -> str:
         f"home leg lengths: {format_vector(kin.lengths)} m",
         f"cond(J) at home: {kin.cond:.6g} (rotational columns scaled by "
         f"{model.characteristic_length:.6g} m)",
-        _describe_transmission(model), _describe_controller(model), _describe_case(model),
-        _describe_cueing(model),
+        _describe_transmission(model), _describe_controller(model, scene.controller),
+        _describe_case(model), _describe_cueing(model, scene.cueing),
     ]
     if OPTIMAL in (model.extra.get("cueing") or {}):
-        lines.append(_describe_optimal(model))
-    others = [t for t in _OTHER_TABLES if t in model.extra]
-    if others:
-        lines.append("other tables: " + ", ".join(f"[{t}]" for t in others))
+        lines.append(_describe_optimal(scene.optimal))
+    lines.append(_describe_solver(scene.solver, scene.has_solver))
     return "\n".join(lines)
+
+
+def _describe_solver(o: IntegratorOptions, given: bool) -> str:
+    """The in-process plant's integrator (`run`, `simulate`): the [solver] table or the default."""
+    where = "[solver]" if given else "no [solver]: stability.default_options"
+    return (f"solver: {o.method}, rtol {o.rtol:g}, atol {o.atol:g}, max_step {o.max_step:.6g} s "
+            f"({where}; run and simulate in-process)")
 
 
 def _describe_transmission(model: Model) -> str:
@@ -53,11 +58,10 @@ def _describe_transmission(model: Model) -> str:
             f"{model.state_size} states)")
 
 
-def _describe_controller(model: Model) -> str:
-    """The [controller] table, built as `run` builds it (SceneError as `run` says it)."""
-    if "controller" not in model.extra:
+def _describe_controller(model: Model, cfg: ControllerConfig | None) -> str:
+    """The [controller] table and the axis model `run` designs for."""
+    if cfg is None:
         return "controller: none (run, compare and closed-loop sweeps need a [controller] table)"
-    cfg = controller_config(model)
     m = cfg.motor
     axis = axis_model(model, m, cfg.load_mass)
     load = "given" if cfg.load_mass is not None else "largest diagonal of Kane's [m] at home"
@@ -81,11 +85,10 @@ def _describe_case(model: Model) -> str:
             + f": {t['description']}")
 
 
-def _describe_cueing(model: Model) -> str:
-    """The [cueing] table as the washout reads it (SceneError as the washout says it)."""
+def _describe_cueing(model: Model, c: CueingConfig) -> str:
+    """The [cueing] table as the washout reads it."""
     if "cueing" not in model.extra:
         return "cueing: none (motion cueing uses the defaults of stewart_sim/cueing/config.py)"
-    c = cueing_config(model)
     return (f"cueing: classical washout; translational gain "
             f"{format_vector(c.translational_gain)}, limit "
             f"{format_vector(c.translational_limit)} m/s^2, high-pass order "
@@ -102,9 +105,8 @@ def _describe_cueing(model: Model) -> str:
                else ""))
 
 
-def _describe_optimal(model: Model) -> str:
+def _describe_optimal(o: OptimalOptions) -> str:
     """The [cueing.optimal] sub-table as the model-predictive cueing reads it."""
-    o = optimal_options(model)
     tilt = ("the [cueing] tilt_rate_limit" if o.tilt_rate_limit is None
             else f"{o.tilt_rate_limit:.6g} rad/s")
     return (f"cueing.optimal: model-predictive cueing at {o.rate:g} Hz over {o.horizon:g} s "

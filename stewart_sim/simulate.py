@@ -1,5 +1,5 @@
-"""`stewart-sim simulate SCENE --forces F.csv --out DIR [--integrator M]`: open-loop forward
-dynamics from rack forces.
+"""Open-loop forward dynamics from rack forces: what `stewart-sim simulate SCENE --forces F.csv
+--out DIR [--integrator M]` runs (stewart_sim.commands.simulate).
 
 The forces file has the columns t, sigma1..sigma6 (N; further columns, such as the cond and
 parts that `inverse` writes, are ignored); each row's forces are held from its time to the
@@ -12,7 +12,6 @@ all or nothing.
 """
 from __future__ import annotations
 
-import argparse
 from dataclasses import replace
 from pathlib import Path
 
@@ -20,48 +19,16 @@ import numpy as np
 
 from stewart_fmu import io
 from stewart_fmu.errors import StewartError
-from stewart_fmu.integrators import INTEGRATORS
+from stewart_fmu.integrators import INTEGRATORS, IntegratorOptions
 from stewart_fmu.io import POSE
 from stewart_fmu.model import Model
 from stewart_fmu.plant import Plant
-from stewart_fmu.scene import load_scene
 from stewart_fmu.stability import default_options
 from stewart_sim.outputs import result_set
 
 FORCE_COLUMNS = io.FORCE_COLUMNS                      # t, sigma1..sigma6
 MOTION_COLUMNS = ("t", *POSE, *(f"d{c}" for c in POSE), *(f"l{i}" for i in range(1, 7)))
 FILES = ("motion.csv", "motion.png")
-
-
-def add_parser(sub) -> None:
-    """Register `simulate` on the CLI's subparsers."""
-    p = sub.add_parser(
-        "simulate", help="open-loop forward dynamics from rack forces",
-        description="Simulate the scene's plant open loop from rack forces (a CSV with columns "
-                    "t,sigma1..sigma6 in N, held over each interval; the platform starts at "
-                    "rest at home). The plant's stroke, singularity and stability checks apply: "
-                    "a refused step ends the run with its error and writes nothing. Writes "
-                    "DIR/motion.csv (t, x..thz, dx..dthz, l1..l6) and DIR/motion.png.")
-    p.add_argument("scene", metavar="SCENE", help="scene file (TOML)")
-    p.add_argument("--forces", required=True, metavar="F.csv",
-                   help="columns t,sigma1..sigma6 (further columns ignored: `inverse` output works)")
-    p.add_argument("--out", required=True, metavar="DIR", help="output directory")
-    p.add_argument("--integrator", choices=INTEGRATORS, default=None,
-                   help="plant integrator (default: the scene's, stability.default_options: rk4 "
-                        "with a stiffness-aware max step)")
-    p.set_defaults(run=cmd)
-
-
-def cmd(args: argparse.Namespace) -> None:
-    """Run `simulate`; StewartError subclasses for bad input or a refused step."""
-    model = load_scene(args.scene)
-    t, sigma = read_forces(Path(args.forces))
-    table = simulate(model, t, sigma, args.integrator)
-    out = Path(args.out)
-    write_motion(model, table, out, f"{model.name}: open loop from {Path(args.forces).name}")
-    print(f"simulated {t[-1] - t[0]:g} s ({t.size} samples) open loop")
-    for name in FILES:
-        print(f"wrote {out / name}")
 
 
 def read_forces(path: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -72,11 +39,12 @@ def read_forces(path: Path) -> tuple[np.ndarray, np.ndarray]:
 
 
 def simulate(model: Model, t: np.ndarray, sigma: np.ndarray, integrator: str | None = None,
-             q0=None, qd0=None) -> np.ndarray:
+             q0=None, qd0=None, options: IntegratorOptions | None = None) -> np.ndarray:
     """The plant from rest at home (or q0, qd0) at t[0], sigma[k] held over [t[k], t[k+1]);
-    the MOTION_COLUMNS table at every t. A refused step raises its typed error (StepRejected,
-    IntegrationError), its message naming the time."""
-    options = default_options(model)
+    the MOTION_COLUMNS table at every t. `options`: the plant's integrator (default
+    stability.default_options; the scene's [solver]), `integrator` its method instead. A refused
+    step raises its typed error (StepRejected, IntegrationError), its message naming the time."""
+    options = options or default_options(model)
     if integrator is not None:
         if integrator not in INTEGRATORS:
             raise StewartError(f"integrator '{integrator}' unknown: one of {', '.join(INTEGRATORS)}")

@@ -11,13 +11,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from controller.config import ControllerConfig
 from stewart_fmu.energy import DRIVEN, KINETIC, energy_terms, total_energy
 from stewart_fmu.errors import StewartError
 from stewart_fmu.integrators import IntegratorOptions, advance
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.model import Model
 from stewart_fmu.stability import default_options
-from stewart_sim.cases import CaseResult, case_of, hold_forces, run_case, started_plant
+from stewart_sim.cases import Case, CaseResult, hold_forces, run_case, started_plant
 
 REFERENCE = IntegratorOptions("Radau", rtol=1e-10, atol=1e-13)
 
@@ -44,12 +45,14 @@ class StudyRow:
     evaluations: int
 
 
-def integrator_study(model: Model, duration: float | None = None) -> list[StudyRow]:
-    """Every study_methods integrator on the model's case, against the REFERENCE run."""
-    ref = run_case(model, REFERENCE, duration)
+def integrator_study(model: Model, case: Case, controller: ControllerConfig | None,
+                     duration: float | None = None) -> list[StudyRow]:
+    """Every study_methods integrator on the scene's case (and [controller], for a closed-loop
+    case), against the REFERENCE run."""
+    ref = run_case(model, case, controller, REFERENCE, duration)
     rows = []
     for label, options in study_methods(model):
-        r = run_case(model, options, duration)
+        r = run_case(model, case, controller, options, duration)
         rows.append(StudyRow(label, r.outcome, r.time, _error(r, ref), r.wall, r.evaluations))
     return rows
 
@@ -71,9 +74,10 @@ class Drift:
     wall: float
 
 
-def hour_drift(model: Model, duration: float | None = None, step: float = 1e-3) -> Drift:
-    """RK4 over the hour case at `step`, the invariant sampled every second of simulated time."""
-    case = case_of(model)
+def hour_drift(model: Model, case: Case, duration: float | None = None,
+               step: float = 1e-3) -> Drift:
+    """RK4 over the hour case (`case`, its [case] table) at `step`, the invariant sampled every
+    second of simulated time."""
     duration = case.duration if duration is None else duration
     start = wallclock.perf_counter()
     q, energy = _conservative_run(model, case, duration, step)

@@ -1,5 +1,6 @@
-"""`stewart-sim trajectory SCENE (--waypoints W.csv | --move demo|run|quintic) --out T.csv
-[--rate HZ] [--duration S]`: write a smooth reference trajectory in the `inverse` format.
+"""Smooth reference trajectories in the `inverse` format: what `stewart-sim trajectory SCENE
+(--waypoints W.csv | --move demo|run|quintic) --out T.csv [--rate HZ] [--duration S]` writes
+(stewart_sim.commands.trajectory).
 
 The trajectories are those the controller builds (controller.trajectory, controller.moves),
 with exact rates and accelerations:
@@ -19,80 +20,32 @@ TRAJECTORY_COLUMNS) and feeds `stewart-sim inverse` as it is.
 """
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
 import numpy as np
 
-from controller.moves import DEMO_DURATION, DEMO_RATE, RUN_HOLD, RUN_MOVE, demo_trajectory, move_and_hold
+from controller.moves import DEMO_RATE, RUN_HOLD, RUN_MOVE, demo_trajectory, move_and_hold
+from controller.config import ControllerConfig
 from controller.trajectory import Trajectory, leg_references, waypoints
 from stewart_fmu import io
 from stewart_fmu.errors import StewartError
 from stewart_fmu.io import POSE, writing
 from stewart_fmu.model import Model
-from stewart_fmu.scene import load_scene
-from stewart_sim.argtypes import positive_rate, positive_seconds
 
 MOVES = ("demo", "run", "quintic")
 WAYPOINT_COLUMNS = ("t", *POSE)
 
 
-def add_parser(sub) -> None:
-    """Register `trajectory` on the CLI's subparsers."""
-    p = sub.add_parser(
-        "trajectory", help="write a smooth reference trajectory (the `inverse` input format)",
-        description="Write a smooth trajectory with exact rates and accelerations, checked by "
-                    "inverse kinematics, in the format `inverse` reads (t, x..thz, dx..dthz, "
-                    "ddx..ddthz): a spline through waypoints, or one of the project's moves "
-                    "(demo: raised cosines; run: quintic out, hold, back, hold; quintic: one "
-                    "minimum-jerk move to the demo goal).")
-    p.add_argument("scene", metavar="SCENE", help="scene file (TOML)")
-    what = p.add_mutually_exclusive_group(required=True)
-    what.add_argument("--waypoints", metavar="W.csv",
-                      help="columns t,x,y,z,thx,thy,thz (m, rad): a C2 spline through them, at "
-                           "rest at both ends")
-    what.add_argument("--move", choices=MOVES, help="one of the project's moves from rest at home")
-    p.add_argument("--out", required=True, metavar="T.csv", help="trajectory to write (atomically)")
-    p.add_argument("--rate", type=positive_rate, default=None, metavar="HZ",
-                   help=f"sample rate (default {DEMO_RATE:g} Hz; --move run: the scene's "
-                        "controller rate if it has a [controller] table)")
-    p.add_argument("--duration", type=positive_seconds, default=None, metavar="S",
-                   help=f"length of the move (default {DEMO_DURATION:g} s; not with --waypoints, "
-                        "whose times set it)")
-    p.set_defaults(run=cmd)
-
-
-def cmd(args: argparse.Namespace) -> None:
-    """Run `trajectory`; StewartError subclasses for bad input."""
-    model = load_scene(args.scene)
-    if args.waypoints is not None:
-        if args.duration is not None:
-            raise StewartError("trajectory: --duration applies to --move only (the waypoint "
-                               "times set the length)")
-        traj = waypoint_trajectory(Path(args.waypoints), args.rate or DEMO_RATE)
-        what = f"spline through {args.waypoints}"
-    else:
-        traj = move(model, args.move, args.duration or DEMO_DURATION, args.rate)
-        what = f"{args.move} move"
-    checked(model, traj)
-    out = Path(args.out)
-    write_trajectory(traj, out)
-    rate = (traj.t.size - 1) / (traj.t[-1] - traj.t[0])
-    print(f"wrote {out}: {what}, {traj.t.size} samples over {traj.t[-1] - traj.t[0]:g} s "
-          f"at {rate:g} Hz")
-
-
-def move(model: Model, name: str, duration: float, rate: float | None = None) -> Trajectory:
-    """The named move of the scene (MOVES), sampled at `rate` (None: the default)."""
+def move(model: Model, name: str, duration: float, rate: float | None = None,
+         controller: ControllerConfig | None = None) -> Trajectory:
+    """The named move of the scene (MOVES), sampled at `rate` (None: the default; for "run",
+    the rate of `controller`, the scene's [controller] table, when it has one)."""
     if name == "demo":
         rate = rate or DEMO_RATE
         return Trajectory(*demo_trajectory(model, duration, rate))
     if name == "run":
         if rate is None:
-            rate = DEMO_RATE
-            if "controller" in model.extra:
-                from controller.config import controller_config
-                rate = controller_config(model).rate
+            rate = DEMO_RATE if controller is None else controller.rate
         return move_and_hold(model, rate, RUN_MOVE * duration, RUN_HOLD * duration, back=True)
     if name == "quintic":
         return move_and_hold(model, rate or DEMO_RATE, duration, 0.0)

@@ -25,7 +25,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from controller.config import controller_config
+from controller.config import ControllerConfig
 from controller.cosim import run_closed_loop
 from controller.design import UnstableLoopError
 from controller.moves import demo_trajectory, run_reference
@@ -37,6 +37,7 @@ from stewart_fmu.plant import Plant, StepRejected
 
 COMM_STEP = 0.05          # s: open-loop communication step (forces held over it)
 HORIZON = 1.0             # s: open-loop horizon
+REPEATS = 3               # timings per run, the best kept (runs under 0.2 s repeat until then)
 PERTURBATION = 0.05       # perturbation amplitude, a fraction of the peak planned force
 PERTURBATION_HZ = (0.7, 1.1, 0.9, 1.3, 0.8, 1.2)
 REFERENCE = IntegratorOptions("DOP853", rtol=1e-13, atol=1e-16)   # max_step: the comm step
@@ -198,7 +199,7 @@ OPEN_LOOP_FIELDS = [("method", "U12"), ("step", "f8"), ("rtol", "f8"), ("pose_er
 
 
 def open_loop_sweep(case: OpenLoopCase, ref: Reference, settings: Sequence[IntegratorOptions],
-                    repeats: int = 3, progress: ProgressFn | None = None) -> np.ndarray:
+                    repeats: int = REPEATS, progress: ProgressFn | None = None) -> np.ndarray:
     """One row per setting: method, step (fixed-step methods) or rtol, errors, run time (s)."""
     rows = np.zeros(len(settings), dtype=OPEN_LOOP_FIELDS)
     # every timed setting gets its own untimed warm-up call first (timed -> best_of)
@@ -253,11 +254,13 @@ CLOSED_LOOP_FIELDS = [("step", "f8"), ("pose_error", "f8"), ("tracking_error", "
                       ("run_time", "f8"), ("stable", "f8")]
 
 
-def closed_loop_sweep(model: Model, steps: Sequence[float] = CLOSED_LOOP_STEPS,
+def closed_loop_sweep(model: Model, controller: ControllerConfig,
+                      steps: Sequence[float] = CLOSED_LOOP_STEPS,
                       duration: float = CLOSED_LOOP_DURATION,
-                      reference_step: float = CLOSED_LOOP_REFERENCE, repeats: int = 3,
+                      reference_step: float = CLOSED_LOOP_REFERENCE, repeats: int = REPEATS,
                       progress: ProgressFn | None = None) -> tuple[np.ndarray, float]:
-    """Rows per communication step: pose error against the reference loop (relative to the
+    """The scene's controllers (`controller`, its [controller] table) at several communication
+    steps. Rows per communication step: pose error against the reference loop (relative to the
     motion's range, as the open loop), the max translational tracking error (relative), the
     loop's run time and whether the sampled loop is stable; and the reference's own check.
 
@@ -265,7 +268,7 @@ def closed_loop_sweep(model: Model, steps: Sequence[float] = CLOSED_LOOP_STEPS,
     the reference is the Richardson extrapolation 2 q(h) - q(2h) at h = reference_step; its
     check is its difference from the same extrapolation at h / 2."""
 
-    fine, ref_q, coarse = (_closed_loop(model, h, duration, 1, warmup=False)[0]  # untimed
+    fine, ref_q, coarse = (_closed_loop(model, controller, h, duration, 1, warmup=False)[0]
                            for h in (reference_step / 2, reference_step, 2 * reference_step))
     reference = 2 * ref_q[::2] - coarse
     ranges = (float(np.max(np.ptp(reference[:, :3], axis=0))),
@@ -279,7 +282,7 @@ def closed_loop_sweep(model: Model, steps: Sequence[float] = CLOSED_LOOP_STEPS,
     rows = np.zeros(len(steps), dtype=CLOSED_LOOP_FIELDS)
     for k, h in enumerate(steps):
         try:
-            q, track, wall = _closed_loop(model, h, duration, repeats)
+            q, track, wall = _closed_loop(model, controller, h, duration, repeats)
             rows[k] = (h, pose_error(q, h), track / ranges[0], wall, 1.0)
         except UnstableLoopError:
             rows[k] = (h, np.nan, np.nan, np.nan, 0.0)
@@ -294,12 +297,13 @@ def closed_loop_order(rows: np.ndarray) -> float:
     return float(np.polyfit(np.log(ok["step"]), np.log(ok["pose_error"]), 1)[0]) if len(ok) > 1 else np.nan
 
 
-def _closed_loop(model: Model, step: float, duration: float, repeats: int, warmup: bool = True):
+def _closed_loop(model: Model, controller: ControllerConfig, step: float, duration: float,
+                 repeats: int, warmup: bool = True):
     """(pose (N, 6), max translational tracking error (m), least loop wall time (s)) of the
     `run` reference tracked with the scene's controllers at communication step `step`; the
     timed loops come after an untimed warm-up loop of the same step (best_of)."""
 
-    config = replace(controller_config(model), rate=1.0 / step)
+    config = replace(controller, rate=1.0 / step)
     traj = run_reference(model, config, duration)
 
     def run():
@@ -330,12 +334,13 @@ class AccuracyResults:
     repeats: int
 
 
-def accuracy_study(model: Model, horizon: float = HORIZON, comm_step: float = COMM_STEP,
-                   sweep: str = "default", repeats: int = 3,
+def accuracy_study(model: Model, controller: ControllerConfig | None,
+                   horizon: float = HORIZON, comm_step: float = COMM_STEP,
+                   sweep: str = "default", repeats: int = REPEATS,
                    closed_loop_duration: float | None = CLOSED_LOOP_DURATION,
                    progress: Callable[[str, int, int], None] | None = None) -> AccuracyResults:
-    """Open-loop work-precision of every integrator, orders, and (with a [controller] table
-    and a closed_loop_duration) the closed loop's communication steps."""
+    """Open-loop work-precision of every integrator, orders, and (with the scene's [controller]
+    table, `controller`, and a closed_loop_duration) the closed loop's communication steps."""
     def stage(name: str) -> ProgressFn | None:
         return None if progress is None else (lambda done, total: progress(name, done, total))
 
@@ -345,9 +350,9 @@ def accuracy_study(model: Model, horizon: float = HORIZON, comm_step: float = CO
     rows = open_loop_sweep(case, ref, settings_for(SWEEPS[sweep], comm_step), repeats,
                            stage("open loop"))
     closed, check = None, np.nan
-    if "controller" in model.extra and closed_loop_duration is not None:
-        closed, check = closed_loop_sweep(model, duration=closed_loop_duration, repeats=repeats,
-                                          progress=stage("closed loop"))
+    if controller is not None and closed_loop_duration is not None:
+        closed, check = closed_loop_sweep(model, controller, duration=closed_loop_duration,
+                                          repeats=repeats, progress=stage("closed loop"))
     return AccuracyResults(model.name, case, ref, floor, rows, convergence_orders(rows, floor),
                            convergence_orders(rows, floor, "force_error"), closed, check,
                            closed_loop_duration, sweep, repeats)

@@ -185,9 +185,14 @@ _VECTOR_AXES = {
 def cueing_config(model: Model) -> CueingConfig:
     """The [cueing] table of the model's scene, checked (SceneKeyError names the key); the
     defaults when the table or a key is absent."""
+    return cueing_tables(model)[0]
+
+
+def cueing_tables(model: Model) -> tuple[CueingConfig, OptimalOptions]:
+    """[cueing] and its [cueing.optimal] sub-table, each checked and parsed once."""
     table = model.extra.get(TABLE)
     if table is None:
-        return DEFAULTS
+        return DEFAULTS, OptimalOptions()
     if not isinstance(table, Mapping):
         raise SceneKeyError(TABLE, f"must be a table, got {table!r}", model.source)
     unknown = sorted(set(table) - _KEYS - {OPTIMAL})
@@ -196,7 +201,7 @@ def cueing_config(model: Model) -> CueingConfig:
                             f"{sorted(_KEYS | {OPTIMAL})})", model.source)
     # the sub-table is checked with the table: a typo there fails every cueing run, not only
     # the optimal mode's
-    optimal_options(model)
+    optimal = optimal_options(model)
     values: dict[str, Any] = {}
     for key in sorted(set(table) - {OPTIMAL}):
         if key in _ORDERS:
@@ -208,7 +213,7 @@ def cueing_config(model: Model) -> CueingConfig:
     if values.get("tilt_limit", DEFAULTS.tilt_limit) >= TILT_LIMIT_MAX:
         raise SceneKeyError(f"{TABLE}.tilt_limit", f"must be below pi/2 rad, got "
                             f"{values['tilt_limit']!r}", model.source)
-    return CueingConfig(**values)
+    return CueingConfig(**values), optimal
 
 
 def optimal_options(model: Model) -> OptimalOptions:

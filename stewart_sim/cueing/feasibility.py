@@ -22,7 +22,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from controller.config import controller_config
+from controller.config import ControllerConfig
 from controller.drive import axis_model
 from stewart_fmu.dynamics import inverse_dynamics
 from stewart_fmu.errors import TrajectoryError
@@ -91,10 +91,12 @@ class Feasibility:
         return not self.violations
 
 
-def feasibility(model: Model, t, q, qd, qdd, *, cond_limit: float = COND_LIMIT) -> Feasibility:
+def feasibility(model: Model, t, q, qd, qdd, controller: ControllerConfig | None, *,
+                cond_limit: float = COND_LIMIT) -> Feasibility:
     """Stroke, cond(J), leg force, motor current and voltage of the trajectory (t (N,), q, qd,
-    qdd (N, 6), Euler-angle rates) against the scene's limits; every crossing is reported at
-    its first sample with its leg."""
+    qdd (N, 6), Euler-angle rates) against the scene's limits (the motor's from `controller`,
+    the scene's [controller] table; None: not checked); every crossing is reported at its
+    first sample with its leg."""
     t = np.asarray(t, dtype=float)
     if t.ndim != 1 or t.size < 2 or np.shape(q) != (t.size, 6):
         raise TrajectoryError(f"feasibility: need t (N,), N >= 2, and q, qd, qdd (N, 6); got "
@@ -103,17 +105,17 @@ def feasibility(model: Model, t, q, qd, qdd, *, cond_limit: float = COND_LIMIT) 
     sigma = inverse_dynamics(replace(model, leg_min=None, leg_max=None), q, qd, qdd)
     current = voltage = force_limit = current_limit = voltage_limit = None
     note = None
-    if model.extra.get("controller") is None:
+    if controller is None:
         note = ("the scene has no [controller] table (the motor's ratings): current, voltage "
                 "and the force limit not computed")
     elif model.drive is None:
         note = ("the scene has no [drive] table (gearbox and pinion): current, voltage and the "
                 "force limit not computed")
     else:
-        config = controller_config(model)
-        axis = axis_model(model, config.motor, config.load_mass)
+        axis = axis_model(model, controller.motor, controller.load_mass)
         voltage, current = axis.drive_for(t, sigma, kin.rates)
-        current_limit, voltage_limit = config.motor.current_limit, config.motor.voltage_limit
+        motor = controller.motor
+        current_limit, voltage_limit = motor.current_limit, motor.voltage_limit
         force_limit = axis.force_constant * current_limit
     checks = {"stroke_min": (kin.lengths, model.leg_min, -1),
               "stroke_max": (kin.lengths, model.leg_max, +1),

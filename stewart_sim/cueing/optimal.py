@@ -55,7 +55,7 @@ import numpy as np
 import osqp
 import scipy.sparse as sp
 
-from controller.config import controller_config
+from controller.config import ControllerConfig
 from controller.drive import AxisModel, axis_model
 from stewart_fmu.errors import StewartError
 from stewart_fmu.model import Model
@@ -146,13 +146,13 @@ class Limits:
     tilt_rate: float | None   # rad/s
 
 
-def mechanism_limits(model: Model, tilt_rate: float | None) -> Limits:
-    """Stroke from [geometry]; force and voltage from [controller.motor] and [drive] when the
-    scene has both (otherwise those limits are not imposed)."""
+def mechanism_limits(model: Model, controller: ControllerConfig | None,
+                     tilt_rate: float | None) -> Limits:
+    """Stroke from [geometry]; force and voltage from [controller.motor] (`controller`) and
+    [drive] when the scene has both (otherwise those limits are not imposed)."""
     axis = None
-    if model.drive is not None and "controller" in model.extra:
-        config = controller_config(model)
-        axis = axis_model(model, config.motor, config.load_mass)
+    if model.drive is not None and controller is not None:
+        axis = axis_model(model, controller.motor, controller.load_mass)
     return Limits(model.leg_min, model.leg_max,
                   None if axis is None else axis.force_constant * axis.motor.current_limit,
                   None if axis is None else axis.motor.voltage_limit, axis, tilt_rate)
@@ -371,15 +371,20 @@ class OptimalResult:
 
 
 def optimal_cue(model: Model, config: CueingConfig, motion: VehicleMotion, home, gravity, *,
+                controller: ControllerConfig | None,
                 options: OptimalOptions = OptimalOptions()) -> Cue:
     """The model-predictive cue (the same Cue as classical_washout gives): see the module doc."""
-    return optimal_cueing(model, config, motion, home, gravity, options=options).cue
+    return optimal_cueing(model, config, motion, home, gravity, controller=controller,
+                          options=options).cue
 
 
 def optimal_cueing(model: Model, config: CueingConfig, motion: VehicleMotion, home, gravity, *,
+                   controller: ControllerConfig | None,
                    options: OptimalOptions = OptimalOptions(),
                    progress: Callable[[int, int], None] | None = None) -> OptimalResult:
     """The receding-horizon cue for a vehicle motion, with the plan and the solver's record.
+    `controller`: the scene's [controller] table (the drives' force and voltage limits; None:
+    not imposed).
 
     The platform starts at rest at `home` with the perceived error's states at zero (both the
     vehicle and the platform perceive from rest). Each MPC step applies the first move of the
@@ -397,7 +402,7 @@ def optimal_cueing(model: Model, config: CueingConfig, motion: VehicleMotion, ho
     M = max(1, int(np.ceil((t[-1] - t[0]) / dt - 1e-9)))
     tilt_rate = options.tilt_rate_limit if options.tilt_rate_limit is not None \
         else config.tilt_rate_limit
-    lim = mechanism_limits(model, tilt_rate)
+    lim = mechanism_limits(model, controller, tilt_rate)
     lin = linearise(home, g)
     thresholds = np.r_[OTOLITH_THRESHOLD, CANAL_THRESHOLD]
     pm = prediction_model(lin, VESTIBULAR_CHANNELS, dt)

@@ -11,9 +11,12 @@ and the figures, written all or nothing.
     tracking.csv            the closed loop's table (as `run` writes it), with --track
     summary.md              the figures (see summary_markdown)
     cue_*.png               the figures (cueing/figures.py)
+
+and what the terminal gets: cue_view (the 3D view), verdict (one line per mode).
 """
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Callable
 
@@ -21,11 +24,15 @@ import numpy as np
 
 from stewart_fmu import io
 from stewart_sim.outputs import result_set
+from stewart_sim.view.data import view_data
+from stewart_sim.view.sources import run_table_view
 
 from .feasibility import Feasibility
 from .figures import FIGURES
 from .study import CueRun, CueStudy
 from .vestibular import AXES, ROTATION_AXES, Perception
+
+RACK = "rack force σ (inverse dynamics of the cue, incl. drive)"
 
 
 def write_cue_report(study: CueStudy, out: Path, title: str,
@@ -213,3 +220,31 @@ def _tracking_section(study: CueStudy) -> list[str]:
             f"{float(np.max(s.current_max)):.3g} A of {c.motor.current_limit:g} A; RMS voltage up "
             f"to {float(np.max(s.voltage_rms)):.3g} V of {c.motor.voltage_limit:g} V; an axis "
             f"saturated for {s.saturated_time:.3g} s.", ""]
+
+
+def cue_view(study: CueStudy, title: str):
+    """The 3D view: the closed loop with the cue as its ghost when it ran, else the cue with
+    the rack forces of its inverse dynamics."""
+    if study.tracking is not None:
+        return run_table_view(study.model, study.tracking.table, title=f"{title}, closed loop",
+                              source="tracking.csv")
+    run = study.runs[0]
+    return view_data(study.model, run.cue.t, run.cue.q, run.feasibility.sigma,
+                     force_label=RACK, title=title, source="trajectory.csv")
+
+
+def verdict(study: CueStudy) -> str:
+    """One line per mode: feasible or its first violations; the RMS perceived error."""
+    lines = []
+    for r in study.runs:
+        p = r.perception
+        rms = (f"RMS perceived error f {', '.join(f'{v:.3g}' for v in p.rms_f)} m/s², "
+               f"ω {', '.join(f'{math.degrees(v):.3g}' for v in p.rms_w)} deg/s")
+        v = r.feasibility.violations
+        if not v:
+            lines.append(f"{r.mode}: inside every limit; {rms}")
+        else:
+            first = ", ".join(f"{x.quantity} leg {x.leg} at t = {x.t:.3f} s" if x.leg else
+                              f"{x.quantity} at t = {x.t:.3f} s" for x in v[:3])
+            lines.append(f"{r.mode}: {len(v)} limit crossings (first: {first}); {rms}")
+    return "\n".join(lines)

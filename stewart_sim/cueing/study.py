@@ -24,13 +24,13 @@ from typing import Callable
 
 import numpy as np
 
-from controller.config import controller_config
 from controller.cosim import ClosedLoopResult, run_closed_loop
 from controller.trajectory import Trajectory
 from stewart_fmu.errors import StewartError
 from stewart_fmu.model import Model
+from stewart_sim.scene_load import Scene
 
-from .config import CueingConfig, cueing_config, optimal_options
+from .config import CueingConfig
 from .feasibility import Feasibility, feasibility
 from .motion import VehicleMotion
 from .optimal import Diagnostics, optimal_cueing
@@ -69,26 +69,27 @@ class CueError(StewartError):
     """A cueing study that cannot run as asked (an unknown mode, a cue the loop cannot track)."""
 
 
-def cue_study(model: Model, motion: VehicleMotion, modes: tuple[str, ...] = ("classical",),
+def cue_study(scene: Scene, motion: VehicleMotion, modes: tuple[str, ...] = ("classical",),
               track: bool = False,
               progress: Callable[[str, int, int], None] | None = None) -> CueStudy:
-    """Cue the motion with each mode (the first is the primary), then perception and
-    feasibility of each; the closed loop on the primary cue if `track`.
-    `progress(stage, done, total)` follows the work (MPC steps, closed-loop samples)."""
-    config = cueing_config(model)
+    """Cue the motion with each mode (the first is the primary) with the scene's [cueing]
+    table, then perception and feasibility of each; the closed loop on the primary cue if
+    `track`. `progress(stage, done, total)` follows the work (MPC steps, closed-loop samples)."""
+    model, config = scene.model, scene.cueing
     runs = []
     for mode in modes:
         start = time.perf_counter()
-        cue, solver = make_cue(mode, model, config, motion, _stage(progress, f"cueing ({mode})"))
+        cue, solver = make_cue(mode, scene, config, motion, _stage(progress, f"cueing ({mode})"))
         seconds = time.perf_counter() - start
         if progress:
             progress(f"perception and feasibility ({mode})", 0, 1)
         runs.append(CueRun(mode, cue, perception(motion, cue.t, cue.q, cue.qd, cue.qdd,
                                                  model.gravity),
-                           feasibility(model, cue.t, cue.q, cue.qd, cue.qdd), seconds, solver))
+                           feasibility(model, cue.t, cue.q, cue.qd, cue.qdd, scene.controller),
+                           seconds, solver))
     tracking, note = None, None
     if track:
-        tracking, note = track_cue(model, config, motion, runs[0], progress)
+        tracking, note = track_cue(scene, config, motion, runs[0], progress)
     return CueStudy(model, config, motion, tuple(runs), tracking, note)
 
 
@@ -100,39 +101,40 @@ def _stage(progress: Callable[[str, int, int], None] | None,
     return lambda done, total: progress(stage, done, total)
 
 
-def make_cue(mode: str, model: Model, config: CueingConfig, motion: VehicleMotion,
+def make_cue(mode: str, scene: Scene, config: CueingConfig, motion: VehicleMotion,
              progress: Callable[[int, int], None] | None = None
              ) -> tuple[Cue, Diagnostics | None]:
-    """The cue of one mode, and the optimal mode's solver record (None for classical); the
-    optimal mode runs with the scene's [cueing.optimal] options. `progress(done, total)`
-    follows the optimal mode's MPC steps."""
+    """The cue of one mode with the washout `config`, and the optimal mode's solver record
+    (None for classical); the optimal mode runs with the scene's [cueing.optimal] options and
+    its drives' limits. `progress(done, total)` follows the optimal mode's MPC steps."""
+    model = scene.model
     home = np.asarray(model.home, dtype=float)
     gravity = np.asarray(model.gravity, dtype=float)
     if mode == "classical":
         return classical_washout(config, motion, home, gravity), None
     if mode == "optimal":
-        result = optimal_cueing(model, config, motion, home, gravity,
-                                options=optimal_options(model), progress=progress)
+        result = optimal_cueing(model, config, motion, home, gravity, controller=scene.controller,
+                                options=scene.optimal, progress=progress)
         return result.cue, result.diagnostics
     raise CueError(f"cue: mode {mode!r} unknown: one of {', '.join(MODES)}")
 
 
-def track_cue(model: Model, config: CueingConfig, motion: VehicleMotion, run: CueRun,
+def track_cue(scene: Scene, config: CueingConfig, motion: VehicleMotion, run: CueRun,
               progress: Callable[[str, int, int], None] | None = None
               ) -> tuple[ClosedLoopResult | None, str | None]:
     """The scene's closed loop ([controller] table) on the run's cue recomputed at the
     controller's rate; (None, why) when the cue leaves the stroke (the loop would refuse it
     before its first step) or the scene has no controller."""
-    if model.extra.get("controller") is None:
+    model, controller = scene.model, scene.controller
+    if controller is None:
         return None, "the scene has no [controller] table: nothing to track the cue with"
     stroke = [v for v in run.feasibility.violations if v.quantity.startswith("stroke")]
     if stroke:
         v = stroke[0]
         return None, (f"the cue leaves the stroke (leg {v.leg} at t = {v.t:g} s): the closed "
                       "loop refuses such a reference before its first step")
-    controller = controller_config(model)
     fine = resample(motion, controller.rate)
-    cue, _ = make_cue(run.mode, model, config, fine,
+    cue, _ = make_cue(run.mode, scene, config, fine,
                       _stage(progress, f"cueing ({run.mode}) at {controller.rate:g} Hz"))
     return run_closed_loop(model, controller, Trajectory(cue.t, cue.q, cue.qd, cue.qdd),
                            progress=_stage(progress, "closed loop")), None

@@ -25,7 +25,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from controller.config import controller_config
+from controller.config import ControllerConfig, controller_config
 from controller.design import design_axis
 from controller.moves import demo_trajectory, run_reference
 from controller.trajectory import Trajectory
@@ -116,13 +116,15 @@ def point_trajectory(spec: EvalSpec, values: Mapping[str, Any]) -> TrajectorySet
 
 
 def trajectory(spec: EvalSpec, model: Model, settings: TrajectorySettings,
-               rate: float) -> Trajectory:
-    """The point's trajectory (closed loop: sampled at the controller `rate`)."""
+               rate: float, config: ControllerConfig | None = None) -> Trajectory:
+    """The point's trajectory (closed loop: sampled at the controller `rate`; the "run"
+    reference needs the point's [controller] table, `config`)."""
     if settings.kind == "file":
         return Trajectory(*spec.files[settings.file])
     if settings.kind == "run":
-        return run_reference(model, replace(controller_config(model), rate=rate),
-                             settings.duration)
+        if config is None:
+            raise StewartError("sweep: trajectory kind 'run' needs the scene's [controller] table")
+        return run_reference(model, replace(config, rate=rate), settings.duration)
     return Trajectory(*demo_trajectory(model, settings.duration, rate))
 
 
@@ -130,10 +132,11 @@ def _inverse(spec: EvalSpec, values: Mapping[str, Any], cache: dict[str, Any]) -
     data = point_scene(spec, values)
     model = scene_from_dict(data, spec.source)
     settings = point_trajectory(spec, values)
-    rate = controller_config(model).rate if settings.kind == "run" else settings.rate
+    config = controller_config(model) if settings.kind == "run" else None
+    rate = settings.rate if config is None else config.rate
     key = repr((sorted(data["geometry"].items()), settings, rate))
     if key not in cache:  # the trajectory and its kinematics depend on the geometry only
-        traj = trajectory(spec, model, settings, rate)
+        traj = trajectory(spec, model, settings, rate, config)
         kin = check_poses(model, traj.q, traj.t, traj.qd, traj.qdd)
         cache[key] = (traj, kin.rates, float(kin.cond.max()))
     traj, rates, cond = cache[key]
@@ -155,7 +158,7 @@ def _closed_loop(spec: EvalSpec, values: Mapping[str, Any], cache: dict[str, Any
                  ) -> dict[str, float]:
     model = point_model(spec, values)
     config = controller_config(model)
-    traj = trajectory(spec, model, point_trajectory(spec, values), config.rate)
+    traj = trajectory(spec, model, point_trajectory(spec, values), config.rate, config)
     _, gains, analysis = design_axis(model, config)
     run = run_mode(model, config, traj, gains, config.feedforward)
     if run.status != "ok":

@@ -14,6 +14,7 @@ import pytest
 from stewart_fmu import PARTS, check_poses, inverse_dynamics, inverse_dynamics_parts, io, load_scene
 from stewart_sim import cli, progress
 from stewart_sim import inverse as inverse_files
+from stewart_sim.commands.paper import resolve_scene
 
 ROOT = Path(__file__).resolve().parents[2]
 MICRO = ROOT / "scenes" / "micro_manipulator.toml"
@@ -252,7 +253,7 @@ def test_paper_default_scene(tmp_path, monkeypatch, capsys) -> None:
     assert f"wrote {tmp_path / 'paper' / 'report.md'}" in out
     assert out.count("agree") == 4  # four verdicts: 'agrees' or 'does not agree'
     monkeypatch.chdir(tmp_path)  # elsewhere: the source checkout's copy
-    assert cli.resolve_scene(None) == MICRO
+    assert resolve_scene(None) == MICRO
 
 
 def test_console_script_help() -> None:

@@ -17,7 +17,7 @@ from controller.moves import demo_trajectory
 from stewart_fmu import io, load_scene
 from stewart_sim import cli, interrupt, limits, outputs, progress
 from stewart_sim.outputs import MANIFEST
-from stewart_sim.view import command as view_command
+from stewart_sim.view import files as view_command
 
 ROOT = Path(__file__).resolve().parents[2]
 MICRO = ROOT / "scenes" / "micro_manipulator.toml"
@@ -463,14 +463,25 @@ def test_version() -> None:
 
 
 def test_help_defaults_are_the_librarys() -> None:
-    """cli repeats a few defaults to stay light; they must be the library's."""
+    """The commands read a few defaults from the library's source to stay light
+    (stewart_sim.commands.constants); they must be the library's."""
     from controller import moves
     from stewart_sim.accuracy import study
+    from stewart_sim.commands.constants import literals
 
-    assert (cli.DEMO_DURATION, cli.DEMO_RATE, cli.RUN_MOVE, cli.RUN_HOLD) == (
+    assert literals("controller.moves", "DEMO_DURATION", "DEMO_RATE", "RUN_MOVE", "RUN_HOLD") == (
         moves.DEMO_DURATION, moves.DEMO_RATE, moves.RUN_MOVE, moves.RUN_HOLD)
-    assert (cli.HORIZON, cli.COMM_STEP, cli.CLOSED_LOOP_DURATION) == (
+    assert literals("stewart_sim.accuracy.study", "HORIZON", "COMM_STEP",
+                    "CLOSED_LOOP_DURATION") == (
         study.HORIZON, study.COMM_STEP, study.CLOSED_LOOP_DURATION)
+    from hil import spawn
+    from stewart_sim.compare import study as compare
+    from stewart_sim.view import data
+
+    assert literals("stewart_sim.accuracy.study", "REPEATS") == (study.REPEATS,)
+    assert literals("stewart_sim.compare.study", "N_POINTS") == (compare.N_POINTS,)
+    assert literals("hil.spawn", "WATCHDOG") == (spawn.WATCHDOG,)
+    assert literals("stewart_sim.view.data", "DEFAULT_FPS") == (data.DEFAULT_FPS,)
 
 
 def test_any_run_files_covers_the_link_run() -> None:

@@ -1,5 +1,5 @@
-"""`stewart-sim cue` (stewart_sim/cueing/command.py, study.py, report.py): every shipped vehicle
-motion on the shipped motion simulator, the files and their agreement with the rest of the
+"""`stewart-sim cue` (stewart_sim/commands/cue.py, cueing/study.py, report.py): every shipped
+vehicle motion on the shipped motion simulator, the files and their agreement with the rest of the
 tool (the written trajectory through `inverse` gives the written forces), a motion made too
 strong reported with its first sample and leg, the closed loop tracking the cue, bad input."""
 from __future__ import annotations
@@ -19,6 +19,7 @@ from stewart_sim.cueing.motion import VehicleMotion, read_motion
 from stewart_sim.cueing.report import write_cue_report
 from stewart_sim.cueing.study import cue_study, make_cue, resample
 from stewart_sim.cueing.config import cueing_config
+from stewart_sim.scene_load import scene_of
 
 ROOT = Path(__file__).resolve().parents[2]
 SIM = ROOT / "scenes" / "motion_simulator.toml"
@@ -41,7 +42,7 @@ def test_three_motions_are_shipped():
 
 @pytest.mark.parametrize("path", MOTIONS, ids=lambda p: p.stem)
 def test_shipped_motion_is_flown_inside_every_limit(model, path, tmp_path):
-    study = cue_study(model, read_motion(path))
+    study = cue_study(scene_of(model), read_motion(path))
     run = study.runs[0]
     assert run.feasibility.violations == ()
     lengths = inverse_kinematics(model, run.cue.q).lengths   # independently of feasibility
@@ -59,7 +60,7 @@ def test_shipped_motion_is_flown_inside_every_limit(model, path, tmp_path):
 
 def test_written_trajectory_gives_the_written_forces_through_inverse(model, tmp_path):
     """trajectory.csv is the `inverse` command's input: its forces are forces.csv's."""
-    study = cue_study(model, read_motion(ROOT / "scenes" / "motions" / "lane_change.csv"))
+    study = cue_study(scene_of(model), read_motion(ROOT / "scenes" / "motions" / "lane_change.csv"))
     out = tmp_path / "out"
     write_cue_report(study, out, "t")
     t, q, qd, qdd = io.read_trajectory(out / "trajectory.csv")
@@ -84,7 +85,7 @@ def test_too_strong_a_motion_is_reported_at_its_first_sample_and_leg(model):
         "translational_frequency": [0.5, 0.5, 0.5], "translational_first_order": [0.1, 0.1, 0.1]}})
     found = None
     for scale in (2.0, 5.0, 10.0, 20.0, 40.0):
-        study = cue_study(strong, _braking(scale))
+        study = cue_study(scene_of(strong), _braking(scale))
         stroke = [v for v in study.runs[0].feasibility.violations
                   if v.quantity.startswith("stroke")]
         if stroke:
@@ -102,7 +103,7 @@ def test_too_strong_a_motion_is_reported_at_its_first_sample_and_leg(model):
 
 def test_tracking_runs_the_closed_loop_on_the_cue(model):
     motion = read_motion(ROOT / "scenes" / "motions" / "braking_car.csv")
-    study = cue_study(model, motion, track=True)
+    study = cue_study(scene_of(model), motion, track=True)
     tr = study.tracking
     assert tr is not None and study.tracking_note is None
     assert tr.table["time"][1] - tr.table["time"][0] == pytest.approx(1e-3)
@@ -116,8 +117,8 @@ def test_the_cue_at_the_controller_rate_agrees_with_the_sampled_one(model):
     config = cueing_config(model)
     for path in MOTIONS:
         motion = read_motion(path)
-        coarse, _ = make_cue("classical", model, config, motion)
-        fine, _ = make_cue("classical", model, config, resample(motion, 1000.0))
+        coarse, _ = make_cue("classical", scene_of(model), config, motion)
+        fine, _ = make_cue("classical", scene_of(model), config, resample(motion, 1000.0))
         k = np.round((coarse.t - coarse.t[0]) * 1000.0).astype(int)
         np.testing.assert_allclose(fine.t[k], coarse.t, rtol=0, atol=1e-12)
         np.testing.assert_allclose(fine.q[k], coarse.q, rtol=0, atol=RATE_AGREEMENT)
@@ -126,7 +127,7 @@ def test_the_cue_at_the_controller_rate_agrees_with_the_sampled_one(model):
 def test_compare_writes_both_cues_and_both_fly_inside_the_limits(model, tmp_path):
     """--compare: the optimal cue beside the classical one; both inside every limit, the
     optimal one's QP record in the summary, its trajectory in the inverse format."""
-    study = cue_study(model, read_motion(ROOT / "scenes" / "motions" / "lane_change.csv"),
+    study = cue_study(scene_of(model), read_motion(ROOT / "scenes" / "motions" / "lane_change.csv"),
                       ("classical", "optimal"))
     classical, optimal = study.runs
     assert optimal.solver is not None and set(optimal.solver.status) == {"solved"}

@@ -26,7 +26,8 @@ from stewart_sim.cueing.config import (
 )
 from stewart_sim.cueing.optimal import optimal_cueing
 from stewart_sim.cueing.study import make_cue
-from stewart_sim.scene_info import describe_model
+from stewart_sim.scene_info import describe
+from stewart_sim.scene_load import scene_of
 from tests.helpers import ROOT, scene_dict
 from tests.helpers import vehicle_motion as motion
 
@@ -154,11 +155,12 @@ def test_the_scene_rate_reaches_the_solver():
     mo = motion(t, f_dev)
     model = scene_from_dict(with_optimal(rate=10, horizon=1.5))
     config = cueing_config(model)
-    cue, solver = make_cue("optimal", model, config, mo)
+    cue, solver = make_cue("optimal", scene_of(model), config, mo)
     assert solver is not None and solver.t.size == 120
     np.testing.assert_allclose(np.diff(solver.t), 0.1, rtol=0, atol=1e-12)
     assert solver.status_counts == {"solved": 120}
     direct = optimal_cueing(model, config, mo, model.home, model.gravity,
+                            controller=scene_of(model).controller,
                             options=OptimalOptions(rate=10.0, horizon=1.5))
     assert direct.diagnostics.t.size == 120
     np.testing.assert_array_equal(cue.q, direct.cue.q)
@@ -181,13 +183,13 @@ def test_the_cue_command_refuses_a_bad_option_in_one_line(tmp_path):
 
 
 def test_scene_info_shows_the_sub_table():
-    text = describe_model(scene_from_dict(with_optimal(rate=10, preview=False)))
+    text = describe(scene_of(scene_from_dict(with_optimal(rate=10, preview=False))))
     line = next(x for x in text.splitlines() if x.startswith("cueing.optimal:"))
     assert "at 10 Hz over 2 s (20 steps), preview off" in line
     assert "tilt rate limit the [cueing] tilt_rate_limit" in line
     data = scene_dict("sim")
     del data["cueing"]["optimal"]
-    assert "cueing.optimal:" not in describe_model(scene_from_dict(data))
+    assert "cueing.optimal:" not in describe(scene_of(scene_from_dict(data)))
 
 
 def test_every_key_is_documented_with_its_default():

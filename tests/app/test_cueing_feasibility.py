@@ -11,6 +11,7 @@ from stewart_fmu import scene_from_dict
 from stewart_fmu.dynamics import inverse_dynamics
 from stewart_fmu.errors import SceneError
 from stewart_sim.cueing.feasibility import COND_LIMIT, feasibility
+from stewart_sim.scene_load import scene_of
 from tests.helpers import level_model, scene_dict
 
 DT = 0.01
@@ -80,7 +81,7 @@ def _runs(mask):
 def test_a_gentle_trajectory_is_inside_everything():
     model = _model()
     t, q, qd, qdd = _sine(model, 2, 0.1, 0.5)
-    r = feasibility(model, t, q, qd, qdd)
+    r = feasibility(model, t, q, qd, qdd, scene_of(model).controller)
     assert r.feasible and r.violations == () and r.drive_note is None
     np.testing.assert_allclose(r.lengths, _lengths(model, q), rtol=1e-13)
     np.testing.assert_allclose(r.cond, _cond(model, q), rtol=1e-9)
@@ -101,7 +102,7 @@ def test_a_motion_made_stronger_is_caught_at_the_first_sample_past_the_stroke(ax
     for k in range(1, 100):
         amplitude = k * step
         t, q, qd, qdd = _sine(model, axis, amplitude, 0.25)
-        r = feasibility(model, t, q, qd, qdd)
+        r = feasibility(model, t, q, qd, qdd, scene_of(model).controller)
         stroke = [v for v in r.violations if v.quantity.startswith("stroke")]
         if not stroke:
             previous_clean = True
@@ -131,7 +132,7 @@ def test_forces_past_the_drive_are_caught_with_current_and_voltage_from_the_moto
     force_limit, i_max = kf * 80.0, 80.0
     for freq in np.arange(0.5, 6.0, 0.25):
         t, q, qd, qdd = _sine(model, 2, 0.05, freq)
-        r = feasibility(model, t, q, qd, qdd)
+        r = feasibility(model, t, q, qd, qdd, scene_of(model).controller)
         if any(v.quantity == "force" for v in r.violations):
             break
     else:
@@ -158,7 +159,7 @@ def test_a_fast_motion_past_the_voltage_limit_is_caught():
     kf = 0.5 * 10.0 / 0.04
     for k in range(1, 30):
         t, q, qd, qdd = _sine(model, 2, 0.05 * k, 0.5, phase=-np.pi / 2)
-        r = feasibility(model, t, q, qd, qdd)
+        r = feasibility(model, t, q, qd, qdd, scene_of(model).controller)
         if any(v.quantity == "voltage" for v in r.violations):
             break
     else:
@@ -176,7 +177,7 @@ def test_cond_past_its_limit_is_caught_for_the_pose():
     t, q, qd, qdd = _sine(model, 3, 0.3, 0.25)   # roll
     cond = _cond(model, q)
     limit = float(np.percentile(cond, 60))
-    r = feasibility(model, t, q, qd, qdd, cond_limit=limit)
+    r = feasibility(model, t, q, qd, qdd, scene_of(model).controller, cond_limit=limit)
     got = [(v.sample, round(v.duration / DT)) for v in r.violations if v.quantity == "cond"]
     assert got == _runs(cond > limit) and len(got) >= 2
     assert all(v.leg is None and v.limit == limit for v in r.violations if v.quantity == "cond")
@@ -187,7 +188,7 @@ def test_a_scene_without_a_controller_reports_no_current_and_says_why():
     del data["controller"]
     model = scene_from_dict(data)
     t, q, qd, qdd = _sine(model, 2, 0.1, 0.5)
-    r = feasibility(model, t, q, qd, qdd)
+    r = feasibility(model, t, q, qd, qdd, scene_of(model).controller)
     assert r.current is None and r.voltage is None and r.force_limit is None
     assert "controller" in r.drive_note
     assert {m.quantity for m in r.margins} == {"stroke_min", "stroke_max", "cond"}
@@ -197,7 +198,7 @@ def test_a_scene_without_a_controller_reports_no_current_and_says_why():
 def test_a_scene_without_stroke_limits_checks_no_stroke():
     model = replace(_model(), leg_min=None, leg_max=None)
     t, q, qd, qdd = _sine(model, 2, 0.1, 0.5)
-    r = feasibility(model, t, q, qd, qdd)
+    r = feasibility(model, t, q, qd, qdd, scene_of(model).controller)
     assert not any(m.quantity.startswith("stroke") for m in r.margins)
 
 
@@ -206,7 +207,7 @@ def test_a_scene_with_a_controller_but_no_drive_says_why():
     del data["drive"]
     model = scene_from_dict(data)
     t, q, qd, qdd = _sine(model, 2, 0.1, 0.5)
-    r = feasibility(model, t, q, qd, qdd)
+    r = feasibility(model, t, q, qd, qdd, scene_of(model).controller)
     assert r.current is None and "[drive]" in r.drive_note
 
 
@@ -216,4 +217,4 @@ def test_a_malformed_controller_table_is_an_error_not_a_note():
     model = scene_from_dict(data)
     t, q, qd, qdd = _sine(model, 2, 0.1, 0.5)
     with pytest.raises(SceneError, match="controller.motor.resistance"):
-        feasibility(model, t, q, qd, qdd)
+        feasibility(model, t, q, qd, qdd, scene_of(model).controller)

@@ -26,6 +26,7 @@ from stewart_sim.cueing.optimal import (
 )
 from stewart_sim.cueing.vestibular import delivered_motion, perception
 from stewart_sim.cueing.washout import Cue, classical_washout
+from stewart_sim.scene_load import scene_of
 from tests.helpers import ROOT, scene_dict, smooth_step
 from tests.helpers import vehicle_motion as motion
 
@@ -48,7 +49,8 @@ def all_solved(result) -> None:
 
 def test_no_vehicle_motion_is_the_neutral_pose_exactly(sim):
     t = np.arange(0.0, 6.0, 0.01)
-    result = optimal_cueing(sim, DEFAULTS, motion(t), sim.home, GRAVITY)
+    result = optimal_cueing(sim, DEFAULTS, motion(t), sim.home, GRAVITY,
+                            controller=scene_of(sim).controller)
     cue = result.cue
     assert isinstance(cue, Cue)
     assert np.array_equal(cue.t, t)
@@ -82,7 +84,8 @@ def test_sustained_specific_force_ends_as_the_tilt_asin_f_over_g_within_the_rate
     t = np.arange(0.0, 40.0, 0.01)
     f_dev = np.zeros((t.size, 3))
     f_dev[:, 0] = f * smooth_step(t, 1.0, 0.5)
-    result = optimal_cueing(sim, DEFAULTS, motion(t, f_dev), sim.home, GRAVITY, options=FAST)
+    result = optimal_cueing(sim, DEFAULTS, motion(t, f_dev), sim.home, GRAVITY,
+                            controller=scene_of(sim).controller, options=FAST)
     cue = result.cue
     all_solved(result)
     pitch = cue.q[:, 4] - sim.home[4]
@@ -108,7 +111,8 @@ def test_tilt_rate_limit_binds_and_holds(sim):
     f_dev[:, 0] = -1.0 * smooth_step(t, 1.0, 0.5)
     limit = 0.02
     options = OptimalOptions(rate=10.0, horizon=1.5, tilt_rate_limit=limit)
-    result = optimal_cueing(sim, DEFAULTS, motion(t, f_dev), sim.home, GRAVITY, options=options)
+    result = optimal_cueing(sim, DEFAULTS, motion(t, f_dev), sim.home, GRAVITY,
+                            controller=scene_of(sim).controller, options=options)
     all_solved(result)
     rates = result.cue.qd[:, 3:5]
     assert np.max(np.abs(rates)) <= limit + 1e-6
@@ -122,7 +126,8 @@ def test_q_qd_qdd_are_one_trajectory(sim):
     t = np.arange(0.0, 4.0, 0.01)
     f_dev = np.zeros((t.size, 3))
     f_dev[:, 1] = 3.0 * np.sin(2 * np.pi * 0.4 * t)
-    result = optimal_cueing(sim, DEFAULTS, motion(t, f_dev), sim.home, GRAVITY, options=FAST)
+    result = optimal_cueing(sim, DEFAULTS, motion(t, f_dev), sim.home, GRAVITY,
+                            controller=scene_of(sim).controller, options=FAST)
     cue, plan = result.cue, result.plan
     all_solved(result)
     assert np.max(np.abs(cue.q - sim.home)) > 1e-2   # it moves
@@ -154,6 +159,7 @@ def test_tight_stroke_holds_on_the_nonlinear_legs():
     f_dev[:, 0] = -3.0 * smooth_step(t, 2.0, 0.3)
     options = OptimalOptions(rate=20.0, horizon=1.5, stroke_margin=0.02)
     result = optimal_cueing(model, cueing_config(model), motion(t, f_dev), model.home, GRAVITY,
+                            controller=scene_of(model).controller,
                             options=options)
     all_solved(result)
     lengths = inverse_kinematics(model, result.cue.q, with_cond=False).lengths
@@ -173,7 +179,8 @@ def test_braking_car_optimal_is_perceived_better_than_classical_and_feasible(sim
     vehicle = read_motion(ROOT / "scenes" / "motions" / "braking_car.csv")
     config = cueing_config(sim)
     classical = classical_washout(config, vehicle, np.array(sim.home), GRAVITY)
-    result = optimal_cueing(sim, config, vehicle, sim.home, GRAVITY)
+    result = optimal_cueing(sim, config, vehicle, sim.home, GRAVITY,
+                            controller=scene_of(sim).controller)
     all_solved(result)
     cue = result.cue
     p_opt = perception(vehicle, cue.t, cue.q, cue.qd, cue.qdd, GRAVITY)
@@ -184,7 +191,7 @@ def test_braking_car_optimal_is_perceived_better_than_classical_and_feasible(sim
 
     assert in_thresholds(p_opt) < in_thresholds(p_cls)
     assert p_opt.rms_f[0] < p_cls.rms_f[0]
-    report = feasibility(sim, cue.t, cue.q, cue.qd, cue.qdd)
+    report = feasibility(sim, cue.t, cue.q, cue.qd, cue.qdd, scene_of(sim).controller)
     assert report.feasible, report.violations[:3]
 
 
@@ -193,6 +200,8 @@ def test_optimal_cue_is_the_cue_of_optimal_cueing(sim):
     f_dev = np.zeros((t.size, 3))
     f_dev[:, 0] = smooth_step(t, 0.2, 0.3)
     vehicle = motion(t, f_dev)
-    a = optimal_cue(sim, DEFAULTS, vehicle, sim.home, GRAVITY, options=FAST)
-    b = optimal_cueing(sim, DEFAULTS, vehicle, sim.home, GRAVITY, options=FAST).cue
+    a = optimal_cue(sim, DEFAULTS, vehicle, sim.home, GRAVITY,
+                    controller=scene_of(sim).controller, options=FAST)
+    b = optimal_cueing(sim, DEFAULTS, vehicle, sim.home, GRAVITY,
+                       controller=scene_of(sim).controller, options=FAST).cue
     assert np.array_equal(a.q, b.q) and np.array_equal(a.qdd, b.qdd)

@@ -21,7 +21,8 @@ from stewart_fmu.rotations import euler_motion
 from stewart_sim.cueing.config import DEFAULTS, CueingConfig, cueing_config
 from stewart_sim.cueing.motion import VehicleMotion, read_motion
 from stewart_sim.cueing.washout import classical_washout, high_pass_denominator
-from stewart_sim.scene_info import describe_model
+from stewart_sim.scene_info import describe
+from stewart_sim.scene_load import scene_of
 from tests.helpers import ROOT, level_model, scene_dict, smooth_step
 from tests.helpers import vehicle_motion as motion
 
@@ -295,9 +296,9 @@ def test_cueing_must_be_a_table():
 def test_scene_info_shows_the_cueing_table():
     data = scene_dict("sim")
     data["cueing"]["rotational_order"] = 1
-    text = describe_model(scene_from_dict(data))
+    text = describe(scene_of(scene_from_dict(data)))
     line = next(x for x in text.splitlines() if x.startswith("cueing:"))
     assert "classical washout" in line and "rotational gain [0.5, 0.5, 0.5]" in line
     assert "high-pass order 1 at [1, 1, 1] rad/s" in line and "tilt low-pass 4 rad/s" in line
     del data["cueing"]
-    assert "cueing: none" in describe_model(scene_from_dict(data))
+    assert "cueing: none" in describe(scene_of(scene_from_dict(data)))

@@ -10,10 +10,18 @@ import pytest
 from stewart_fmu import forward_dynamics, inverse_dynamics, inverse_kinematics, load_scene
 from stewart_fmu.kinematics import COND_LIMIT
 from stewart_sim.cases import case_of, case_trajectory, run_case
+from stewart_sim.scene_load import scene_of
 from stewart_sim.stiff_study import hour_drift
 from tests.helpers import level_model
 
 EXTREME = Path(__file__).resolve().parents[2] / "scenes" / "extreme"
+
+
+
+def _case(model):
+    """The model with its [case] and [controller] tables as run_case takes them."""
+    scene = scene_of(model)
+    return model, scene.case, scene.controller
 
 
 def _round_trip_error(model, traj, forces) -> float:
@@ -28,7 +36,8 @@ def test_every_extreme_scene_has_its_defined_outcome(scene):
     failure names the sample and its time; results are finite."""
     model = load_scene(EXTREME / scene)
     case = case_of(model)
-    result = run_case(model, duration=min(case.duration, 0.2) if case.motion == "hold" else None)
+    result = run_case(*_case(model),
+                      duration=min(case.duration, 0.2) if case.motion == "hold" else None)
     assert result.outcome == case.expect, result.error
     if case.expect != "ok":
         assert result.index is not None and result.time == pytest.approx(result.index * case.step)
@@ -49,7 +58,7 @@ def test_near_singular_pose_gives_correct_forces_with_their_condition_number():
     forces = inverse_dynamics(model, q, qd, qdd)
     back = forward_dynamics(model, q, qd, forces)
     assert np.max(np.abs(back - qdd)) <= cond * 1e-13 * np.max(np.abs(qdd))
-    assert run_case(model, duration=0.02).cond_max >= 1e4
+    assert run_case(*_case(model), duration=0.02).cond_max >= 1e4
 
 
 def test_singular_move_stops_at_the_first_sample_past_the_threshold():
@@ -58,7 +67,7 @@ def test_singular_move_stops_at_the_first_sample_past_the_threshold():
     model = load_scene(EXTREME / "singular_move.toml")
     traj = case_trajectory(model, case_of(model))
     first = int(np.argmax(inverse_kinematics(model, traj.q).cond > COND_LIMIT))
-    result = run_case(model)
+    result = run_case(*_case(model))
     assert result.outcome == "SingularityError"
     assert (result.index, result.time) == (first, float(traj.t[first]))
 
@@ -69,7 +78,7 @@ def test_stroke_crossing_stops_at_the_first_sample_past_leg_max():
     traj = case_trajectory(model, case_of(model))
     first = int(np.argmax(np.any(inverse_kinematics(model, traj.q).lengths > model.leg_max,
                                  axis=1)))
-    result = run_case(model)
+    result = run_case(*_case(model))
     assert result.outcome == "StrokeLimitError"
     assert (result.index, result.time) == (first, float(traj.t[first]))
 
@@ -86,7 +95,7 @@ def test_hundred_times_the_paper_acceleration(axis, paper):
     s1 = inverse_dynamics(model, model.home, rest, a)
     s100 = inverse_dynamics(model, model.home, rest, 100 * a)
     assert np.max(np.abs((s100 - s0) - 100 * (s1 - s0))) <= 1e-12 * np.max(np.abs(s100 - s0))
-    result = run_case(model)
+    result = run_case(*_case(model))
     assert result.outcome == case_of(model).expect == "StrokeLimitError"
     assert 0 < result.time < 0.1
 
@@ -116,12 +125,13 @@ def test_massless_legs_are_the_platform_plus_drive_and_friction():
     platform = inverse_dynamics(level_model("micro", "platform_only"), traj.q, traj.qd, traj.qdd)
     expect = (platform + model.drive.reflected_mass * kin.accelerations
               + model.friction.viscous * kin.rates)
-    forces = run_case(model).forces
+    forces = run_case(*_case(model)).forces
     assert np.max(np.abs(forces - expect)) <= 1e-12 * np.max(np.abs(forces))
 
 
 def test_long_run_drift_short_horizon():
     """The ceiling-mounted conservative hold over 20 s with RK4 at 1 ms: E - F . l drifts by
     less than 1e-9 of the peak kinetic energy, orientation by less than 1e-9 rad."""
-    drift = hour_drift(load_scene(EXTREME / "hour.toml"), duration=20.0)
+    model = load_scene(EXTREME / "hour.toml")
+    drift = hour_drift(model, case_of(model), duration=20.0)
     assert drift.energy_drift < 1e-9 and drift.orientation_drift < 1e-9

@@ -1,6 +1,7 @@
 """The `simulate`, `trajectory` and `case` commands (stewart_sim.simulate, .trajectory,
-.case_report), called through a local argparse parser built from their add_parser functions
-(the way stewart_sim/cli.py registers them) and through their pipeline functions."""
+.case_report), called through a local argparse parser built from their command modules'
+add_parser functions (stewart_sim.commands, the way stewart_sim/cli.py registers them) and
+through their pipeline functions."""
 from __future__ import annotations
 
 import argparse
@@ -16,7 +17,7 @@ from stewart_fmu import io, load_scene
 from stewart_fmu.errors import StewartError, TrajectoryError
 from stewart_fmu.io import POSE, TRAJECTORY_COLUMNS
 from stewart_fmu.plant import StepRejected
-from stewart_sim import case_report, simulate, trajectory
+from stewart_sim import case_report, cli, simulate, trajectory
 from stewart_sim.inverse import run_inverse
 from stewart_sim.progress import Progress
 from tests.helpers import record
@@ -33,8 +34,8 @@ ROUND_TRIP_ANGLE = 4e-6   # rad
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="stewart-sim")
     sub = p.add_subparsers(required=True)
-    for module in (simulate, trajectory, case_report):
-        module.add_parser(sub)
+    for name in ("simulate", "trajectory", "case"):
+        cli.command_module(name).add_parser(sub, cli.COMMANDS[name])
     return p
 
 
@@ -244,8 +245,6 @@ def test_case_needs_a_case_table(tmp_path):
 def test_the_command_line_runs_the_new_commands(tmp_path, capsys):
     """stewart-sim lists simulate, trajectory and case in --help (without importing them) and
     runs each through cli.main with its module's own arguments."""
-    from stewart_sim import cli
-
     assert cli.main(["--help"]) == 0
     listed = capsys.readouterr().out
     assert all(name in listed for name in ("simulate", "trajectory", "case"))

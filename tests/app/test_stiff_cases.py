@@ -13,9 +13,16 @@ from stewart_fmu.errors import IntegrationError
 from stewart_fmu.integrators import IntegratorOptions
 from stewart_fmu.stability import stable_step
 from stewart_sim.cases import case_of, run_case
+from stewart_sim.scene_load import scene_of
 
 STIFF = Path(__file__).resolve().parents[2] / "scenes" / "stiff"
 REFERENCE = IntegratorOptions("Radau", rtol=1e-10, atol=1e-13)
+
+
+def _case(model):
+    """The model with its [case] and [controller] tables as run_case takes them."""
+    scene = scene_of(model)
+    return model, scene.case, scene.controller
 
 
 @pytest.mark.parametrize("scene", ["viscous.toml", "compliant.toml"])
@@ -24,7 +31,8 @@ def test_default_integrator_copes_and_agrees_with_radau(scene):
     tight Radau run within 1e-4 of the motion."""
     model = load_scene(STIFF / scene)
     assert case_of(model).expect == "ok"
-    result, ref = run_case(model, duration=0.05), run_case(model, REFERENCE, duration=0.05)
+    result = run_case(*_case(model), duration=0.05)
+    ref = run_case(*_case(model), REFERENCE, duration=0.05)
     assert result.outcome == "ok" and ref.outcome == "ok"
     motion = np.max(np.abs(ref.states[:, :6] - model.home))
     assert np.max(np.abs(result.states[:, :6] - ref.states[:, :6])) <= 1e-4 * motion
@@ -37,7 +45,7 @@ def test_explicit_rk4_past_its_stability_limit_is_caught(scene):
     model = load_scene(STIFF / scene)
     limit = stable_step(model)
     assert limit < 1e-3
-    result = run_case(model, IntegratorOptions("rk4", max_step=1e-3),
+    result = run_case(*_case(model), IntegratorOptions("rk4", max_step=1e-3),
                       duration=0.05)
     assert result.outcome == "unstable"
     exc = result.error
@@ -52,7 +60,8 @@ def test_rk4_below_its_stability_limit_is_accepted():
     """RK4 at 0.9 of the stability limit on the viscous scene runs without being flagged."""
     model = load_scene(STIFF / "viscous.toml")
     h = 0.9 * stable_step(model)
-    assert run_case(model, IntegratorOptions("rk4", max_step=h), duration=0.02).outcome == "ok"
+    rk4 = IntegratorOptions("rk4", max_step=h)
+    assert run_case(*_case(model), rk4, duration=0.02).outcome == "ok"
 
 
 def test_high_gain_loop_runs_and_integrators_agree():
@@ -60,8 +69,8 @@ def test_high_gain_loop_runs_and_integrators_agree():
     lengths (1e-9 m): the stiffness of a sampled high-gain loop is decided by the sampled-loop
     analysis, not by the plant integrator."""
     model = load_scene(STIFF / "high_gain.toml")
-    a = run_case(model, duration=0.06)
-    b = run_case(model, REFERENCE, duration=0.06)
+    a = run_case(*_case(model), duration=0.06)
+    b = run_case(*_case(model), REFERENCE, duration=0.06)
     assert a.outcome == b.outcome == "ok"
     assert np.max(np.abs(a.states - b.states)) < 1e-9
 
@@ -72,4 +81,4 @@ def test_gain_beyond_the_sample_rate_is_refused_before_running():
     model = load_scene(STIFF / "high_gain.toml", {"controller.bandwidth": 400.0,
                                                   "controller.rate": 500.0})
     with pytest.raises(UnstableLoopError, match="spectral radius"):
-        run_case(model, duration=0.2)
+        run_case(*_case(model), duration=0.2)

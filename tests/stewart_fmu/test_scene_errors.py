@@ -272,7 +272,7 @@ def test_legs_with_zero_mass_differ_from_absent_legs(micro_dict):
 
 def test_optional_keys_and_project_tables(micro_dict):
     """gravity defaults to [0, 0, -9.81]; leg_min / leg_max are optional; the project's own
-    tables (trajectory, controller, link, solver, device) are accepted and kept in Model.extra."""
+    tables (controller, cueing, case, solver) are accepted and kept in Model.extra."""
     del micro_dict["gravity"], micro_dict["geometry"]["leg_min"], micro_dict["geometry"]["leg_max"]
     micro_dict["controller"] = {"kp": 1.0}
     model = scene_from_dict(micro_dict)

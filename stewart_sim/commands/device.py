@@ -1,0 +1,64 @@
+"""`stewart-sim device SCENE (--udp 127.0.0.1:PORT | --pty) [--watchdog S] [--lockstep]
+[--signing-key HEX] [--view [PORT]]`: the emulated micro-manipulator (hil.spawn.serve_device)
+until SIGINT or SIGTERM (exit status 0)."""
+from __future__ import annotations
+
+import argparse
+
+from stewart_sim.argtypes import port, positive_seconds
+from stewart_sim.commands.constants import literals
+
+
+def add_parser(sub, help_text: str) -> None:
+    """Register `device` on the command line's subparsers."""
+    (watchdog,) = literals("hil.spawn", "WATCHDOG")
+    p = sub.add_parser("device", help=help_text,
+                       description="Run the scene's plant and drive servo loops at the "
+                                   "controller rate as an emulated device speaking MAVLink 2 "
+                                   "(our dialect, hil/message_definitions/stewart.xml) over UDP "
+                                   "on loopback or a pseudo-terminal, until interrupted (Ctrl-C "
+                                   "exits 0). The first line printed is the pseudo-terminal's "
+                                   "path, or the UDP address listened on.")
+    p.add_argument("scene", metavar="SCENE", help="scene file (TOML) with a [controller] table")
+    where = p.add_mutually_exclusive_group(required=True)
+    where.add_argument("--udp", metavar="127.0.0.1:PORT",
+                       help="listen on this loopback UDP port (0: any free port) and answer "
+                            "whoever sends to it")
+    where.add_argument("--pty", action="store_true",
+                       help="open a pseudo-terminal and print its path on the first line")
+    p.add_argument("--watchdog", type=positive_seconds, default=watchdog, metavar="SECONDS",
+                   help="safe stop (hold) after this long without a valid setpoint while armed "
+                        f"(default {watchdog:g} s)")
+    p.add_argument("--lockstep", action="store_true",
+                   help="advance time only on LOCKSTEP messages (deterministic runs)")
+    p.add_argument("--signing-key", metavar="HEX",
+                   help="MAVLink 2 signing key, 64 hex digits: unsigned or badly signed frames "
+                        "are rejected and counted")
+    p.add_argument("--view", nargs="?", const=0, type=port, metavar="PORT",
+                   help="serve a live 3D view of the device in the browser on 127.0.0.1:PORT "
+                        "(no PORT or 0: any free port); the second line printed is its address")
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> None:
+    """Serve until SIGINT or SIGTERM, then return. With --view the live view
+    (stewart_sim.view.live) listens on loopback from before the device starts (a taken port
+    fails at once) until the device stops; its address is the line after the device's own."""
+    from hil.spawn import serve_device  # pymavlink: only for this command
+    from stewart_sim.scene_load import load
+
+    scene = load(args.scene)
+    model, config = scene.model, scene.require_controller()
+    if args.view is None:
+        serve_device(model, config, args.udp, args.watchdog, args.lockstep, args.signing_key)
+        return
+    from hil.observe import Latest
+    from stewart_sim.view.live import LiveView, live_page
+
+    latest = Latest()
+    with LiveView(live_page(model), latest, args.view) as view:
+        def ready() -> None:
+            view.start()
+            print(f"view: {view.url}", flush=True)
+        serve_device(model, config, args.udp, args.watchdog, args.lockstep, args.signing_key,
+                     observer=latest, ready=ready)

@@ -1,0 +1,51 @@
+"""`stewart-sim inverse SCENE --trajectory TRAJ.csv --out FORCES.csv [--parts] [--no-view]`: the
+rack forces along a trajectory (stewart_sim.inverse.run_inverse) and their 3D view beside."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def add_parser(sub, help_text: str) -> None:
+    """Register `inverse` on the command line's subparsers."""
+    p = sub.add_parser("inverse", help=help_text,
+                       description="Actuator (rack) forces for a trajectory CSV, with exactly "
+                                   "the effects the scene declares.")
+    p.add_argument("scene", metavar="SCENE", help="scene file (TOML)")
+    p.add_argument("--trajectory", required=True, metavar="TRAJ.csv",
+                   help="columns t,x,y,z,thx,thy,thz, their rates d*, accelerations dd*")
+    p.add_argument("--out", required=True, metavar="FORCES.csv",
+                   help="t,sigma1..sigma6,cond[,<part>1..<part>6 ...]; it and its view "
+                        "FORCES.html are written together or not at all")
+    p.add_argument("--parts", action="store_true",
+                   help="add the breakdown of sigma by contribution (the parts the scene has)")
+    p.add_argument("--no-view", action="store_true",
+                   help="do not write the 3D view (by default FORCES.html beside FORCES.csv: "
+                        "stewart-sim view)")
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> None:
+    """Write the forces (and their view) or neither; print what was written."""
+    from stewart_fmu.errors import StewartError
+    from stewart_sim.inverse import run_inverse
+    from stewart_sim.outputs import file_set
+    from stewart_sim.progress import Progress
+    from stewart_sim.scene_load import load
+
+    model = load(args.scene).model
+    out = Path(args.out)
+    view = None if args.no_view else out.with_suffix(".html")
+    if view == out:
+        raise StewartError(f"--out {out}: the 3D view would be written over it: give a .csv "
+                           "name, or --no-view")
+    progress = Progress()
+    try:   # the forces and their view: both files or neither (Ctrl-C: neither)
+        with file_set(out, *([view] if view else [])) as staged:
+            n, _ = run_inverse(model, Path(args.trajectory), staged[0], args.parts, progress,
+                               view=staged[1] if view else None)
+    finally:
+        progress.close()
+    print(f"wrote {args.out}: {n} samples" + (" with the breakdown by part" if args.parts else ""))
+    if view is not None:
+        print(f"wrote {view}")

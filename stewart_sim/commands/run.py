@@ -1,0 +1,97 @@
+"""`stewart-sim run SCENE [--fmu PLANT.fmu | --link serial|udp [--mode lockstep|realtime]]
+--out DIR [--duration S] [--feedforward F] [--format csv|parquet] [--no-view]`: the closed loop
+(stewart_sim.run, or stewart_sim.link_run over the link) into DIR, all or nothing."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from stewart_sim.argtypes import positive_seconds
+from stewart_sim.commands.constants import literals
+
+
+def add_parser(sub, help_text: str) -> None:
+    """Register `run` on the command line's subparsers."""
+    duration, move, hold = literals("controller.moves", "DEMO_DURATION", "RUN_MOVE", "RUN_HOLD")
+    (formats,) = literals("stewart_sim.run", "FORMATS")
+    (feedforward,) = literals("controller.config", "FEEDFORWARD")
+    p = sub.add_parser("run", help=help_text,
+                       description="Track a demonstration reference (a quintic six-axis move "
+                                   "out and back, with holds) with the scene's per-axis "
+                                   "controllers ([controller] table) around the in-process plant "
+                                   "or an exported FMU; writes run.csv, three plots and "
+                                   "summary.md into DIR and prints the summary.")
+    p.add_argument("scene", metavar="SCENE", help="scene file (TOML) with a [controller] table")
+    p.add_argument("--fmu", metavar="PLANT.fmu",
+                   help="drive this FMU (export-fmu of the same scene) through fmpy instead of "
+                        "the in-process plant")
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    p.add_argument("--duration", type=positive_seconds, default=duration, metavar="SECONDS",
+                   help=f"length of the run (default {duration:g} s): the move out and "
+                        f"back take {100 * move:g} %% of it each, the holds after them "
+                        f"{100 * hold:g} %% each")
+    p.add_argument("--format", choices=formats, default=formats[0],
+                   help="the run's table: run.csv (default) or run.parquet (smaller and much "
+                        "faster to write for long runs; needs pyarrow: pip install "
+                        "'stewart-sim[parquet]')")
+    p.add_argument("--feedforward", choices=feedforward,
+                   help="override the scene's controller.feedforward")
+    p.add_argument("--link", choices=("serial", "udp"),
+                   help="run the controller against the emulated device (hil.device, in its "
+                        "own process) over a pseudo-terminal (serial) or loopback UDP instead "
+                        "of the in-process plant; writes run.csv and summary.md")
+    p.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep",
+                   help="with --link: lockstep (deterministic, one exchange per controller "
+                        "step; default) or realtime (wall clock, link delays visible)")
+    p.add_argument("--no-view", action="store_true",
+                   help="do not write the 3D view (by default DIR/view.html)")
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> None:
+    """Check the options against each other, run, print summary.md and the files."""
+    from dataclasses import replace
+
+    from stewart_sim.scene_load import load
+
+    scene = load(args.scene)        # a bad scene file fails before the heavy imports
+    from stewart_fmu.errors import StewartError
+    from stewart_sim.limits import check_samples
+    from stewart_sim.outputs import result_set
+    from stewart_sim.run import ANY_RUN_FILES, check_format, run_closed_loop_files, run_files
+    from stewart_sim.view.files import VIEW_FILE
+
+    model, config = scene.model, scene.require_controller()
+    if args.feedforward is not None:
+        config = replace(config, feedforward=args.feedforward)
+    if args.link is not None and args.fmu:
+        raise StewartError("run: --fmu and --link exclude each other (the device over the "
+                           "link runs its own in-process plant)")
+    if args.link is None and args.mode != "lockstep":
+        raise StewartError("run: --mode needs --link serial|udp")
+    if scene.has_solver and (args.fmu or args.link):
+        raise StewartError("run: the scene's [solver] sets the in-process plant's integrator; "
+                           "the FMU (--fmu) and the device (--link) integrate with their own: "
+                           "remove [solver] or run in-process")
+    check_samples("--duration", args.duration, config.rate)
+    check_format(args.format)
+    out = Path(args.out)
+    if args.link is not None:
+        # hil (pymavlink, the device process): only for --link
+        from stewart_sim.link_run import LINK_FILES, run_link_files
+
+        if args.format != "csv":
+            raise StewartError("run --link: --format parquet is not supported over the link")
+        with result_set(out, ANY_RUN_FILES) as stage:
+            run_link_files(model, config, args.duration, stage, args.link, args.mode,
+                           view=not args.no_view)
+        names = [n for n in LINK_FILES if not (args.no_view and n == VIEW_FILE)]
+    else:
+        names = run_files(args.format, not args.no_view)
+        with result_set(out, ANY_RUN_FILES) as stage:
+            run_closed_loop_files(model, config, args.duration, stage,
+                                  Path(args.fmu) if args.fmu else None, args.format,
+                                  not args.no_view, options=scene.solver)
+    print((out / "summary.md").read_text(encoding="utf-8"), end="")
+    for name in names:
+        print(f"wrote {out / name}")
