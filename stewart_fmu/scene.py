@@ -154,16 +154,15 @@ def _drive(v: "_Validator", data: Mapping[str, Any]) -> DriveParams | None:
     t = v.table(data, "drive")
     if t is None:
         return None
-    return DriveParams(**{k: v.number(t, f"drive.{k}")
-                          for k in ("gear_ratio", "rotor_inertia", "pinion_radius")})
+    return DriveParams(v.number(t, "drive.gear_ratio"), v.per_leg(t, "drive.rotor_inertia"),
+                       v.number(t, "drive.pinion_radius"))
 
 
 def _friction(v: "_Validator", data: Mapping[str, Any]) -> FrictionParams | None:
     t = v.table(data, "friction")
     if t is None:
         return None
-    return FrictionParams(**{k: v.number(t, f"friction.{k}")
-                             for k in ("viscous", "coulomb")})
+    return FrictionParams(v.per_leg(t, "friction.viscous"), v.per_leg(t, "friction.coulomb"))
 
 
 def _transmission(v: "_Validator", data: Mapping[str, Any]) -> TransmissionParams | None:
@@ -254,6 +253,15 @@ class _Validator:
         self._bound(dotted, np.array(x), BOUND_POS if positive else BOUND_NONNEG if nonnegative
                     else table.bound(dotted))
         return x
+
+    def per_leg(self, t: Mapping[str, Any], dotted: str) -> float | tuple[float, ...]:
+        """A per-leg key: one number for all legs, or a list of six (legs 1..6)."""
+        x = t.get(dotted.rsplit(".", 1)[-1])
+        if not isinstance(x, list):
+            return self.number(t, dotted)
+        if len(x) != 6:
+            self.fail_key(dotted, f"must be one number, or six (one per leg), got {len(x)} values")
+        return tuple(float(e) for e in self._array(x, dotted, (6,)))
 
     def vector(self, t: Mapping[str, Any], dotted: str, n: int, default=None) -> np.ndarray:
         key = dotted.rsplit(".", 1)[-1]
