@@ -206,3 +206,29 @@ def test_run_feedforward_forces_differ_leg_by_leg(scenes, tmp_path):
                      "--feedforward", "kane", "--no-view", "--fmu", str(fmu)]) == 0
     loc, via_fmu = read_csv(tmp_path / "all" / "run.csv"), read_csv(tmp_path / "fmu" / "run.csv")
     assert np.max(np.abs(legs(via_fmu, "l") - legs(loc, "l"))) <= 1e-9
+
+
+def test_scene_info_paper_and_compare_accept_a_per_leg_scene(scenes, tmp_path, capsys):
+    """scene-info lists the six values; the paper and compare studies run on the scene (compare
+    sweeps the gear ratio: all six legs' m_d scale alike) and their reports show the six."""
+    assert cli.main(["scene-info", str(scenes["all"])]) == 0
+    out = capsys.readouterr().out
+    assert "viscous [1, 2.5, 4, 5.5, 7, 8.5] (legs 1..6) N s/m" in out
+    assert cli.main(["paper", str(scenes["all"]), "--out", str(tmp_path / "paper"), "--no-view"]) == 0
+    assert "viscous [1, 2.5, 4, 5.5, 7, 8.5] (legs 1..6)" in (tmp_path / "paper" / "report.md").read_text()
+    assert cli.main(["compare", str(scenes["all"]), "--out", str(tmp_path / "compare"), "--points", "2"]) == 0
+    assert (tmp_path / "compare" / "report.md").exists()
+
+
+@pytest.mark.parametrize("value, words", [([1.0] * 5, "one number, or six (one per leg), got 5"),
+                                          ([1.0, 2.0, -0.5, 1.0, 1.0, 1.0], "must be >= 0"),
+                                          ([1.0, 2.0, "x", 1.0, 1.0, 1.0], "must be numbers")])
+def test_bad_per_leg_values_name_the_key(value, words):
+    from stewart_fmu.errors import SceneError
+    from stewart_fmu.scene import read_scene_dict, scene_from_dict
+
+    data = read_scene_dict(MICRO)
+    data["friction"]["viscous"] = value
+    with pytest.raises(SceneError, match="friction.viscous") as info:
+        scene_from_dict(data)
+    assert words in str(info.value)
