@@ -20,7 +20,7 @@ import numpy as np
 
 from stewart_fmu.errors import SceneError
 from stewart_fmu.kane_terms import mass_matrix
-from stewart_fmu.model import Model, rack_ratio
+from stewart_fmu.model import Model, per_leg, rack_ratio
 
 MOTOR_KEYS = ("resistance", "inductance", "torque_constant", "back_emf", "current_limit",
                "voltage_limit")
@@ -104,13 +104,15 @@ def constant_load(model: Model) -> float:
 
 
 def axis_model(model: Model, motor: Motor, load_mass: float | None = None) -> AxisModel:
-    """The drive of the scene's legs with its constant load (derived when not given)."""
+    """The drive of the scene's legs with its constant load (derived when not given). One
+    model for all six axes: with per-leg values it is the conservative axis, the largest rotor
+    inertia (the slowest leg) and the smallest viscous friction (the least damped)."""
     if model.drive is None:
         raise SceneError("drive", "the per-axis controller needs the scene's [drive] table")
     d = model.drive
-    return AxisModel(motor, d.gear_ratio, d.pinion_radius, d.rotor_inertia,
+    return AxisModel(motor, d.gear_ratio, d.pinion_radius, float(np.max(per_leg(d.rotor_inertia))),
                      constant_load(model) if load_mass is None else load_mass,
-                     model.friction.viscous if model.friction is not None else 0.0)
+                     float(np.min(model.friction.viscous_legs)) if model.friction is not None else 0.0)
 
 
 def motor_from_table(table: Mapping[str, Any], where: str = "controller.motor",

@@ -145,11 +145,12 @@ def actuator_matrix(model: Model, q) -> np.ndarray:
 
 
 def friction_forces(model: Model, ldot) -> np.ndarray:
-    """mu_i: the friction force of each joint, opposing extension (sign(0) = 0)."""
+    """mu_i: the friction force of each joint (its own coefficients), opposing extension
+    (sign(0) = 0)."""
     ldot = np.asarray(ldot, dtype=float)
     if model.friction is None:
         return np.zeros_like(ldot)
-    return model.friction.viscous * ldot + model.friction.coulomb * np.sign(ldot)
+    return model.friction.viscous_legs * ldot + model.friction.coulomb_legs * np.sign(ldot)
 
 
 def friction_terms(model: Model, q, qd) -> np.ndarray:
@@ -184,9 +185,8 @@ def velocity_terms(model: Model, q, qd) -> np.ndarray:
 
 
 def drive_inertia(model: Model) -> np.ndarray:
-    """[m_d] = diag(zeta^2 I / r^2) (Eqs. 13-14, typo corrected), zeros without a drive."""
-    md = model.drive.reflected_mass if model.drive is not None else 0.0
-    return md * np.eye(6)
+    """[m_d] = diag(zeta^2 I_i / r^2) (Eqs. 13-14, typo corrected), zeros without a drive."""
+    return np.diag(model.drive.reflected_masses) if model.drive is not None else np.zeros((6, 6))
 
 
 def actuator_forces(model: Model, q, qd, qdd) -> np.ndarray:

@@ -47,12 +47,26 @@ def rack_ratio(gear_ratio: float, pinion_radius: float) -> float:
     return gear_ratio / pinion_radius
 
 
+PerLeg = float | tuple[float, ...]   # one value for all six legs, or six (legs 1..6)
+
+
+def per_leg(value: PerLeg) -> np.ndarray:
+    """The six legs' values of a per-leg parameter, (6,) float64."""
+    return np.broadcast_to(np.asarray(value, dtype=float), (6,)).copy()
+
+
+def is_per_leg(value: PerLeg) -> bool:
+    """Whether the scene gave six values (else one for all legs)."""
+    return np.ndim(value) == 1
+
+
 @dataclass(frozen=True)
 class DriveParams:
-    """Servomotor, gearbox and rack-and-pinion of every leg."""
+    """Servomotor, gearbox and rack-and-pinion of every leg; the rotor inertia per leg (six
+    values) or one for all."""
 
     gear_ratio: float
-    rotor_inertia: float
+    rotor_inertia: PerLeg
     pinion_radius: float
 
     @property
@@ -61,17 +75,34 @@ class DriveParams:
         return rack_ratio(self.gear_ratio, self.pinion_radius)
 
     @property
+    def reflected_masses(self) -> np.ndarray:
+        """m_d,i = zeta^2 I_i / r^2 of the six legs (Eq. 14 with the paper's typo corrected)."""
+        return self.gear_ratio**2 * per_leg(self.rotor_inertia) / self.pinion_radius**2
+
+    @property
     def reflected_mass(self) -> float:
-        """m_d = zeta^2 I / r^2 (Eq. 14 with the paper's typo corrected)."""
-        return self.gear_ratio**2 * self.rotor_inertia / self.pinion_radius**2
+        """One leg's m_d: the largest of the six (all of them when the scene gives one rotor
+        inertia); what a single axis model takes (controller.drive.axis_model)."""
+        return float(np.max(self.reflected_masses))
 
 
 @dataclass(frozen=True)
 class FrictionParams:
-    """Viscous and Coulomb friction of every prismatic joint."""
+    """Viscous and Coulomb friction of the prismatic joints: per leg (six values) or one for
+    all, as the scene gives them."""
 
-    viscous: float
-    coulomb: float
+    viscous: PerLeg
+    coulomb: PerLeg
+
+    @property
+    def viscous_legs(self) -> np.ndarray:
+        """The six legs' viscous friction (N s/m)."""
+        return per_leg(self.viscous)
+
+    @property
+    def coulomb_legs(self) -> np.ndarray:
+        """The six legs' Coulomb friction (N)."""
+        return per_leg(self.coulomb)
 
 
 @dataclass(frozen=True)
@@ -144,9 +175,10 @@ def _pack(m: Model) -> np.ndarray:
         p[P_LOWER:P_LOWER + 4] = (lg.lower_mass, lg.lower_com, *lg.lower_inertia)
         p[P_UPPER:P_UPPER + 4] = (lg.upper_mass, lg.upper_com, *lg.upper_inertia)
     if m.drive is not None:
-        p[P_DRIVE_MASS] = m.drive.reflected_mass
+        p[P_DRIVE_MASS:P_DRIVE_MASS + 6] = m.drive.reflected_masses
     if m.friction is not None:
-        p[P_VISCOUS], p[P_COULOMB] = m.friction.viscous, m.friction.coulomb
+        p[P_VISCOUS:P_VISCOUS + 6] = m.friction.viscous_legs
+        p[P_COULOMB:P_COULOMB + 6] = m.friction.coulomb_legs
     if m.transmission is not None:
         p[P_HAS_TRANSMISSION] = 1.0
         p[P_STIFFNESS], p[P_DAMPING] = m.transmission.stiffness, m.transmission.damping

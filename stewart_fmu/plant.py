@@ -182,7 +182,7 @@ class Outputs:
         out = {k: v[0] for k, v in inverse_dynamics_parts(
             p._leg_model, p._y[:6], p._y[6:12], self.qdd).items()}
         if p.model.transmission is not None:
-            out["drives"] = p.model.drive.reflected_mass * self._ydot()[18:]
+            out["drives"] = p.model.drive.reflected_masses * self._ydot()[18:]
         return {k: out[k] for k in present_parts(p.model)}
 
 

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import math
 import tomllib
+from dataclasses import fields
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -21,14 +22,23 @@ DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
 PROJECT_TABLES = frozenset({"controller", "case", "cueing", "solver"})
 _TOP_KEYS = {"name", "gravity", "geometry", "platform", "legs", "drive", "friction",
              "transmission"}
+_OPTIONAL_KEYS = {"geometry.leg_min", "geometry.leg_max"}   # every other plant key is required
+
+
+def _plant_table_keys() -> dict[str, tuple[set[str], set[str]]]:
+    """(required, optional) keys of each plant table: the scene keys of the one table
+    (native/include/stewart_table.h, read by table.scene_groups)."""
+    out: dict[str, tuple[set[str], set[str]]] = {}
+    for key in table.scene_groups():
+        tab, _, name = key.rpartition(".")
+        if tab:
+            need, opt = out.setdefault(tab, (set(), set()))
+            (opt if key in _OPTIONAL_KEYS else need).add(name)
+    return out
+
+
 _TABLE_KEYS = {
-    "geometry": ({"base_joints", "platform_joints", "home"}, {"leg_min", "leg_max"}),
-    "platform": ({"mass", "inertia"}, set()),
-    "legs": ({"lower_mass", "lower_com", "lower_inertia",
-              "upper_mass", "upper_com", "upper_inertia"}, set()),
-    "drive": ({"gear_ratio", "rotor_inertia", "pinion_radius"}, set()),
-    "friction": ({"viscous", "coulomb"}, set()),
-    "transmission": ({"stiffness", "damping"}, set()),
+    **_plant_table_keys(),
     "case": ({"kind", "description", "motion", "duration", "expect"},
              {"step", "force_scale", "start_rates", "acceleration", "target"}),
 }
@@ -37,8 +47,7 @@ CASE_CHOICES = {"kind": ("stiff", "extreme"),
                 "motion": ("hold", "accelerate", "ramp", "closed_loop"),
                 "expect": ("ok", "StrokeLimitError", "SingularityError")}
 _CASE_VECTORS = {"accelerate": "acceleration", "ramp": "target"}  # motion -> required key
-_VECTOR_KEYS = {"geometry.base_joints", "geometry.platform_joints", "geometry.home",
-                "platform.inertia", "legs.lower_inertia", "legs.upper_inertia"}
+_VECTOR_KEYS = {k for k, g in table.scene_groups().items() if g.count > 1 and g.shape != table.PER_LEG}
 # Dotted keys of the contract's tables that hold a single number (what a sweep may vary).
 NUMBER_KEYS = frozenset(f"{t}.{k}" for t, (need, opt) in _TABLE_KEYS.items()
                         for k in need | opt) - _VECTOR_KEYS
@@ -151,19 +160,20 @@ def _legs(v: "_Validator", data: Mapping[str, Any]) -> LegParams | None:
 
 
 def _drive(v: "_Validator", data: Mapping[str, Any]) -> DriveParams | None:
-    t = v.table(data, "drive")
-    if t is None:
-        return None
-    return DriveParams(**{k: v.number(t, f"drive.{k}")
-                          for k in ("gear_ratio", "rotor_inertia", "pinion_radius")})
+    return _params(v, data, "drive", DriveParams)
 
 
 def _friction(v: "_Validator", data: Mapping[str, Any]) -> FrictionParams | None:
-    t = v.table(data, "friction")
+    return _params(v, data, "friction", FrictionParams)
+
+
+def _params(v: "_Validator", data: Mapping[str, Any], name: str, cls):
+    """A plant table whose keys are the fields of its parameter class, each read as the table
+    declares it (a number, six per-leg values or one for all, a vector); None when absent."""
+    t = v.table(data, name)
     if t is None:
         return None
-    return FrictionParams(**{k: v.number(t, f"friction.{k}")
-                             for k in ("viscous", "coulomb")})
+    return cls(**{f.name: v.value(t, f"{name}.{f.name}") for f in fields(cls)})
 
 
 def _transmission(v: "_Validator", data: Mapping[str, Any]) -> TransmissionParams | None:
@@ -173,8 +183,7 @@ def _transmission(v: "_Validator", data: Mapping[str, Any]) -> TransmissionParam
         return None
     if data.get("drive") is None:
         v.fail("transmission", "needs the [drive] table: the motor side moves the drive inertia")
-    return TransmissionParams(v.number(t, "transmission.stiffness"),
-                              v.number(t, "transmission.damping"))
+    return _params(v, data, "transmission", TransmissionParams)
 
 
 def _check_case(v: "_Validator", data: Mapping[str, Any]) -> None:
@@ -254,6 +263,22 @@ class _Validator:
         self._bound(dotted, np.array(x), BOUND_POS if positive else BOUND_NONNEG if nonnegative
                     else table.bound(dotted))
         return x
+
+    def value(self, t: Mapping[str, Any], dotted: str):
+        """A plant key read as the table declares it (table.scene_groups)."""
+        g = table.scene_groups()[dotted]
+        if g.shape == table.PER_LEG:
+            return self.per_leg(t, dotted)
+        return self.number(t, dotted) if g.count == 1 else tuple(self.vector(t, dotted, g.count))
+
+    def per_leg(self, t: Mapping[str, Any], dotted: str) -> float | tuple[float, ...]:
+        """A per-leg key: one number for all legs, or a list of six (legs 1..6)."""
+        x = t.get(dotted.rsplit(".", 1)[-1])
+        if not isinstance(x, list):
+            return self.number(t, dotted)
+        if len(x) != 6:
+            self.fail_key(dotted, f"must be one number, or six (one per leg), got {len(x)} values")
+        return tuple(float(e) for e in self._array(x, dotted, (6,)))
 
     def vector(self, t: Mapping[str, Any], dotted: str, n: int, default=None) -> np.ndarray:
         key = dotted.rsplit(".", 1)[-1]

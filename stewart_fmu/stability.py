@@ -49,7 +49,7 @@ def spectral_radius(model: Model, y: np.ndarray, F: np.ndarray) -> float:
     """max |lambda| of the Jacobian of y' = f(y, F) (central differences, Coulomb left out);
     NaN when a neighbouring state cannot be evaluated (stroke, singularity)."""
     p = model.params.copy()
-    p[M.P_COULOMB] = 0.0
+    p[M.P_COULOMB:M.P_COULOMB + 6] = 0.0   # every leg's
     # packed for the core once for the 2 n derivatives below (the model's own when unchanged)
     packed = model.native if np.array_equal(p, model.params) else core.native_params(p)
     scale = np.maximum(np.abs(y), model.characteristic_length)

@@ -80,9 +80,12 @@ def vr(group_id: str) -> int:
     return GROUPS[group_id].vr
 
 
+SCENE_GROUPS: dict[str, VariableGroup] = {g.name: g for g in VARIABLES if g.scene}
+
+
 def scene_groups() -> dict[str, VariableGroup]:
     """The FMU parameters that are scene keys ("platform.mass", ...), by dotted key."""
-    return {g.name: g for g in VARIABLES if g.scene}
+    return SCENE_GROUPS
 
 
 def bound(key: str) -> int:

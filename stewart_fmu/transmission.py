@@ -43,11 +43,9 @@ def initial_state(model: Model, q: np.ndarray, qd: np.ndarray,
 
 def natural_frequencies(model: Model, q: np.ndarray) -> np.ndarray:
     """Linearised transmission modes at pose q (rad/s, ascending): the springs k between the
-    drive inertias m_d and the leg side's leg-space mass [m], omega^2 = eig(k (I / m_d +
+    drive inertias m_d,i and the leg side's leg-space mass [m], omega^2 = eig(k ([m_d]^-1 +
     [m]^-1)); gravity's geometric stiffness and the damping left out."""
-
-
     m = mass_matrix(replace(model, drive=None, transmission=None), q)
-    k, md = model.transmission.stiffness, model.drive.reflected_mass
-    w2 = np.linalg.eigvals(k * (np.eye(6) / md + np.linalg.inv(m)))
+    k, md = model.transmission.stiffness, model.drive.reflected_masses
+    w2 = np.linalg.eigvals(k * (np.diag(1.0 / md) + np.linalg.inv(m)))
     return np.sqrt(np.sort(w2.real))

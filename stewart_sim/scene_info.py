@@ -9,7 +9,7 @@ from controller.config import ControllerConfig
 from controller.drive import axis_model
 from stewart_fmu.integrators import IntegratorOptions
 from stewart_fmu.kinematics import inverse_kinematics
-from stewart_fmu.model import Model
+from stewart_fmu.model import Model, PerLeg, is_per_leg
 
 from .cueing.config import OPTIMAL, CueingConfig, OptimalOptions
 from .scene_load import Scene
@@ -70,7 +70,8 @@ def _describe_controller(model: Model, cfg: ControllerConfig | None) -> str:
             f"{m.resistance:g} ohm, L {m.inductance:g} H, Kt {m.torque_constant:g} N m/A, Ke "
             f"{m.back_emf:g} V s/rad, limits {m.current_limit:g} A and {m.voltage_limit:g} V; "
             f"each axis: constant load {axis.load_mass:.6g} kg ({load}), reflected drive "
-            f"inertia {axis.reflected_mass:.6g} kg")
+            f"inertia {axis.reflected_mass:.6g} kg"
+            + (" (the largest leg's)" if is_per_leg(model.drive.rotor_inertia) else ""))
 
 
 def _describe_case(model: Model) -> str:
@@ -140,9 +141,9 @@ def _describe_drive(model: Model) -> str:
     dr = model.drive
     if dr is None:
         return "drive: none (m_d = 0, not modelled)"
-    return (f"drive: gear ratio {dr.gear_ratio:g}, rotor inertia {dr.rotor_inertia:g} kg m^2, "
-            f"pinion radius {dr.pinion_radius:g} m; m_d = zeta^2 I / r^2 = "
-            f"{dr.reflected_mass:.6g} kg")
+    md = format_vector(dr.reflected_masses) if is_per_leg(dr.rotor_inertia) else f"{dr.reflected_mass:.6g}"
+    return (f"drive: gear ratio {dr.gear_ratio:g}, rotor inertia {per_leg_text(dr.rotor_inertia)} kg m^2, "
+            f"pinion radius {dr.pinion_radius:g} m; m_d = zeta^2 I / r^2 = {md} kg")
 
 
 def _describe_friction(model: Model) -> str:
@@ -150,7 +151,12 @@ def _describe_friction(model: Model) -> str:
     fr = model.friction
     if fr is None:
         return "friction: none"
-    return f"friction: viscous {fr.viscous:g} N s/m, Coulomb {fr.coulomb:g} N"
+    return f"friction: viscous {per_leg_text(fr.viscous)} N s/m, Coulomb {per_leg_text(fr.coulomb)} N"
+
+
+def per_leg_text(value: PerLeg) -> str:
+    """A per-leg value: one number (all legs), or the six of legs 1..6."""
+    return f"{format_vector(value)} (legs 1..6)" if is_per_leg(value) else f"{value:g}"
 
 
 def format_vector(a) -> str:

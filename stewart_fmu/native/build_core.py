@@ -14,8 +14,9 @@ from cffi import FFI
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]            # the project root (setup.py's directory)
 SOURCES = sorted((HERE / "src").glob("*.c"))
-# -ffp-contract=off: no fused multiply-add, as numba compiles the Python kernels (keeps the
-# C results equal to them to the last bits on machines with FMA); portable flags only.
+# -ffp-contract=off: no fused multiply-add, so that the core, the exported FMU (the same flags,
+# stewart_fmu/fmu/export.py) and the recorded reference agree to the last bit on machines with
+# and without FMA; portable flags only.
 CFLAGS = ["-std=c99", "-O2", "-ffp-contract=off", "-fno-math-errno"]
 
 

@@ -123,8 +123,9 @@ def summary_text(res: AccuracyResults) -> str:
                       "tolerance") + f" {REFERENCE_TOLERANCE:g}. Errors below {res.floor:.2g} "
         "are not resolved.",
     ]
-    if not resolved and res.case.model.friction is not None and res.case.model.friction.coulomb:
-        lines += ["", f"Why: Coulomb friction ({res.case.model.friction.coulomb:g} N, "
+    coulomb = res.case.model.friction.coulomb_legs.max() if res.case.model.friction is not None else 0.0
+    if not resolved and coulomb:
+        lines += ["", f"Why: Coulomb friction (up to {coulomb:g} N, "
                   "`sign(ldot)`) makes the right-hand side discontinuous wherever a leg stops or "
                   "reverses: fixed-step methods lose their order across those points, "
                   "error-controlled ones pay in rejected steps, and implicit ones (Newton "

@@ -45,7 +45,7 @@ from controller.moves import move_and_hold
 from controller.trajectory import Trajectory, leg_references
 from stewart_fmu.errors import StewartError
 from stewart_fmu.kane_terms import mass_matrix
-from stewart_fmu.model import Model
+from stewart_fmu.model import Model, per_leg
 
 RATIO_RANGE = (0.1, 100.0)   # m_d / m_load at the ends of the sweep
 N_POINTS = 8                 # log-spaced sweep points (the scene's own gear ratio is added)
@@ -70,9 +70,11 @@ def with_gear_ratio(model: Model, gear_ratio: float) -> Model:
 
 
 def gear_ratio_for(model: Model, mass_ratio: float, load_mass: float) -> float:
-    """zeta with m_d = zeta^2 I / r^2 = mass_ratio * load_mass."""
+    """zeta with m_d = zeta^2 I / r^2 = mass_ratio * load_mass, for the largest rotor inertia
+    when the legs differ (the axis model's: controller.drive.axis_model); a gear ratio scales
+    all six legs' m_d alike."""
     d = model.drive
-    return float(d.pinion_radius * np.sqrt(mass_ratio * load_mass / d.rotor_inertia))
+    return float(d.pinion_radius * np.sqrt(mass_ratio * load_mass / np.max(per_leg(d.rotor_inertia))))
 
 
 @dataclass(frozen=True)
@@ -138,7 +140,7 @@ class Comparison:
     # the scene's own gear ratio again with the Coulomb friction removed (a diagnostic: the
     # feedforward's Coulomb term switches with the reference's sign; empty without Coulomb)
     without_coulomb: dict[str, ModeRun] = field(default_factory=dict)
-    coulomb: float = 0.0             # N, the scene's Coulomb friction
+    coulomb: float = 0.0             # N, the scene's Coulomb friction (its largest leg's)
 
     def rows(self) -> list[dict[str, object]]:
         """One flat row per point and mode (the CSV's rows)."""
@@ -210,7 +212,7 @@ def compare_drive_inertia(model: Model, config: ControllerConfig, n_points: int 
     excursion = float(np.max(np.abs(refs.l - refs.l[0])))
     without_coulomb = {}
     nominal = next((p for p in points if p.nominal and p.status == "ok"), None)
-    if nominal is not None and model.friction is not None and model.friction.coulomb > 0:
+    if nominal is not None and model.friction is not None and np.any(model.friction.coulomb_legs > 0):
         smooth = replace(model, friction=replace(model.friction, coulomb=0.0))
         without_coulomb = {mode: run_mode(smooth, config, traj, nominal.gains, mode)
                            for mode in modes}
@@ -218,7 +220,7 @@ def compare_drive_inertia(model: Model, config: ControllerConfig, n_points: int 
                       model.drive.gear_ratio, (float(eig.min()), float(eig.max())), coupling_mass,
                       move_time, float(traj.t[-1]), traj.q[n_move - 1].copy(), excursion,
                       tuple(points), without_coulomb,
-                      model.friction.coulomb if model.friction is not None else 0.0)
+                      float(np.max(model.friction.coulomb_legs)) if model.friction is not None else 0.0)
 
 
 def _point(model: Model, config: ControllerConfig, traj: Trajectory, refs, modes, load: float,

@@ -135,7 +135,7 @@ def leg_linearisation(model: Model, axis: AxisModel | None, q, qd, qdd) -> LegLi
     kin = inverse_kinematics(model, Qb, QDb, with_cond=False)
     free = replace(model, leg_min=None, leg_max=None)
     sigma = inverse_dynamics(free, Qb, QDb, QDDb)
-    coulomb = model.friction.coulomb if model.friction is not None else 0.0
+    coulomb = model.friction.coulomb_legs if model.friction is not None else 0.0
     smooth = (sigma - coulomb * np.sign(kin.rates)).reshape(K, P, 6)
     L = kin.lengths.reshape(K, P, 6)
 

@@ -10,7 +10,8 @@ from matplotlib.ticker import LogFormatter
 
 from stewart_fmu.dynamics import present_parts
 from stewart_fmu.io import named_array, write_csv, write_text
-from stewart_fmu.model import Model
+from stewart_fmu.model import Model, is_per_leg
+from stewart_sim.scene_info import per_leg_text
 from stewart_sim.paper.study import (
     FAR_LARGER,
     LEVEL_TITLES,
@@ -110,7 +111,8 @@ def drive_figure(results: PaperResults) -> Figure:
                          f"Fig. {4 + row}{tag} drive inertia — {trajectory_label(tr)}",
                          FORCE_LABEL, LEG_WIDTHS)
     axes[0, 0].legend(fontsize=8, ncols=2)
-    fig.suptitle(f"Figs. 4-5 style: {results.scene}, m_d = {results.drive_mass:.4g} kg per leg")
+    fig.suptitle(f"Figs. 4-5 style: {results.scene}, m_d = {results.drive_mass:.4g} kg per leg"
+                 + (" (the largest)" if results.per_leg_drive else ""))
     return fig
 
 
@@ -176,10 +178,12 @@ def _setup(r: PaperResults) -> str:
         f"inertia [transverse, axial] {_vec(lg.lower_inertia)} kg m²; upper part "
         f"{lg.upper_mass:g} kg, CoM {lg.upper_com:g} m from the platform joint, inertia "
         f"{_vec(lg.upper_inertia)} kg m²",
-        f"- drive: gear ratio ζ = {dr.gear_ratio:g}, rotor inertia I = {dr.rotor_inertia:g} kg m², "
-        f"pinion radius r = {dr.pinion_radius:g} m, so m_d = ζ² I / r² = {dr.reflected_mass:.6g} kg",
+        f"- drive: gear ratio ζ = {dr.gear_ratio:g}, rotor inertia I = {per_leg_text(dr.rotor_inertia)} "
+        f"kg m², pinion radius r = {dr.pinion_radius:g} m, so m_d = ζ² I / r² = "
+        f"{per_leg_text(tuple(dr.reflected_masses)) if is_per_leg(dr.rotor_inertia) else f'{dr.reflected_mass:.6g}'} kg",
         "- friction: removed at every level, as in the paper (\"damping and friction were "
-        "ignored\")" + (f"; the scene has viscous {fr.viscous:g} N s/m, Coulomb {fr.coulomb:g} N"
+        "ignored\")" + (f"; the scene has viscous {per_leg_text(fr.viscous)} N s/m, Coulomb "
+                        f"{per_leg_text(fr.coulomb)} N"
                         if fr else "; the scene has none"),
         f"- moves: from rest at home, constant acceleration on one pose coordinate for "
         f"{r.t[-1]:g} s ({r.t.size} samples): 10 m/s² along x, y, z and 8 rad/s² on the Euler "

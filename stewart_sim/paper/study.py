@@ -25,7 +25,7 @@ import numpy as np
 from stewart_fmu.dynamics import inverse_dynamics, inverse_dynamics_parts, present_parts
 from stewart_fmu.errors import KinematicsError, SceneError, TrajectoryError
 from stewart_fmu.kinematics import check_poses, inverse_kinematics
-from stewart_fmu.model import FrictionParams, Model
+from stewart_fmu.model import FrictionParams, Model, is_per_leg
 
 TRAJECTORIES = ("x", "y", "z", "thx", "thy", "thz")
 LINEAR_ACCELERATION = 10.0   # m/s^2, paper 3.1
@@ -191,8 +191,13 @@ class PaperResults:
 
     @property
     def drive_mass(self) -> float:
-        """m_d = zeta^2 I / r^2 of the scene's drive."""
+        """m_d = zeta^2 I / r^2 of the scene's drive (its largest leg's when per leg)."""
         return self.models["drive"].drive.reflected_mass
+
+    @property
+    def per_leg_drive(self) -> bool:
+        """Whether the scene gives each leg its own rotor inertia."""
+        return is_per_leg(self.models["drive"].drive.rotor_inertia)
 
 
 def run_paper_experiments(model: Model, duration: float = 0.1, samples: int = 201) -> PaperResults:

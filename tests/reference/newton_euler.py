@@ -176,8 +176,11 @@ def reference_inverse_dynamics(scene: dict, q: ArrayLike, qd: ArrayLike, qdd: Ar
     ca, cb = (float(legs["lower_com"]), float(legs["upper_com"])) if legs else (0.0, 0.0)
     ita, itb = (float(legs["lower_inertia"][0]), float(legs["upper_inertia"][0])) if legs else (0.0, 0.0)
     drv = scene.get("drive")
-    md = drv["gear_ratio"] ** 2 * drv["rotor_inertia"] / drv["pinion_radius"] ** 2 if drv else 0.0
+    # drive inertia and friction: one number for all legs, or six (one per leg)
+    rotor = np.asarray(drv["rotor_inertia"], dtype=float) if drv else 0.0
+    md = drv["gear_ratio"] ** 2 * rotor / drv["pinion_radius"] ** 2 if drv else 0.0
     fr = scene.get("friction") or {"viscous": 0.0, "coulomb": 0.0}
+    viscous, coulomb = np.asarray(fr["viscous"], dtype=float), np.asarray(fr["coulomb"], dtype=float)
 
     # Kinematics: positions only, as jets in s; derivatives are the jet coefficients.
     qj = Jet(np.stack([np.asarray(q, float), np.asarray(qd, float), 0.5 * np.asarray(qdd, float)]))
@@ -198,7 +201,7 @@ def reference_inverse_dynamics(scene: dict, q: ArrayLike, qd: ArrayLike, qdd: Ar
     wl = np.cross(u0, ud)
     al = np.cross(u0, udd)
     ldot, lddot = l.d, l.dd
-    mu = fr["viscous"] * ldot + fr["coulomb"] * np.sign(ldot)
+    mu = viscous * ldot + coulomb * np.sign(ldot)
 
     # Leg i (A+B) moments about a_i give the transverse part of F_i (force of leg on platform).
     rav, rbv = ra.val - a, rb.val - a

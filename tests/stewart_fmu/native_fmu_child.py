@@ -162,7 +162,7 @@ def calls_expected_to_fail(unzipdir: str, version: int) -> dict:
     st["enterInitializationMode in step mode"] = a.enter()
     st["exitInitializationMode in step mode"] = a.exit()
     st["getReal unknown value reference"] = a.get([9999])[0]
-    st["getReal unused value reference"] = a.get([83])[0]
+    st["getReal unused value reference"] = a.get([a.vr["solver.method"] + 1])[0]  # before the inputs
     st["setReal unknown value reference"] = a.set([4294967295], [1.0])
     st["setReal output l[1]"] = a.set([a.vr["l[1]"]], [0.1])
     st["setReal NaN input"] = a.set([sig], [math.nan])
@@ -225,7 +225,7 @@ def fuzz(unzipdir: str, version: int, seed: int, n_calls: int) -> dict:
     inputs = [vr[f"sigma[{i}]"] for i in range(1, 7)] + [vr[f"tau[{i}]"] for i in range(1, 7)]
     md = read_model_description(unzipdir)
     start = {v.valueReference: float(v.start) for v in md.modelVariables if v.valueReference in params}
-    unknown = [9999, 83, 150, 2**31, 4294967295, 0 if version == 2 else 5000]
+    unknown = [9999, vr["solver.method"] + 1, 150, 2**31, 4294967295, 0 if version == 2 else 5000]
     phase, t = "inst", 0.0
     states: list = []
     blobs: list = []

@@ -101,16 +101,16 @@ def test_python_spells_no_layout_number():
 
 
 def test_python_tables_are_the_tables():
-    """SCENE_KEYS and the scene reader's plant keys are the table's scene variables; the pose
+    """SCENE_KEYS and the scene's number keys are the table's scene variables; the pose
     outputs are io.POSE; force.<part> follow dynamics.PARTS and the core's STEWART_PART_*."""
     assert set(V.SCENE_KEYS) == set(table.scene_groups())
     for key, (vr, shape, _, _) in V.SCENE_KEYS.items():
         g = table.scene_groups()[key]
         assert vr == g.vr and int(np.prod(shape)) == g.count
-    plant_keys = {f"{t}.{k}" for t, (need, opt) in scene._TABLE_KEYS.items()
-                  if t in {"geometry", "platform", "legs", "drive", "friction", "transmission"}
-                  for k in need | opt}
-    assert plant_keys | {"gravity"} == set(table.scene_groups())
+    plant_numbers = {k for k in scene.NUMBER_KEYS if k.split(".")[0] in
+                     {"geometry", "platform", "legs", "drive", "friction", "transmission"}}
+    assert plant_numbers == {k for k, g in table.scene_groups().items()
+                             if g.count == 1 or g.shape == table.PER_LEG}
     assert [table.GROUPS[f"Q_{c.upper()}"].name for c in POSE] == list(POSE)
     assert [table.GROUPS[f"QD_{c.upper()}"].name for c in POSE] == [f"d{c}" for c in POSE]
     forces = [g for g in table.VARIABLES if g.name.startswith("force.")]

@@ -224,7 +224,9 @@ static void pack(const double *par, double *p) {
     p[STEWART_P_HAS_TRANSMISSION] = has_transmission();
     if (has_drive()) {
         double g = par[VR_GEAR_RATIO], r = par[VR_PINION_RADIUS];
-        p[STEWART_P_DRIVE_MASS] = g * g * par[VR_ROTOR_INERTIA] / (r * r);
+        int once = !has(VR_ROTOR_INERTIA + 1);
+        for (i = 0; i < 6; i++)
+            p[STEWART_P_DRIVE_MASS + i] = g * g * par[VR_ROTOR_INERTIA + (once ? 0 : i)] / (r * r);
     }
     if (!has(VR_LEG_MAX)) p[STEWART_P_LEG_MAX] = INFINITY;
     for (i = 0; i < 6; i++) {  /* np.mean(np.linalg.norm(platform_joints, axis=1)) */
@@ -453,11 +455,12 @@ static int output(Instance *c, unsigned vr, double *value) {
                 /* the leg side (Plant._leg_model: no drive, no transmission), qdd from y' */
                 double pl[STEWART_N_PARAMS];
                 memcpy(pl, p, sizeof pl);
-                pl[STEWART_P_HAS_DRIVE] = pl[STEWART_P_DRIVE_MASS] = 0.0;
+                pl[STEWART_P_HAS_DRIVE] = 0.0;
+                for (i = 0; i < 6; i++) pl[STEWART_P_DRIVE_MASS + i] = 0.0;
                 pl[STEWART_P_HAS_TRANSMISSION] = pl[STEWART_P_STIFFNESS] = pl[STEWART_P_DAMPING] = 0.0;
                 stewart_derivative(p, y, c->d.s.rack, dy);
                 stewart_inverse_dynamics_parts(pl, y, y + 6, dy + 6, c->parts);
-                for (i = 0; i < 6; i++) c->parts[STEWART_PART_DRIVES * 6 + i] = p[STEWART_P_DRIVE_MASS] * dy[18 + i];
+                for (i = 0; i < 6; i++) c->parts[STEWART_PART_DRIVES * 6 + i] = p[STEWART_P_DRIVE_MASS + i] * dy[18 + i];
             } else {
                 stewart_forward_dynamics(p, y, y + 6, c->d.s.rack, qdd);
                 stewart_inverse_dynamics_parts(p, y, y + 6, qdd, c->parts);

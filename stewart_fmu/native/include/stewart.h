@@ -152,8 +152,8 @@ int stewart_inverse_dynamics(const double *params, const double q[6], const doub
 int stewart_inverse_dynamics_parts(const double *params, const double q[6], const double qd[6],
                                    const double qdd[6], double parts[36]);
 
-/* Pose accelerations qdd from rack forces sigma: (M_nu + m_d J^T J) nudot = J^T (sigma - mu -
-   m_d lddot_0) + K*_0 + K_g, then Euler rates. Status: OK, NONFINITE, STROKE, SINGULAR, GIMBAL. */
+/* Pose accelerations qdd from rack forces sigma: (M_nu + J^T [m_d] J) nudot = J^T (sigma - mu -
+   [m_d] lddot_0) + K*_0 + K_g, then Euler rates ([m_d] = diag(m_d,i), mu per leg). Status: OK, NONFINITE, STROKE, SINGULAR, GIMBAL. */
 int stewart_forward_dynamics(const double *params, const double q[6], const double qd[6],
                              const double sigma[6], double qdd[6]);
 
@@ -189,8 +189,8 @@ void stewart_energy_terms(const double *params, const double *y, double out[STEW
 
 /* The power balance of a step of length h (step.check_step): returns 0 if y1 is
    non-finite, else 1 with e1 = energy terms of y1, *excess = dE - F.(d1 - d0) and
-   *allowed = tol * (energy exchanged) + coulomb * (sum |d1 - d0| + h sum |ldot_i(y1)|) (the
-   second sum only with coulomb > 0). The step is unstable when !(excess <= allowed). */
+   *allowed = tol * (energy exchanged) + sum_i coulomb_i (|d1_i - d0_i| + h |ldot_i(y1)|) (the
+   h |ldot_i| terms only when a leg has Coulomb friction). The step is unstable when !(excess <= allowed). */
 int stewart_step_energy(const double *params, const double *y1, const double e0[9],
                         double e1[9], const double rack[6], double tol, double h,
                         double *excess, double *allowed);

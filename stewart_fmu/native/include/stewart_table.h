@@ -8,8 +8,9 @@
  * this file does not hold. Units and names follow docs/conventions.md.
  *
  * Offsets and value references are computed, never written: each entry takes COUNT doubles
- * after the previous one (the layout structs below), so a parameter that becomes per leg
- * changes one COUNT here and every layer follows.
+ * after the previous one (the layout structs below). A parameter that becomes per leg changes
+ * its COUNT (and SHAPE) here; offsets, value references, FMU names, the FMU's packing and the
+ * per-key bounds follow; the kernel that reads it indexes it by leg.
  */
 #ifndef STEWART_TABLE_H
 #define STEWART_TABLE_H
@@ -42,9 +43,9 @@
     X(INERTIA, 3, INERTIA, "kg.m2", "platform principal moments in C")                         \
     X(LOWER, 4, LOWER_MASS, "", "lower leg part: mass, centre of mass, transverse and axial moments") \
     X(UPPER, 4, UPPER_MASS, "", "upper leg part: mass, centre of mass, transverse and axial moments") \
-    X(DRIVE_MASS, 1, COMPUTED, "kg", "reflected drive inertia m_d = zeta^2 I / r^2 (Eq. 14)")  \
-    X(VISCOUS, 1, VISCOUS, "N.s/m", "viscous friction of each prismatic joint")                \
-    X(COULOMB, 1, COULOMB, "N", "Coulomb friction of each prismatic joint")                    \
+    X(DRIVE_MASS, 6, COMPUTED, "kg", "reflected drive inertia m_d = zeta^2 I / r^2 per leg (Eq. 14)") \
+    X(VISCOUS, 6, VISCOUS, "N.s/m", "viscous friction of each prismatic joint")                \
+    X(COULOMB, 6, COULOMB, "N", "Coulomb friction of each prismatic joint")                    \
     X(LEG_MIN, 1, LEG_MIN, "m", "shortest leg (0 when unlimited)")                             \
     X(LEG_MAX, 1, LEG_MAX, "m", "longest leg (inf when unlimited)")                            \
     X(CHAR_LENGTH, 1, COMPUTED, "m", "mean platform-joint radius: scales J's rotational columns") \
@@ -80,11 +81,11 @@
     X(UPPER_INERTIA, "legs.upper_inertia", 2, STEWART_VECTOR, "kg.m2", NONNEG,                   \
       "upper part [transverse, axial] moments")                                                  \
     X(GEAR_RATIO, "drive.gear_ratio", 1, STEWART_VECTOR, "1", POS, "gearbox reduction ratio zeta") \
-    X(ROTOR_INERTIA, "drive.rotor_inertia", 1, STEWART_VECTOR, "kg.m2", POS, "motor rotor inertia") \
+    X(ROTOR_INERTIA, "drive.rotor_inertia", 6, STEWART_PER_LEG, "kg.m2", POS, "motor rotor inertia") \
     X(PINION_RADIUS, "drive.pinion_radius", 1, STEWART_VECTOR, "m", POS, "rack-and-pinion radius") \
-    X(VISCOUS, "friction.viscous", 1, STEWART_VECTOR, "N.s/m", NONNEG,                           \
+    X(VISCOUS, "friction.viscous", 6, STEWART_PER_LEG, "N.s/m", NONNEG,                          \
       "viscous friction of each prismatic joint")                                                \
-    X(COULOMB, "friction.coulomb", 1, STEWART_VECTOR, "N", NONNEG,                               \
+    X(COULOMB, "friction.coulomb", 6, STEWART_PER_LEG, "N", NONNEG,                              \
       "Coulomb friction of each prismatic joint")                                                \
     X(STIFFNESS, "transmission.stiffness", 1, STEWART_VECTOR, "N/m", POS,                        \
       "transmission stiffness, motor to leg (leg axis)")                                         \

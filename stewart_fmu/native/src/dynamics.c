@@ -1,5 +1,6 @@
 /* dynamics.c -- inverse dynamics, its breakdown by part and forward dynamics over the Kane
-   terms of kane.c (dynamics.py), per sample and over batches. */
+   terms of kane.c (stewart_fmu/dynamics.py), per sample and over batches. Friction and drive
+   inertia are per leg (six values each in the packed parameters). */
 #include <math.h>
 #include "internal.h"
 
@@ -23,23 +24,23 @@ int sw_classify(int status, const double a[6], const double b[6], const double c
     return status == STEWART_OVERFLOW ? STEWART_SINGULAR : status;
 }
 
-/* mu_i of Eq. 9: the force friction opposes to extension (its sign:
+/* mu_i of Eq. 9 for leg i: the force friction opposes to extension (its sign:
    1, -1, or the argument itself for +-0 and NaN). */
-static double friction(const double *p, double ld)
+static double friction(const double *p, int i, double ld)
 {
     double sg;
     if (P(HAS_FRICTION) == 0.0)
         return 0.0;
     sg = ld > 0.0 ? 1.0 : (ld < 0.0 ? -1.0 : ld);
-    return P(VISCOUS) * ld + P(COULOMB) * sg;
+    return p[STEWART_P_VISCOUS + i] * ld + p[STEWART_P_COULOMB + i] * sg;
 }
 
-/* m_d lddot_i of Eq. 12, the force the drive's inertia takes (absent: not computed). */
-static double drive_force(const double *p, double ldd)
+/* m_d,i lddot_i of Eq. 12, the force leg i's drive inertia takes (absent: not computed). */
+static double drive_force(const double *p, int i, double ldd)
 {
     if (P(HAS_DRIVE) == 0.0)
         return 0.0;
-    return P(DRIVE_MASS) * ldd;
+    return p[STEWART_P_DRIVE_MASS + i] * ldd;
 }
 
 /* rhs <- J^-T rhs with the LU of the scaled J^T; rhs in the factors' row order, its moments
@@ -72,7 +73,7 @@ int sw_inverse_sample(const double *p, const double q[6], const double qd[6],
     }
     solve_jt(p, ws, ws->rhs);
     for (i = 0; i < 6; ++i) {
-        double s = ws->rhs[i] + friction(p, ws->leg[3 * i + 1]) + drive_force(p, ws->leg[3 * i + 2]);
+        double s = ws->rhs[i] + friction(p, i, ws->leg[3 * i + 1]) + drive_force(p, i, ws->leg[3 * i + 2]);
         out[i] = s;
         ok = ok && isfinite(s);
     }
@@ -103,15 +104,15 @@ int sw_parts_sample(const double *p, const double q[6], const double qd[6],
             o[j] = ws->rhs[j];
     }
     for (i = 0; i < 6; ++i) {
-        out[18 + i] = drive_force(p, ws->leg[3 * i + 2]);
-        out[30 + i] = friction(p, ws->leg[3 * i + 1]);
+        out[18 + i] = drive_force(p, i, ws->leg[3 * i + 2]);
+        out[30 + i] = friction(p, i, ws->leg[3 * i + 1]);
         for (k = 0; k < 6; ++k)
             ok = ok && isfinite(out[6 * k + i]);
     }
     return ok ? STEWART_OK : STEWART_OVERFLOW;
 }
 
-/* (M_nu + m_d J^T J) nudot = J^T (sigma - mu - m_d lddot_0) + K*_0 + K_g, then Euler
+/* (M_nu + J^T [m_d] J) nudot = J^T (sigma - mu - [m_d] lddot_0) + K*_0 + K_g, then Euler
    rates. */
 int sw_forward_sample(const double *p, const double q[6], const double qd[6],
                       const double sigma[6], sw_ws *ws, double out[6])
@@ -126,7 +127,7 @@ int sw_forward_sample(const double *p, const double q[6], const double qd[6],
     sw_twist_mass_matrix(p, ws, 0);  /* the Cholesky solve reads the lower triangle */
     c = P(CHAR_LENGTH);
     for (i = 0; i < 6; ++i)
-        net[i] = sigma[i] - friction(p, ws->leg[3 * i + 1]) - drive_force(p, ws->leg[3 * i + 2]);
+        net[i] = sigma[i] - friction(p, i, ws->leg[3 * i + 1]) - drive_force(p, i, ws->leg[3 * i + 2]);
     for (k = 0; k < 6; ++k) {
         double s = 0.0;
         int j;

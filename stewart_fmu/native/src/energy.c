@@ -1,6 +1,6 @@
 /* energy.c -- mechanical energy of the plant state and the power balance of a step
    (stewart_energy_terms, stewart_step_energy). E = T + V_g + V_s with T = nu^T M_nu nu / 2
-   (+ m_d sd^2 / 2 per motor with a transmission), V_g = -sum m g . r, V_s = k (s - l)^2 / 2;
+   (+ m_d,i sd_i^2 / 2 per motor with a transmission), V_g = -sum m g . r, V_s = k (s - l)^2 / 2;
    with the rack forces F held, dE = F . dd - D, D >= 0 the dissipation. */
 #include <math.h>
 #include "internal.h"
@@ -38,7 +38,7 @@ void sw_energy_terms(const double *p, const double *y, sw_ws *ws, double out[9])
         }
         if (compliant) {
             const double sd = y[18 + i], ds = y[12 + i] - l;
-            T += 0.5 * P(DRIVE_MASS) * (sd * sd);
+            T += 0.5 * p[STEWART_P_DRIVE_MASS + i] * (sd * sd);
             Vs += 0.5 * P(STIFFNESS) * (ds * ds);
             out[STEWART_ENERGY_DRIVEN + i] = y[12 + i];
         } else {
@@ -63,7 +63,7 @@ int stewart_step_energy(const double *params, const double *y1, const double e0[
 {
     const double *p = params;
     const int n = stewart_state_size(params);
-    double work = 0.0, moved = 0.0, scale;
+    double work = 0.0, moved[6], coulomb = 0.0, allowance = 0.0, scale;
     int i;
     for (i = 0; i < n; ++i)
         if (!isfinite(y1[i])) {
@@ -75,18 +75,21 @@ int stewart_step_energy(const double *params, const double *y1, const double e0[
     for (i = 0; i < 6; ++i) {
         const double d = e1[STEWART_ENERGY_DRIVEN + i] - e0[STEWART_ENERGY_DRIVEN + i];
         work += rack[i] * d;
-        moved += fabs(d);
+        moved[i] = fabs(d);
+        coulomb = PY_MAX(coulomb, p[STEWART_P_COULOMB + i]);
     }
     *excess = (e1[0] + e1[1] + e1[2]) - (e0[0] + e0[1] + e0[2]) - work;
     scale = e0[0] + e1[0] + e0[2] + e1[2] + fabs(work) + 1e-9 * (fabs(e0[1]) + fabs(e1[1]));
-    if (P(COULOMB) > 0.0) {
+    if (coulomb > 0.0) {
         /* the friction's sign changes inside the step: its work bound also counts the path
-           the legs would cover at their end rates (h sum |ldot_i|) */
+           the legs would cover at their end rates (h |ldot_i|) */
         double l1[6], ld1[6], om1[3];
         stewart_leg_state(params, y1, y1 + 6, l1, ld1, om1);
         for (i = 0; i < 6; ++i)
-            moved += h * fabs(ld1[i]);
+            moved[i] += h * fabs(ld1[i]);
     }
-    *allowed = tol * scale + P(COULOMB) * moved;
+    for (i = 0; i < 6; ++i)  /* each leg's Coulomb force times its path */
+        allowance += p[STEWART_P_COULOMB + i] * moved[i];
+    *allowed = tol * scale + allowance;
     return 1;
 }

@@ -182,7 +182,7 @@ int sw_twist_forces(const double *p, const double x[6], const double v[6], const
     return status;
 }
 
-/* M_nu = M_platform + sum_i S_i^T (M_leg,i + m_d u u^T) S_i, S_i = [I, -[r_i]x]
+/* M_nu = M_platform + sum_i S_i^T (M_leg,i + m_d,i u u^T) S_i, S_i = [I, -[r_i]x];
    M_leg = m_B uu^T + (k / l^2) P, k = m_A c_A^2 + m_B (l - c_B)^2
    + I_tA + I_tB. Reads ws->R, U, Rr, leg; writes ws->Mt, all of it when `full`, else only
    its lower triangle (all that sw_cholesky_solve reads; each entry computed as in full). */
@@ -197,12 +197,11 @@ void sw_twist_mass_matrix(const double *p, sw_ws *ws, int full)
     for (a = 0; a < 3; ++a)
         Mt[a * 7] = P(MASS);
     if (has_legs || has_drive) {  /* a platform-only model has no per-leg mass at all */
-        const double md = has_drive ? P(DRIVE_MASS) : 0.0;
         double s0 = 0.0, s1x = 0.0, s1y = 0.0, s1z = 0.0;
         for (n = 0; n < 6; ++n) {
             const double u0 = ws->U[3 * n], u1 = ws->U[3 * n + 1], u2 = ws->U[3 * n + 2];
             const double r0 = ws->Rr[3 * n], r1 = ws->Rr[3 * n + 1], r2 = ws->Rr[3 * n + 2];
-            double ax = md, j[6];
+            double ax = has_drive ? p[STEWART_P_DRIVE_MASS + n] : 0.0, j[6];
             if (has_legs) {
                 const double l = ws->leg[3 * n];
                 const double mA = P(LOWER), cA = p[STEWART_P_LOWER + 1],

@@ -33,7 +33,6 @@ static int compliant_derivative(const double *p, const double *pl, const double 
 {
     double f[6];
     int i, status;
-    const double md = P(DRIVE_MASS);
     sw_leg_kinematics(pl, y, ws);
     for (i = 0; i < 6; ++i)
         f[i] = spring(p, y, ws, i);
@@ -41,7 +40,7 @@ static int compliant_derivative(const double *p, const double *pl, const double 
     for (i = 0; i < 6; ++i) {
         dy[i] = y[6 + i];
         dy[12 + i] = y[18 + i];
-        dy[18 + i] = (F[i] - f[i]) / md;
+        dy[18 + i] = (F[i] - f[i]) / p[STEWART_P_DRIVE_MASS + i];
     }
     return status;
 }
