@@ -20,7 +20,7 @@ from scipy.integrate import solve_ivp
 from .native import core
 from .status import OK, STEP_TOO_SMALL
 
-COMPILED = ("rk4", "euler", "dopri5")
+COMPILED = tuple(core.METHODS)   # the core's compiled methods, by the core's names
 FIXED_STEP = {"rk4": 4, "euler": 1}  # the fixed-step methods and their theoretical order
 SCIPY = ("RK45", "DOP853", "Radau", "BDF", "LSODA")
 INTEGRATORS = COMPILED + SCIPY
@@ -30,11 +30,11 @@ INTEGRATORS = COMPILED + SCIPY
 class IntegratorOptions:
     """The integrator and its controls; max_step caps the internal step (s)."""
 
-    method: str = "rk4"
-    rtol: float = 1e-8
-    atol: float = 1e-10
-    max_step: float = 1e-3
-    max_steps: int = 10_000    # internal steps per communication step before giving up
+    method: str = core.DEFAULT_METHOD      # the core's defaults (stewart_default_options)
+    rtol: float = core.DEFAULTS.rtol
+    atol: float = core.DEFAULTS.atol
+    max_step: float = core.DEFAULTS.max_step
+    max_steps: int = core.DEFAULTS.max_steps  # internal steps per communication step before giving up
 
     def __post_init__(self) -> None:
         if self.method not in INTEGRATORS:

@@ -26,15 +26,17 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from stewart_fmu.dynamics import forward_dynamics, inverse_dynamics_parts, leg_state, present_parts
+from stewart_fmu.dynamics import PARTS, forward_dynamics, leg_state, present_parts
 from stewart_fmu.errors import IntegrationError, StewartError, TrajectoryError
 from stewart_fmu.integrators import COMPILED, IntegratorOptions, derivative, scipy_advance
 from stewart_fmu.kinematics import check_poses, condition_number
 from stewart_fmu.model import Model
+from stewart_fmu.native import core
 from stewart_fmu.native.core import ffi, lib
 from stewart_fmu.stability import ENERGY_TOL, advice, default_options, internal_step
 from stewart_fmu.status import (
     BAD_CALL,
+    OK,
     BAD_STEP,
     BAD_TIME,
     ENERGY_GAIN,
@@ -179,11 +181,11 @@ class Outputs:
 
     def _parts(self) -> dict[str, np.ndarray]:
         p = self.plant
-        out = {k: v[0] for k, v in inverse_dynamics_parts(
-            p._leg_model, p._y[:6], p._y[6:12], self.qdd).items()}
-        if p.model.transmission is not None:
-            out["drives"] = p.model.drive.reflected_masses * self._ydot()[18:]
-        return {k: out[k] for k in present_parts(p.model)}
+        self.qdd    # the forward kernel's typed errors first (and qdd is cached for later)
+        parts, status = core.plant_parts(p._params, p._y, p._rack)
+        if status != OK:
+            raise StewartError(f"the rack force's parts at t = {p.time!r} s: {why(status)}")
+        return {k: parts[PARTS.index(k)] for k in present_parts(p.model)}
 
 
 class Plant:
@@ -192,9 +194,6 @@ class Plant:
     def __init__(self, model: Model, options: IntegratorOptions | None = None):
         self.model = model
         self.options = options or default_options(model)
-        # The leg side of a compliant transmission: the model without the drive inertia.
-        self._leg_model = (model if model.transmission is None
-                           else replace(model, drive=None, transmission=None))
         self._drive_gain = model.drive.force_per_torque if model.drive is not None else 0.0
         self._params = model.native
         self._p = self._params.ptr

@@ -42,7 +42,7 @@ _TABLE_KEYS = {
     "case": ({"kind", "description", "motion", "duration", "expect"},
              {"step", "force_scale", "start_rates", "acceleration", "target"}),
 }
-# The [case] table of the shipped stiff and extreme scenes (see stewart_fmu/cases.py).
+# The [case] table of the shipped stiff and extreme scenes (see stewart_sim/cases.py).
 CASE_CHOICES = {"kind": ("stiff", "extreme"),
                 "motion": ("hold", "accelerate", "ramp", "closed_loop"),
                 "expect": ("ok", "StrokeLimitError", "SingularityError")}

@@ -80,23 +80,28 @@ def core_sources(native: Path = NATIVE) -> list[str]:
     return files
 
 
-def export_fmu(scene_path: str | Path, out_path: str | Path, fmi_version: int = 2) -> Path:
+FMI_VERSIONS = (2, 3)
+DEFAULT_FMI_VERSION = 2
+
+
+def export_fmu(scene_path: str | Path, out_path: str | Path, fmi_version: int = DEFAULT_FMI_VERSION) -> Path:
     """Build the FMU of a scene file at out_path; returns out_path. The file is read once: its
     bytes are the FMU's resources/scene.toml and its Model the FMU's variables.
 
     SceneError for a bad scene (nothing written), CompilerNotFoundError without a C compiler,
     BuildError if compiling fails."""
-    if fmi_version not in (2, 3):
+    if fmi_version not in FMI_VERSIONS:
         raise ValueError(f"fmi_version must be 2 or 3, got {fmi_version!r}")
     text = read_scene_bytes(scene_path)
     model = scene_from_dict(parse_scene_bytes(text, scene_path), source=str(scene_path))
     return export_model(model, text, out_path, fmi_version)
 
 
-def export_model(model: Model, scene_text: bytes, out_path: str | Path, fmi_version: int = 2) -> Path:
+def export_model(model: Model, scene_text: bytes, out_path: str | Path,
+                 fmi_version: int = DEFAULT_FMI_VERSION) -> Path:
     """Build the FMU of a scene's Model at out_path (scene_text: the scene file as given, kept
     as resources/scene.toml for `run --fmu`'s check); returns out_path."""
-    if fmi_version not in (2, 3):
+    if fmi_version not in FMI_VERSIONS:
         raise ValueError(f"fmi_version must be 2 or 3, got {fmi_version!r}")
     compiler = find_compiler()
     folder, ext = platform_folder(fmi_version)

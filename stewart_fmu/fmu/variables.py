@@ -20,6 +20,7 @@ import numpy as np
 from .. import table
 from ..dynamics import inverse_dynamics, present_parts
 from ..model import Model
+from ..native import core
 from ..stability import default_options
 
 # Base-unit exponents (kg, m, s, rad) of every unit the FMU uses.
@@ -49,7 +50,6 @@ VR_Q0, VR_QD0, VR_RTOL, VR_ATOL, VR_MAX_STEP = (table.vr(i) for i in ("Q0", "QD0
 VR_SIGMA, VR_TAU = table.vr("SIGMA"), table.vr("TAU")
 VR_L, VR_LDOT, VR_Q, VR_QD, VR_V, VR_OMEGA, VR_COND, VR_RACK, VR_PARTS = (
     table.vr(i) for i in ("L", "LDOT", "Q_X", "QD_X", "V", "OMEGA", "COND", "RACK", "FORCE_PLATFORM"))
-METHODS = ("rk4", "euler", "dopri5")
 LOG_CATEGORIES = {"logEvents": "initialization and step events",
                   "logStatusWarning": "warnings", "logStatusDiscard": "discarded steps, with the reason",
                   "logStatusError": "errors: calls out of order, bad arguments, invalid parameters",
@@ -167,7 +167,8 @@ def variables(model: Model, fmi_version: int = 2, solver: Mapping[str, Any] | No
     v += _group(g["RTOL"], solver["rtol"]) + _group(g["ATOL"], solver["atol"])
     v += _group(g["MAX_STEP"], solver["max_step"])
     m = g["METHOD"]
-    v.append(Variable(m.name, m.vr, "parameter", None, m.description, solver["method"], "String"))
+    v.append(Variable(m.name, m.vr, "parameter", None, f"{m.description}: one of {', '.join(core.METHODS)}",
+                      solver["method"], "String"))
     v += _group(g["SIGMA"], hold)
     if model.drive is not None:
         v += _group(g["TAU"], np.zeros(6))
@@ -213,7 +214,7 @@ def scene_c_source(model: Model, table_: list[Variable], fmi_version: int) -> st
             f"(FMI {fmi_version}.0): do not edit. */\n"
             "#include <math.h>\n\n#include \"model.h\"\n\n"
             f"const char STEWART_MODEL_TOKEN[] = \"{token(table_, fmi_version)}\";\n"
-            f"const int STEWART_START_METHOD = {METHODS.index(method)};\n"
+            f"const int STEWART_START_METHOD = {core.METHODS[method]};\n"
             f"const unsigned char STEWART_DECLARED[VR_N_PAR] = {{{flags}}};\n"
             f"const double STEWART_START[VR_N_PAR] = {{\n    {rows}\n}};\n"
             f"const double STEWART_START_SIGMA[6] = {{{sigma}}};\n")

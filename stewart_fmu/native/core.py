@@ -23,7 +23,10 @@ OK, NONFINITE, STROKE, SINGULAR, GIMBAL, OVERFLOW = (
 TOO_MANY_STEPS, STEP_TOO_SMALL, UNSTABLE, STATE_NONFINITE = (
     lib.STEWART_TOO_MANY_STEPS, lib.STEWART_STEP_TOO_SMALL, lib.STEWART_UNSTABLE,
     lib.STEWART_STATE_NONFINITE)
-METHODS = {"rk4": lib.STEWART_RK4, "euler": lib.STEWART_EULER, "dopri5": lib.STEWART_DOPRI5}
+# The compiled methods by name (stewart_method_name) and the core's default options: the one
+# spelling of both (IntegratorOptions, the FMU's solver.method and its messages take them).
+METHODS = {ffi.string(lib.stewart_method_name(k)).decode(): k for k in range(lib.STEWART_N_METHODS)}
+DEFAULTS = lib.stewart_default_options()
 N_PARAMS = lib.STEWART_N_PARAMS
 N_ENERGY = lib.STEWART_N_ENERGY
 ENERGY_TOL = lib.STEWART_ENERGY_TOL
@@ -56,9 +59,12 @@ def _p(params):
     return params.ptr if type(params) is NativeParams else _buf(params)
 
 
-def options(method: str = "rk4", rtol: float = 1e-8, atol: float = 1e-10,
-            max_step: float = 1e-3, max_steps: int = 10_000,
-            energy_tol: float = lib.STEWART_ENERGY_TOL):
+DEFAULT_METHOD = next(name for name, k in METHODS.items() if k == DEFAULTS.method)
+
+
+def options(method: str = DEFAULT_METHOD, rtol: float = DEFAULTS.rtol, atol: float = DEFAULTS.atol,
+            max_step: float = DEFAULTS.max_step, max_steps: int = DEFAULTS.max_steps,
+            energy_tol: float = DEFAULTS.energy_tol):
     """A stewart_options struct (cdata; keep it and reuse it)."""
     o = ffi.new("stewart_options *")
     o.method = METHODS[method]
@@ -149,7 +155,7 @@ def condition_number(params, q):
 
 
 def twist_forces(params, q, qd, qdd):
-    """(gen (4, 6), leg rows (6, 3) of (l, ldot, lddot), status) (kane.twist_forces)."""
+    """(gen (4, 6), leg rows (6, 3) of (l, ldot, lddot), status) (the core's stewart_twist_forces, kane.c)."""
     gen, leg = np.empty((4, 6)), np.empty((6, 3))
     st = lib.stewart_twist_forces(_p(params), _buf(q), _buf(qd), _buf(qdd),
                                   _buf(gen), _buf(leg))
@@ -157,7 +163,7 @@ def twist_forces(params, q, qd, qdd):
 
 
 def mass_matrix(params, q):
-    """(M_nu (6, 6), status), the twist-space mass matrix (kane.twist_mass_matrix)."""
+    """(M_nu (6, 6), status), the twist-space mass matrix (stewart_mass_matrix, kane.c)."""
     M = np.empty((6, 6))
     return M, lib.stewart_mass_matrix(_p(params), _buf(q), _buf(M))
 
@@ -169,6 +175,14 @@ def derivative(params, y, rack, out=None):
     if out is None:
         out = np.empty(y.shape[0])
     return out, lib.stewart_derivative(_p(params), _buf(y), _buf(rack), _buf(out))
+
+
+def plant_parts(params, y, rack, out=None):
+    """(parts (6 parts, 6 legs) in dynamics.PARTS order, status) at the plant state y under the
+    rack forces (stewart_plant_parts: with a transmission, the leg side's)."""
+    if out is None:
+        out = np.empty((6, 6))
+    return out, lib.stewart_plant_parts(_p(params), _buf(y), _buf(rack), _buf(out))
 
 
 def spring_forces(params, y):

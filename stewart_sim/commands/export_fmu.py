@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from .constants import literals
+
 
 def add_parser(sub, help_text: str) -> None:
     """Register `export-fmu` on the command line's subparsers."""
@@ -16,8 +18,9 @@ def add_parser(sub, help_text: str) -> None:
                                    "Python, only the platform's C library.")
     p.add_argument("scene", metavar="SCENE", help="scene file (TOML)")
     p.add_argument("-o", "--out", required=True, metavar="PLANT.fmu", help="the FMU to write")
-    p.add_argument("--fmi-version", type=int, choices=(2, 3), default=2,
-                   help="FMI version of the FMU (default 2)")
+    versions, default = literals("stewart_fmu.fmu.export", "FMI_VERSIONS", "DEFAULT_FMI_VERSION")
+    p.add_argument("--fmi-version", type=int, choices=versions, default=default,
+                   help=f"FMI version of the FMU (default {default})")
     p.set_defaults(run=run)
 
 
@@ -25,15 +28,19 @@ def run(args: argparse.Namespace) -> None:
     """Export; -o names the file, a directory is refused (the FMU's name is the user's choice,
     not ours)."""
     from stewart_fmu.errors import StewartError
-    from stewart_fmu.fmu.export import export_fmu
+    from stewart_fmu.fmu.export import export_model
     from stewart_fmu.io import writing
-    from stewart_sim.scene_load import load
+    from stewart_fmu.scene import parse_scene_bytes, read_scene_bytes, scene_from_dict
+    from stewart_sim.scene_load import scene_of
 
     out = Path(args.out)
     if out.is_dir():
         raise StewartError(f"-o {out} is a directory: give the FMU's file name, e.g. "
                            f"{out / 'StewartPlant.fmu'}")
-    load(args.scene)   # the scene checked (file, keys) before the compiler runs
+    # The file read once: its bytes go into the FMU, its one Model gives the variables.
+    text = read_scene_bytes(args.scene)
+    model = scene_from_dict(parse_scene_bytes(text, args.scene), source=str(args.scene))
+    scene_of(model)   # every table checked before the compiler runs
     with writing(out):
-        export_fmu(args.scene, out, args.fmi_version)
+        export_model(model, text, out, args.fmi_version)
     print(f"wrote {out}")

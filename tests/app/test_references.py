@@ -30,16 +30,6 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]  # not tests.helpers': this test imports nothing of ours
 
-# Files whose failures are tolerated while other branches rewrite them. The lead empties this
-# list after the merge: it must be empty.
-ALLOWED = (
-    "stewart_fmu/fmu/variables.py",
-    "stewart_fmu/native/build_core.py",
-    "stewart_fmu/native/core.py",
-    "stewart_fmu/native/fmi/model.h",
-    "stewart_fmu/native/include/stewart.h",
-    "stewart_fmu/scene.py",
-)
 
 PACKAGES = ("stewart_fmu", "controller", "hil", "stewart_sim")
 # Files of other projects that comments cite by name (the anchors our designs follow).
@@ -329,15 +319,10 @@ def _scan():
 def test_every_reference_in_comments_resolves():
     failures, checked = _scan()
     report = [f"{rel}:{line}: {what}: {why}" for rel, line, what, why in failures]
-    print(f"{checked} references checked, {len(failures)} failures "
-          f"({sum(f[0] in ALLOWED for f in failures)} in allowed files)")
+    print(f"{checked} references checked, {len(failures)} failures")
     print("\n".join(report))
     assert checked > 300
-    assert [r for r, f in zip(report, failures) if f[0] not in ALLOWED] == []
-
-
-def test_allowed_files_exist():
-    assert [f for f in ALLOWED if not (ROOT / f).is_file()] == []
+    assert report == []
 
 
 def test_the_resolver_tells_good_from_stale():

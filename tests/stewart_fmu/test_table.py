@@ -34,7 +34,7 @@ def _c_text(path: Path) -> str:
 
 
 def test_layout_is_contiguous_and_model_offsets_are_the_tables():
-    """Entries follow one another from 0 to N_PARAMS; model.P_* are the table's offsets."""
+    """Entries follow one another from 0 to N_PARAMS; the P_ offsets of stewart_fmu.model are the table's."""
     at = 0
     for p in table.PARAMS.values():
         assert p.offset == at, p.name

@@ -17,9 +17,7 @@
 
 #include "model.h"
 
-#define MAX_STEPS 10000L             /* internal steps per doStep (IntegratorOptions.max_steps) */
 
-static const char *const METHODS[] = {"rk4", "euler", "dopri5"};
 
 /* ---- names of value references ------------------------------------------------------------ */
 
@@ -331,9 +329,7 @@ static stewart_options options(const Instance *c) {
     o.rtol = c->d.tolerance_defined ? c->d.tolerance : c->d.par[VR_RTOL];
     o.atol = c->d.par[VR_ATOL];
     o.max_step = c->d.par[VR_MAX_STEP];
-    o.max_steps = MAX_STEPS;
-    o.energy_tol = STEWART_ENERGY_TOL;
-    return o;
+    return o;  /* max_steps and energy_tol: the core's defaults, as Plant's */
 }
 
 int model_exit_init(Instance *c) {
@@ -349,7 +345,7 @@ int model_exit_init(Instance *c) {
     stewart_component_exit_init(&d->s, d->p);
     clear_outputs(c);
     model_log(c, M_OK, "%s: %s at t = %.17g s, %s, max_step %g s", call,
-              has_transmission() ? "24 states" : "12 states", d->s.time, METHODS[d->method], d->par[VR_MAX_STEP]);
+              has_transmission() ? "24 states" : "12 states", d->s.time, stewart_method_name(d->method), d->par[VR_MAX_STEP]);
     return M_OK;
 }
 
@@ -381,7 +377,7 @@ int model_do_step(Instance *c, double t, double h, double *last_time) {
                   d->s.time);
         return M_ERROR;
     default:  /* a step the plant cannot take: the state stays at its start */
-        stewart_component_refusal(msg, sizeof msg, &d->s, d->p, METHODS[d->method], t, h, status);
+        stewart_component_refusal(msg, sizeof msg, &d->s, d->p, stewart_method_name(d->method), t, h, status);
         model_log(c, M_DISCARD, "%s", msg);
         c->discarded = 1;
         return M_DISCARD;
@@ -447,24 +443,8 @@ static int output(Instance *c, unsigned vr, double *value) {
         *value = c->d.s.rack[vr - VR_RACK];
     } else {
         if (!c->have_parts) {
-            double dy[STEWART_MAX_STATE], qdd[6];
-            int i;
             update_rack(c);
-            memset(c->parts, 0, sizeof c->parts);
-            if (p[STEWART_P_HAS_TRANSMISSION] != 0.0) {
-                /* the leg side (Plant._leg_model: no drive, no transmission), qdd from y' */
-                double pl[STEWART_N_PARAMS];
-                memcpy(pl, p, sizeof pl);
-                pl[STEWART_P_HAS_DRIVE] = 0.0;
-                for (i = 0; i < 6; i++) pl[STEWART_P_DRIVE_MASS + i] = 0.0;
-                pl[STEWART_P_HAS_TRANSMISSION] = pl[STEWART_P_STIFFNESS] = pl[STEWART_P_DAMPING] = 0.0;
-                stewart_derivative(p, y, c->d.s.rack, dy);
-                stewart_inverse_dynamics_parts(pl, y, y + 6, dy + 6, c->parts);
-                for (i = 0; i < 6; i++) c->parts[STEWART_PART_DRIVES * 6 + i] = p[STEWART_P_DRIVE_MASS + i] * dy[18 + i];
-            } else {
-                stewart_forward_dynamics(p, y, y + 6, c->d.s.rack, qdd);
-                stewart_inverse_dynamics_parts(p, y, y + 6, qdd, c->parts);
-            }
+            stewart_plant_parts(p, y, c->d.s.rack, c->parts);  /* zeros where not computed */
             c->have_parts = 1;
         }
         *value = c->parts[vr - VR_FORCE_PLATFORM];
@@ -563,7 +543,7 @@ int model_get_string(Instance *c, const unsigned vr[], size_t n, const char *val
     if (check_args(c, "getString", vr, n, value)) return M_ERROR;
     for (k = 0; k < n; k++) {
         if (vr[k] != VR_METHOD) return model_wrong_type(c, "getString", vr + k, 1);
-        value[k] = METHODS[c->d.method];
+        value[k] = stewart_method_name(c->d.method);
     }
     return M_OK;
 }
@@ -581,11 +561,12 @@ int model_set_string(Instance *c, const unsigned vr[], size_t n, const char *con
         if (model_require(c, "setString(solver.method)", STEWART_CALL_SET_PARAMETER))
             return M_ERROR;
         method[k] = -1;
-        for (j = 0; j < 3; j++)
-            if (value[k] && strcmp(value[k], METHODS[j]) == 0) method[k] = j;
+        for (j = 0; j < STEWART_N_METHODS; j++)
+            if (value[k] && strcmp(value[k], stewart_method_name(j)) == 0) method[k] = j;
         if (method[k] < 0) {
-            model_log(c, M_ERROR, "setString: integrator '%.100s' unknown: solver.method is one of rk4, euler, "
-                      "dopri5", value[k] ? value[k] : "(null)");
+            model_log(c, M_ERROR, "setString: integrator '%.100s' unknown: solver.method is one of %s, %s, %s",
+                      value[k] ? value[k] : "(null)", stewart_method_name(0), stewart_method_name(1),
+                      stewart_method_name(2));
             return M_ERROR;
         }
     }

@@ -4,7 +4,7 @@
  * Names, value references, units and descriptions are the table of ../include/stewart_table.h
  * (stewart_fmu/fmu/variables.py reads the same table from the core). A scene declares a subset: parameters of
  * absent tables, tau without a [drive] and force parts of absent effects are unknown value
- * references of that FMU. The generated scene file (scene.c, written by the export) holds the
+ * references of that FMU. The generated scene file (written by stewart_fmu.fmu.variables.scene_c_source) holds the
  * start values, which value references are declared, and the instantiation token. */
 #ifndef STEWART_FMI_MODEL_H
 #define STEWART_FMI_MODEL_H

@@ -101,6 +101,12 @@ typedef struct {
 /* The defaults of IntegratorOptions() and stability.ENERGY_TOL. */
 stewart_options stewart_default_options(void);
 
+/* The compiled methods' names, "rk4", "euler", "dopri5" by stewart_method (the one spelling
+   the FMU's solver.method, integrators.COMPILED and the messages take); NULL outside
+   [0, STEWART_N_METHODS). */
+#define STEWART_N_METHODS 3
+const char *stewart_method_name(int method);
+
 /* ---- model ------------------------------------------------------------------------------- */
 /* Length of the plant state y: 12, or 24 with a compliant transmission. */
 int stewart_state_size(const double *params);
@@ -178,16 +184,24 @@ int stewart_derivative(const double *params, const double *y, const double rack[
 /* The transmission forces f_i = k (s_i - l_i) + c (sd_i - ld_i) on the legs (24-state y). */
 int stewart_spring_forces(const double *params, const double *y, double f[6]);
 
+/* How the rack forces split at the plant state y (dynamics.PARTS rows, parts[part*6 + leg]):
+   without a transmission the parts at forward_dynamics' qdd, summing to the rack forces; with
+   one, the leg side's parts (the model without its drive: stewart_leg_side_params) at the legs'
+   accelerations from y', summing to the spring forces, and drives = m_d sdd. The one definition
+   of the leg side's force breakdown (Plant's outputs and the FMU's force.<part>). Status: that of
+   the forward kernel or of the inverse parts; parts are zero where not computed. */
+int stewart_plant_parts(const double *params, const double *y, const double rack[6], double parts[36]);
+
 /* The plant state at pose q and rates qd (transmission.initial_state): (q, qd), and with a
    transmission s = l + rack / k, sd = ldot (rack may be NULL: zero). Returns the state size. */
 int stewart_initial_state(const double *params, const double q[6], const double qd[6],
                           const double *rack, double *y);
 
-/* ---- energy (stewart_fmu/energy.py, step.py) ---------------------------------------------- */
+/* ---- energy (stewart_fmu/energy.py, stability.py) ---------------------------------------------- */
 /* out = (T, V_g, V_s, d_1..d_6) at y (energy.energy_terms). */
 void stewart_energy_terms(const double *params, const double *y, double out[STEWART_N_ENERGY]);
 
-/* The power balance of a step of length h (step.check_step): returns 0 if y1 is
+/* The power balance of a step of length h (stewart_step's check): returns 0 if y1 is
    non-finite, else 1 with e1 = energy terms of y1, *excess = dE - F.(d1 - d0) and
    *allowed = tol * (energy exchanged) + sum_i coulomb_i (|d1_i - d0_i| + h |ldot_i(y1)|) (the
    h |ldot_i| terms only when a leg has Coulomb friction). The step is unstable when !(excess <= allowed). */

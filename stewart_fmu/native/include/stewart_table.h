@@ -102,7 +102,7 @@
 
 /* The String parameter, after the Real ones (value reference STEWART_VR_METHOD):
    X(ID, NAME, DESCRIPTION). */
-#define STEWART_FMU_STRINGS(X) X(METHOD, "solver.method", "integrator: one of rk4, euler, dopri5")
+#define STEWART_FMU_STRINGS(X) X(METHOD, "solver.method", "integrator")
 
 /* Inputs (Real, continuous): tau only with a [drive]. */
 #define STEWART_FMU_INPUTS(X)                                                                    \

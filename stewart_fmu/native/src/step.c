@@ -3,6 +3,12 @@
    Also the default options and a caller-owned per-run state (stewart_data). */
 #include "internal.h"
 
+const char *stewart_method_name(int method)
+{
+    static const char *const NAMES[STEWART_N_METHODS] = {"rk4", "euler", "dopri5"};
+    return method >= 0 && method < STEWART_N_METHODS ? NAMES[method] : 0;
+}
+
 stewart_options stewart_default_options(void)
 {
     stewart_options o;

@@ -80,6 +80,28 @@ int stewart_spring_forces(const double *params, const double *y, double f[6])
     return st;
 }
 
+int stewart_plant_parts(const double *params, const double *y, const double rack[6], double parts[36])
+{
+    double dy[STEWART_MAX_STATE], pl[STEWART_N_PARAMS];
+    int st, i;
+    for (i = 0; i < 36; ++i)
+        parts[i] = 0.0;
+    if (params[STEWART_P_HAS_TRANSMISSION] == 0.0) {
+        st = stewart_forward_dynamics(params, y, y + 6, rack, dy + 6);
+        return st != STEWART_OK ? st : stewart_inverse_dynamics_parts(params, y, y + 6, dy + 6, parts);
+    }
+    /* the legs move under the spring forces as a drive-less model: its parts at the legs'
+       accelerations, and the drives' own m_d sdd */
+    stewart_leg_side_params(params, pl);
+    st = stewart_derivative(params, y, rack, dy);
+    if (st != STEWART_OK)
+        return st;
+    st = stewart_inverse_dynamics_parts(pl, y, y + 6, dy + 6, parts);
+    for (i = 0; i < 6; ++i)
+        parts[STEWART_PART_DRIVES * 6 + i] = params[STEWART_P_DRIVE_MASS + i] * dy[18 + i];
+    return st;
+}
+
 int stewart_state_size(const double *params)
 {
     return params[STEWART_P_HAS_TRANSMISSION] != 0.0 ? 24 : 12;
