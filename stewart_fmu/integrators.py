@@ -20,7 +20,10 @@ from scipy.integrate import solve_ivp
 from .native import core
 from .status import OK, STEP_TOO_SMALL
 
-COMPILED = tuple(core.METHODS)   # the core's compiled methods, by the core's names
+# The core's compiled methods by its names (stewart_method_name): written as a literal so that
+# the command line's --help reads it without loading the core (stewart_sim.commands.constants);
+# tests/stewart_fmu/test_table.py holds it equal to the core's.
+COMPILED = ("rk4", "euler", "dopri5")
 FIXED_STEP = {"rk4": 4, "euler": 1}  # the fixed-step methods and their theoretical order
 SCIPY = ("RK45", "DOP853", "Radau", "BDF", "LSODA")
 INTEGRATORS = COMPILED + SCIPY

@@ -140,3 +140,19 @@ def test_fmu_variables_are_table_groups(path, version):
             k = idx[0] * g.shape + idx[1] if len(idx) == 2 else idx[0]
         assert var.vr == g.vr + k, var.name
         assert var.unit == (g.unit or None) or g.unit in ("pose", "rate"), var.name
+
+
+def test_integrator_names_are_the_cores():
+    """The compiled methods' names: the core's stewart_method_name, read by native.core and
+    spelled once more in integrators.COMPILED (a literal for --help); the FMU takes the core's."""
+    from stewart_fmu.integrators import COMPILED
+    from stewart_fmu.native import core
+    from stewart_fmu.native.core import ffi, lib
+
+    names = tuple(ffi.string(lib.stewart_method_name(k)).decode()
+                  for k in range(lib.STEWART_N_METHODS))
+    assert names == COMPILED == tuple(core.METHODS)
+    assert lib.stewart_method_name(lib.STEWART_N_METHODS) == ffi.NULL
+    assert lib.stewart_method_name(-1) == ffi.NULL
+    assert core.METHODS == {"rk4": lib.STEWART_RK4, "euler": lib.STEWART_EULER,
+                            "dopri5": lib.STEWART_DOPRI5}
