@@ -295,15 +295,15 @@ size_t stewart_refusal(char *buf, size_t size, const double *params, const char 
 /* The one check of the rules that relate keys (the per-key ones, finite values and the bounds
    of stewart_table.h, come first, in the scene reader and the FMU): scene.py raises the
    SceneError of a broken one, the FMU's exitInitializationMode logs it. */
-enum {
-    STEWART_RULE_OK = 0,
-    STEWART_RULE_JOINTS = 1,            /* two base (platform) joints at one point */
-    STEWART_RULE_STROKE = 2,            /* leg_min >= leg_max */
-    STEWART_RULE_INERTIA_POSITIVE = 3,  /* a principal moment of the platform <= 0 */
-    STEWART_RULE_INERTIA_TRIANGLE = 4,  /* the platform's moments break the triangle inequality */
-    STEWART_RULE_LEG_INERTIA = 5,       /* a leg part's axial moment above twice its transverse */
-    STEWART_RULE_POSE_STROKE = 6,       /* the pose puts a leg outside [leg_min, leg_max] */
-    STEWART_RULE_POSE_SINGULAR = 7      /* the pose's cond(J) >= STEWART_COND_LIMIT */
+enum {  /* numbered from 0 in this order (they are not status codes) */
+    STEWART_RULE_OK,
+    STEWART_RULE_JOINTS,            /* two base (platform) joints at one point */
+    STEWART_RULE_STROKE,            /* leg_min >= leg_max */
+    STEWART_RULE_INERTIA_POSITIVE,  /* a principal moment of the platform <= 0 */
+    STEWART_RULE_INERTIA_TRIANGLE,  /* the platform's moments break the triangle inequality */
+    STEWART_RULE_LEG_INERTIA,       /* a leg part's axial moment above twice its transverse */
+    STEWART_RULE_POSE_STROKE,       /* the pose puts a leg outside [leg_min, leg_max] */
+    STEWART_RULE_POSE_SINGULAR      /* the pose's cond(J) >= STEWART_COND_LIMIT */
 };
 
 /* The first broken rule: vr the first value reference of the FMU variable group at fault (in
