@@ -110,7 +110,9 @@ def _copy_tables(data: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def scene_from_dict(data: Mapping[str, Any], source: str | None = None) -> Model:
-    """Validate a parsed scene and build its Model (the reference for every rejection rule)."""
+    """Validate a parsed scene and build its Model: each key's own rules here (the bounds of the
+    one table), then the rules between keys on the packed Model (native/src/rules.c, which the
+    FMU's validation calls too)."""
     v = _Validator(source)
     unknown = set(data) - _TOP_KEYS - PROJECT_TABLES
     if unknown:
