@@ -27,10 +27,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from stewart_fmu.dynamics import PARTS, forward_dynamics, leg_state, present_parts
-from stewart_fmu.errors import IntegrationError, StewartError, TrajectoryError
+from stewart_fmu.errors import (IntegrationError, SingularityError, StewartError, StrokeLimitError,
+                                 TrajectoryError)
 from stewart_fmu.integrators import COMPILED, IntegratorOptions, derivative, scipy_advance
-from stewart_fmu.kinematics import check_poses, condition_number
+from stewart_fmu.kinematics import condition_number
 from stewart_fmu.model import Model
+from stewart_fmu import table
 from stewart_fmu.native import core
 from stewart_fmu.native.core import ffi, lib
 from stewart_fmu.stability import ENERGY_TOL, advice, default_options, internal_step
@@ -276,11 +278,11 @@ class Plant:
         """Check the initial pose (stroke, singularity) and start stepping; a pose that fails
         leaves the component failed (reset to start again), as the FMU."""
         self._require("exit_initialization_mode", lib.STEWART_CALL_EXIT_INIT)
-        try:
-            check_poses(self.model, self._initial[:6].copy())
-        except StewartError:
+        rule, reason = core.check_pose(self._params, self._initial[:6].copy(), table.vr("Q0"))
+        if rule != core.RULE_OK:  # the FMU's check of q0 (native/src/rules.c)
             lib.stewart_component_fail(self._s)
-            raise
+            error = StrokeLimitError if rule == core.RULE_POSE_STROKE else SingularityError
+            raise error(f"the initial pose {reason}")
         lib.stewart_component_exit_init(self._s, self._p)
         self._changed()
 

@@ -9,10 +9,9 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from stewart_fmu.kinematics import check_poses
-
-from .errors import KinematicsError, SceneError, SceneKeyError
+from .errors import SceneError, SceneKeyError
 from . import table
+from .native import core
 from .model import DriveParams, FrictionParams, LegParams, Model, TransmissionParams
 from .table import BOUND_NONNEG, BOUND_POS, BOUND_WORDS
 
@@ -111,7 +110,9 @@ def _copy_tables(data: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def scene_from_dict(data: Mapping[str, Any], source: str | None = None) -> Model:
-    """Validate a parsed scene and build its Model (the reference for every rejection rule)."""
+    """Validate a parsed scene and build its Model: each key's own rules here (the bounds of the
+    one table), then the rules between keys on the packed Model (native/src/rules.c, which the
+    FMU's validation calls too)."""
     v = _Validator(source)
     unknown = set(data) - _TOP_KEYS - PROJECT_TABLES
     if unknown:
@@ -122,15 +123,13 @@ def scene_from_dict(data: Mapping[str, Any], source: str | None = None) -> Model
     gravity = v.vector(data, "gravity", 3, default=DEFAULT_GRAVITY)
     geo = v.table(data, "geometry", required=True)
     plat = v.table(data, "platform", required=True)
-    base = v.points(geo, "geometry.base_joints")
-    top = v.points(geo, "geometry.platform_joints")
+    base = v.vector(geo, "geometry.base_joints", (6, 3))
+    top = v.vector(geo, "geometry.platform_joints", (6, 3))
     home = v.vector(geo, "geometry.home", 6)
     leg_min = v.number(geo, "geometry.leg_min", optional=True)
     leg_max = v.number(geo, "geometry.leg_max", optional=True)
-    if leg_min is not None and leg_max is not None and leg_min >= leg_max:
-        v.fail("geometry.leg_max", f"must exceed leg_min ({leg_max} <= {leg_min})")
     mass = v.number(plat, "platform.mass")
-    inertia = v.principal_inertia(plat, "platform.inertia")
+    inertia = v.vector(plat, "platform.inertia", 3)
     model = Model(
         name=name, gravity=gravity, base_joints=base, platform_joints=top, home=home,
         leg_min=leg_min, leg_max=leg_max, platform_mass=mass, platform_inertia=inertia,
@@ -138,7 +137,7 @@ def scene_from_dict(data: Mapping[str, Any], source: str | None = None) -> Model
         extra={k: data[k] for k in PROJECT_TABLES if k in data}, source=source,
         transmission=_transmission(v, data),
     )
-    _check_home(v, model)
+    _check_rules(v, model)
     _check_case(v, data)
     return model
 
@@ -152,9 +151,6 @@ def _legs(v: "_Validator", data: Mapping[str, Any]) -> LegParams | None:
         parts[f"{part}_mass"] = v.number(t, f"legs.{part}_mass")
         parts[f"{part}_com"] = v.number(t, f"legs.{part}_com")
         trans, axial = v.vector(t, f"legs.{part}_inertia", 2)
-        if axial > 2 * trans:
-            v.fail(f"legs.{part}_inertia",
-                   f"axial moment {axial} exceeds twice the transverse {trans}: no rigid body has it")
         parts[f"{part}_inertia"] = (trans, axial)
     return LegParams(**parts)
 
@@ -209,13 +205,13 @@ def _check_case(v: "_Validator", data: Mapping[str, Any]) -> None:
         v.fail("case.motion", "'closed_loop' needs the scene's [controller] table")
 
 
-def _check_home(v: "_Validator", model: Model) -> None:
-    """The home pose must be reachable: within stroke and away from singularities."""
-
-    try:
-        check_poses(model, model.home[None, :])
-    except KinematicsError as exc:
-        v.fail("geometry.home", str(exc))
+def _check_rules(v: "_Validator", model: Model) -> None:
+    """The rules between keys, once every key has passed its own (native/src/rules.c, the
+    FMU's validation too): coincident joints, leg_min below leg_max, the inertias a rigid body
+    can have, a home pose within the stroke and away from singularities."""
+    rule, vr, _, reason = core.check_rules(model.native, model.home)
+    if rule != core.RULE_OK:
+        v.fail(table.group_at(vr).name, reason)
 
 
 class _Validator:
@@ -280,31 +276,15 @@ class _Validator:
             self.fail_key(dotted, f"must be one number, or six (one per leg), got {len(x)} values")
         return tuple(float(e) for e in self._array(x, dotted, (6,)))
 
-    def vector(self, t: Mapping[str, Any], dotted: str, n: int, default=None) -> np.ndarray:
+    def vector(self, t: Mapping[str, Any], dotted: str, n: int | tuple[int, ...],
+               default=None) -> np.ndarray:
+        """An array of shape (n,) (or the shape n), each value within the key's bound."""
         key = dotted.rsplit(".", 1)[-1]
         if key not in t:
             if default is None:
                 self.fail_key(dotted, "required key is missing")
             return np.array(default, dtype=float)
-        return self._array(t[key], dotted, (n,))
-
-    def points(self, t: Mapping[str, Any], dotted: str) -> np.ndarray:
-        pts = self._array(t[dotted.rsplit(".", 1)[-1]], dotted, (6, 3))
-        scale = max(float(np.abs(pts).max()), 1e-300)
-        for i in range(6):
-            for j in range(i + 1, 6):
-                if np.linalg.norm(pts[i] - pts[j]) <= 1e-9 * scale:
-                    self.fail(dotted, f"joints {i + 1} and {j + 1} coincide at {pts[i].tolist()}")
-        return pts
-
-    def principal_inertia(self, t: Mapping[str, Any], dotted: str) -> np.ndarray:
-        inertia = self.vector(t, dotted, 3)
-        if np.any(inertia <= 0):
-            self.fail(dotted, f"not positive definite: principal moments {inertia.tolist()} must be > 0")
-        a, b, c = inertia
-        if a + b < c or b + c < a or a + c < b:
-            self.fail(dotted, f"moments {inertia.tolist()} break the triangle inequality: no rigid body has them")
-        return inertia
+        return self._array(t[key], dotted, n if isinstance(n, tuple) else (n,))
 
     def _array(self, x: Any, dotted: str, shape: tuple[int, ...]) -> np.ndarray:
         def bad(reason: str):

@@ -83,6 +83,15 @@ def vr(group_id: str) -> int:
 SCENE_GROUPS: dict[str, VariableGroup] = {g.name: g for g in VARIABLES if g.scene}
 
 
+_BY_VR: dict[int, VariableGroup] = {g.vr: g for g in VARIABLES}
+
+
+def group_at(first_vr: int) -> VariableGroup:
+    """The FMU variable group whose first value reference is first_vr (a rule's report names
+    its key so: native/src/rules.c)."""
+    return _BY_VR[first_vr]
+
+
 def scene_groups() -> dict[str, VariableGroup]:
     """The FMU parameters that are scene keys ("platform.mass", ...), by dotted key."""
     return SCENE_GROUPS

@@ -240,6 +240,28 @@ def refusal(params, method: str, t: float, h: float, status: int, y, rack, exces
     return ffi.string(buf).decode()
 
 
+# --- the rules between a scene's keys (rules.c) -----------------------------------------------
+
+RULE_OK, RULE_POSE_STROKE, RULE_POSE_SINGULAR = (
+    lib.STEWART_RULE_OK, lib.STEWART_RULE_POSE_STROKE, lib.STEWART_RULE_POSE_SINGULAR)
+
+
+def check_rules(params, home) -> tuple[int, int, int, str]:
+    """stewart_check_rules: (rule, vr, element, reason) of the first broken rule between the
+    keys and of the home pose; rule is RULE_OK when none is."""
+    out = ffi.new("stewart_rule_break *")
+    rule = lib.stewart_check_rules(_p(params), _buf(np.ascontiguousarray(home, dtype=float)), out)
+    return rule, out.vr, out.element, ffi.string(out.reason).decode()
+
+
+def check_pose(params, q, vr: int) -> tuple[int, str]:
+    """stewart_check_pose: (rule, reason) of a pose the plant would start from, named by the
+    value reference vr (RULE_OK, RULE_POSE_STROKE or RULE_POSE_SINGULAR)."""
+    out = ffi.new("stewart_rule_break *")
+    rule = lib.stewart_check_pose(_p(params), _buf(np.ascontiguousarray(q, dtype=float)), vr, out)
+    return rule, ffi.string(out.reason).decode()
+
+
 class Run:
     """One plant run in C (a stewart_data the caller owns, mjData style): the state, its energy
     terms, the dopri5 step guess and the held rack forces live in C memory; `y`, `energy` and

@@ -370,3 +370,18 @@ def fuzz(unzipdir: str, version: int, seed: int, n_calls: int) -> dict:
             del messages[:1000]
     inst.free()
     return out
+
+
+def initialization_refusals(unzipdir: str, version: int, cases: dict) -> dict:
+    """Per case ({name: {value reference: value}}): a fresh instance with those parameter values
+    set, then exitInitializationMode; its status and the messages it logged."""
+    out = {}
+    for name, values in cases.items():
+        messages: list = []
+        fmu = Adapter(unzipdir, version, messages, name)
+        status = fmu.set([int(vr) for vr in values], list(values.values()))
+        fmu.setup()
+        fmu.enter()
+        out[name] = {"set": status, "exit": fmu.exit(), "messages": [m for _, _, m in messages]}
+        fmu.free()
+    return out

@@ -234,27 +234,27 @@ static void pack(const double *par, double *p) {
     p[STEWART_P_CHAR_LENGTH] = sum / 6.0;
 }
 
-/* kinematics.check_poses for one pose: within the stroke and cond(J) below the limit. */
-static int check_pose(Instance *c, const char *call, const char *what, const double *p, const double q[6]) {
-    double l[6], ld[6], om[3], zero[6] = {0, 0, 0, 0, 0, 0}, cond = 0.0;
-    double lo = p[STEWART_P_LEG_MIN], hi = p[STEWART_P_LEG_MAX];
-    int i;
-    stewart_leg_state(p, q, zero, l, ld, om);
-    for (i = 0; i < 6; i++)
-        if (!(l[i] >= lo && l[i] <= hi) || !isfinite(l[i]) || l[i] == 0.0) {
-            model_log(c, M_ERROR, "%s: %s: leg %d has length %.17g m, outside the stroke [%g, %g] m "
-                      "at pose (%g, %g, %g, %g, %g, %g)", call, what, i + 1, l[i], lo, hi,
-                      q[0], q[1], q[2], q[3], q[4], q[5]);
-            return M_ERROR;
-        }
-    stewart_condition_number(p, q, &cond);
-    if (!(cond < STEWART_COND_LIMIT)) {
-        model_log(c, M_ERROR, "%s: %s: the Jacobian is near-singular (cond = %.3g > %.0e) at pose "
-                  "(%g, %g, %g, %g, %g, %g)", call, what, cond, STEWART_COND_LIMIT,
-                  q[0], q[1], q[2], q[3], q[4], q[5]);
-        return M_ERROR;
+/* A broken rule between keys (native/src/rules.c), logged naming its parameter: the element at
+ * fault ("geometry.base_joints[4,1]") or the key ("geometry.home"). */
+static int rule_broken(Instance *c, const char *call, const stewart_rule_break *b) {
+    char name[64];
+    size_t k;
+    if (b->element >= 0) {
+        vr_name((unsigned)(b->vr + b->element), name);
+    } else {
+        snprintf(name, sizeof name, "?");
+        for (k = 0; k < sizeof GROUPS / sizeof GROUPS[0]; k++)
+            if (GROUPS[k].vr == (unsigned)b->vr) snprintf(name, sizeof name, "%s", GROUPS[k].name);
     }
-    return M_OK;
+    model_log(c, M_ERROR, "%s: parameter %s %s", call, name, b->reason);
+    return M_ERROR;
+}
+
+/* The initial pose q0: within the stroke and away from singularities (stewart_check_pose). */
+static int check_q0(Instance *c, const char *call, const double *p) {
+    stewart_rule_break b;
+    if (stewart_check_pose(p, c->d.par + VR_Q0, VR_Q0, &b) == STEWART_RULE_OK) return M_OK;
+    return rule_broken(c, call, &b);
 }
 
 /* The per-key bounds of the table (BOUND of STEWART_FMU_SCENE and _SETTINGS). */
@@ -263,12 +263,14 @@ static const struct { unsigned vr, count; int bound; } BOUNDS[] = {
     STEWART_FMU_SCENE(BOUND_ROW) STEWART_FMU_SETTINGS(BOUND_ROW)
 };
 
-/* The rules of a scene (stewart_fmu/scene.py), naming the parameter that breaks one: finite
- * values, the per-key bounds of the table, then the rules between keys. */
+/* The rules of a scene, as stewart_fmu/scene.py checks them, naming the parameter that breaks
+ * one: finite values, the per-key bounds of the table, then the rules between keys and the home
+ * pose on the packed parameters (native/src/rules.c). */
 static int validate(Instance *c, const char *call, const double *v, double *p) {
     char name[64];
+    stewart_rule_break broken;
     unsigned vr;
-    int i, j, k;
+    int k;
 #define FAIL(VR, ...)                                                             \
     do {                                                                          \
         char why_[256];                                                           \
@@ -278,48 +280,15 @@ static int validate(Instance *c, const char *call, const double *v, double *p) {
     } while (0)
     for (vr = 1; vr < VR_N_PAR; vr++)
         if (has(vr) && !isfinite(v[vr])) FAIL(vr, "must be finite, got %g", v[vr]);
-    for (k = 0; k < 2; k++) {  /* coincident joints */
-        unsigned base = k ? VR_PLATFORM : VR_BASE;
-        double scale = 0.0;
-        for (i = 0; i < 18; i++) scale = fmax(scale, fabs(v[base + i]));
-        scale = fmax(scale, 1e-300);
-        for (i = 0; i < 6; i++)
-            for (j = i + 1; j < 6; j++) {
-                const double *a = v + base + 3 * i, *b = v + base + 3 * j;
-                double d = sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
-                                (a[2] - b[2]) * (a[2] - b[2]));
-                if (d <= 1e-9 * scale)
-                    FAIL(base + 3 * j, "puts joints %d and %d at the same point (%g, %g, %g)", i + 1,
-                         j + 1, a[0], a[1], a[2]);
-            }
-    }
     for (k = 0; k < (int)(sizeof BOUNDS / sizeof BOUNDS[0]); k++)  /* the per-key bounds */
         for (vr = BOUNDS[k].vr; vr < BOUNDS[k].vr + BOUNDS[k].count; vr++) {
             if (!has(vr)) continue;
             if (BOUNDS[k].bound == STEWART_BOUND_POS && !(v[vr] > 0)) FAIL(vr, "must be > 0, got %g", v[vr]);
             if (BOUNDS[k].bound == STEWART_BOUND_NONNEG && v[vr] < 0) FAIL(vr, "must be >= 0, got %g", v[vr]);
         }
-    if (has(VR_LEG_MIN) && has(VR_LEG_MAX) && v[VR_LEG_MIN] >= v[VR_LEG_MAX])
-        FAIL(VR_LEG_MAX, "must exceed leg_min (%g <= %g)", v[VR_LEG_MAX], v[VR_LEG_MIN]);
-    for (i = 0; i < 3; i++)
-        if (!(v[VR_INERTIA + i] > 0))
-            FAIL(VR_INERTIA + i, "is not positive definite: principal moment %g must be > 0", v[VR_INERTIA + i]);
-    {
-        double a = v[VR_INERTIA], b = v[VR_INERTIA + 1], d = v[VR_INERTIA + 2];
-        if (a + b < d || b + d < a || a + d < b)
-            FAIL(VR_INERTIA, "(moments %g, %g, %g) breaks the triangle inequality: no rigid body has them", a, b, d);
-    }
-    if (has_legs()) {
-        unsigned part[2] = {VR_LOWER_INERTIA, VR_UPPER_INERTIA};
-        for (k = 0; k < 2; k++) {
-            double tr = v[part[k]], ax = v[part[k] + 1];
-            if (ax > 2 * tr)
-                FAIL(part[k] + 1, "axial moment %g exceeds twice the transverse %g: no rigid body has it", ax, tr);
-        }
-    }
 #undef FAIL
     pack(v, p);
-    if (check_pose(c, call, "parameter geometry.home", p, v + VR_HOME)) return M_ERROR;
+    if (stewart_check_rules(p, v + VR_HOME, &broken) != STEWART_RULE_OK) return rule_broken(c, call, &broken);
     return M_OK;
 }
 
@@ -335,7 +304,7 @@ static stewart_options options(const Instance *c) {
 int model_exit_init(Instance *c) {
     PlantData *d = &c->d;
     const char *call = "exitInitializationMode";
-    if (validate(c, call, d->par, d->p) || check_pose(c, call, "the initial pose q0", d->p, d->par + VR_Q0)) {
+    if (validate(c, call, d->par, d->p) || check_q0(c, call, d->p)) {
         stewart_component_fail(&d->s);
         clear_outputs(c);
         return M_ERROR;
@@ -402,7 +371,7 @@ static int output_source(Instance *c, const double **p, const double **y) {
     if (!c->have_initial) {
         InstanceLogger log = c->log;
         c->log = NULL;  /* quiet check: the values may still be set before exitInitializationMode */
-        if (validate(c, "getReal", d->par, c->lp) || check_pose(c, "getReal", "q0", c->lp, d->par + VR_Q0)) {
+        if (validate(c, "getReal", d->par, c->lp) || check_q0(c, "getReal", c->lp)) {
             c->log = log;
             model_log(c, M_ERROR, "getReal: outputs are undefined: the parameters set so far are not valid "
                       "(exitInitializationMode names the problem)");

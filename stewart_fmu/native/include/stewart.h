@@ -291,6 +291,40 @@ size_t stewart_refusal(char *buf, size_t size, const double *params, const char 
                        double h, int status, const double *y, const double rack[6], double excess,
                        double allowed);
 
+/* ==== the rules between a scene's keys (rules.c) ======================================== */
+/* The one check of the rules that relate keys (the per-key ones, finite values and the bounds
+   of stewart_table.h, come first, in the scene reader and the FMU): scene.py raises the
+   SceneError of a broken one, the FMU's exitInitializationMode logs it. */
+enum {  /* numbered from 0 in this order (they are not status codes) */
+    STEWART_RULE_OK,
+    STEWART_RULE_JOINTS,            /* two base (platform) joints at one point */
+    STEWART_RULE_STROKE,            /* leg_min >= leg_max */
+    STEWART_RULE_INERTIA_POSITIVE,  /* a principal moment of the platform <= 0 */
+    STEWART_RULE_INERTIA_TRIANGLE,  /* the platform's moments break the triangle inequality */
+    STEWART_RULE_LEG_INERTIA,       /* a leg part's axial moment above twice its transverse */
+    STEWART_RULE_POSE_STROKE,       /* the pose puts a leg outside [leg_min, leg_max] */
+    STEWART_RULE_POSE_SINGULAR      /* the pose's cond(J) >= STEWART_COND_LIMIT */
+};
+
+/* The first broken rule: vr the first value reference of the FMU variable group at fault (in
+   stewart_variable_table; a scene group's name is the scene key), element the offset of the
+   value at fault in that group (-1: the key as a whole), reason what is wrong, written to
+   follow the key's name ("must exceed leg_min (0.19 <= 0.19)"). */
+typedef struct {
+    int rule;           /* STEWART_RULE_* */
+    int vr, element;
+    char reason[512];
+} stewart_rule_break;
+
+/* The rules between the packed parameters (STEWART_RULE_JOINTS .. LEG_INERTIA, in that order):
+   returns the first broken one (out filled) or STEWART_RULE_OK. */
+int stewart_check_params(const double *params, stewart_rule_break *out);
+/* A pose the plant may start from: within the stroke, then cond(J) < STEWART_COND_LIMIT;
+   vr names the pose's variable (the home, the FMU's q0). */
+int stewart_check_pose(const double *params, const double q[6], int vr, stewart_rule_break *out);
+/* stewart_check_params, then stewart_check_pose of the scene's home pose (geometry.home). */
+int stewart_check_rules(const double *params, const double home[6], stewart_rule_break *out);
+
 /* ==== the component: the FMI life cycle, its state as plain data, one serialized form ====== */
 /* component.c: what the exported FMU (fmi/model.c) and stewart_fmu.plant.Plant both wrap. The
    phases and the call-sequence rules are those of the FMI 2.0 / 3.0 co-simulation state
