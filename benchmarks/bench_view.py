@@ -51,14 +51,15 @@ def main() -> None:
     print(f"{'case':44s} {'samples':>9s} {'frames':>7s} {'MB':>6s} {'write (s)':>9s}")
 
     result = run_closed_loop(model, config, run_reference(model, config, 4.0))
-    view, dt_view = timed(lambda: run_table_view(model, result.table, title="4 s run", fps=args.fps))
+    view, dt_view = timed(lambda: run_table_view(model, result.table, controller=config,
+                                                  title="4 s run", fps=args.fps))
     size, dt_write = timed(lambda: write_view(out / "run_4s.html", view))
     print(f"{'4 s closed-loop run at 1 kHz (run)':44s} {view.source_samples:9d} {view.frames:7d} "
           f"{size / 1e6:6.2f} {dt_view + dt_write:9.3f}")
 
     t, q, qd, qdd = demo_trajectory(model, HOUR)      # 1 kHz (controller.moves.DEMO_RATE)
-    view, dt_view = timed(lambda: trajectory_view(model, t, q, qd, qdd, title="hour",
-                                                  fps=args.fps))
+    view, dt_view = timed(lambda: trajectory_view(model, t, q, qd, qdd, controller=config,
+                                                  title="hour", fps=args.fps))
     size, dt_write = timed(lambda: write_view(out / "hour_1khz.html", view))
     print(f"{'hour-long trajectory at 1 kHz (in memory)':44s} {view.source_samples:9d} "
           f"{view.frames:7d} {size / 1e6:6.2f} {dt_view + dt_write:9.3f}")

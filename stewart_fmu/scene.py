@@ -16,8 +16,9 @@ from .model import DriveParams, FrictionParams, LegParams, Model, TransmissionPa
 from .table import BOUND_NONNEG, BOUND_POS, BOUND_WORDS
 
 DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
-# Tables the project defines on top of the contract, each read by a command (parsed once by
-# stewart_sim.scene_load: [controller], [cueing], [case], [solver]); any other table is refused.
+# Tables the project defines on top of the contract, each read by a command and checked where it
+# is parsed, once, at load (stewart_sim.scene_load: [controller], [cueing], [case], [solver]):
+# here they are only let through into Model.extra; any other table is refused.
 PROJECT_TABLES = frozenset({"controller", "case", "cueing", "solver"})
 _TOP_KEYS = {"name", "gravity", "geometry", "platform", "legs", "drive", "friction",
              "transmission"}
@@ -36,16 +37,7 @@ def _plant_table_keys() -> dict[str, tuple[set[str], set[str]]]:
     return out
 
 
-_TABLE_KEYS = {
-    **_plant_table_keys(),
-    "case": ({"kind", "description", "motion", "duration", "expect"},
-             {"step", "force_scale", "start_rates", "acceleration", "target"}),
-}
-# The [case] table of the shipped stiff and extreme scenes (see stewart_sim/cases.py).
-CASE_CHOICES = {"kind": ("stiff", "extreme"),
-                "motion": ("hold", "accelerate", "ramp", "closed_loop"),
-                "expect": ("ok", "StrokeLimitError", "SingularityError")}
-_CASE_VECTORS = {"accelerate": "acceleration", "ramp": "target"}  # motion -> required key
+_TABLE_KEYS = _plant_table_keys()
 _VECTOR_KEYS = {k for k, g in table.scene_groups().items() if g.count > 1 and g.shape != table.PER_LEG}
 # Dotted keys of the contract's tables that hold a single number (what a sweep may vary).
 NUMBER_KEYS = frozenset(f"{t}.{k}" for t, (need, opt) in _TABLE_KEYS.items()
@@ -138,7 +130,6 @@ def scene_from_dict(data: Mapping[str, Any], source: str | None = None) -> Model
         transmission=_transmission(v, data),
     )
     _check_rules(v, model)
-    _check_case(v, data)
     return model
 
 
@@ -180,29 +171,6 @@ def _transmission(v: "_Validator", data: Mapping[str, Any]) -> TransmissionParam
     if data.get("drive") is None:
         v.fail("transmission", "needs the [drive] table: the motor side moves the drive inertia")
     return _params(v, data, "transmission", TransmissionParams)
-
-
-def _check_case(v: "_Validator", data: Mapping[str, Any]) -> None:
-    """[case]: what a stiff or extreme scene exercises and the outcome it must have."""
-    t = v.table(data, "case")
-    if t is None:
-        return
-    for key, choices in CASE_CHOICES.items():
-        if t[key] not in choices:
-            v.fail(f"case.{key}", f"must be one of {list(choices)}, got {t[key]!r}")
-    if not isinstance(t["description"], str):
-        v.fail("case.description", "must be a string")
-    v.number(t, "case.duration", positive=True)
-    v.number(t, "case.step", positive=True, optional=True)
-    v.number(t, "case.force_scale", optional=True)
-    for key in ("start_rates", "acceleration", "target"):
-        if key in t:
-            v.vector(t, f"case.{key}", 6)
-    need = _CASE_VECTORS.get(t["motion"])
-    if need is not None and need not in t:
-        v.fail(f"case.{need}", f"required for motion '{t['motion']}'")
-    if t["motion"] == "closed_loop" and "controller" not in data:
-        v.fail("case.motion", "'closed_loop' needs the scene's [controller] table")
 
 
 def _check_rules(v: "_Validator", model: Model) -> None:

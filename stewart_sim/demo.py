@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from controller.config import ControllerConfig
 from controller.moves import DEMO_RATE, demo_trajectory
 from stewart_fmu import io
 from stewart_fmu.dynamics import present_parts
@@ -21,10 +22,11 @@ from stewart_sim.view.files import VIEW_FILE, write_beside
 from stewart_sim.view.sources import trajectory_view
 
 
-def run_demo(model: Model, out: Path, duration: float,
+def run_demo(model: Model, controller: ControllerConfig | None, out: Path, duration: float,
              view: bool = True) -> tuple[list[Path], PaperResults | None]:
     """Demonstration trajectory, its forces (the `inverse` path), their plot, the 3D view, the
-    paper rerun, into the directory `out`; returns (the files, the paper's results or None)."""
+    paper rerun, into the directory `out`; returns (the files, the paper's results or None).
+    `controller`: the scene's parsed [controller] (None: it has none), for the views."""
     t, q, qd, qdd = demo_trajectory(model, duration)
     traj = out / "demo_trajectory.csv"
     with writing(traj):
@@ -43,12 +45,13 @@ def run_demo(model: Model, out: Path, duration: float,
     if view:
         sigma = np.column_stack([table[f"sigma{i}"] for i in range(1, 7)])
         write_beside(out / VIEW_FILE, trajectory_view(
-            model, t, q, qd, qdd, forces=sigma, title=title, source=forces.name))
+            model, t, q, qd, qdd, controller=controller, forces=sigma, title=title,
+            source=forces.name))
         written.append(out / VIEW_FILE)
     if model.legs is None or model.drive is None:
         print("paper rerun skipped: it needs the scene's [legs] and [drive]", file=sys.stderr)
     else:
-        report, results = run_paper(model, out / "paper", view)
+        report, results = run_paper(model, controller, out / "paper", view)
         written.append(report)
         if view:
             written.append(out / "paper" / VIEW_FILE)

@@ -7,6 +7,7 @@ from typing import Iterator, Mapping
 
 import numpy as np
 
+from controller.config import ControllerConfig
 from stewart_fmu import io
 from stewart_fmu.dynamics import inverse_dynamics, inverse_dynamics_parts, present_parts
 from stewart_fmu.errors import KinematicsError
@@ -21,11 +22,13 @@ CHUNK_SAMPLES = 50_000       # samples per block of the pose check and of the dy
 
 
 def run_inverse(model: Model, trajectory: Path, out: Path, parts: bool, progress: Progress,
-                keep: bool = False, view: Path | None = None) -> tuple[int, np.ndarray | None]:
+                keep: bool = False, view: Path | None = None,
+                controller: ControllerConfig | None = None) -> tuple[int, np.ndarray | None]:
     """Read, check every pose, compute and write the forces; the table too if `keep`; then the
     3D view into `view` (its forces by inverse dynamics at its frames: the file's numbers at
-    those samples). `out` and `view` are the caller's temporaries (cmd_inverse: an
-    outputs.file_set, so the two files appear together or not at all; demo: its result set)."""
+    those samples; its force scale from the scene's parsed [controller], `controller`). `out`
+    and `view` are the caller's temporaries (cmd_inverse: an outputs.file_set, so the two files
+    appear together or not at all; demo: its result set)."""
     t, q, qd, qdd = io.read_trajectory(
         trajectory, progress=lambda rows: progress.update(f"reading {trajectory}", rows))
     cond = check_trajectory(model, t, q, trajectory, progress)
@@ -34,8 +37,8 @@ def run_inverse(model: Model, trajectory: Path, out: Path, parts: bool, progress
     with writing(out):
         io.write_csv_chunks(out, _keep(chunks, kept) if keep else chunks)
     if view is not None:
-        write_beside(view, trajectory_view(model, t, q, qd, qdd, source=out.name,
-                                           title=f"{model.name}: {out.name}"))
+        write_beside(view, trajectory_view(model, t, q, qd, qdd, controller=controller,
+                                           source=out.name, title=f"{model.name}: {out.name}"))
     return t.size, (np.concatenate(kept) if keep else None)
 
 

@@ -91,6 +91,6 @@ def run_link_files(model: Model, config: ControllerConfig, duration: float, out,
         sio.write_text(out / "summary.md", text)
         if view:
             title = f"{model.name}: closed loop over {where}, {mode}"
-            write_beside(out / VIEW_FILE, run_table_view(model, run.table, title=title,
-                                                         source="run.csv"))
+            write_beside(out / VIEW_FILE, run_table_view(model, run.table, controller=config,
+                                                         title=title, source="run.csv"))
     return run, ref

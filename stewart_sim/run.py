@@ -109,7 +109,7 @@ def run_closed_loop_files(model: Model, config: ControllerConfig, duration: floa
             if view:
                 progress.update("writing the view", 0, 1, unit="files")
                 write_beside(out / VIEW_FILE, run_table_view(
-                    model, result.table, title=title, source=f"run.{fmt}"))
+                    model, result.table, controller=config, title=title, source=f"run.{fmt}"))
                 progress.update("writing the view", 1, 1, unit="files")
     finally:
         progress.close()

@@ -3,6 +3,8 @@
 tables, parsed once)."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from controller.config import ControllerConfig
@@ -13,6 +15,9 @@ from stewart_fmu.model import Model, PerLeg, is_per_leg
 
 from .cueing.config import OPTIMAL, CueingConfig, OptimalOptions
 from .scene_load import Scene
+
+if TYPE_CHECKING:   # stewart_sim.cases imports the closed loop: only its type here
+    from .cases import Case
 
 
 def describe(scene: Scene) -> str:
@@ -33,7 +38,7 @@ def describe(scene: Scene) -> str:
         f"cond(J) at home: {kin.cond:.6g} (rotational columns scaled by "
         f"{model.characteristic_length:.6g} m)",
         _describe_transmission(model), _describe_controller(model, scene.controller),
-        _describe_case(model), _describe_cueing(model, scene.cueing),
+        _describe_case(scene.case), _describe_cueing(model, scene.cueing),
     ]
     if OPTIMAL in (model.extra.get("cueing") or {}):
         lines.append(_describe_optimal(scene.optimal))
@@ -74,16 +79,20 @@ def _describe_controller(model: Model, cfg: ControllerConfig | None) -> str:
             + (" (the largest leg's)" if is_per_leg(model.drive.rotor_inertia) else ""))
 
 
-def _describe_case(model: Model) -> str:
-    """The [case] table of a stiff or extreme scene: what it runs and the outcome expected."""
-    t = model.extra.get("case")
-    if t is None:
+def _describe_case(case: "Case | None") -> str:
+    """The [case] table of a stiff or extreme scene (as stewart_sim.cases.case_of reads it,
+    defaults filled in): what it runs and the outcome expected."""
+    if case is None:
         return "case: none"
-    extra = ", ".join(f"{k} {t[k]}" for k in ("step", "force_scale", "start_rates",
-                                              "acceleration", "target") if k in t)
-    return (f"case: {t['kind']}, motion {t['motion']} for {float(t['duration']):g} s, expected "
-            f"outcome {t['expect']}" + (f" ({extra})" if extra else "")
-            + f": {t['description']}")
+    extra = [f"step {case.step:g} s"]
+    if case.motion == "hold":
+        extra += [f"force_scale {case.force_scale:g}",
+                  f"start_rates {format_vector(case.start_rates)}"]
+    extra += [f"{name} {format_vector(v)}" for name, v in (("acceleration", case.acceleration),
+                                                           ("target", case.target))
+              if v is not None]
+    return (f"case: {case.kind}, motion {case.motion} for {case.duration:g} s, expected "
+            f"outcome {case.expect} ({', '.join(extra)}): {case.description}")
 
 
 def _describe_cueing(model: Model, c: CueingConfig) -> str:

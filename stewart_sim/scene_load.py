@@ -1,7 +1,8 @@
 """A scene read once, every table checked once: the Model and the typed project tables.
 
-stewart_fmu.scene reads the file and builds the Model (the plant tables, [case]'s rules); here
-the tables above the plant are parsed into the objects their readers take: [controller] ->
+stewart_fmu.scene reads the file and builds the Model (the plant tables; the project tables it
+only lets through); here the tables above the plant are read, checked and parsed, once, by
+their owners into the objects their readers take: [controller] ->
 controller.config.ControllerConfig, [cueing] -> CueingConfig and OptimalOptions, [case] ->
 stewart_sim.cases.Case, [solver] -> the plant's IntegratorOptions. Every command loads its
 scene here, so a bad key in any table fails every command at once, with one line naming the

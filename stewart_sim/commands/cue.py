@@ -70,7 +70,7 @@ def run(args: argparse.Namespace) -> None:
     lines: list[str] = []
 
     def view(stage: Path) -> list[str]:
-        lines.append(write_beside(stage / VIEW_FILE, cue_view(study, title)))
+        lines.append(write_beside(stage / VIEW_FILE, cue_view(study, title, scene.controller)))
         return [VIEW_FILE]
 
     for path in write_cue_report(study, out, title, extra=view if args.view else None):

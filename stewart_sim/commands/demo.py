@@ -35,11 +35,13 @@ def run(args: argparse.Namespace) -> None:
     from stewart_sim.paper.files import print_verdicts
     from stewart_sim.scene_load import load
 
-    model = load(args.scene).model
+    scene = load(args.scene)
+    model = scene.model
     check_samples("--duration", args.duration, DEMO_RATE)
     out = Path(args.out)
     with result_set(out) as stage:
-        written, results = run_demo(model, stage, args.duration, view=not args.no_view)
+        written, results = run_demo(model, scene.controller, stage, args.duration,
+                                    view=not args.no_view)
     if results is not None:
         print_verdicts(results)
     for path in written_in(stage, out, written):

@@ -56,7 +56,7 @@ def run(args: argparse.Namespace) -> None:
     from stewart_sim.view.live import LiveView, live_page
 
     latest = Latest()
-    with LiveView(live_page(model), latest, args.view) as view:
+    with LiveView(live_page(model, config), latest, args.view) as view:
         def ready() -> None:
             view.start()
             print(f"view: {view.url}", flush=True)

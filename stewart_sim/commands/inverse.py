@@ -33,7 +33,8 @@ def run(args: argparse.Namespace) -> None:
     from stewart_sim.progress import Progress
     from stewart_sim.scene_load import load
 
-    model = load(args.scene).model
+    scene = load(args.scene)
+    model = scene.model
     out = Path(args.out)
     view = None if args.no_view else out.with_suffix(".html")
     if view == out:
@@ -43,7 +44,7 @@ def run(args: argparse.Namespace) -> None:
     try:   # the forces and their view: both files or neither (Ctrl-C: neither)
         with file_set(out, *([view] if view else [])) as staged:
             n, _ = run_inverse(model, Path(args.trajectory), staged[0], args.parts, progress,
-                               view=staged[1] if view else None)
+                               view=staged[1] if view else None, controller=scene.controller)
     finally:
         progress.close()
     print(f"wrote {args.out}: {n} samples" + (" with the breakdown by part" if args.parts else ""))

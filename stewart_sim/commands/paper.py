@@ -27,10 +27,10 @@ def run(args: argparse.Namespace) -> None:
     from stewart_sim.paper.files import print_verdicts, run_paper
     from stewart_sim.scene_load import load
 
-    model = load(resolve_scene(args.scene)).model
+    scene = load(resolve_scene(args.scene))
     out = Path(args.out)
     with result_set(out) as stage:
-        report, results = run_paper(model, stage, view=not args.no_view)
+        report, results = run_paper(scene.model, scene.controller, stage, view=not args.no_view)
     print_verdicts(results)
     print(f"wrote {out / report.relative_to(stage)}")
 

@@ -47,9 +47,10 @@ def run(args: argparse.Namespace) -> None:
     source = Path(args.source)
     if not source.exists():
         raise StewartError(f"{source}: no such file or directory")
-    model = load(scene_for(source, args.scene)).model
+    scene = load(scene_for(source, args.scene))
+    model = scene.model
     start = time.perf_counter()
-    view = view_of(source, model, fps=args.fps,
+    view = view_of(source, model, controller=scene.controller, fps=args.fps,
                    trajectory=Path(args.trajectory) if args.trajectory else None)
     out = Path(args.out)
     if out.is_dir():

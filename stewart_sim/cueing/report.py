@@ -22,6 +22,7 @@ from typing import Callable
 
 import numpy as np
 
+from controller.config import ControllerConfig
 from stewart_fmu import io
 from stewart_sim.outputs import result_set
 from stewart_sim.view.data import view_data
@@ -222,15 +223,15 @@ def _tracking_section(study: CueStudy) -> list[str]:
             f"saturated for {s.saturated_time:.3g} s.", ""]
 
 
-def cue_view(study: CueStudy, title: str):
+def cue_view(study: CueStudy, title: str, controller: ControllerConfig | None):
     """The 3D view: the closed loop with the cue as its ghost when it ran, else the cue with
-    the rack forces of its inverse dynamics."""
+    the rack forces of its inverse dynamics (`controller`: the scene's parsed [controller])."""
     if study.tracking is not None:
-        return run_table_view(study.model, study.tracking.table, title=f"{title}, closed loop",
-                              source="tracking.csv")
+        return run_table_view(study.model, study.tracking.table, controller=controller,
+                              title=f"{title}, closed loop", source="tracking.csv")
     run = study.runs[0]
     return view_data(study.model, run.cue.t, run.cue.q, run.feasibility.sigma,
-                     force_label=RACK, title=title, source="trajectory.csv")
+                     controller=controller, force_label=RACK, title=title, source="trajectory.csv")
 
 
 def verdict(study: CueStudy) -> str:

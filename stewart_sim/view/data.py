@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from controller.config import ControllerConfig
 from stewart_fmu.errors import StewartError
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.model import Model
@@ -58,14 +59,16 @@ def frame_indices(t: np.ndarray, fps: float) -> np.ndarray:
     return np.unique(np.r_[idx, t.size - 1])
 
 
-def view_data(model: Model, t, q, forces, q_ref=None, *, fps: float = DEFAULT_FPS,
+def view_data(model: Model, t, q, forces, q_ref=None, *, controller: ControllerConfig | None,
+              fps: float = DEFAULT_FPS,
               force_label: str = "actuator force sigma", title: str | None = None,
               source: str = "", source_samples: int | None = None,
               force_peak: float | None = None, speed: float = 1.0) -> ViewData:
     """The view of samples t (N,), poses q (N, 6), forces (N, 6) and, for closed-loop runs, the
     reference poses q_ref (N, 6), decimated to `fps`. Samples already decimated (at the same
     fps) are kept as they are: give the count they came from (`source_samples`) and the peak
-    force over all of them (`force_peak`; default: over the samples given)."""
+    force over all of them (`force_peak`; default: over the samples given). `controller`: the
+    scene's [controller] (None: it has none), for the drives' peak force (view_geometry)."""
     t = np.asarray(t, dtype=float)
     q = np.asarray(q, dtype=float)
     forces = np.asarray(forces, dtype=float)
@@ -76,7 +79,7 @@ def view_data(model: Model, t, q, forces, q_ref=None, *, fps: float = DEFAULT_FP
     if n > 1 and np.any(np.diff(t) <= 0):
         raise StewartError(f"view: {source or 'the samples'}: times must increase")
     idx = frame_indices(t, fps)
-    geometry = view_geometry(model)
+    geometry = view_geometry(model, controller=controller)
     kin = inverse_kinematics(model, q[idx])
     finite = forces[np.isfinite(forces)]
     return ViewData(

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from controller.config import controller_config
+from controller.config import ControllerConfig
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.model import Model
 from stewart_fmu.rotations import euler_motion
@@ -70,8 +70,9 @@ class ViewGeometry:
         return out
 
 
-def view_geometry(model: Model) -> ViewGeometry:
-    """The view's geometry of a scene (see the module doc for the parts' lengths)."""
+def view_geometry(model: Model, *, controller: ControllerConfig | None) -> ViewGeometry:
+    """The view's geometry of a scene (see the module doc for the parts' lengths); its
+    [controller] (None: the scene has none) gives the force scale, with its [drive]."""
     home_lengths = inverse_kinematics(model, model.home, with_cond=False).lengths
     declared = model.leg_min is not None and model.leg_max is not None
     lo = model.leg_min if model.leg_min is not None else 0.75 * float(np.min(home_lengths))
@@ -87,15 +88,15 @@ def view_geometry(model: Model) -> ViewGeometry:
         cylinder_length=float(lo), piston_length=float(hi - lo),
         cylinder_radius=cyl_r, piston_radius=0.55 * cyl_r, joint_radius=1.25 * cyl_r,
         base_radius=1.15 * base_r, platform_radius=1.15 * plat_r,
-        plate_thickness=0.12 * plat_r, force_scale=drive_peak_force(model))
+        plate_thickness=0.12 * plat_r, force_scale=drive_peak_force(model, controller))
 
 
-def drive_peak_force(model: Model) -> float | None:
+def drive_peak_force(model: Model, controller: ControllerConfig | None) -> float | None:
     """The peak rack force of the scene's drives (Kt zeta / r x current limit, N), when the
-    scene has a [drive] and a [controller] with its motor; else None."""
-    if model.drive is None or "controller" not in model.extra:
+    scene has a [drive] and a [controller] (its motor); else None."""
+    if model.drive is None or controller is None:
         return None
-    motor = controller_config(model).motor
+    motor = controller.motor
     return float(motor.torque_constant * motor.current_limit * model.drive.force_per_torque)
 
 

@@ -27,6 +27,7 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from types import TracebackType
 
 from hil.observe import Latest, Snapshot
+from controller.config import ControllerConfig
 from stewart_fmu.errors import StewartError
 from stewart_fmu.model import Model
 from stewart_sim.view.geometry import view_geometry
@@ -58,9 +59,10 @@ def _finite(values: tuple[float, ...]) -> list[float | None]:
     return [v if math.isfinite(v) else None for v in values]
 
 
-def live_page(model: Model) -> str:
-    """The page served at ``/``: the static view's 3D picture of `model`, fed by ``/state``."""
-    return live_view_html(view_geometry(model), state_url=STATE_PATH)
+def live_page(model: Model, controller: ControllerConfig) -> str:
+    """The page served at ``/``: the static view's 3D picture of `model` (its drives' peak force
+    from `controller`, the device's), fed by ``/state``."""
+    return live_view_html(view_geometry(model, controller=controller), state_url=STATE_PATH)
 
 
 class _Handler(BaseHTTPRequestHandler):

@@ -7,6 +7,8 @@ Forces shown: for `run` in-process / --fmu the rack force the motor delivers, to
 (controller.cosim records the mean motor torque of each step); for --link the device's reported
 rack force; for trajectories (`inverse`, `demo`, `paper`) the actuator force sigma of
 stewart_fmu.dynamics.inverse_dynamics, drive term included when the scene has a [drive].
+Every view takes the scene's parsed [controller] (None: the scene has none): its motor and the
+[drive] give the colour bar's scale (stewart_sim.view.geometry.drive_peak_force).
 """
 from __future__ import annotations
 
@@ -15,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from controller.config import ControllerConfig
 from stewart_fmu.dynamics import inverse_dynamics
 from stewart_fmu.errors import KinematicsError, StewartError
 from stewart_fmu.io import (FORCE_COLUMNS, POSE, TRAJECTORY_COLUMNS, csv_header, read_samples,
@@ -34,7 +37,8 @@ PAPER_SPEED = 0.1
 
 # --- in memory ---------------------------------------------------------------------------------
 
-def trajectory_view(model: Model, t, q, qd, qdd, *, fps: float = DEFAULT_FPS, title: str,
+def trajectory_view(model: Model, t, q, qd, qdd, *, controller: ControllerConfig | None,
+                    fps: float = DEFAULT_FPS, title: str,
                     source: str = "", forces=None) -> ViewData:
     """A trajectory's view; forces by inverse dynamics at the frames only (unless given for
     every sample), so an hour's trajectory costs what its frames cost."""
@@ -42,12 +46,12 @@ def trajectory_view(model: Model, t, q, qd, qdd, *, fps: float = DEFAULT_FPS, ti
     idx = frame_indices(t, fps)
     f = (inverse_dynamics(model, q[idx], qd[idx], qdd[idx]) if forces is None
          else np.asarray(forces, dtype=float)[idx])
-    return view_data(model, t[idx], np.asarray(q)[idx], f, fps=fps, force_label=SIGMA,
-                     title=title, source=source, source_samples=t.size)
+    return view_data(model, t[idx], np.asarray(q)[idx], f, controller=controller, fps=fps,
+                     force_label=SIGMA, title=title, source=source, source_samples=t.size)
 
 
-def run_table_view(model: Model, table: np.ndarray, *, fps: float = DEFAULT_FPS, title: str,
-                   source: str = "") -> ViewData:
+def run_table_view(model: Model, table: np.ndarray, *, controller: ControllerConfig | None,
+                   fps: float = DEFAULT_FPS, title: str, source: str = "") -> ViewData:
     """The view of a `run` table (controller.cosim: time, x..thz, x_ref.., torque1..6) or of a
     `run --link` table (hil.client: time, l1..6, l_ref1..6, force1..6)."""
     names = table.dtype.names
@@ -57,15 +61,16 @@ def run_table_view(model: Model, table: np.ndarray, *, fps: float = DEFAULT_FPS,
         q = np.column_stack([table[c] for c in POSE])
         q_ref = np.column_stack([table[f"{c}_ref"] for c in POSE])
         forces = np.column_stack([table[f"torque{i}"] for i in LEGS]) * model.drive.force_per_torque
-        return view_data(model, table["time"], q, forces, q_ref, fps=fps, force_label=RACK,
-                         title=title, source=source)
+        return view_data(model, table["time"], q, forces, q_ref, controller=controller,
+                         fps=fps, force_label=RACK, title=title, source=source)
     t = np.asarray(table["time"], dtype=float)
     idx = frame_indices(t, fps)
     l = np.column_stack([table[f"l{i}"] for i in LEGS])[idx]
     l_ref = np.column_stack([table[f"l_ref{i}"] for i in LEGS])[idx]
     forces = np.column_stack([table[f"force{i}"] for i in LEGS])
     return view_data(model, t[idx], poses_of(model, l, "l"), forces[idx],
-                     poses_of(model, l_ref, "l_ref"), fps=fps, force_label=RACK, title=title,
+                     poses_of(model, l_ref, "l_ref"), controller=controller, fps=fps,
+                     force_label=RACK, title=title,
                      source=source, source_samples=t.size,
                      force_peak=float(np.max(np.abs(forces))))
 
@@ -82,7 +87,8 @@ def poses_of(model: Model, lengths: np.ndarray, what: str) -> np.ndarray:
     return q
 
 
-def paper_view(results, *, title: str | None = None, source: str = "") -> ViewData:
+def paper_view(results, *, controller: ControllerConfig | None, title: str | None = None,
+               source: str = "") -> ViewData:
     """The paper rerun's six moves one after the other (each 0.1 s from home; the full model's
     sigma), played slowed down (PAPER_SPEED)."""
     from_t, q, f = [], [], []
@@ -93,7 +99,8 @@ def paper_view(results, *, title: str | None = None, source: str = "") -> ViewDa
         f.append(results.runs[name]["drive"].sigma)
     model = results.model
     return view_data(model, np.concatenate(from_t), np.concatenate(q), np.concatenate(f),
-                     fps=PAPER_FPS, force_label=SIGMA, speed=PAPER_SPEED, source=source,
+                     controller=controller, fps=PAPER_FPS, force_label=SIGMA, speed=PAPER_SPEED,
+                     source=source,
                      title=title or f"{model.name}: the paper's six moves "
                                     f"({', '.join(results.trajectories)}; {span:g} s each)")
 
@@ -144,54 +151,58 @@ def _run_columns(path: Path, header) -> tuple[str, ...]:
                        "torque1..6, or the --link table's time, l1..6, l_ref1..6, force1..6)")
 
 
-def view_of(path: Path, model: Model, *, fps: float = DEFAULT_FPS,
-            trajectory: Path | None = None) -> ViewData:
+def view_of(path: Path, model: Model, *, controller: ControllerConfig | None,
+            fps: float = DEFAULT_FPS, trajectory: Path | None = None) -> ViewData:
     """The view of a file or result directory (see the module doc)."""
     if path.is_dir():
-        return _directory_view(path, model, fps)
+        return _directory_view(path, model, controller, fps)
     if not path.is_file():
         raise StewartError(f"{path}: no such file or directory")
     header = csv_header(path, "table") if path.suffix != ".parquet" else ()
     if path.suffix == ".parquet" or "time" in header:
-        return run_table_view(model, read_run_table(path), fps=fps, source=str(path),
-                              title=f"{model.name}: closed-loop run")
+        return run_table_view(model, read_run_table(path), controller=controller, fps=fps,
+                              source=str(path), title=f"{model.name}: closed-loop run")
     if tuple(header[:len(FORCE_COLUMNS)]) == FORCE_COLUMNS:
         if trajectory is None:
             raise StewartError(f"{path} holds forces but no poses: give --trajectory TRAJ.csv, "
                                "the trajectory they were computed from")
-        return _forces_view(model, path, trajectory, fps)
+        return _forces_view(model, controller, path, trajectory, fps)
     if header == TRAJECTORY_COLUMNS:
-        return trajectory_view(model, *read_trajectory(path), fps=fps, source=str(path),
-                               title=f"{model.name}: {path.name}")
+        return trajectory_view(model, *read_trajectory(path), controller=controller, fps=fps,
+                               source=str(path), title=f"{model.name}: {path.name}")
     raise StewartError(f"{path}: not a trajectory (t,x..ddthz), forces (t,sigma1..6) or run "
                        "table (time, ...) CSV")
 
 
-def _forces_view(model: Model, forces: Path, trajectory: Path, fps: float) -> ViewData:
+def _forces_view(model: Model, controller: ControllerConfig | None, forces: Path,
+                 trajectory: Path, fps: float) -> ViewData:
     f = read_samples(forces, FORCE_COLUMNS, "forces", prefix=True)
     t, q, qd, qdd = read_trajectory(trajectory)
     if f.shape[0] != t.size or not np.allclose(f[:, 0], t, rtol=0, atol=1e-9):
         raise StewartError(f"{forces} and {trajectory}: not the same sample times")
-    return trajectory_view(model, t, q, qd, qdd, fps=fps, forces=f[:, 1:7], source=str(forces),
+    return trajectory_view(model, t, q, qd, qdd, controller=controller, fps=fps,
+                           forces=f[:, 1:7], source=str(forces),
                            title=f"{model.name}: {forces.name}")
 
 
-def _directory_view(directory: Path, model: Model, fps: float) -> ViewData:
+def _directory_view(directory: Path, model: Model, controller: ControllerConfig | None,
+                    fps: float) -> ViewData:
     for name in ("run.csv", "run.parquet"):
         if (directory / name).is_file():
-            return run_table_view(model, read_run_table(directory / name), fps=fps,
-                                  source=str(directory / name),
+            return run_table_view(model, read_run_table(directory / name),
+                                  controller=controller, fps=fps, source=str(directory / name),
                                   title=f"{model.name}: closed-loop run")
     if (directory / "demo_trajectory.csv").is_file() and (directory / "demo_forces.csv").is_file():
-        return _forces_view(model, directory / "demo_forces.csv",
+        return _forces_view(model, controller, directory / "demo_forces.csv",
                             directory / "demo_trajectory.csv", fps)
     if (directory / "report.md").is_file() and (directory / "x_level3.csv").is_file():
-        return _paper_directory_view(directory, model)
+        return _paper_directory_view(directory, model, controller)
     raise StewartError(f"{directory}: no run.csv, run.parquet, demo_trajectory.csv with "
                        "demo_forces.csv, or paper report (report.md, x_level3.csv) in it")
 
 
-def _paper_directory_view(directory: Path, model: Model) -> ViewData:
+def _paper_directory_view(directory: Path, model: Model,
+                          controller: ControllerConfig | None) -> ViewData:
     """The paper directory's six moves: poses from the study's own definition of each move
     (stewart_sim.paper.study.make_trajectory) at the CSV's times, forces from the CSVs."""
     t_all, q_all, f_all = [], [], []
@@ -205,5 +216,6 @@ def _paper_directory_view(directory: Path, model: Model) -> ViewData:
         f_all.append(data[:, 1:7])
         offset += 1.05 * float(t[-1] - t[0])
     return view_data(model, np.concatenate(t_all), np.concatenate(q_all), np.concatenate(f_all),
-                     fps=PAPER_FPS, force_label=SIGMA, speed=PAPER_SPEED, source=str(directory),
+                     controller=controller, fps=PAPER_FPS, force_label=SIGMA, speed=PAPER_SPEED,
+                     source=str(directory),
                      title=f"{model.name}: the paper's six moves")

@@ -24,6 +24,7 @@ from hil.observe import Latest  # noqa: E402
 from stewart_fmu.kinematics import condition_number, inverse_kinematics  # noqa: E402
 from stewart_fmu.scene import load_scene  # noqa: E402
 from stewart_sim.cli import main  # noqa: E402
+from stewart_sim.scene_load import scene_of  # noqa: E402
 from stewart_sim.view.live import LiveView, ViewError, live_page  # noqa: E402
 from tests.helpers import ROOT  # noqa: E402
 from tests.hil.test_device import SCENE, arm, setpoint  # noqa: E402
@@ -82,7 +83,7 @@ def refused(host: str, port: int) -> bool:
 
 
 def test_answers_on_127_0_0_1_only(model):
-    with LiveView(live_page(model), Latest(), 0) as view:
+    with LiveView(live_page(model, scene_of(model).controller), Latest(), 0) as view:
         view.start()
         host, port = view.address
         assert host == "127.0.0.1" and view.url == f"http://127.0.0.1:{port}/"
@@ -100,7 +101,7 @@ def test_answers_on_127_0_0_1_only(model):
 
 
 def test_page_state_and_refusals_have_their_content_types(model):
-    with LiveView(live_page(model), Latest(), 0) as view:
+    with LiveView(live_page(model, scene_of(model).controller), Latest(), 0) as view:
         view.start()
         port = view.address[1]
         status, kind, body = get(port, "/")
@@ -123,7 +124,7 @@ def test_state_follows_the_device_as_setpoints_arrive(model):
     latest = Latest()
     dev.observe(latest, hz=100.0)
     target = np.asarray(model.home, dtype=float) + OFFSET
-    with LiveView(live_page(model), latest, 0) as view:
+    with LiveView(live_page(model, scene_of(model).controller), latest, 0) as view:
         view.start()
         port = view.address[1]
         s0 = state(port)
@@ -156,7 +157,7 @@ def test_a_taken_port_is_one_line_and_status_2(model, capsys):
     port = holder.getsockname()[1]
     try:
         with pytest.raises(ViewError, match=f"127.0.0.1:{port}"):
-            LiveView(live_page(model), Latest(), port)
+            LiveView(live_page(model, scene_of(model).controller), Latest(), port)
         assert main(["device", str(SCENE), "--udp", "127.0.0.1:0", "--view", str(port)]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and f"--view: cannot listen on 127.0.0.1:{port}" in err[0], err

@@ -17,6 +17,7 @@ from hil.device import Device  # noqa: E402
 from hil.observe import Latest, Snapshot  # noqa: E402
 from stewart_fmu.kinematics import inverse_kinematics  # noqa: E402
 from stewart_fmu.scene import load_scene  # noqa: E402
+from stewart_sim.scene_load import scene_of  # noqa: E402
 from stewart_sim.view.geometry import object_transforms, view_geometry  # noqa: E402
 from stewart_sim.view.live import LiveView, live_page  # noqa: E402
 from tests.browser import VIEWPORT, canvas_pixels, settle  # noqa: E402
@@ -57,12 +58,12 @@ def _patch(img: np.ndarray, centre, half: int = 60) -> np.ndarray:
 
 def test_live_page_shows_the_platform_move_when_a_setpoint_arrives(browser):
     model = load_scene(SCENE)
-    geometry = view_geometry(model)
+    geometry = view_geometry(model, controller=scene_of(model).controller)
     dev = Device(model, watchdog=5.0)
     latest = Latest()
     dev.observe(latest)
     target = np.asarray(model.home, dtype=float) + MOVE
-    with LiveView(live_page(model), latest, 0) as view:
+    with LiveView(live_page(model, scene_of(model).controller), latest, 0) as view:
         view.start()
         page = browser.new_page(viewport=VIEWPORT)
         page.goto(view.url)
@@ -105,7 +106,7 @@ def test_live_page_keeps_the_last_good_picture_when_the_state_is_not_finite(brow
     kin = inverse_kinematics(model, np.asarray(model.home, dtype=float))
     good = Snapshot(tick=1, t=0.001, q=home, q_ref=None, lengths=tuple(kin.lengths.tolist()),
                     forces=(1.0,) * 6, cond=float(kin.cond), armed=True)
-    with LiveView(live_page(model), latest, 0) as view:
+    with LiveView(live_page(model, scene_of(model).controller), latest, 0) as view:
         view.start()
         page = browser.new_page(viewport=VIEWPORT)
         errors: list[str] = []

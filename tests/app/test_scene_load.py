@@ -10,11 +10,12 @@ import numpy as np
 import pytest
 
 from controller.config import controller_config
-from stewart_fmu import load_scene
+from stewart_fmu import SceneError, load_scene, scene_from_dict
 from stewart_fmu.stability import default_options
 from stewart_sim import cli
 from stewart_sim.cueing.config import cueing_config, optimal_options
-from stewart_sim.scene_load import load
+from stewart_sim.scene_load import load, scene_of
+from tests.helpers import scene_dict
 
 ROOT = Path(__file__).resolve().parents[2]
 MICRO = ROOT / "scenes" / "micro_manipulator.toml"
@@ -99,3 +100,39 @@ def test_shipped_scenes_load() -> None:
     assert SHIPPED
     for path in SHIPPED:
         assert load(path).model.name == load_scene(path).name
+
+
+GOOD_CASE = {"kind": "stiff", "description": "", "motion": "hold", "duration": 1.0,
+             "expect": "ok"}
+
+
+@pytest.mark.parametrize("mutate, key", [
+    (lambda d: d.update(case={"kind": "stiff"}), "case.description"),
+    (lambda d: d.update(case={"kind": "odd", "description": "", "motion": "hold",
+                              "duration": 1.0, "expect": "ok"}), "case.kind"),
+    (lambda d: d.update(case={"kind": "stiff", "description": "", "motion": "ramp",
+                              "duration": 1.0, "expect": "ok"}), "case.target"),
+    (lambda d: d.update(case={**GOOD_CASE, "durations": 1.0}), "case.durations"),
+    (lambda d: d.update(case={**GOOD_CASE, "duration": 0.0}), "case.duration"),
+    (lambda d: d.update(case={**GOOD_CASE, "step": True}), "case.step"),
+    (lambda d: d.update(case={**GOOD_CASE, "force_scale": float("inf")}), "case.force_scale"),
+    (lambda d: d.update(case={**GOOD_CASE, "start_rates": [0.0] * 5}), "case.start_rates"),
+    (lambda d: (d.pop("controller"), d.update(case={**GOOD_CASE, "motion": "closed_loop"})),
+     "case.motion"),
+])
+def test_scene_rejects_bad_case_tables(mutate, key):
+    """A bad [case] table is refused at load (stewart_sim.cases.case_of) naming the key."""
+    d = scene_dict("micro")
+    d["transmission"] = {"stiffness": 1e6, "damping": 1.0}
+    mutate(d)
+    with pytest.raises(SceneError) as exc:
+        scene_of(scene_from_dict(d))
+    assert exc.value.key == key
+
+
+def test_a_good_case_table_loads_with_its_defaults():
+    d = scene_dict("micro")
+    d["case"] = {**GOOD_CASE, "start_rates": [0.0, 0.0, 0.0, 0.0, 0.0, 0.01]}
+    case = scene_of(scene_from_dict(d)).case
+    assert (case.kind, case.motion, case.duration, case.expect) == ("stiff", "hold", 1.0, "ok")
+    assert case.step == 1e-3 and case.force_scale == 1.0 and case.start_rates[5] == 0.01

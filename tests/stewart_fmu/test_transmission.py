@@ -106,14 +106,9 @@ def test_preloaded_start_holds_and_parts_sum_to_the_rack_force():
     (lambda d: d["transmission"].update(stiffness=-1.0), "transmission.stiffness"),
     (lambda d: d["transmission"].update(damping=float("nan")), "transmission.damping"),
     (lambda d: d["transmission"].update(spring=1.0), "transmission.spring"),
-    (lambda d: d.update(case={"kind": "stiff"}), "case.description"),
-    (lambda d: d.update(case={"kind": "odd", "description": "", "motion": "hold",
-                              "duration": 1.0, "expect": "ok"}), "case.kind"),
-    (lambda d: d.update(case={"kind": "stiff", "description": "", "motion": "ramp",
-                              "duration": 1.0, "expect": "ok"}), "case.target"),
 ])
-def test_scene_rejects_bad_transmission_and_case_tables(mutate, key):
-    """Bad [transmission] and [case] tables are refused naming the key."""
+def test_scene_rejects_bad_transmission_tables(mutate, key):
+    """Bad [transmission] tables are refused naming the key ([case]: tests/app/test_scene_load.py)."""
     d = scene_dict("micro")
     d["transmission"] = {"stiffness": 1e6, "damping": 1.0}
     mutate(d)

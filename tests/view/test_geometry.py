@@ -16,6 +16,7 @@ from stewart_sim.view.geometry import (
     rotation,
     view_geometry,
 )
+from stewart_sim.scene_load import scene_of
 from tests.helpers import random_states
 
 
@@ -27,7 +28,7 @@ def poses(name: str, n: int = 40) -> np.ndarray:
 @pytest.mark.parametrize("fixture", ["micro_model", "sim_model"])
 def test_leg_parts_end_at_the_joints(fixture, request):
     model = request.getfixturevalue(fixture)
-    g = view_geometry(model)
+    g = view_geometry(model, controller=scene_of(model).controller)
     name = "micro" if fixture == "micro_model" else "sim"
     for q in poses(name):
         kin = inverse_kinematics(model, q, with_cond=False)
@@ -49,7 +50,7 @@ def test_leg_parts_end_at_the_joints(fixture, request):
 
 
 def test_transforms_are_rigid_and_plates_hold_the_joints(micro_model):
-    g = view_geometry(micro_model)
+    g = view_geometry(micro_model, controller=scene_of(micro_model).controller)
     for q in poses("micro", 10):
         T = object_transforms(g, q)
         for M in T.values():
@@ -71,7 +72,7 @@ def test_transforms_are_rigid_and_plates_hold_the_joints(micro_model):
 
 
 def test_parts_meet_at_full_extension(micro_model):
-    g = view_geometry(micro_model)
+    g = view_geometry(micro_model, controller=scene_of(micro_model).controller)
     assert g.cylinder_length == micro_model.leg_min
     assert g.cylinder_length + g.piston_length == pytest.approx(micro_model.leg_max)
 
@@ -85,7 +86,7 @@ def test_axis_to_takes_y_onto_u(u):
 
 
 def test_stroke_limit_band(micro_model):
-    g = view_geometry(micro_model)
+    g = view_geometry(micro_model, controller=scene_of(micro_model).controller)
     band = g.stroke_margin * (g.leg_max - g.leg_min)
     l = np.array([g.leg_min, g.leg_min + 2 * band, g.leg_max - band / 2, 0.12, g.leg_max, 0.13])
     np.testing.assert_array_equal(at_stroke_limit(g, l), [True, False, True, False, True, False])
@@ -97,4 +98,5 @@ def test_cond_threshold_is_the_devices():
 
 def test_drive_peak_force_is_kt_zeta_over_r_times_current_limit(micro_model):
     # 0.02 N m/A x 2 A x (20 / 0.005 m) = 160 N: the device's "drive peak 160 N"
-    assert view_geometry(micro_model).force_scale == pytest.approx(160.0)
+    g = view_geometry(micro_model, controller=scene_of(micro_model).controller)
+    assert g.force_scale == pytest.approx(160.0)

@@ -16,6 +16,7 @@ from controller.config import controller_config
 from controller.cosim import run_closed_loop
 from controller.moves import RUN_MOVE, run_reference
 from stewart_fmu.kinematics import inverse_kinematics
+from stewart_sim.scene_load import scene_of
 from stewart_sim.view.colours import force_colours, nice_ceiling
 from stewart_sim.view.data import view_data
 from stewart_sim.view.geometry import object_transforms, view_geometry
@@ -32,7 +33,8 @@ def run_view(micro_model, tmp_path_factory):
     """A closed-loop run of the micro-manipulator (the `run` reference) and its view file."""
     config = controller_config(micro_model)
     result = run_closed_loop(micro_model, config, run_reference(micro_model, config, DURATION))
-    view = run_table_view(micro_model, result.table, title="test run", source="run.csv")
+    view = run_table_view(micro_model, result.table, controller=config, title="test run",
+                          source="run.csv")
     path = tmp_path_factory.mktemp("view") / "view.html"
     write_view(path, view)
     return view, path
@@ -148,7 +150,8 @@ def test_leg_colour_follows_its_force(browser, micro_model, tmp_path):
     forces[:, 0] = 40.0          # leg 1 pushes hard
     forces[:, 3] = -40.0         # leg 4 pulls as hard
     forces[:, 1] = np.linspace(-20.0, 20.0, n)   # leg 2 sweeps through zero
-    view = view_data(micro_model, t, q, forces, fps=30.0, title="colours")
+    view = view_data(micro_model, t, q, forces, controller=scene_of(micro_model).controller,
+                     fps=30.0, title="colours")
     path = tmp_path / "colours.html"
     write_view(path, view)
     scale = nice_ceiling(40.0)
@@ -182,7 +185,7 @@ def test_leg_colour_follows_its_force(browser, micro_model, tmp_path):
 
 
 def test_marks_stroke_limit_and_near_singular(browser, micro_model, tmp_path):
-    g = view_geometry(micro_model)
+    g = view_geometry(micro_model, controller=scene_of(micro_model).controller)
     # the platform lowered until its legs are within the margin of leg_min: every leg marked
     q = np.tile(micro_model.home, (3, 1))
     # lower the platform until every leg is 0.5 mm above leg_min (within 1 % of the 120 mm
@@ -191,7 +194,8 @@ def test_marks_stroke_limit_and_near_singular(browser, micro_model, tmp_path):
     h = np.hypot(home.leg_vectors[0, 0], home.leg_vectors[0, 1])
     joint_z = micro_model.platform_joints[0, 2]
     q[1, 2] = -joint_z + np.sqrt((micro_model.leg_min + 0.0005) ** 2 - h**2)
-    view = view_data(micro_model, np.array([0.0, 0.5, 1.0]), q, np.zeros((3, 6)), fps=2.0)
+    view = view_data(micro_model, np.array([0.0, 0.5, 1.0]), q, np.zeros((3, 6)),
+                     controller=scene_of(micro_model).controller, fps=2.0)
     assert view.at_limit[1].all() and not view.at_limit[0].any()
     # a threshold below home's cond(J) marks every frame near-singular
     view = dataclasses.replace(view, geometry=dataclasses.replace(g, cond_warn=1.5))
@@ -233,7 +237,7 @@ class _State(BaseHTTPRequestHandler):
 
 
 def test_live_page_draws_what_the_url_serves(browser, micro_model):
-    g = view_geometry(micro_model)
+    g = view_geometry(micro_model, controller=scene_of(micro_model).controller)
     q = micro_model.home + np.array([0.01, -0.005, 0.01, 0.05, 0.0, -0.05])
     handler = type("Handler", (_State,), {
         "page": live_view_html(g, "/state").encode(),

@@ -17,6 +17,7 @@ from controller.cosim import run_closed_loop
 from controller.moves import DEMO_DURATION, DEMO_RATE, demo_trajectory, run_reference
 from stewart_fmu import io
 from stewart_sim.cli import main
+from stewart_sim.scene_load import scene_of
 from stewart_sim.view.data import DEFAULT_FPS, frame_indices
 from stewart_sim.view.html import live_view_html, static_view_html
 from stewart_sim.view.geometry import view_geometry
@@ -62,7 +63,7 @@ def test_frame_indices(rate, duration, fps):
 def test_page_is_one_offline_file_with_the_frames(model):
     config = controller_config(model)
     result = run_closed_loop(model, config, run_reference(model, config, DEMO_DURATION))
-    view = run_table_view(model, result.table, title="run", source="run.csv")
+    view = run_table_view(model, result.table, controller=config, title="run", source="run.csv")
     text = static_view_html(view)
     # one file: no script, style sheet or image fetched from anywhere
     assert not re.search(r'<(script|link|img)[^>]+(src|href)=', text)
@@ -93,7 +94,8 @@ def test_trajectory_view_forces_are_the_inverse_commands(model, tmp_path):
     io.write_csv(traj, io.trajectory_table(t, q, qd, qdd))
     assert main(["inverse", MICRO, "--trajectory", str(traj), "--out", str(tmp_path / "F.csv")]) == 0
     sigma = io.read_samples(tmp_path / "F.csv", io.FORCE_COLUMNS, "forces", prefix=True)[:, 1:]
-    view = trajectory_view(model, t, q, qd, qdd, title="demo")
+    view = trajectory_view(model, t, q, qd, qdd, controller=scene_of(model).controller,
+                           title="demo")
     np.testing.assert_allclose(view.forces, sigma[frame_indices(t, DEFAULT_FPS)], rtol=1e-12)
     assert (tmp_path / "F.html").is_file()                      # written by default
     assert main(["inverse", MICRO, "--trajectory", str(traj), "--out", str(tmp_path / "G.csv"),
@@ -109,7 +111,8 @@ def test_trajectory_view_forces_are_the_inverse_commands(model, tmp_path):
 
 
 def test_live_page_polls_the_url(model):
-    text = live_view_html(view_geometry(model), "/state.json")
+    geometry = view_geometry(model, controller=scene_of(model).controller)
+    text = live_view_html(geometry, "/state.json")
     data = page_data(text)
     assert data["live"]["state_url"] == "/state.json" and data["live"]["period_ms"] == 50
     assert "frames" not in data and data["force_scale"] == pytest.approx(160.0)
