@@ -36,6 +36,7 @@ COMMANDS = {
     "case": "run a stiff or extreme scene's [case] and check its outcome",
     "view": "3D view of a run or trajectory as one HTML file (opens offline)",
     "cue": "motion cueing: vehicle motion -> platform trajectory, perception, limits",
+    "calibrate": "kinematic calibration: joints and leg offsets from measured poses",
 }
 KEPT = "nothing new written (an earlier output is left as it was)"  # on Ctrl-C
 
