@@ -176,25 +176,29 @@ def nominal_parameters(model: Model) -> np.ndarray:
 
 def predicted_lengths(poses: np.ndarray, params: np.ndarray) -> np.ndarray:
     """l_ik = |x_k + R_k p_i - a_i| + delta_i (N, 6) for the 42 parameters."""
-    P = np.asarray(params, dtype=float).reshape(6, PER_LEG)
     R = rotations(poses)
-    L = (np.asarray(poses)[:, None, :3] + np.einsum("nij,kj->nki", R, P[:, 3:6])
-         - P[None, :, 0:3])
-    return np.linalg.norm(L, axis=-1) + P[None, :, 6]
+    P = np.asarray(params, dtype=float).reshape(6, PER_LEG)
+    return np.column_stack([_leg(poses, R, P[i])[0] for i in range(6)])
 
 
 def leg_jacobians(poses: np.ndarray, params: np.ndarray) -> np.ndarray:
     """d l_ik / d(a_i, p_i, delta_i): (6, N, 7), leg by leg."""
-    P = np.asarray(params, dtype=float).reshape(6, PER_LEG)
     R = rotations(poses)
-    L = (np.asarray(poses)[:, None, :3] + np.einsum("nij,kj->nki", R, P[:, 3:6])
-         - P[None, :, 0:3])
-    u = L / np.linalg.norm(L, axis=-1)[..., None]                      # (N, 6, 3)
-    J = np.empty((6, len(R), PER_LEG))
-    J[:, :, 0:3] = -u.transpose(1, 0, 2)
-    J[:, :, 3:6] = np.einsum("nji,nkj->kni", R, u)                       # R^T u
-    J[:, :, 6] = 1.0
-    return J
+    P = np.asarray(params, dtype=float).reshape(6, PER_LEG)
+    return np.stack([_leg(poses, R, P[i])[1] for i in range(6)])
+
+
+def _leg(poses: np.ndarray, R: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One leg's model lengths (N,) and Jacobian (N, 7) for its parameters x = (a, p, delta):
+    dl/da = -u, dl/dp = R^T u, dl/ddelta = 1."""
+    L = poses[:, :3] + R @ x[3:6] - x[0:3]
+    length = np.linalg.norm(L, axis=1)
+    u = L / length[:, None]
+    J = np.empty((len(poses), PER_LEG))
+    J[:, 0:3] = -u
+    J[:, 3:6] = np.einsum("nji,nj->ni", R, u)
+    J[:, 6] = 1.0
+    return length + x[6], J
 
 
 def scaled_condition(poses: np.ndarray, params: np.ndarray) -> float:
@@ -236,6 +240,7 @@ def calibrate(model: Model, data: PoseSet, select: int | None = None) -> Calibra
     used = (select_poses(data.poses, nominal, select) if select is not None
             else np.arange(count))
     poses, lengths = data.poses[used], data.lengths[used]
+    R = rotations(poses)
     n = len(used)
     estimate = nominal.copy()
     std = np.empty(42)
@@ -247,15 +252,15 @@ def calibrate(model: Model, data: PoseSet, select: int | None = None) -> Calibra
         leg = slice(PER_LEG * i, PER_LEG * (i + 1))
 
         def residual(x: np.ndarray, i: int = i) -> np.ndarray:
-            return _leg_lengths(poses, x) - lengths[:, i]
+            return _leg(poses, R, x)[0] - lengths[:, i]
 
         def jacobian(x: np.ndarray) -> np.ndarray:
-            return _leg_jacobian(poses, x)
+            return _leg(poses, R, x)[1]
 
         fit = least_squares(residual, nominal[leg], jac=jacobian, method="lm",
                             x_scale="jac", ftol=1e-15, xtol=1e-15, gtol=1e-15, max_nfev=500)
         estimate[leg] = fit.x
-        J = _leg_jacobian(poses, fit.x)
+        J = _leg(poses, R, fit.x)[1]
         scale, sv, Vt = _scaled_svd(J)
         singular[i] = sv
         small = sv < OBSERVABLE_RTOL * sv[0]
@@ -281,19 +286,6 @@ def calibrate(model: Model, data: PoseSet, select: int | None = None) -> Calibra
         _rms(lengths - predicted_lengths(poses, nominal)))
 
 
-def _leg_lengths(poses: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """One leg's model lengths (N,) for its 7 parameters x."""
-    R = rotations(poses)
-    L = poses[:, :3] + R @ x[3:6] - x[0:3]
-    return np.linalg.norm(L, axis=1) + x[6]
-
-
-def _leg_jacobian(poses: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """One leg's (N, 7) Jacobian (module doc)."""
-    params = np.tile(x, 6)
-    return leg_jacobians(poses, params)[0]
-
-
 def _scaled_svd(J: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Column norms D, and the singular values and right vectors of J D^-1."""
     scale = np.linalg.norm(J, axis=0)
@@ -315,13 +307,14 @@ def _rms(r: np.ndarray) -> np.ndarray:
 
 
 def random_poses(model: Model, n: int, rng: np.random.Generator, reach: float = 0.015,
-                 tilt: float = 0.12) -> np.ndarray:
+                 tilt: float = 0.12, margin: float = 2e-3) -> np.ndarray:
     """n poses drawn uniformly around home (+-reach m in x, y, z, +-tilt rad about each axis)
-    inside the scene's stroke and away from singularities (stewart_fmu.kinematics): synthetic
-    candidates for tests and the shipped example."""
+    with every leg at least `margin` m inside the scene's stroke (so that a machine whose
+    joints are off by a millimetre stays inside too) and cond(J) below 100
+    (stewart_fmu.kinematics): synthetic candidates for tests and the shipped example."""
     home = np.asarray(model.home, dtype=float)
-    lo = model.leg_min if model.leg_min is not None else 0.0
-    hi = model.leg_max if model.leg_max is not None else math.inf
+    lo = (model.leg_min if model.leg_min is not None else 0.0) + margin
+    hi = (model.leg_max if model.leg_max is not None else math.inf) - margin
     out: list[np.ndarray] = []
     span = np.r_[np.full(3, reach), np.full(3, tilt)]
     while len(out) < n:

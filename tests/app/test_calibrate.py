@@ -79,10 +79,11 @@ def noisy(model, machine, seed: int) -> tuple[np.ndarray, study.Calibration]:
 def test_the_issues_accuracy_from_50_poses(model, machine):
     """50 poses (D-optimal of 1000 over the stroke), 1 um / 10 urad tracker noise and 0.1 um
     encoder noise, 20 noise seeds. Measured: the worst of the 36 joint coordinates within 5 um
-    of the truth on 19 of the 20 seeds (median 2.6 um, worst 5.39 um); the worst of the six
-    offsets within 2 um on only 4 of the 20 (median 2.53 um, worst 5.19 um): the offsets' std
-    is 1.1-2.3 um at 50 poses, so the issue's 2 um for all six is about 1 std. Not reached;
-    with 200 D-optimal poses 14 of the 20 seeds (median 1.63 um)."""
+    of the truth on all 20 seeds (median 2.99 um, worst 4.98 um: the issue's bound is reached,
+    barely); the worst of the six offsets within 2 um on only 3 of the 20 (median 2.78 um,
+    worst 4.19 um): the offsets' std is 1.3-2.4 um at 50 poses, so the issue's 2 um for all
+    six is about 1 std. Not reached; with 200 D-optimal poses 15 of the 20 seeds (median
+    1.75 um, worst 2.76 um)."""
     joints, offsets = [], []
     for seed in range(20):
         truth, cal = noisy(model, machine, seed)
@@ -90,15 +91,14 @@ def test_the_issues_accuracy_from_50_poses(model, machine):
         joints.append(error[:, :6].max())
         offsets.append(error[:, 6].max())
     joints, offsets = np.array(joints), np.array(offsets)
-    assert np.sum(joints < 5e-6) >= 19 and np.all(joints < 5.5e-6)
-    assert np.median(joints) < 2.7e-6
-    assert np.sum(offsets < 2e-6) >= 4 and np.all(offsets < 5.5e-6)
-    assert np.median(offsets) < 2.6e-6
+    assert np.all(joints < 5e-6) and np.median(joints) < 3.1e-6
+    assert np.sum(offsets < 2e-6) >= 3 and np.all(offsets < 4.5e-6)
+    assert np.median(offsets) < 2.9e-6
 
 
 def test_reported_std_is_honest(model, machine):
     """Over 8 noise seeds the truth lies within 3 reported std for nearly every parameter
-    (measured 99.6 % over 20 seeds, at least 95 % on each)."""
+    (measured 99.7 % here; 99.5 % over 20 seeds, at least 97.6 % on each)."""
     inside = []
     for seed in range(8):
         truth, cal = noisy(model, machine, 100 + seed)
