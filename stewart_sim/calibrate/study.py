@@ -176,6 +176,7 @@ def nominal_parameters(model: Model) -> np.ndarray:
 
 def predicted_lengths(poses: np.ndarray, params: np.ndarray) -> np.ndarray:
     """l_ik = |x_k + R_k p_i - a_i| + delta_i (N, 6) for the 42 parameters."""
+    poses = np.atleast_2d(np.asarray(poses, dtype=float))
     R = rotations(poses)
     P = np.asarray(params, dtype=float).reshape(6, PER_LEG)
     return np.column_stack([_leg(poses, R, P[i])[0] for i in range(6)])
@@ -183,6 +184,7 @@ def predicted_lengths(poses: np.ndarray, params: np.ndarray) -> np.ndarray:
 
 def leg_jacobians(poses: np.ndarray, params: np.ndarray) -> np.ndarray:
     """d l_ik / d(a_i, p_i, delta_i): (6, N, 7), leg by leg."""
+    poses = np.atleast_2d(np.asarray(poses, dtype=float))
     R = rotations(poses)
     P = np.asarray(params, dtype=float).reshape(6, PER_LEG)
     return np.stack([_leg(poses, R, P[i])[1] for i in range(6)])
