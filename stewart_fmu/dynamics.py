@@ -57,6 +57,18 @@ def inverse_dynamics_parts(model: Model, q, qd, qdd) -> dict[str, np.ndarray]:
     return {name: out[:, PARTS.index(name), :] for name in present_parts(model)}
 
 
+def regressor(model: Model, q, qd, qdd) -> np.ndarray:
+    """Y (N, 6, N_STANDARD) of poses and their derivatives, with inverse_dynamics = Y pi for pi
+    the model's standard parameters (stewart_fmu.standard): the identification model, linear in
+    the inertial and friction parameters (native/src/regressor.c)."""
+    q, qd, qdd = (np.atleast_2d(_as_float(a, n)) for a, n in ((q, "q"), (qd, "qd"), (qdd, "qdd")))
+    _check_shapes(("q", "qd", "qdd"), (q, qd, qdd))
+    out, index, status = core.regressor_batch(model.native, q, qd, qdd)
+    if index >= 0:
+        _raise(model, status, index, ("q", "qd", "qdd"), (q[index], qd[index], qdd[index]))
+    return out
+
+
 def forward_dynamics(model: Model, q, qd, sigma) -> np.ndarray:
     """Pose accelerations qdd from rack forces sigma (the inverse of inverse_dynamics)."""
     done = _single(core.forward_dynamics, model, q, qd, sigma)

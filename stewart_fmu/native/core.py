@@ -126,6 +126,11 @@ def inverse_dynamics_parts_batch(params, Q, QD, QDD, out=None):
     return _batch(lib.stewart_inverse_dynamics_parts_batch, (6, 6), params, Q, QD, QDD, out)
 
 
+def regressor_batch(params, Q, QD, QDD, out=None):
+    """(Y (N, 6, N_STANDARD), index of the first bad sample or -1, its status)."""
+    return _batch(lib.stewart_regressor_batch, (6, lib.STEWART_N_STANDARD), params, Q, QD, QDD, out)
+
+
 def forward_dynamics_batch(params, Q, QD, SIGMA, out=None):
     """(qdd (N, 6), index of the first bad sample or -1, its status)."""
     return _batch(lib.stewart_forward_dynamics_batch, (6,), params, Q, QD, SIGMA, out)

@@ -32,6 +32,11 @@ extern "C" {
 #define STEWART_X_OFFSET(NAME, ...) STEWART_P_##NAME = STEWART_OFFSET(NAME),
 enum { STEWART_PARAMS(STEWART_X_OFFSET) STEWART_N_PARAMS = (int)(sizeof(stewart_param_layout) / sizeof(double)) };
 
+/* STEWART_S_<NAME>: the regressor's first column of each standard parameter (STEWART_STANDARD
+   of stewart_table.h); STEWART_N_STANDARD: its number of columns. */
+#define STEWART_X_STANDARD(NAME, ...) STEWART_S_##NAME = STEWART_STANDARD_OFFSET(NAME),
+enum { STEWART_STANDARD(STEWART_X_STANDARD) STEWART_N_STANDARD = (int)(sizeof(stewart_standard_layout) / sizeof(double)) };
+
 /* The tables compiled into the core (src/table.c), for the Python side. */
 typedef struct {
     const char *name;         /* NAME of STEWART_PARAMS: STEWART_P_<name> */
@@ -46,6 +51,13 @@ typedef struct {
     int scene;                /* 1: a scene key of the plant tables (STEWART_FMU_SCENE) */
     const char *causality, *unit, *description;
 } stewart_variable_info;
+typedef struct {
+    const char *name;         /* NAME of STEWART_STANDARD: STEWART_S_<name> */
+    int column, count;
+    const char *key, *unit, *description;
+} stewart_standard_info;
+extern const stewart_standard_info stewart_standard_table[];
+extern const int stewart_standard_table_size;
 extern const stewart_param_info stewart_param_table[];
 extern const int stewart_param_table_size;
 extern const stewart_variable_info stewart_variable_table[];
@@ -175,6 +187,15 @@ long stewart_inverse_dynamics_parts_batch(const double *params, long n, const do
 long stewart_forward_dynamics_batch(const double *params, long n, const double *Q,
                                     const double *QD, const double *SIGMA, double *QDD,
                                     int *status);
+
+/* The regressor of the inverse dynamics (src/regressor.c): Y (6 x STEWART_N_STANDARD, row
+   major, row i leg i) with sigma = Y pi for pi the standard parameters of STEWART_STANDARD. It
+   holds every column whatever effects params declares (a column of an effect the scene lacks
+   multiplies a zero of pi). Status as stewart_inverse_dynamics. */
+int stewart_regressor(const double *params, const double q[6], const double qd[6],
+                      const double qdd[6], double Y[]);
+long stewart_regressor_batch(const double *params, long n, const double *Q, const double *QD,
+                             const double *QDD, double *Y, int *status);
 
 /* ---- plant (stewart_fmu/transmission.py, integrators.py) --------------------------------- */
 /* dy = y' at y with the rack forces held (integrators.derivative); y of stewart_state_size.

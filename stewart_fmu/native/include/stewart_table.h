@@ -1,7 +1,8 @@
 /*
  * stewart_table.h -- the one table of the plant's packed parameters and of its FMU variables,
  * written once as X-macros (the pattern of MuJoCo's mjxmacro.h) and expanded wherever a layer
- * needs it: stewart.h (the STEWART_P_* offsets, STEWART_N_PARAMS), src/table.c (the same
+ * needs it: stewart.h (the STEWART_P_* offsets, STEWART_N_PARAMS; the regressor's STEWART_S_*
+ * columns, STEWART_N_STANDARD), src/table.c (the same
  * table compiled into the core, which stewart_fmu/model.py and stewart_fmu/fmu/variables.py
  * read), fmi/model.h and fmi/model.c (value references, names, packing, bound checks).
  * tests/stewart_fmu/test_table.py fails when a layer spells a name, offset or value reference
@@ -140,6 +141,32 @@
     X(FORCE_GRAVITY, "force.gravity", 6, STEWART_PER_LEG, "N", ANY, "rack force spent on gravity") \
     X(FORCE_FRICTION, "force.friction", 6, STEWART_PER_LEG, "N", ANY, "rack force spent on friction")
 
+/* The standard parameters of the identification model, in column order of the regressor Y
+   (src/regressor.c: sigma = Y(q, qd, qdd) pi, linear in pi): X(NAME, COUNT, KEY, UNIT,
+   DESCRIPTION). KEY is the dotted name reports use. The platform's are taken about the platform
+   frame's origin C in the platform frame; a leg part's about its own joint (the lower part's
+   base joint, the upper part's platform joint), along the leg. The scene's model holds C at the
+   platform's centre of mass with principal axes along the platform frame, so its first moment
+   and its products of inertia are zero; the regressor has their columns all the same. */
+#define STEWART_STANDARD(X)                                                                      \
+    X(PLATFORM_MASS, 1, "platform.mass", "kg", "platform mass m")                              \
+    X(PLATFORM_MOMENT, 3, "platform.first_moment", "kg.m", "m c, c the centre of mass from C")  \
+    X(PLATFORM_INERTIA, 6, "platform.inertia_tensor", "kg.m2",                                  \
+      "inertia tensor about C: xx, xy, xz, yy, yz, zz")                                         \
+    X(LOWER_MASS, 1, "legs.lower_mass", "kg", "lower part mass m_A")                            \
+    X(LOWER_MOMENT, 1, "legs.lower_first_moment", "kg.m", "m_A c_A about the base joint")       \
+    X(LOWER_INERTIA, 1, "legs.lower_joint_inertia", "kg.m2",                                    \
+      "lower part transverse moment about the base joint, I_tA + m_A c_A^2")                    \
+    X(LOWER_AXIAL, 1, "legs.lower_axial_inertia", "kg.m2", "lower part axial moment")           \
+    X(UPPER_MASS, 1, "legs.upper_mass", "kg", "upper part mass m_B")                            \
+    X(UPPER_MOMENT, 1, "legs.upper_first_moment", "kg.m", "m_B c_B about the platform joint")   \
+    X(UPPER_INERTIA, 1, "legs.upper_joint_inertia", "kg.m2",                                    \
+      "upper part transverse moment about the platform joint, I_tB + m_B c_B^2")                \
+    X(UPPER_AXIAL, 1, "legs.upper_axial_inertia", "kg.m2", "upper part axial moment")           \
+    X(DRIVE_MASS, 6, "drive.reflected_mass", "kg", "reflected drive inertia m_d of each leg")   \
+    X(VISCOUS, 6, "friction.viscous", "N.s/m", "viscous friction of each prismatic joint")      \
+    X(COULOMB, 6, "friction.coulomb", "N", "Coulomb friction of each prismatic joint")
+
 #define STEWART_VR_TIME 0          /* FMI 3.0's independent variable */
 #define STEWART_VR_PARAMETERS 1    /* first value reference of each section */
 #define STEWART_VR_INPUTS 100
@@ -152,12 +179,14 @@ typedef struct { STEWART_PARAMS(STEWART_X_FIELD) } stewart_param_layout;
 typedef struct {
     STEWART_FMU_SCENE(STEWART_X_VARIABLE) STEWART_FMU_SETTINGS(STEWART_X_VARIABLE)
 } stewart_fmu_parameters;
+typedef struct { STEWART_STANDARD(STEWART_X_FIELD) } stewart_standard_layout;
 typedef struct { STEWART_FMU_INPUTS(STEWART_X_VARIABLE) } stewart_fmu_inputs;
 typedef struct { STEWART_FMU_OUTPUTS(STEWART_X_VARIABLE) } stewart_fmu_outputs;
 
 /* The offset of a packed entry, and the value reference of an FMU variable group
    (SECTION: PARAMETERS, INPUTS or OUTPUTS; LAYOUT: the struct of that section). */
 #define STEWART_OFFSET(NAME) ((int)(offsetof(stewart_param_layout, NAME) / sizeof(double)))
+#define STEWART_STANDARD_OFFSET(NAME) ((int)(offsetof(stewart_standard_layout, NAME) / sizeof(double)))
 #define STEWART_VR(SECTION, LAYOUT, ID) \
     (STEWART_VR_##SECTION + (int)(offsetof(LAYOUT, ID) / sizeof(double)))
 #define STEWART_VR_END(SECTION, LAYOUT) \

@@ -24,14 +24,19 @@ int sw_classify(int status, const double a[6], const double b[6], const double c
     return status == STEWART_OVERFLOW ? STEWART_SINGULAR : status;
 }
 
-/* mu_i of Eq. 9 for leg i: the force friction opposes to extension (its sign:
-   1, -1, or the argument itself for +-0 and NaN). */
+/* The sign Coulomb friction takes: 1, -1, or the argument itself for +-0 and NaN. */
+double sw_friction_sign(double ld)
+{
+    return ld > 0.0 ? 1.0 : (ld < 0.0 ? -1.0 : ld);
+}
+
+/* mu_i of Eq. 9 for leg i: the force friction opposes to extension. */
 static double friction(const double *p, int i, double ld)
 {
     double sg;
     if (P(HAS_FRICTION) == 0.0)
         return 0.0;
-    sg = ld > 0.0 ? 1.0 : (ld < 0.0 ? -1.0 : ld);
+    sg = sw_friction_sign(ld);
     return p[STEWART_P_VISCOUS + i] * ld + p[STEWART_P_COULOMB + i] * sg;
 }
 
@@ -45,7 +50,7 @@ static double drive_force(const double *p, int i, double ldd)
 
 /* rhs <- J^-T rhs with the LU of the scaled J^T; rhs in the factors' row order, its moments
    scaled like J^T here. */
-static void solve_jt(const double *p, sw_ws *ws, double *rhs)
+void sw_solve_jt(const double *p, sw_ws *ws, double *rhs)
 {
     const double ic = 1.0 / P(CHAR_LENGTH);
     int k;
@@ -71,7 +76,7 @@ int sw_inverse_sample(const double *p, const double q[6], const double qd[6],
         int j = ws->order[k];
         ws->rhs[k] = -(gen[j] + gen[6 + j] + gen[12 + j] + gen[18 + j]);
     }
-    solve_jt(p, ws, ws->rhs);
+    sw_solve_jt(p, ws, ws->rhs);
     for (i = 0; i < 6; ++i) {
         double s = ws->rhs[i] + friction(p, i, ws->leg[3 * i + 1]) + drive_force(p, i, ws->leg[3 * i + 2]);
         out[i] = s;
@@ -99,7 +104,7 @@ int sw_parts_sample(const double *p, const double q[6], const double qd[6],
         }
         for (j = 0; j < 6; ++j)
             ws->rhs[j] = -ws->gen[6 * kk[m] + ws->order[j]];
-        solve_jt(p, ws, ws->rhs);
+        sw_solve_jt(p, ws, ws->rhs);
         for (j = 0; j < 6; ++j)
             o[j] = ws->rhs[j];
     }
@@ -186,11 +191,8 @@ int stewart_forward_dynamics(const double *params, const double q[6], const doub
 }
 
 /* One per-sample function over N samples (rows of 6): the index of the first bad sample and its
- * classified status, or -1. Static with a constant function argument: the compiler inlines it. */
-typedef int (*sw_sample_fn)(const double *, const double *, const double *, const double *,
-                            sw_ws *, double *);
-
-static long sw_batch(sw_sample_fn sample, int out_size, const double *params, long n,
+ * classified status, or -1. */
+long sw_batch(sw_sample_fn sample, int out_size, const double *params, long n,
                      const double *A, const double *B, const double *C, double *out, int *status)
 {
     sw_ws ws;

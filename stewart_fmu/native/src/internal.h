@@ -13,12 +13,13 @@
 static const double SW_ZERO6[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
 
 /* Scratch of one sample: R, omega, alpha, unit vectors U, lever arms
-   Rr = R p_i, leg rows (l, ldot, lddot), J^T (scaled, rows stored where order[1] says), the
+   Rr = R p_i, leg rows (l, ldot, lddot), the rates udot and P uddot of the unit vectors (Ud, Pu:
+   the regressor of regressor.c reads them), J^T (scaled, rows stored where order[1] says), the
    generalized forces gen (4 x 6), a right-hand side and the twist mass matrix. order carries
    from sample to sample (see linalg.c, sw_lu_factor). All matrices row-major. */
 typedef struct {
     double R[9], om[3], al[3], trig[4];
-    double U[18], Rr[18], leg[18];
+    double U[18], Rr[18], leg[18], Ud[18], Pu[18];
     double JT[36], gen[24], rhs[6], Mt[36];
     int order[12];          /* order[0..5]: row names at storage rows; order[6..11]: where */
 } sw_ws;
@@ -49,6 +50,16 @@ int sw_parts_sample(const double *p, const double q[6], const double qd[6],
 int sw_forward_sample(const double *p, const double q[6], const double qd[6],
                       const double sigma[6], sw_ws *ws, double out[6]);
 int sw_classify(int status, const double a[6], const double b[6], const double c[6]);
+void sw_solve_jt(const double *p, sw_ws *ws, double *rhs);
+double sw_friction_sign(double ld);
+typedef int (*sw_sample_fn)(const double *, const double *, const double *, const double *,
+                            sw_ws *, double *);
+long sw_batch(sw_sample_fn sample, int out_size, const double *params, long n, const double *A,
+              const double *B, const double *C, double *out, int *status);
+
+/* regressor.c */
+int sw_regressor_sample(const double *p, const double q[6], const double qd[6],
+                        const double qdd[6], sw_ws *ws, double out[6 * STEWART_N_STANDARD]);
 
 /* transmission.c */
 int sw_derivative(const double *p, const double *pl, const double *y, const double F[6],

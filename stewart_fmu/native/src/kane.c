@@ -133,6 +133,12 @@ int sw_twist_forces(const double *p, const double x[6], const double v[6], const
         ws->leg[3 * i] = l[i];
         ws->leg[3 * i + 1] = ld[i];
         ws->leg[3 * i + 2] = ldd[i];
+        ws->Ud[3 * i] = udx[i];
+        ws->Ud[3 * i + 1] = udy[i];
+        ws->Ud[3 * i + 2] = udz[i];
+        ws->Pu[3 * i] = pux[i];
+        ws->Pu[3 * i + 1] = puy[i];
+        ws->Pu[3 * i + 2] = puz[i];
     }
     for (i = 0; i < 6; ++i) {
         ws->JT[at[0] * 6 + i] = ux[i];

@@ -1,11 +1,16 @@
 /* table.c -- the tables of stewart_table.h compiled into the core, for the Python side
-   (stewart_fmu/model.py reads the packed layout, stewart_fmu/fmu/variables.py the FMU
+   (stewart_fmu/model.py reads the packed layout, stewart_fmu/standard.py the standard parameters, stewart_fmu/fmu/variables.py the FMU
    variables): one expansion of each X-macro table. */
 #include "../include/stewart.h"
 
 #define PARAM_ROW(NAME, COUNT, SOURCE, UNIT, WHAT) {#NAME, STEWART_P_##NAME, COUNT, #SOURCE, UNIT, WHAT},
 const stewart_param_info stewart_param_table[] = {STEWART_PARAMS(PARAM_ROW)};
 const int stewart_param_table_size = sizeof stewart_param_table / sizeof stewart_param_table[0];
+
+#define STANDARD_ROW(NAME, COUNT, KEY, UNIT, WHAT) {#NAME, STEWART_S_##NAME, COUNT, KEY, UNIT, WHAT},
+const stewart_standard_info stewart_standard_table[] = {STEWART_STANDARD(STANDARD_ROW)};
+const int stewart_standard_table_size =
+    sizeof stewart_standard_table / sizeof stewart_standard_table[0];
 
 #define PARAMETER_ROW(ID, NAME, COUNT, SHAPE, UNIT, BOUND, WHAT, SCENE)                           \
     {#ID, NAME, STEWART_VR(PARAMETERS, stewart_fmu_parameters, ID), COUNT, SHAPE,                 \
