@@ -1,0 +1,233 @@
+"""The estimate of the base parameters from a stacked regressor and forces, and a physically
+consistent set of standard parameters behind it.
+
+1. Weighted least squares (IDIM-WLS, Gautier): ordinary least squares first; the noise level of
+   each leg from its residuals (sigma_j^2 = |r_j|^2 / (n_j - rank / 6)); then least squares
+   with rows weighted 1 / sigma_j. The covariance of beta is s^2 (W_b^T D^2 W_b)^-1 with s^2 the
+   weighted residual variance (about 1 when the noise model holds); the standard deviations are
+   its diagonal's square roots.
+2. Physical consistency (Wensing, Kim and Slotine): the standard parameters pi behind beta must
+   be those of real bodies: the platform's 4 x 4 pseudo-inertia [[tr(I)/2 1 - I, h], [h^T, m]]
+   and each leg part's (axisymmetric about its joint: [[J_t - J_a / 2, m c], [m c, m]] and
+   J_a >= 0) positive semidefinite, the drives' masses and the frictions >= 0. First the
+   standard point closest to the prior (in the prior's scale) with K pi = beta exactly: a
+   semidefinite feasibility problem. If none exists, the WLS estimate is not physical and the
+   estimate becomes the constrained least squares fit (the same objective with the constraints;
+   beta then differs from WLS and the report says so). Either is a semidefinite program, solved
+   by cvxpy with Clarabel (an interior-point conic solver with semidefinite cones, open source,
+   maintained, shipped as a wheel; SCS, the alternative, is first-order and less accurate).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from stewart_fmu.errors import StewartError
+from stewart_fmu.model import Model
+from stewart_fmu.standard import N_STANDARD, span
+
+from .base import BaseParameters
+
+_NOISE_FLOOR = 1e-13   # relative to the RMS force: a noise estimate below it is numerical zero
+
+
+class IdentificationError(StewartError):
+    """The data cannot give the estimate (rank, solver)."""
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """Base parameters beta (with standard deviations), the standard parameters behind them."""
+
+    beta: np.ndarray          # (rank,) the estimate (the WLS one unless `constrained`)
+    std: np.ndarray           # (rank,) standard deviations of beta (WLS covariance)
+    beta_wls: np.ndarray      # (rank,) the unconstrained WLS estimate
+    pi: np.ndarray            # (N_STANDARD,) physically consistent standard parameters, K pi = beta
+    noise: np.ndarray         # (6,) noise level of each leg's force in the data used (N)
+    residual_rms: np.ndarray  # (6,) RMS residual of each leg (N)
+    constrained: bool         # True when the consistency constraints changed beta
+    samples: int              # rows used (samples x legs)
+
+
+def wls(Wb: np.ndarray, s: np.ndarray, legs: np.ndarray) -> tuple[np.ndarray, np.ndarray,
+                                                                     np.ndarray, np.ndarray]:
+    """(beta, covariance, per-leg noise, per-leg residual RMS) by OLS then WLS over rows of leg
+    index `legs` (0..5)."""
+    M, r = Wb.shape
+    if M <= r:
+        raise IdentificationError(f"{M} equations for {r} base parameters: record more samples")
+    beta0 = np.linalg.lstsq(Wb, s, rcond=None)[0]
+    res = s - Wb @ beta0
+    floor = _NOISE_FLOOR * float(np.sqrt(np.mean(s**2)))
+    noise = np.empty(6)
+    for j in range(6):
+        rows = legs == j
+        noise[j] = np.sqrt(np.sum(res[rows] ** 2) / max(np.count_nonzero(rows) - r / 6, 1.0))
+    noise = np.maximum(noise, floor)
+    w = 1.0 / noise[legs]
+    A = Wb * w[:, None]
+    beta, *_ = np.linalg.lstsq(A, s * w, rcond=None)
+    wres = (s - Wb @ beta) * w
+    s2 = float(wres @ wres) / (M - r)
+    Rf = np.linalg.qr(A, mode="r")
+    Rinv = np.linalg.inv(Rf)
+    cov = s2 * (Rinv @ Rinv.T)
+    rms = np.array([np.sqrt(np.mean((s - Wb @ beta)[legs == j] ** 2)) for j in range(6)])
+    return beta, cov, noise, rms
+
+
+def estimate(W: np.ndarray, s: np.ndarray, legs: np.ndarray, base: BaseParameters,
+             prior: np.ndarray, scale: np.ndarray, length: float) -> Estimate:
+    """The estimate from rows W (M, N_STANDARD), forces s (M,), leg of each row; `prior` the
+    scene's standard parameters (zero where the scene lacks the effect), `scale` a typical
+    magnitude of each standard parameter, `length` the platform's characteristic length (it
+    scales the pseudo-inertias)."""
+    Wb = W[:, base.independent]
+    beta, cov, noise, rms = wls(Wb, s, legs)
+    std = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    pi = consistent_point(base, beta, prior, scale, length)
+    constrained = pi is None
+    if constrained:
+        A = Wb * (1.0 / noise[legs])[:, None]
+        Rf = np.linalg.qr(np.column_stack([A, s / noise[legs]]), mode="r")
+        pi = constrained_fit(base, Rf, prior, scale, length)
+    beta_c = base.beta(pi)
+    return Estimate(beta_c, std, beta, pi, noise, rms, constrained, len(s))
+
+
+def scales(model: Model, prior: np.ndarray) -> np.ndarray:
+    """A typical magnitude of each standard parameter: its prior, or for a prior of zero the
+    platform's mass times the characteristic length (first moments) or its square (inertia),
+    1 N for Coulomb friction, 1 for anything else."""
+    L, m = model.characteristic_length, model.platform_mass
+    out = np.abs(prior).astype(float)
+    for name, typical in (("PLATFORM_MOMENT", m * L), ("PLATFORM_INERTIA", m * L * L),
+                          ("LOWER_MOMENT", m * L), ("UPPER_MOMENT", m * L),
+                          ("LOWER_INERTIA", m * L * L), ("UPPER_INERTIA", m * L * L),
+                          ("LOWER_AXIAL", m * L * L), ("UPPER_AXIAL", m * L * L),
+                          ("COULOMB", 1.0)):
+        sl = span(name)
+        out[sl] = np.where(out[sl] > 0, out[sl], typical)
+    out[out == 0] = 1.0
+    return out
+
+
+
+# ---------------------------------------------------------------- the semidefinite programs
+
+def _variables(prior: np.ndarray, scale: np.ndarray, free: np.ndarray):
+    import cvxpy as cp
+
+    x = cp.Variable(int(np.count_nonzero(free)))
+    idx = np.flatnonzero(free)
+    pi = [float(prior[k]) for k in range(N_STANDARD)]
+    for n, k in enumerate(idx):
+        pi[k] = prior[k] + scale[k] * x[n]
+    return x, pi
+
+
+def _physical(pi, free: np.ndarray, length: float) -> list:
+    """The consistency constraints (module docstring) on the free standard parameters; the
+    pseudo-inertias scaled by diag(1/length, 1/length, 1/length, 1) (a congruence: same
+    semidefiniteness, better conditioned)."""
+    import cvxpy as cp
+
+    cons = []
+    m = pi[span("PLATFORM_MASS").start]
+    h = [pi[k] for k in range(*span("PLATFORM_MOMENT").indices(N_STANDARD))]
+    xx, xy, xz, yy, yz, zz = (pi[k] for k in range(*span("PLATFORM_INERTIA").indices(N_STANDARD)))
+    tr = (xx + yy + zz) / 2
+    L, L2 = length, length * length
+    rows = [[(tr - xx) / L2, -xy / L2, -xz / L2, h[0] / L],
+            [-xy / L2, (tr - yy) / L2, -yz / L2, h[1] / L],
+            [-xz / L2, -yz / L2, (tr - zz) / L2, h[2] / L],
+            [h[0] / L, h[1] / L, h[2] / L, m]]
+    P = cp.bmat([[_expr(v) for v in row] for row in rows])
+    cons.append((P + P.T) / 2 >> 0)
+    for part in ("LOWER", "UPPER"):
+        k = span(f"{part}_MASS").start
+        if not free[k] and not free[span(f"{part}_MOMENT").start]:
+            continue
+        mp, mc = pi[k], pi[span(f"{part}_MOMENT").start]
+        jt, ja = pi[span(f"{part}_INERTIA").start], pi[span(f"{part}_AXIAL").start]
+        Q = cp.bmat([[_expr((jt - ja / 2) / L2), _expr(mc / L)], [_expr(mc / L), _expr(mp)]])
+        cons += [(Q + Q.T) / 2 >> 0, _expr(ja) >= 0]
+    for name in ("DRIVE_MASS", "VISCOUS", "COULOMB"):
+        for k in range(*span(name).indices(N_STANDARD)):
+            if free[k]:
+                cons.append(_expr(pi[k]) >= 0)
+    return cons
+
+
+def _expr(v):
+    import cvxpy as cp
+
+    return v if isinstance(v, cp.Expression) else cp.Constant(v)
+
+
+def _solve(problem) -> bool:
+    import cvxpy as cp
+
+    try:
+        problem.solve(solver=cp.CLARABEL)
+    except cp.error.SolverError:
+        return False
+    return problem.status in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE)
+
+
+def consistent_point(base: BaseParameters, beta: np.ndarray, prior: np.ndarray,
+                     scale: np.ndarray, length: float) -> np.ndarray | None:
+    """The physically consistent pi nearest the prior (scaled) with K pi = beta, or None."""
+    import cvxpy as cp
+
+    free = np.zeros(N_STANDARD, dtype=bool)
+    free[base.columns] = True
+    x, pi = _variables(prior, scale, free)
+    K = base.combination
+    # K pi = beta, in the base parameters' own scale
+    bscale = np.abs(K) @ scale
+    eq = [(K[i] @ cp.hstack([_expr(v) for v in pi]) - beta[i]) / bscale[i] == 0
+          for i in range(len(beta))]
+    problem = cp.Problem(cp.Minimize(cp.sum_squares(x)), eq + _physical(pi, free, length))
+    if not _solve(problem) or problem.status != cp.OPTIMAL:
+        return None
+    out = _values(pi)
+    return _polish(base, out, beta, scale, free)
+
+
+def constrained_fit(base: BaseParameters, Rf: np.ndarray, prior: np.ndarray,
+                    scale: np.ndarray, length: float) -> np.ndarray:
+    """Least squares of the weighted rows (their R factor with the right-hand side as last
+    column) under the consistency constraints, with a vanishing pull to the prior (1e-6 in the
+    prior's scale) for what the data do not determine."""
+    import cvxpy as cp
+
+    free = np.zeros(N_STANDARD, dtype=bool)
+    free[base.columns] = True
+    x, pi = _variables(prior, scale, free)
+    r = Rf.shape[1] - 1
+    piv = cp.hstack([_expr(v) for v in pi])
+    norm = max(abs(Rf[-1, -1]), float(np.abs(Rf).max()) * 1e-12)
+    fit = (Rf[:r, :r] @ (base.combination @ piv) - Rf[:r, r]) / norm
+    problem = cp.Problem(cp.Minimize(cp.sum_squares(fit) + 1e-6 * cp.sum_squares(x)),
+                         _physical(pi, free, length))
+    if not _solve(problem):
+        raise IdentificationError(
+            f"the physically consistent fit failed (Clarabel: {problem.status})")
+    return _values(pi)
+
+
+def _values(pi) -> np.ndarray:
+    return np.array([float(v.value) if hasattr(v, "value") else float(v) for v in pi])
+
+
+def _polish(base: BaseParameters, pi: np.ndarray, beta: np.ndarray, scale: np.ndarray,
+            free: np.ndarray) -> np.ndarray:
+    """pi moved the least (in scale) so that K pi = beta to rounding (the solver's equality is
+    good to its tolerance only)."""
+    K = base.combination[:, free] * scale[free]
+    d = np.linalg.lstsq(K, beta - base.beta(pi), rcond=None)[0]
+    out = pi.copy()
+    out[free] += scale[free] * d
+    return out
