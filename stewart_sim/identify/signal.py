@@ -46,7 +46,7 @@ EXTENSIONS = ("periodic", "closed", "reflect")
 TAPER = 1.0            # the window falls from 1 at f_c to 0 at (1 + TAPER) f_c (_window)
 MARGIN = 1.2           # default cut-off: this times the highest frequency the pose holds
 REL_FLOOR = 1e-10      # a spectral line counts when above this times its axis's largest one ...
-NOISE_FACTOR = 10.0    # ... and above this times the median line of the top half of the band
+NOISE_FACTOR = 10.0    # ... and above this times the largest line above rate / 4 (the noise)
 MAX_CUTOFF = 0.2       # the cut-off at most this times the rate (the decimation keeps >= 5x)
 DECIMATED_RATIO = 5.0  # default decimation: the decimated rate stays >= this times f_c
 SEAM_FACTOR = 2.0      # an extension is taken over an earlier one when this much quieter
@@ -73,10 +73,13 @@ def choose_filter(t: np.ndarray, q: np.ndarray, cutoff: float | None = None,
     """The filter for a run sampled at times t (uniform) with poses q (N, 6).
 
     Default cut-off: MARGIN times the highest frequency at which any pose axis still has a
-    spectral line above both REL_FLOOR of its largest line and NOISE_FACTOR times the median
-    line above rate / 4 (the noise floor), within [20 frequency bins, MAX_CUTOFF rate]: the
-    excitation's last harmonic passes untouched, the noise above it does not. Default
-    decimation: the largest factor keeping the decimated rate >= DECIMATED_RATIO f_c."""
+    spectral line above both REL_FLOOR of its largest line and NOISE_FACTOR times its largest
+    line above rate / 4 (the noise floor: the largest line, not a mean, as noise is coloured,
+    an encoder's quantization of a slow motion loudest at low frequencies), within [20
+    frequency bins, MAX_CUTOFF rate]: the excitation's last harmonic passes untouched, the
+    noise above it does not. Default decimation: the largest factor keeping the decimated
+    rate >= DECIMATED_RATIO f_c. The extension and the trim follow from the pose (module
+    doc): build a Filter here, not by hand."""
     t, q = np.asarray(t, dtype=float), np.asarray(q, dtype=float)
     n = len(t)
     rate = (n - 1) / (t[-1] - t[0])
