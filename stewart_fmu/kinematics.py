@@ -14,9 +14,10 @@ import numpy as np
 from .errors import ForwardKinematicsError, SingularityError, StrokeLimitError
 from .model import Model
 from .native import core
-from .rotations import euler_motion, solve_rate_matrix
+from .rotations import euler_motion, solve_rate_matrices, solve_rate_matrix
 
 COND_LIMIT = 1e10  # cond(J) above this counts as singular: forces keep fewer than ~6 digits
+COARSE_STRIDE = 32  # forward_kinematics_many without a guess: the samples solved first
 
 
 @dataclass(frozen=True)
@@ -34,8 +35,8 @@ class LegKinematics:
     lever_arms: np.ndarray | None = None     # (N, 6, 3) R p_i, from C's origin to joint i, in N
     omega: np.ndarray | None = None          # (N, 3) platform angular velocity in N
     alpha: np.ndarray | None = None          # (N, 3) platform angular acceleration in N
-    joint_velocities: np.ndarray | None = None     # (N, 6, 3) vp_i = v + omega x R p_i
-    joint_accelerations: np.ndarray | None = None  # (N, 6, 3) ap_i
+    joint_velocities: np.ndarray | None = None     # (N, 6, 3) vp_i = v + omega x R p_i (with qd)
+    joint_accelerations: np.ndarray | None = None  # (N, 6, 3) ap_i (with qd)
 
 
 def inverse_kinematics(model: Model, q, qd=None, qdd=None, *, with_cond: bool = True
@@ -61,14 +62,17 @@ def inverse_kinematics(model: Model, q, qd=None, qdd=None, *, with_cond: bool = 
     if with_cond:
         with np.errstate(all="ignore"):
             cond = np.linalg.cond(J * scale) if np.all(np.isfinite(J)) else np.full(n, np.inf)
-    vp = QD[:, None, :3] + np.cross(om[:, None, :], r)
-    ap = (QDD[:, None, :3] + np.cross(al[:, None, :], r)
-          + np.cross(om[:, None, :], np.cross(om[:, None, :], r)))
-    rates = np.einsum("nki,nki->nk", u, vp)
-    # lddot = u . ap + |udot|^2 l, with udot = (vp - ldot u) / l.
-    accels = np.einsum("nki,nki->nk", u, ap) + (np.einsum("nki,nki->nk", vp, vp) - rates**2) / l
-    out = LegKinematics(L, l, u, J, cond, None if qd is None else rates,
-                        None if qd is None or qdd is None else accels, R, r, om, al, vp, ap)
+    vp = ap = rates = accels = None      # without rates: poses only (forward kinematics' loop)
+    if qd is not None:
+        vp = QD[:, None, :3] + np.cross(om[:, None, :], r)
+        ap = (QDD[:, None, :3] + np.cross(al[:, None, :], r)
+              + np.cross(om[:, None, :], np.cross(om[:, None, :], r)))
+        rates = np.einsum("nki,nki->nk", u, vp)
+        # lddot = u . ap + |udot|^2 l, with udot = (vp - ldot u) / l.
+        accels = np.einsum("nki,nki->nk", u, ap) + (np.einsum("nki,nki->nk", vp, vp)
+                                                      - rates**2) / l
+    out = LegKinematics(L, l, u, J, cond, rates, None if qdd is None else accels, R, r, om, al,
+                        vp, ap)
     if single:
         out = LegKinematics(*(None if a is None else a[0] for a in vars(out).values()))
     return out
@@ -121,6 +125,108 @@ def forward_kinematics(model: Model, lengths, guess=None, tol: float = 1e-12,
         f"Newton did not converge for leg lengths {target.tolist()} from guess "
         f"{start.tolist()}: max residual {residual:.3g} m after {-iterations} iterations "
         f"(lengths unreachable or singular pose)")
+
+
+@dataclass(frozen=True)
+class ForwardSolution:
+    """The poses of many samples' leg lengths (forward_kinematics_many)."""
+
+    poses: np.ndarray       # (N, 6); a row that did not converge holds its last iterate
+    residual: np.ndarray    # (N,) max |l(q) - target| (m) there; nan where the lengths are not
+                            # six finite positive numbers
+    converged: np.ndarray   # (N,) bool: residual <= tol * max(1 m, the longest leg)
+
+
+def forward_kinematics_many(model: Model, lengths, guess=None, tol: float = 1e-12,
+                            max_iter: int = 50) -> ForwardSolution:
+    """The poses with the given leg lengths (N, 6), all samples at once: forward_kinematics's
+    Newton step (J dnu = target - l, rotation mapped by E^-1) over numpy's batched inverse
+    kinematics and np.linalg.solve, on the samples not yet converged.
+
+    Starts from `guess` ((N, 6) per sample, (6,) for all; default: every COARSE_STRIDE-th
+    sample from home, the others from those interpolated in sample index); a sample that does not
+    converge from there starts again from the solution of its nearest converged sample (index
+    distance), pass after pass while passes converge new samples: a run that leaves home's basin
+    continues from its own neighbours. No stroke check (the caller's: it knows what the lengths
+    are); nothing raises for a sample that fails, `converged` says which. The per-sample
+    forward_kinematics stays on the core's calls: one pose per device tick, where numpy's
+    per-call overhead would cost several times the C step."""
+    target = np.atleast_2d(np.asarray(lengths, dtype=float))
+    n = target.shape[0]
+    if target.shape != (n, 6):
+        raise ValueError(f"leg lengths must be (N, 6), got {target.shape}")
+    q = np.empty((n, 6))
+    q[:] = model.home if guess is None else np.asarray(guess, dtype=float)
+    if guess is None and n > 2 * COARSE_STRIDE:
+        # every COARSE_STRIDE-th sample first (from home, then its neighbours), the others
+        # from the coarse poses interpolated in sample index: a good start, so two Newton
+        # steps instead of the five or six that home would take.
+        coarse = forward_kinematics_many(model, target[::COARSE_STRIDE], None, tol, max_iter)
+        at = np.arange(0, n, COARSE_STRIDE)[coarse.converged]
+        if at.size:
+            good = coarse.poses[coarse.converged]
+            q[:] = np.column_stack([np.interp(np.arange(n), at, good[:, c]) for c in range(6)])
+    valid = np.all(np.isfinite(target) & (target > 0), axis=1)
+    tol_abs = tol * np.maximum(1.0, np.max(np.where(np.isfinite(target), target, 0.0), axis=1))
+    residual = np.full(n, np.nan)
+    converged = np.zeros(n, dtype=bool)
+    todo = np.flatnonzero(valid)
+    while todo.size:
+        r, c = _newton_many(model, target[todo], q, todo, tol_abs[todo], max_iter)
+        residual[todo], converged[todo] = r, c
+        if todo.size < np.count_nonzero(valid) and not c.any():
+            break                                  # a pass from the neighbours gained nothing
+        good, todo = np.flatnonzero(converged), todo[~c]
+        if not good.size or not todo.size:
+            break
+        q[todo] = q[_nearest(good, todo)]
+    return ForwardSolution(q, residual, converged)
+
+
+def _nearest(good: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """For each index of idx, the nearest of the sorted indices `good` (the earlier on a tie)."""
+    if len(good) == 1:
+        return np.full(idx.size, good[0])
+    k = np.clip(np.searchsorted(good, idx), 1, len(good) - 1)
+    before, after = good[k - 1], good[k]
+    return np.where(np.abs(idx - before) <= np.abs(after - idx), before, after)
+
+
+def _newton_many(model: Model, target: np.ndarray, q: np.ndarray, rows: np.ndarray,
+                 tol: np.ndarray, max_iter: int) -> tuple[np.ndarray, np.ndarray]:
+    """Newton (as _newton) in place on q[rows], target and tol per row of `rows`: returns the
+    last residual and whether each converged."""
+    m = rows.size
+    residual, converged = np.full(m, np.inf), np.zeros(m, dtype=bool)
+    active = np.arange(m)                           # positions in rows still iterating
+    for it in range(max_iter):
+        kin = inverse_kinematics(model, q[rows[active]], with_cond=False)
+        f = target[active] - kin.lengths
+        r = np.max(np.abs(f), axis=1)
+        residual[active] = r
+        done = r <= tol[active]
+        converged[active[done]] = True
+        go = ~done & np.isfinite(r)
+        active, J, f = active[go], kin.jacobian[go], f[go]
+        if not active.size or it == max_iter - 1:
+            break
+        dnu, solvable = _solve_many(J, f)
+        dth, ok = solve_rate_matrices(q[rows[active]], dnu[:, 3:])
+        ok &= solvable & np.all(np.isfinite(dnu), axis=1)
+        q[rows[active[ok]]] += np.concatenate([dnu[ok, :3], dth[ok]], axis=1)
+        active = active[ok]
+    return residual, converged
+
+
+def _solve_many(J: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """x with J x = f for each sample, and which could be solved: an exactly singular J makes
+    np.linalg.solve refuse the whole batch, so then those samples are set aside (x = 0)."""
+    try:
+        return np.linalg.solve(J, f[..., None])[..., 0], np.ones(len(f), dtype=bool)
+    except np.linalg.LinAlgError:
+        x, ok = np.zeros_like(f), np.linalg.det(J) != 0.0
+        x[ok] = np.linalg.solve(J[ok], f[ok, :, None])[..., 0]
+        return x, ok
 
 
 def condition_number(model: Model, q) -> float:

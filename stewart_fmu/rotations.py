@@ -44,8 +44,25 @@ def euler_motion(Q: np.ndarray, QD: np.ndarray, QDD: np.ndarray, R: np.ndarray, 
     AL[:, 2] = e1z * thdd[:, 0] + thdd[:, 2] + d1z * thd[:, 0]
 
 
+def solve_rate_matrices(Q: np.ndarray, W: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Euler-angle rates X (N, 3) with E(th) X = W for pose rows Q (N, 6) and angular
+    velocities W (N, 3), and ok (N,) (False at gimbal lock, where X is left 0): the vectorised
+    form of solve_rate_matrix, the same arithmetic."""
+    cy, sy = np.cos(Q[:, 4]), np.sin(Q[:, 4])
+    cz, sz = np.cos(Q[:, 5]), np.sin(Q[:, 5])
+    ok = np.abs(cy) >= GIMBAL_LIMIT
+    X = np.zeros((len(Q), 3))
+    x0 = (cz[ok] * W[ok, 0] + sz[ok] * W[ok, 1]) / cy[ok]
+    X[ok, 0] = x0
+    X[ok, 1] = -sz[ok] * W[ok, 0] + cz[ok] * W[ok, 1]
+    X[ok, 2] = W[ok, 2] + sy[ok] * x0
+    return X, ok
+
+
 def solve_rate_matrix(q, w0: float, w1: float, w2: float) -> tuple[bool, float, float, float]:
-    """Euler-angle rates x with E(th) x = w (th = q[3:6]): (ok, x0, x1, x2); ok False at gimbal lock."""
+    """Euler-angle rates x with E(th) x = w (th = q[3:6]): (ok, x0, x1, x2); ok False at gimbal
+    lock. One pose in plain floats (the device's per-tick forward kinematics): the arithmetic of
+    solve_rate_matrices."""
     cy, sy = np.cos(q[4]), np.sin(q[4])
     if abs(cy) < GIMBAL_LIMIT:
         return False, 0.0, 0.0, 0.0
