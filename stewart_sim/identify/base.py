@@ -84,8 +84,9 @@ def base_parameters(W: np.ndarray, columns: np.ndarray | None = None,
         NAMES[cols[j]] for j in dep if np.any(Kd[:, list(dep).index(j)] != 0.0))
     lost = tuple(NAMES[c] for c in dead) + tuple(
         NAMES[cols[j]] for j in dep if not np.any(Kd[:, list(dep).index(j)] != 0.0))
+    order = lambda names: tuple(sorted(names, key=NAMES.index))  # noqa: E731
     return BaseParameters(np.asarray(columns if columns is not None else np.arange(W.shape[1])),
-                          cols[ind], K, alone, combined, lost)
+                          cols[ind], K, order(alone), order(combined), order(lost))
 
 
 def scaled_condition(Wb: np.ndarray) -> float:

@@ -30,6 +30,7 @@ from stewart_fmu.standard import N_STANDARD, span
 from .base import BaseParameters
 
 _NOISE_FLOOR = 1e-13   # relative to the RMS force: a noise estimate below it is numerical zero
+MARGIN = 1e-6          # pseudo-inertias kept this much (times their mass scale) inside the cone
 
 
 class IdentificationError(StewartError):
@@ -92,7 +93,7 @@ def estimate(W: np.ndarray, s: np.ndarray, legs: np.ndarray, base: BaseParameter
         A = Wb * (1.0 / noise[legs])[:, None]
         Rf = np.linalg.qr(np.column_stack([A, s / noise[legs]]), mode="r")
         pi = constrained_fit(base, Rf, prior, scale, length)
-    beta_c = base.beta(pi)
+    beta_c = base.beta(pi) if constrained else beta   # pi reproduces the WLS beta to rounding
     return Estimate(beta_c, std, beta, pi, noise, rms, constrained, len(s))
 
 
@@ -127,12 +128,16 @@ def _variables(prior: np.ndarray, scale: np.ndarray, free: np.ndarray):
     return x, pi
 
 
-def _physical(pi, free: np.ndarray, length: float) -> list:
+def _physical(pi, free: np.ndarray, length: float, scale: np.ndarray) -> list:
     """The consistency constraints (module docstring) on the free standard parameters; the
     pseudo-inertias scaled by diag(1/length, 1/length, 1/length, 1) (a congruence: same
-    semidefiniteness, better conditioned)."""
+    semidefiniteness, better conditioned), and kept MARGIN times their body's mass scale inside
+    the cone: a solution on its boundary (a body of zero thickness) would be refused by the
+    scene's own rules (axial <= 2 x transverse, the triangle inequality) for a rounding error."""
     import cvxpy as cp
 
+    margin = MARGIN * scale[[span(n).start for n in ("PLATFORM_MASS", "LOWER_MASS",
+                                                     "UPPER_MASS")]]
     cons = []
     m = pi[span("PLATFORM_MASS").start]
     h = [pi[k] for k in range(*span("PLATFORM_MOMENT").indices(N_STANDARD))]
@@ -144,7 +149,7 @@ def _physical(pi, free: np.ndarray, length: float) -> list:
             [-xz / L2, -yz / L2, (tr - zz) / L2, h[2] / L],
             [h[0] / L, h[1] / L, h[2] / L, m]]
     P = cp.bmat([[_expr(v) for v in row] for row in rows])
-    cons.append((P + P.T) / 2 >> 0)
+    cons.append((P + P.T) / 2 >> margin[0] * np.eye(4))
     for part in ("LOWER", "UPPER"):
         k = span(f"{part}_MASS").start
         if not free[k] and not free[span(f"{part}_MOMENT").start]:
@@ -152,7 +157,8 @@ def _physical(pi, free: np.ndarray, length: float) -> list:
         mp, mc = pi[k], pi[span(f"{part}_MOMENT").start]
         jt, ja = pi[span(f"{part}_INERTIA").start], pi[span(f"{part}_AXIAL").start]
         Q = cp.bmat([[_expr((jt - ja / 2) / L2), _expr(mc / L)], [_expr(mc / L), _expr(mp)]])
-        cons += [(Q + Q.T) / 2 >> 0, _expr(ja) >= 0]
+        cons += [(Q + Q.T) / 2 >> margin[1 if part == "LOWER" else 2] * np.eye(2),
+                 _expr(ja) >= 0]
     for name in ("DRIVE_MASS", "VISCOUS", "COULOMB"):
         for k in range(*span(name).indices(N_STANDARD)):
             if free[k]:
@@ -189,7 +195,7 @@ def consistent_point(base: BaseParameters, beta: np.ndarray, prior: np.ndarray,
     bscale = np.abs(K) @ scale
     eq = [(K[i] @ cp.hstack([_expr(v) for v in pi]) - beta[i]) / bscale[i] == 0
           for i in range(len(beta))]
-    problem = cp.Problem(cp.Minimize(cp.sum_squares(x)), eq + _physical(pi, free, length))
+    problem = cp.Problem(cp.Minimize(cp.sum_squares(x)), eq + _physical(pi, free, length, scale))
     if not _solve(problem) or problem.status != cp.OPTIMAL:
         return None
     out = _values(pi)
@@ -211,7 +217,7 @@ def constrained_fit(base: BaseParameters, Rf: np.ndarray, prior: np.ndarray,
     norm = max(abs(Rf[-1, -1]), float(np.abs(Rf).max()) * 1e-12)
     fit = (Rf[:r, :r] @ (base.combination @ piv) - Rf[:r, r]) / norm
     problem = cp.Problem(cp.Minimize(cp.sum_squares(fit) + 1e-6 * cp.sum_squares(x)),
-                         _physical(pi, free, length))
+                         _physical(pi, free, length, scale))
     if not _solve(problem):
         raise IdentificationError(
             f"the physically consistent fit failed (Clarabel: {problem.status})")

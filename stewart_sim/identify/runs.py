@@ -104,12 +104,17 @@ def read_run(path: str | Path, model: Model, motor: "Motor | None" = None) -> Ru
     return Run(path, t, lengths, sigma, data[:, 13:19] if has_pose else None, source)
 
 
+# Newton to round-off: the filter's second derivative multiplies a pose error by (2 pi f_c)^2, and
+# noise-free runs must give the base parameters to 1e-8 (one more iteration than 1e-12 m).
+FK_TOL = 1e-14
+
+
 def pose_of(model: Model, run: Run) -> np.ndarray:
     """The pose (N, 6) of every sample from its measured leg lengths (forward kinematics to
-    1e-12 m in the lengths, all samples at once: stewart_fmu.kinematics.forward_kinematics_many),
+    FK_TOL m in the lengths, all samples at once: stewart_fmu.kinematics.forward_kinematics_many),
     started from the measured pose where the run has one. A sample with no pose: TrajectoryError
     naming the file, the sample and its time."""
-    sol = forward_kinematics_many(model, run.lengths, run.pose)
+    sol = forward_kinematics_many(model, run.lengths, run.pose, tol=FK_TOL)
     bad = np.flatnonzero(~sol.converged)
     if bad.size:
         k = int(bad[0])

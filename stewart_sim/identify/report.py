@@ -1,0 +1,179 @@
+"""The files of `identify`, written all or nothing into DIR (stewart_sim.outputs.result_set):
+
+- identified.toml: the input scene's text with the identified values (scene_out), every other
+  key and comment kept; what the runs could not identify keeps its prior value and is listed in
+  the report.
+- base_parameters.csv: name (the base parameter as a combination of standard ones), estimate,
+  std, wls (the unconstrained estimate), prior (the prior scene's value), unit.
+- standard_parameters.csv: name, identified (the physically consistent pi), prior, status
+  (alone / combined / not identifiable / missing from the runs), unit.
+- residuals.png: measured and fitted forces of the first run (filtered, decimated) and the
+  residual, per leg.
+- validation.png (with --validate): each held-out run's measured forces against the identified
+  and the prior model's.
+- report.md: the filter, the base parameters with their standard deviations, what is
+  identifiable alone, in combination and not at all, the noise level, the residuals, the
+  validation (RMS and peak error per leg, identified against prior, and whether at the noise
+  floor).
+"""
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+
+from stewart_fmu.io import atomic_write, write_text
+from stewart_fmu.standard import NAMES, UNITS
+from stewart_sim.outputs import result_set, written_in
+from stewart_sim.plots import save_figure
+
+from .plots import residual_figure, validation_figure
+from .scene_out import scene_values, write_identified
+from .study import Identification, Prediction
+
+FILES = ("identified.toml", "base_parameters.csv", "standard_parameters.csv", "residuals.png",
+         "validation.png", "report.md")
+
+
+def write_identification(ident: Identification, scene_path: str | Path,
+                         validation: list[Prediction], out: str | Path) -> list[Path]:
+    """Write the files (module docstring) into `out`, all or nothing; their paths."""
+    scene_path = Path(scene_path)
+    values, unheld = scene_values(ident.model, ident.pi, ident.written())
+    runs = ", ".join(p.run.path.name for p in ident.prepared)
+    with result_set(out, FILES) as stage:
+        paths = [write_identified(scene_path, values, stage / "identified.toml",
+                                  [f"identified by stewart-sim identify from {runs}",
+                                   f"prior: {scene_path.name}"]),
+                 _rows(stage / "base_parameters.csv",
+                       ("name", "estimate", "std", "wls", "prior", "unit"), _base_rows(ident)),
+                 _rows(stage / "standard_parameters.csv",
+                       ("name", "identified", "prior", "status", "unit"), _standard_rows(ident)),
+                 save_figure(_residuals(ident), stage / "residuals.png")]
+        if validation:
+            paths.append(save_figure(validation_figure(
+                validation[0].t, validation[0].measured, validation[0].identified,
+                validation[0].prior, f"held-out run {validation[0].run.path.name}"),
+                stage / "validation.png"))
+        paths.append(write_text(stage / "report.md",
+                                report_text(ident, scene_path, validation, unheld)))
+        return written_in(stage, Path(out), paths)
+
+
+def _residuals(ident: Identification):
+    p = ident.prepared[0]
+    fit = ident.fitted(p).reshape(-1, 6)
+    return residual_figure(p.t, p.s.reshape(-1, 6), fit,
+                           f"{ident.model.name}: run {p.run.path.name} (filtered, decimated)")
+
+
+def _rows(path: Path, header: tuple[str, ...], rows) -> Path:
+    def write(fh):
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(header)
+        w.writerows(rows)
+    return atomic_write(path, write)
+
+
+def _base_rows(ident: Identification):
+    e, prior_beta = ident.estimate, ident.base.beta(ident.prior)
+    names = ident.base.names()
+    for k in np.argsort(ident.base.independent, kind="stable"):
+        name = names[k]
+        yield (name, repr(float(e.beta[k])), repr(float(e.std[k])), repr(float(e.beta_wls[k])),
+               repr(float(prior_beta[k])), UNITS[ident.base.independent[k]])
+
+
+def status_of(ident: Identification, name: str) -> str:
+    """alone / combined / not identifiable / not excited / absent, for a standard parameter."""
+    if name in ident.missing:
+        return "not excited by these runs"
+    if name in ident.base.alone:
+        return "alone"
+    if name in ident.base.combined:
+        return "in combination"
+    if name in ident.base.unidentifiable:
+        return "not identifiable"
+    return "absent from the scene"
+
+
+def _standard_rows(ident: Identification):
+    for k, name in enumerate(NAMES):
+        yield (name, repr(float(ident.pi[k])), repr(float(ident.prior[k])),
+               status_of(ident, name), UNITS[k])
+
+
+def report_text(ident: Identification, scene_path: Path, validation: list[Prediction],
+                unheld: dict[str, float]) -> str:
+    """report.md (module docstring)."""
+    e, b, f = ident.estimate, ident.base, ident.prepared[0].filter
+    rel = e.std / np.maximum(np.abs(e.beta), 1e-300)
+    lines = [f"# Identification of {ident.model.name}", "",
+             f"Prior scene: `{scene_path}`. Runs: "
+             + ", ".join(f"`{p.run.path.name}` ({len(p.run.t)} samples, forces from "
+                         f"{p.run.source})" for p in ident.prepared) + ".", "",
+             "## Data", "",
+             f"- Filter: zero-phase low-pass at {f.cutoff:.4g} Hz on the pose (its derivatives "
+             f"taken with it), the same on the regressor's columns and the measured forces "
+             f"(parallel filtering); sampled at {f.rate:.6g} Hz, decimated by {f.decimate}.",
+             f"- Rows: {e.samples} (samples x legs) for {b.rank} base parameters; the scene's "
+             f"structure allows {ident.structural.rank} of its {len(b.columns)} standard "
+             "parameters' combinations.",
+             "- Noise level per leg (from the residuals, filtered band), N: "
+             + ", ".join(f"{x:.4g}" for x in e.noise),
+             "- Residual RMS per leg, N: " + ", ".join(f"{x:.4g}" for x in e.residual_rms), ""]
+    if ident.missing:
+        lines += [f"Not excited by these runs (kept at their prior values): "
+                  f"{', '.join(ident.missing)}.", ""]
+    lines += ["## Base parameters", "",
+              "Weighted least squares; std from its covariance. "
+              + ("The WLS estimate was not physically consistent: the estimate below is the "
+                 "constrained fit (semidefinite program, cvxpy + Clarabel); `wls` is the "
+                 "unconstrained one." if e.constrained else
+                 "The WLS estimate is physically consistent (a consistent set of standard "
+                 "parameters reproduces it exactly)."), "",
+              "| base parameter | estimate | std | std / estimate | prior | unit |",
+              "|---|---|---|---|---|---|"]
+    prior_beta = b.beta(ident.prior)
+    names = b.names()
+    for k in np.argsort(b.independent, kind="stable"):   # in the standard parameters' order
+        name = names[k]
+        lines.append(f"| {name} | {e.beta[k]:.6g} | {e.std[k]:.3g} | {rel[k]:.2%} | "
+                     f"{prior_beta[k]:.6g} | {UNITS[b.independent[k]]} |")
+    lines += ["", "## What the runs determine", "",
+              f"- Alone ({len(b.alone)}): {', '.join(b.alone) or 'none'}",
+              f"- Only in combination ({len(b.combined)}): {', '.join(b.combined) or 'none'} "
+              "(identified.toml holds the consistent split nearest the prior)",
+              f"- Not at all ({len(b.unidentifiable)}): {', '.join(b.unidentifiable) or 'none'} "
+              "(kept at the prior)", ""]
+    if unheld:
+        lines += ["Identified but not representable in a scene (the model holds the platform's "
+                  "centre of mass at C with principal axes along the platform frame): "
+                  + ", ".join(f"{k} = {v:.4g}" for k, v in unheld.items()), ""]
+    if validation:
+        lines += ["## Validation on held-out runs", "",
+                  "Forces predicted from each run's measured motion (full rate) against the "
+                  "measured ones. Noise floor: the RMS of the identified model's residual "
+                  "above the cut-off, scaled to the full band.", ""]
+        for v in validation:
+            lines += _validation_lines(v)
+    return "\n".join(lines) + "\n"
+
+
+def _validation_lines(v: Prediction) -> list[str]:
+    peak = v.force_peak
+    out = [f"### `{v.run.path.name}` (force peak {peak:.4g} N)", "",
+           "| leg | RMS identified (N) | RMS prior (N) | peak identified (N) | peak prior (N) "
+           "| noise floor (N) | RMS / floor |", "|---|---|---|---|---|---|---|"]
+    ri, rp, pi, pp = v.rms("identified"), v.rms("prior"), v.peak("identified"), v.peak("prior")
+    for j in range(6):
+        out.append(f"| {j + 1} | {ri[j]:.4g} | {rp[j]:.4g} | {pi[j]:.4g} | {pp[j]:.4g} | "
+                   f"{v.noise_floor[j]:.4g} | {ri[j] / max(v.noise_floor[j], 1e-300):.3g} |")
+    out += ["", f"RMS error over all legs: identified {np.sqrt(np.mean(ri**2)) / peak:.3%} of the "
+            f"peak, prior {np.sqrt(np.mean(rp**2)) / peak:.3%}. "
+            + ("The residual is at the noise floor (within 1.2x on every leg)."
+               if v.at_noise_floor() else
+               "The residual is above the noise floor (more than 1.2x on some leg): the model "
+               "misses something the data hold, or the runs excite it too little."), ""]
+    return out
