@@ -91,8 +91,8 @@ def link_trajectory(model: Model, config: ControllerConfig, path: str | Path) ->
     t = t - t[0]
     period = 1.0 / config.rate
     if np.all(np.abs(np.diff(t) - period) <= RATE_TOLERANCE * period):
-        return Trajectory(np.arange(t.size) * period, q, qd, qdd)
-    tk = np.arange(int(math.floor(t[-1] * config.rate * (1 + RATE_TOLERANCE))) + 1) * period
+        return Trajectory(np.arange(t.size) / config.rate, q, qd, qdd)
+    tk = np.arange(int(math.floor(t[-1] * config.rate * (1 + RATE_TOLERANCE))) + 1) / config.rate
     if tk.size < 2:
         raise TrajectoryError(f"{path}: lasts {t[-1]:g} s, less than one controller period "
                               f"({period:g} s)")
