@@ -132,6 +132,14 @@ def test_link_trajectory_at_the_rate_or_resampled(tmp_path) -> None:
         assert np.max(np.abs(value - exact)) <= 1e-9 * np.max(np.abs(exact))
 
 
+def test_scene_info_shows_the_sensors(tmp_path, capsys) -> None:
+    assert cli.main(["scene-info", str(write_truth(tmp_path / "truth.toml"))]) == 0
+    assert ("sensors: encoder 1e-06 m, force noise 0.2 N, current noise 0.001 A, latency "
+            "0.002 s, seed 5") in capsys.readouterr().out
+    assert cli.main(["scene-info", str(MICRO)]) == 0
+    assert "sensors: ideal" in capsys.readouterr().out
+
+
 def test_refusals_are_one_line(tmp_path, capsys) -> None:
     traj = tmp_path / "T.csv"
     write_trajectory(traj, 1000.0, 0.1)

@@ -240,3 +240,24 @@ def test_sensor_table_defaults_are_ideal() -> None:
     d["sensors"] = {"encoder_resolution": 1e-6, "force_noise": 0.1, "current_noise": 0.0,
                     "latency": 0.002, "seed": 3}
     assert sensor_config(scene_from_dict(d)) == SensorConfig(1e-6, 0.1, 0.0, 0.002, 3)
+
+
+def test_the_shipped_machine_is_a_truth_of_the_micro_manipulator() -> None:
+    """scenes/micro_manipulator_truth.toml: the scene's geometry and drive ratio, every inertial
+    and friction parameter 10-30 % off (Coulomb friction the scene leaves out), real sensors."""
+    model = load_scene(SCENE)
+    truth = load_scene(ROOT / "scenes" / "micro_manipulator_truth.toml")
+    check_truth(model, truth)
+    pairs = [(model.platform_mass, truth.platform_mass),
+             (model.platform_inertia, truth.platform_inertia),
+             (model.drive.reflected_masses, truth.drive.reflected_masses),
+             (model.friction.viscous_legs, truth.friction.viscous_legs)]
+    pairs += [(getattr(model.legs, k), getattr(truth.legs, k)) for k in
+              ("lower_mass", "lower_com", "lower_inertia", "upper_mass", "upper_com",
+               "upper_inertia")]
+    for mine, theirs in pairs:
+        off = np.abs(np.asarray(theirs) / np.asarray(mine) - 1)
+        assert np.all((off >= 0.1 - 1e-12) & (off <= 0.3 + 1e-12)), (mine, theirs)
+    assert np.all(model.friction.coulomb_legs == 0) and np.all(truth.friction.coulomb_legs > 0)
+    s = sensor_config(truth)
+    assert s.encoder_resolution == 1e-6 and s.force_noise > 0 and not s.ideal
