@@ -31,7 +31,6 @@ from hil.link import pty_pair, udp_server
 from hil.observe import Latest
 from hil.sensors import SensorConfig, sensor_config
 from hil.serve import loopback_address, serve
-from hil.truth import check_truth
 from hil.warmup import warm_up
 from stewart_fmu.errors import StewartError
 from stewart_fmu.model import Model
@@ -188,9 +187,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         model = load_scene(args.scene)
-        truth = load_scene(args.truth) if args.truth is not None else None
-        if truth is not None:
-            check_truth(model, truth)
+        truth = load_scene(args.truth) if args.truth is not None else None   # checked by Device
         serve_device(model, controller_config(model), args.udp, args.watchdog, args.lockstep,
                      args.signing_key, truth=truth,
                      sensors=sensor_config(truth if truth is not None else model))

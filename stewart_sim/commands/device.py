@@ -55,12 +55,9 @@ def run(args: argparse.Namespace) -> None:
     scene = load(args.scene)
     model, config = scene.model, scene.require_controller()
     machine = load(args.truth) if args.truth is not None else scene   # what the device is
-    truth = machine.model if args.truth is not None else None
-    if truth is not None:
-        from hil.truth import check_truth
-
-        check_truth(model, truth)
-    hidden = {"truth": truth, "sensors": machine.sensors}
+    # the device checks the truth against the scene (hil.truth) before it serves
+    hidden = {"truth": machine.model if args.truth is not None else None,
+              "sensors": machine.sensors}
     if args.view is None:
         serve_device(model, config, args.udp, args.watchdog, args.lockstep, args.signing_key,
                      **hidden)

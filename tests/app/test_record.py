@@ -6,6 +6,10 @@ Fixed seeds; no wall clock."""
 from __future__ import annotations
 
 import csv
+import select
+import signal
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +18,13 @@ import pytest
 pytest.importorskip("pymavlink")
 
 from controller.config import controller_config  # noqa: E402
-from hil.client import link_reference, run_lockstep_direct  # noqa: E402
+from hil.client import (  # noqa: E402
+    Client,
+    connect_device,
+    link_reference,
+    run_lockstep,
+    run_lockstep_direct,
+)
 from hil.device import Device  # noqa: E402
 from hil.sensors import sensor_config  # noqa: E402
 from stewart_fmu.io import trajectory_table, write_csv  # noqa: E402
@@ -109,6 +119,41 @@ def test_record_from_the_device_with_a_truth_scene(tmp_path, capsys) -> None:
         assert np.array_equal(data[:, j], expect[name]), name
     for j, name in enumerate(COLUMNS[13:], 13):
         assert np.allclose(data[:, j], expect[name], rtol=1e-6, atol=1e-9), name
+
+
+def test_the_device_command_serves_the_truth(tmp_path) -> None:
+    """`stewart-sim device SCENE --truth TRUE.toml --lockstep`, served to a host of its own:
+    what it reports is the in-process device's of the same truth and [sensors], bit for bit."""
+    truth = write_truth(tmp_path / "truth.toml")
+    write_trajectory(tmp_path / "T.csv", 1000.0, 0.2)
+    model = load_scene(MICRO)
+    config = controller_config(model)
+    ref = link_reference(model, config, link_trajectory(model, config, tmp_path / "T.csv"))
+    proc = subprocess.Popen([sys.executable, "-m", "stewart_sim", "device", str(MICRO), "--udp",
+                             "127.0.0.1:0", "--lockstep", "--truth", str(truth)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert select.select([proc.stdout], [], [], 60)[0], "the device printed nothing"
+        transport, _ = connect_device("udp", proc.stdout.readline().strip())
+        client = Client(transport)
+        try:
+            served = run_lockstep(client, ref, timeout=1.0, currents=True)
+        finally:
+            client.close()
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=10)
+        assert proc.returncode == 0, err
+        assert f"plant from {truth}" in err
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(5)
+    true_model = load_scene(truth)
+    direct = run_lockstep_direct(Device(model, config, lockstep=True, truth=true_model,
+                                        sensors=sensor_config(true_model)), ref, currents=True)
+    got, expect = record_table(served), record_table(direct)
+    for name in COLUMNS[:13]:
+        assert np.array_equal(got[name], expect[name]), name
 
 
 def test_link_trajectory_at_the_rate_or_resampled(tmp_path) -> None:
