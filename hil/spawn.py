@@ -151,7 +151,7 @@ def serve_device(model: Model, config: ControllerConfig, udp: str | None,
         print(f"device: {model.name}, {device.rate:g} Hz, "
               f"{'lockstep' if lockstep else 'real time'}, watchdog {watchdog:g} s"
               f"{f', plant from {truth.source}' if truth is not None else ''}"
-              f"{'' if sensors is None or sensors.ideal else ', sensors of [sensors]'}"
+              f"{'' if sensors is None or sensors.ideal else ', sensors per [sensors]'}"
               f"{', signed' if key else ''}, warmed in {warm:.3g} s; Ctrl-C stops",
               file=sys.stderr, flush=True)
         if ready is not None:

@@ -101,12 +101,11 @@ def link_trajectory(model: Model, config: ControllerConfig, path: str | Path) ->
 
 
 def record_table(run: LinkRun) -> np.ndarray:
-    """The recording of a lockstep run: t (device time, s), l1..l6 (m), sigma1..sigma6 (N)
-    as the device reported them, and current1..current6 (A) when recorded."""
+    """The recording of a lockstep run: RECORD_COLUMNS (t: device time, s; l1..l6, m;
+    sigma1..sigma6, N; as the device reported them), then CURRENT_COLUMNS (A) when recorded."""
     tab = run.table
-    cols = {"t": tab["time"]}
-    cols.update({f"l{i}": tab[f"l{i}"] for i in range(1, 7)})
-    cols.update({f"sigma{i}": tab[f"force{i}"] for i in range(1, 7)})
+    sources = ("time", *(f"l{i}" for i in range(1, 7)), *(f"force{i}" for i in range(1, 7)))
+    cols = {name: tab[src] for name, src in zip(RECORD_COLUMNS, sources)}
     if run.currents is not None:
         cols.update({name: run.currents[:, i] for i, name in enumerate(CURRENT_COLUMNS)})
     return sio.named_array(cols)
