@@ -195,6 +195,7 @@ def test_refusals_are_one_line(tmp_path, capsys) -> None:
                            changes={"home = [0.0, 0.0, 0.12,": "home = [0.0, 0.0, 0.121,"})
     late = write_truth(tmp_path / "late.toml", sensors="[sensors]\nlatency = 0.0015\n")
     noisy = write_truth(tmp_path / "noisy.toml", sensors="[sensors]\nforce_noise = -1.0\n")
+    typo = write_truth(tmp_path / "typo.toml", sensors="[sensors]\nseeds = 3\n")
     odd = tmp_path / "odd.csv"
     write_trajectory(odd, 1000.0, 0.1, start=load_scene(MICRO).home + [0, 0, 0.001, 0, 0, 0])
     cases = [
@@ -203,6 +204,7 @@ def test_refusals_are_one_line(tmp_path, capsys) -> None:
         (link + ["--truth", str(late)], "scene key 'sensors.latency': must be a whole number"),
         (link + ["--truth", str(noisy)], "scene key 'sensors.force_noise': must be a finite"),
         (["scene-info", str(noisy)], "scene key 'sensors.force_noise'"),
+        (["scene-info", str(typo)], "scene key 'sensors.seeds': unknown key"),
         (base + ["--record", str(tmp_path / "R.csv")], "--record needs --link"),
         (base + ["--truth", str(late)], "--truth needs --link"),
         (link + ["--mode", "realtime", "--record", str(tmp_path / "R.csv")],
