@@ -243,10 +243,11 @@ def test_sensor_table_defaults_are_ideal() -> None:
 
 
 def test_the_shipped_machine_is_a_truth_of_the_micro_manipulator() -> None:
-    """scenes/micro_manipulator_truth.toml: the scene's geometry and drive ratio, every inertial
-    and friction parameter 10-30 % off (Coulomb friction the scene leaves out), real sensors."""
+    """scenes/machines/micro_manipulator_truth.toml: the scene's geometry and drive ratio, every
+    inertial and friction parameter 10-30 % off (Coulomb friction the scene leaves out), real
+    sensors."""
     model = load_scene(SCENE)
-    truth = load_scene(ROOT / "scenes" / "micro_manipulator_truth.toml")
+    truth = load_scene(ROOT / "scenes" / "machines" / "micro_manipulator_truth.toml")
     check_truth(model, truth)
     pairs = [(model.platform_mass, truth.platform_mass),
              (model.platform_inertia, truth.platform_inertia),
