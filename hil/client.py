@@ -38,7 +38,10 @@ with i = F / Kf, as the in-process loop does, so lockstep over the link equals
 
 Both return a `LinkRun`: a structured array (one row per state: time, step, l_ref1..6,
 l1..6, e1..6, ldot1..6, force1..6, rtt) and a `LinkSummary` (RMS / max leg errors, messages
-sent / received / lost, round-trip latency statistics).
+sent / received / lost, round-trip latency statistics). In lockstep with `currents=True` the
+host raises the DRIVE_STATUS stream to the controller rate (parameter SR_DRIVE_STATUS) and
+keeps, for each LEG_STATE, the motor currents of the DRIVE_STATUS of the same device time
+(`LinkRun.currents`; DRIVE_STATUS goes out before LEG_STATE in the same tick's reply).
 """
 from __future__ import annotations
 
@@ -355,6 +358,17 @@ class LinkSummary:
 class LinkRun:
     table: np.ndarray
     summary: LinkSummary
+    currents: np.ndarray | None = None   # (rows, 6) A, DRIVE_STATUS of each state (lockstep)
+
+
+def _currents(states: list[Any], by_usec: dict[int, Any]) -> np.ndarray:
+    """The DRIVE_STATUS currents of each LEG_STATE's device time (LinkError when one is
+    missing)."""
+    missing = [s.time_usec for s in states if s.time_usec not in by_usec]
+    if missing:
+        raise LinkError(f"lockstep: no DRIVE_STATUS at device time {missing[0] * 1e-6:g} s "
+                        f"({len(missing)} missing)")
+    return np.array([by_usec[s.time_usec].current for s in states], float).reshape(-1, 6)
 
 
 def _table(time_s, step, l_ref, l, ldot, force, rtt) -> np.ndarray:
@@ -389,55 +403,72 @@ def _state_rows(states: list[Any], ref: LinkReference) -> tuple[np.ndarray, ...]
 # ---------------------------------------------------------------- lockstep
 
 def run_lockstep(client: Client, ref: LinkReference, *, timeout: float = TIMEOUT,
-                 retries: int = RETRIES, arm: bool = True) -> LinkRun:
-    """The lockstep closed loop over the link (see the module doc)."""
+                 retries: int = RETRIES, arm: bool = True, currents: bool = False) -> LinkRun:
+    """The lockstep closed loop over the link (see the module doc); `currents`: record the
+    motor currents of every state too."""
     if arm and not client.arm():
         raise LinkError("the device refused to arm")
+    drive: dict[int, Any] = {}
+    if currents:
+        client.set_param("SR_DRIVE_STATUS", 1.0 / float(ref.refs.t[1] - ref.refs.t[0]))
+        client.on_message = (lambda m, now: drive.__setitem__(m.time_usec, m)
+                             if m.get_type() == "DRIVE_STATUS" else None)
     client.drain()
     sent0, recv0 = client.counters.sent, client.counters.received
     n = len(ref.refs.t)
     states, rtts, resends = [], np.full(n, math.nan), 0
     start = time.perf_counter()
-    for k in range(n):
-        msgs = (client.reference_setpoint(ref, k),
-                ms.MAVLink_lockstep_message(int(round(ref.refs.t[k] * 1e6)), k))
-        for attempt in range(retries + 1):
-            t0 = time.perf_counter()
-            client.send_together(*msgs)
-            st = client.wait_for(lambda m: m.get_type() == "LEG_STATE" and m.step == k, timeout)
-            if st is not None:
-                rtts[k] = time.perf_counter() - t0
-                break
-            resends += 1
-        else:
-            raise LinkError(f"lockstep: no LEG_STATE for step {k} after {retries + 1} tries "
-                            f"of {timeout:g} s")
-        states.append(st)
+    try:
+        for k in range(n):
+            msgs = (client.reference_setpoint(ref, k),
+                    ms.MAVLink_lockstep_message(int(round(ref.refs.t[k] * 1e6)), k))
+            for attempt in range(retries + 1):
+                t0 = time.perf_counter()
+                client.send_together(*msgs)
+                st = client.wait_for(lambda m: m.get_type() == "LEG_STATE" and m.step == k,
+                                     timeout)
+                if st is not None:
+                    rtts[k] = time.perf_counter() - t0
+                    break
+                resends += 1
+            else:
+                raise LinkError(f"lockstep: no LEG_STATE for step {k} after {retries + 1} "
+                                f"tries of {timeout:g} s")
+            states.append(st)
+    finally:
+        client.on_message = None
     wall = time.perf_counter() - start
     t, step, l_ref, l, ldot, f = _state_rows(states, ref)
     table = _table(t, step, l_ref, l, ldot, f, rtts)
     c = client.counters
     return LinkRun(table, _summarise("lockstep", table, c.sent - sent0, c.received - recv0,
-                                     resends, wall, c.statustexts))
+                                     resends, wall, c.statustexts),
+                   _currents(states, drive) if currents else None)
 
 
-def run_lockstep_direct(device, ref: LinkReference) -> LinkRun:
+def run_lockstep_direct(device, ref: LinkReference, currents: bool = False) -> LinkRun:
     """The same loop driving a lockstep `hil.device.Device` in process (no link, no encoding)."""
     host = ms.MAVLink(None, srcSystem=HOST_SYSTEM, srcComponent=HOST_COMPONENT)
     client = Client.__new__(Client)  # only for setpoint_message
     client.mav = host
     device.receive(ms.MAVLink_command_long_message(1, 1, ms.MAV_CMD_COMPONENT_ARM_DISARM, 0,
                                                    1, 0, 0, 0, 0, 0, 0))
-    n, states = len(ref.refs.t), []
+    if currents:
+        device.receive(ms.MAVLink_param_set_message(
+            1, 1, b"SR_DRIVE_STATUS", 1.0 / float(ref.refs.t[1] - ref.refs.t[0]),
+            ms.MAV_PARAM_TYPE_REAL32))
+    n, states, drive = len(ref.refs.t), [], {}
     start = time.perf_counter()
     for k in range(n):
         device.receive(client.reference_setpoint(ref, k))
         out = device.receive(ms.MAVLink_lockstep_message(int(round(ref.refs.t[k] * 1e6)), k))
         states += [m for m in out if m.get_type() == "LEG_STATE" and m.step == k]
+        drive.update((m.time_usec, m) for m in out if m.get_type() == "DRIVE_STATUS")
     wall = time.perf_counter() - start
     t, step, l_ref, l, ldot, f = _state_rows(states, ref)
     table = _table(t, step, l_ref, l, ldot, f, np.full(len(states), math.nan))
-    return LinkRun(table, _summarise("direct", table, 2 * n, len(states), 0, wall))
+    return LinkRun(table, _summarise("direct", table, 2 * n, len(states), 0, wall),
+                   _currents(states, drive) if currents else None)
 
 
 # ---------------------------------------------------------------- real time

@@ -55,6 +55,15 @@ stamped with the device time after the step. Steps are numbered from 0; a repeat
 answered again without ticking (the host may resend after a loss), any other step number is
 refused with a STATUSTEXT.
 
+The machine and its sensors
+---------------------------
+With `truth` (a hidden true scene, checked by hil.truth.check_truth) the plant is built from it
+while the drive loops, the feed-forward and the setpoint checks keep `model`, the scene the host
+believes. With `sensors` (the [sensors] table, hil.sensors) what the device reports of its legs
+(LEG_STATE's lengths, rates and forces, DRIVE_STATUS's currents) is quantised, noisy and late as
+the table says; its drive loops, the observers and the pose telemetry use the plant's own
+numbers. Ideal sensors (the default) report the plant's numbers bit for bit.
+
 Observers
 ---------
 `Device.observe(latest, hz)` makes every tick that ends a 1/hz interval publish a
@@ -80,8 +89,10 @@ from hil import mavlink_stewart as ms
 from hil.framing import Receiver
 from hil.modes import Event, Mode
 from hil.observe import OBSERVE_HZ, Latest, Snapshot
+from hil.sensors import SensorConfig, Sensors
 from hil.servo import Servo
 from hil.signing import SignedDecoder, Verifier, wall_timestamp
+from hil.truth import check_truth
 from stewart_fmu.errors import IntegrationError, StewartError
 from stewart_fmu.kinematics import condition_number, forward_kinematics, inverse_kinematics
 from stewart_fmu.model import Model
@@ -125,8 +136,11 @@ class Device:
 
     def __init__(self, model: Model, config: ControllerConfig | None = None, watchdog: float = 0.2,
                  telemetry: dict[str, float] | None = None, signing_key: bytes | None = None, *,
-                 lockstep: bool = False, system_id: int = 1, component_id: int = 1) -> None:
+                 lockstep: bool = False, system_id: int = 1, component_id: int = 1,
+                 truth: Model | None = None, sensors: SensorConfig | None = None) -> None:
         self.model = model
+        if truth is not None:
+            check_truth(model, truth)
         self.config = config if config is not None else controller_config(model)
         self.rate = self.config.rate
         self.dt = self.config.dt
@@ -153,8 +167,15 @@ class Device:
             self._signing_refused))
         self.limiter = limits.StatusLimiter(self.config.dt)
 
-        self.servo = Servo(model, self.config)
+        self.servo = Servo(model, self.config, truth)
         self.plant = self.servo.plant
+        # what the device reports of its legs (hil.sensors); None: the plant's own numbers
+        self.sensors: Sensors | None = None
+        if sensors is not None and not sensors.ideal:
+            o = self.plant.outputs
+            self.sensors = Sensors(sensors, self.rate, o.lengths, o.rates, self.plant.rack_force,
+                                   self.servo.motors.current,
+                                   (truth if truth is not None else model).source)
         self.leg_min = model.leg_min if model.leg_min is not None else 0.0
         self.leg_max = model.leg_max if model.leg_max is not None else math.inf
         self.home_lengths = inverse_kinematics(model, model.home, with_cond=False).lengths.copy()
@@ -556,6 +577,10 @@ class Device:
             out += self._numeric_fault(good_q, exc)
         self.k += 1
         self.counters.ticks += 1
+        if self.sensors is not None:
+            o = self.plant.outputs
+            self.sensors.sample(o.lengths, o.rates, self.plant.rack_force,
+                                self.servo.motors.current)
         if self._observer is not None and self.k % self._observe_every == 0:
             self._observer.publish(self.snapshot())
         out += self._telemetry(step)
@@ -630,12 +655,17 @@ class Device:
         return self.rx.stats.rejected
 
     def leg_state(self, step: int = 0) -> Any:
+        """LEG_STATE: the legs as the sensors report them (hil.sensors)."""
+        m = self.sensors
+        if m is not None:
+            return telemetry.leg_state(self._usec(), m.lengths, m.rates, m.force, step)
         o = self.plant.outputs
         return telemetry.leg_state(self._usec(), o.lengths, o.rates, self.plant.rack_force, step)
 
     def drive_status(self) -> Any:
         s = self.servo
-        return telemetry.drive_status(self._usec(), self._mode, s.voltage, s.motors.current,
+        current = s.motors.current if self.sensors is None else self.sensors.current
+        return telemetry.drive_status(self._usec(), self._mode, s.voltage, current,
                                       s.saturated, self.counters.setpoints_refused,
                                       self.rx.stats.crc_errors + self.counters.signing_rejected)
 

@@ -14,6 +14,10 @@ R i + L di/dt + Ke' ldot_ref with i = F / Kf) or the homing quintic (`start_homi
 `homing_reference`). When a feed-forward stream begins or ends the integral takes its static part
 over (bumpless transfer). `start_holding` restarts the plant at rest at a pose with the drives
 holding it: `controller.feedforward.start_at_equilibrium`, the master's bumpless start.
+
+With a hidden true scene (`plant_model`, hil.truth) the plant is built from it, and so is the
+holding force of a (re)start: a machine at rest has its integrators settled on its true load.
+The drive design, the motor model and the feed-forward stay the believed `model`'s.
 """
 from __future__ import annotations
 
@@ -38,13 +42,15 @@ HOMING_MIN_TIME = 0.2      # s
 class Servo:
     """The drives and the plant of the device (see the module doc)."""
 
-    def __init__(self, model: Model, config: ControllerConfig) -> None:
+    def __init__(self, model: Model, config: ControllerConfig,
+                 plant_model: Model | None = None) -> None:
         self.model = model
+        self.plant_model = model if plant_model is None else plant_model
         self.dt = config.dt
         axis, gains, _ = design_axis(model, config)
         self.ctrl = AxisControllers(gains, axis, self.dt)
         self.motors = MotorCurrents(axis, self.dt)
-        self.port = InProcessPlant(model)
+        self.port = InProcessPlant(self.plant_model)
         self.plant = self.port.plant
         self.design_gains, self.design_motor = gains, axis.motor
         self.voltage = np.zeros(6)                   # of the last tick
@@ -60,7 +66,7 @@ class Servo:
         traj = Trajectory(np.array([t0, t0 + self.dt]), np.tile(q, (2, 1)), np.zeros((2, 6)),
                           np.zeros((2, 6)))
         self.plant.reset()
-        start_at_equilibrium(self.model, traj, leg_references(self.model, traj),
+        start_at_equilibrium(self.plant_model, traj, leg_references(self.model, traj),
                              self.ctrl.gains, self.ctrl, self.motors, np.zeros(6), self.port)
         self._ff_static = None
         self.hold()

@@ -6,7 +6,9 @@ clock the way the real micro-manipulator does. The device prints where it listen
 line (``udp 127.0.0.1:PORT`` or the pseudo-terminal's path); `device_process` reads that line,
 yields it, and stops the device with SIGINT (then SIGKILL) when the block ends. The device warms
 every path it will run (`hil.warmup`) before it prints that line, so the first setpoint and the
-first ticks after it cost what later ones do.
+first ticks after it cost what later ones do. With a truth scene (`--truth TRUE.toml`,
+hil.truth) the device's plant is the truth's and its sensors are the truth's [sensors] table
+(hil.sensors); without one, the scene's [sensors] table.
 """
 from __future__ import annotations
 
@@ -27,6 +29,7 @@ from hil.device import Device
 from hil.errors import LinkError
 from hil.link import pty_pair, udp_server
 from hil.observe import Latest
+from hil.sensors import SensorConfig, sensor_config
 from hil.serve import loopback_address, serve
 from hil.warmup import warm_up
 from stewart_fmu.errors import StewartError
@@ -38,21 +41,25 @@ STOP_TIMEOUT = 5.0
 WATCHDOG = 0.2       # s: default safe-stop time without a valid setpoint while armed
 
 
-def device_command(scene: str | Path, link: str, lockstep: bool) -> list[str]:
-    """argv of `python -m hil.spawn SCENE (--udp 127.0.0.1:0 | --pty) [--lockstep]` (what
-    `stewart-sim device` runs)."""
+def device_command(scene: str | Path, link: str, lockstep: bool,
+                   truth: str | Path | None = None) -> list[str]:
+    """argv of `python -m hil.spawn SCENE (--udp 127.0.0.1:0 | --pty) [--lockstep]
+    [--truth TRUE.toml]` (what `stewart-sim device` runs)."""
     argv = [sys.executable, "-m", "hil.spawn", str(scene)]
     argv += ["--udp", "127.0.0.1:0"] if link == "udp" else ["--pty"]
+    argv += ["--truth", str(truth)] if truth is not None else []
     return argv + (["--lockstep"] if lockstep else [])
 
 
 @contextlib.contextmanager
 def device_process(scene: str | Path, link: str, lockstep: bool = False,
-                   start_timeout: float = START_TIMEOUT) -> Iterator[str]:
-    """Run the device for `scene` over `link` ("udp" or "serial"); yield its first line."""
+                   start_timeout: float = START_TIMEOUT,
+                   truth: str | Path | None = None) -> Iterator[str]:
+    """Run the device for `scene` (its plant: `truth`'s when given) over `link` ("udp" or
+    "serial"); yield its first line."""
     if link not in ("udp", "serial"):
         raise LinkError(f"device_process: link must be 'udp' or 'serial', got {link!r}")
-    proc = subprocess.Popen(device_command(scene, link, lockstep), stdout=subprocess.PIPE,
+    proc = subprocess.Popen(device_command(scene, link, lockstep, truth), stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     try:
         yield _first_line(proc, start_timeout)
@@ -111,18 +118,23 @@ def serve_device(model: Model, config: ControllerConfig, udp: str | None,
                  watchdog: float = WATCHDOG,
                  lockstep: bool = False, key_hex: str | None = None, *,
                  observer: Latest | None = None,
-                 ready: Callable[[], None] | None = None) -> None:
+                 ready: Callable[[], None] | None = None,
+                 truth: Model | None = None, sensors: SensorConfig | None = None) -> None:
     """Serve the emulated device for `model` (its [controller] table: `config`) on loopback UDP (`udp`, "127.0.0.1:PORT") or, with
     udp None, a pseudo-terminal, until SIGINT or SIGTERM. The first line on stdout says where it
     listens; a summary goes to stderr when it stops. With `observer` the device publishes its
     snapshots there (`Device.observe`, hil.observe); `ready` is called once that first line is
-    out, just before the loop starts (the caller announces what it serves beside the device)."""
+    out, just before the loop starts (the caller announces what it serves beside the device).
+    `truth`: the hidden true scene of the plant (hil.truth); `sensors`: what the device reports
+    (hil.sensors; None: ideal)."""
     key = signing_key(key_hex)
     address = loopback_address(udp) if udp is not None else None
-    device = Device(model, config, watchdog=watchdog, signing_key=key, lockstep=lockstep)
+    device = Device(model, config, watchdog=watchdog, signing_key=key, lockstep=lockstep,
+                    truth=truth, sensors=sensors)
     if observer is not None:
         device.observe(observer)
-    warm = warm_up(model, config)   # every path run once before the ready line (hil.warmup)
+    # every path run once before the ready line (hil.warmup)
+    warm = warm_up(model, config, truth=truth, sensors=sensors)
     gc.collect()
     gc.freeze()                     # what exists now is never scanned again by the collector
     keep = None  # the pty's slave end, held open so the master never sees a hang-up
@@ -138,6 +150,8 @@ def serve_device(model: Model, config: ControllerConfig, udp: str | None,
         print(first, flush=True)
         print(f"device: {model.name}, {device.rate:g} Hz, "
               f"{'lockstep' if lockstep else 'real time'}, watchdog {watchdog:g} s"
+              f"{f', plant from {truth.source}' if truth is not None else ''}"
+              f"{'' if sensors is None or sensors.ideal else ', sensors per [sensors]'}"
               f"{', signed' if key else ''}, warmed in {warm:.3g} s; Ctrl-C stops",
               file=sys.stderr, flush=True)
         if ready is not None:
@@ -159,7 +173,8 @@ def serve_device(model: Model, config: ControllerConfig, udp: str | None,
 
 def main(argv: list[str] | None = None) -> int:
     """The device process: `python -m hil.spawn SCENE (--udp 127.0.0.1:PORT | --pty)
-    [--watchdog S] [--lockstep] [--signing-key HEX]` (`stewart-sim device` with its help)."""
+    [--watchdog S] [--lockstep] [--signing-key HEX] [--truth TRUE.toml]` (`stewart-sim
+    device` with its help)."""
     parser = argparse.ArgumentParser(prog="python -m hil.spawn")
     parser.add_argument("scene")
     where = parser.add_mutually_exclusive_group(required=True)
@@ -168,11 +183,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--watchdog", type=float, default=WATCHDOG)
     parser.add_argument("--lockstep", action="store_true")
     parser.add_argument("--signing-key")
+    parser.add_argument("--truth")
     args = parser.parse_args(argv)
     try:
         model = load_scene(args.scene)
+        truth = load_scene(args.truth) if args.truth is not None else None   # checked by Device
         serve_device(model, controller_config(model), args.udp, args.watchdog, args.lockstep,
-                     args.signing_key)
+                     args.signing_key, truth=truth,
+                     sensors=sensor_config(truth if truth is not None else model))
     except StewartError as exc:
         print(f"device: {exc}", file=sys.stderr)
         return 2

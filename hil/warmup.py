@@ -18,6 +18,7 @@ import numpy as np
 from controller.config import ControllerConfig
 from hil import mavlink_stewart as ms
 from hil.device import Device
+from hil.sensors import SensorConfig
 from stewart_fmu.model import Model
 
 TICKS = 300   # enough for every stream (the slowest, SYS_STATUS and HEARTBEAT, at tick 1)
@@ -31,10 +32,12 @@ def _frames(host: Any, *msgs: Any) -> bytes:
     return out
 
 
-def warm_up(model: Model, config: ControllerConfig, ticks: int = TICKS) -> float:
-    """Run the paths on a throwaway device; the seconds it took."""
+def warm_up(model: Model, config: ControllerConfig, ticks: int = TICKS, *,
+            truth: Model | None = None, sensors: SensorConfig | None = None) -> float:
+    """Run the paths on a throwaway device (the served one's truth and sensors); the seconds
+    it took."""
     t0 = time.perf_counter()
-    dev = Device(model, config, watchdog=0.05)
+    dev = Device(model, config, watchdog=0.05, truth=truth, sensors=sensors)
     host = ms.MAVLink(None, srcSystem=255, srcComponent=190)
     l0 = dev.plant.outputs.lengths.copy()
     flags = (ms.STEWART_SETPOINT_FLAG_RATE_VALID | ms.STEWART_SETPOINT_FLAG_FORCE_VALID

@@ -17,9 +17,9 @@ from .table import BOUND_NONNEG, BOUND_POS, BOUND_WORDS
 
 DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
 # Tables the project defines on top of the contract, each read by a command and checked where it
-# is parsed, once, at load (stewart_sim.scene_load: [controller], [cueing], [case], [solver]):
-# here they are only let through into Model.extra; any other table is refused.
-PROJECT_TABLES = frozenset({"controller", "case", "cueing", "solver"})
+# is parsed, once, at load (stewart_sim.scene_load: [controller], [cueing], [case], [solver],
+# [sensors]): here they are only let through into Model.extra; any other table is refused.
+PROJECT_TABLES = frozenset({"controller", "case", "cueing", "solver", "sensors"})
 _TOP_KEYS = {"name", "gravity", "geometry", "platform", "legs", "drive", "friction",
              "transmission"}
 _OPTIONAL_KEYS = {"geometry.leg_min", "geometry.leg_max"}   # every other plant key is required

@@ -1,6 +1,6 @@
 """`scene-info`: the model a scene builds and its tables as every command reads them
-(stewart_sim.scene_load.Scene: the scene and its [controller], [cueing], [case] and [solver]
-tables, parsed once)."""
+(stewart_sim.scene_load.Scene: the scene and its [controller], [cueing], [case], [solver] and
+[sensors] tables, parsed once)."""
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
@@ -43,6 +43,11 @@ def describe(scene: Scene) -> str:
     if OPTIMAL in (model.extra.get("cueing") or {}):
         lines.append(_describe_optimal(scene.optimal))
     lines.append(_describe_solver(scene.solver, scene.has_solver))
+    s = scene.sensors
+    lines.append("sensors: ideal (the emulated device reports its plant's numbers)" if s.ideal
+                 else f"sensors: encoder {s.encoder_resolution:g} m, force noise "
+                      f"{s.force_noise:g} N, current noise {s.current_noise:g} A, latency "
+                      f"{s.latency:g} s, seed {s.seed} (what the emulated device reports)")
     return "\n".join(lines)
 
 

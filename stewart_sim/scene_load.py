@@ -4,7 +4,8 @@ stewart_fmu.scene reads the file and builds the Model (the plant tables; the pro
 only lets through); here the tables above the plant are read, checked and parsed, once, by
 their owners into the objects their readers take: [controller] ->
 controller.config.ControllerConfig, [cueing] -> CueingConfig and OptimalOptions, [case] ->
-stewart_sim.cases.Case, [solver] -> the plant's IntegratorOptions. Every command loads its
+stewart_sim.cases.Case, [solver] -> the plant's IntegratorOptions, [sensors] (what the emulated
+device reports) -> hil.sensors.SensorConfig. Every command loads its
 scene here, so a bad key in any table fails every command at once, with one line naming the
 dotted key (SceneKeyError), before any work; the commands then pass the typed objects down.
 """
@@ -15,6 +16,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping
 
+from hil.sensors import SensorConfig, sensor_config
 from stewart_fmu.errors import SceneError, SceneKeyError, StewartError
 from stewart_fmu.integrators import COMPILED, IntegratorOptions
 from stewart_fmu.model import Model
@@ -42,6 +44,7 @@ class Scene:
     case: "Case | None"
     solver: IntegratorOptions
     has_solver: bool = False   # the scene has a [solver] table (not only the defaults)
+    sensors: SensorConfig = SensorConfig()   # [sensors]: read by the device only (hil.sensors)
 
     def require_controller(self) -> "ControllerConfig":
         """The [controller] table (SceneError when the scene has none)."""
@@ -78,7 +81,7 @@ def scene_of(model: Model) -> Scene:
         case = case_of(model)
     cueing, optimal = cueing_tables(model)
     return Scene(model, controller, cueing, optimal, case, solver_options(model),
-                 "solver" in extra)
+                 "solver" in extra, sensor_config(model))
 
 
 def solver_options(model: Model) -> IntegratorOptions:

@@ -1,6 +1,6 @@
 """`stewart-sim device SCENE (--udp 127.0.0.1:PORT | --pty) [--watchdog S] [--lockstep]
-[--signing-key HEX] [--view [PORT]]`: the emulated micro-manipulator (hil.spawn.serve_device)
-until SIGINT or SIGTERM (exit status 0)."""
+[--signing-key HEX] [--truth TRUE.toml] [--view [PORT]]`: the emulated micro-manipulator
+(hil.spawn.serve_device) until SIGINT or SIGTERM (exit status 0)."""
 from __future__ import annotations
 
 import argparse
@@ -34,6 +34,11 @@ def add_parser(sub, help_text: str) -> None:
     p.add_argument("--signing-key", metavar="HEX",
                    help="MAVLink 2 signing key, 64 hex digits: unsigned or badly signed frames "
                         "are rejected and counted")
+    p.add_argument("--truth", metavar="TRUE.toml",
+                   help="the machine: build the plant and the sensors ([sensors]) from this "
+                        "hidden true scene (the geometry, gravity and drive ratio of SCENE; its "
+                        "masses, inertias, frictions and rotor inertia may differ) while the "
+                        "drive loops and their feed-forward keep SCENE's")
     p.add_argument("--view", nargs="?", const=0, type=port, metavar="PORT",
                    help="serve a live 3D view of the device in the browser on 127.0.0.1:PORT "
                         "(no PORT or 0: any free port); the second line printed is its address")
@@ -49,8 +54,13 @@ def run(args: argparse.Namespace) -> None:
 
     scene = load(args.scene)
     model, config = scene.model, scene.require_controller()
+    machine = load(args.truth) if args.truth is not None else scene   # what the device is
+    # the device checks the truth against the scene (hil.truth) before it serves
+    hidden = {"truth": machine.model if args.truth is not None else None,
+              "sensors": machine.sensors}
     if args.view is None:
-        serve_device(model, config, args.udp, args.watchdog, args.lockstep, args.signing_key)
+        serve_device(model, config, args.udp, args.watchdog, args.lockstep, args.signing_key,
+                     **hidden)
         return
     from hil.observe import Latest
     from stewart_sim.view.live import LiveView, live_page
@@ -61,4 +71,4 @@ def run(args: argparse.Namespace) -> None:
             view.start()
             print(f"view: {view.url}", flush=True)
         serve_device(model, config, args.udp, args.watchdog, args.lockstep, args.signing_key,
-                     observer=latest, ready=ready)
+                     observer=latest, ready=ready, **hidden)
