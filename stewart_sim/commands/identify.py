@@ -1,7 +1,9 @@
-"""`stewart-sim identify SCENE --runs RUN.csv [RUN2.csv ...] --out DIR [--validate RUN.csv ...]`:
+"""`stewart-sim identify SCENE --runs RUN.csv [RUN2.csv ...] --out DIR [--validate RUN.csv ...]
+[--refine]`:
 the inertial and friction parameters of a platform from its measured runs (leg lengths and rack
 forces or motor currents). The pipeline is stewart_sim/identify/study.py, the files
-stewart_sim/identify/report.py, the run format stewart_sim/identify/runs.py.
+stewart_sim/identify/report.py, the run format stewart_sim/identify/runs.py, the output-error
+refinement stewart_sim/identify/refine.py.
 """
 from __future__ import annotations
 
@@ -38,6 +40,10 @@ def add_parser(sub, help_text: str) -> None:
     p.add_argument("--out", required=True, metavar="DIR", help="output directory")
     p.add_argument("--cutoff", type=number(float, "a number", _positive, "a number > 0"),
                    metavar="HZ", help="low-pass cut-off of the pose (default: from the data)")
+    p.add_argument("--refine", action="store_true",
+                   help="then refine by output error: the forward model's leg lengths fitted to "
+                        "the measured ones (short segments from the measured state, driven by "
+                        "the measured forces), with a force delay and per-leg force biases")
     p.add_argument("--partial", action="store_true",
                    help="identify what the runs determine when they excite less than the "
                         "scene's structure allows; the rest keeps its prior value")
@@ -56,8 +62,17 @@ def run(args: argparse.Namespace) -> None:
     runs = [read_run(path, scene.model, motor) for path in args.runs]
     held = [read_run(path, scene.model, motor) for path in args.validate]
     ident = identify(scene.model, runs, args.cutoff, args.partial)
-    validation = [predict(ident, r) for r in held]
-    for path in write_identification(ident, args.scene, validation, args.out):
+    refined = None
+    if args.refine:
+        from stewart_sim.identify.refine import refine
+
+        refined = refine(ident, runs)
+        print(f"refined {len(refined.refined)} base parameters, delay and biases on "
+              f"{refined.segments} segments: length RMS {refined.rms_before * 1e6:.4g} -> "
+              f"{refined.rms_after * 1e6:.4g} um; delay {refined.delay * 1e3:.4g} +- "
+              f"{refined.delay_std * 1e3:.2g} ms")
+    validation = [predict(ident, r, refined.pi if refined else None) for r in held]
+    for path in write_identification(ident, args.scene, validation, args.out, refined):
         print(f"wrote {path}")
     e = ident.estimate
     rel = e.std / abs(e.beta).clip(1e-300)

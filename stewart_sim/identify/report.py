@@ -30,6 +30,7 @@ from stewart_sim.plots import save_figure
 
 from .plots import residual_figure, validation_figure
 from .scene_out import scene_values, write_identified
+from .refine import Refinement
 from .study import Identification, Prediction
 
 FILES = ("identified.toml", "base_parameters.csv", "standard_parameters.csv", "residuals.png",
@@ -37,10 +38,13 @@ FILES = ("identified.toml", "base_parameters.csv", "standard_parameters.csv", "r
 
 
 def write_identification(ident: Identification, scene_path: str | Path,
-                         validation: list[Prediction], out: str | Path) -> list[Path]:
-    """Write the files (module docstring) into `out`, all or nothing; their paths."""
+                         validation: list[Prediction], out: str | Path,
+                         refined: Refinement | None = None) -> list[Path]:
+    """Write the files (module docstring) into `out`, all or nothing; their paths. With
+    `refined`, identified.toml holds the refined parameters."""
     scene_path = Path(scene_path)
-    values, unheld = scene_values(ident.model, ident.pi, ident.written())
+    pi = refined.pi if refined is not None else ident.pi
+    values, unheld = scene_values(ident.model, pi, ident.written())
     runs = ", ".join(p.run.path.name for p in ident.prepared)
     with result_set(out, FILES) as stage:
         paths = [write_identified(scene_path, values, stage / "identified.toml",
@@ -57,7 +61,7 @@ def write_identification(ident: Identification, scene_path: str | Path,
                 validation[0].prior, f"held-out run {validation[0].run.path.name}"),
                 stage / "validation.png"))
         paths.append(write_text(stage / "report.md",
-                                report_text(ident, scene_path, validation, unheld)))
+                                report_text(ident, scene_path, validation, unheld, refined)))
         return written_in(stage, Path(out), paths)
 
 
@@ -105,7 +109,7 @@ def _standard_rows(ident: Identification):
 
 
 def report_text(ident: Identification, scene_path: Path, validation: list[Prediction],
-                unheld: dict[str, float]) -> str:
+                unheld: dict[str, float], refined: Refinement | None = None) -> str:
     """report.md (module docstring)."""
     e, b, f = ident.estimate, ident.base, ident.prepared[0].filter
     rel = e.std / np.maximum(np.abs(e.beta), 1e-300)
@@ -151,6 +155,8 @@ def report_text(ident: Identification, scene_path: Path, validation: list[Predic
         lines += ["Identified but not representable in a scene (the model holds the platform's "
                   "centre of mass at C with principal axes along the platform frame): "
                   + ", ".join(f"{k} = {v:.4g}" for k, v in unheld.items()), ""]
+    if refined is not None:
+        lines += _refinement_lines(ident, refined)
     if validation:
         lines += ["## Validation on held-out runs", "",
                   "Forces predicted from each run's measured motion (full rate) against the "
@@ -177,3 +183,21 @@ def _validation_lines(v: Prediction) -> list[str]:
                "The residual is above the noise floor (more than 1.2x on some leg): the model "
                "misses something the data hold, or the runs excite it too little."), ""]
     return out
+
+
+def _refinement_lines(ident: Identification, r: Refinement) -> list[str]:
+    names, e = ident.base.names(), ident.estimate
+    out = ["## Output-error refinement", "",
+           f"{r.segments} segments simulated from the measured state with the measured forces "
+           f"({r.evaluations} evaluations of scipy's least_squares). Leg length RMS residual "
+           f"{r.rms_before * 1e6:.4g} um at the least-squares estimate, {r.rms_after * 1e6:.4g} "
+           f"um refined. identified.toml holds the refined values. Standard deviations from the "
+           "Jacobian at the solution.", "",
+           f"- Force delay: {r.delay * 1e3:.4g} ms +- {r.delay_std * 1e3:.2g} ms (the force "
+           "measured at t was applied at t - delay)",
+           "- Force bias per leg (measured - applied), N: "
+           + ", ".join(f"{b:.4g} +- {s:.2g}" for b, s in zip(r.bias, r.bias_std)), "",
+           "| base parameter | least squares | refined | std (refined) |", "|---|---|---|---|"]
+    for j, k in enumerate(r.refined):
+        out.append(f"| {names[k]} | {e.beta[k]:.6g} | {r.beta[k]:.6g} | {r.std[j]:.3g} |")
+    return out + [""]

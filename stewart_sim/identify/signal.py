@@ -115,6 +115,19 @@ def decimated(x: np.ndarray, f: Filter) -> np.ndarray:
     return x[f.trim:len(x) - f.trim:f.decimate]
 
 
+def white_noise_factor(f: Filter) -> float:
+    """How much more variance white noise has in the pass band after lowpass + decimated than
+    least squares assumes of the decimated samples: (rate / 2 / decimate) / integral of H(f)^2
+    over [0, rate / 2]. Least squares takes the decimated noise as white over the decimated
+    band, but the window passes less than that band (H = 0 above (1 + TAPER) f_c), so the
+    samples are correlated and its covariance is low by this factor; 1 when the window fills
+    the decimated band."""
+    freq = np.linspace(0.0, f.rate / 2, 200_001)
+    h2 = _window(freq, f.cutoff) ** 2
+    band = float(np.sum((h2[1:] + h2[:-1]) / 2) * (freq[1] - freq[0]))
+    return max(1.0, f.rate / 2 / f.decimate / band)
+
+
 def _apply(x: np.ndarray, f: Filter, orders: tuple[int, ...]) -> list[np.ndarray]:
     """The low-passed k-th derivatives (k in orders) of x along its first axis."""
     x = np.asarray(x, dtype=float)

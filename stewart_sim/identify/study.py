@@ -12,6 +12,7 @@ scene's parameters.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,7 +25,7 @@ from .base import BaseParameters, base_parameters, stacked, structural_base
 from .estimate import Estimate, IdentificationError, estimate, scales
 from .runs import Run, pose_of
 from .scene_out import NOT_HELD
-from .signal import Filter, choose_filter, decimated, derivatives, lowpass
+from .signal import Filter, choose_filter, decimated, derivatives, lowpass, white_noise_factor
 
 ROUND_OFF = 1e-9   # an error below this times the force peak is arithmetic, not noise
 
@@ -152,6 +153,10 @@ def identify(model: Model, runs: list[Run], cutoff: float | None = None, partial
     prior = standard_parameters(model)
     scale = scales(model, prior)
     est = estimate(W, s, legs, base, prior, scale, model.characteristic_length)
+    # the decimated noise is coloured by the window: least squares' covariance is low by this
+    # factor (signal.white_noise_factor; the largest of the runs' filters, to stay honest)
+    factor = max(white_noise_factor(p.filter) for p in prepared)
+    est = dataclasses.replace(est, std=est.std * np.sqrt(factor))
     return Identification(model, prepared, structural, base, est, prior, scale, missing)
 
 
@@ -177,9 +182,9 @@ def _hint(missing: tuple[str, ...]) -> str:
     return ", ".join(said) or "richer motion (stewart-sim excite)"
 
 
-def predict(ident: Identification, run: Run) -> Prediction:
-    """Forces of `run` predicted from its measured motion with the identified and the prior
-    parameters (full rate, the cut-off of the identification's first run; edges trimmed as
+def predict(ident: Identification, run: Run, pi: np.ndarray | None = None) -> Prediction:
+    """Forces of `run` predicted from its measured motion with the identified (or `pi`) and
+    the prior parameters (full rate, the cut-off of the identification's first run; edges trimmed as
     decimation trims them), and its noise floor: the RMS of the identified model's residual
     above the cut-off (where the motion has no content: what is left there is the sensor's
     noise, and the force's own content there, a Coulomb force's switching, is in the model),
@@ -189,7 +194,7 @@ def predict(ident: Identification, run: Run) -> Prediction:
     qf, qd, qdd = derivatives(q, filt)
     Y = regressor(ident.model, qf, qd, qdd)
     keep = decimated(np.arange(len(run.t)), filt)
-    identified = Y @ ident.pi
+    identified = Y @ (ident.pi if pi is None else pi)
     residual = run.sigma - identified
     high = residual - lowpass(residual, filt)
     nyquist = filt.rate / 2
