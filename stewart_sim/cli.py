@@ -37,6 +37,7 @@ COMMANDS = {
     "view": "3D view of a run or trajectory as one HTML file (opens offline)",
     "cue": "motion cueing: vehicle motion -> platform trajectory, perception, limits",
     "calibrate": "kinematic calibration: joints and leg offsets from measured poses",
+    "excite": "excitation trajectory for identification (optimised regressor condition)",
 }
 KEPT = "nothing new written (an earlier output is left as it was)"  # on Ctrl-C
 
