@@ -142,7 +142,7 @@ def figure(model: Model, e: Excitation) -> Figure:
     t, q = traj.t[:n], traj.q[:n]
     lengths = inverse_kinematics(model, q, with_cond=False).lengths
     fig = Figure(figsize=(9, 9), layout="constrained")
-    axes = fig.subplots(3, 1, sharex=True)
+    axes = fig.subplots(3, 1)
     for j, name in enumerate(io.POSE[:3]):
         plot_line(axes[0], t, (q[:, j] - model.home[j]) * MM, label=name)
     axes[0].set(ylabel="translation from home (mm)",
@@ -155,9 +155,10 @@ def figure(model: Model, e: Excitation) -> Figure:
     for value, style in ((lim.leg_min, "-"), (lim.leg_max, "-"), (lim.bound("stroke_min"), ":"),
                          (lim.bound("stroke_max"), ":")):
         axes[2].axhline(value * MM, color="k", linestyle=style, linewidth=0.8)
-    axes[2].set(xlabel="t (s)", ylabel="leg length (mm)",
+    axes[2].set(ylabel="leg length (mm)",
                 title="leg lengths; stroke (solid) and the margin kept (dotted)")
     for ax in axes:
+        ax.set_xlabel("t (s)")
         ax.grid(True, alpha=0.3)
         ax.legend(loc="upper right", fontsize=8, ncol=3)
     return fig
