@@ -10,8 +10,8 @@ need for those forces (controller/drive.py):
 Limits: the stroke [leg_min, leg_max] of [geometry]; cond(J) (scaled as in
 stewart_fmu.kinematics) below `cond_limit`; |i| and |V| below [controller.motor]'s
 current_limit and voltage_limit; |sigma| below Kf x current_limit (AxisModel.peak_force), the
-most force the drive can give. A scene without [controller] (or without [drive]) has no motor: current, voltage and
-the force limit are then not computed (`drive_note` says why).
+most force the drive can give. A scene without [controller] (or without [drive]) has no motor:
+current, voltage and the force limit are then not computed (`drive_note` says why).
 
 Forces are computed at every sample, also those past the stroke (the stroke is checked here,
 not refused by the dynamics), so a report shows what the whole trajectory would take.

@@ -1,11 +1,11 @@
 """The files of `excite`, written together or not at all (stewart_sim.outputs.file_set):
 
-- T.csv: the trajectory in the contract's columns (stewart_fmu.io TRAJECTORY_COLUMNS), the
-  input of `inverse`, `trajectory`'s format and `run --trajectory`;
-- T.md beside it: the condition number, the base parameters, every limit and its margin, the
-  series' coefficients;
-- T.png beside it: one period of the pose (mm, mrad) and of the leg lengths against the stroke
-  and its margin (mm).
+- T.csv: the trajectory in the contract's columns (stewart_fmu.io TRAJECTORY_COLUMNS), in the
+  format `inverse` reads and `trajectory` writes;
+- the report beside it (the same name, .md): the condition number, the base parameters, every
+  limit and its margin, the series' coefficients;
+- the figure beside it (.png): one period of the pose (mm, mrad) and of the leg lengths against
+  the stroke and its margin (mm).
 
 `summary` gives the lines `excite` prints.
 """
@@ -30,7 +30,7 @@ SIDE = (".md", ".png")      # the report and the figure beside T.csv
 
 
 def side_paths(out: str | Path) -> tuple[Path, Path, Path]:
-    """T.csv and the report and figure beside it (T.md, T.png)."""
+    """T.csv and the report and figure beside it (the same name, .md and .png)."""
     out = Path(out)
     if out.suffix.lower() in SIDE:
         raise StewartError(f"excite: --out {out}: the trajectory cannot be a {out.suffix} file "
@@ -39,7 +39,7 @@ def side_paths(out: str | Path) -> tuple[Path, Path, Path]:
 
 
 def write_excitation(model: Model, e: Excitation, scene: str, out: str | Path) -> list[Path]:
-    """T.csv, T.md and T.png, all or nothing; returns their paths."""
+    """T.csv, its report and its figure, all or nothing; returns their paths."""
     paths = side_paths(out)
     traj = e.trajectory
     with file_set(*paths) as (csv, md, png):
@@ -99,7 +99,7 @@ def summary(e: Excitation) -> list[str]:
 
 
 def report_text(e: Excitation, scene: str, out: Path) -> str:
-    """T.md: what the trajectory is, its condition number and its margins."""
+    """The report (.md): what the trajectory is, its condition number and its margins."""
     d, s = e.design, e.design.series
     q0, a, b = s.coefficients(e.shrunk * d.x)
     duration = e.trajectory.t[-1] - e.trajectory.t[0]
