@@ -103,8 +103,7 @@ def peaks(model: Model, controller: ControllerConfig | None, t: np.ndarray, q: n
     speeds and accelerations by inverse kinematics)."""
     f = feasibility(model, t, q, qd, qdd, controller)
     kin = inverse_kinematics(model, q, qd, qdd, with_cond=False)
-    voltage = None if f.voltage is None or controller is None or model.drive is None else \
-        np.max(np.abs(f.voltage), axis=0)
+    voltage = None if f.voltage is None else np.max(np.abs(f.voltage), axis=0)
     return Peaks(np.min(f.lengths, axis=0), np.max(f.lengths, axis=0),
                  np.max(np.abs(kin.rates), axis=0), np.max(np.abs(kin.accelerations), axis=0),
                  np.max(np.abs(f.sigma), axis=0), voltage, float(np.max(f.cond)))

@@ -71,7 +71,7 @@ class _Problem:
 
     def __init__(self, model: Model, controller: ControllerConfig | None, series: FourierSeries,
                  lim: Limits, columns: np.ndarray) -> None:
-        self.model, self.series, self.lim = model, series, lim
+        self.series, self.lim = series, lim
         # the drive's constant load once (axis_model would derive it at every evaluation)
         self.controller = controller if controller is None or controller.load_mass is not None \
             or model.drive is None else replace(controller, load_mass=constant_load(model))

@@ -59,13 +59,11 @@ def margins(lim: Limits, p: Peaks) -> list[tuple[str, str, str, str]]:
                                        ("acceleration", "leg acceleration", "m/s^2", ".3g"),
                                        ("force", "rack force", "N", ".4g"),
                                        ("voltage", "motor voltage", "V", ".3g")):
-        limit = getattr(lim, quantity)
-        if limit is None:
-            rows.append((label, f"{np.max(getattr(p, quantity)):{fmt}} {unit}"
-                         if getattr(p, quantity) is not None else "-", "not limited", "-"))
-            continue
-        rows.append((label, f"{np.max(getattr(p, quantity)):{fmt}} {unit}",
-                     f"<= {lim.bound(quantity):{fmt}} {unit}", f"{limit:{fmt}} {unit}"))
+        limit, value = getattr(lim, quantity), getattr(p, quantity)
+        reached = "-" if value is None else f"{np.max(value):{fmt}} {unit}"
+        rows.append((label, reached, "not limited", "-") if limit is None else
+                    (label, reached, f"<= {lim.bound(quantity):{fmt}} {unit}",
+                     f"{limit:{fmt}} {unit}"))
     rows.append(("cond(J), worst pose", f"{p.cond:.3g}", f"<= {lim.bound('cond'):.3g}",
                  f"{lim.cond:.3g}"))
     return rows

@@ -235,3 +235,24 @@ def test_no_room_is_refused_before_any_optimisation(tmp_path):
     free = replace(tight.model, leg_min=None, leg_max=None)
     with pytest.raises(StewartError, match="gives no stroke"):
         limits(free, tight.controller)
+
+
+def test_a_scene_without_a_motor_keeps_its_stroke_and_cond(tmp_path, capsys):
+    """No [controller]: speed, acceleration, force and voltage are not limited (and said so),
+    the stroke and cond(J) still are; the trajectory at 1 kHz."""
+    text = MICRO.read_text(encoding="utf-8").split("# Per-axis drive controllers")[0]
+    path = tmp_path / "no_motor.toml"
+    path.write_text(text, encoding="utf-8")
+    out = tmp_path / "T.csv"
+    assert cli.main(["excite", str(path), "--out", str(out), "--duration", "10",
+                     "--starts", "1"]) == 0
+    printed = capsys.readouterr().out
+    assert "no [controller] table" in printed and "leg speed: peak" not in printed
+    t, q, _, _ = io.read_trajectory(out)
+    assert t.size == 10_001
+    model = load(path).model
+    lengths = inverse_kinematics(model, q).lengths
+    span = model.leg_max - model.leg_min
+    assert lengths.min() >= model.leg_min + STROKE_MARGIN * span
+    assert lengths.max() <= model.leg_max - STROKE_MARGIN * span
+    assert "| rack force | " in out.with_suffix(".md").read_text(encoding="utf-8")
