@@ -16,10 +16,10 @@ The first two hold for every x: in the position amplitudes alpha_jk = a_jk / (k 
 beta_jk = b_jk / (k w_f) they read sum_k k alpha_jk = 0 and sum_k k^2 beta_jk = 0, so
 alpha_j = Na x_aj and beta_j = Nb x_bj with Na, Nb orthonormal bases of the vectors orthogonal
 to [1 2 .. H] and [1 4 .. H^2] (2 (H - 1) free numbers per axis, the optimiser's variables);
-the third sets q0. Every multiple of the period is then
-at rest at home as well (the series is periodic), so a trajectory of n whole periods starts and
-ends at rest at home. The optimiser's x is dimensionless: the position amplitudes a/(k w_f) and
-b/(k w_f) are x times `scale` (m for x, y, z; rad for the angles).
+the third sets q0. Every multiple of the period is then at rest at home as well (the series is
+periodic), so a trajectory of n whole periods starts and ends at rest at home. The optimiser's x
+is dimensionless: alpha and beta are Na x_a and Nb x_b times `scale` (m for x, y, z; rad for
+the angles).
 """
 from __future__ import annotations
 

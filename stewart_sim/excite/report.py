@@ -73,7 +73,8 @@ def summary(e: Excitation) -> list[str]:
     """The lines `excite` prints: the condition number, the base parameters, the margins."""
     d, p, lim = e.design, e.peaks, e.design.limits
     lines = [f"scaled condition number of the stacked base regressor: {e.cond:.4g} "
-             f"({d.base.rank} base parameters, {e.trajectory.t.size} samples x 6 legs; "
+             f"(columns of unit norm; {d.base.rank} base parameters, {e.trajectory.t.size} "
+             f"samples x 6 legs; "
              f"optimised on a grid of {GRID_PER_HARMONIC * d.series.harmonics} samples a "
              f"period: {d.cond:.4g})",
              f"stroke: shortest leg {np.min(p.stroke_min) * MM:.2f} mm, "
