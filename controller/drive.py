@@ -68,6 +68,22 @@ class AxisModel:
     def moving_mass(self) -> float:
         return self.load_mass + self.reflected_mass
 
+    @property
+    def peak_force(self) -> float:
+        """The most rack force the drive gives, N: Kf x the motor's current_limit."""
+        return self.force_constant * self.motor.current_limit
+
+    @property
+    def no_load_speed(self) -> float:
+        """The fastest the rack moves, m/s: the motor's voltage_limit / Ke' (no current, all
+        the voltage against the back-EMF)."""
+        return self.motor.voltage_limit / self.emf_constant
+
+    @property
+    def peak_acceleration(self) -> float:
+        """The most the drive accelerates its constant load, m/s^2: peak_force / moving_mass."""
+        return self.peak_force / self.moving_mass
+
     def voltage(self, current, current_rate, ldot):
         """The motor voltage that drives `current` changing at `current_rate` at rack speed
         `ldot`: R i + L di/dt + (Ke zeta / r) ldot (arrays or numbers)."""

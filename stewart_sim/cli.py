@@ -38,6 +38,7 @@ COMMANDS = {
     "cue": "motion cueing: vehicle motion -> platform trajectory, perception, limits",
     "calibrate": "kinematic calibration: joints and leg offsets from measured poses",
     "identify": "identify inertial and friction parameters from measured runs",
+    "excite": "excitation trajectory for identification (optimised regressor condition)",
 }
 KEPT = "nothing new written (an earlier output is left as it was)"  # on Ctrl-C
 

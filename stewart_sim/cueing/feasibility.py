@@ -9,9 +9,9 @@ need for those forces (controller/drive.py):
 (AxisModel.drive_for, as the controller's feedforward: di/dt by central differences.)
 Limits: the stroke [leg_min, leg_max] of [geometry]; cond(J) (scaled as in
 stewart_fmu.kinematics) below `cond_limit`; |i| and |V| below [controller.motor]'s
-current_limit and voltage_limit; |sigma| below Kf x current_limit, the most force the drive
-can give. A scene without [controller] (or without [drive]) has no motor: current, voltage and
-the force limit are then not computed (`drive_note` says why).
+current_limit and voltage_limit; |sigma| below Kf x current_limit (AxisModel.peak_force), the
+most force the drive can give. A scene without [controller] (or without [drive]) has no motor:
+current, voltage and the force limit are then not computed (`drive_note` says why).
 
 Forces are computed at every sample, also those past the stroke (the stroke is checked here,
 not refused by the dynamics), so a report shows what the whole trajectory would take.
@@ -116,7 +116,7 @@ def feasibility(model: Model, t, q, qd, qdd, controller: ControllerConfig | None
         voltage, current = axis.drive_for(t, sigma, kin.rates)
         motor = controller.motor
         current_limit, voltage_limit = motor.current_limit, motor.voltage_limit
-        force_limit = axis.force_constant * current_limit
+        force_limit = axis.peak_force
     checks = {"stroke_min": (kin.lengths, model.leg_min, -1),
               "stroke_max": (kin.lengths, model.leg_max, +1),
               "cond": (kin.cond[:, None], cond_limit, +1),

@@ -1,0 +1,140 @@
+"""The limits an excitation trajectory keeps, and how far a trajectory is from each.
+
+Every limit is one the project already derives; excite keeps a margin from each:
+
+- stroke: [leg_min, leg_max] of [geometry], STROKE_MARGIN of the stroke kept free at each end;
+- leg speed: the drive's no-load speed V_max / Ke' (controller.drive.AxisModel.no_load_speed);
+- leg acceleration: the drive's peak force over its constant load (AxisModel.peak_acceleration);
+- rack force: Kf x current_limit (AxisModel.peak_force), against the prior scene's inverse
+  dynamics, drives included (stewart_sim.cueing.feasibility);
+- motor voltage: [controller.motor] voltage_limit against R i + L di/dt + Ke' ldot (feasibility);
+- cond(J): the scaled condition number of the Jacobian (stewart_fmu.kinematics) against
+  feasibility's COND_LIMIT.
+
+Speed, acceleration, force, voltage and cond(J) are kept to LIMIT_FRACTION of their limit. A
+scene without [controller] or [drive] has no motor: its speed, acceleration, force and voltage
+are then not limited (`Limits.note` says why), the stroke still bounds the motion.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from controller.config import ControllerConfig
+from controller.drive import axis_model
+from stewart_fmu.errors import StewartError
+from stewart_fmu.kinematics import inverse_kinematics
+from stewart_fmu.model import Model
+from stewart_sim.cueing.feasibility import COND_LIMIT, feasibility
+
+STROKE_MARGIN = 0.05    # fraction of the stroke kept free at each end
+LIMIT_FRACTION = 0.8    # speed, acceleration, force, voltage and cond(J): at most this of the limit
+QUANTITIES = ("stroke_min", "stroke_max", "speed", "acceleration", "force", "voltage", "cond")
+
+
+@dataclass(frozen=True)
+class Limits:
+    """The limits of a scene (None: not limited, see `note`) and the margins kept from them."""
+
+    leg_min: float          # m
+    leg_max: float          # m
+    margin: float           # m kept free at each end of the stroke
+    speed: float | None     # m/s
+    acceleration: float | None   # m/s^2
+    force: float | None     # N
+    voltage: float | None   # V
+    cond: float             # scaled cond(J)
+    fraction: float = LIMIT_FRACTION
+    note: str | None = None
+
+    def bound(self, quantity: str) -> float | None:
+        """What the trajectory may reach: leg_min + margin, leg_max - margin, fraction x the
+        others (None: not limited)."""
+        if quantity == "stroke_min":
+            return self.leg_min + self.margin
+        if quantity == "stroke_max":
+            return self.leg_max - self.margin
+        limit = getattr(self, quantity)
+        return None if limit is None else self.fraction * limit
+
+
+@dataclass(frozen=True)
+class Peaks:
+    """What a trajectory asks: per leg (6,) the shortest and longest length (m), the peak |leg
+    speed| (m/s), |acceleration| (m/s^2), |rack force| (N) and |motor voltage| (V; None without
+    a motor), and the worst cond(J) over the samples."""
+
+    stroke_min: np.ndarray
+    stroke_max: np.ndarray
+    speed: np.ndarray
+    acceleration: np.ndarray
+    force: np.ndarray
+    voltage: np.ndarray | None
+    cond: float
+
+
+def limits(model: Model, controller: ControllerConfig | None) -> Limits:
+    """The scene's limits; StewartError when it gives no stroke or leaves home no room."""
+    if model.leg_min is None or model.leg_max is None:
+        raise StewartError("excite: the scene gives no stroke ([geometry] leg_min and leg_max): "
+                           "the excitation needs it to bound the motion")
+    margin = STROKE_MARGIN * (model.leg_max - model.leg_min)
+    home = inverse_kinematics(model, np.asarray(model.home)[None, :], with_cond=False).lengths[0]
+    free = min(float(np.min(home)) - model.leg_min, model.leg_max - float(np.max(home)))
+    if not free > margin:
+        raise StewartError(f"excite: no room to move: a leg at home is {free * 1e3:.3g} mm from "
+                           f"an end of its stroke, within the margin of {margin * 1e3:.3g} mm "
+                           f"({STROKE_MARGIN:.0%} of the stroke)")
+    if controller is None or model.drive is None:
+        what = "[controller] table (the motor)" if controller is None else "[drive] table"
+        return Limits(model.leg_min, model.leg_max, margin, None, None, None, None, COND_LIMIT,
+                      note=f"the scene has no {what}: leg speed, acceleration, rack force and "
+                           "voltage not limited")
+    axis = axis_model(model, controller.motor, controller.load_mass)
+    return Limits(model.leg_min, model.leg_max, margin, axis.no_load_speed,
+                  axis.peak_acceleration, axis.peak_force, controller.motor.voltage_limit,
+                  COND_LIMIT)
+
+
+def peaks(model: Model, controller: ControllerConfig | None, t: np.ndarray, q: np.ndarray,
+          qd: np.ndarray, qdd: np.ndarray) -> Peaks:
+    """The peaks of a trajectory (feasibility's lengths, forces, voltages and cond(J); leg
+    speeds and accelerations by inverse kinematics)."""
+    f = feasibility(model, t, q, qd, qdd, controller)
+    kin = inverse_kinematics(model, q, qd, qdd, with_cond=False)
+    voltage = None if f.voltage is None else np.max(np.abs(f.voltage), axis=0)
+    return Peaks(np.min(f.lengths, axis=0), np.max(f.lengths, axis=0),
+                 np.max(np.abs(kin.rates), axis=0), np.max(np.abs(kin.accelerations), axis=0),
+                 np.max(np.abs(f.sigma), axis=0), voltage, float(np.max(f.cond)))
+
+
+def slack(lim: Limits, p: Peaks) -> np.ndarray:
+    """How far inside its bound each quantity is, as a fraction (>= 0: inside): the stroke's per
+    leg in units of the stroke, the others 1 - peak / bound per leg (cond(J): one number)."""
+    span = lim.leg_max - lim.leg_min
+    out = [(p.stroke_min - lim.bound("stroke_min")) / span,
+           (lim.bound("stroke_max") - p.stroke_max) / span]
+    for quantity in ("speed", "acceleration", "force", "voltage"):
+        bound, value = lim.bound(quantity), getattr(p, quantity)
+        if bound is not None and value is not None:
+            out.append(1.0 - value / bound)
+    out.append(np.atleast_1d(1.0 - p.cond / lim.bound("cond")))
+    return np.concatenate(out)
+
+
+def slack_names(lim: Limits) -> list[str]:
+    """The quantity of each entry of `slack` ("speed leg 3", "cond")."""
+    names = []
+    for quantity in QUANTITIES:
+        if quantity == "cond":
+            names.append("cond(J)")
+        elif quantity.startswith("stroke") or lim.bound(quantity) is not None:
+            names += [f"{quantity} leg {i}" for i in range(1, 7)]
+    return names
+
+
+def tightest(lim: Limits, g: np.ndarray) -> str:
+    """The entry of `slack` g with the least slack, as 'speed leg 3 slack -0.02'."""
+    k = int(np.argmin(g))
+    return f"{slack_names(lim)[k]} slack {g[k]:.3g}"
