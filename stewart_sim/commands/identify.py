@@ -16,6 +16,10 @@ def _positive(v: float) -> bool:
     return v > 0
 
 
+def _finite(v: float) -> bool:
+    return abs(v) < 1.0   # s: a second or more is a mistake, not a sensor (NaN fails too)
+
+
 def add_parser(sub, help_text: str) -> None:
     """Register `identify` on the command line's subparsers."""
     p = sub.add_parser(
@@ -44,6 +48,13 @@ def add_parser(sub, help_text: str) -> None:
                    help="then refine by output error: the forward model's leg lengths fitted to "
                         "the measured ones (short segments from the measured state, driven by "
                         "the measured forces), with a force delay and per-leg force biases")
+    p.add_argument("--force-delay", type=number(float, "a number", _finite,
+                                                "a number of seconds in (-1, 1)"),
+                   default=0.0, metavar="S",
+                   help="the forces belong to the motion this long before their time stamp "
+                        "(the emulated device's recordings: half a controller period, 0.0005 at "
+                        "1 kHz: each row's force is the mean over the tick ending at t); "
+                        "default 0")
     p.add_argument("--partial", action="store_true",
                    help="identify what the runs determine when they excite less than the "
                         "scene's structure allows; the rest keeps its prior value")
@@ -61,7 +72,7 @@ def run(args: argparse.Namespace) -> None:
     motor = scene.controller.motor if scene.controller is not None else None
     runs = [read_run(path, scene.model, motor) for path in args.runs]
     held = [read_run(path, scene.model, motor) for path in args.validate]
-    ident = identify(scene.model, runs, args.cutoff, args.partial)
+    ident = identify(scene.model, runs, args.cutoff, args.partial, args.force_delay)
     refined = None
     if args.refine:
         from stewart_sim.identify.refine import refine

@@ -98,9 +98,12 @@ def choose_filter(t: np.ndarray, q: np.ndarray, cutoff: float | None = None,
     return Filter(float(cutoff), float(rate), int(decimate), extension, trim)
 
 
-def derivatives(q: np.ndarray, f: Filter) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The zero-phase low-passed q (N, ...) and its first two time derivatives."""
-    q_f, qd, qdd = _apply(q, f, (0, 1, 2))
+def derivatives(q: np.ndarray, f: Filter, shift: float = 0.0
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The zero-phase low-passed q (N, ...) and its first two time derivatives; with `shift`
+    (s), those of q(t + shift) at the same times (a band-limited time shift: the spectrum times
+    exp(i 2 pi f shift), exact on a periodic record)."""
+    q_f, qd, qdd = _apply(q, f, (0, 1, 2), shift)
     return q_f, qd, qdd
 
 
@@ -128,8 +131,9 @@ def white_noise_factor(f: Filter) -> float:
     return max(1.0, f.rate / 2 / f.decimate / band)
 
 
-def _apply(x: np.ndarray, f: Filter, orders: tuple[int, ...]) -> list[np.ndarray]:
-    """The low-passed k-th derivatives (k in orders) of x along its first axis."""
+def _apply(x: np.ndarray, f: Filter, orders: tuple[int, ...], shift: float = 0.0
+           ) -> list[np.ndarray]:
+    """The low-passed k-th derivatives (k in orders) of x(t + shift) along its first axis."""
     x = np.asarray(x, dtype=float)
     n, shape = x.shape[0], x.shape[1:]
     flat = x.reshape(n, -1)
@@ -138,8 +142,9 @@ def _apply(x: np.ndarray, f: Filter, orders: tuple[int, ...]) -> list[np.ndarray
     m = n - 1 if closed else n                       # the samples of one period
     size = 2 * m - 2 if odd else m
     freq = np.fft.rfftfreq(size, 1.0 / f.rate)
-    gains = [_window(freq, f.cutoff) * (2j * np.pi * freq) ** k for k in orders]
-    ramp = np.linspace(0.0, 1.0, n)[:, None]
+    gains = [_window(freq, f.cutoff) * (2j * np.pi * freq) ** k
+             * np.exp(2j * np.pi * freq * shift) for k in orders]
+    ramp = np.linspace(0.0, 1.0, n)[:, None] + shift * f.rate / (n - 1)
     for c in range(0, flat.shape[1], _BLOCK):
         block = flat[:m, c:c + _BLOCK]
         if odd:       # the line through both ends off, then mirrored with a sign change

@@ -96,6 +96,7 @@ class Identification:
     prior: np.ndarray            # the prior scene's standard parameters
     scale: np.ndarray            # typical magnitude of each standard parameter
     missing: tuple[str, ...]     # structurally identifiable, not by these runs (kept at prior)
+    force_delay: float = 0.0     # s: the runs' forces belong to the motion this long before
 
     @property
     def pi(self) -> np.ndarray:
@@ -122,23 +123,25 @@ class Identification:
 
 
 def prepare(model: Model, run: Run, cutoff: float | None = None,
-            decimate: int | None = None) -> Prepared:
-    """The identification rows of one run (module docstring)."""
+            decimate: int | None = None, force_delay: float = 0.0) -> Prepared:
+    """The identification rows of one run (module docstring); `force_delay` (s): the run's
+    forces belong to the motion that long before their time stamp (the regressor is then taken
+    of the pose shifted back by it: the forces and their noise stay as measured)."""
     q = pose_of(model, run)
     filt = choose_filter(run.t, q, cutoff, decimate)
-    qf, qd, qdd = derivatives(q, filt)
+    qf, qd, qdd = derivatives(q, filt, -force_delay)
     Y = regressor(model, qf, qd, qdd)
     Yd = decimated(lowpass(Y, filt), filt)
     sd = decimated(lowpass(run.sigma, filt), filt)
     return Prepared(run, filt, decimated(run.t, filt), stacked(Yd), sd.reshape(-1))
 
 
-def identify(model: Model, runs: list[Run], cutoff: float | None = None, partial: bool = False
-             ) -> Identification:
+def identify(model: Model, runs: list[Run], cutoff: float | None = None, partial: bool = False,
+             force_delay: float = 0.0) -> Identification:
     """Identify the scene's standard parameters from `runs`. Raises IdentificationError when the
     runs determine fewer base parameters than the scene's structure allows (unless `partial`:
     then the others keep the prior)."""
-    prepared = tuple(prepare(model, r, cutoff) for r in runs)
+    prepared = tuple(prepare(model, r, cutoff, force_delay=force_delay) for r in runs)
     W = np.vstack([p.W for p in prepared])
     s = np.concatenate([p.s for p in prepared])
     legs = np.tile(np.arange(6), len(s) // 6)
@@ -157,7 +160,8 @@ def identify(model: Model, runs: list[Run], cutoff: float | None = None, partial
     # factor (signal.white_noise_factor; the largest of the runs' filters, to stay honest)
     factor = max(white_noise_factor(p.filter) for p in prepared)
     est = dataclasses.replace(est, std=est.std * np.sqrt(factor))
-    return Identification(model, prepared, structural, base, est, prior, scale, missing)
+    return Identification(model, prepared, structural, base, est, prior, scale, missing,
+                          force_delay)
 
 
 def _missing(structural: BaseParameters, base: BaseParameters) -> tuple[str, ...]:
@@ -191,7 +195,7 @@ def predict(ident: Identification, run: Run, pi: np.ndarray | None = None) -> Pr
     scaled to the full band as white noise."""
     q = pose_of(ident.model, run)
     filt = choose_filter(run.t, q, ident.prepared[0].filter.cutoff, 1)
-    qf, qd, qdd = derivatives(q, filt)
+    qf, qd, qdd = derivatives(q, filt, -ident.force_delay)
     Y = regressor(ident.model, qf, qd, qdd)
     keep = decimated(np.arange(len(run.t)), filt)
     identified = Y @ (ident.pi if pi is None else pi)

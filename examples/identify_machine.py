@@ -1,0 +1,39 @@
+"""The model meets the machine (README: Identification of the dynamic parameters): an
+excitation trajectory, the emulated device with a hidden true scene recording two runs over the
+serial link, identification on one, validation on the other, and the identified values beside
+the truth the device hid."""
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from stewart_fmu import load_scene
+from stewart_sim.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENE = ROOT / "scenes" / "micro_manipulator.toml"
+TRUTH = ROOT / "scenes" / "machines" / "micro_manipulator_truth.toml"
+
+
+def stewart_sim(*args) -> None:
+    status = main([str(a) for a in args])
+    if status != 0:
+        raise SystemExit(f"stewart-sim {args[0]} exited {status}")
+
+
+with tempfile.TemporaryDirectory() as tmp:
+    d = Path(tmp)
+    stewart_sim("excite", SCENE, "--out", d / "T.csv", "--duration", 10)      # to identify on
+    stewart_sim("excite", SCENE, "--out", d / "V.csv", "--duration", 8, "--period", 4)  # held out
+    for trajectory, run in (("T.csv", "run1"), ("V.csv", "run2")):
+        stewart_sim("run", SCENE, "--link", "serial", "--truth", TRUTH,
+                    "--trajectory", d / trajectory, "--record", d / f"{run}.csv", "--out", d / run)
+    # the device's force in each row is the mean over the tick ending at t: half a period late
+    stewart_sim("identify", SCENE, "--runs", d / "run1.csv", "--validate", d / "run2.csv",
+                "--force-delay", 0.0005, "--out", d / "ident")
+    found, truth, prior = (load_scene(p) for p in (d / "ident" / "identified.toml", TRUTH, SCENE))
+    for name, get in (("viscous friction (N s/m)", lambda m: m.friction.viscous_legs),
+                      ("Coulomb friction (N)", lambda m: m.friction.coulomb_legs),
+                      ("reflected drive mass (kg)", lambda m: m.drive.reflected_masses)):
+        print(f"{name}:\n  prior      {np.round(get(prior), 3)}\n  identified "
+              f"{np.round(get(found), 3)}\n  truth      {np.round(get(truth), 3)}")
