@@ -76,8 +76,12 @@ def run(args: argparse.Namespace) -> None:
     refined = None
     if args.refine:
         from stewart_sim.identify.refine import refine
+        from stewart_sim.progress import Progress
 
-        refined = refine(ident, runs)
+        bar = Progress()
+        refined = refine(ident, runs, progress=lambda k, n: bar.update(
+            "refining (output error)", k, n, unit="evaluations at most"))
+        bar.close()
         print(f"refined {len(refined.refined)} base parameters, delay and biases on "
               f"{refined.segments} segments: length RMS {refined.rms_before * 1e6:.4g} -> "
               f"{refined.rms_after * 1e6:.4g} um; delay {refined.delay * 1e3:.4g} +- "

@@ -19,6 +19,7 @@ residual variance.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 import scipy.optimize
@@ -97,8 +98,10 @@ def segments(ident: Identification, runs: list[Run], length: float = SEGMENT,
 
 def refine(ident: Identification, runs: list[Run], *,
            delay: bool = True, bias: bool = True, length: float = SEGMENT,
-           every: float = EVERY) -> Refinement:
-    """Refine the estimate of `ident` on `runs` (module docstring)."""
+           every: float = EVERY, progress: Callable[[int, int], None] | None = None
+           ) -> Refinement:
+    """Refine the estimate of `ident` on `runs` (module docstring); `progress(k, total)` after
+    each residual evaluation (total: MAX_EVALUATIONS, the most there can be)."""
     segs = segments(ident, runs, length, every)
     base, est, scale = ident.base, ident.estimate, ident.scale
     held = ~_UNHELD
@@ -121,7 +124,12 @@ def refine(ident: Identification, runs: list[Run], *,
         b = x[n_th + int(delay):] if bias else np.zeros(6)
         return pi, d, b
 
+    count = [0]
+
     def residuals(x):
+        count[0] += 1
+        if progress is not None:
+            progress(count[0], MAX_EVALUATIONS)
         pi, d, b = unpack(x)
         values, _ = scene_values(ident.model, pi, ident.written())
         try:
