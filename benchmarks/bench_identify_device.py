@@ -15,7 +15,6 @@ the ratio of the identified one to the noise floor (worst leg); then the totals.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import tempfile
 from pathlib import Path
 
@@ -31,39 +30,11 @@ from stewart_fmu.standard import standard_parameters
 from stewart_sim.excite.design import design, excitation
 from stewart_sim.identify.runs import read_run
 from stewart_sim.identify.study import identify, predict
+from stewart_sim.identify.synthetic import perturbed_model
 from stewart_sim.link_run import link_reference, record_table
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "scenes" / "micro_manipulator.toml"
-
-
-def perturbed(model, rng, frac=0.3):
-    f = lambda: float(1.0 + rng.uniform(-frac, frac))  # noqa: E731
-    while True:
-        inertia = model.platform_inertia * np.array([f(), f(), f()])
-        if 2.0 * inertia.max() <= inertia.sum():
-            break
-    lg = model.legs
-    while True:
-        legs = dataclasses.replace(
-            lg, lower_mass=lg.lower_mass * f(), lower_com=lg.lower_com * f(),
-            lower_inertia=(lg.lower_inertia[0] * f(), lg.lower_inertia[1] * f()),
-            upper_mass=lg.upper_mass * f(), upper_com=lg.upper_com * f(),
-            upper_inertia=(lg.upper_inertia[0] * f(), lg.upper_inertia[1] * f()))
-        if all(a <= 2 * t for t, a in (legs.lower_inertia, legs.upper_inertia)):
-            break
-    drive = dataclasses.replace(model.drive, rotor_inertia=per_leg(model.drive.rotor_inertia)
-                                * (1.0 + rng.uniform(-frac, frac, 6)))
-    friction = dataclasses.replace(
-        model.friction, viscous=per_leg(model.friction.viscous) * (1 + rng.uniform(-frac, frac, 6)),
-        coulomb=0.2 * (1 + rng.uniform(-frac, frac, 6)))   # the prior has none: 0.2 N +- 30 %
-    return dataclasses.replace(model, platform_mass=model.platform_mass * f(),
-                               platform_inertia=inertia, legs=legs, drive=drive,
-                               friction=friction)
-
-
-def per_leg(v):
-    return np.broadcast_to(np.asarray(v, dtype=float), (6,)).copy()
 
 
 def record(model, config, truth, traj, noise, seed, path):
@@ -95,7 +66,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as d:
         for seed in range(args.seeds):
             rng = np.random.default_rng(seed)
-            truth = perturbed(prior, rng)
+            truth = perturbed_model(prior, rng)
             a = record(prior, config, truth, ident_traj, noise, 2 * seed, Path(d) / "a.csv")
             b = record(prior, config, truth, held_traj, noise, 2 * seed + 1, Path(d) / "b.csv")
             ident = identify(prior, [read_run(a, prior)], force_delay=0.5 / config.rate)

@@ -1,7 +1,7 @@
 """The estimation of identify on regressor rows the model generated (no files, no filter):
 recovery of known base parameters, honest standard deviations, physical consistency, and the
 refusal of data that cannot determine the scene's base parameters."""
-import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -10,33 +10,10 @@ from stewart_fmu import load_scene
 from stewart_fmu.dynamics import regressor
 from stewart_fmu.standard import N_STANDARD, present, span, standard_parameters
 from stewart_sim.identify.base import base_parameters, random_motion, stacked, structural_base
-from stewart_sim.identify.estimate import estimate
-from stewart_sim.identify.estimate import scales
+from stewart_sim.identify.estimate import estimate, scales
+from stewart_sim.identify.synthetic import perturbed_model
 
-SCENE = "scenes/micro_manipulator.toml"
-
-
-def perturbed(model, rng, frac=0.3):
-    """A physically valid model with every inertial and friction parameter off by up to
-    +-frac (the platform's principal moments redrawn until they obey the triangle inequality)."""
-    f = lambda: float(1.0 + rng.uniform(-frac, frac))  # noqa: E731
-    while True:
-        inertia = model.platform_inertia * np.array([f(), f(), f()])
-        if 2.0 * inertia.max() <= inertia.sum():
-            break
-    lg = model.legs
-    legs = dataclasses.replace(
-        lg, lower_mass=lg.lower_mass * f(), lower_com=lg.lower_com * f(),
-        lower_inertia=(lg.lower_inertia[0] * f(), lg.lower_inertia[1] * f()),
-        upper_mass=lg.upper_mass * f(), upper_com=lg.upper_com * f(),
-        upper_inertia=(lg.upper_inertia[0] * f(), lg.upper_inertia[1] * f()))
-    drive = dataclasses.replace(model.drive, rotor_inertia=model.drive.rotor_inertia
-                                * (1.0 + rng.uniform(-frac, frac, 6)))
-    friction = dataclasses.replace(model.friction, viscous=5.0 * (1 + rng.uniform(-frac, frac, 6)),
-                                   coulomb=0.2 * (1 + rng.uniform(-frac, frac, 6)))
-    return dataclasses.replace(model, platform_mass=model.platform_mass * f(),
-                               platform_inertia=inertia, legs=legs, drive=drive,
-                               friction=friction)
+SCENE = Path(__file__).resolve().parents[2] / "scenes" / "micro_manipulator.toml"
 
 
 @pytest.fixture(scope="module")
@@ -61,7 +38,7 @@ def run_estimate(model, truth, W, legs, noise, rng):
 
 def test_noise_free_rows_give_the_base_parameters_to_1e_8(micro):
     rng = np.random.default_rng(0)
-    truth = standard_parameters(perturbed(micro, rng))
+    truth = standard_parameters(perturbed_model(micro, rng))
     W, legs = rows(micro, 2000, rng)
     base, est, sc = run_estimate(micro, truth, W, legs, 0.0, rng)
     assert base.rank == structural_base(micro).rank == 31
@@ -81,7 +58,7 @@ def test_the_truth_is_inside_three_sigma(micro):
     inside, total = 0, 0
     for seed in range(20):
         rng = np.random.default_rng(100 + seed)
-        truth = standard_parameters(perturbed(micro, rng))
+        truth = standard_parameters(perturbed_model(micro, rng))
         W, legs = rows(micro, 600, rng)
         base, est, _ = run_estimate(micro, truth, W, legs, 0.01, rng)
         z = np.abs(est.beta - base.beta(truth)) / est.std
@@ -107,7 +84,7 @@ def test_the_estimate_is_physically_consistent(micro):
     """With noise large enough to make the WLS estimate unphysical, pi is physical (pseudo-
     inertias >= 0, frictions and drive masses >= 0) and reproduces the reported beta."""
     rng = np.random.default_rng(7)
-    truth = standard_parameters(perturbed(micro, rng))
+    truth = standard_parameters(perturbed_model(micro, rng))
     W, legs = rows(micro, 300, rng)
     base, est, sc = run_estimate(micro, truth, W, legs, 0.05, rng)
     pi = est.pi
