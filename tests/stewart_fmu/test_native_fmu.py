@@ -19,6 +19,7 @@ import time
 import tomllib
 import zipfile
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from xml.etree import ElementTree
 
@@ -35,6 +36,7 @@ from stewart_fmu.integrators import IntegratorOptions
 from stewart_fmu.plant import Plant
 from stewart_fmu.scene import apply_overrides, scene_from_dict
 from tests.helpers import record
+from tests.stewart_fmu.native_fmu_child import Elements
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENES = {"micro": ROOT / "scenes" / "micro_manipulator.toml",
@@ -59,9 +61,16 @@ class Built:
     data: dict
     model: Model
 
+    @cached_property
+    def elements(self) -> Elements:
+        """The values one by one under their FMI 2.0 names (an FMI 3.0 array's elements)."""
+        return Elements(self.md)
+
     @property
     def vr(self) -> dict[str, int]:
-        return {v.name: v.valueReference for v in self.md.modelVariables}
+        """Value references of the variables and of every element (an FMI 3.0 array's element
+        k at the array's + k, where the binary stores it)."""
+        return self.elements.vr
 
     @property
     def variables(self) -> dict:
@@ -69,7 +78,26 @@ class Built:
 
     @property
     def outputs(self) -> list[str]:
-        return [v.name for v in self.md.modelVariables if v.causality == "output"]
+        """The outputs' elements, in order (sigma[1] .. in FMI 2.0 and 3.0 alike)."""
+        return self.elements.outputs
+
+    @property
+    def output_vrs(self) -> list[int]:
+        """The declared outputs' value references (FMI 3.0: one per array)."""
+        return [v.valueReference for v in self.md.modelVariables if v.causality == "output"]
+
+    @property
+    def input_vrs(self) -> list[int]:
+        """The declared inputs' value references: sigma, then tau with a drive."""
+        return [v.valueReference for v in self.md.modelVariables if v.causality == "input"]
+
+    def unit(self, name: str) -> str | None:
+        """An element's unit (an FMI 3.0 pose array has none: its elements are m or rad)."""
+        var = self.elements.variable[name]
+        if var.unit or not var.shape:
+            return var.unit
+        base, _, idx = name.partition("[")
+        return (V.POSE_UNITS if base in ("q", "q0", "geometry.home") else V.RATE_UNITS)[int(idx[:-1]) - 1]
 
     @property
     def token(self) -> str:
@@ -102,12 +130,13 @@ class Slave:
     """fmpy's FMU2Slave / FMU3Slave behind one interface, with the log captured."""
 
     def __init__(self, b: Built, name: str = "plant"):
-        self.b, self.vr = b, b.vr
+        self.b, self.vr, self.elements = b, b.vr, b.elements
         self.messages: list[tuple[int, str, str]] = []
-        self.inputs = [self.vr[f"sigma[{i}]"] for i in range(1, 7)]
-        if "drive" in b.data:
+        self.inputs = b.input_vrs if b.version == 3 else [self.vr[f"sigma[{i}]"] for i in range(1, 7)]
+        if "drive" in b.data and b.version == 2:
             self.inputs += [self.vr[f"tau[{i}]"] for i in range(1, 7)]
-        self.out_vr = [self.vr[n] for n in b.outputs]
+        self.out_vr = b.output_vrs if b.version == 3 else [self.vr[n] for n in b.outputs]
+        self.current = self.elements.current()
         common = dict(guid=b.token, unzipDirectory=str(b.unzipdir), modelIdentifier="StewartPlant",
                       instanceName=name)
         if b.version == 2:
@@ -144,20 +173,39 @@ class Slave:
 
     # calls that differ between the versions
     def set(self, values: dict) -> None:
+        """Set elements by name (FMI 3.0: each array touched, whole, the rest as last set)."""
         if values:
             vrs, vals = [self.vr[n] for n in values], [float(x) for x in values.values()]
-            (self.fmu.setReal if self.b.version == 2 else self.fmu.setFloat64)(vrs, vals)
+            if self.b.version == 2:
+                self.fmu.setReal(vrs, vals)
+                return
+            arrays, flat = self.elements.declared(vrs, vals, self.current)
+            self.fmu.setFloat64(arrays, flat)
+            k = 0
+            for a in arrays:
+                n = self.elements.size[a]
+                if a in self.current:
+                    self.current[a] = flat[k:k + n]
+                k += n
 
     def get_vr(self, vrs) -> np.ndarray:
-        return np.array((self.fmu.getReal if self.b.version == 2 else self.fmu.getFloat64)(list(vrs)))
+        """Elements by value reference (FMI 3.0: their arrays read whole)."""
+        if self.b.version == 2:
+            return np.array(self.fmu.getReal(list(vrs)))
+        arrays, n = self.elements.reads(list(vrs))
+        return np.array(self.elements.pick(list(vrs), arrays, self.fmu.getFloat64(arrays, n)))
 
     def get(self, names) -> np.ndarray:
         return self.get_vr([self.vr[n] for n in names])
 
     def outputs(self) -> np.ndarray:
-        return self.get_vr(self.out_vr)
+        """Every output element, in b.outputs order: FMI 3.0 reads the arrays in one call."""
+        if self.b.version == 2:
+            return np.array(self.fmu.getReal(self.out_vr))
+        return np.array(self.fmu.getFloat64(self.out_vr, len(self.b.outputs)))
 
     def init(self, reals: dict | None = None, method: str | None = None, init_reals=None) -> "Slave":
+        self.current = self.elements.current()   # after instantiate or reset: the start values
         if self.b.version == 2:
             self.fmu.setupExperiment(startTime=0.0)
         self.set(reals or {})
@@ -172,7 +220,8 @@ class Slave:
         return self
 
     def step(self, t: float, h: float, u) -> np.ndarray:
-        """Set the inputs (sigma, then tau with a drive), doStep(t, h), get every output."""
+        """Set the inputs (sigma, then tau with a drive; FMI 3.0: the arrays, 6 or 12 values for
+        1 or 2 value references), doStep(t, h), get every output."""
         (self.fmu.setReal if self.b.version == 2 else self.fmu.setFloat64)(self.inputs, [float(x) for x in u])
         self.fmu.doStep(t, h)
         return self.outputs()
@@ -226,6 +275,10 @@ class Reference:
                 row.append(o.q[pose[name]])
             elif name[1:] in pose and name[0] == "d":
                 row.append(o.qd[pose[name[1:]]])
+            elif base == "q":
+                row.append(o.q[i])
+            elif base == "qd":
+                row.append(o.qd[i])
             elif base == "l":
                 row.append(o.lengths[i])
             elif base == "ldot":
@@ -283,7 +336,7 @@ def grid(n: int, h: float = H):
 
 def residual(b: Built, actual, expected, names=None) -> float:
     names = b.outputs if names is None else names
-    units = [b.variables[n].unit for n in names]
+    units = [b.unit(n) for n in names]
     actual, expected = np.atleast_2d(actual), np.atleast_2d(expected)
     assert actual.shape == expected.shape
     assert np.all(np.isfinite(actual)) and np.all(np.isfinite(expected))
@@ -319,6 +372,7 @@ def test_fmpy_validate_finds_nothing_and_parameters_are_the_scene(fmus, case):
         want = expected[var.name]
         assert var.valueReference == want.vr and var.causality == want.causality, var.name
         assert var.description, var.name
+        assert tuple(var.shape or ()) == want.shape, var.name   # FMI 3.0: <Dimension>s, FMI 2.0 scalars
     # every number of the scene's plant tables is a fixed parameter with the scene's value
     for dotted in V.SCENE_KEYS:
         value = V.lookup(b.data, dotted)
@@ -327,11 +381,11 @@ def test_fmpy_validate_finds_nothing_and_parameters_are_the_scene(fmus, case):
         arr = np.asarray(value, dtype=float)
         for idx in np.ndindex(arr.shape):
             name = dotted + (f"[{','.join(str(i + 1) for i in idx)}]" if idx else "")
-            var = b.variables[name]
+            var = b.elements.variable[name]
             assert var.variability == "fixed" and var.causality == "parameter"
-            assert float(var.start) == float(arr[idx]), name
+            assert b.elements.start[b.vr[name]] == float(arr[idx]), name
             assert var.unit or dotted == "geometry.home"
-    assert ("tau[1]" in b.variables) == ("drive" in b.data)
+    assert ("tau[1]" in b.vr) == ("drive" in b.data)
 
 
 @pytest.mark.parametrize("version", [2, 3])
@@ -392,9 +446,9 @@ def test_start_values_read_through_fmi(fmus, version):
             s.fmu.enterInitializationMode()
         else:
             s.fmu.enterInitializationMode(startTime=0.0)
-        params = [v for v in b.md.modelVariables if v.causality == "parameter" and v.type != "String"]
-        got = s.get([v.name for v in params])
-        assert got.tolist() == [float(v.start) for v in params]
+        params = [n for n, v in b.elements.variable.items() if v.causality == "parameter" and v.type != "String"]
+        got = s.get(params)
+        assert got.tolist() == [b.elements.start[b.vr[n]] for n in params]
         assert s.fmu.getString([b.vr["solver.method"]]) == [b"rk4"] or \
             s.fmu.getString([b.vr["solver.method"]]) == ["rk4"]
     finally:
@@ -411,8 +465,12 @@ def master(tmp_path_factory) -> Path:
     return exe
 
 
-def write_script(path: Path, n: int, h: float, in_vr, out_vr, rows) -> Path:
-    lines = [f"{n} {h!r}", " ".join(map(str, [len(in_vr), *in_vr])), " ".join(map(str, [len(out_vr), *out_vr]))]
+def write_script(path: Path, n: int, h: float, in_vr, out_vr, rows, n_out: int) -> Path:
+    """fmi_master's script: the input and output value references, each line led by the number
+    of values they hold (FMI 3.0 arrays: more than references) and the number of references."""
+    n_in = len(rows[0])
+    lines = [f"{n} {h!r}", " ".join(map(str, [n_in, len(in_vr), *in_vr])),
+             " ".join(map(str, [n_out, len(out_vr), *out_vr]))]
     lines += [" ".join(repr(float(x)) for x in row) for row in rows]
     path.write_text("\n".join(lines) + "\n")
     return path
@@ -425,8 +483,10 @@ def test_c_master_matches_plant(fmus, master, version, tmp_path):
     n = 100
     times, steps = grid(n)
     u = drive_inputs(b.model, times, seed=1)
-    in_vr = [b.vr[f"sigma[{i}]"] for i in range(1, 7)] + [b.vr[f"tau[{i}]"] for i in range(1, 7)]
-    script = write_script(tmp_path / "script.txt", n, H, in_vr, [b.vr[x] for x in b.outputs], u)
+    in_vr, out_vr = (b.input_vrs, b.output_vrs) if version == 3 else \
+        ([b.vr[f"sigma[{i}]"] for i in range(1, 7)] + [b.vr[f"tau[{i}]"] for i in range(1, 7)],
+         [b.vr[x] for x in b.outputs])
+    script = write_script(tmp_path / "script.txt", n, H, in_vr, out_vr, u, len(b.outputs))
     proc = subprocess.run([str(master), "run", str(version), str(b.binary), b.token, str(script)],
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0, proc.stderr
@@ -486,12 +546,18 @@ def test_simulate_fmu_matches_plant(fmus, case):
     n = 200
     t = np.arange(n + 1) * H
     u = drive_inputs(b.model, t, seed=4)
-    names = [f"sigma[{i}]" for i in range(1, 7)] + ([f"tau[{i}]" for i in range(1, 7)] if u.shape[1] > 6 else [])
-    signal = np.array([(tk, *row) for tk, row in zip(t, u)], dtype=[("time", np.float64)] + [(x, np.float64) for x in names])
+    groups = ["sigma"] + (["tau"] if u.shape[1] > 6 else [])
+    if b.version == 2:
+        names = [f"{g}[{i}]" for g in groups for i in range(1, 7)]
+        signal = np.array([(tk, *row) for tk, row in zip(t, u)], dtype=[("time", np.float64)] + [(x, np.float64) for x in names])
+    else:   # the input arrays as fmpy takes them: one field of shape (6,) each
+        signal = np.array([(tk, *row.reshape(-1, 6)) for tk, row in zip(t, u)],
+                          dtype=[("time", np.float64)] + [(g, np.float64, (6,)) for g in groups])
+    outputs = [v.name for v in b.md.modelVariables if v.causality == "output"]
     res = simulate_fmu(str(b.path), start_time=0.0, stop_time=n * H, output_interval=H, input=signal,
-                       output=b.outputs)
+                       output=outputs)
     assert np.array_equal(res["time"], t)
-    got = np.column_stack([res[name] for name in b.outputs])
+    got = np.column_stack([res[name] for name in outputs])   # an array's column: its elements
     ref = Reference(b.model, b.outputs)
     rows = ref.run(t[:-1].tolist(), np.diff(t).tolist(), u[:-1])
     agree(f"simulate_fmu vs Plant [{case}]", residual(b, got[1:], rows))
@@ -669,14 +735,17 @@ _SIMULATE_DISCARD = r"""
 import sys, numpy as np
 from fmpy import simulate_fmu
 from fmpy.fmi1 import FMICallException
-path, k_bad, hold = sys.argv[1], int(sys.argv[2]), [float(x) for x in sys.argv[3:9]]
+path, k_bad, hold, version = sys.argv[1], int(sys.argv[2]), [float(x) for x in sys.argv[3:9]], int(sys.argv[9])
 n, h = 50, 1e-3
 t = np.arange(n + 1) * h
 sig = np.tile(hold, (n + 1, 1))
 sig[k_bad:] += 5e6
 rows = [(tk, *s) for tk, s in zip(t, sig)]
 rows.insert(k_bad, (t[k_bad], *sig[k_bad - 1]))   # a step change at t_k: fmpy applies the right one
-signal = np.array(rows, dtype=[("time", float)] + [(f"sigma[{i}]", float) for i in range(1, 7)])
+if version == 2:
+    signal = np.array(rows, dtype=[("time", float)] + [(f"sigma[{i}]", float) for i in range(1, 7)])
+else:   # FMI 3.0: sigma is one array
+    signal = np.array([(r[0], r[1:]) for r in rows], dtype=[("time", float), ("sigma", float, (6,))])
 try:
     res = simulate_fmu(path, stop_time=n * h, output_interval=h, input=signal, output=["z"])
     print("ENDED", repr(float(res["time"][-1])), len(res))
@@ -693,7 +762,8 @@ def test_simulate_fmu_stops_at_a_discard(fmus, version):
     b = fmus[("micro", version)]
     k_bad = 20
     proc = subprocess.run([sys.executable, "-c", _SIMULATE_DISCARD, str(b.path), str(k_bad),
-                           *map(repr, hold_forces(b.model).tolist())], capture_output=True, text=True, timeout=120)
+                           *map(repr, hold_forces(b.model).tolist()), str(version)],
+                          capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr[-2000:]
     if version == 2:
         line = [ln for ln in proc.stdout.splitlines() if ln.startswith("ENDED")]
@@ -774,10 +844,11 @@ def test_fmpy_rebuilds_the_binary_from_sources(fmus, tmp_path):
     shutil.rmtree(unzip / "binaries")
     build_platform_binary(unzip)
     assert (unzip / "binaries" / "x86_64-linux" / "StewartPlant.so").exists()
+    outputs = [v.name for v in b.md.modelVariables if v.causality == "output"]
     run = lambda where: simulate_fmu(str(where), stop_time=0.05, output_interval=H,  # noqa: E731
-                                     start_values={f"sigma[{i}]": 1.0 for i in range(1, 7)}, output=b.outputs)
+                                     start_values={"sigma": [1.0] * 6}, output=outputs)
     got, want = run(unzip), run(b.unzipdir)
-    rows = lambda r: np.column_stack([r[n] for n in b.outputs])  # noqa: E731
+    rows = lambda r: np.column_stack([r[n] for n in outputs])  # noqa: E731
     agree("fmpy.build binary vs shipped", residual(b, rows(got), rows(want)))
 
 
@@ -797,7 +868,7 @@ def test_platform_only_scene_declares_only_what_it_has(tmp_path, fmus):
     for version in (2, 3):
         b = _build(scene, version, tmp_path)
         assert validate_fmu(str(b.path)) == []
-        names = set(b.variables)
+        names = set(b.vr)                               # variables and their elements
         assert not [n for n in names if n.startswith(("legs.", "drive.", "friction.", "tau["))]
         assert {n.split("[")[0] for n in names if n.startswith("force.")} == {"force.platform", "force.gravity"}
         assert "gravity[3]" in names                    # the default gravity is a parameter too
