@@ -335,7 +335,7 @@ def fuzz(unzipdir: str, version: int, seed: int, n_calls: int) -> dict:
             action = rng.choice(["setup_enter", "exit", "terminate", "reset", "set_param", "set_input", "set_input",
                                  "set_output", "unknown", "get_outputs", *["step"] * 10,
                                  "get_state", "set_state", "serialize", "deserialize_bad", "wrong_type", "renew",
-                                 "set_method"])
+                                 "set_method", *(["bad_count"] if version == 3 else [])])
         if action == "init_all":
             for name, call in (("setupExperiment", inst.setup), ("enterInitializationMode", inst.enter)):
                 note(name, call(), False)
@@ -439,6 +439,18 @@ def fuzz(unzipdir: str, version: int, seed: int, n_calls: int) -> dict:
             name = rng.choice(["rk4", "euler", "dopri5", "RK45", "%s%n%x", ""])
             s = inst.set_string([vr["solver.method"]], [name])
             note("setString(solver.method)", s, name not in ("rk4", "euler", "dopri5") or phase not in ("inst", "init"))
+        elif action == "bad_count":   # FMI 3.0: nValues other than the arrays hold
+            arrays = [a for a, n in inst.elements.size.items() if n > 1]
+            ks = rng.sample(arrays, rng.randint(1, 3))
+            right = sum(inst.elements.size[a] for a in ks)
+            n = rng.choice([0, 1, right - 1, right + 1, len(ks), 2 * right])
+            if n == right:
+                n += 1
+            if rng.random() < 0.5:
+                s = inst.status(inst.fmu.getFloat64, ks, n)[0]
+            else:
+                s = inst.status(inst.fmu.setFloat64, ks, [rng.uniform(-1, 1) for _ in range(n)])[0]
+            note("get/setFloat64(wrong nValues)", s, True)
         elif action == "renew":
             inst.terminate()
             inst.free()
