@@ -181,7 +181,7 @@ def fmpy_step_time(fmu: Path, version: int, inputs: list[str], outputs: list[str
             f.instantiate()
             f.enterInitializationMode(startTime=0.0)
             f.exitInitializationMode()
-            set_, get = f.setFloat64, f.getFloat64
+            set_, get = f.setFloat64, lambda vrs: f.getFloat64(vrs, 6)   # 6 values: 6 scalars or an array
         rows = values.tolist()
         step = f.doStep
         t0 = time.perf_counter()
@@ -198,7 +198,7 @@ def fmpy_step_time(fmu: Path, version: int, inputs: list[str], outputs: list[str
 def c_step_time(master: Path, binary: Path, token: str, version: int, vin, vout, values, steps: int,
                 folder: Path) -> float:
     script = folder / "script.txt"
-    lines = [f"{steps} {H!r}", " ".join(map(str, [len(vin), *vin])), " ".join(map(str, [len(vout), *vout]))]
+    lines = [f"{steps} {H!r}", " ".join(map(str, [6, len(vin), *vin])), " ".join(map(str, [6, len(vout), *vout]))]
     lines += [" ".join(repr(x) for x in row) for row in values.tolist()]
     script.write_text("\n".join(lines) + "\n")
     out = subprocess.run([str(master), "bench", str(version), str(binary), token, str(script), "5"],
@@ -223,7 +223,8 @@ def main() -> None:
         for version in (2, 3):
             ours = export_fmu(SCENE, folder / f"micro{version}.fmu", fmi_version=version)
             trivial = build_trivial(folder, version)
-            ins, outs = [f"sigma[{i}]" for i in range(1, 7)], [f"l[{i}]" for i in range(1, 7)]
+            ins, outs = (([f"sigma[{i}]" for i in range(1, 7)], [f"l[{i}]" for i in range(1, 7)]) if version == 2
+                         else (["sigma"], ["l"]))   # FMI 3.0: the arrays
             tins, touts = [f"u[{i}]" for i in range(1, 7)], [f"y[{i}]" for i in range(1, 7)]
             ours_t = triv_t = float("inf")
             for _ in range(args.repeats):   # alternated: a burst of load hits both alike

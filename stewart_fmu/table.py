@@ -41,6 +41,7 @@ class VariableGroup:
     shape: int          # VECTOR, PER_LEG, or the columns of a matrix
     bound: int          # BOUND_*
     scene: bool         # a scene key of the plant tables (its name is the dotted key)
+    fmi3_only: bool     # an FMI 3.0 array only (q, qd: the pose beside its named scalars)
     causality: str      # parameter, input or output
     unit: str           # "" none; "pose" / "rate": m or rad (/s) per pose component
     description: str
@@ -59,7 +60,7 @@ def _read_params() -> dict[str, Param]:
 def _read_variables() -> tuple[VariableGroup, ...]:
     rows = (lib.stewart_variable_table[k] for k in range(lib.stewart_variable_table_size))
     return tuple(VariableGroup(_text(r.id), _text(r.name), r.vr, r.count, r.shape, r.bound, bool(r.scene),
-                               _text(r.causality), _text(r.unit), _text(r.description))
+                               bool(r.fmi3_only), _text(r.causality), _text(r.unit), _text(r.description))
                  for r in rows)
 
 
@@ -68,6 +69,7 @@ N_PARAMS: int = lib.STEWART_N_PARAMS
 VARIABLES: tuple[VariableGroup, ...] = _read_variables()
 GROUPS: dict[str, VariableGroup] = {g.id: g for g in VARIABLES}
 VR_TIME, VR_METHOD, VR_N_PAR = lib.STEWART_VR_TIME, lib.STEWART_VR_METHOD, lib.STEWART_VR_N_PARAMETERS
+VR_END: int = lib.STEWART_VR_N_OUTPUTS   # past the last value reference
 
 
 def offset(name: str) -> int:

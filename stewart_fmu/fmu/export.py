@@ -146,7 +146,8 @@ def export_model(model: Model, scene_text: bytes, out_path: str | Path,
 def _documentation(name: str, fmi_version: int) -> str:
     return (f"<html><body><h1>{name} (FMI {fmi_version}.0)</h1>"
             "<p>Stewart platform plant: inputs sigma[1..6] (rack forces, N) and, with a drive, "
-            "tau[1..6] (motor torques, N m), held over each communication step; sigma starts at "
+            "tau[1..6] (motor torques, N m; FMI 3.0: arrays of six, as are the other "
+            "quantities of several values), held over each communication step; sigma starts at "
             "the static force holding the home pose and tau at 0, so the platform stays put "
             "when no input is set. Default experiment: 0 to 1 s, 1 ms steps. Outputs: leg "
             "lengths and rates, pose and rates, twist, cond(J), rack forces and their parts. "

@@ -1,6 +1,7 @@
 """modelDescription.xml of the native FMU, FMI 2.0 or 3.0, generated from the variable table
-(variables.py). Both versions declare the same scalar variables with the same names (FMI 3.0
-adds the independent variable `time`); outputs are calculated, parameters fixed and exact."""
+(variables.py). FMI 2.0 declares scalars (sigma[1] .. sigma[6]); FMI 3.0 the same groups as
+array variables with their <Dimension>s (sigma, six values), adds the independent variable
+`time` and the pose arrays q, qd; outputs are calculated, parameters fixed and exact."""
 from __future__ import annotations
 
 import datetime
@@ -93,9 +94,11 @@ def build(model: Model, table: list[V.Variable], fmi_version: int, model_identif
             attrs3 = dict(common)
             if var.unit:
                 attrs3["unit"] = var.unit
-            if var.start is not None:
-                attrs3["start"] = _num(var.start)
-            SubElement(mv, "Float64", attrs3)
+            if var.start is not None:   # an array's start: its values, row-major
+                attrs3["start"] = " ".join(map(_num, var.start)) if var.shape else _num(var.start)
+            el = SubElement(mv, "Float64", attrs3)
+            for n in var.shape:
+                SubElement(el, "Dimension", {"start": str(n)})
     ms = SubElement(root, "ModelStructure")
     if fmi_version == 2:
         outs = SubElement(ms, "Outputs")

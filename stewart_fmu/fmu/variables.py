@@ -2,9 +2,11 @@
 
 Names, value references, shapes, units and descriptions are the table's (read from the core by
 stewart_fmu/table.py); this module gives them the scene's values: every numeric value of the
-scene's plant tables as a fixed parameter, q0/qd0, solver settings, inputs sigma[1..6] (and
-tau[1..6] with a [drive]), outputs l, ldot, pose, rates, twist, cond, rack_force, force.<part>.
-A scene declares the subset its tables give. This module also writes the scene's C file (start
+scene's plant tables as a fixed parameter, q0/qd0, solver settings, inputs sigma (and tau with
+a [drive]), outputs l, ldot, pose, rates, twist, cond, rack_force, force.<part> (and, FMI 3.0
+only, the pose and its rates as arrays q, qd). A scene declares the subset its tables give. A
+group of several values is several scalars in FMI 2.0 (sigma[1] .. sigma[6]) and one array
+variable in FMI 3.0 (sigma, six values at one value reference). This module also writes the scene's C file (start
 values, declared value references, instantiation token) that the export compiles with the plant.
 Everything is computed from the Model (the scene read and checked once).
 """
@@ -45,7 +47,7 @@ def _shape(g: table.VariableGroup) -> tuple[int, ...]:
 SCENE_KEYS: dict[str, tuple[int, tuple[int, ...], str | None, str]] = {
     key: (g.vr, _shape(g), g.unit if g.unit not in ("", "pose") else None, g.description)
     for key, g in table.scene_groups().items()}
-VR_TIME, VR_N_PAR, VR_METHOD = table.VR_TIME, table.VR_N_PAR, table.VR_METHOD
+VR_TIME, VR_N_PAR, VR_METHOD, VR_END = table.VR_TIME, table.VR_N_PAR, table.VR_METHOD, table.VR_END
 VR_Q0, VR_QD0, VR_RTOL, VR_ATOL, VR_MAX_STEP = (table.vr(i) for i in ("Q0", "QD0", "RTOL", "ATOL", "MAX_STEP"))
 VR_SIGMA, VR_TAU = table.vr("SIGMA"), table.vr("TAU")
 VR_L, VR_LDOT, VR_Q, VR_QD, VR_V, VR_OMEGA, VR_COND, VR_RACK, VR_PARTS = (
@@ -58,15 +60,22 @@ LOG_CATEGORIES = {"logEvents": "initialization and step events",
 
 @dataclass(frozen=True)
 class Variable:
-    """One scalar FMU variable (FMI 2.0 ScalarVariable, FMI 3.0 Float64 or String)."""
+    """One FMU variable (FMI 2.0 ScalarVariable, FMI 3.0 Float64 or String): a scalar, or with
+    a shape an FMI 3.0 array whose values (and start) are in row-major order."""
 
     name: str
     vr: int
     causality: str            # parameter, input, output, independent
     unit: str | None
     description: str
-    start: float | str | None = None
+    start: float | str | tuple[float, ...] | None = None
     type: str = "Real"        # Real or String
+    shape: tuple[int, ...] = ()
+
+    @property
+    def size(self) -> int:
+        """How many values the variable's value reference holds (1 for a scalar)."""
+        return int(np.prod(self.shape)) if self.shape else 1
 
     @property
     def variability(self) -> str:
@@ -106,31 +115,36 @@ def _unit(g: table.VariableGroup, idx: tuple[int, ...]) -> str | None:
     return g.unit or None
 
 
-def _group(g: table.VariableGroup, value: Any, causality: str | None = None) -> list[Variable]:
-    """The scalar variables of one group holding `value` (None: outputs, no start); a per-leg
+def _group(g: table.VariableGroup, value: Any, fmi_version: int) -> list[Variable]:
+    """The variables of one group holding `value` (None: outputs, no start): FMI 2.0 scalars,
+    or one FMI 3.0 array (no unit when its elements' units differ: q0, qd0, q, qd); a per-leg
     parameter given as one number is the one variable under the group's plain name."""
     arr = np.zeros(_shape(g)) if value is None else np.asarray(value, dtype=float)
     start = (lambda x: None) if value is None else float
     if arr.ndim == 0:
-        return [Variable(g.name, g.vr, causality or g.causality, _unit(g, (0,)), g.description,
-                         start(arr))]
+        return [Variable(g.name, g.vr, g.causality, _unit(g, (0,)), g.description, start(arr))]
+    if fmi_version == 3:
+        unit = None if g.unit in ("pose", "rate") else g.unit or None
+        return [Variable(g.name, g.vr, g.causality, unit, g.description,
+                         None if value is None else tuple(float(x) for x in arr.ravel()),
+                         shape=arr.shape)]
     out = []
     for k, idx in enumerate(np.ndindex(arr.shape)):
         element = ",".join(str(i + 1) for i in idx)
         what = f"{g.description}, leg {element}" if g.shape == table.PER_LEG else \
             f"{g.description}, element [{element}]"
-        out.append(Variable(f"{g.name}[{element}]", g.vr + k, causality or g.causality,
-                            _unit(g, idx), what, start(arr[idx])))
+        out.append(Variable(f"{g.name}[{element}]", g.vr + k, g.causality, _unit(g, idx), what,
+                            start(arr[idx])))
     return out
 
 
-def scene_parameters(model: Model) -> list[Variable]:
+def scene_parameters(model: Model, fmi_version: int = 2) -> list[Variable]:
     """Every numeric value of the scene's plant tables, as a fixed parameter (gravity always)."""
     out = []
     for key, g in table.scene_groups().items():
         value = scene_value(model, key)
         if value is not None:
-            out += _group(g, value)
+            out += _group(g, value, fmi_version)
     return out
 
 
@@ -162,30 +176,31 @@ def variables(model: Model, fmi_version: int = 2, solver: Mapping[str, Any] | No
     hold = hold_forces(model) if hold is None else hold
     g = table.GROUPS
     v = [Variable("time", VR_TIME, "independent", "s", "simulation time")] if fmi_version == 3 else []
-    v += scene_parameters(model)
-    v += _group(g["Q0"], model.home) + _group(g["QD0"], np.zeros(6))
-    v += _group(g["RTOL"], solver["rtol"]) + _group(g["ATOL"], solver["atol"])
-    v += _group(g["MAX_STEP"], solver["max_step"])
+    v += scene_parameters(model, fmi_version)
+    v += _group(g["Q0"], model.home, fmi_version) + _group(g["QD0"], np.zeros(6), fmi_version)
+    for key in ("RTOL", "ATOL", "MAX_STEP"):
+        v += _group(g[key], solver[key.lower()], fmi_version)
     m = g["METHOD"]
     v.append(Variable(m.name, m.vr, "parameter", None, f"{m.description}: one of {', '.join(core.METHODS)}",
                       solver["method"], "String"))
-    v += _group(g["SIGMA"], hold)
+    v += _group(g["SIGMA"], hold, fmi_version)
     if model.drive is not None:
-        v += _group(g["TAU"], np.zeros(6))
-    return v + outputs(model)
+        v += _group(g["TAU"], np.zeros(6), fmi_version)
+    return v + outputs(model, fmi_version)
 
 
-def outputs(model: Model) -> list[Variable]:
+def outputs(model: Model, fmi_version: int = 2) -> list[Variable]:
     """Leg lengths and rates, pose and rates, twist, cond, rack forces and their breakdown (the
-    parts of the effects the model has)."""
+    parts of the effects the model has); with FMI 3.0 also the pose and its rates as arrays."""
     parts = {f"force.{p}" for p in present_parts(model)}
     return [x for g in table.VARIABLES if g.causality == "output"
-            and (not g.name.startswith("force.") or g.name in parts) for x in _group(g, None)]
+            and (not g.name.startswith("force.") or g.name in parts)
+            and (fmi_version == 3 or not g.fmi3_only) for x in _group(g, None, fmi_version)]
 
 
 def token(table_: list[Variable], fmi_version: int) -> str:
     """Instantiation token (guid): a hash of the variable table and start values."""
-    text = repr([(x.name, x.vr, x.unit, x.start) for x in table_])
+    text = repr([(x.name, x.vr, x.unit, x.start) + ((x.shape,) if x.shape else ()) for x in table_])
     h = hashlib.sha256(f"stewart-native-fmu/1/{fmi_version}/{text}".encode()).hexdigest()
     return "{" + f"{h[:8]}-{h[8:12]}-{h[12:16]}-{h[16:20]}-{h[20:32]}" + "}"
 
@@ -196,25 +211,35 @@ def _c_double(x: float) -> str:
     return x.hex() if x != 0 else "0.0"
 
 
-def scene_c_source(model: Model, table_: list[Variable], fmi_version: int) -> str:
-    """The scene's C file: start values and declared parameters by value reference, the token
-    (table_: variables(model, fmi_version))."""
-    start = [0.0] * VR_N_PAR
-    declared = [0] * VR_N_PAR
+def element_starts(table_: list[Variable]) -> dict[int, float]:
+    """The start value of every Real value the variables hold, by value reference (an FMI 3.0
+    array's element k at the array's value reference + k, as the binary stores it)."""
+    out = {}
     for var in table_:
-        if var.type == "Real" and var.causality in ("parameter", "independent") and var.vr < VR_N_PAR:
-            start[var.vr] = 0.0 if var.start is None else float(var.start)
-            declared[var.vr] = 1
+        if var.type == "Real" and var.start is not None:
+            values = var.start if var.shape else (var.start,)
+            out.update((var.vr + k, float(x)) for k, x in enumerate(values))
+    return out
+
+
+def scene_c_source(model: Model, table_: list[Variable], fmi_version: int) -> str:
+    """The scene's C file: start values of the parameters and how many values each declared
+    value reference holds, the token (table_: variables(model, fmi_version))."""
+    starts = element_starts(table_)
+    start = [starts.get(vr, 0.0) for vr in range(VR_N_PAR)]
+    sizes = [0] * VR_END
+    for var in table_:
+        sizes[var.vr] = var.size
     by_name = {var.name: var for var in table_}
     rows = ",\n    ".join(f"{_c_double(x)} /* {k} */" for k, x in enumerate(start))
-    sigma = ", ".join(_c_double(by_name[f"sigma[{i}]"].start) for i in range(1, 7))
-    flags = ", ".join(str(f) for f in declared)
+    sigma = ", ".join(_c_double(starts[VR_SIGMA + i]) for i in range(6))
+    flags = ", ".join(str(f) for f in sizes)
     method = by_name[table.GROUPS["METHOD"].name].start
     return (f"/* Generated by stewart_fmu.fmu.export for scene {model.name!r} "
             f"(FMI {fmi_version}.0): do not edit. */\n"
             "#include <math.h>\n\n#include \"model.h\"\n\n"
             f"const char STEWART_MODEL_TOKEN[] = \"{token(table_, fmi_version)}\";\n"
             f"const int STEWART_START_METHOD = {core.METHODS[method]};\n"
-            f"const unsigned char STEWART_DECLARED[VR_N_PAR] = {{{flags}}};\n"
+            f"const unsigned char STEWART_VALUES[VR_END] = {{{flags}}};\n"
             f"const double STEWART_START[VR_N_PAR] = {{\n    {rows}\n}};\n"
             f"const double STEWART_START_SIGMA[6] = {{{sigma}}};\n")

@@ -3,8 +3,9 @@
  *   fmi_master run   2|3 BINARY TOKEN SCRIPT          print the outputs after every step
  *   fmi_master bench 2|3 BINARY TOKEN SCRIPT REPEAT    time set + doStep + get, print us/step
  *
- * SCRIPT (text): "n h", "n_in vr...", "n_out vr...", then n rows of n_in input values. The
- * master instantiates, initializes at t = 0, and for k < n sets the row's inputs, steps from
+ * SCRIPT (text): "n h", "n_in n_vin vr...", "n_out n_vout vr...", then n rows of n_in input
+ * values: n_vin value references holding n_in values (more than n_vin for FMI 3.0 arrays, their
+ * elements in row-major order; equal for FMI 2.0), the same for the outputs. The master instantiates, initializes at t = 0, and for k < n sets the row's inputs, steps from
  * k h by h and gets the outputs. Output lines: "k status v1 v2 ..." with %.17g. */
 #define _POSIX_C_SOURCE 200809L
 #include <dlfcn.h>
@@ -43,7 +44,7 @@ static double now(void) {
 }
 
 int main(int argc, char **argv) {
-    int bench, version, n, nin, nout, k, j, rep, repeat = 1, status = 0;
+    int bench, version, n, nin, nout, nvin, nvout, k, j, rep, repeat = 1, status = 0;
     double h, *in, *out, t0;
     unsigned *vin, *vout;
     void *lib;
@@ -57,14 +58,14 @@ int main(int argc, char **argv) {
     if (bench && argc > 6) repeat = atoi(argv[6]);
     f = fopen(argv[5], "r");
     if (!f || fscanf(f, "%d %lf", &n, &h) != 2) return 2;
-    if (fscanf(f, "%d", &nin) != 1) return 2;
-    vin = malloc(sizeof *vin * (nin + 1));
-    for (j = 0; j < nin; j++)
+    if (fscanf(f, "%d %d", &nin, &nvin) != 2) return 2;
+    vin = malloc(sizeof *vin * (nvin + 1));
+    for (j = 0; j < nvin; j++)
         if (fscanf(f, "%u", &vin[j]) != 1) return 2;
-    if (fscanf(f, "%d", &nout) != 1) return 2;
-    vout = malloc(sizeof *vout * (nout + 1));
+    if (fscanf(f, "%d %d", &nout, &nvout) != 2) return 2;
+    vout = malloc(sizeof *vout * (nvout + 1));
     out = malloc(sizeof *out * (nout + 1));
-    for (j = 0; j < nout; j++)
+    for (j = 0; j < nvout; j++)
         if (fscanf(f, "%u", &vout[j]) != 1) return 2;
     in = malloc(sizeof *in * ((size_t)n * nin + 1));
     for (k = 0; k < n * nin; k++)
@@ -136,9 +137,9 @@ int main(int argc, char **argv) {
             if (!c || enter(c, 0, 0.0, 0.0, 0, 0.0) || exit_(c)) return 3;
             t0 = now();
             for (k = 0; k < n; k++) {
-                status = setr(c, vin, nin, in + (size_t)k * nin, nin);
+                status = setr(c, vin, nvin, in + (size_t)k * nin, nin);
                 if (!status) status = step(c, k * h, h, 1, &ev, &te, &er, &last);
-                if (!status) status = getr(c, vout, nout, out, nout);
+                if (!status) status = getr(c, vout, nvout, out, nout);
                 if (!bench) {
                     printf("%d %d", k, status);
                     for (j = 0; j < nout; j++) printf(" %.17g", out[j]);

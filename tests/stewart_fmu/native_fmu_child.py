@@ -7,10 +7,72 @@ import math
 import random
 from ctypes import byref
 
+import numpy as np
 from fmpy import read_model_description
 from fmpy.fmi1 import FMICallException
 
 OK, DISCARD, ERROR = 0, 2, 3
+
+
+class Elements:
+    """A model description's values one by one under their FMI 2.0 names (sigma[1],
+    geometry.base_joints[1,3]) for FMI 2.0 and 3.0 alike. An FMI 3.0 array's element k is
+    stored at the array's value reference + k, which the FMU does not declare: `declared` turns
+    element references into whole arrays (the values of the others from `current`), `pick`
+    takes the elements back out of the arrays' values."""
+
+    def __init__(self, md):
+        self.vr: dict[str, int] = {}        # element or variable name -> stored value reference
+        self.name: dict[int, str] = {}      # stored value reference -> element name
+        self.array: dict[int, tuple[int, int]] = {}  # element of an array -> (array's reference, k)
+        self.size: dict[int, int] = {}      # declared value reference -> its number of values
+        self.start: dict[int, float] = {}   # stored value reference -> start value (Real)
+        self.variable: dict[str, object] = {}  # element name -> its variable
+        self.outputs: list[str] = []        # element names of the outputs, in order
+        for v in md.modelVariables:
+            shape = tuple(getattr(v, "shape", None) or ())
+            self.size[v.valueReference] = int(np.prod(shape)) if shape else 1
+            names = ([f"{v.name}[{','.join(str(i + 1) for i in idx)}]" for idx in np.ndindex(shape)]
+                     if shape else [v.name])
+            starts = [v.start] * len(names) if v.start is None or not shape else str(v.start).split()
+            for k, name in enumerate(names):
+                self.vr[name], self.name[v.valueReference + k] = v.valueReference + k, name
+                self.variable[name] = v
+                if shape:
+                    self.array[v.valueReference + k] = (v.valueReference, k)
+                if v.type in ("Real", "Float64") and starts[k] is not None:
+                    self.start[v.valueReference + k] = float(starts[k])
+                if v.causality == "output":
+                    self.outputs.append(name)
+            self.vr[v.name] = v.valueReference
+
+    def current(self) -> dict[int, list[float]]:
+        """Every array's values at their start (zeros for outputs)."""
+        return {a: [self.start.get(a + k, 0.0) for k in range(self.size[a])]
+                for a in {a for a, _ in self.array.values()}}
+
+    def declared(self, vrs, values, current: dict[int, list[float]]) -> tuple[list[int], list[float]]:
+        """The declared value references and values that set the elements vrs to values."""
+        whole: dict[int, list[float]] = {}
+        for vr, x in zip(vrs, values):
+            a, k = self.array.get(vr, (vr, 0))
+            if a not in whole:
+                whole[a] = list(current[a]) if a in current else [0.0]
+            whole[a][k] = x
+        return list(whole), [x for a in whole for x in whole[a]]
+
+    def reads(self, vrs) -> tuple[list[int], int]:
+        """The declared value references to read for the elements vrs, and how many values."""
+        arrays = list(dict.fromkeys(self.array.get(vr, (vr, 0))[0] for vr in vrs))
+        return arrays, sum(self.size.get(a, 1) for a in arrays)
+
+    def pick(self, vrs, arrays, values) -> list[float]:
+        """The elements vrs out of the values of arrays (reads(vrs))."""
+        at, k = {}, 0
+        for a in arrays:
+            at[a] = k
+            k += self.size.get(a, 1)
+        return [values[at[self.array.get(vr, (vr, 0))[0]] + self.array.get(vr, (vr, 0))[1]] for vr in vrs]
 
 
 class Adapter:
@@ -19,8 +81,10 @@ class Adapter:
     def __init__(self, unzipdir: str, version: int, messages: list, name: str = "child", token: str | None = None):
         self.version = version
         md = read_model_description(unzipdir)
-        self.vr = {v.name: v.valueReference for v in md.modelVariables}
-        self.outputs = [v.valueReference for v in md.modelVariables if v.causality == "output"]
+        self.elements = Elements(md)   # element references: FMI 3.0 arrays set and read whole
+        self.vr, self.start = self.elements.vr, self.elements.start
+        self.outputs = [self.vr[n] for n in self.elements.outputs]
+        self.current = self.elements.current()
         tok = token or (md.guid if version == 2 else md.instantiationToken)
         common = dict(guid=tok, unzipDirectory=unzipdir, modelIdentifier="StewartPlant", instanceName=name)
         if version == 2:
@@ -81,15 +145,31 @@ class Adapter:
         return self.status(self.fmu.terminate)[0]
 
     def reset(self):
+        self.current = self.elements.current()
         return self.status(self.fmu.reset)[0]
 
     def set(self, vrs, values):
-        f = self.fmu.setReal if self.version == 2 else self.fmu.setFloat64
-        return self.status(f, list(vrs), [float(x) for x in values])[0]
+        """Set elements (an FMI 3.0 array whole, its other elements as last set)."""
+        if self.version == 2:
+            return self.status(self.fmu.setReal, list(vrs), [float(x) for x in values])[0]
+        arrays, flat = self.elements.declared(list(vrs), [float(x) for x in values], self.current)
+        status = self.status(self.fmu.setFloat64, arrays, flat)[0]
+        if status == OK:
+            k = 0
+            for a in arrays:
+                n = self.elements.size.get(a, 1)
+                if a in self.current:
+                    self.current[a] = flat[k:k + n]
+                k += n
+        return status
 
     def get(self, vrs):
-        f = self.fmu.getReal if self.version == 2 else self.fmu.getFloat64
-        return self.status(f, list(vrs))
+        """(status, the elements' values)."""
+        if self.version == 2:
+            return self.status(self.fmu.getReal, list(vrs))
+        arrays, n = self.elements.reads(list(vrs))
+        status, values = self.status(self.fmu.getFloat64, arrays, n)
+        return status, None if values is None else self.elements.pick(list(vrs), arrays, values)
 
     def step(self, t, h):
         return self.status(self.fmu.doStep, t, h)[0]
@@ -223,8 +303,7 @@ def fuzz(unzipdir: str, version: int, seed: int, n_calls: int) -> dict:
     params = [vr[n] for n in ("platform.mass", "friction.viscous", "q0[3]", "solver.max_step", "geometry.leg_max",
                               "legs.lower_inertia[2]", "drive.pinion_radius")]
     inputs = [vr[f"sigma[{i}]"] for i in range(1, 7)] + [vr[f"tau[{i}]"] for i in range(1, 7)]
-    md = read_model_description(unzipdir)
-    start = {v.valueReference: float(v.start) for v in md.modelVariables if v.valueReference in params}
+    start = {k: inst.start[k] for k in params}
     unknown = [9999, vr["solver.method"] + 1, 150, 2**31, 4294967295, 0 if version == 2 else 5000]
     phase, t = "inst", 0.0
     states: list = []
@@ -256,7 +335,7 @@ def fuzz(unzipdir: str, version: int, seed: int, n_calls: int) -> dict:
             action = rng.choice(["setup_enter", "exit", "terminate", "reset", "set_param", "set_input", "set_input",
                                  "set_output", "unknown", "get_outputs", *["step"] * 10,
                                  "get_state", "set_state", "serialize", "deserialize_bad", "wrong_type", "renew",
-                                 "set_method"])
+                                 "set_method", *(["bad_count"] if version == 3 else [])])
         if action == "init_all":
             for name, call in (("setupExperiment", inst.setup), ("enterInitializationMode", inst.enter)):
                 note(name, call(), False)
@@ -360,6 +439,18 @@ def fuzz(unzipdir: str, version: int, seed: int, n_calls: int) -> dict:
             name = rng.choice(["rk4", "euler", "dopri5", "RK45", "%s%n%x", ""])
             s = inst.set_string([vr["solver.method"]], [name])
             note("setString(solver.method)", s, name not in ("rk4", "euler", "dopri5") or phase not in ("inst", "init"))
+        elif action == "bad_count":   # FMI 3.0: nValues other than the arrays hold
+            arrays = [a for a, n in inst.elements.size.items() if n > 1]
+            ks = rng.sample(arrays, rng.randint(1, 3))
+            right = sum(inst.elements.size[a] for a in ks)
+            n = rng.choice([0, 1, right - 1, right + 1, len(ks), 2 * right])
+            if n == right:
+                n += 1
+            if rng.random() < 0.5:
+                s = inst.status(inst.fmu.getFloat64, ks, n)[0]
+            else:
+                s = inst.status(inst.fmu.setFloat64, ks, [rng.uniform(-1, 1) for _ in range(n)])[0]
+            note("get/setFloat64(wrong nValues)", s, True)
         elif action == "renew":
             inst.terminate()
             inst.free()

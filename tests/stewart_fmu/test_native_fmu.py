@@ -19,6 +19,7 @@ import time
 import tomllib
 import zipfile
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from xml.etree import ElementTree
 
@@ -35,6 +36,7 @@ from stewart_fmu.integrators import IntegratorOptions
 from stewart_fmu.plant import Plant
 from stewart_fmu.scene import apply_overrides, scene_from_dict
 from tests.helpers import record
+from tests.stewart_fmu.native_fmu_child import Elements
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENES = {"micro": ROOT / "scenes" / "micro_manipulator.toml",
@@ -59,9 +61,16 @@ class Built:
     data: dict
     model: Model
 
+    @cached_property
+    def elements(self) -> Elements:
+        """The values one by one under their FMI 2.0 names (an FMI 3.0 array's elements)."""
+        return Elements(self.md)
+
     @property
     def vr(self) -> dict[str, int]:
-        return {v.name: v.valueReference for v in self.md.modelVariables}
+        """Value references of the variables and of every element (an FMI 3.0 array's element
+        k at the array's + k, where the binary stores it)."""
+        return self.elements.vr
 
     @property
     def variables(self) -> dict:
@@ -69,7 +78,26 @@ class Built:
 
     @property
     def outputs(self) -> list[str]:
-        return [v.name for v in self.md.modelVariables if v.causality == "output"]
+        """The outputs' elements, in order (sigma[1] .. in FMI 2.0 and 3.0 alike)."""
+        return self.elements.outputs
+
+    @property
+    def output_vrs(self) -> list[int]:
+        """The declared outputs' value references (FMI 3.0: one per array)."""
+        return [v.valueReference for v in self.md.modelVariables if v.causality == "output"]
+
+    @property
+    def input_vrs(self) -> list[int]:
+        """The declared inputs' value references: sigma, then tau with a drive."""
+        return [v.valueReference for v in self.md.modelVariables if v.causality == "input"]
+
+    def unit(self, name: str) -> str | None:
+        """An element's unit (an FMI 3.0 pose array has none: its elements are m or rad)."""
+        var = self.elements.variable[name]
+        if var.unit or not var.shape:
+            return var.unit
+        base, _, idx = name.partition("[")
+        return (V.POSE_UNITS if base in ("q", "q0", "geometry.home") else V.RATE_UNITS)[int(idx[:-1]) - 1]
 
     @property
     def token(self) -> str:
@@ -102,12 +130,13 @@ class Slave:
     """fmpy's FMU2Slave / FMU3Slave behind one interface, with the log captured."""
 
     def __init__(self, b: Built, name: str = "plant"):
-        self.b, self.vr = b, b.vr
+        self.b, self.vr, self.elements = b, b.vr, b.elements
         self.messages: list[tuple[int, str, str]] = []
-        self.inputs = [self.vr[f"sigma[{i}]"] for i in range(1, 7)]
-        if "drive" in b.data:
+        self.inputs = b.input_vrs if b.version == 3 else [self.vr[f"sigma[{i}]"] for i in range(1, 7)]
+        if "drive" in b.data and b.version == 2:
             self.inputs += [self.vr[f"tau[{i}]"] for i in range(1, 7)]
-        self.out_vr = [self.vr[n] for n in b.outputs]
+        self.out_vr = b.output_vrs if b.version == 3 else [self.vr[n] for n in b.outputs]
+        self.current = self.elements.current()
         common = dict(guid=b.token, unzipDirectory=str(b.unzipdir), modelIdentifier="StewartPlant",
                       instanceName=name)
         if b.version == 2:
@@ -144,20 +173,39 @@ class Slave:
 
     # calls that differ between the versions
     def set(self, values: dict) -> None:
+        """Set elements by name (FMI 3.0: each array touched, whole, the rest as last set)."""
         if values:
             vrs, vals = [self.vr[n] for n in values], [float(x) for x in values.values()]
-            (self.fmu.setReal if self.b.version == 2 else self.fmu.setFloat64)(vrs, vals)
+            if self.b.version == 2:
+                self.fmu.setReal(vrs, vals)
+                return
+            arrays, flat = self.elements.declared(vrs, vals, self.current)
+            self.fmu.setFloat64(arrays, flat)
+            k = 0
+            for a in arrays:
+                n = self.elements.size[a]
+                if a in self.current:
+                    self.current[a] = flat[k:k + n]
+                k += n
 
     def get_vr(self, vrs) -> np.ndarray:
-        return np.array((self.fmu.getReal if self.b.version == 2 else self.fmu.getFloat64)(list(vrs)))
+        """Elements by value reference (FMI 3.0: their arrays read whole)."""
+        if self.b.version == 2:
+            return np.array(self.fmu.getReal(list(vrs)))
+        arrays, n = self.elements.reads(list(vrs))
+        return np.array(self.elements.pick(list(vrs), arrays, self.fmu.getFloat64(arrays, n)))
 
     def get(self, names) -> np.ndarray:
         return self.get_vr([self.vr[n] for n in names])
 
     def outputs(self) -> np.ndarray:
-        return self.get_vr(self.out_vr)
+        """Every output element, in b.outputs order: FMI 3.0 reads the arrays in one call."""
+        if self.b.version == 2:
+            return np.array(self.fmu.getReal(self.out_vr))
+        return np.array(self.fmu.getFloat64(self.out_vr, len(self.b.outputs)))
 
     def init(self, reals: dict | None = None, method: str | None = None, init_reals=None) -> "Slave":
+        self.current = self.elements.current()   # after instantiate or reset: the start values
         if self.b.version == 2:
             self.fmu.setupExperiment(startTime=0.0)
         self.set(reals or {})
@@ -172,7 +220,8 @@ class Slave:
         return self
 
     def step(self, t: float, h: float, u) -> np.ndarray:
-        """Set the inputs (sigma, then tau with a drive), doStep(t, h), get every output."""
+        """Set the inputs (sigma, then tau with a drive; FMI 3.0: the arrays, 6 or 12 values for
+        1 or 2 value references), doStep(t, h), get every output."""
         (self.fmu.setReal if self.b.version == 2 else self.fmu.setFloat64)(self.inputs, [float(x) for x in u])
         self.fmu.doStep(t, h)
         return self.outputs()
@@ -226,6 +275,10 @@ class Reference:
                 row.append(o.q[pose[name]])
             elif name[1:] in pose and name[0] == "d":
                 row.append(o.qd[pose[name[1:]]])
+            elif base == "q":
+                row.append(o.q[i])
+            elif base == "qd":
+                row.append(o.qd[i])
             elif base == "l":
                 row.append(o.lengths[i])
             elif base == "ldot":
@@ -283,7 +336,7 @@ def grid(n: int, h: float = H):
 
 def residual(b: Built, actual, expected, names=None) -> float:
     names = b.outputs if names is None else names
-    units = [b.variables[n].unit for n in names]
+    units = [b.unit(n) for n in names]
     actual, expected = np.atleast_2d(actual), np.atleast_2d(expected)
     assert actual.shape == expected.shape
     assert np.all(np.isfinite(actual)) and np.all(np.isfinite(expected))
@@ -319,6 +372,7 @@ def test_fmpy_validate_finds_nothing_and_parameters_are_the_scene(fmus, case):
         want = expected[var.name]
         assert var.valueReference == want.vr and var.causality == want.causality, var.name
         assert var.description, var.name
+        assert tuple(var.shape or ()) == want.shape, var.name   # FMI 3.0: <Dimension>s, FMI 2.0 scalars
     # every number of the scene's plant tables is a fixed parameter with the scene's value
     for dotted in V.SCENE_KEYS:
         value = V.lookup(b.data, dotted)
@@ -327,11 +381,11 @@ def test_fmpy_validate_finds_nothing_and_parameters_are_the_scene(fmus, case):
         arr = np.asarray(value, dtype=float)
         for idx in np.ndindex(arr.shape):
             name = dotted + (f"[{','.join(str(i + 1) for i in idx)}]" if idx else "")
-            var = b.variables[name]
+            var = b.elements.variable[name]
             assert var.variability == "fixed" and var.causality == "parameter"
-            assert float(var.start) == float(arr[idx]), name
+            assert b.elements.start[b.vr[name]] == float(arr[idx]), name
             assert var.unit or dotted == "geometry.home"
-    assert ("tau[1]" in b.variables) == ("drive" in b.data)
+    assert ("tau[1]" in b.vr) == ("drive" in b.data)
 
 
 @pytest.mark.parametrize("version", [2, 3])
@@ -392,9 +446,9 @@ def test_start_values_read_through_fmi(fmus, version):
             s.fmu.enterInitializationMode()
         else:
             s.fmu.enterInitializationMode(startTime=0.0)
-        params = [v for v in b.md.modelVariables if v.causality == "parameter" and v.type != "String"]
-        got = s.get([v.name for v in params])
-        assert got.tolist() == [float(v.start) for v in params]
+        params = [n for n, v in b.elements.variable.items() if v.causality == "parameter" and v.type != "String"]
+        got = s.get(params)
+        assert got.tolist() == [b.elements.start[b.vr[n]] for n in params]
         assert s.fmu.getString([b.vr["solver.method"]]) == [b"rk4"] or \
             s.fmu.getString([b.vr["solver.method"]]) == ["rk4"]
     finally:
@@ -411,8 +465,12 @@ def master(tmp_path_factory) -> Path:
     return exe
 
 
-def write_script(path: Path, n: int, h: float, in_vr, out_vr, rows) -> Path:
-    lines = [f"{n} {h!r}", " ".join(map(str, [len(in_vr), *in_vr])), " ".join(map(str, [len(out_vr), *out_vr]))]
+def write_script(path: Path, n: int, h: float, in_vr, out_vr, rows, n_out: int) -> Path:
+    """fmi_master's script: the input and output value references, each line led by the number
+    of values they hold (FMI 3.0 arrays: more than references) and the number of references."""
+    n_in = len(rows[0])
+    lines = [f"{n} {h!r}", " ".join(map(str, [n_in, len(in_vr), *in_vr])),
+             " ".join(map(str, [n_out, len(out_vr), *out_vr]))]
     lines += [" ".join(repr(float(x)) for x in row) for row in rows]
     path.write_text("\n".join(lines) + "\n")
     return path
@@ -425,8 +483,10 @@ def test_c_master_matches_plant(fmus, master, version, tmp_path):
     n = 100
     times, steps = grid(n)
     u = drive_inputs(b.model, times, seed=1)
-    in_vr = [b.vr[f"sigma[{i}]"] for i in range(1, 7)] + [b.vr[f"tau[{i}]"] for i in range(1, 7)]
-    script = write_script(tmp_path / "script.txt", n, H, in_vr, [b.vr[x] for x in b.outputs], u)
+    in_vr, out_vr = (b.input_vrs, b.output_vrs) if version == 3 else \
+        ([b.vr[f"sigma[{i}]"] for i in range(1, 7)] + [b.vr[f"tau[{i}]"] for i in range(1, 7)],
+         [b.vr[x] for x in b.outputs])
+    script = write_script(tmp_path / "script.txt", n, H, in_vr, out_vr, u, len(b.outputs))
     proc = subprocess.run([str(master), "run", str(version), str(b.binary), b.token, str(script)],
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0, proc.stderr
@@ -486,12 +546,18 @@ def test_simulate_fmu_matches_plant(fmus, case):
     n = 200
     t = np.arange(n + 1) * H
     u = drive_inputs(b.model, t, seed=4)
-    names = [f"sigma[{i}]" for i in range(1, 7)] + ([f"tau[{i}]" for i in range(1, 7)] if u.shape[1] > 6 else [])
-    signal = np.array([(tk, *row) for tk, row in zip(t, u)], dtype=[("time", np.float64)] + [(x, np.float64) for x in names])
+    groups = ["sigma"] + (["tau"] if u.shape[1] > 6 else [])
+    if b.version == 2:
+        names = [f"{g}[{i}]" for g in groups for i in range(1, 7)]
+        signal = np.array([(tk, *row) for tk, row in zip(t, u)], dtype=[("time", np.float64)] + [(x, np.float64) for x in names])
+    else:   # the input arrays as fmpy takes them: one field of shape (6,) each
+        signal = np.array([(tk, *row.reshape(-1, 6)) for tk, row in zip(t, u)],
+                          dtype=[("time", np.float64)] + [(g, np.float64, (6,)) for g in groups])
+    outputs = [v.name for v in b.md.modelVariables if v.causality == "output"]
     res = simulate_fmu(str(b.path), start_time=0.0, stop_time=n * H, output_interval=H, input=signal,
-                       output=b.outputs)
+                       output=outputs)
     assert np.array_equal(res["time"], t)
-    got = np.column_stack([res[name] for name in b.outputs])
+    got = np.column_stack([res[name] for name in outputs])   # an array's column: its elements
     ref = Reference(b.model, b.outputs)
     rows = ref.run(t[:-1].tolist(), np.diff(t).tolist(), u[:-1])
     agree(f"simulate_fmu vs Plant [{case}]", residual(b, got[1:], rows))
@@ -532,6 +598,119 @@ def test_libcosim_runs_the_fmi2_fmu(fmus):
     want = ref.outputs()
     assert abs(want[6] - b.model.home[2]) > 1e-6
     agree("libcosim l[1..6], z vs Plant", float(np.max(np.abs(got - want)) / np.abs(want).max()))
+
+
+class ArrayPlant:
+    """A PlantPort (controller.plants) on the FMI 3.0 FMU through its arrays alone: q0, qd0, tau
+    and sigma set as 4 value references holding 24 values, l, ldot and q read as 3 holding 18."""
+
+    def __init__(self, b: Built):
+        from fmpy.fmi3 import FMU3Slave
+
+        self.vr = b.vr
+        self.fmu = FMU3Slave(guid=b.token, unzipDirectory=str(b.unzipdir), modelIdentifier="StewartPlant",
+                             instanceName="arrays")
+
+    def start(self, q0, qd0, t0, torque0) -> None:
+        f, vr = self.fmu, self.vr
+        f.instantiate()
+        f.enterInitializationMode(startTime=t0)
+        # as controller.plants.FmuPlant: the torques drive, the rack-force inputs are zeroed
+        f.setFloat64([vr["q0"], vr["qd0"], vr["tau"], vr["sigma"]],
+                     [float(x) for x in (*q0, *qd0, *torque0)] + [0.0] * 6)
+        f.exitInitializationMode()
+
+    def step(self, t, h, torque) -> None:
+        self.fmu.setFloat64([self.vr["tau"]], [float(x) for x in torque])
+        self.fmu.doStep(t, h)
+
+    def measure(self):
+        v = np.array(self.fmu.getFloat64([self.vr["l"], self.vr["ldot"], self.vr["q"]], 18))
+        return v[:6], v[6:12], v[12:]
+
+    def close(self) -> None:
+        self.fmu.terminate()
+        self.fmu.freeInstance()
+
+
+def test_closed_loop_through_fmi3_arrays_equals_fmi2_scalars_and_plant(fmus):
+    """The per-axis controllers around the FMI 3.0 FMU driven through its arrays only, around
+    the FMI 2.0 FMU through its scalars (controller.plants.FmuPlant) and around the in-process
+    plant (the compiled loop): 200 steps of a 1 cm, 0.1 rad quintic, every signal of the three
+    runs equal bit for bit."""
+    from controller.config import controller_config
+    from controller.cosim import run_closed_loop
+    from controller.plants import FmuPlant
+    from controller.trajectory import quintic
+
+    b3, b2 = fmus[("micro", 3)], fmus[("micro", 2)]
+    model = b3.model
+    config = controller_config(model)
+    traj = quintic(model.home, model.home + np.array([0.01, 0, 0, 0, 0, 0.1]), rate=config.rate, duration=0.2)
+    runs = {"in-process": run_closed_loop(model, config, traj).table}
+    for name, plant in (("FMI 2.0 scalars", FmuPlant(b2.path)), ("FMI 3.0 arrays", ArrayPlant(b3))):
+        try:
+            runs[name] = run_closed_loop(model, config, traj, plant=plant).table
+        finally:
+            plant.close()
+    signals = [n for n in runs["in-process"].dtype.names]
+    moved = np.ptp(np.column_stack([runs["in-process"][f"l{i}"] for i in range(1, 7)]), axis=0).max()
+    assert moved > 1e-3   # legs travel millimetres
+    for name in ("FMI 2.0 scalars", "FMI 3.0 arrays"):
+        differ = [n for n in signals if not np.array_equal(runs[name][n], runs["in-process"][n])]
+        record(f"native fmu: closed loop through {name} vs in-process, signals differing", len(differ), 0)
+        assert differ == [], (name, differ)
+
+
+def test_fmi3_arrays_read_and_written_through_fmu3slave(fmus):
+    """fmpy's FMU3Slave: setFloat64 / getFloat64 with nValues > nValueReferences, an array's
+    elements in row-major order (the start of geometry.base_joints as the description lists it,
+    a parameter array set whole and read back, sigma and tau set in one call, q = x .. thz and
+    qd = dx .. dthz); a count that does not match the arrays, an element's value reference, a
+    NULL values array: Error with a logged reason, nothing changed."""
+    b = fmus[("micro", 3)]
+    s = Slave(b)
+    vr, md = b.vr, b.variables
+    try:
+        s.fmu.enterInitializationMode(startTime=0.0)
+        base = s.fmu.getFloat64([vr["geometry.base_joints"]], 18)
+        assert base == [float(x) for x in md["geometry.base_joints"].start.split()]
+        assert np.array_equal(np.reshape(base, (6, 3)), np.asarray(b.data["geometry"]["base_joints"], float))
+        q0 = (b.model.home + np.array([1e-3, -1e-3, 2e-3, 0.01, -0.02, 0.03])).tolist()
+        s.fmu.setFloat64([vr["q0"], vr["platform.mass"], vr["qd0"]], q0 + [0.6] + [0.0] * 6)
+        assert s.fmu.getFloat64([vr["platform.mass"], vr["q0"]], 7) == [0.6] + q0
+        s.fmu.exitInitializationMode()
+        u = drive_inputs(b.model, [0.0], seed=12)[0]
+        s.fmu.setFloat64([vr["sigma"], vr["tau"]], u.tolist())
+        assert s.fmu.getFloat64([vr["tau"], vr["sigma"]], 12) == u[6:].tolist() + u[:6].tolist()
+        s.fmu.doStep(0.0, H)
+        pose = ["x", "y", "z", "thx", "thy", "thz"]
+        names = pose + [f"d{c}" for c in pose]
+        arrays = s.fmu.getFloat64([vr["q"], vr["qd"]], 12)
+        assert arrays == s.fmu.getFloat64([vr[n] for n in names]) and arrays[:6] != q0
+        before = s.outputs()
+        bad = {"5 values for sigma": ([vr["sigma"]], 5), "7 values for sigma": ([vr["sigma"]], 7),
+               "13 values for sigma, tau": ([vr["sigma"], vr["tau"]], 13),
+               "an element's reference": ([vr["sigma"] + 1], 1), "sigma, 1 value": ([vr["sigma"]], 1)}
+        for what, (vrs, n) in bad.items():
+            for call in ("get", "set"):
+                s.messages.clear()
+                with pytest.raises(FMICallException) as exc:
+                    if call == "get":
+                        s.fmu.getFloat64(vrs, n)
+                    else:
+                        s.fmu.setFloat64(vrs, [1.0] * n)
+                assert exc.value.status == ERROR, (what, call)
+                assert any(st == ERROR and ("values for" in m or "unknown value reference" in m)
+                           for st, _, m in s.messages), (what, call, s.messages)
+        assert s.fmu.getFloat64([vr["tau"], vr["sigma"]], 12) == u[6:].tolist() + u[:6].tolist()
+        assert np.array_equal(s.outputs(), before)
+        s.messages.clear()
+        with pytest.raises(FMICallException):
+            s.fmu.fmi3SetFloat64(s.fmu.component, (ctypes.c_uint32 * 1)(vr["sigma"]), 1, None, 6)
+        assert any("NULL" in m for _, _, m in s.messages), s.messages
+    finally:
+        s.close()
 
 
 # --- 3. state, reset, parameters --------------------------------------------------------------------
@@ -669,14 +848,17 @@ _SIMULATE_DISCARD = r"""
 import sys, numpy as np
 from fmpy import simulate_fmu
 from fmpy.fmi1 import FMICallException
-path, k_bad, hold = sys.argv[1], int(sys.argv[2]), [float(x) for x in sys.argv[3:9]]
+path, k_bad, hold, version = sys.argv[1], int(sys.argv[2]), [float(x) for x in sys.argv[3:9]], int(sys.argv[9])
 n, h = 50, 1e-3
 t = np.arange(n + 1) * h
 sig = np.tile(hold, (n + 1, 1))
 sig[k_bad:] += 5e6
 rows = [(tk, *s) for tk, s in zip(t, sig)]
 rows.insert(k_bad, (t[k_bad], *sig[k_bad - 1]))   # a step change at t_k: fmpy applies the right one
-signal = np.array(rows, dtype=[("time", float)] + [(f"sigma[{i}]", float) for i in range(1, 7)])
+if version == 2:
+    signal = np.array(rows, dtype=[("time", float)] + [(f"sigma[{i}]", float) for i in range(1, 7)])
+else:   # FMI 3.0: sigma is one array
+    signal = np.array([(r[0], r[1:]) for r in rows], dtype=[("time", float), ("sigma", float, (6,))])
 try:
     res = simulate_fmu(path, stop_time=n * h, output_interval=h, input=signal, output=["z"])
     print("ENDED", repr(float(res["time"][-1])), len(res))
@@ -693,7 +875,8 @@ def test_simulate_fmu_stops_at_a_discard(fmus, version):
     b = fmus[("micro", version)]
     k_bad = 20
     proc = subprocess.run([sys.executable, "-c", _SIMULATE_DISCARD, str(b.path), str(k_bad),
-                           *map(repr, hold_forces(b.model).tolist())], capture_output=True, text=True, timeout=120)
+                           *map(repr, hold_forces(b.model).tolist()), str(version)],
+                          capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr[-2000:]
     if version == 2:
         line = [ln for ln in proc.stdout.splitlines() if ln.startswith("ENDED")]
@@ -774,10 +957,11 @@ def test_fmpy_rebuilds_the_binary_from_sources(fmus, tmp_path):
     shutil.rmtree(unzip / "binaries")
     build_platform_binary(unzip)
     assert (unzip / "binaries" / "x86_64-linux" / "StewartPlant.so").exists()
+    outputs = [v.name for v in b.md.modelVariables if v.causality == "output"]
     run = lambda where: simulate_fmu(str(where), stop_time=0.05, output_interval=H,  # noqa: E731
-                                     start_values={f"sigma[{i}]": 1.0 for i in range(1, 7)}, output=b.outputs)
+                                     start_values={"sigma": [1.0] * 6}, output=outputs)
     got, want = run(unzip), run(b.unzipdir)
-    rows = lambda r: np.column_stack([r[n] for n in b.outputs])  # noqa: E731
+    rows = lambda r: np.column_stack([r[n] for n in outputs])  # noqa: E731
     agree("fmpy.build binary vs shipped", residual(b, rows(got), rows(want)))
 
 
@@ -797,7 +981,7 @@ def test_platform_only_scene_declares_only_what_it_has(tmp_path, fmus):
     for version in (2, 3):
         b = _build(scene, version, tmp_path)
         assert validate_fmu(str(b.path)) == []
-        names = set(b.variables)
+        names = set(b.vr)                               # variables and their elements
         assert not [n for n in names if n.startswith(("legs.", "drive.", "friction.", "tau["))]
         assert {n.split("[")[0] for n in names if n.startswith("force.")} == {"force.platform", "force.gravity"}
         assert "gravity[3]" in names                    # the default gravity is a parameter too

@@ -134,12 +134,48 @@ def test_fmu_variables_are_table_groups(path, version):
         base, _, index = var.name.partition("[")
         g = groups[base]
         assert var.causality == g.causality and var.description
+        assert version == 3 or not g.fmi3_only, var.name
         k = 0
         if index:
+            assert version == 2, f"FMI 3.0 declares arrays, not elements: {var.name}"
             idx = [int(i) - 1 for i in index.rstrip("]").split(",")]
             k = idx[0] * g.shape + idx[1] if len(idx) == 2 else idx[0]
         assert var.vr == g.vr + k, var.name
         assert var.unit == (g.unit or None) or g.unit in ("pose", "rate"), var.name
+        if var.shape:   # an FMI 3.0 array: the whole group at its first value reference
+            assert version == 3 and var.size == g.count, var.name
+            assert var.shape == ((g.count // g.shape, g.shape) if g.shape > 0 else (g.count,)), var.name
+            assert var.unit is None if g.unit in ("pose", "rate") else var.unit == (g.unit or None)
+            assert var.start is None or len(var.start) == g.count, var.name
+        else:           # a scalar: a group of one, an element, or a per-leg key given once
+            assert version == 2 or g.count == 1 or g.shape == table.PER_LEG or g.shape == table.STRING, var.name
+
+
+@pytest.mark.parametrize("path", SCENES, ids=lambda p: p.stem)
+def test_fmi3_arrays_hold_the_fmi2_scalars(path):
+    """The FMI 3.0 FMU declares each group of several values as one array, and its values are
+    the FMI 2.0 scalars': the same start at the same stored value reference (array's + element,
+    row-major), the same value references declared (elements aside), and q, qd, the pose
+    arrays, in FMI 3.0 only, holding what x .. dthz hold. The scene's C file tells the binary
+    how many values each declared value reference holds (STEWART_VALUES)."""
+    model = load_scene(path)
+    two, three = V.variables(model, 2), V.variables(model, 3)
+    assert V.element_starts(two) == {vr: x for vr, x in V.element_starts(three).items() if vr != table.VR_TIME}
+    stored = lambda vs: {v.vr + k for v in vs for k in range(v.size)}  # noqa: E731
+    only3 = {g.name for g in table.VARIABLES if g.fmi3_only}
+    assert only3 == {"q", "qd"}
+    assert stored(two) == stored([v for v in three if v.name not in only3 | {"time"}])
+    assert all(v.size == 1 for v in two) and any(v.size > 1 for v in three)
+    assert len(three) < len(two)
+    q, qd = table.GROUPS["Q"], table.GROUPS["QD"]
+    assert (q.count, qd.count, qd.vr) == (6, 6, q.vr + 6)   # the state's q then qd (fmi/model.c output)
+    assert [table.GROUPS[f"Q_{c.upper()}"].vr for c in POSE] == list(range(table.vr("Q_X"), table.vr("Q_X") + 6))
+    for version, table_ in ((2, two), (3, three)):
+        source = V.scene_c_source(model, table_, version)
+        sizes = re.search(r"STEWART_VALUES\[VR_END\] = \{([^}]*)\}", source).group(1)
+        values = [int(x) for x in sizes.split(",")]
+        assert len(values) == table.VR_END
+        assert {vr: n for vr, n in enumerate(values) if n} == {v.vr: v.size for v in table_}
 
 
 def test_integrator_names_are_the_cores():

@@ -122,12 +122,12 @@ fmi2Status fmi2Reset(fmi2Component c) {
 
 fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
     GET("fmi2GetReal", GETTABLE);
-    return (fmi2Status)model_get_real(inst, vr, nvr, value);
+    return (fmi2Status)model_get_real(inst, vr, nvr, value, nvr);
 }
 
 fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[]) {
     GET("fmi2SetReal", ANY);
-    return (fmi2Status)model_set_real(inst, vr, nvr, value);
+    return (fmi2Status)model_set_real(inst, vr, nvr, value, nvr);
 }
 
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String value[]) {

@@ -47,7 +47,8 @@ static fmi3Status refuse(fmi3Instance instance, const char *call, const char *wh
 
 #define NOT_CS(CALL) return refuse(instance, CALL, "not available in Co-Simulation without event mode")
 
-/* Scalar variables only: one value per value reference. */
+/* The String variable is a scalar: one value per value reference (the Float64 arrays are
+ * counted by model_get_real / model_set_real). */
 static int count_ok(Instance *inst, const char *call, size_t nvr, size_t nvalues) {
     if (nvr == nvalues) return 1;
     model_log(inst, M_ERROR, "%s: %lu values for %lu scalar variables", call, (unsigned long)nvalues,
@@ -154,15 +155,13 @@ fmi3Status fmi3Reset(fmi3Instance instance) {
 fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
                           fmi3Float64 values[], size_t nValues) {
     GET("fmi3GetFloat64", GETTABLE);
-    if (!count_ok(inst, "fmi3GetFloat64", nValueReferences, nValues)) return fmi3Error;
-    return (fmi3Status)model_get_real(inst, valueReferences, nValueReferences, values);
+    return (fmi3Status)model_get_real(inst, valueReferences, nValueReferences, values, nValues);
 }
 
 fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
                           const fmi3Float64 values[], size_t nValues) {
     GET("fmi3SetFloat64", ANY);
-    if (!count_ok(inst, "fmi3SetFloat64", nValueReferences, nValues)) return fmi3Error;
-    return (fmi3Status)model_set_real(inst, valueReferences, nValueReferences, values);
+    return (fmi3Status)model_set_real(inst, valueReferences, nValueReferences, values, nValues);
 }
 
 fmi3Status fmi3GetString(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,

@@ -27,7 +27,7 @@ typedef struct { unsigned vr, count; int shape; const char *name; } Group;
 #define STRING_GROUP(ID, NAME, WHAT) {VR_##ID, 1, STEWART_STRING, NAME},
 static const Group GROUPS[] = {
     STEWART_FMU_SCENE(GROUP) STEWART_FMU_SETTINGS(GROUP) STEWART_FMU_STRINGS(STRING_GROUP)
-    STEWART_FMU_INPUTS(GROUP) STEWART_FMU_OUTPUTS(GROUP)
+    STEWART_FMU_INPUTS(GROUP) STEWART_FMU_OUTPUTS(GROUP) STEWART_FMU_OUTPUT_ARRAYS(GROUP)
 };
 
 static int has(unsigned vr);
@@ -57,7 +57,17 @@ static const char *vr_name(unsigned vr, char buf[64]) {
 
 enum { K_UNKNOWN, K_PARAM, K_METHOD, K_INPUT, K_OUTPUT, K_TIME };
 
-static int has(unsigned vr) { return STEWART_DECLARED[vr] != 0; }
+/* How many values a declared value reference holds (0: not a value reference of this FMU). */
+static unsigned values_at(unsigned vr) { return vr < VR_END ? STEWART_VALUES[vr] : 0u; }
+
+/* A value is present at vr: vr lies in a declared variable (a scalar, or an FMI 3.0 array whose
+ * elements follow its value reference). */
+static int has(unsigned vr) {
+    unsigned v = vr < VR_END ? vr + 1 : 0u;
+    while (v-- > 0)
+        if (values_at(v)) return vr - v < values_at(v);
+    return 0;
+}
 static int has_legs(void) { return has(VR_LOWER_MASS); }
 static int has_drive(void) { return has(VR_GEAR_RATIO); }
 static int has_friction(void) { return has(VR_VISCOUS); }
@@ -80,9 +90,14 @@ static int vr_kind(unsigned vr) {
     if (vr >= VR_SIGMA && vr < VR_SIGMA + 6) return K_INPUT;
     if (vr >= VR_TAU && vr < VR_TAU + 6) return has_drive() ? K_INPUT : K_UNKNOWN;
     if (vr >= VR_L && vr < VR_FORCE_PLATFORM) return K_OUTPUT;
-    if (vr >= VR_FORCE_PLATFORM && vr < VR_END) return part_present((int)((vr - VR_FORCE_PLATFORM) / 6)) ? K_OUTPUT : K_UNKNOWN;
+    if (vr >= VR_FORCE_PLATFORM && vr < VR_Q) return part_present((int)((vr - VR_FORCE_PLATFORM) / 6)) ? K_OUTPUT : K_UNKNOWN;
+    if (vr >= VR_Q && vr < VR_END) return K_OUTPUT;
     return K_UNKNOWN;
 }
+
+/* The kind of a value reference an importer passes: only declared ones are known (an FMI 3.0
+ * array's element value references are not). */
+static int declared_kind(unsigned vr) { return values_at(vr) ? vr_kind(vr) : K_UNKNOWN; }
 
 /* ---- logging -------------------------------------------------------------------------------- */
 
@@ -399,6 +414,8 @@ static int output(Instance *c, unsigned vr, double *value) {
         *value = vr < VR_LDOT ? c->l[vr - VR_L] : vr < VR_Q_X ? c->ldot[vr - VR_LDOT] : c->omega[vr - VR_OMEGA];
     } else if (vr >= VR_Q_X && vr < VR_Q_X + 12) {
         *value = y[vr - VR_Q_X];
+    } else if (vr >= VR_Q && vr < VR_Q + 12) {   /* q then qd: the state's first 12 */
+        *value = y[vr - VR_Q];
     } else if (vr >= VR_V && vr < VR_V + 3) {
         *value = y[6 + vr - VR_V];
     } else if (vr == VR_COND) {
@@ -431,75 +448,102 @@ static int check_args(Instance *c, const char *call, const void *vr, size_t n, c
     return M_OK;
 }
 
-int model_get_real(Instance *c, const unsigned vr[], size_t n, double value[]) {
-    size_t k;
-    if (check_args(c, "getReal", vr, n, value)) return M_ERROR;
-    for (k = 0; k < n; k++) {
-        int kind = vr_kind(vr[k]);
+/* The values vr[0..nvr) hold, each an array's elements or one scalar: M_ERROR, logged, for an
+ * unknown value reference or when they are not nvalues (so that nothing is read or written past
+ * the importer's array). */
+static int count_values(Instance *c, const char *call, const unsigned vr[], size_t nvr, size_t nvalues) {
+    size_t k, total = 0;
+    for (k = 0; k < nvr; k++) {
+        if (!values_at(vr[k])) {
+            model_log(c, M_ERROR, "%s: unknown value reference %u", call, vr[k]);
+            return M_ERROR;
+        }
+        total += values_at(vr[k]);   /* at most 255 each: no overflow for any nvr in memory */
+    }
+    if (total == nvalues) return M_OK;
+    model_log(c, M_ERROR, "%s: %lu values for %lu value references holding %lu (an array's elements "
+              "in row-major order)", call, (unsigned long)nvalues, (unsigned long)nvr, (unsigned long)total);
+    return M_ERROR;
+}
+
+/* Element j of the importer's values, and its value reference: vr[k] + e, e the element of
+ * vr[k]'s array (0 for a scalar); loops over every value of vr[0..nvr). */
+#define FOR_EACH_VALUE(vr, nvr, k, e, j) \
+    for (k = 0, j = 0; k < nvr; k++)     \
+        for (e = 0; e < values_at(vr[k]); e++, j++)
+
+int model_get_real(Instance *c, const unsigned vr[], size_t nvr, double value[], size_t nvalues) {
+    size_t k, j;
+    unsigned e;
+    if (check_args(c, "getReal", vr, nvr, value) || count_values(c, "getReal", vr, nvr, nvalues)) return M_ERROR;
+    FOR_EACH_VALUE(vr, nvr, k, e, j) {
+        unsigned v = vr[k] + e;
+        int kind = vr_kind(v);
         if (kind == K_PARAM) {
-            value[k] = c->d.par[vr[k]];
+            value[j] = c->d.par[v];
         } else if (kind == K_TIME) {
-            value[k] = c->d.s.time;
+            value[j] = c->d.s.time;
         } else if (kind == K_INPUT) {
-            value[k] = vr[k] < VR_TAU ? c->d.s.sigma[vr[k] - VR_SIGMA] : c->d.s.tau[vr[k] - VR_TAU];
+            value[j] = v < VR_TAU ? c->d.s.sigma[v - VR_SIGMA] : c->d.s.tau[v - VR_TAU];
         } else if (kind == K_OUTPUT) {
-            if (output(c, vr[k], &value[k])) return M_ERROR;
+            if (output(c, v, &value[j])) return M_ERROR;
         } else {
-            model_log(c, M_ERROR, "getReal: %s value reference %u", kind == K_METHOD ? "not a Real:" : "unknown",
-                      vr[k]);
+            model_log(c, M_ERROR, "getReal: %s value reference %u", kind == K_METHOD ? "not a Real:" : "unknown", v);
             return M_ERROR;
         }
     }
     return M_OK;
 }
 
-int model_set_real(Instance *c, const unsigned vr[], size_t n, const double value[]) {
+int model_set_real(Instance *c, const unsigned vr[], size_t nvr, const double value[], size_t nvalues) {
     int phase = c->d.s.phase;
-    size_t k;
+    size_t k, j;
+    unsigned e;
     char name[64];
-    if (check_args(c, "setReal", vr, n, value)) return M_ERROR;
+    if (check_args(c, "setReal", vr, nvr, value) || count_values(c, "setReal", vr, nvr, nvalues)) return M_ERROR;
     /* Check every value first: an Error changes nothing. */
-    for (k = 0; k < n; k++) {
-        int kind = vr_kind(vr[k]);
+    FOR_EACH_VALUE(vr, nvr, k, e, j) {
+        unsigned v = vr[k] + e;
+        int kind = vr_kind(v);
         if (kind == K_UNKNOWN || kind == K_METHOD) {
-            model_log(c, M_ERROR, "setReal: %s value reference %u", kind == K_METHOD ? "not a Real:" : "unknown", vr[k]);
+            model_log(c, M_ERROR, "setReal: %s value reference %u", kind == K_METHOD ? "not a Real:" : "unknown", v);
             return M_ERROR;
         }
         if (kind == K_OUTPUT || kind == K_TIME) {
             model_log(c, M_ERROR, "setReal: %s (value reference %u) is %s: it cannot be set",
-                      kind == K_TIME ? "time" : vr_name(vr[k], name), vr[k],
+                      kind == K_TIME ? "time" : vr_name(v, name), vr[k],
                       kind == K_TIME ? "the independent variable" : "an output");
             return M_ERROR;
         }
         if (kind == K_PARAM && !stewart_allowed(STEWART_CALL_SET_PARAMETER, phase)) {
             model_log(c, M_ERROR, "setReal: parameter %s is fixed: it can only be set before exitInitializationMode "
-                      "(now in %s)", vr_name(vr[k], name), stewart_phase_name(phase));
+                      "(now in %s)", vr_name(v, name), stewart_phase_name(phase));
             return M_ERROR;
         }
         if (kind == K_INPUT && !stewart_allowed(STEWART_CALL_SET_INPUT, phase)) {
-            model_log(c, M_ERROR, "setReal: input %s cannot be set in %s", vr_name(vr[k], name),
+            model_log(c, M_ERROR, "setReal: input %s cannot be set in %s", vr_name(v, name),
                       stewart_phase_name(phase));
             return M_ERROR;
         }
-        if (!isfinite(value[k])) {
+        if (!isfinite(value[j])) {
             model_log(c, M_ERROR, "setReal: %s = %g at t = %.17g s is not finite: rejected, the value stays %.17g",
-                      vr_name(vr[k], name), value[k], c->d.s.time,
-                      kind == K_PARAM ? c->d.par[vr[k]]
-                                      : (vr[k] < VR_TAU ? c->d.s.sigma[vr[k] - VR_SIGMA] : c->d.s.tau[vr[k] - VR_TAU]));
+                      vr_name(v, name), value[j], c->d.s.time,
+                      kind == K_PARAM ? c->d.par[v] : (v < VR_TAU ? c->d.s.sigma[v - VR_SIGMA] : c->d.s.tau[v - VR_TAU]));
             return M_ERROR;
         }
     }
-    for (k = 0; k < n; k++) {
-        if (vr_kind(vr[k]) == K_PARAM) {
-            c->d.par[vr[k]] = value[k];
+    FOR_EACH_VALUE(vr, nvr, k, e, j) {
+        unsigned v = vr[k] + e;
+        if (vr_kind(v) == K_PARAM) {
+            c->d.par[v] = value[j];
             c->have_initial = 0;
-        } else if (vr[k] < VR_TAU) {
-            c->d.s.sigma[vr[k] - VR_SIGMA] = value[k];
+        } else if (v < VR_TAU) {
+            c->d.s.sigma[v - VR_SIGMA] = value[j];
         } else {
-            c->d.s.tau[vr[k] - VR_TAU] = value[k];
+            c->d.s.tau[v - VR_TAU] = value[j];
         }
     }
-    if (n) {
+    if (nvr) {
         c->have_parts = 0;
         c->have_initial = c->have_initial && !has_transmission();  /* the preload follows the inputs */
         update_rack(c);
@@ -547,7 +591,7 @@ int model_wrong_type(Instance *c, const char *call, const unsigned vr[], size_t 
     char name[64];
     if (n == 0) return M_OK;
     if (!vr) return check_args(c, call, vr, n, NULL);
-    if (vr_kind(vr[0]) == K_UNKNOWN)
+    if (declared_kind(vr[0]) == K_UNKNOWN)
         model_log(c, M_ERROR, "%s: unknown value reference %u", call, vr[0]);
     else
         model_log(c, M_ERROR, "%s: %s (value reference %u) is not of this type", call, vr_name(vr[0], name), vr[0]);

@@ -5,7 +5,9 @@
  * (stewart_fmu/fmu/variables.py reads the same table from the core). A scene declares a subset: parameters of
  * absent tables, tau without a [drive] and force parts of absent effects are unknown value
  * references of that FMU. The generated scene file (written by stewart_fmu.fmu.variables.scene_c_source) holds the
- * start values, which value references are declared, and the instantiation token. */
+ * start values, how many values each declared value reference holds (1 for each FMI 2.0 scalar;
+ * an FMI 3.0 array's count at its first value reference, its elements stored at the following
+ * ones, which it does not declare), and the instantiation token. */
 #ifndef STEWART_FMI_MODEL_H
 #define STEWART_FMI_MODEL_H
 
@@ -15,14 +17,14 @@
 
 /* ---- value references: the FMU variable groups of stewart_table.h -------------------------- */
 /* VR_<ID>: the first value reference of each group. Parameters (Real, fixed) are par[vr] of the
- * instance, vr in [1, VR_N_PAR); VR_METHOD the String parameter; then inputs, then outputs up
- * to VR_END. */
+ * instance, vr in [1, VR_N_PAR); VR_METHOD the String parameter; then inputs, then outputs (the
+ * FMI 3.0 arrays q, qd last) up to VR_END. */
 #define VR_PARAMETER(ID, ...) VR_##ID = STEWART_VR(PARAMETERS, stewart_fmu_parameters, ID),
 #define VR_INPUT(ID, ...) VR_##ID = STEWART_VR(INPUTS, stewart_fmu_inputs, ID),
 #define VR_OUTPUT(ID, ...) VR_##ID = STEWART_VR(OUTPUTS, stewart_fmu_outputs, ID),
 enum {
     STEWART_FMU_SCENE(VR_PARAMETER) STEWART_FMU_SETTINGS(VR_PARAMETER)
-    STEWART_FMU_INPUTS(VR_INPUT) STEWART_FMU_OUTPUTS(VR_OUTPUT)
+    STEWART_FMU_INPUTS(VR_INPUT) STEWART_FMU_OUTPUTS(VR_OUTPUT) STEWART_FMU_OUTPUT_ARRAYS(VR_OUTPUT)
     VR_TIME = STEWART_VR_TIME, VR_N_PAR = STEWART_VR_N_PARAMETERS, VR_METHOD = STEWART_VR_METHOD,
     VR_END = STEWART_VR_N_OUTPUTS
 };
@@ -31,7 +33,7 @@ enum {
 extern const char STEWART_MODEL_TOKEN[];            /* guid / instantiationToken */
 extern const double STEWART_START[VR_N_PAR];        /* start values of the parameters */
 extern const double STEWART_START_SIGMA[6];         /* start of sigma: the force holding home */
-extern const unsigned char STEWART_DECLARED[VR_N_PAR]; /* 1: declared in the model description */
+extern const unsigned char STEWART_VALUES[VR_END];  /* values a declared value reference holds; 0: none */
 extern const int STEWART_START_METHOD;              /* stewart_method */
 
 /* ---- the instance ------------------------------------------------------------------------------ */
@@ -88,8 +90,10 @@ int model_exit_init(Instance *c);
 int model_terminate(Instance *c);
 int model_do_step(Instance *c, double t, double h, double *last_time);
 
-int model_get_real(Instance *c, const unsigned vr[], size_t n, double value[]);
-int model_set_real(Instance *c, const unsigned vr[], size_t n, const double value[]);
+/* nvr value references, nvalues values: an array's elements follow one another in row-major
+ * order (FMI 3.0); for FMI 2.0 nvalues = nvr. A mismatch is M_ERROR, logged, nothing touched. */
+int model_get_real(Instance *c, const unsigned vr[], size_t nvr, double value[], size_t nvalues);
+int model_set_real(Instance *c, const unsigned vr[], size_t nvr, const double value[], size_t nvalues);
 int model_get_string(Instance *c, const unsigned vr[], size_t n, const char *value[]);
 int model_set_string(Instance *c, const unsigned vr[], size_t n, const char *const value[]);
 int model_wrong_type(Instance *c, const char *call, const unsigned vr[], size_t n);

@@ -49,6 +49,7 @@ typedef struct {
     const char *name;         /* the variable's (group's) name in the model description */
     int vr, count, shape, bound;
     int scene;                /* 1: a scene key of the plant tables (STEWART_FMU_SCENE) */
+    int fmi3_only;            /* 1: an FMI 3.0 array only (STEWART_FMU_OUTPUT_ARRAYS) */
     const char *causality, *unit, *description;
 } stewart_variable_info;
 typedef struct {

@@ -60,7 +60,10 @@
    on (0 is time, FMI 3.0's independent variable): X(ID, NAME, COUNT, SHAPE, UNIT, BOUND,
    DESCRIPTION). UNIT "pose" is m for x, y, z and rad for the angles, "rate" their rates;
    "" none. The parameters are Real, fixed: first the scene keys of the plant tables (a scene
-   declares those of the tables it has), then the FMU's settings. */
+   declares those of the tables it has), then the FMU's settings. FMI 2.0 declares a group of
+   COUNT > 1 as COUNT scalars NAME[i] (NAME[i,j] for a matrix) at consecutive value references;
+   FMI 3.0 as one array variable NAME of its shape at the group's first value reference, its
+   values in row-major order (a per-leg key given once is a scalar in both). */
 #define STEWART_FMU_SCENE(X)                                                                \
     X(GRAVITY, "gravity", 3, STEWART_VECTOR, "m/s2", ANY, "gravity in N")                        \
     X(BASE, "geometry.base_joints", 18, 3, "m", ANY, "base joint a_i in N")                      \
@@ -141,6 +144,13 @@
     X(FORCE_GRAVITY, "force.gravity", 6, STEWART_PER_LEG, "N", ANY, "rack force spent on gravity") \
     X(FORCE_FRICTION, "force.friction", 6, STEWART_PER_LEG, "N", ANY, "rack force spent on friction")
 
+/* Outputs of FMI 3.0 only, after the others: the pose and its rates as arrays, beside the named
+   scalars x .. dthz (which keep their units, m or rad: an FMI 3.0 array has one unit, and FMI
+   2.0 has no arrays). */
+#define STEWART_FMU_OUTPUT_ARRAYS(X)                                                             \
+    X(Q, "q", 6, STEWART_VECTOR, "pose", ANY, "platform pose (x, y, z in m; thx, thy, thz in rad)") \
+    X(QD, "qd", 6, STEWART_VECTOR, "rate", ANY, "pose rates (dx, dy, dz in m/s; dthx, dthy, dthz in rad/s)")
+
 /* The standard parameters of the identification model, in column order of the regressor Y
    (src/regressor.c: sigma = Y(q, qd, qdd) pi, linear in pi): X(NAME, COUNT, KEY, UNIT,
    DESCRIPTION). KEY is the dotted name reports use. The platform's are taken about the platform
@@ -181,7 +191,9 @@ typedef struct {
 } stewart_fmu_parameters;
 typedef struct { STEWART_STANDARD(STEWART_X_FIELD) } stewart_standard_layout;
 typedef struct { STEWART_FMU_INPUTS(STEWART_X_VARIABLE) } stewart_fmu_inputs;
-typedef struct { STEWART_FMU_OUTPUTS(STEWART_X_VARIABLE) } stewart_fmu_outputs;
+typedef struct {
+    STEWART_FMU_OUTPUTS(STEWART_X_VARIABLE) STEWART_FMU_OUTPUT_ARRAYS(STEWART_X_VARIABLE)
+} stewart_fmu_outputs;
 
 /* The offset of a packed entry, and the value reference of an FMU variable group
    (SECTION: PARAMETERS, INPUTS or OUTPUTS; LAYOUT: the struct of that section). */

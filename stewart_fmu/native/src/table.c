@@ -14,19 +14,21 @@ const int stewart_standard_table_size =
 
 #define PARAMETER_ROW(ID, NAME, COUNT, SHAPE, UNIT, BOUND, WHAT, SCENE)                           \
     {#ID, NAME, STEWART_VR(PARAMETERS, stewart_fmu_parameters, ID), COUNT, SHAPE,                 \
-     STEWART_BOUND_##BOUND, SCENE, "parameter", UNIT, WHAT},
+     STEWART_BOUND_##BOUND, SCENE, 0, "parameter", UNIT, WHAT},
 #define SCENE_ROW(...) PARAMETER_ROW(__VA_ARGS__, 1)
 #define SETTING_ROW(...) PARAMETER_ROW(__VA_ARGS__, 0)
 #define STRING_ROW(ID, NAME, WHAT)                                                                \
-    {#ID, NAME, STEWART_VR_METHOD, 1, STEWART_STRING, STEWART_BOUND_ANY, 0, "parameter", "", WHAT},
+    {#ID, NAME, STEWART_VR_METHOD, 1, STEWART_STRING, STEWART_BOUND_ANY, 0, 0, "parameter", "", WHAT},
 #define INPUT_ROW(ID, NAME, COUNT, SHAPE, UNIT, BOUND, WHAT)                                      \
     {#ID, NAME, STEWART_VR(INPUTS, stewart_fmu_inputs, ID), COUNT, SHAPE, STEWART_BOUND_##BOUND,  \
-     0, "input", UNIT, WHAT},
-#define OUTPUT_ROW(ID, NAME, COUNT, SHAPE, UNIT, BOUND, WHAT)                                     \
+     0, 0, "input", UNIT, WHAT},
+#define OUTPUT_ROW_OF(ID, NAME, COUNT, SHAPE, UNIT, BOUND, WHAT, FMI3_ONLY)                       \
     {#ID, NAME, STEWART_VR(OUTPUTS, stewart_fmu_outputs, ID), COUNT, SHAPE,                       \
-     STEWART_BOUND_##BOUND, 0, "output", UNIT, WHAT},
+     STEWART_BOUND_##BOUND, 0, FMI3_ONLY, "output", UNIT, WHAT},
+#define OUTPUT_ROW(...) OUTPUT_ROW_OF(__VA_ARGS__, 0)
+#define ARRAY_ROW(...) OUTPUT_ROW_OF(__VA_ARGS__, 1)
 const stewart_variable_info stewart_variable_table[] = {
     STEWART_FMU_SCENE(SCENE_ROW) STEWART_FMU_SETTINGS(SETTING_ROW) STEWART_FMU_STRINGS(STRING_ROW)
-    STEWART_FMU_INPUTS(INPUT_ROW) STEWART_FMU_OUTPUTS(OUTPUT_ROW)};
+    STEWART_FMU_INPUTS(INPUT_ROW) STEWART_FMU_OUTPUTS(OUTPUT_ROW) STEWART_FMU_OUTPUT_ARRAYS(ARRAY_ROW)};
 const int stewart_variable_table_size =
     sizeof stewart_variable_table / sizeof stewart_variable_table[0];
