@@ -2,7 +2,7 @@
  * (model.c) and by controller/fmu.py (the model description, the start values): the one
  * spelling of their names, sizes, units and value references.
  *
- * X(ID, NAME, COUNT, UNIT, DESCRIPTION). Value references: a group's first is its section's
+ * X(ID, NAME, COUNT, UNIT, DESCRIPTION), one row per line. Value references: a group's first is its section's
  * base plus the values before it in the section (COUNT per row, in this order); FMI 3.0's
  * independent variable `time` is 0. Per-leg groups (COUNT 6) are NAME[1] .. NAME[6]. */
 #ifndef AXIS_TABLE_H
@@ -26,7 +26,9 @@
     X(EMF_CONSTANT, "emf_constant", 1, "V.s/m", "back-EMF per rack speed, Ke zeta / r")         \
     X(FORCE_PER_TORQUE, "force_per_torque", 1, "1/m", "rack force per motor torque, zeta / r")  \
     X(INTEGRAL0, "integral0", 6, "m.s", "PID integral at the start (the drives holding)")       \
-    X(CURRENT0, "current0", 6, "A", "motor current at the start (the drives holding)")
+    X(CURRENT0, "current0", 6, "A", "motor current at the start (the drives holding)")      \
+    X(REFERENCE, "reference", 1, "", "1: l_ref, ldot_ref, v_ff from the carried move; 0: inputs") \
+    X(DELAY, "delay", 1, "", "outputs: 0 the sample at this point, 1 the last step's (a period late)")
 
 /* Inputs (Real, continuous), held over a step. */
 #define AXIS_FMU_INPUTS(X)                                                                       \
@@ -36,8 +38,11 @@
     X(L, "l", 6, "m", "measured leg length")                                                    \
     X(LDOT, "ldot", 6, "m/s", "measured leg rate")
 
-/* Outputs (Real, continuous): the sample at the current communication point from the state
-   and the inputs set (direct feedthrough), what doStep then holds over its first period. */
+/* Outputs (Real, continuous). delay 0: the sample at the current communication point from the
+   state and the inputs set (direct feedthrough), what doStep then holds over its first period.
+   delay 1: the sample of the last period doStep took (before any step, the drives' start:
+   current0, its torque and force, R current0), for masters that step every FMU before passing
+   outputs on (SSP importers): the torque reaches the plant one period after its sample. */
 #define AXIS_FMU_OUTPUTS(X)                                                                      \
     X(TAU, "tau", 6, "N.m", "motor torque, the mean over the controller period")                \
     X(FORCE, "force", 6, "N", "rack force, force_per_torque tau")                               \

@@ -159,6 +159,17 @@ static int loop_of(Instance *c, const char *call, axis_loop *loop) {
                       vr_name(nonneg[k], name), c->d.par[nonneg[k] - AXIS_VR_PARAMETERS]);
             return M_ERROR;
         }
+    if (!(PAR(DELAY) == 0.0 || PAR(DELAY) == 1.0)) {
+        model_log(c, M_ERROR, "%s: parameter delay must be 0 (the sample at the current point) or 1 "
+                  "(the last step's), got %g", call, PAR(DELAY));
+        return M_ERROR;
+    }
+    if (!(PAR(REFERENCE) == 0.0 || (PAR(REFERENCE) == 1.0 && AXIS_REF_N > 0))) {
+        model_log(c, M_ERROR, "%s: parameter reference must be 0 (the inputs)%s, got %g", call,
+                  AXIS_REF_N > 0 ? " or 1 (the move this FMU carries)" : ": this FMU carries no move",
+                  PAR(REFERENCE));
+        return M_ERROR;
+    }
     dt = 1.0 / PAR(RATE);
     R = PAR(RESISTANCE);
     L = PAR(INDUCTANCE);
@@ -178,6 +189,21 @@ static int loop_of(Instance *c, const char *call, axis_loop *loop) {
     return M_OK;
 }
 
+/* The outputs of delay = 1 before any step: the drives' start, holding (current0). */
+static void start_sample(const Instance *c, double *out) {
+    axis_fmu_outputs o;
+    int i;
+    for (i = 0; i < 6; i++) {
+        const double i0 = c->d.par[VR_CURRENT0 - AXIS_VR_PARAMETERS + i];
+        o.TAU[i] = c->d.par[VR_TORQUE_CONSTANT - AXIS_VR_PARAMETERS] * i0;
+        o.FORCE[i] = 0.0 + c->d.par[VR_FORCE_PER_TORQUE - AXIS_VR_PARAMETERS] * o.TAU[i];
+        o.VOLTAGE[i] = c->d.par[VR_RESISTANCE - AXIS_VR_PARAMETERS] * i0;
+        o.CURRENT[i] = i0;
+        o.SATURATED[i] = 0.0;
+    }
+    memcpy(out, &o, sizeof o);
+}
+
 int model_exit_init(Instance *c) {
     ControllerData *d = &c->d;
     if (loop_of(c, "exitInitializationMode", &d->loop)) {
@@ -187,6 +213,7 @@ int model_exit_init(Instance *c) {
     }
     memcpy(d->integral, d->par + (VR_INTEGRAL0 - AXIS_VR_PARAMETERS), sizeof d->integral);
     memcpy(d->current, d->par + (VR_CURRENT0 - AXIS_VR_PARAMETERS), sizeof d->current);
+    start_sample(c, d->last);
     stewart_component_exit_init(&d->s, NULL);
     c->have_out = 0;
     model_log(c, M_OK, "exitInitializationMode: six axes at %g Hz from t = %.17g s", PAR(RATE), d->s.time);
@@ -199,13 +226,29 @@ int model_terminate(Instance *c) {
 
 /* ---- the sample ---------------------------------------------------------------------------- */
 
-/* One controller period from the held inputs: axis_step on integral and current. */
-static void sample(const axis_loop *loop, Instance *c, double *integral, double *current, double *out) {
+/* references() hands axis_step l_ref, ldot_ref and v_ff as one row of 18: so are the inputs. */
+typedef char inputs_are_one_row[offsetof(axis_fmu_inputs, V_FF) == 12 * sizeof(double) &&
+                                offsetof(axis_fmu_inputs, LDOT_REF) == 6 * sizeof(double) ? 1 : -1];
+
+/* The references of the sample at `time`: the inputs, or with parameter reference = 1 the
+ * carried move's sample nearest to it (k = (time - startTime) rate, clamped to the move). */
+static const double *references(Instance *c, double time) {
+    double k;
+    long i;
+    if (PAR(REFERENCE) != 1.0) return IN(L_REF);  /* l_ref, ldot_ref, v_ff: consecutive inputs */
+    k = floor((time - c->d.s.start_time) * PAR(RATE) + 0.5);
+    i = k < 0 ? 0 : (k > (double)(AXIS_REF_N - 1) ? AXIS_REF_N - 1 : (long)k);
+    return AXIS_REF + 18 * i;
+}
+
+/* One controller period at `time` from the held measurements: axis_step on integral and current. */
+static void sample(const axis_loop *loop, Instance *c, double time, double *integral, double *current,
+                   double *out) {
     axis_fmu_outputs o;
     unsigned char sat[6];
+    const double *ref = references(c, time);
     int i;
-    axis_step(loop, integral, current, IN(L_REF), IN(LDOT_REF), IN(L), IN(LDOT), IN(V_FF), o.VOLTAGE,
-              o.TAU, sat);
+    axis_step(loop, integral, current, ref, ref + 6, IN(L), IN(LDOT), ref + 12, o.VOLTAGE, o.TAU, sat);
     for (i = 0; i < 6; i++) {
         o.FORCE[i] = 0.0 + loop->gain * o.TAU[i];  /* as closed_loop_run: sigma (0) + zeta/r tau */
         o.CURRENT[i] = current[i];
@@ -216,7 +259,7 @@ static void sample(const axis_loop *loop, Instance *c, double *integral, double 
 
 int model_do_step(Instance *c, double t, double h, double *last_time) {
     ControllerData *d = &c->d;
-    double periods, scratch[N_OUT];
+    double periods;
     long n, k;
     if (last_time) *last_time = d->s.time;
     if (model_require(c, "doStep", STEWART_CALL_DO_STEP)) return M_ERROR;
@@ -236,7 +279,7 @@ int model_do_step(Instance *c, double t, double h, double *last_time) {
         return M_ERROR;
     }
     for (k = 0; k < n; k++)  /* the inputs held over the step */
-        sample(&d->loop, c, d->integral, d->current, scratch);
+        sample(&d->loop, c, t + (double)k * d->loop.dt, d->integral, d->current, d->last);
     d->s.time = t + h;
     if (last_time) *last_time = d->s.time;
     c->have_out = 0;
@@ -245,27 +288,37 @@ int model_do_step(Instance *c, double t, double h, double *last_time) {
 
 /* ---- outputs ---------------------------------------------------------------------------------- */
 
-/* The sample at the current point on copies of the state (nothing advances): before
- * exitInitializationMode from integral0, current0 and the parameters set so far. */
+/* delay 0: the sample at the current point on copies of the state (nothing advances), before
+ * exitInitializationMode from integral0, current0 and the parameters set so far; delay 1: the
+ * last period's sample. */
 static int outputs(Instance *c) {
     double integral[6], current[6];
     axis_loop loop;
     ControllerData *d = &c->d;
+    int running = d->s.phase == STEWART_PH_STEPPING || d->s.phase == STEWART_PH_TERMINATED;
     if (c->have_out) return M_OK;
     if (d->s.phase == STEWART_PH_FAILED) {
         model_log(c, M_ERROR, "getReal: no outputs: initialization failed (see the log)");
         return M_ERROR;
     }
-    if (d->s.phase == STEWART_PH_STEPPING || d->s.phase == STEWART_PH_TERMINATED) {
+    if (!running && loop_of(c, "getReal", &loop)) return M_ERROR;
+    if (PAR(DELAY) == 1.0) {
+        if (running)
+            memcpy(c->out, d->last, sizeof c->out);
+        else
+            start_sample(c, c->out);
+        c->have_out = 1;
+        return M_OK;
+    }
+    if (running) {
         loop = d->loop;
         memcpy(integral, d->integral, sizeof integral);
         memcpy(current, d->current, sizeof current);
     } else {
-        if (loop_of(c, "getReal", &loop)) return M_ERROR;
         memcpy(integral, d->par + (VR_INTEGRAL0 - AXIS_VR_PARAMETERS), sizeof integral);
         memcpy(current, d->par + (VR_CURRENT0 - AXIS_VR_PARAMETERS), sizeof current);
     }
-    sample(&loop, c, integral, current, c->out);
+    sample(&loop, c, d->s.time, integral, current, c->out);
     c->have_out = 1;
     return M_OK;
 }

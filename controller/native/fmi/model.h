@@ -27,6 +27,10 @@ enum {
 extern const char AXIS_MODEL_TOKEN[];        /* guid / instantiationToken */
 extern const double AXIS_START[N_PAR];       /* start values of the parameters */
 extern const double AXIS_START_INPUTS[N_IN]; /* start values of the inputs */
+/* The reference move the FMU carries (export-ssp; none for export-fmu --controller): AXIS_REF_N
+   samples at the rate from startTime, each l_ref, ldot_ref, v_ff (18 values, row-major). */
+extern const long AXIS_REF_N;
+extern const double AXIS_REF[];
 
 /* ---- the instance ------------------------------------------------------------------------------ */
 /* Everything a rollback restores: plain data. s: the component's life cycle (phase, time) and
@@ -38,6 +42,7 @@ typedef struct {
     double integral[6];         /* the PIDs' integrals */
     double current[6];          /* the motor currents */
     axis_loop loop;             /* the constants of axis_step (valid from exitInitializationMode) */
+    double last[N_OUT];         /* the last period's sample (parameter delay = 1) */
 } ControllerData;
 
 typedef enum { LOG_EVENTS = 1, LOG_WARNING = 2, LOG_DISCARD = 4, LOG_ERROR = 8, LOG_FATAL = 16,
