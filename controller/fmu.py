@@ -133,7 +133,7 @@ def token(table: list[Variable], fmi_version: int, move: np.ndarray | None = Non
 
 def start_c_source(table: list[Variable], fmi_version: int,
                    move: np.ndarray | None = None) -> str:
-    """fmi/start.c: the token, the start values by value reference and the carried move (n, 18)
+    """The FMU's generated start file (START_FILE): the token, the start values by value reference and the carried move (n, 18)
     (l_ref, ldot_ref, v_ff per sample; none: an empty move), hexadecimal: exact."""
     def rows(causality):
         return ",\n    ".join(f"{float(x.start).hex()} /* {x.name} */"

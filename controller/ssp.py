@@ -2,8 +2,8 @@
 controller FMU (FMI 2.0, the version FMPy's simulate_ssp runs), their connections, a parameter
 set per component, and the move.
 
-    SystemStructure.ssd       plant.l, plant.ldot -> controller.l, controller.ldot;
-                              controller.tau -> plant.tau; DefaultExperiment 0 .. the move's end,
+    SystemStructure.ssd       the plant's l, ldot -> the controller's l, ldot; the controller's
+                              tau -> the plant's tau (WIRES); DefaultExperiment 0 .. the move's end,
                               OSP annotation: fixed step = the controller period (libcosim)
     resources/plant.fmu       export-fmu of the scene (stewart_fmu.fmu.export)
     resources/controller.fmu  export-fmu --controller, carrying the move (controller.fmu: its
