@@ -8,6 +8,7 @@ from stewart_fmu.dynamics import inverse_dynamics
 from stewart_fmu.model import Model
 
 from .config import ControllerConfig
+from .design import PidGains
 from .drive import AxisModel
 from .trajectory import LegReferences, Trajectory
 
@@ -32,15 +33,25 @@ def feedforward_voltage(model: Model, config: ControllerConfig, axis: AxisModel,
     return axis.drive_for(traj.t, force, refs.ldot)
 
 
+def equilibrium(model: Model, q0: np.ndarray, qd0: np.ndarray, ldot_ref0: np.ndarray,
+                i_ff0: np.ndarray, gains: PidGains, axis: AxisModel) -> tuple[np.ndarray, np.ndarray]:
+    """(motor currents, PID integrals) of the drives holding the platform at q0 before the move
+    (bumpless start): the integral supplies what the feedforward's resistive and back-EMF parts
+    (of i_ff0 at ldot_ref0) do not, so the feedforward's inductive part (L di/dt) still reaches
+    the motor from the first sample."""
+    hold = inverse_dynamics(model, q0, qd0, np.zeros(6))
+    current = hold / axis.force_constant
+    v_hold = axis.voltage(current, 0.0, 0.0)
+    v_static = axis.voltage(i_ff0, 0.0, ldot_ref0)
+    integral = (v_hold - v_static) / gains.ki if gains.ki > 0 else np.zeros(6)
+    return current, integral
+
+
 def start_at_equilibrium(model, traj, refs, gains, ctrl, motors, i_ff0, plant) -> None:
-    """The drives hold the platform at the first pose before the move (bumpless start): the
-    integral supplies what the feedforward's resistive and back-EMF parts do not, so the
-    feedforward's inductive part (L di/dt) still reaches the motor from the first sample."""
-    hold = inverse_dynamics(model, traj.q[0], traj.qd[0], np.zeros(6))
-    motors.current = hold / motors.axis.force_constant
-    v_hold = motors.axis.voltage(motors.current, 0.0, 0.0)
-    v_static = motors.axis.voltage(i_ff0, 0.0, refs.ldot[0])
-    ctrl.integral = (v_hold - v_static) / gains.ki if gains.ki > 0 else np.zeros(6)
+    """The controllers and drives at their equilibrium at the first pose (equilibrium), and
+    the plant, when given, started there holding the same torques."""
+    motors.current, ctrl.integral = equilibrium(model, traj.q[0], traj.qd[0], refs.ldot[0], i_ff0,
+                                                gains, motors.axis)
     if plant is not None:
         plant.start(traj.q[0], traj.qd[0], float(traj.t[0]),
                     motors.current * motors.axis.motor.torque_constant)

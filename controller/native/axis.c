@@ -42,23 +42,35 @@ void advance_currents(double R, double Kt, double emf, double ilim, double decay
     }
 }
 
+void axis_step(const axis_loop *c, double *integral, double *current, const double *l_ref,
+               const double *ldot_ref, const double *l, const double *ldot, const double *v_ff,
+               double *v, double *torque, unsigned char *sat)
+{
+    unsigned char vsat[6], limited[6];
+    int i;
+    pid_voltages(c->kp, c->ki, c->kd, c->vmax, c->dt, integral, l_ref, ldot_ref, l, ldot, v_ff,
+                 v, vsat);
+    advance_currents(c->R, c->Kt, c->emf, c->ilim, c->decay, c->mean_decay, current, v, ldot,
+                     torque, limited);
+    for (i = 0; i < 6; ++i)
+        sat[i] = vsat[i] || limited[i];
+}
+
 int closed_loop_run(const double *params, const stewart_options *o, const axis_loop *c,
                     stewart_data *d, double *integral, double *current, const double *t,
                     long n, const double *l_ref, const double *ldot_ref, const double *v_ff,
                     long k0, long k1, const axis_records *rec, long *k_fail)
 {
     double l[6], ldot[6], om[3], v[6], torque[6], rack[6];
-    unsigned char sat[6], limited[6];
+    unsigned char sat[6];
     long k;
     int i, status;
     for (k = k0; k < k1; ++k) {
         const long r = 6 * k;
         int diverged = 0;
         stewart_leg_state(params, d->y, d->y + 6, l, ldot, om);
-        pid_voltages(c->kp, c->ki, c->kd, c->vmax, c->dt, integral, l_ref + r, ldot_ref + r, l,
-                     ldot, v_ff + r, v, sat);
-        advance_currents(c->R, c->Kt, c->emf, c->ilim, c->decay, c->mean_decay, current, v,
-                         ldot, torque, limited);
+        axis_step(c, integral, current, l_ref + r, ldot_ref + r, l, ldot, v_ff + r, v, torque,
+                  sat);
         for (i = 0; i < 6; ++i) {
             const double err = fabs(l_ref[r + i] - l[i]);
             rec->l[r + i] = l[i];
@@ -67,7 +79,7 @@ int closed_loop_run(const double *params, const stewart_options *o, const axis_l
             rec->v[r + i] = v[i];
             rec->i[r + i] = current[i];
             rec->tau[r + i] = torque[i];
-            rec->sat[r + i] = sat[i] || limited[i];
+            rec->sat[r + i] = sat[i];
             if (!(err <= c->bound))
                 diverged = 1;
         }

@@ -43,6 +43,14 @@ typedef struct {
     double bound;                           /* divergence: a leg error beyond it stops the run */
 } axis_loop;
 
+/* One controller sample of the six axes (the closed loop's and the controller FMU's, one
+   implementation): pid_voltages -> advance_currents with c's constants; integral and current
+   advance; v the voltages, torque the mean motor torques over the sample, sat voltage saturated
+   or current limited. */
+void axis_step(const axis_loop *c, double *integral, double *current, const double *l_ref,
+               const double *ldot_ref, const double *l, const double *ldot, const double *v_ff,
+               double *v, double *torque, unsigned char *sat);
+
 /* Per-sample records (n, 6) each, written at the samples run. */
 typedef struct {
     double *l, *ldot, *q, *v, *i, *tau;

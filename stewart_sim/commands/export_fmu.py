@@ -1,5 +1,6 @@
-"""`stewart-sim export-fmu SCENE -o PLANT.fmu [--fmi-version 2|3]`: the scene's plant as an FMI
-co-simulation FMU (stewart_fmu.fmu.export)."""
+"""`stewart-sim export-fmu SCENE -o PLANT.fmu [--fmi-version 2|3] [--controller]`: the scene's
+plant as an FMI co-simulation FMU (stewart_fmu.fmu.export), or with --controller its per-axis
+controllers (controller.fmu)."""
 from __future__ import annotations
 
 import argparse
@@ -21,6 +22,11 @@ def add_parser(sub, help_text: str) -> None:
     versions, default = literals("stewart_fmu.fmu.export", "FMI_VERSIONS", "DEFAULT_FMI_VERSION")
     p.add_argument("--fmi-version", type=int, choices=versions, default=default,
                    help=f"FMI version of the FMU (default {default})")
+    p.add_argument("--controller", action="store_true",
+                   help="export the scene's [controller] instead: the six PIDs with anti-windup "
+                        "and the motor currents (axis.c, as the closed loop), leg references, "
+                        "feedforward voltage and measured leg lengths and rates in, motor "
+                        "torques out, at the controller rate")
     p.set_defaults(run=run)
 
 
@@ -40,7 +46,14 @@ def run(args: argparse.Namespace) -> None:
     # The file read once: its bytes go into the FMU, its one Model gives the variables.
     text = read_scene_bytes(args.scene)
     model = scene_from_dict(parse_scene_bytes(text, args.scene), source=str(args.scene))
-    scene_of(model)   # every table checked before the compiler runs
-    with writing(out):
-        export_model(model, text, out, args.fmi_version)
+    scene = scene_of(model)   # every table checked before the compiler runs
+    if args.controller:
+        from controller.fmu import export_controller
+
+        config = scene.require_controller()
+        with writing(out):
+            export_controller(model, config, out, args.fmi_version)
+    else:
+        with writing(out):
+            export_model(model, text, out, args.fmi_version)
     print(f"wrote {out}")

@@ -1,0 +1,99 @@
+/* The six axis controllers as an FMU: value references, the instance, and the calls the shared
+ * FMI 2.0 / 3.0 layers make on it (the plant's stewart_fmu/native/fmi/fmi2Functions.c and
+ * fmi3Functions.c, compiled beside this header in the FMU's sources/fmi/). The same calls and
+ * Instance glue as the plant's model.h; the controller's step is axis.c's axis_step, the one
+ * the closed loop (closed_loop_run) takes. Variables: axis_table.h. The generated start file
+ * (controller/fmu.py, start_c_source) holds the start values and the instantiation token. */
+#ifndef AXIS_FMI_MODEL_H
+#define AXIS_FMI_MODEL_H
+
+#include <stddef.h>
+
+#include "stewart.h"  /* include directories: the core's include/ and axis.h's directory */
+#include "axis.h"
+#include "axis_table.h"
+
+#define VR_PARAMETER(ID, ...) VR_##ID = AXIS_VR(PARAMETERS, axis_fmu_parameters, ID),
+#define VR_INPUT(ID, ...) VR_##ID = AXIS_VR(INPUTS, axis_fmu_inputs, ID),
+#define VR_OUTPUT(ID, ...) VR_##ID = AXIS_VR(OUTPUTS, axis_fmu_outputs, ID),
+enum {
+    AXIS_FMU_PARAMETERS(VR_PARAMETER) AXIS_FMU_INPUTS(VR_INPUT) AXIS_FMU_OUTPUTS(VR_OUTPUT)
+    VR_TIME = 0,
+    N_PAR = AXIS_N(axis_fmu_parameters), N_IN = AXIS_N(axis_fmu_inputs),
+    N_OUT = AXIS_N(axis_fmu_outputs)
+};
+
+/* ---- the generated start file ---------------------------------------------------------------- */
+extern const char AXIS_MODEL_TOKEN[];        /* guid / instantiationToken */
+extern const double AXIS_START[N_PAR];       /* start values of the parameters */
+extern const double AXIS_START_INPUTS[N_IN]; /* start values of the inputs */
+/* The reference move the FMU carries (export-ssp; none for export-fmu --controller): AXIS_REF_N
+   samples at the rate from startTime, each l_ref, ldot_ref, v_ff (18 values, row-major). */
+extern const long AXIS_REF_N;
+extern const double AXIS_REF[];
+
+/* ---- the instance ------------------------------------------------------------------------------ */
+/* Everything a rollback restores: plain data. s: the component's life cycle (phase, time) and
+ * its call rules (native/src/component.c); the plant state in it is unused. */
+typedef struct {
+    stewart_component s;
+    double par[N_PAR];          /* parameter values, by value reference - AXIS_VR_PARAMETERS */
+    double in[N_IN];            /* held inputs, by value reference - AXIS_VR_INPUTS */
+    double integral[6];         /* the PIDs' integrals */
+    double current[6];          /* the motor currents */
+    axis_loop loop;             /* the constants of axis_step (valid from exitInitializationMode) */
+    double last[N_OUT];         /* the last period's sample (parameter delay = 1) */
+} ControllerData;
+
+typedef enum { LOG_EVENTS = 1, LOG_WARNING = 2, LOG_DISCARD = 4, LOG_ERROR = 8, LOG_FATAL = 16,
+               LOG_ALL = 31 } LogCategory;
+
+enum { M_OK = 0, M_WARNING = 1, M_DISCARD = 2, M_ERROR = 3, M_FATAL = 4 };
+
+typedef struct Instance Instance;
+typedef void (*InstanceLogger)(Instance *c, int status, const char *category, const char *message);
+
+struct Instance {
+    ControllerData d;
+    int have_out;               /* out holds the sample of the state and inputs (cleared on change) */
+    int discarded;              /* never set: the controller takes every whole-period step */
+    double out[N_OUT];
+    char *name;
+    int log_on;
+    unsigned log_mask;
+    InstanceLogger log;
+    void *env;
+    void *callback;
+};
+
+int model_init(Instance *c, const char *name, const char *token);
+void model_reset(Instance *c);
+void model_log(Instance *c, int status, const char *fmt, ...)
+#if defined(__GNUC__) || defined(__clang__)
+    __attribute__((format(printf, 3, 4)))
+#endif
+    ;
+int model_require(Instance *c, const char *call, int rule);
+int model_set_debug_logging(Instance *c, int on, size_t n, const char *const categories[]);
+
+int model_setup(Instance *c, int tolerance_defined, double tolerance, double start_time);
+int model_enter_init(Instance *c);
+int model_exit_init(Instance *c);
+int model_terminate(Instance *c);
+int model_do_step(Instance *c, double t, double h, double *last_time);
+
+int model_get_real(Instance *c, const unsigned vr[], size_t n, double value[]);
+int model_set_real(Instance *c, const unsigned vr[], size_t n, const double value[]);
+int model_get_string(Instance *c, const unsigned vr[], size_t n, const char *value[]);
+int model_set_string(Instance *c, const unsigned vr[], size_t n, const char *const value[]);
+int model_wrong_type(Instance *c, const char *call, const unsigned vr[], size_t n);
+
+/* FMU states: a heap copy of ControllerData; not serializable (canSerializeFMUstate false). */
+int model_get_state(Instance *c, void **state);
+int model_set_state(Instance *c, const void *state);
+int model_free_state(Instance *c, void **state);
+size_t model_serialized_size(void);
+int model_serialize(Instance *c, const void *state, unsigned char *out, size_t size);
+int model_deserialize(Instance *c, const unsigned char *in, size_t size, void **state);
+
+#endif

@@ -1,0 +1,192 @@
+"""The controller FMU (controller.fmu, `export-fmu --controller`): fmpy validates it (FMI 2.0
+and 3.0); beside the plant FMU, stepped by a small fmpy master at the controller rate, it
+reproduces the closed loop (controller.cosim.run_closed_loop with the in-process plant) bit for
+bit; it refuses a step that is not a whole number of controller periods and names why.
+
+The master of a sample k: read the plant's l, ldot; set the controller's references, feedforward
+and measurements; read its tau (the sample at t_k, direct feedthrough); step the controller and
+the plant (tau held) over the period. That is closed_loop_run's order, so the two loops compute
+the same numbers: the controller's arithmetic is axis.c's axis_step in both.
+"""
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fmpy import extract, read_model_description
+from fmpy.fmi1 import FMICallException
+from fmpy.fmi2 import FMU2Slave
+from fmpy.fmi3 import FMU3Slave
+from fmpy.validation import validate_fmu
+
+from controller.config import controller_config
+from controller.cosim import run_closed_loop
+from controller.drive import axis_model
+from controller.feedforward import equilibrium, feedforward_voltage
+from controller.fmu import export_controller, start_values, variables
+from controller.moves import run_reference
+from controller.plants import FmuPlant
+from controller.design import tune_pid
+from controller.trajectory import leg_references
+from stewart_fmu import load_scene
+from stewart_fmu.fmu.export import export_model
+
+ROOT = Path(__file__).resolve().parents[2]
+DURATION = 0.3   # s of `run`'s reference: out, hold, back, hold
+
+
+@pytest.fixture(scope="module")
+def micro(tmp_path_factory):
+    """The micro-manipulator's model, config, plant FMU and controller FMUs (2.0, 3.0)."""
+    tmp = tmp_path_factory.mktemp("ctl")
+    path = ROOT / "scenes" / "micro_manipulator.toml"
+    model = load_scene(path)
+    config = controller_config(model)
+    plant = export_model(model, path.read_bytes(), tmp / "plant.fmu", 2)
+    ctl = {v: export_controller(model, config, tmp / f"controller{v}.fmu", v) for v in (2, 3)}
+    return model, config, plant, ctl
+
+
+def _slave(path: Path, name: str):
+    md = read_model_description(str(path))
+    cls = FMU2Slave if md.fmiVersion == "2.0" else FMU3Slave
+    slave = cls(guid=md.guid, unzipDirectory=extract(str(path)),
+                modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    return md, slave, vr
+
+
+def _group(vr: dict[str, int], name: str) -> list[int]:
+    return [vr[f"{name}[{i}]"] for i in range(1, 7)]
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_validates(micro, version):
+    assert validate_fmu(str(micro[3][version])) == []
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_loop_of_two_fmus_equals_closed_loop(micro, version):
+    """Plant FMU + controller FMU under an fmpy master == run_closed_loop (in-process, the C
+    loop), bit for bit on the leg lengths, torques and voltages of every sample."""
+    model, config, plant_path, ctl = micro
+    traj = run_reference(model, config, DURATION)
+    ref = run_closed_loop(model, config, traj).table
+    refs = leg_references(model, traj)
+    axis = axis_model(model, config.motor, config.load_mass)
+    gains = tune_pid(axis, config.bandwidth, config.phase_margin)
+    v_ff, i_ff = feedforward_voltage(model, config, axis, traj, refs)
+    current0, integral0 = equilibrium(model, traj.q[0], traj.qd[0], refs.ldot[0], i_ff[0], gains, axis)
+    # `run` starts at rest at home: the FMU's start values are that start
+    start = start_values(model, config)
+    assert np.array_equal(start["current0"], current0) and np.array_equal(start["integral0"], integral0)
+
+    md, ctrl, vr = _slave(ctl[version], "controller")
+    set_real = ctrl.setReal if version == 2 else ctrl.setFloat64
+    get_real = ctrl.getReal if version == 2 else ctrl.getFloat64
+    ctrl.instantiate()
+    if version == 2:
+        ctrl.setupExperiment(startTime=float(traj.t[0]))
+        ctrl.enterInitializationMode()
+    else:
+        ctrl.enterInitializationMode(startTime=float(traj.t[0]))
+    ctrl.exitInitializationMode()
+    plant = FmuPlant(plant_path)
+    plant.start(traj.q[0], traj.qd[0], float(traj.t[0]), current0 * config.motor.torque_constant)
+    inputs = [v for name in ("l_ref", "ldot_ref", "v_ff", "l", "ldot") for v in _group(vr, name)]
+    outputs = _group(vr, "tau") + _group(vr, "voltage")
+    n = len(traj.t)
+    l_rec, tau_rec, v_rec = np.empty((n, 6)), np.empty((n, 6)), np.empty((n, 6))
+    try:
+        for k in range(n):
+            l, ldot, _ = plant.measure()
+            set_real(inputs, [float(x) for x in np.concatenate([refs.l[k], refs.ldot[k], v_ff[k], l, ldot])])
+            out = np.array(get_real(outputs))
+            l_rec[k], tau_rec[k], v_rec[k] = l, out[:6], out[6:]
+            if k + 1 < n:
+                h = float(traj.t[k + 1] - traj.t[k])
+                ctrl.doStep(currentCommunicationPoint=float(traj.t[k]), communicationStepSize=h)
+                plant.step(float(traj.t[k]), h, out[:6])
+    finally:
+        plant.close()
+        ctrl.terminate()
+        ctrl.freeInstance()
+
+    def legs(prefix):
+        return np.column_stack([ref[f"{prefix}{i}"] for i in range(1, 7)])
+
+    diff = np.max(np.abs(l_rec - legs("l")))
+    print(f"FMI {version}.0 controller FMU + plant FMU vs run_closed_loop: max |dl| = {diff:.3g} m "
+          f"over {n} samples")
+    assert diff == 0.0
+    assert np.array_equal(tau_rec, legs("torque")) and np.array_equal(v_rec, legs("voltage"))
+    assert np.ptp(legs("l")) > 1e-3   # the move is a real one
+
+
+def test_refuses_a_partial_period(micro):
+    """doStep over 1.5 periods is an Error with the reason logged; whole periods pass."""
+    _, config, _, ctl = micro
+    code = f"""
+import sys
+from fmpy import extract, read_model_description
+from fmpy.fmi1 import FMICallException
+from fmpy.fmi2 import FMU2Slave
+path = {str(ctl[2])!r}
+md = read_model_description(path)
+s = FMU2Slave(guid=md.guid, unzipDirectory=extract(path), modelIdentifier=md.coSimulation.modelIdentifier,
+              instanceName="c")
+s.instantiate()  # fmpy's default logger prints the FMU's messages
+s.setupExperiment(startTime=0.0)
+s.enterInitializationMode()
+s.exitInitializationMode()
+s.doStep(0.0, 3 * {config.dt!r})
+try:
+    s.doStep(3 * {config.dt!r}, 1.5 * {config.dt!r})
+except FMICallException:
+    print("refused")
+"""
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert "refused" in proc.stdout and "not a whole number of controller periods" in proc.stdout, \
+        proc.stdout + proc.stderr
+
+
+def test_variables_follow_the_table(micro):
+    """Names and value references come from native/fmi/axis_table.h: every group of six,
+    consecutive; the FMU answers each (the C and the Python reading of the table agree)."""
+    _, config, _, ctl = micro
+    md, slave, vr = _slave(ctl[2], "c")
+    table = variables()
+    assert [(x.name, x.vr) for x in table] == [(v.name, v.valueReference) for v in md.modelVariables]
+    slave.instantiate()
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    values = slave.getReal([x.vr for x in table])
+    slave.exitInitializationMode()
+    starts = {v.name: float(v.start) for v in md.modelVariables if v.start is not None}
+    assert all(values[k] == starts[x.name] for k, x in enumerate(table) if x.name in starts)
+    assert values[[x.name for x in table].index("rate")] == config.rate
+    with pytest.raises(FMICallException):
+        slave.setReal([vr["tau[1]"]], [0.0])
+    slave.terminate()
+    slave.freeInstance()
+
+
+def test_command(tmp_path, capsys):
+    """`export-fmu SCENE --controller -o F`: the FMU written; a scene without [controller] is
+    one line naming the table, exit 2, nothing written."""
+    from stewart_sim import cli
+
+    out = tmp_path / "controller.fmu"
+    assert cli.main(["export-fmu", str(ROOT / "scenes" / "micro_manipulator.toml"), "--controller",
+                     "-o", str(out), "--fmi-version", "3"]) == 0
+    assert read_model_description(str(out)).coSimulation.modelIdentifier == "StewartController"
+    capsys.readouterr()
+    bare = ROOT / "scenes" / "extreme" / "massless_legs.toml"
+    assert "[controller]" not in bare.read_text()
+    assert cli.main(["export-fmu", str(bare), "--controller", "-o", str(tmp_path / "x.fmu")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "controller" in err[0], err
+    assert not (tmp_path / "x.fmu").exists()
