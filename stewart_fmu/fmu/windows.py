@@ -5,9 +5,9 @@ Flags: the host build's (export.CFLAGS: C99, -O2, -ffp-contract=off, no -march) 
 PE DLL is relocatable without it), plus -static-libgcc, so that the DLL imports nothing but
 KERNEL32.dll and msvcrt.dll, which every Windows has, and -s (the symbol table of the static
 runtime would triple its size). It exports the functions marked FMI_EXPORT (fmi/fmi_export.h:
-dllexport) and nothing else. Its sin, cos and pow are mingw-w64's (x87), linked in statically:
-the DLL computes the same on Windows as under wine, and a few results differ from glibc's by
-one unit in the last place (README: the FMU's platforms).
+dllexport) and nothing else. Its sin, cos and pow are mingw-w64's (x87), linked in statically
+(none is imported from msvcrt.dll): Windows computes them as wine does, and a few results differ
+from glibc's by one unit in the last place (README: "Windows against Linux, measured").
 """
 from __future__ import annotations
 
