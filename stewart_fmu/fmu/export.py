@@ -4,7 +4,8 @@ The FMU's binary is the C core (stewart_fmu/native/include, src) and the FMI lay
 (stewart_fmu/native/fmi) compiled with the system C compiler, plus a generated C file with the
 scene's start values. It links libm only: no Python at run time. The FMU also carries every
 source it was built from (sources/, with buildDescription.xml for FMI 3.0 and <SourceFiles>
-for FMI 2.0), so it can be rebuilt on another platform.
+for FMI 2.0), so it can be rebuilt on another platform. Where mingw-w64 is installed, the same
+sources are also cross-compiled into a Windows DLL beside the host's binary (windows.py).
 """
 from __future__ import annotations
 
@@ -12,14 +13,16 @@ import os
 import platform
 import shutil
 import subprocess
+import sys
 import tempfile
 import zipfile
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from ..errors import StewartError
 from ..model import Model
 from ..scene import parse_scene_bytes, read_scene_bytes, scene_from_dict
-from . import model_description, variables
+from . import model_description, variables, windows
 
 MODEL_IDENTIFIER = "StewartPlant"
 NATIVE = Path(__file__).resolve().parents[1] / "native"
@@ -54,12 +57,14 @@ def find_compiler() -> str:
                                 "(e.g. apt install gcc) or set CC to its path")
 
 
-def platform_folder(fmi_version: int) -> tuple[str, str]:
-    """(binaries/<folder>, file extension) of this machine: linux64 / x86_64-linux and .so on
+def platform_folder(fmi_version: int, system: str | None = None,
+                    machine: str | None = None) -> tuple[str, str]:
+    """(binaries/<folder>, file extension) of this machine, or of the platform named as Python's
+    platform.system() and platform.machine() name it there: linux64 / x86_64-linux and .so on
     Linux x86_64 (the platform this export is tested on); darwin64 / win64 and the FMI 3.0
     platform tuples elsewhere."""
-    machine = platform.machine().lower()
-    system = platform.system()
+    system = system or platform.system()
+    machine = (machine or platform.machine()).lower()
     arch = {"amd64": "x86_64", "x86_64": "x86_64", "arm64": "aarch64", "aarch64": "aarch64"}.get(machine, machine)
     os_name = {"Linux": "linux", "Darwin": "darwin", "Windows": "windows"}.get(system, system.lower())
     ext = {"darwin": ".dylib", "windows": ".dll"}.get(os_name, ".so")
@@ -124,10 +129,17 @@ def export_model(model: Model, scene_text: bytes, out_path: str | Path,
         binary = root / "binaries" / folder / f"{MODEL_IDENTIFIER}{ext}"
         binary.parent.mkdir(parents=True)
         flags = [f for f in CFLAGS if not (ext == ".dll" and f == "-fPIC")]
-        cmd = [compiler, *flags, "-shared", "-o", str(binary), *[str(src / f) for f in c_files], "-lm"]
-        proc = subprocess.run(cmd, capture_output=True, text=True)
-        if proc.returncode != 0 or not binary.exists():
-            raise BuildError(f"compiling the FMU failed ({' '.join(cmd)}):\n{proc.stderr[-4000:]}")
+        sources = [str(src / f) for f in c_files]
+        builds = [([compiler, *flags, "-shared", "-o", str(binary), *sources, "-lm"], binary)]
+        win_folder, _ = platform_folder(fmi_version, windows.SYSTEM, windows.MACHINE)
+        mingw = windows.find_mingw()
+        if win_folder != folder and mingw is None:
+            print(windows.missing_note(), file=sys.stderr)
+        elif win_folder != folder:
+            dll = root / "binaries" / win_folder / f"{MODEL_IDENTIFIER}.dll"
+            dll.parent.mkdir(parents=True)
+            builds.append((windows.command(mingw, CFLAGS, sources, dll), dll))
+        _compile(builds)
         (root / "resources").mkdir()   # the scene as given: `run --fmu` checks it matches
         (root / "resources" / SCENE_RESOURCE).write_bytes(scene_text)
         doc = root / "documentation"
@@ -141,6 +153,16 @@ def export_model(model: Model, scene_text: bytes, out_path: str | Path,
         out.parent.mkdir(parents=True, exist_ok=True)
         shutil.move(packed, out)   # whole or not at all: an existing out is replaced only now
     return out
+
+
+def _compile(builds: list[tuple[list[str], Path]]) -> None:
+    """Run the compiler commands (command line, the file it makes) side by side: BuildError
+    with the first failure's output."""
+    with ThreadPoolExecutor(len(builds)) as pool:
+        procs = list(pool.map(lambda b: subprocess.run(b[0], capture_output=True, text=True), builds))
+    for proc, (cmd, out) in zip(procs, builds):
+        if proc.returncode != 0 or not out.exists():
+            raise BuildError(f"compiling the FMU failed ({' '.join(cmd)}):\n{proc.stderr[-4000:]}")
 
 
 def _documentation(name: str, fmi_version: int) -> str:

@@ -15,6 +15,7 @@ def add_parser(sub, help_text: str) -> None:
                        description="Build a self-contained FMI 2.0 or 3.0 co-simulation FMU of "
                                    "the scene's plant: the C core and FMI layer compiled with "
                                    "this machine's C compiler (cc, gcc or clang; $CC first), "
+                                   "with mingw-w64 also into a Windows DLL, "
                                    "its sources inside for other platforms. The FMU needs no "
                                    "Python, only the platform's C library.")
     p.add_argument("scene", metavar="SCENE", help="scene file (TOML)")

@@ -5,14 +5,26 @@
  *
  * SCRIPT (text): "n h", "n_in n_vin vr...", "n_out n_vout vr...", then n rows of n_in input
  * values: n_vin value references holding n_in values (more than n_vin for FMI 3.0 arrays, their
- * elements in row-major order; equal for FMI 2.0), the same for the outputs. The master instantiates, initializes at t = 0, and for k < n sets the row's inputs, steps from
- * k h by h and gets the outputs. Output lines: "k status v1 v2 ..." with %.17g. */
+ * elements in row-major order; equal for FMI 2.0), the same for the outputs. The master
+ * instantiates, initializes at t = 0, and for k < n sets the row's inputs, steps from k h by h
+ * and gets the outputs. Output lines: "k status v1 v2 ..." with %.17g.
+ *
+ * It builds for Windows too (x86_64-w64-mingw32-gcc -D__USE_MINGW_ANSI_STDIO=1: mingw's own
+ * printf and scanf, correctly rounded as glibc's), loading the DLL with LoadLibrary. */
 #define _POSIX_C_SOURCE 200809L
-#include <dlfcn.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#ifdef _WIN32
+#include <windows.h>
+#define dlopen(path, flags) ((void *)LoadLibraryA(path))
+#define dlsym(lib, name) ((void *)GetProcAddress((HMODULE)(lib), name))
+#define dlclose(lib) FreeLibrary((HMODULE)(lib))
+#define dlerror() "LoadLibrary failed"
+#else
+#include <dlfcn.h>
+#endif
 
 #include "fmi2_api.h"
 #include "fmi3_api.h"
@@ -38,9 +50,16 @@ static void *sym(void *lib, const char *name) {
 }
 
 static double now(void) {
+#ifdef _WIN32
+    LARGE_INTEGER count, freq;
+    QueryPerformanceCounter(&count);
+    QueryPerformanceFrequency(&freq);
+    return (double)count.QuadPart / (double)freq.QuadPart;
+#else
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return ts.tv_sec + 1e-9 * ts.tv_nsec;
+#endif
 }
 
 int main(int argc, char **argv) {
