@@ -164,6 +164,7 @@ def test_fmi3_arrays_hold_the_fmi2_scalars(path):
     stored = lambda vs: {v.vr + k for v in vs for k in range(v.size)}  # noqa: E731
     only3 = {g.name for g in table.VARIABLES if g.fmi3_only}
     assert only3 == {"q", "qd"}
+    assert max(g.count for g in table.VARIABLES) <= 255   # STEWART_VALUES (fmi/model.h) is unsigned char
     assert stored(two) == stored([v for v in three if v.name not in only3 | {"time"}])
     assert all(v.size == 1 for v in two) and any(v.size > 1 for v in three)
     assert len(three) < len(two)
