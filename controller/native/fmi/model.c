@@ -325,17 +325,23 @@ static int outputs(Instance *c) {
 
 /* ---- get / set -------------------------------------------------------------------------------- */
 
-static int check_args(Instance *c, const char *call, const void *vr, size_t n, const void *value) {
+static int check_args(Instance *c, const char *call, const void *vr, size_t n, const void *value,
+                      size_t nvalues) {
     if (n > 0 && (!vr || !value)) {
         model_log(c, M_ERROR, "%s: NULL array with %lu value references", call, (unsigned long)n);
+        return M_ERROR;
+    }
+    if (nvalues != n) {
+        model_log(c, M_ERROR, "%s: %lu values for %lu value references: every variable of the "
+                  "controller is a scalar", call, (unsigned long)nvalues, (unsigned long)n);
         return M_ERROR;
     }
     return M_OK;
 }
 
-int model_get_real(Instance *c, const unsigned vr[], size_t n, double value[]) {
+int model_get_real(Instance *c, const unsigned vr[], size_t n, double value[], size_t nvalues) {
     size_t k;
-    if (check_args(c, "getReal", vr, n, value)) return M_ERROR;
+    if (check_args(c, "getReal", vr, n, value, nvalues)) return M_ERROR;
     for (k = 0; k < n; k++) {
         switch (vr_kind(vr[k])) {
         case K_PARAM: value[k] = c->d.par[vr[k] - AXIS_VR_PARAMETERS]; break;
@@ -353,11 +359,11 @@ int model_get_real(Instance *c, const unsigned vr[], size_t n, double value[]) {
     return M_OK;
 }
 
-int model_set_real(Instance *c, const unsigned vr[], size_t n, const double value[]) {
+int model_set_real(Instance *c, const unsigned vr[], size_t n, const double value[], size_t nvalues) {
     int phase = c->d.s.phase;
     size_t k;
     char name[64];
-    if (check_args(c, "setReal", vr, n, value)) return M_ERROR;
+    if (check_args(c, "setReal", vr, n, value, nvalues)) return M_ERROR;
     for (k = 0; k < n; k++) {  /* every value checked first: an Error changes nothing */
         int kind = vr_kind(vr[k]);
         if (kind == K_UNKNOWN) {
@@ -399,7 +405,7 @@ int model_set_real(Instance *c, const unsigned vr[], size_t n, const double valu
 int model_wrong_type(Instance *c, const char *call, const unsigned vr[], size_t n) {
     char name[64];
     if (n == 0) return M_OK;
-    if (!vr) return check_args(c, call, vr, n, NULL);
+    if (!vr) return check_args(c, call, vr, n, NULL, n);
     if (vr_kind(vr[0]) == K_UNKNOWN)
         model_log(c, M_ERROR, "%s: unknown value reference %u", call, vr[0]);
     else
@@ -408,12 +414,12 @@ int model_wrong_type(Instance *c, const char *call, const unsigned vr[], size_t 
 }
 
 int model_get_string(Instance *c, const unsigned vr[], size_t n, const char *value[]) {
-    if (check_args(c, "getString", vr, n, value)) return M_ERROR;
+    if (check_args(c, "getString", vr, n, value, n)) return M_ERROR;
     return model_wrong_type(c, "getString", vr, n);
 }
 
 int model_set_string(Instance *c, const unsigned vr[], size_t n, const char *const value[]) {
-    if (check_args(c, "setString", vr, n, value)) return M_ERROR;
+    if (check_args(c, "setString", vr, n, value, n)) return M_ERROR;
     return model_wrong_type(c, "setString", vr, n);
 }
 

@@ -82,8 +82,10 @@ int model_exit_init(Instance *c);
 int model_terminate(Instance *c);
 int model_do_step(Instance *c, double t, double h, double *last_time);
 
-int model_get_real(Instance *c, const unsigned vr[], size_t n, double value[]);
-int model_set_real(Instance *c, const unsigned vr[], size_t n, const double value[]);
+/* The shared FMI layer passes the number of values too (FMI 3.0 arrays, stewart_fmu's
+   fmi3Functions.c); the controller's variables are all scalars: nvalues must equal nvr. */
+int model_get_real(Instance *c, const unsigned vr[], size_t nvr, double value[], size_t nvalues);
+int model_set_real(Instance *c, const unsigned vr[], size_t nvr, const double value[], size_t nvalues);
 int model_get_string(Instance *c, const unsigned vr[], size_t n, const char *value[]);
 int model_set_string(Instance *c, const unsigned vr[], size_t n, const char *const value[]);
 int model_wrong_type(Instance *c, const char *call, const unsigned vr[], size_t n);
