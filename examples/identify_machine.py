@@ -23,8 +23,9 @@ def stewart_sim(*args) -> None:
 
 with tempfile.TemporaryDirectory() as tmp:
     d = Path(tmp)
-    stewart_sim("excite", SCENE, "--out", d / "T.csv", "--duration", 10)      # to identify on
-    stewart_sim("excite", SCENE, "--out", d / "V.csv", "--duration", 8, "--period", 4)  # held out
+    stewart_sim("excite", SCENE, "--out", d / "T.csv", "--duration", 10, "--starts", 1)  # identify
+    stewart_sim("excite", SCENE, "--out", d / "V.csv", "--duration", 8, "--period", 4,
+                "--starts", 1)                                                  # held out
     for trajectory, run in (("T.csv", "run1"), ("V.csv", "run2")):
         stewart_sim("run", SCENE, "--link", "serial", "--truth", TRUTH,
                     "--trajectory", d / trajectory, "--record", d / f"{run}.csv", "--out", d / run)
