@@ -48,8 +48,10 @@ SECTIONS = {"PARAMETERS": "parameter", "INPUTS": "input", "OUTPUTS": "output"}
 OWN_SOURCES = {"axis.c": HERE / "axis.c", "axis.h": HERE / "axis.h",
                "fmi/model.c": HERE / "fmi" / "model.c", "fmi/model.h": HERE / "fmi" / "model.h",
                "fmi/axis_table.h": HERE / "fmi" / "axis_table.h"}
-FMI_LAYER = {2: ["fmi/fmi2Functions.c", "fmi/fmi2_api.h", "fmi/fmi_export.h"],
-             3: ["fmi/fmi3Functions.c", "fmi/fmi3_api.h", "fmi/fmi_export.h"]}
+FMI_LAYER = {2: ["fmi/fmi2Functions.c", "fmi/fmi2_api.h", "fmi/fmi_export.h", "fmi/glue.c",
+                 "fmi/glue.h"],
+             3: ["fmi/fmi3Functions.c", "fmi/fmi3_api.h", "fmi/fmi_export.h", "fmi/glue.c",
+                 "fmi/glue.h"]}
 START_FILE = "fmi/start.c"
 GENERATION_TOOL = "stewart-sim controller FMU export"
 

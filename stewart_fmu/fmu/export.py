@@ -30,10 +30,10 @@ NATIVE = Path(__file__).resolve().parents[1] / "native"
 # Python plant), no -march.
 CFLAGS = ["-std=c99", "-O2", "-ffp-contract=off", "-fno-math-errno", "-fPIC",
           "-fvisibility=hidden", "-Wall", "-Wextra", "-Wpedantic"]
-FMI_SOURCES = {2: ["fmi/model.c", "fmi/fmi2Functions.c", "fmi/scene.c"],
-               3: ["fmi/model.c", "fmi/fmi3Functions.c", "fmi/scene.c"]}
-FMI_HEADERS = {2: ["fmi/model.h", "fmi/fmi_export.h", "fmi/fmi2_api.h"],
-               3: ["fmi/model.h", "fmi/fmi_export.h", "fmi/fmi3_api.h"]}
+FMI_SOURCES = {2: ["fmi/model.c", "fmi/glue.c", "fmi/fmi2Functions.c", "fmi/scene.c"],
+               3: ["fmi/model.c", "fmi/glue.c", "fmi/fmi3Functions.c", "fmi/scene.c"]}
+FMI_HEADERS = {2: ["fmi/model.h", "fmi/glue.h", "fmi/fmi_export.h", "fmi/fmi2_api.h"],
+               3: ["fmi/model.h", "fmi/glue.h", "fmi/fmi_export.h", "fmi/fmi3_api.h"]}
 
 
 SCENE_RESOURCE = "scene.toml"   # resources/scene.toml: the scene the FMU was exported from

@@ -45,36 +45,19 @@ typedef struct {
     double last[N_OUT];         /* the last period's sample (parameter delay = 1) */
 } ControllerData;
 
-typedef enum { LOG_EVENTS = 1, LOG_WARNING = 2, LOG_DISCARD = 4, LOG_ERROR = 8, LOG_FATAL = 16,
-               LOG_ALL = 31 } LogCategory;
-
-enum { M_OK = 0, M_WARNING = 1, M_DISCARD = 2, M_ERROR = 3, M_FATAL = 4 };
-
 typedef struct Instance Instance;
-typedef void (*InstanceLogger)(Instance *c, int status, const char *category, const char *message);
+#include "glue.h"   /* status words, log categories, FMU_GLUE_FIELDS, model_log & co. */
 
 struct Instance {
     ControllerData d;
     int have_out;               /* out holds the sample of the state and inputs (cleared on change) */
     int discarded;              /* never set: the controller takes every whole-period step */
     double out[N_OUT];
-    char *name;
-    int log_on;
-    unsigned log_mask;
-    InstanceLogger log;
-    void *env;
-    void *callback;
+    FMU_GLUE_FIELDS
 };
 
 int model_init(Instance *c, const char *name, const char *token);
 void model_reset(Instance *c);
-void model_log(Instance *c, int status, const char *fmt, ...)
-#if defined(__GNUC__) || defined(__clang__)
-    __attribute__((format(printf, 3, 4)))
-#endif
-    ;
-int model_require(Instance *c, const char *call, int rule);
-int model_set_debug_logging(Instance *c, int on, size_t n, const char *const categories[]);
 
 int model_setup(Instance *c, int tolerance_defined, double tolerance, double start_time);
 int model_enter_init(Instance *c);

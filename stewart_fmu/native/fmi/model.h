@@ -48,14 +48,8 @@ typedef struct {
     double p[STEWART_N_PARAMS]; /* packed parameters (valid from exitInitializationMode) */
 } PlantData;
 
-typedef enum { LOG_EVENTS = 1, LOG_WARNING = 2, LOG_DISCARD = 4, LOG_ERROR = 8, LOG_FATAL = 16,
-               LOG_ALL = 31 } LogCategory;
-
-/* Status codes of model.c, the same numbers in FMI 2.0 and 3.0. */
-enum { M_OK = 0, M_WARNING = 1, M_DISCARD = 2, M_ERROR = 3, M_FATAL = 4 };
-
 typedef struct Instance Instance;
-typedef void (*InstanceLogger)(Instance *c, int status, const char *category, const char *message);
+#include "glue.h"   /* status words, log categories, FMU_GLUE_FIELDS, model_log & co. */
 
 struct Instance {
     PlantData d;
@@ -65,24 +59,12 @@ struct Instance {
     double l[6], ldot[6], omega[3], cond, parts[36];
     double lp[STEWART_N_PARAMS]; /* packed parameters for outputs before initialization ends */
     /* importer glue */
-    char *name;
-    int log_on;                 /* loggingOn */
-    unsigned log_mask;          /* categories enabled by setDebugLogging */
-    InstanceLogger log;
-    void *env;                  /* the importer's environment pointer */
-    void *callback;             /* the importer's logger (FMI 2.0 or 3.0) */
+    FMU_GLUE_FIELDS
     const char *method_text;    /* for getString */
 };
 
 int model_init(Instance *c, const char *name, const char *token);  /* after zeroing; M_OK/M_ERROR */
 void model_reset(Instance *c);
-void model_log(Instance *c, int status, const char *fmt, ...)
-#if defined(__GNUC__) || defined(__clang__)
-    __attribute__((format(printf, 3, 4)))
-#endif
-    ;
-int model_require(Instance *c, const char *call, int rule); /* stewart_call rule: M_OK/M_ERROR */
-int model_set_debug_logging(Instance *c, int on, size_t n, const char *const categories[]);
 
 int model_setup(Instance *c, int tolerance_defined, double tolerance, double start_time);
 int model_enter_init(Instance *c);
