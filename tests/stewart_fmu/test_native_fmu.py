@@ -48,6 +48,8 @@ H = 1e-3
 RTOL = 1e-12
 ERROR, DISCARD = 3, 2
 
+_PROXIED_LOGGERS: list = []   # the FMI 2.0 loggers Slave gives fmpy's proxy: never freed
+
 
 # --- exported FMUs ------------------------------------------------------------------------------
 
@@ -158,7 +160,11 @@ class Slave:
             cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
             cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
             addLoggerProxy(ctypes.byref(cb))
-            self._keep = (log, cb)
+            # fmpy's native proxy keeps the last logger it was given in one global: every FMU
+            # instantiated later with fmpy's default callbacks logs through it. Freeing it with
+            # this object crashed such a later FMU's first log message (the controller FMU's
+            # tests after these): it lives as long as the process.
+            _PROXIED_LOGGERS.append((log, cb))
             self.fmu = FMU2Slave(**common)
             self.fmu.instantiate(loggingOn=True, callbacks=cb)
         else:
