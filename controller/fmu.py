@@ -22,7 +22,6 @@ import re
 import shutil
 import subprocess
 import tempfile
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from xml.etree.ElementTree import Element, SubElement, indent, tostring
@@ -30,7 +29,7 @@ from xml.etree.ElementTree import Element, SubElement, indent, tostring
 import numpy as np
 
 from stewart_fmu.fmu.export import (CFLAGS, NATIVE, BuildError, core_sources, find_compiler,
-                                    platform_folder)
+                                    pack, platform_folder)
 from stewart_fmu.model import Model
 
 from .config import ControllerConfig
@@ -276,11 +275,5 @@ def export_controller(model: Model, config: ControllerConfig, out_path: str | Pa
         if proc.returncode != 0 or not binary.exists():
             raise BuildError(f"compiling the controller FMU failed ({' '.join(cmd)}):\n"
                              f"{proc.stderr[-4000:]}")
-        packed = Path(tmp) / "packed.fmu"
-        with zipfile.ZipFile(packed, "w", zipfile.ZIP_DEFLATED) as z:
-            for path in sorted(root.rglob("*")):
-                if path.is_file():
-                    z.write(path, path.relative_to(root).as_posix())
-        out.parent.mkdir(parents=True, exist_ok=True)
-        shutil.move(packed, out)
+        pack(root, Path(tmp) / "packed.fmu", out)
     return out

@@ -23,15 +23,13 @@ t_k+1 from the lengths of t_k.
 """
 from __future__ import annotations
 
-import shutil
 import tempfile
-import zipfile
 from pathlib import Path
 from xml.etree.ElementTree import Element, SubElement, indent, register_namespace, tostring
 
 import numpy as np
 
-from stewart_fmu.fmu.export import export_model
+from stewart_fmu.fmu.export import export_model, pack
 from stewart_fmu.model import Model
 
 from .config import ControllerConfig
@@ -146,11 +144,5 @@ def export_ssp(model: Model, scene_text: bytes, config: ControllerConfig, traj: 
         (res / f"{CONTROLLER}.ssv").write_bytes(_parameter_set(CONTROLLER, controller_set))
         (root / "SystemStructure.ssd").write_bytes(system_structure(
             f"{model.name} closed loop", float(traj.t[-1] - traj.t[0]), config.dt))
-        packed = Path(tmp) / "packed.ssp"
-        with zipfile.ZipFile(packed, "w", zipfile.ZIP_DEFLATED) as z:
-            for path in sorted(root.rglob("*")):
-                if path.is_file():
-                    z.write(path, path.relative_to(root).as_posix())
-        out.parent.mkdir(parents=True, exist_ok=True)
-        shutil.move(packed, out)
+        pack(root, Path(tmp) / "packed.ssp", out)
     return out

@@ -145,14 +145,19 @@ def export_model(model: Model, scene_text: bytes, out_path: str | Path,
         doc = root / "documentation"
         doc.mkdir()
         (doc / "index.html").write_text(_documentation(model.name, fmi_version))
-        packed = Path(tmp) / "packed.fmu"
-        with zipfile.ZipFile(packed, "w", zipfile.ZIP_DEFLATED) as z:
-            for path in sorted(root.rglob("*")):
-                if path.is_file():
-                    z.write(path, path.relative_to(root).as_posix())
-        out.parent.mkdir(parents=True, exist_ok=True)
-        shutil.move(packed, out)   # whole or not at all: an existing out is replaced only now
+        pack(root, Path(tmp) / "packed.fmu", out)
     return out
+
+
+def pack(root: Path, packed: Path, out: Path) -> None:
+    """Zip the tree `root` into `packed` (deflated, sorted, POSIX names), then move it to `out`:
+    whole or not at all, an existing `out` is replaced only at the end (FMUs, SSPs)."""
+    with zipfile.ZipFile(packed, "w", zipfile.ZIP_DEFLATED) as z:
+        for path in sorted(root.rglob("*")):
+            if path.is_file():
+                z.write(path, path.relative_to(root).as_posix())
+    out.parent.mkdir(parents=True, exist_ok=True)
+    shutil.move(packed, out)
 
 
 def _compile(builds: list[tuple[list[str], Path]]) -> None:
