@@ -4,7 +4,6 @@ forward kinematics of every sample), the zero-phase filter and derivatives, the 
 from __future__ import annotations
 
 import dataclasses
-import time
 from pathlib import Path
 
 import numpy as np
@@ -183,18 +182,14 @@ def test_lengths_outside_the_stroke_are_refused_naming_sample_and_time(scene, tm
 
 def test_pose_of_60_s_at_1_khz(scene, tmp_path):
     """Forward kinematics of 60 000 samples at once: lengths matched to 1e-12 m, the pose back
-    to 1e-10 (m, rad), from home and from a measured pose; under a second (measured
-    0.2-0.35 s on a loaded 2-core machine; the bound leaves room for the load)."""
+    to 1e-10 (m, rad), from home and from a measured pose. Its time is a benchmark's
+    (benchmarks/bench_identify.py, stage "forward kinematics"), not a test's."""
     m = scene.model
     t = np.arange(60_000) / 1000.0
     q = fourier_motion(m, t, period=12.0)[0]
     path = write_run(tmp_path / "long.csv", run_columns(m, t, q))
     run = read_run(path, m)
-    start = time.perf_counter()
     pose = pose_of(m, run)
-    elapsed = time.perf_counter() - start
-    record("identify: forward kinematics of 60 000 samples (s)", elapsed, 1.0)
-    assert elapsed < 1.0, elapsed
     assert np.abs(inverse_kinematics(m, pose).lengths - run.lengths).max() <= 1e-12
     assert np.abs(pose - q).max() <= 1e-10
     measured = dataclasses.replace(run, pose=q + 1e-4)
