@@ -146,7 +146,11 @@ def csv_header(path: str | Path, what: str) -> tuple[str, ...]:
 
 @contextmanager
 def _reading(path: Path, what: str) -> Iterator[None]:
-    """A file that cannot be opened or decoded: TrajectoryError naming it."""
+    """A file that cannot be opened or decoded, or that is a device, pipe or socket (reading one
+    may never end: /dev/zero): TrajectoryError naming it."""
+    if path.exists() and not path.is_file() and not path.is_dir():
+        raise TrajectoryError(f"{path}: cannot read {what}: not a regular file (a device, pipe "
+                              f"or socket)")
     try:
         yield
     except OSError as exc:

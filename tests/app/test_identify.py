@@ -145,3 +145,11 @@ def test_a_known_force_delay_is_taken_exactly(runs, tmp_path):
             assert err.max() < bound, err.max()
         else:
             assert err.max() > 1e-4
+
+
+@pytest.mark.parametrize("special", ["/dev/zero", "/dev/null"])
+def test_a_special_file_is_one_line_not_a_hang(special, tmp_path):
+    """A device as a run (reading /dev/zero would never end): one line naming it, exit 2."""
+    r = cli("identify", SCENE, "--runs", special, "--out", tmp_path / "o")
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert special in r.stderr and "not a regular file" in r.stderr
