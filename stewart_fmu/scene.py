@@ -60,6 +60,8 @@ def read_scene_dict(path: str | Path) -> dict[str, Any]:
 def read_scene_bytes(path: str | Path) -> bytes:
     """A scene file's bytes, as given (SceneError: missing, not a file, unreadable)."""
     path = Path(path)
+    if path.exists() and not path.is_file() and not path.is_dir():   # /dev/zero never ends
+        raise SceneError("<file>", "is a device, pipe or socket, not a scene file", str(path))
     try:
         return path.read_bytes()
     except FileNotFoundError:

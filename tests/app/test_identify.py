@@ -153,3 +153,7 @@ def test_a_special_file_is_one_line_not_a_hang(special, tmp_path):
     r = cli("identify", SCENE, "--runs", special, "--out", tmp_path / "o")
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert special in r.stderr and "not a regular file" in r.stderr
+
+    r = cli("identify", special, "--runs", special, "--out", tmp_path / "o")   # as the scene
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert "not a scene file" in r.stderr
