@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import CubicSpline
 
+from stewart_fmu.budget import check_count
 from stewart_fmu.errors import TrajectoryError
 from stewart_fmu.io import read_trajectory
 from stewart_fmu.kinematics import check_poses
@@ -57,6 +58,9 @@ def sample_times(duration: float, rate: float) -> np.ndarray:
     """0, 1/rate, ..., duration (inclusive)."""
     if not (np.isfinite(duration) and duration > 0 and np.isfinite(rate) and rate > 0):
         raise TrajectoryError(f"duration and rate must be finite and > 0, got {duration}, {rate}")
+    # a trajectory holds t, q, qd, qdd (19 float64) a sample, and the checks as many again
+    check_count(f"trajectory of {duration:g} s at {rate:g} Hz: samples", duration * rate + 1,
+                2 * 19 * 8, "a shorter duration or a lower rate")
     return np.arange(int(round(duration * rate)) + 1) / rate
 
 

@@ -2,8 +2,12 @@
 from __future__ import annotations
 
 import csv
+import errno
+import io as _io
 import itertools
 import os
+import shutil
+import stat
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
@@ -11,12 +15,17 @@ from typing import IO, Callable, Iterable, Iterator
 
 import numpy as np
 
+from .budget import CSV_BYTES, LINE_BYTES, InputFileError, check_count, open_input
 from .errors import TrajectoryError
 
 POSE = ("x", "y", "z", "thx", "thy", "thz")
 TRAJECTORY_COLUMNS = ("t", *POSE, *(f"d{c}" for c in POSE), *(f"dd{c}" for c in POSE))
 FORCE_COLUMNS = ("t", *(f"sigma{i}" for i in range(1, 7)))
 CHUNK_ROWS = 50_000  # rows per block when reading and writing long files
+
+
+class OutputError(Exception):
+    """An output file or directory cannot be written (exit status 1)."""
 
 
 def named_array(columns: dict[str, np.ndarray]) -> np.ndarray:
@@ -70,19 +79,114 @@ def _cell(value) -> str:
 
 
 def atomic_write(path: str | Path, write: Callable[[IO], object], binary: bool = False) -> Path:
-    """Write a file through a temporary one beside it; a failure leaves the old file as it was."""
+    """Write a file through a temporary one beside it; a failure leaves the old file as it was.
+
+    `path` must be a new path or a regular file (check_output); a full disk, a missing
+    permission or a read-only file system while writing is an OutputError naming `path`."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    check_output(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        remove_stale_partials(path)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=partial_prefix(path), suffix=".tmp")
+    except OSError as exc:
+        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
     try:
         with (os.fdopen(fd, "wb") if binary else os.fdopen(fd, "w", newline="", encoding="utf-8")) as fh:
             write(fh)
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; results are for everyone
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         os.unlink(tmp)
+        if isinstance(exc, OSError):
+            raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
         raise
     return path
+
+
+# what an OSError while writing an output means: the disk is full, a quota is reached, the
+# file system is read-only, or writing there is not allowed (one line, exit status 1)
+WRITE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM,
+                          errno.EFBIG, errno.EIO})
+# trees of the kernel and the devices: no output of ours belongs there (/dev/shm is an
+# ordinary file system)
+SYSTEM_TREES = ("/proc", "/sys", "/dev")
+_ORDINARY = ("/dev/shm",)
+
+
+class SpecialOutputError(OutputError):
+    """An output path that names no file the command may own: a device, FIFO or socket, or a
+    path in /proc, /sys or /dev (refused before any work: exit status 2)."""
+
+
+def check_output(path: str | Path) -> None:
+    """Refuse (SpecialOutputError) an output path that is, or resolves to, anything but a new
+    path, a regular file or a directory: writing there would replace a device node or feed a
+    kernel file. Checked before any work by the command line, and again by every writer."""
+    path = Path(path)
+    real = os.path.realpath(path)
+    for tree in SYSTEM_TREES:
+        if (real == tree or real.startswith(tree + "/")) and not any(
+                real == o or real.startswith(o + "/") for o in _ORDINARY):
+            raise SpecialOutputError(f"cannot write {path}: it is in {tree}, not a file or "
+                                     "directory a command may write")
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:     # a new path (or one the write will report)
+        return
+    if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
+        raise SpecialOutputError(f"cannot write {path}: it is a device, pipe or socket, not a "
+                                 "file or directory a command may write")
+
+
+PARTIAL = ".partial-"   # in the name of a temporary output: .NAME.partial-PID-XXXX
+
+
+def partial_prefix(path: str | Path) -> str:
+    """The name prefix of the temporaries that stand for `path` while it is written: they
+    carry this process's id, so that the next writer can tell an abandoned one."""
+    return f".{Path(path).name}{PARTIAL}{os.getpid()}-"
+
+
+def remove_stale_partials(path: str | Path) -> list[Path]:
+    """Remove the temporaries of `path` (partial_prefix) left by a process that is gone (killed
+    before it could clean up); returns them. Those of a live process are left alone."""
+    path = Path(path)
+    stem = f".{path.name}{PARTIAL}"
+    removed = []
+    try:
+        entries = list(os.scandir(path.parent))
+    except OSError:
+        return removed
+    for entry in entries:
+        if not entry.name.startswith(stem):
+            continue
+        pid = entry.name[len(stem):].partition("-")[0]
+        if not pid.isdigit() or _alive(int(pid)):
+            continue
+        target = Path(entry.path)
+        if entry.is_dir(follow_symlinks=False):
+            shutil.rmtree(target, ignore_errors=True)
+        else:
+            try:
+                target.unlink()
+            except OSError:
+                continue
+        removed.append(target)
+    return removed
+
+
+def _alive(pid: int) -> bool:
+    """Whether a process `pid` exists (one of another user's counts)."""
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError, ValueError):
+        return pid > 0
+    return True
 
 
 def write_text(path: str | Path, text: str) -> Path:
@@ -117,7 +221,7 @@ def read_samples(path: str | Path, columns: tuple[str, ...], what: str, *, prefi
     if prefix and anywhere:
         raise ValueError("read_samples: prefix and anywhere exclude each other")
     path = Path(path)
-    with _reading(path, what), path.open(newline="") as fh:
+    with _reading(path, what) as fh:
         data = _read_rows(path, fh, columns, prefix, anywhere, progress)
     if data.shape[0] < min_rows:
         count = {1: "one", 2: "two"}.get(min_rows, str(min_rows))
@@ -139,29 +243,45 @@ def csv_header(path: str | Path, what: str) -> tuple[str, ...]:
     """The column names of a CSV's header, stripped (none for an empty file); the errors of
     read_samples for a file that cannot be read."""
     path = Path(path)
-    with _reading(path, what), path.open(newline="") as fh:
+    with _reading(path, what) as fh:
         header, _ = _header(path, fh)
     return header or ()
 
 
 @contextmanager
-def _reading(path: Path, what: str) -> Iterator[None]:
-    """A file that cannot be opened or decoded, or that is a device, pipe or socket (reading one
-    may never end: /dev/zero): TrajectoryError naming it."""
-    if path.exists() and not path.is_file() and not path.is_dir():
-        raise TrajectoryError(f"{path}: cannot read {what}: not a regular file (a device, pipe "
-                              f"or socket)")
+def _reading(path: Path, what: str) -> Iterator[IO[str]]:
+    """The text of the CSV input `path`, read within the input rule (stewart_fmu.budget: a
+    regular file of at most CSV_BYTES); a file that cannot be opened, read or decoded, or that
+    is a device, pipe or socket (reading one may never end: /dev/zero): TrajectoryError
+    naming it."""
     try:
-        yield
+        with open_input(path, CSV_BYTES) as raw, \
+                _io.TextIOWrapper(raw, encoding="utf-8", newline="") as fh:
+            yield fh
+    except InputFileError as exc:
+        raise TrajectoryError(f"{path}: cannot read {what}: {exc.reason}") from None
     except OSError as exc:
         raise TrajectoryError(f"{path}: cannot read {what}: {exc.strerror or exc}") from None
     except UnicodeDecodeError as exc:
         raise TrajectoryError(f"{path}: not a text file: {exc}") from None
 
 
+def _bounded_lines(path: Path, fh: IO[str]) -> Iterator[str]:
+    """The lines of `fh`, each at most LINE_BYTES characters (a longer one: TrajectoryError
+    naming its line; a file of one endless line would otherwise be held whole)."""
+    for number in itertools.count(1):
+        line = fh.readline(LINE_BYTES + 1)
+        if not line:
+            return
+        if len(line) > LINE_BYTES:
+            raise TrajectoryError(f"{path}: line {number} is longer than {LINE_BYTES:,} "
+                                  "characters")
+        yield line
+
+
 def _header(path: Path, fh: IO[str]) -> tuple[tuple[str, ...] | None, int]:
     """The first record of `fh`, stripped (None: an empty file), and the lines it took."""
-    reader = csv.reader(fh)
+    reader = csv.reader(_bounded_lines(path, fh))
     try:
         row = next(reader, None)
     except csv.Error as exc:
@@ -179,10 +299,13 @@ def _read_rows(path: Path, fh: IO[str], columns: tuple[str, ...], prefix: bool, 
     picks = _picks(path, header, columns, prefix, anywhere)
     blocks: list[np.ndarray] = []
     rows = 0
-    while lines := list(itertools.islice(fh, CHUNK_ROWS)):
+    source = _bounded_lines(path, fh)
+    while lines := list(itertools.islice(source, CHUNK_ROWS)):
+        # the rows and their one copy (np.concatenate) must fit before they are parsed
+        check_count(f"{path}: samples", rows + len(lines), 2 * 8 * len(columns))
         block = _numbers(lines, len(header), picks)
         if block is None:   # the rest row by row (a quoted cell may span the block's end)
-            blocks += _rows_one_by_one(path, itertools.chain(lines, fh), columns, picks,
+            blocks += _rows_one_by_one(path, itertools.chain(lines, source), columns, picks,
                                        len(header), rows, lines_before + rows, progress)
             break
         blocks.append(block)
@@ -244,6 +367,8 @@ def _rows_one_by_one(path: Path, lines: Iterable[str], columns: tuple[str, ...],
             except ValueError:
                 raise _bad_cell(path, r, [row[k] for k in picks], columns) from None
             if len(block) == CHUNK_ROWS:
+                check_count(f"{path}: samples", done + CHUNK_ROWS * (len(blocks) + 1),
+                            2 * 8 * len(columns))
                 blocks.append(np.array(block))
                 block = []
                 if progress is not None:
@@ -289,10 +414,6 @@ def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
     return mask
-
-
-class OutputError(Exception):
-    """An output file or directory cannot be written (exit status 1)."""
 
 
 @contextmanager

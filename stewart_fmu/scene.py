@@ -9,6 +9,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from .budget import SCENE_BYTES, InputFileError, read_input
 from .errors import SceneError, SceneKeyError
 from . import table
 from .native import core
@@ -58,19 +59,18 @@ def read_scene_dict(path: str | Path) -> dict[str, Any]:
 
 
 def read_scene_bytes(path: str | Path) -> bytes:
-    """A scene file's bytes, as given (SceneError: missing, not a file, unreadable)."""
-    path = Path(path)
-    if path.exists() and not path.is_file() and not path.is_dir():   # /dev/zero never ends
-        raise SceneError("<file>", "is a device, pipe or socket, not a scene file", str(path))
+    """A scene file's bytes, as given: a regular file of at most budget.SCENE_BYTES, read
+    with that bound (SceneError: missing, a directory, a device, pipe or socket, too large,
+    unreadable)."""
     try:
-        return path.read_bytes()
-    except FileNotFoundError:
-        raise SceneError("<file>", f"no such scene file: {path}") from None
-    except IsADirectoryError:
-        raise SceneError("<file>", "is a directory, not a scene file", str(path)) from None
-    except OSError as exc:
-        raise SceneError("<file>", f"cannot read the scene file: {exc.strerror or exc}",
-                         str(path)) from None
+        return read_input(path, SCENE_BYTES)
+    except InputFileError as exc:
+        reason = {"missing": f"no such scene file: {path}",
+                  "directory": "is a directory, not a scene file",
+                  "special": "is a device, pipe or socket, not a scene file"}.get(
+                      exc.kind, f"cannot read the scene file: {exc.reason}")
+        raise SceneError("<file>", reason, None if exc.kind == "missing" else str(path)) \
+            from None
 
 
 def parse_scene_bytes(text: bytes, path: str | Path) -> dict[str, Any]:

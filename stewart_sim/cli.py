@@ -3,8 +3,12 @@
 Each command is a module of stewart_sim.commands (its arguments and its run function); COMMANDS
 below is the one list of them. Exit status: 0 on success; 2 on a usage error or on an error in
 the inputs (every StewartError: scene, trajectory, pose); 1 when an output cannot be written
-(OutputError); 130 on Ctrl-C. Every output file is written atomically: an error leaves an
-existing file as it was.
+(OutputError, or a full disk, a missing permission, a read-only file system); 130 on Ctrl-C,
+143 on SIGTERM, 129 on SIGHUP (all three end a command alike); 141, quietly, when standard
+output is a pipe whose reader is gone (`| head -1`). Every output file is written
+atomically: an error leaves an existing file as it was. What `--out` (or `--record`) names
+must be a new path, a regular file or a directory: a device, FIFO, socket or a path in
+/proc, /sys or /dev is refused before any work (exit 2: stewart_fmu.io.check_output).
 """
 from __future__ import annotations
 
@@ -42,6 +46,8 @@ COMMANDS = {
     "excite": "excitation trajectory for identification (optimised regressor condition)",
 }
 KEPT = "nothing new written (an earlier output is left as it was)"  # on Ctrl-C
+# the arguments that name what a command writes (the output rule checks them before any work)
+OUTPUT_ARGS = ("out", "record")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -49,20 +55,25 @@ def main(argv: Sequence[str] | None = None) -> int:
     130 Ctrl-C)."""
     # Ctrl-C is caught from the start, before anything beyond the standard library is imported
     # (an interrupt inside an import waits for it to return: stewart_sim/interrupt.py)
-    from stewart_sim import interrupt
+    from stewart_sim import interrupt, terminal
 
     interrupt.reset_interrupt()
     restore = _catch_sigint(interrupt.sigint_handler)
     try:
-        argv = list(sys.argv[1:] if argv is None else argv)
-        parser = build_parser(argv[0] if argv else None)
-        try:
-            args = parser.parse_args(argv)
-        except SystemExit as exc:  # --help, usage errors: argparse has printed the message
-            return exc.code if isinstance(exc.code, int) else 2
-        return _run(args)
+        # every line printed from here on has its control characters escaped (a scene name,
+        # a file name, a message quoting an input): stewart_sim/terminal.py
+        with terminal.escaping():
+            argv = list(sys.argv[1:] if argv is None else argv)
+            parser = build_parser(argv[0] if argv else None)
+            try:
+                args = parser.parse_args(argv)
+            except SystemExit as exc:  # --help, usage errors: argparse has printed the message
+                return exc.code if isinstance(exc.code, int) else 2
+            return _run(args)
     except KeyboardInterrupt:          # while parsing, or while the packages were imported
-        return _fail(f"interrupted: {KEPT}", 130)
+        return _interrupted(KEPT)
+    except BrokenPipeError:            # `stewart-sim ... | head -1`: the reader is gone
+        return _closed_pipe()
     finally:
         restore()
 
@@ -93,46 +104,86 @@ def _run(args: argparse.Namespace) -> int:
     """Run the command parsed, SIGINT caught; returns the exit status (see main)."""
     # imported after parsing: --help, --version and usage errors need none of the packages
     from stewart_fmu.errors import StewartError
-    from stewart_fmu.io import OutputError
+    from stewart_fmu.io import WRITE_ERRNOS, OutputError, SpecialOutputError, check_output
     from stewart_sim import interrupt, outputs
 
     try:
+        for name in OUTPUT_ARGS:        # the output rule, before any work
+            if isinstance(getattr(args, name, None), str):
+                check_output(getattr(args, name))
         args.run(args)
         interrupt.check_interrupted()   # a Ctrl-C swallowed in a callback still ends with 130
+        sys.stdout.flush()              # a closed pipe shows here, not at the exit
     except outputs.Interrupted as exc:   # one line: interrupted, and what was kept
-        return _fail(f"interrupted: {exc.kept}", 130)
+        return _interrupted(exc.kept)
     except KeyboardInterrupt:
         if hasattr(args, "kept"):          # sweep: its note, then the line scripts look for
             print(f"{PROG}: {args.kept}", file=sys.stderr)
-            return _fail("interrupted", 130)
-        return _fail(f"interrupted: {KEPT}", 130)
+            return _interrupted(None)
+        return _interrupted(KEPT)
+    except SpecialOutputError as exc:      # an output that is no file to write: bad input
+        return _fail(str(exc), 2)
     except StewartError as exc:
         return _fail(str(exc), 2)
     except OutputError as exc:
         return _fail(str(exc), 1)
+    except OSError as exc:
+        if isinstance(exc, BrokenPipeError):
+            raise
+        if exc.errno not in WRITE_ERRNOS:   # not an output that cannot be written: a bug
+            raise
+        return _fail(f"cannot write {exc.filename or 'the output'}: {exc.strerror or exc}", 1)
     return 0
 
 
-def _catch_sigint(handler):
-    """Install `handler` for SIGINT (main thread only) and hide the "Exception ignored"
-    report of a KeyboardInterrupt raised inside a callback (interrupt.interrupted() keeps it);
-    returns the function that restores both."""
+def _interrupted(kept: str | None) -> int:
+    """The line for a command a stop signal ended (what was kept), and its exit status."""
+    from stewart_sim import interrupt
+
+    name = interrupt.signal_name()
+    how = "interrupted" if name == "SIGINT" else f"interrupted ({name})"
+    return _fail(how if kept is None else f"{how}: {kept}", interrupt.exit_status())
+
+
+def _closed_pipe() -> int:
+    """The reader of standard output went away: end quietly, as a POSIX tool that SIGPIPE
+    ends (status 141); standard output is pointed at /dev/null so that the interpreter's
+    last flush at exit does not report the lost lines."""
+    import os
     import signal
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError, AttributeError):   # no real stdout (captured): nothing to do
+        pass
+    return 128 + signal.SIGPIPE
+
+
+def _catch_sigint(handler):
+    """Install `handler` for SIGINT, SIGTERM and SIGHUP (interrupt.STOP_SIGNALS; main thread
+    only) and hide the "Exception ignored" report of a KeyboardInterrupt raised inside a
+    callback (interrupt.interrupted() keeps it); returns the function that restores both."""
+    import signal
+
+    from stewart_sim.interrupt import STOP_SIGNALS
 
     hook = sys.unraisablehook
 
     def quiet(unraisable):
-        if not isinstance(unraisable.exc_value, KeyboardInterrupt):
+        if not isinstance(unraisable.exc_value, (KeyboardInterrupt, BrokenPipeError)):
             hook(unraisable)
 
     try:
-        previous = signal.signal(signal.SIGINT, handler)
-    except ValueError:          # not the main thread: leave SIGINT alone
+        previous = {s: signal.signal(s, handler) for s in STOP_SIGNALS}
+    except ValueError:          # not the main thread: leave the signals alone
         return lambda: None
     sys.unraisablehook = quiet
 
     def restore() -> None:
-        signal.signal(signal.SIGINT, previous)
+        for s, old in previous.items():
+            signal.signal(s, old)
         sys.unraisablehook = hook
     return restore
 

@@ -15,11 +15,18 @@ else. Only the standard library is imported here (cli.main imports this module f
 """
 from __future__ import annotations
 
+import signal
 import sys
 import threading
 from types import FrameType
 
+# the signals that end a command as Ctrl-C does (a shell's `kill`, a closed terminal): the
+# partial output removed, the earlier one left as it was, exit status 128 + the signal
+STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP")
+                     if hasattr(signal, name))
+
 _interrupted = threading.Event()
+_received: list[int] = []   # the first stop signal that came (at most one kept)
 _deferred: list[FrameType] = []   # the import frame a SIGINT waits for (one at a time)
 
 # the files of the frozen import system: a frame of theirs on the stack means an import runs
@@ -27,8 +34,10 @@ _IMPORT_FILES = ("<frozen importlib._bootstrap>", "<frozen importlib._bootstrap_
 
 
 def sigint_handler(signum: int, frame: FrameType | None) -> None:
-    """SIGINT: remember it, then interrupt like Python's default, or, inside an import, as
-    soon as the import returns (see the module doc)."""
+    """SIGINT (or another of STOP_SIGNALS): remember it, then interrupt like Python's default
+    for SIGINT, or, inside an import, as soon as the import returns (see the module doc)."""
+    if not _received:
+        _received.append(signum)
     _interrupted.set()
     outermost = _outermost_import(frame)
     if outermost is None:
@@ -36,9 +45,28 @@ def sigint_handler(signum: int, frame: FrameType | None) -> None:
     _raise_on_return(outermost)
 
 
+def note_signal(signum: int) -> None:
+    """Record a stop signal that was held back (not raised), as sigint_handler would."""
+    if not _received:
+        _received.append(signum)
+    _interrupted.set()
+
+
 def reset_interrupt() -> None:
     """Forget an earlier SIGINT (a new command starts)."""
     _interrupted.clear()
+    _received.clear()
+
+
+def exit_status() -> int:
+    """The exit status of a command the stop signal ended: 128 + its number (130 for SIGINT,
+    143 for SIGTERM, 129 for SIGHUP), as a shell reports a process the signal killed."""
+    return 128 + (_received[0] if _received else signal.SIGINT)
+
+
+def signal_name() -> str:
+    """The stop signal that came ("SIGINT" when none was recorded)."""
+    return signal.Signals(_received[0] if _received else signal.SIGINT).name
 
 
 def interrupted() -> bool:

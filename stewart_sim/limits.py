@@ -7,9 +7,9 @@ samples is the limit; a longer --duration or --horizon is refused before any wor
 (numpy would otherwise fail half-way with "Unable to allocate ... TiB")."""
 from __future__ import annotations
 
+from stewart_fmu.budget import MEMORY_BUDGET   # bytes: what a command's tables may take
 from stewart_fmu.errors import StewartError
 
-MEMORY_BUDGET = 2 * 1024**3     # bytes: what a command's tables may take
 SAMPLE_BYTES = 1024             # bytes per sample over every table a run holds
 MAX_SAMPLES = MEMORY_BUDGET // SAMPLE_BYTES   # 2,097,152: 35 min at 1 kHz
 

@@ -33,6 +33,7 @@ from hil.client import (
 from hil.errors import LinkError
 from hil.spawn import device_process
 from stewart_fmu import io as sio
+from stewart_fmu.budget import check_count
 from stewart_fmu.errors import TrajectoryError
 from stewart_fmu.model import Model
 from stewart_sim.link_figures import run_figure
@@ -92,7 +93,10 @@ def link_trajectory(model: Model, config: ControllerConfig, path: str | Path) ->
     period = 1.0 / config.rate
     if np.all(np.abs(np.diff(t) - period) <= RATE_TOLERANCE * period):
         return Trajectory(np.arange(t.size) / config.rate, q, qd, qdd)
-    tk = np.arange(int(math.floor(t[-1] * config.rate * (1 + RATE_TOLERANCE))) + 1) / config.rate
+    steps = t[-1] * config.rate * (1 + RATE_TOLERANCE)
+    check_count(f"{path}: {t[-1]:g} s at the controller's {config.rate:g} Hz: samples",
+                steps + 1, 2 * 19 * 8, "a shorter trajectory")
+    tk = np.arange(int(math.floor(steps)) + 1) / config.rate
     if tk.size < 2:
         raise TrajectoryError(f"{path}: lasts {t[-1]:g} s, less than one controller period "
                               f"({period:g} s)")

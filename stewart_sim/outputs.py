@@ -1,13 +1,15 @@
 """Result sets written all or nothing, and Ctrl-C that always ends the command.
 
 A command that writes several files into --out DIR builds them in a temporary directory beside
-DIR (same file system: `.DIR.partial-XXXX`) and moves them into place at the end
+DIR (same file system: `.DIR.partial-PID-XXXX`) and moves them into place at the end
 (`result_set`). The files of the set are listed in DIR/.stewart-sim-set; the next set written
 into DIR removes every file of the earlier one, so that DIR never mixes two runs. Files in DIR
-that belong to no set are left alone. SIGINT while the set is built removes the temporary
-directory and leaves DIR as it was; the moves themselves run with SIGINT held back. A command
+that belong to no set are left alone. SIGINT (and SIGTERM, SIGHUP) while the set is built removes the
+temporary directory and leaves DIR as it was; the moves themselves run with them held back.
+The temporary carries the writer's process id (stewart_fmu.io.partial_prefix): one left by a
+process that is gone (killed outright) is removed by the next set written beside it. A command
 that writes a few named files instead (`inverse`: FORCES.csv and FORCES.html) stages them the
-same way (`file_set`: `.FORCES.csv.partial-XXXX` beside them) and moves them in together.
+same way (`file_set`: `.FORCES.csv.partial-PID-XXXX` beside them) and moves them in together.
 
 SIGINT is handled by `sigint_handler` (stewart_sim/interrupt.py, installed by cli.main): it
 records the signal and raises KeyboardInterrupt (inside an import: when the import returns). A KeyboardInterrupt raised where Python cannot propagate it (a
@@ -25,8 +27,9 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Callable, Iterable, Iterator
 
-from stewart_fmu.io import OutputError, write_text
-from stewart_sim.interrupt import check_interrupted
+from stewart_fmu.io import (WRITE_ERRNOS, OutputError, check_output, partial_prefix,
+                            remove_stale_partials, write_text)
+from stewart_sim.interrupt import STOP_SIGNALS, check_interrupted, note_signal
 
 MANIFEST = ".stewart-sim-set"   # names of the files of the set in DIR, one a line
 
@@ -44,6 +47,7 @@ def result_set(out: str | Path, known: Iterable[str] = ()) -> Iterator[Path]:
     in `out` (the names in out/MANIFEST, else `known`: what the command writes). On any error
     or Ctrl-C the temporary directory goes and `out` stays as it was (Interrupted says so)."""
     out = Path(out)
+    check_output(out)
     existed = out.exists()
     if existed and not out.is_dir():
         raise OutputError(f"cannot write {out}: exists and is not a directory")
@@ -71,6 +75,7 @@ def file_set(*paths: str | Path) -> Iterator[list[Path]]:
         raise ValueError(f"file_set: {', '.join(map(str, paths))}: not distinct files of one "
                          "directory")
     for p in paths:
+        check_output(p)
         if p.is_dir():
             raise OutputError(f"cannot write {p}: is a directory")
     kept = ", ".join(f"{p} " + ("left as it was" if p.exists() else "not created")
@@ -93,7 +98,8 @@ def _staged(beside: Path, target: Path, kept: str, commit: Callable[[Path], None
     OutputError raised inside names the file as it would be in `target`, not the temporary."""
     try:
         beside.parent.mkdir(parents=True, exist_ok=True)
-        stage = Path(tempfile.mkdtemp(dir=beside.parent, prefix=f".{beside.name}.partial-"))
+        remove_stale_partials(beside)
+        stage = Path(tempfile.mkdtemp(dir=beside.parent, prefix=partial_prefix(beside)))
     except OSError as exc:
         raise OutputError(f"cannot write {beside}: {exc.strerror or exc}") from None
     try:
@@ -104,6 +110,10 @@ def _staged(beside: Path, target: Path, kept: str, commit: Callable[[Path], None
             raise Interrupted(f"nothing new written, {kept}") from None
         except OutputError as exc:
             raise OutputError(str(exc).replace(str(stage), str(target))) from None
+        except OSError as exc:   # a writer of the set (a figure, an archive) met a full disk
+            if exc.errno not in WRITE_ERRNOS:
+                raise
+            raise OutputError(f"cannot write {target}: {exc.strerror or exc}") from None
         with _sigint_held() as held:
             try:
                 commit(stage)
@@ -164,13 +174,17 @@ def _manifest(out: Path) -> set[str]:
 
 @contextmanager
 def _sigint_held() -> Iterator[list]:
-    """SIGINT only recorded (not raised) inside; the list yielded is non-empty if one came."""
+    """SIGINT, SIGTERM and SIGHUP (STOP_SIGNALS) only recorded (not raised) inside; the list
+    yielded is non-empty if one came (the handler that was there is then told, after)."""
     held: list = []
     if threading.current_thread() is not threading.main_thread():
         yield held
         return
-    previous = signal.signal(signal.SIGINT, lambda s, f: held.append(s))
+    previous = {s: signal.signal(s, lambda n, f: held.append(n)) for s in STOP_SIGNALS}
     try:
         yield held
     finally:
-        signal.signal(signal.SIGINT, previous)
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+        if held:     # the command's exit status names the signal that came
+            note_signal(held[0])

@@ -6,6 +6,8 @@ import sys
 import time
 from typing import TextIO
 
+from stewart_sim.terminal import write_control
+
 PROGRESS_SAMPLES = 200_000   # show progress from the start for runs longer than this
 PROGRESS_SECONDS = 1.0       # ... and for any run still busy after this long
 PROGRESS_INTERVAL = 0.5      # s between two progress updates
@@ -47,7 +49,8 @@ class Progress:
     def _write(self, text: str) -> None:
         """Overwrite the line on a terminal; one line per update elsewhere (logs)."""
         if self.tty:
-            self.stream.write("\r" + text.ljust(self.width))
+            write_control(self.stream, "\r")     # meant: the line is written over
+            self.stream.write(text.ljust(self.width))
             self.width = max(self.width, len(text))
         else:
             self.stream.write(text + "\n")

@@ -28,6 +28,7 @@ from controller.moves import DEMO_RATE, RUN_HOLD, RUN_MOVE, demo_trajectory, mov
 from controller.config import ControllerConfig
 from controller.trajectory import Trajectory, leg_references, waypoints
 from stewart_fmu import io
+from stewart_fmu.budget import BudgetError
 from stewart_fmu.errors import StewartError
 from stewart_fmu.io import POSE, writing
 from stewart_fmu.model import Model
@@ -55,7 +56,10 @@ def move(model: Model, name: str, duration: float, rate: float | None = None,
 def waypoint_trajectory(path: Path, rate: float) -> Trajectory:
     """controller.trajectory.waypoints through the poses of a waypoint CSV."""
     times, poses = read_waypoints(path)
-    return waypoints(times, poses, rate)
+    try:
+        return waypoints(times, poses, rate)
+    except BudgetError as exc:     # the samples its times ask for: name the file
+        raise BudgetError(f"{path}: {exc}") from None
 
 
 def read_waypoints(path: Path) -> tuple[np.ndarray, np.ndarray]:

@@ -29,6 +29,7 @@ that of the nominal scene (the estimate is not known before).
 from __future__ import annotations
 
 import csv
+import io
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,6 +37,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import least_squares
 
+from stewart_fmu.budget import CSV_BYTES, InputFileError, check_count, open_input
 from stewart_fmu.errors import StewartError
 from stewart_fmu.io import POSE
 from stewart_fmu.kinematics import inverse_kinematics
@@ -113,8 +115,14 @@ def read_poses(path: str | Path) -> PoseSet:
     (CalibrationError) name the file, the line and the column."""
     path = Path(path)
     try:
-        with path.open(newline="", encoding="utf-8") as fh:
-            rows = list(csv.reader(fh))
+        with open_input(path, CSV_BYTES) as raw, \
+                io.TextIOWrapper(raw, newline="", encoding="utf-8") as fh:
+            rows = []
+            for row in csv.reader(fh):   # as Python strings: each cell costs ~60 bytes
+                rows.append(row)
+                check_count(f"{path}: poses", len(rows), 60 * max(len(row), 1) + 100)
+    except InputFileError as exc:
+        raise CalibrationError(f"{path}: cannot read poses: {exc.reason}") from None
     except OSError as exc:
         raise CalibrationError(f"{path}: cannot read poses: {exc.strerror or exc}") from None
     except (UnicodeDecodeError, csv.Error) as exc:

@@ -26,6 +26,7 @@ import numpy as np
 
 from controller.cosim import ClosedLoopResult, run_closed_loop
 from controller.trajectory import Trajectory
+from stewart_fmu.budget import check_count
 from stewart_fmu.errors import StewartError
 from stewart_fmu.model import Model
 from stewart_sim.scene_load import Scene
@@ -145,7 +146,11 @@ def resample(motion: VehicleMotion, rate: float) -> VehicleMotion:
     washout's filters take their input as linear between samples, so both rates see the same
     input)."""
     t0, t1 = float(motion.t[0]), float(motion.t[-1])
-    t = t0 + np.arange(int(np.floor((t1 - t0) * rate + 1e-9)) + 1) / rate
+    steps = (t1 - t0) * rate + 1e-9
+    # t, the specific force and the angular velocity, and the cue built from them (19 columns)
+    check_count(f"vehicle motion of {t1 - t0:g} s at {rate:g} Hz: samples", steps + 1,
+                2 * 26 * 8, "a shorter motion")
+    t = t0 + np.arange(int(np.floor(steps)) + 1) / rate
     def interp(a: np.ndarray) -> np.ndarray:
         return np.column_stack([np.interp(t, motion.t, a[:, i]) for i in range(a.shape[1])])
     return VehicleMotion(t, interp(motion.specific_force), interp(motion.angular_velocity))

@@ -36,6 +36,7 @@ from scipy.stats import qmc
 from controller.config import FEEDFORWARD
 from controller.config import NUMBER_KEYS as CONTROLLER_NUMBERS
 from controller.drive import MOTOR_KEYS
+from stewart_fmu.budget import SCENE_BYTES, BudgetError, InputFileError, check_count, read_input
 from stewart_fmu.errors import SweepError
 from stewart_fmu.io import POSE
 from stewart_fmu.scene import NUMBER_KEYS as SCENE_NUMBERS
@@ -45,6 +46,7 @@ METHODS = ("grid", "lhs")
 BATCH = {"inverse": 250, "envelope": 20, "closed_loop": 2}   # default points per task
 TRAJECTORY_KINDS = ("demo", "run", "file")
 MAX_POINTS = 10_000_000
+POINT_BYTES = 150   # a point of GridSpec.points, per axis and one more: its dict, tuple, floats
 _TOP = {"evaluation", "method", "samples", "seed", "batch", "trajectory", "envelope", "axes"}
 _RANGE = {"min", "max", "points", "log"}
 # What an axis may vary: numbers, plus the string-valued keys with their allowed values (None:
@@ -154,15 +156,14 @@ def load_grid(path: str | Path) -> GridSpec:
     """Read and check GRID.toml (SweepError names the key)."""
     path = Path(path)
     try:
-        with path.open("rb") as fh:
-            data = tomllib.load(fh)
-    except FileNotFoundError:
-        raise SweepError(None, f"no such grid file: {path}") from None
-    except IsADirectoryError:
-        raise SweepError(None, "is a directory, not a grid file", str(path)) from None
-    except OSError as exc:
-        raise SweepError(None, f"cannot read the grid file: {exc.strerror or exc}",
-                         str(path)) from None
+        data = tomllib.loads(read_input(path, SCENE_BYTES).decode())
+    except InputFileError as exc:
+        if exc.kind == "missing":
+            raise SweepError(None, f"no such grid file: {path}") from None
+        reason = {"directory": "is a directory, not a grid file",
+                  "special": "is a device, pipe or socket, not a grid file"}.get(
+                      exc.kind, f"cannot read the grid file: {exc.reason}")
+        raise SweepError(None, reason, str(path)) from None
     except UnicodeDecodeError as exc:
         raise SweepError(None, f"not a text (TOML) file: {exc.reason} at byte {exc.start}",
                          str(path)) from None
@@ -195,6 +196,10 @@ def grid_from_dict(data: Mapping[str, Any], source: str | None = None) -> GridSp
                     _envelope(data, fail), dict(data), source)
     if spec.size() > MAX_POINTS:
         fail("axes", f"{spec.size():,} points: more than {MAX_POINTS:,}")
+    try:    # GridSpec.points holds every point (its index and its values) at once
+        check_count("grid points", spec.size(), POINT_BYTES * (1 + len(axes)))
+    except BudgetError as exc:
+        fail("axes", str(exc))
     return spec
 
 

@@ -13,12 +13,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from controller.config import ControllerConfig
+from stewart_fmu.budget import check_count
 from stewart_fmu.errors import StewartError
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.model import Model
 from stewart_sim.view.geometry import ViewGeometry, at_stroke_limit, view_geometry
 
 DEFAULT_FPS = 30.0   # frames per second of simulated time: smooth to the eye, 4 s -> 121 frames
+FRAME_BYTES = 1024   # a frame's arrays (ViewData) and its text in the page, about
 
 
 @dataclass(frozen=True, eq=False)
@@ -54,9 +56,21 @@ def frame_indices(t: np.ndarray, fps: float) -> np.ndarray:
     if not (np.isfinite(fps) and fps > 0):
         raise StewartError(f"view: --fps must be a positive number, got {fps}")
     span = float(t[-1] - t[0])
-    grid = t[0] + np.arange(int(np.floor(span * fps + 1e-9)) + 1) / fps
-    idx = np.minimum(np.searchsorted(t, grid - 1e-12 * max(1.0, abs(span))), t.size - 1)
-    return np.unique(np.r_[idx, t.size - 1])
+    tolerance = 1e-12 * max(1.0, abs(span))
+    if span * fps + 1 <= t.size:   # the frame times as a grid: no more of them than samples
+        grid = t[0] + np.arange(int(np.floor(span * fps + 1e-9)) + 1) / fps
+        idx = np.minimum(np.searchsorted(t, grid - tolerance), t.size - 1)
+    else:
+        # more frame times than samples (a long span, a high fps): the grid itself could take
+        # gigabytes. Sample i is shown when a frame time falls in (t[i-1], t[i]], i.e. when
+        # the frame number floor((t - t0 + tolerance) * fps) steps up at i: the same frames,
+        # bounded by the samples
+        with np.errstate(over="ignore", invalid="ignore"):
+            number = np.floor((t - t[0] + tolerance) * fps)
+        idx = np.r_[0, 1 + np.flatnonzero(np.diff(number) > 0)]
+    frames = np.unique(np.r_[idx, t.size - 1])
+    check_count("view frames", frames.size, FRAME_BYTES, "a lower --fps")
+    return frames
 
 
 def view_data(model: Model, t, q, forces, q_ref=None, *, controller: ControllerConfig | None,

@@ -20,6 +20,7 @@ import numpy as np
 from controller.config import ControllerConfig
 from stewart_fmu.dynamics import inverse_dynamics
 from stewart_fmu.errors import KinematicsError, StewartError
+from stewart_fmu.budget import CSV_BYTES, InputFileError, open_input
 from stewart_fmu.io import (FORCE_COLUMNS, POSE, TRAJECTORY_COLUMNS, csv_header, read_samples,
                             read_trajectory)
 from stewart_fmu.kinematics import forward_kinematics
@@ -126,7 +127,10 @@ def read_run_table(path: Path) -> np.ndarray:
             raise StewartError(f"{path}: reading parquet needs pyarrow (pip install "
                                "'stewart-sim[parquet]')") from None
         try:
-            arrow = pq.read_table(path)
+            with open_input(path, CSV_BYTES) as fh:
+                arrow = pq.read_table(fh)
+        except InputFileError as exc:
+            raise StewartError(f"{path}: cannot read the run table: {exc.reason}") from None
         except (OSError, ValueError) as exc:
             raise StewartError(f"{path}: not a readable parquet table: {exc}") from None
         names = arrow.column_names
@@ -156,7 +160,7 @@ def view_of(path: Path, model: Model, *, controller: ControllerConfig | None,
     """The view of a file or result directory (see the module doc)."""
     if path.is_dir():
         return _directory_view(path, model, controller, fps)
-    if not path.is_file():
+    if not path.exists():
         raise StewartError(f"{path}: no such file or directory")
     header = csv_header(path, "table") if path.suffix != ".parquet" else ()
     if path.suffix == ".parquet" or "time" in header:
