@@ -124,19 +124,19 @@ def check_output(path: str | Path) -> None:
     path, a regular file or a directory: writing there would replace a device node or feed a
     kernel file. Checked before any work by the command line, and again by every writer."""
     path = Path(path)
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:     # a new path (or one the write will report)
+        mode = stat.S_IFREG
+    if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
+        raise SpecialOutputError(f"cannot write {path}: it is a device, pipe or socket, not a "
+                                 "file or directory a command may write")
     real = os.path.realpath(path)
     for tree in SYSTEM_TREES:
         if (real == tree or real.startswith(tree + "/")) and not any(
                 real == o or real.startswith(o + "/") for o in _ORDINARY):
             raise SpecialOutputError(f"cannot write {path}: it is in {tree}, not a file or "
                                      "directory a command may write")
-    try:
-        mode = os.stat(path).st_mode
-    except OSError:     # a new path (or one the write will report)
-        return
-    if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
-        raise SpecialOutputError(f"cannot write {path}: it is a device, pipe or socket, not a "
-                                 "file or directory a command may write")
 
 
 PARTIAL = ".partial-"   # in the name of a temporary output: .NAME.partial-PID-XXXX
