@@ -134,9 +134,15 @@ def waypoints(times: np.ndarray, poses: np.ndarray, rate: float = 1000.0) -> Tra
         raise TrajectoryError(f"waypoints: need N >= 2 times and (N, 6) poses, got {times.shape}, {poses.shape}")
     if np.any(np.diff(times) <= 0):
         raise TrajectoryError("waypoints: times must increase strictly")
-    spline = CubicSpline(times, poses, bc_type="clamped")
     t = times[0] + sample_times(times[-1] - times[0], rate)
-    return Trajectory(t, spline(t), spline(t, 1), spline(t, 2))
+    with np.errstate(over="ignore", invalid="ignore"):   # refused below, in one line
+        spline = CubicSpline(times, poses, bc_type="clamped")
+        q, qd, qdd = spline(t), spline(t, 1), spline(t, 2)
+    for name, a in (("poses", q), ("rates", qd), ("accelerations", qdd)):
+        if not np.all(np.isfinite(a)):
+            raise TrajectoryError(f"waypoints: the path's {name} are not finite (poses too "
+                                  "large, or times too close, for a cubic spline)")
+    return Trajectory(t, q, qd, qdd)
 
 
 def waypoints_csv(path: str, rate: float = 1000.0) -> Trajectory:

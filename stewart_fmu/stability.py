@@ -61,8 +61,12 @@ def spectral_radius(model: Model, y: np.ndarray, F: np.ndarray) -> float:
         lo, s2 = derivative(packed, y - e, F)
         if s1 != OK or s2 != OK:  # a neighbour leaves the valid region: no estimate
             return math.nan
-        cols.append((hi - lo) / (2.0 * e[j]))
-    return float(np.max(np.abs(np.linalg.eigvals(np.column_stack(cols)))))
+        with np.errstate(over="ignore", invalid="ignore"):   # refused below
+            cols.append((hi - lo) / (2.0 * e[j]))
+    jacobian = np.column_stack(cols)
+    if not np.all(np.isfinite(jacobian)):   # forces or a state too large to difference
+        return math.nan
+    return float(np.max(np.abs(np.linalg.eigvals(jacobian))))
 
 
 def stable_step(model: Model, y: np.ndarray | None = None, F: np.ndarray | None = None) -> float:

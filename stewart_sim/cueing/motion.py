@@ -22,6 +22,11 @@ from stewart_fmu.io import named_array, read_samples, write_csv
 
 MOTION_COLUMNS = ("t", "fx", "fy", "fz", "wx", "wy", "wz")
 UNIFORM_TOLERANCE = 1e-6  # a time step may differ this much (relative) from the first one
+# what a vehicle's motion can be: far beyond any vehicle (1000 g, 10^4 rad/s, 1 MHz sampling),
+# and inside what the perception filters and the washout can compute on (they overflow, or
+# their discretised filters turn singular, past these)
+MOTION_BOUNDS = {"specific_force": 1e4, "angular_velocity": 1e4}   # m/s^2, rad/s
+MIN_STEP = 1e-6           # s
 
 
 class MotionError(TrajectoryError):
@@ -95,10 +100,20 @@ def _check_samples(data: np.ndarray, where: str, first_line: int) -> None:
     if bad.size:
         r, c = bad[0]
         raise MotionError(f"{where}: {at(r, MOTION_COLUMNS[c])}: non-finite value {data[r, c]}")
+    for (name, bound), cols in zip(MOTION_BOUNDS.items(), (slice(1, 4), slice(4, 7))):
+        bad = np.argwhere(np.abs(data[:, cols]) > bound)
+        if bad.size:
+            r, c = bad[0]
+            value = float(data[r, cols.start + c])
+            raise MotionError(f"{where}: {at(r, MOTION_COLUMNS[cols.start + c])}: {value!r} "
+                              f"is beyond any vehicle's {name} (|value| <= {bound:g})")
+    steps = np.diff(data[:, 0])
+    if steps.size and 0 < steps[0] < MIN_STEP:
+        raise MotionError(f"{where}: {at(1, 't')}: the step {float(steps[0])!r} s is shorter "
+                          f"than {MIN_STEP:g} s (sampling above 1 MHz)")
     r = first_irregular_step(data[:, 0])
     if r is None:
         return
-    steps = np.diff(data[:, 0])
     if steps[r - 1] <= 0:
         raise MotionError(f"{where}: {at(r, 't')}: time must increase strictly")
     raise MotionError(f"{where}: {at(r, 't')}: sampling must be uniform: step "

@@ -60,11 +60,16 @@ def wls(Wb: np.ndarray, s: np.ndarray, legs: np.ndarray) -> tuple[np.ndarray, np
         raise IdentificationError(f"{M} equations for {r} base parameters: record more samples")
     beta0 = np.linalg.lstsq(Wb, s, rcond=None)[0]
     res = s - Wb @ beta0
-    floor = _NOISE_FLOOR * float(np.sqrt(np.mean(s**2)))
     noise = np.empty(6)
-    for j in range(6):
-        rows = legs == j
-        noise[j] = np.sqrt(np.sum(res[rows] ** 2) / max(np.count_nonzero(rows) - r / 6, 1.0))
+    with np.errstate(over="ignore", invalid="ignore"):   # refused below, in one line
+        floor = _NOISE_FLOOR * float(np.sqrt(np.mean(s**2)))
+        for j in range(6):
+            rows = legs == j
+            noise[j] = np.sqrt(np.sum(res[rows] ** 2) / max(np.count_nonzero(rows) - r / 6,
+                                                            1.0))
+    if not (np.all(np.isfinite(noise)) and np.isfinite(floor)):
+        raise IdentificationError(f"the force residuals overflow (per-leg noise {noise.tolist()} "
+                                  "N): the runs' forces are not those of one machine")
     noise = np.maximum(noise, floor)
     w = 1.0 / noise[legs]
     A = Wb * w[:, None]
@@ -72,7 +77,16 @@ def wls(Wb: np.ndarray, s: np.ndarray, legs: np.ndarray) -> tuple[np.ndarray, np
     wres = (s - Wb @ beta) * w
     s2 = float(wres @ wres) / (M - r)
     Rf = np.linalg.qr(A, mode="r")
-    Rinv = np.linalg.inv(Rf)
+    try:
+        Rinv = np.linalg.inv(Rf)
+    except np.linalg.LinAlgError:
+        # a leg's forces so far from the others' (1e300 N) that its weights underflow
+        raise IdentificationError(
+            f"the weighted regressor is singular (per-leg force noise {noise.tolist()} N): "
+            "the runs' forces are not those of one machine") from None
+    if not np.all(np.isfinite(Rinv)) or not np.isfinite(s2):
+        raise IdentificationError(f"the estimate's covariance is not finite (per-leg force "
+                                  f"noise {noise.tolist()} N): check the runs' forces")
     cov = s2 * (Rinv @ Rinv.T)
     rms = np.array([np.sqrt(np.mean((s - Wb @ beta)[legs == j] ** 2)) for j in range(6)])
     return beta, cov, noise, rms

@@ -65,9 +65,14 @@ def _page(title: str, subtitle: str, force_label: str, status: str, geometry: Vi
     return re.sub(r"\{\{([A-Z_]+)\}\}", lambda m: parts[m.group(1)], template)
 
 
+_PAGE_MAX = float(np.finfo(np.float32).max)   # the page's frames are float32
+
+
 def _finite(a: np.ndarray | None, name: str) -> None:
-    if a is not None and not np.all(np.isfinite(a)):
-        raise StewartError(f"view: {name} holds values that are not finite")
+    """Refuse values the page cannot hold: non-finite, or beyond float32 (they would be inf)."""
+    if a is not None and not np.all(np.abs(a) <= _PAGE_MAX):
+        raise StewartError(f"view: {name} holds values that are not finite or beyond the "
+                           f"page's float32 range (|x| > {_PAGE_MAX:.3g})")
 
 
 def static_view_html(view: ViewData) -> str:

@@ -6,8 +6,9 @@ dropped, added, renamed or swapped, rows of the wrong width, repeated rows, cont
 an endless line, an empty file) and each mutant is given to every command that reads its kind:
 `inverse`, `view` and `trajectory --waypoints` (trajectories), `simulate` and `view --trajectory`
 (forces), `cue` (vehicle motion), `identify` and `view` (run files). Every command must end
-with exit 0 or with one line and exit 2 (never a traceback), within a bound that only a hang
-reaches, and a command that succeeds must have written finite numbers only.
+with exit 0 or with one line and exit 2 (never a traceback, no warning printed beside it),
+within a bound that only a hang reaches, and a command that succeeds must have written finite
+numbers only.
 
 The inputs are fixed by SEED and their number by INPUTS (in CI with `make test`). Figures are
 not rasterised here (Figure.savefig writes a stub): what is fuzzed is how the inputs are read,
@@ -20,6 +21,7 @@ import csv
 import io as _io
 import math
 import signal
+import warnings
 from pathlib import Path
 from typing import Callable
 
@@ -56,7 +58,7 @@ def base(tmp_path_factory) -> dict[str, bytes]:
         assert cli.main(["inverse", str(MICRO), "--trajectory", str(d / "T.csv"), "--out",
                          str(d / "F.csv"), "--no-view"]) == 0
     t, q, _, _ = io.read_trajectory(d / "T.csv")
-    forces = io.read_samples(d / "F.csv", io.FORCE_COLUMNS, "forces")
+    forces = io.read_samples(d / "F.csv", io.FORCE_COLUMNS, "forces", prefix=True)
     lengths = inverse_kinematics(load_scene(MICRO), q, with_cond=False).lengths
     run = {"t": t, **{f"l{i + 1}": lengths[:, i] for i in range(6)},
            **{f"sigma{i + 1}": forces[:, i + 1] for i in range(6)}}
@@ -196,13 +198,17 @@ def test_fuzzed_csv_inputs(kind, base, tmp_path, monkeypatch, capsys) -> None:
                 where = f"input {n} ({mutation}), {args[0]}"
                 signal.alarm(HANG)
                 try:
-                    status = cli.main(args)
+                    with warnings.catch_warnings(record=True) as warned:
+                        warnings.simplefilter("always")
+                        status = cli.main(args)
                 except BaseException as exc:      # a traceback or a hang
                     failures.append(f"{where}: {type(exc).__name__}: {exc}"[:300])
                     continue
                 finally:
                     signal.alarm(0)
                 err = capsys.readouterr().err
+                if warned:     # printed on stderr beside the one line or the results
+                    failures.append(f"{where}: warning: {warned[0].message}"[:300])
                 if status == 2:
                     lines = err.strip().splitlines()
                     if len(lines) != 1 or not lines[0].startswith("stewart-sim: error: "):
