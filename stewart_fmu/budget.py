@@ -9,7 +9,8 @@ reports is wrong (/proc reports 0). A count is checked by `check_count` before a
 that size is allocated, so that an input cannot make a command ask for terabytes.
 
 Budgets (bytes):
-  SCENE_BYTES   1 MiB: TOML files (scenes, grids); the largest shipped scene is ~3 KB.
+  SCENE_BYTES   1 MiB: TOML files (scenes, grids) and the small text files a command reads
+                (a result directory's summary.md); the largest shipped scene is ~5 KB.
   CSV_BYTES     1 GiB: CSV inputs; a 35-minute 1 kHz trajectory (2.1 M rows, 19 columns at
                 full precision) is ~0.9 GB.
   LINE_BYTES    1 MiB: one CSV line (a few hundred columns at full precision).

@@ -7,7 +7,7 @@ samples is the limit; a longer --duration or --horizon is refused before any wor
 (numpy would otherwise fail half-way with "Unable to allocate ... TiB")."""
 from __future__ import annotations
 
-from stewart_fmu.budget import MEMORY_BUDGET   # bytes: what a command's tables may take
+from stewart_fmu.budget import MEMORY_BUDGET, BudgetError, check_count
 from stewart_fmu.errors import StewartError
 
 SAMPLE_BYTES = 1024             # bytes per sample over every table a run holds
@@ -17,11 +17,13 @@ MAX_SAMPLES = MEMORY_BUDGET // SAMPLE_BYTES   # 2,097,152: 35 min at 1 kHz
 def check_samples(option: str, seconds: float, rate: float, why: str = "") -> None:
     """Refuse `option` = `seconds` when its samples at `rate` exceed MAX_SAMPLES."""
     samples = seconds * rate
-    if samples > MAX_SAMPLES:
+    try:
+        check_count(f"{option} {seconds:g} s: samples", samples, SAMPLE_BYTES)
+    except BudgetError:   # the one check; the line says what a run holds and what fits
         longest = MAX_SAMPLES / rate
         raise StewartError(
             f"{option} {seconds:g} s is {samples:.3g} samples at {rate:g} Hz"
             + (f" ({why})" if why else "")
             + f": at most {MAX_SAMPLES:,} fit the memory budget of "
             f"{MEMORY_BUDGET / 1024**3:g} GiB (about {SAMPLE_BYTES} bytes a sample over the "
-            f"tables a run holds); use {option} {longest:.6g} or less")
+            f"tables a run holds); use {option} {longest:.6g} or less") from None

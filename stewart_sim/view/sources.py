@@ -20,7 +20,7 @@ import numpy as np
 from controller.config import ControllerConfig
 from stewart_fmu.dynamics import inverse_dynamics
 from stewart_fmu.errors import KinematicsError, StewartError
-from stewart_fmu.budget import CSV_BYTES, InputFileError, open_input
+from stewart_fmu.budget import CSV_BYTES, SCENE_BYTES, InputFileError, open_input, read_input
 from stewart_fmu.io import (FORCE_COLUMNS, POSE, TRAJECTORY_COLUMNS, csv_header, read_samples,
                             read_trajectory)
 from stewart_fmu.kinematics import forward_kinematics
@@ -110,9 +110,9 @@ def paper_view(results, *, controller: ControllerConfig | None, title: str | Non
 
 def recorded_scene(directory: Path) -> Path | None:
     """The scene a `run` recorded in its summary.md ("- scene: `PATH`"), if any."""
-    try:
-        text = (directory / "summary.md").read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError):
+    try:   # a regular file within the budget of a text input (not a FIFO: no wait)
+        text = read_input(directory / "summary.md", SCENE_BYTES).decode("utf-8")
+    except (InputFileError, UnicodeDecodeError):
         return None
     match = re.search(r"^- scene: `([^`]+)`", text, re.MULTILINE)
     return Path(match.group(1)) if match else None
