@@ -6,6 +6,7 @@ import errno
 import io as _io
 import itertools
 import os
+import re
 import shutil
 import stat
 import tempfile
@@ -149,20 +150,22 @@ def partial_prefix(path: str | Path) -> str:
 
 
 def remove_stale_partials(path: str | Path) -> list[Path]:
-    """Remove the temporaries of `path` (partial_prefix) left by a process that is gone (killed
-    before it could clean up); returns them. Those of a live process are left alone."""
-    path = Path(path)
-    stem = f".{path.name}{PARTIAL}"
+    """Remove the temporaries (partial_prefix) in the directory of `path` left by a process
+    that is gone (killed before it could clean up); returns them. Those of a live process are
+    left alone. A directory is looked at once per process: a writer dying later leaves its
+    temporaries to the next command (a sweep writes thousands of chunks into one directory)."""
+    directory = os.path.realpath(Path(path).parent)
+    if directory in _SWEPT:
+        return []
     removed = []
     try:
-        entries = list(os.scandir(path.parent))
+        entries = list(os.scandir(directory))
     except OSError:
         return removed
+    _SWEPT.add(directory)
     for entry in entries:
-        if not entry.name.startswith(stem):
-            continue
-        pid = entry.name[len(stem):].partition("-")[0]
-        if not pid.isdigit() or _alive(int(pid)):
+        match = _PARTIAL_NAME.match(entry.name)
+        if match is None or _alive(int(match.group(1))):
             continue
         target = Path(entry.path)
         if entry.is_dir(follow_symlinks=False):
@@ -174,6 +177,10 @@ def remove_stale_partials(path: str | Path) -> list[Path]:
                 continue
         removed.append(target)
     return removed
+
+
+_SWEPT: set[str] = set()    # directories whose stale temporaries this process removed
+_PARTIAL_NAME = re.compile(r"^\..+" + re.escape(PARTIAL) + r"(\d{1,10})-[^/]*$")
 
 
 def _alive(pid: int) -> bool:

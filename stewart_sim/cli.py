@@ -52,7 +52,7 @@ OUTPUT_ARGS = ("out", "record")
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status (0 ok, 1 I/O failure, 2 bad input,
-    130 Ctrl-C)."""
+    128 + the signal on SIGINT, SIGTERM or SIGHUP, 141 on a closed pipe)."""
     # Ctrl-C is caught from the start, before anything beyond the standard library is imported
     # (an interrupt inside an import waits for it to return: stewart_sim/interrupt.py)
     from stewart_sim import interrupt, terminal

@@ -4,8 +4,9 @@ A command that writes several files into --out DIR builds them in a temporary di
 DIR (same file system: `.DIR.partial-PID-XXXX`) and moves them into place at the end
 (`result_set`). The files of the set are listed in DIR/.stewart-sim-set; the next set written
 into DIR removes every file of the earlier one, so that DIR never mixes two runs. Files in DIR
-that belong to no set are left alone. SIGINT (and SIGTERM, SIGHUP) while the set is built removes the
-temporary directory and leaves DIR as it was; the moves themselves run with them held back.
+that belong to no set are left alone. SIGINT (and SIGTERM, SIGHUP) while the set is built
+removes the temporary directory and leaves DIR as it was; the moves themselves run with them
+held back.
 The temporary carries the writer's process id (stewart_fmu.io.partial_prefix): one left by a
 process that is gone (killed outright) is removed by the next set written beside it. A command
 that writes a few named files instead (`inverse`: FORCES.csv and FORCES.html) stages them the
@@ -175,7 +176,8 @@ def _manifest(out: Path) -> set[str]:
 @contextmanager
 def _sigint_held() -> Iterator[list]:
     """SIGINT, SIGTERM and SIGHUP (STOP_SIGNALS) only recorded (not raised) inside; the list
-    yielded is non-empty if one came (the handler that was there is then told, after)."""
+    yielded is non-empty if one came (and the command's exit status then names it:
+    interrupt.note_signal)."""
     held: list = []
     if threading.current_thread() is not threading.main_thread():
         yield held

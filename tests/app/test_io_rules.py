@@ -331,7 +331,8 @@ def test_a_fifo_scene_is_refused_without_waiting_for_a_writer(tmp_path) -> None:
     r = subprocess.run([str(EXE), "scene-info", str(fifo)], capture_output=True, text=True,
                        env=_env(), timeout=WAIT)
     assert r.returncode == 2, r.stderr
-    assert r.stderr == f"stewart-sim: error: {fifo}: is a device, pipe or socket, not a scene file\n"
+    assert r.stderr == (f"stewart-sim: error: {fifo}: is a device, pipe or socket, not a "
+                        "scene file\n")
 
 
 @pytest.mark.parametrize("option", ["--trajectory", "--scene"])
