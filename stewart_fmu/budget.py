@@ -3,8 +3,8 @@ memory a count derived from an input (samples, frames, waypoints, grid points) m
 
 Input files (scene, grid, trajectory, motion, run, force, pose files) are read through
 `open_input` / `read_input`: the path must name a regular file (a device, FIFO or socket is
-refused before it is opened for reading, and the open itself cannot block: O_NONBLOCK), no
-larger than its budget, and the read stops at the budget even where the size the file system
+refused by fstat on the opened descriptor, before any read; the open itself cannot wait for a
+FIFO's writer: O_NONBLOCK), no larger than its budget, and the read stops at the budget even where the size the file system
 reports is wrong (/proc reports 0). A count is checked by `check_count` before anything of
 that size is allocated, so that an input cannot make a command ask for terabytes.
 
