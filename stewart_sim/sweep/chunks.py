@@ -39,7 +39,6 @@ MAGIC = "#stewart-sim sweep chunk 1"
 REFUSED = "refused"      # DIR/refused/: chunks set aside on resume
 ROW_BYTES = 64 * 1024    # the most bytes a row (or the header) may take in a chunk file
 _HEAD_BYTES = 256        # the first line's bound
-_NAME = re.compile(r"part-[0-9]{9,}\.csv")
 _ID = re.compile(r"0|[1-9][0-9]{0,18}")
 _HEX = re.compile(r"[0-9a-f]{64}")
 
@@ -104,7 +103,8 @@ def resume_rows(out: Path, rules: ChunkRules, notice: Callable[[str], None]
                 raise _Refused(f"point {again[0]} is in an earlier chunk too")
         except _Refused as exc:
             where = _set_aside(out, path)
-            notice(f"{path}: refused ({exc}); moved to {where}, its points are computed again")
+            notice(f"{_printable(str(path))}: refused ({exc}); moved to "
+                   f"{_printable(str(where))}, its points are computed again")
             continue
         rows.update(got)
     return rows
@@ -128,23 +128,7 @@ def _set_aside(out: Path, path: Path) -> Path:
 
 def _read(path: Path, rules: ChunkRules) -> dict[int, list[str]]:
     """The rows of one chunk file, by point id; _Refused says why not."""
-    try:  # no link followed, and a FIFO's open does not wait for a writer
-        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
-    except OSError as exc:
-        raise _Refused("a symbolic link" if os.path.islink(path)
-                       else f"cannot be read: {exc.strerror or exc}") from None
-    with os.fdopen(fd, "rb") as fh:
-        size = os.fstat(fh.fileno())
-        if not stat.S_ISREG(size.st_mode):
-            raise _Refused("not a regular file")
-        head = fh.readline(_HEAD_BYTES)
-        n, digest = _header(head, rules)
-        limit = (n + 1) * ROW_BYTES
-        if size.st_size - len(head) > limit:
-            raise _Refused(f"{size.st_size:,} bytes: more than {n} rows can take")
-        body = fh.read(limit + 1)
-    if len(body) > limit:
-        raise _Refused(f"more than {limit:,} bytes after its first line")
+    head, n, digest, body = _read_bounded(path, rules)
     if hashlib.sha256(body).hexdigest() != digest:
         raise _Refused("its rows do not match its checksum (damaged or edited)")
     try:
@@ -156,18 +140,45 @@ def _read(path: Path, rules: ChunkRules) -> dict[int, list[str]]:
         raise _Refused(f"not CSV: {exc}") from None
     if not records or tuple(records[0]) != rules.columns:
         raise _Refused("its columns are not the sweep's")
-    if len(records) - 1 != n or csv_text(rules.columns, records[1:]) != text:
-        raise _Refused(f"{len(records) - 1} rows, not the {n} its first line says, or not "
-                       "in the form the sweep writes")
+    if len(records) - 1 != n:
+        raise _Refused(f"{len(records) - 1} rows, not the {n} its first line declares")
+    if csv_text(rules.columns, records[1:]) != text:
+        raise _Refused("not CSV as the sweep writes it (quoting, line ends)")
     rows: dict[int, list[str]] = {}
     for k, row in enumerate(records[1:], 1):
         pid = _check_row(row, rules)
         if pid in rows:
             raise _Refused(f"point {pid} twice")
         rows[pid] = row
-    if path.name != f"part-{min(rows):09d}.csv" or not _NAME.fullmatch(path.name):
+    if path.name != f"part-{min(rows):09d}.csv":
         raise _Refused(f"its first point is {min(rows)}, not the one its name gives")
     return rows
+
+
+def _read_bounded(path: Path, rules: ChunkRules) -> tuple[bytes, int, str, bytes]:
+    """A chunk's first line, the rows and checksum it declares, and the bytes after it, read
+    no further than those rows can take."""
+    try:  # no link followed, and a FIFO's open does not wait for a writer
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
+    except OSError as exc:
+        raise _Refused("a symbolic link" if os.path.islink(path)
+                       else f"cannot be read: {exc.strerror or exc}") from None
+    try:
+        with os.fdopen(fd, "rb") as fh:
+            size = os.fstat(fh.fileno())
+            if not stat.S_ISREG(size.st_mode):
+                raise _Refused("not a regular file")
+            head = fh.readline(_HEAD_BYTES)
+            n, digest = _header(head, rules)
+            limit = (n + 1) * ROW_BYTES
+            if size.st_size - len(head) > limit:
+                raise _Refused(f"{size.st_size:,} bytes: more than {n} rows can take")
+            body = fh.read(limit + 1)
+    except OSError as exc:
+        raise _Refused(f"cannot be read: {exc.strerror or exc}") from None
+    if len(body) > limit:
+        raise _Refused(f"more than {limit:,} bytes after its first line (it grew)")
+    return head, n, digest, body
 
 
 def _header(head: bytes, rules: ChunkRules) -> tuple[int, str]:
@@ -220,6 +231,11 @@ def _check_row(row: list[str], rules: ChunkRules) -> int:
         if problem is not None:
             raise _Refused(f"point {pid}: {name} = {_short(text)}: {problem}")
     return pid
+
+
+def _printable(text: str) -> str:
+    """A file name for a line on the terminal: control characters escaped."""
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode() for c in text)
 
 
 def _short(text: str) -> str:

@@ -237,6 +237,15 @@ def test_a_point_in_two_chunks_is_taken_once(sweep, tmp_path, capsys):
     assert (out / "sweep.csv").read_text() == sweep["serial"]
 
 
+def test_a_chunk_name_with_control_characters_is_printed_escaped(sweep, tmp_path):
+    out = copy(sweep, tmp_path / "out")
+    (out / CHUNKS / "part-\x1b[2J.csv").write_bytes(b"\x07")
+    lines: list[str] = []
+    assert len(resume_rows(out, sweep["rules"], lines.append)) == 8
+    assert len(lines) == 1 and "part-\\x1b[2J.csv: refused (its first line is not" in lines[0]
+    assert "\x1b" not in lines[0] and (out / REFUSED / "part-\x1b[2J.csv").exists()
+
+
 def test_a_table_is_never_merged_from_rows_it_refused(sweep, tmp_path):
     """The unknown point of the repro (9 rows for 8 points, then exit 2 over a corrupt table):
     the table written is the sweep's, 8 rows, whatever the run does after."""
