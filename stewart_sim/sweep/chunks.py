@@ -145,7 +145,7 @@ def _read(path: Path, rules: ChunkRules) -> dict[int, list[str]]:
     if csv_text(rules.columns, records[1:]) != text:
         raise _Refused("not CSV as the sweep writes it (quoting, line ends)")
     rows: dict[int, list[str]] = {}
-    for k, row in enumerate(records[1:], 1):
+    for row in records[1:]:
         pid = _check_row(row, rules)
         if pid in rows:
             raise _Refused(f"point {pid} twice")

@@ -101,17 +101,18 @@ def evaluate_point(spec: EvalSpec, pid: int, values: Mapping[str, Any],
     except POINT_ERRORS as exc:
         text = str(exc) if isinstance(exc, _RunFailed) else f"{type(exc).__name__}: {exc}"
         return _failed(row, text, nan)
+    checked = {name: float(results.get(name, np.nan)) for name in nan}
     drive = has_drive(spec.scene)
-    for name in RESULTS[spec.evaluation]:
-        value = float(results.get(name, np.nan))
+    for name, value in checked.items():
         problem = result_problem(name, value, drive)
         if problem is not None:
             return _failed(row, f"result {name} = {value!r}: {problem}", nan)
-    return {**row, **nan, **results}
+    return {**row, **checked}
 
 
 def _failed(row: dict[str, Any], text: str, nan: Mapping[str, float]) -> dict[str, Any]:
     """The row of a point that failed: its error's text (cut to ERROR_CHARS), NaN results."""
+    text = text or "failed, without a message"
     if len(text) > ERROR_CHARS:
         text = text[:ERROR_CHARS - 3] + "..."
     return {**row, "status": "error", "error": text, **nan}

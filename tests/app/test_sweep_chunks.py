@@ -274,6 +274,23 @@ def test_a_result_that_is_not_finite_is_an_error_row(sweep, monkeypatch):
     assert all(math.isnan(row[c]) for c in RESULTS["inverse"])
 
 
+@pytest.mark.parametrize("message", ["x" * 100_000, ""])
+def test_an_error_row_is_one_a_chunk_takes(sweep, tmp_path, monkeypatch, message):
+    """An error's text is cut to ERROR_CHARS (a chunk's rows have a size bound) and never
+    empty: the row is written and taken back on resume."""
+    import stewart_sim.sweep.evaluate as ev
+
+    def fail(*args):
+        raise ValueError(message)
+
+    grid = load_grid(sweep["grid"])
+    monkeypatch.setattr(ev, "inverse_dynamics", fail)
+    row = evaluate_point(eval_spec(SCENE, grid), 0, grid.points()[0][1])
+    assert row["status"] == "error" and 0 < len(row["error"]) <= ev.ERROR_CHARS
+    written = write_chunk(tmp_path, sweep["rules"], [row])
+    assert resume_rows(tmp_path, sweep["rules"], pytest.fail) == written
+
+
 def test_the_rules_of_results(sweep):
     assert result_problem("sigma_max", 1.0, True) is None
     assert result_problem("sigma_max", -1.0, True) == "below 0"
