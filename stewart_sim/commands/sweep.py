@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from stewart_sim.argtypes import number
@@ -42,10 +43,14 @@ def run(args: argparse.Namespace) -> None:
     args.kept = (f"the points finished so far are kept in {args.out} (its chunk files), "
                  "the same command resumes from there")
     summary, written = run_sweep_files(Path(args.scene), Path(args.grid), Path(args.out),
-                                       args.scheduler, args.workers, not args.no_plots)
+                                       args.scheduler, args.workers, not args.no_plots,
+                                       lambda line: print(f"stewart-sim: {line}",
+                                                          file=sys.stderr))
     where = args.scheduler or "local cluster"
+    refused = (f", {summary.refused} chunk files refused and their points computed again"
+               if summary.refused else "")
     print(f"sweep: {summary.points} points, {summary.resumed} already done, {summary.computed} "
           f"computed on {summary.workers} workers ({where}) in {summary.wall:.3g} s "
-          f"({summary.rate:.4g} points/s); {summary.failed} failed")
+          f"({summary.rate:.4g} points/s); {summary.failed} failed{refused}")
     for path in written:
         print(f"wrote {path}")

@@ -1,1 +1,1 @@
-"""Design sweeps on Dask: `grid` (GRID.toml), `evaluate` (per point), `table` (chunk files), `run` (Dask), `plots`, `files` (the pipeline)."""
+"""Design sweeps on Dask: `grid` (GRID.toml), `evaluate` (per point), `table` (the table), `chunks` (chunk files, checked on resume), `run` (Dask), `plots`, `files` (the pipeline)."""

@@ -16,10 +16,13 @@ Trajectories (TrajectorySettings.kind): "demo" (controller.moves's six-axis rais
 fitted to the point's workspace), "run" (the `run` command's move out and back), "file" (a
 trajectory CSV read once by the caller). A point that fails (a bad scene value, a pose past the
 stroke or near a singularity, an infeasible design, a diverging loop) is a row with status
-"error" and the error's text; its results are NaN.
+"error" and the error's text (cut to ERROR_CHARS); its results are NaN. So is a point whose
+results break what they are (`result_problem`: not finite, a magnitude below zero, cond(J) below
+1, a share outside [0, 1]): no row with status "ok" carries such a value.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 from typing import Any, Mapping, Sequence
 
@@ -45,6 +48,15 @@ RESULTS = {
                     "voltage_rms", "saturated_time"),
     "envelope": (*LEGS, "sigma_max", "torque_max", "cond_max", "reachable"),
 }
+# What the results are: magnitudes (peaks, RMS, a time, a frequency) are at least 0, cond(J) at
+# least 1, the reachable share at most 1; every other result need only be finite. torque_max is
+# NaN (no motor torque to report) exactly when the scene has no [drive] table.
+_AT_LEAST = {**dict.fromkeys((*LEGS, "sigma_max", "torque_max", "power_max", "crossover_hz",
+                              "leg_err_rms", "leg_err_max", "pose_err_max_linear",
+                              "pose_err_max_angular", "current_max", "voltage_rms",
+                              "saturated_time", "reachable"), 0.0), "cond_max": 1.0}
+_AT_MOST = {"reachable": 1.0}
+ERROR_CHARS = 4000   # an error row's text is cut to this (a chunk's rows have a size bound)
 # Failures that make a point a row with its error: the package's typed errors, and numerical
 # failures inside third-party code (python-control's design, LAPACK).
 POINT_ERRORS = (StewartError, ArithmeticError, ValueError, np.linalg.LinAlgError)
@@ -85,11 +97,44 @@ def evaluate_point(spec: EvalSpec, pid: int, values: Mapping[str, Any],
     except SceneError as exc:  # the point's values, not the scene file: name the point
         text = (f"SceneError: {point_label(pid, values)}: scene key '{exc.key}': "
                 f"{exc.reason}")
-        return {**row, "status": "error", "error": text, **nan}
+        return _failed(row, text, nan)
     except POINT_ERRORS as exc:
         text = str(exc) if isinstance(exc, _RunFailed) else f"{type(exc).__name__}: {exc}"
-        return {**row, "status": "error", "error": text, **nan}
-    return {**row, **nan, **results}
+        return _failed(row, text, nan)
+    checked = {name: float(results.get(name, np.nan)) for name in nan}
+    drive = has_drive(spec.scene)
+    for name, value in checked.items():
+        problem = result_problem(name, value, drive)
+        if problem is not None:
+            return _failed(row, f"result {name} = {value!r}: {problem}", nan)
+    return {**row, **checked}
+
+
+def _failed(row: dict[str, Any], text: str, nan: Mapping[str, float]) -> dict[str, Any]:
+    """The row of a point that failed: its error's text (cut to ERROR_CHARS), NaN results."""
+    text = text or "failed, without a message"
+    if len(text) > ERROR_CHARS:
+        text = text[:ERROR_CHARS - 3] + "..."
+    return {**row, "status": "error", "error": text, **nan}
+
+
+def has_drive(scene: Mapping[str, Any]) -> bool:
+    """Whether the base scene (parsed TOML) has a [drive] table: torque_max exists."""
+    return isinstance(scene.get("drive"), Mapping)
+
+
+def result_problem(name: str, value: float, drive: bool) -> str | None:
+    """Why `value` cannot be the result `name` of a point evaluated without error (None: it
+    can); `drive`: the scene has a [drive] table (has_drive)."""
+    if math.isnan(value) and name == "torque_max" and not drive:
+        return None
+    if not math.isfinite(value):
+        return "not finite"
+    if value < _AT_LEAST.get(name, -math.inf):
+        return f"below {_AT_LEAST[name]:g}"
+    if value > _AT_MOST.get(name, math.inf):
+        return f"above {_AT_MOST[name]:g}"
+    return None
 
 
 def point_label(pid: int | None, values: Mapping[str, Any]) -> str:

@@ -3,6 +3,7 @@ designer's plots."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Callable
 
 from stewart_fmu.io import writing
 from stewart_fmu.scene import load_scene
@@ -17,15 +18,17 @@ MAPS = ("force_envelope.png", "singularity_map.png")
 
 
 def run_sweep_files(scene: Path, grid_path: Path, out: Path, scheduler: str | None = None,
-                    workers: int | None = None, plots: bool = True
+                    workers: int | None = None, plots: bool = True,
+                    notice: Callable[[str], None] | None = None
                     ) -> tuple[SweepSummary, list[Path]]:
-    """Run or resume the sweep into `out`, then plot it; returns the summary and the files."""
+    """Run or resume the sweep into `out`, then plot it; returns the summary and the files.
+    `notice` gets a line for each chunk file refused on resume (run_sweep)."""
     grid = load_grid(grid_path)
     model = load_scene(scene)
     progress = Progress()
     try:
         with writing(out):
-            summary = run_sweep(scene, grid, out, scheduler, workers, progress)
+            summary = run_sweep(scene, grid, out, scheduler, workers, progress, notice=notice)
     finally:
         progress.close()
     written = [summary.table]

@@ -2,8 +2,11 @@
 processes, one thread each) or a Dask distributed cluster (`scheduler` = "tcp://HOST:PORT").
 
 Points go out in tasks of `batch` points (sweep_eval.evaluate_batch); each finished task's rows
-are written to a chunk file at once (sweep_table), so an interruption keeps every finished row
-and a rerun computes only the points not yet in the directory. A worker that dies takes its
+are written to a chunk file at once (stewart_sim/sweep/chunks.py), so an interruption keeps every
+finished row and a rerun computes only the points not yet in the directory: the rows of the
+chunks that pass their checks (the sweep's fingerprint, their checksum, known points once each,
+plausible results); a chunk refused is set aside and its points are computed again. The table
+is written from these rows only, checked before anything is merged. A worker that dies takes its
 running tasks with it; the scheduler runs them again elsewhere, and a task's rows are written
 once, when its future completes.
 """
@@ -15,16 +18,18 @@ import time
 from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 from controller.config import controller_config
 from stewart_fmu.errors import SceneError, SceneKeyError, SweepError
 from stewart_fmu.io import read_trajectory
 from stewart_fmu.scene import read_scene_dict, scene_from_dict
 from stewart_sim.progress import Progress
-from stewart_sim.sweep.evaluate import EvalSpec, columns, evaluate_batch, point_label, point_model
+from stewart_sim.sweep.chunks import ChunkRules, chunk_rules, resume_rows, write_chunk
+from stewart_sim.sweep.evaluate import (EvalSpec, columns, evaluate_batch, has_drive, point_label,
+                                        point_model)
 from stewart_sim.sweep.grid import GridSpec
-from stewart_sim.sweep.table import chunk_rows, merge, open_sweep, write_chunk
+from stewart_sim.sweep.table import merge, open_sweep
 
 CONNECT_TIMEOUT = 30.0   # s to reach a scheduler or start the local cluster
 
@@ -40,6 +45,7 @@ class SweepSummary:
     failed: int          # rows with status "error" in the table
     workers: int
     wall: float          # s, this run's evaluation (cluster start-up excluded)
+    refused: int = 0     # chunk files set aside on resume (their points computed again)
 
     @property
     def rate(self) -> float:
@@ -94,15 +100,27 @@ def fingerprint(spec: EvalSpec, grid: GridSpec) -> str:
 
 def run_sweep(scene: Path, grid: GridSpec, out: Path, scheduler: str | None = None,
               workers: int | None = None, progress: Progress | None = None,
-              timeout: float | None = None) -> SweepSummary:
-    """Run (or resume) the sweep into `out` and merge its table; see the module doc."""
+              timeout: float | None = None, notice: Callable[[str], None] | None = None
+              ) -> SweepSummary:
+    """Run (or resume) the sweep into `out` and merge its table; see the module doc.
+    `notice` gets one line for each chunk file refused on resume."""
     spec = eval_spec(scene, grid)
     points = grid.points()
     check_first_point(spec, points[0][1], grid)
     cols = columns(grid.evaluation, grid.keys)
-    open_sweep(out, fingerprint(spec, grid), cols, len(points))
-    done = set(chunk_rows(out, cols))
-    todo = [p for p in points if p[0] not in done]
+    fp = fingerprint(spec, grid)
+    open_sweep(out, fp, cols, len(points))
+    rules = chunk_rules(fp, cols, points, grid.batch, has_drive(spec.scene))
+    refused: list[str] = []
+
+    def refuse(line: str) -> None:
+        refused.append(line)
+        if notice is not None:
+            notice(line)
+
+    rows = resume_rows(out, rules, refuse)
+    resumed = len(rows)
+    todo = [p for p in points if p[0] not in rows]
     batches = [todo[i:i + grid.batch] for i in range(0, len(todo), grid.batch)]
     computed, start, n_workers = 0, time.monotonic(), 0
     try:
@@ -111,16 +129,17 @@ def run_sweep(scene: Path, grid: GridSpec, out: Path, scheduler: str | None = No
                 client = stack.enter_context(_client(scheduler, workers))
                 n_workers = len(client.scheduler_info()["workers"])
                 start = time.monotonic()
-                computed = _run_batches(client, spec, batches, out, cols, len(done),
+                computed = _run_batches(client, spec, batches, out, rules, rows,
                                         len(points), progress, timeout)
     finally:
         wall = time.monotonic() - start
-        rows = merge(out, cols)
+        merge(out, cols, rows)
     table = out / "sweep.csv"
-    failed = sum(1 for r in chunk_rows(out, cols).values() if r[cols.index("status")] != "ok")
-    if rows != len(points):
-        raise SweepError(None, f"{table}: {rows} rows for {len(points)} points")
-    return SweepSummary(table, len(points), len(done), computed, failed, n_workers, wall)
+    failed = sum(1 for r in rows.values() if r[cols.index("status")] != "ok")
+    if len(rows) != len(points):
+        raise SweepError(None, f"{table}: {len(rows)} rows for {len(points)} points")
+    return SweepSummary(table, len(points), resumed, computed, failed, n_workers, wall,
+                        len(refused))
 
 
 def _client(scheduler: str | None, workers: int | None):
@@ -153,30 +172,29 @@ class _OwnedClient:
 
 
 def _run_batches(client, spec: EvalSpec, batches: Sequence[list], out: Path,
-                 cols: Sequence[str], resumed: int, total: int, progress: Progress | None,
-                 timeout: float | None) -> int:
-    """Submit every batch, write each task's rows as it completes; returns the points done."""
+                 rules: ChunkRules, rows: dict[int, list[str]], total: int,
+                 progress: Progress | None, timeout: float | None) -> int:
+    """Submit every batch, write each task's rows as it completes (into a chunk file and
+    `rows`); returns the points done."""
     from distributed import as_completed
     from distributed.client import FutureCancelledError
     from distributed.scheduler import KilledWorker
 
     futures = [client.submit(evaluate_batch, spec, b, pure=False) for b in batches]
-    pending, done = set(futures), resumed
+    pending, resumed = set(futures), len(rows)
     try:
         for fut in as_completed(futures, timeout=timeout):
-            rows = fut.result()
-            write_chunk(out, cols, rows)
+            rows.update(write_chunk(out, rules, fut.result()))
             pending.discard(fut)
-            done += len(rows)
             if progress is not None:
-                progress.update("sweep", done, total, unit="points")
+                progress.update("sweep", len(rows), total, unit="points")
     except (KilledWorker, FutureCancelledError) as exc:
         raise SweepError(None, f"a task was lost on the cluster: {exc}") from None
     except TimeoutError:
         raise SweepError(None, f"the sweep took longer than {timeout} s") from None
     finally:
         for fut in [f for f in pending if f.status == "finished"]:  # finished meanwhile: keep
-            write_chunk(out, cols, fut.result())
+            rows.update(write_chunk(out, rules, fut.result()))
         client.cancel(list(pending))
-    return done - resumed
+    return len(rows) - resumed
 

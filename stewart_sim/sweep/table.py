@@ -1,10 +1,11 @@
 """A sweep's files in its output directory: rows land in chunk files as tasks finish (each
 written atomically and fsynced, so an interruption at any moment keeps every finished row and no
-half row), and are merged, sorted by point id, into one CSV table.
+half row: stewart_sim/sweep/chunks.py), and are merged, sorted by point id, into one CSV table.
 
     DIR/sweep.json       the sweep's fingerprint (scene + grid), columns and size
     DIR/chunks/*.csv     one file per finished task
-    DIR/sweep.csv        every row so far, one per point, sorted by point id
+    DIR/refused/*.csv    chunks a resumed sweep refused (set aside, their points computed again)
+    DIR/sweep.csv        every row so far, one per point, sorted by point id (written atomically)
 """
 from __future__ import annotations
 
@@ -12,17 +13,19 @@ import csv
 import io as textio
 import json
 import os
+import stat
 from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
 from stewart_fmu.errors import SweepError
-from stewart_fmu.io import atomic_write, write_text
+from stewart_fmu.io import write_text
 
 TABLE = "sweep.csv"
 MANIFEST = "sweep.json"
 CHUNKS = "chunks"
+MANIFEST_BYTES = 1024 * 1024   # sweep.json is a fingerprint and the column names
 
 
 def cell(v: Any) -> str:
@@ -48,10 +51,10 @@ def open_sweep(out: Path, fingerprint: str, columns: Sequence[str], total: int) 
     """Start or resume the sweep in `out`; a directory holding another sweep is refused."""
     manifest = out / MANIFEST
     info = {"fingerprint": fingerprint, "columns": list(columns), "points": total}
-    if manifest.exists():
+    if os.path.lexists(manifest):
         try:
-            old = json.loads(manifest.read_text(encoding="utf-8"))
-        except (OSError, ValueError) as exc:
+            old = json.loads(_read_small(manifest).decode("utf-8"))
+        except (OSError, ValueError, RecursionError) as exc:
             raise SweepError(None, f"{manifest}: unreadable ({exc}); remove it or choose another --out") from None
         if old != info:
             raise SweepError(None, f"{out} holds the rows of another sweep (different scene or "
@@ -61,43 +64,22 @@ def open_sweep(out: Path, fingerprint: str, columns: Sequence[str], total: int) 
     write_text(manifest, json.dumps(info, indent=1) + "\n")
 
 
-def write_chunk(out: Path, columns: Sequence[str], rows: Sequence[Mapping[str, Any]]) -> Path:
-    """Write the rows of one finished task as a chunk file, atomically and durably."""
-    text = csv_text(columns, rows)
-    first = min(int(r["point"]) for r in rows)
-
-    def write(fh) -> None:
-        fh.write(text)
-        fh.flush()
-        os.fsync(fh.fileno())
-
-    path = atomic_write(out / CHUNKS / f"part-{first:09d}.csv", write)
-    fd = os.open(path.parent, os.O_RDONLY)
-    try:
-        os.fsync(fd)  # the rename itself survives a crash
-    finally:
-        os.close(fd)
-    return path
+def _read_small(path: Path) -> bytes:
+    """The bytes of a regular file of at most MANIFEST_BYTES (OSError or ValueError else)."""
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)   # a FIFO's open does not wait
+    with os.fdopen(fd, "rb") as fh:
+        if not stat.S_ISREG(os.fstat(fh.fileno()).st_mode):
+            raise ValueError("not a regular file")
+        data = fh.read(MANIFEST_BYTES + 1)
+    if len(data) > MANIFEST_BYTES:
+        raise ValueError(f"larger than {MANIFEST_BYTES:,} bytes")
+    return data
 
 
-def chunk_rows(out: Path, columns: Sequence[str]) -> dict[int, list[str]]:
-    """Every finished row in the chunk files, by point id (cell texts)."""
-    rows: dict[int, list[str]] = {}
-    for path in sorted((out / CHUNKS).glob("part-*.csv")):
-        with path.open(newline="", encoding="utf-8") as fh:
-            reader = csv.reader(fh)
-            if next(reader, None) != list(columns):
-                raise SweepError(None, f"{path}: columns differ from the sweep's; remove the directory")
-            for r in reader:
-                rows.setdefault(int(r[0]), r)
-    return rows
-
-
-def merge(out: Path, columns: Sequence[str]) -> int:
-    """Write DIR/sweep.csv from the chunks, one row per point sorted by id; returns the rows."""
-    rows = chunk_rows(out, columns)
-    text = csv_text(columns, (rows[k] for k in sorted(rows)))
-    write_text(out / TABLE, text)
+def merge(out: Path, columns: Sequence[str], rows: Mapping[int, Sequence[str]]) -> int:
+    """Write DIR/sweep.csv, all or nothing, from `rows` (cell texts by point id, checked by
+    the caller), one row per point sorted by id; returns the rows."""
+    write_text(out / TABLE, csv_text(columns, (rows[k] for k in sorted(rows))))
     return len(rows)
 
 

@@ -1,0 +1,243 @@
+"""A sweep's chunk files: the rows of one finished task (`write_chunk`), and the rows a resumed
+sweep takes back from them (`resume_rows`): only rows this sweep wrote, whole and plausible.
+
+A chunk file, DIR/chunks/part-NNNNNNNNN.csv (NNNNNNNNN: its first point id, nine digits):
+
+    #stewart-sim sweep chunk 1 FINGERPRINT ROWS SHA256
+    point,AXIS...,status,error,RESULT...          the table's header
+    ROWS rows, as sweep.csv has them
+
+FINGERPRINT is the sweep's (DIR/sweep.json: grid, scene, trajectory files), ROWS the number of
+rows (1 to the grid's `batch`), SHA256 the hex digest of every byte after the first line. A
+resumed sweep refuses a chunk that is not a regular file, is larger than its rows can be
+(ROW_BYTES a row), lacks that first line, was written for another sweep, fails its checksum, is
+not UTF-8 CSV in the form write_chunk writes, or has a row for an unknown point, a point twice
+(in it or in an earlier chunk), axis values that are not the point's, or results that break
+evaluate.result_problem. A refused chunk is moved to DIR/refused/ with one line naming it and
+the reason, and its points are computed again: a sweep resumed after a crash finishes, and no
+row of a damaged or foreign file reaches sweep.csv. The checksum detects damage (a torn copy, an
+edit), not forgery: a file edited and given a new checksum is still held to the rows' rules.
+"""
+from __future__ import annotations
+
+import csv
+import hashlib
+import io as textio
+import os
+import re
+import stat
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Mapping, Sequence
+
+from stewart_fmu.errors import SweepError
+from stewart_fmu.io import OutputError, atomic_write
+from stewart_sim.sweep.evaluate import result_problem
+from stewart_sim.sweep.table import CHUNKS, cell, csv_text
+
+MAGIC = "#stewart-sim sweep chunk 1"
+REFUSED = "refused"      # DIR/refused/: chunks set aside on resume
+ROW_BYTES = 64 * 1024    # the most bytes a row (or the header) may take in a chunk file
+_HEAD_BYTES = 256        # the first line's bound
+_ID = re.compile(r"0|[1-9][0-9]{0,18}")
+_HEX = re.compile(r"[0-9a-f]{64}")
+
+
+@dataclass(frozen=True)
+class ChunkRules:
+    """What this sweep's chunks must be (see the module doc)."""
+
+    fingerprint: str
+    columns: tuple[str, ...]
+    axes: Sequence[tuple[str, ...]]   # by point id: the point's axis values as cells
+    max_rows: int                     # rows in one chunk (the grid's batch)
+    drive: bool                       # the scene has a [drive] table (evaluate.has_drive)
+
+
+def chunk_rules(fingerprint: str, columns: Sequence[str],
+                points: Sequence[tuple[int, Mapping[str, Any]]], batch: int,
+                drive: bool) -> ChunkRules:
+    """The rules for the chunks of a sweep of `points` (ids 0..n-1 in order)."""
+    axes = [tuple(cell(v) for v in values.values()) for _, values in points]
+    return ChunkRules(fingerprint, tuple(columns), axes, min(batch, len(points)), drive)
+
+
+def write_chunk(out: Path, rules: ChunkRules, rows: Sequence[Mapping[str, Any]]
+                ) -> dict[int, list[str]]:
+    """Write the rows of one finished task as a chunk file, atomically and durably; returns
+    them as cell texts by point id (what a resume reads back)."""
+    cells = {int(r["point"]): [cell(r[c]) for c in rules.columns] for r in rows}
+    for row in cells.values():  # the rules a resume applies, before the rows go anywhere
+        try:
+            _check_row(row, rules)
+        except _Refused as exc:
+            raise SweepError(None, f"a task returned a row the sweep cannot take ({exc}): do "
+                                   "the workers run this version of stewart-sim?") from None
+    body = csv_text(rules.columns, cells.values()).encode()
+    head = f"{MAGIC} {rules.fingerprint} {len(cells)} {hashlib.sha256(body).hexdigest()}\n"
+
+    def write(fh) -> None:
+        fh.write(head.encode() + body)
+        fh.flush()
+        os.fsync(fh.fileno())
+
+    path = atomic_write(out / CHUNKS / f"part-{min(cells):09d}.csv", write, binary=True)
+    fd = os.open(path.parent, os.O_RDONLY)
+    try:
+        os.fsync(fd)  # the rename itself survives a crash
+    finally:
+        os.close(fd)
+    return cells
+
+
+def resume_rows(out: Path, rules: ChunkRules, notice: Callable[[str], None]
+                ) -> dict[int, list[str]]:
+    """The rows of every chunk in `out` that passes the rules, by point id (cell texts); each
+    chunk refused is moved to DIR/refused/ and `notice` gets one line naming it and why."""
+    rows: dict[int, list[str]] = {}
+    for path in sorted((out / CHUNKS).glob("part-*.csv")):
+        try:
+            got = _read(path, rules)
+            again = sorted(got.keys() & rows.keys())
+            if again:
+                raise _Refused(f"point {again[0]} is in an earlier chunk too")
+        except _Refused as exc:
+            where = _set_aside(out, path)
+            notice(f"{_printable(str(path))}: refused ({exc}); moved to "
+                   f"{_printable(str(where))}, its points are computed again")
+            continue
+        rows.update(got)
+    return rows
+
+
+class _Refused(Exception):
+    """Why a chunk file cannot be resumed from (its text is the reason)."""
+
+
+def _set_aside(out: Path, path: Path) -> Path:
+    """Move a refused chunk to DIR/refused/ (replacing one of the same name)."""
+    where = out / REFUSED / path.name
+    try:
+        where.parent.mkdir(exist_ok=True)
+        os.replace(path, where)
+    except OSError as exc:
+        raise OutputError(f"cannot move the refused chunk {path} to {where}: "
+                          f"{exc.strerror or exc}") from None
+    return where
+
+
+def _read(path: Path, rules: ChunkRules) -> dict[int, list[str]]:
+    """The rows of one chunk file, by point id; _Refused says why not."""
+    head, n, digest, body = _read_bounded(path, rules)
+    if hashlib.sha256(body).hexdigest() != digest:
+        raise _Refused("its rows do not match its checksum (damaged or edited)")
+    try:
+        text = body.decode("utf-8")
+        records = list(csv.reader(textio.StringIO(text, newline="")))
+    except UnicodeDecodeError as exc:
+        raise _Refused(f"not UTF-8 text at byte {len(head) + exc.start}") from None
+    except csv.Error as exc:
+        raise _Refused(f"not CSV: {exc}") from None
+    if not records or tuple(records[0]) != rules.columns:
+        raise _Refused("its columns are not the sweep's")
+    if len(records) - 1 != n:
+        raise _Refused(f"{len(records) - 1} rows, not the {n} its first line declares")
+    if csv_text(rules.columns, records[1:]) != text:
+        raise _Refused("not CSV as the sweep writes it (quoting, line ends)")
+    rows: dict[int, list[str]] = {}
+    for row in records[1:]:
+        pid = _check_row(row, rules)
+        if pid in rows:
+            raise _Refused(f"point {pid} twice")
+        rows[pid] = row
+    if path.name != f"part-{min(rows):09d}.csv":
+        raise _Refused(f"its first point is {min(rows)}, not the one its name gives")
+    return rows
+
+
+def _read_bounded(path: Path, rules: ChunkRules) -> tuple[bytes, int, str, bytes]:
+    """A chunk's first line, the rows and checksum it declares, and the bytes after it, read
+    no further than those rows can take."""
+    try:  # no link followed, and a FIFO's open does not wait for a writer
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
+    except OSError as exc:
+        raise _Refused("a symbolic link" if os.path.islink(path)
+                       else f"cannot be read: {exc.strerror or exc}") from None
+    try:
+        with os.fdopen(fd, "rb") as fh:
+            size = os.fstat(fh.fileno())
+            if not stat.S_ISREG(size.st_mode):
+                raise _Refused("not a regular file")
+            head = fh.readline(_HEAD_BYTES)
+            n, digest = _header(head, rules)
+            limit = (n + 1) * ROW_BYTES
+            if size.st_size - len(head) > limit:
+                raise _Refused(f"{size.st_size:,} bytes: more than {n} rows can take")
+            body = fh.read(limit + 1)
+    except OSError as exc:
+        raise _Refused(f"cannot be read: {exc.strerror or exc}") from None
+    if len(body) > limit:
+        raise _Refused(f"more than {limit:,} bytes after its first line (it grew)")
+    return head, n, digest, body
+
+
+def _header(head: bytes, rules: ChunkRules) -> tuple[int, str]:
+    """The rows and checksum its first line declares, checked against the rules."""
+    words = head.rstrip(b"\n").split(b" ")
+    magic = MAGIC.encode()
+    if not head.endswith(b"\n") or len(words) != 7 or b" ".join(words[:4]) != magic:
+        raise _Refused(f"its first line is not '{MAGIC} FINGERPRINT ROWS SHA256' (not a "
+                       "chunk file of this version)")
+    fingerprint, rows, digest = (w.decode("ascii", "replace") for w in words[4:])
+    if fingerprint != rules.fingerprint:
+        raise _Refused("written for another sweep (its fingerprint is not this sweep's)")
+    if not _ID.fullmatch(rows) or not 1 <= int(rows) <= rules.max_rows:
+        raise _Refused(f"its first line declares {_short(rows)} rows: 1 to {rules.max_rows} "
+                       "(the grid's batch) expected")
+    if not _HEX.fullmatch(digest):
+        raise _Refused("its first line's checksum is not 64 hex digits")
+    return int(rows), digest
+
+
+def _check_row(row: list[str], rules: ChunkRules) -> int:
+    """The point id of a row that passes the rules; _Refused names the row's fault."""
+    cols = rules.columns
+    if len(row) != len(cols):
+        raise _Refused(f"a row of {len(row)} cells, not {len(cols)}")
+    if not _ID.fullmatch(row[0]) or int(row[0]) >= len(rules.axes):
+        raise _Refused(f"a row for point {_short(row[0])}, not a point of the sweep (0 to "
+                       f"{len(rules.axes) - 1})")
+    pid, n_axes = int(row[0]), len(rules.axes[int(row[0])])
+    status, error = row[1 + n_axes], row[2 + n_axes]
+    if tuple(row[1:1 + n_axes]) != rules.axes[pid]:
+        raise _Refused(f"point {pid}: its axis values are not the grid's")
+    results = zip(cols[3 + n_axes:], row[3 + n_axes:])
+    if status == "error":
+        if not error or any(v != "nan" for _, v in results):
+            raise _Refused(f"point {pid}: an error row needs its text and NaN results")
+        return pid
+    if status != "ok" or error:
+        raise _Refused(f"point {pid}: status {_short(status)} (ok or error, the text only "
+                       "with error)")
+    for name, text in results:
+        try:
+            value = float(text)
+        except ValueError:
+            raise _Refused(f"point {pid}: {name} = {_short(text)} is not a number") from None
+        if repr(value) != text:
+            raise _Refused(f"point {pid}: {name} = {_short(text)} is not written as the sweep "
+                           "writes numbers")
+        problem = result_problem(name, value, rules.drive)
+        if problem is not None:
+            raise _Refused(f"point {pid}: {name} = {_short(text)}: {problem}")
+    return pid
+
+
+def _printable(text: str) -> str:
+    """A file name for a line on the terminal: control characters escaped."""
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode() for c in text)
+
+
+def _short(text: str) -> str:
+    """A cell for a message: quoted, control characters escaped, cut to 40 characters."""
+    return repr(text if len(text) <= 40 else text[:37] + "...")
