@@ -34,6 +34,7 @@ from stewart_fmu.fmu import variables as V
 from stewart_fmu.fmu.export import export_fmu
 from stewart_fmu.integrators import IntegratorOptions
 from stewart_fmu.plant import Plant
+from stewart_fmu.errors import SceneError
 from stewart_fmu.scene import apply_overrides, scene_from_dict
 from tests.helpers import record
 from tests.stewart_fmu.native_fmu_child import Elements
@@ -939,6 +940,16 @@ def test_inputs_declare_the_range_the_fmu_enforces(fmus, version):
         else:
             assert var.min is None and var.max is None, var.name
     assert ranges == {"SIGMA": (-1e7, 1e7), "TAU": (-1e6, 1e6)}
+
+
+def test_a_hold_force_beyond_the_input_range_is_a_scene_error(fmus):
+    """sigma starts at the force holding home, which must lie in sigma's declared range: a
+    platform too heavy for it is refused naming platform.mass, before anything is built."""
+    b = fmus[("micro", 2)]
+    model = scene_from_dict(apply_overrides(b.data, {"platform.mass": 1e8}))
+    with pytest.raises(SceneError) as err:
+        V.variables(model, 2)
+    assert err.value.key == "platform.mass" and "outside the FMU's input range" in str(err.value)
 
 
 _FORGED_CHILD = r"""
