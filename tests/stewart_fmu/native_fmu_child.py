@@ -234,6 +234,16 @@ def calls_expected_to_fail(unzipdir: str, version: int) -> dict:
     st["terminate twice"] = fresh.terminate()
     fresh.free()
 
+    g = Adapter(unzipdir, version, messages, "gear")   # an overflowing parameter: never an OK with NaN/inf
+    g.set([g.vr["drive.gear_ratio"]], [1e308])
+    g.setup()
+    g.enter()
+    st["getReal rack_force in initialization with drive.gear_ratio = 1e308"] = g.get([g.vr["rack_force[1]"]])[0]
+    g.exit()
+    g.set([g.vr["tau[1]"]], [1.0])
+    st["getReal rack_force with drive.gear_ratio = 1e308"] = g.get([g.vr["rack_force[1]"]])[0]
+    g.free()
+
     a = Adapter(unzipdir, version, messages, "a")
     a.setup()
     a.enter()
