@@ -619,11 +619,12 @@ int model_get_state(Instance *c, void **state) {
  * the method, the tolerance, the inputs in their declared ranges (tau 0 without a drive), the
  * parameters finite (those the FMU does not declare at their start values), the component's
  * check (stewart_component_check: phase, state size, times, internal step, counters, finite
- * initial values, rack forces and state); for a running plant the parameters valid and packed as they are, the initial values
- * those of q0, qd0, and the pose inside the workspace: every leg within the stroke widened by
- * the stroke's length (an accepted step checks the stroke at its stages, not at its end point)
- * and the leg rates and angular velocity finite. The rack forces are not checked: they are
- * recomputed from the inputs when the state is applied. */
+ * initial values, rack forces and state); for a running plant the parameters valid and packed
+ * as they are, the initial values those of q0, qd0, and the pose inside the workspace: every
+ * leg within the stroke widened by the stroke's length (an accepted step checks the stroke at
+ * its stages, not at its end point) and the leg rates and angular velocity finite. The rack
+ * forces' values are not compared: they are recomputed from the inputs when the state is
+ * applied. */
 static void inconsistency(Instance *c, const char *call, const PlantData *d, char why[256]) {
     const stewart_component *s = &d->s;
     int running = s->phase == STEWART_PH_STEPPING || s->phase == STEWART_PH_TERMINATED;
