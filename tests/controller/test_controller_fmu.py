@@ -10,6 +10,7 @@ the same numbers: the controller's arithmetic is axis.c's axis_step in both.
 """
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -26,7 +27,7 @@ from controller.config import controller_config
 from controller.cosim import run_closed_loop
 from controller.drive import axis_model
 from controller.feedforward import equilibrium, feedforward_voltage
-from controller.fmu import export_controller, input_ranges, start_values, variables
+from controller.fmu import export_controller, input_ranges, start_values, table_rows, variables
 from controller.moves import run_reference
 from controller.plants import FmuPlant
 from controller.design import tune_pid
@@ -268,7 +269,7 @@ def test_inputs_are_ranged_and_outputs_never_ok_non_finite(micro, version):
     path = micro[3][version]
     md = read_model_description(str(path))
     ranges = input_ranges()
-    by_name = {name: ident for ident, name, *_ in __import__("controller.fmu", fromlist=["x"]).table_rows()["INPUTS"]}
+    by_name = {name: ident for ident, name, *_ in table_rows()["INPUTS"]}
     for v in md.modelVariables:
         if v.causality == "input":
             lo, hi = ranges[by_name[v.name.split("[")[0]]]
@@ -281,7 +282,7 @@ def test_inputs_are_ranged_and_outputs_never_ok_non_finite(micro, version):
         proc = subprocess.run([sys.executable, "-c", code, str(seed)], capture_output=True, text=True, timeout=300)
         lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")]
         assert proc.returncode == 0 and lines, proc.stderr[-3000:]
-        r = __import__("json").loads(lines[-1][7:])
+        r = json.loads(lines[-1][7:])
         for k in totals:
             totals[k] += r[k]
     assert totals["calls"] >= 5000 and totals["values_read"] > 10_000
