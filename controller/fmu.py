@@ -63,6 +63,17 @@ class Variable:
     unit: str
     description: str
     start: float | None
+    min: float | None = None   # the declared range (inputs: input_ranges())
+    max: float | None = None
+
+
+def input_ranges() -> dict[str, tuple[float, float]]:
+    """axis_table.h's AXIS_FMU_INPUT_RANGES: (min, max) per input group ID."""
+    body = re.search(r"#define AXIS_FMU_INPUT_RANGES\(X\)(.*?)\n\n", TABLE.read_text() + "\n\n", re.S)
+    rows = re.findall(r"X\((\w+), ([-+.\deE]+), ([-+.\deE]+)\)", body.group(1))
+    if len(rows) != body.group(1).count("X("):   # a row this reading would miss
+        raise RuntimeError(f"{TABLE}: a row of AXIS_FMU_INPUT_RANGES is not on one line")
+    return {name: (float(lo), float(hi)) for name, lo, hi in rows}
 
 
 def table_rows() -> dict[str, list[tuple[str, str, int, str, str]]]:
@@ -110,15 +121,19 @@ def start_values(model: Model, config: ControllerConfig) -> dict[str, np.ndarray
 def variables(values: dict[str, np.ndarray] | None = None) -> list[Variable]:
     """Every scalar of the table in value-reference order, with start values from `values`
     (start_values; outputs have none)."""
-    out, bases = [], _bases()
+    out, bases, ranges = [], _bases(), input_ranges()
     for section, rows in table_rows().items():
         vr = bases[section]
-        for _, name, count, unit, what in rows:
+        for ident, name, count, unit, what in rows:
             start = None if values is None or section == "OUTPUTS" else np.ravel(values[name])
+            lo, hi = ranges.get(ident, (None, None)) if section == "INPUTS" else (None, None)
+            if start is not None and lo is not None and not np.all((start >= lo) & (start <= hi)):
+                raise ValueError(f"the start of input {name} ({', '.join(f'{x:g}' for x in start)}) lies "
+                                 f"outside its declared range [{lo:g}, {hi:g}]")
             for i in range(count):
                 out.append(Variable(name if count == 1 else f"{name}[{i + 1}]", vr + i,
                                     SECTIONS[section], unit, what,
-                                    None if start is None else float(start[i])))
+                                    None if start is None else float(start[i]), lo, hi))
             vr += count
     return out
 
@@ -198,6 +213,8 @@ def model_description(name: str, table: list[Variable], fmi_version: int,
             common["initial"] = "exact"
         index[x.vr] = k + 1 + (fmi_version == 3)
         real = {"unit": x.unit} if x.unit else {}
+        if x.min is not None:
+            real.update(min=repr(x.min), max=repr(x.max))
         if x.start is not None:
             real["start"] = repr(x.start)
         if fmi_version == 2:

@@ -1,7 +1,8 @@
 """The one table of the plant (native/include/stewart_table.h), as the compiled core holds it.
 
 The packed parameter layout (PARAMS: offsets and counts of Model.params) and the FMU's variable
-groups (VARIABLES: names, value references, shapes, units, bounds) are written once, as C
+groups (VARIABLES: names, value references, shapes, units, bounds; INPUT_RANGES: the inputs'
+declared ranges) are written once, as C
 X-macros; this module reads them back from the core (src/table.c), as status.py reads the
 status codes, so that no Python module spells an offset or a value reference.
 """
@@ -64,10 +65,18 @@ def _read_variables() -> tuple[VariableGroup, ...]:
                  for r in rows)
 
 
+def _read_input_ranges() -> dict[str, tuple[float, float]]:
+    rows = (lib.stewart_input_range_table[k] for k in range(lib.stewart_input_range_table_size))
+    return {_text(r.id): (float(r.min), float(r.max)) for r in rows}
+
+
 PARAMS: dict[str, Param] = _read_params()
 N_PARAMS: int = lib.STEWART_N_PARAMS
 VARIABLES: tuple[VariableGroup, ...] = _read_variables()
 GROUPS: dict[str, VariableGroup] = {g.id: g for g in VARIABLES}
+# The declared range (min, max) of each input group, by id (STEWART_FMU_INPUT_RANGES): the
+# model description declares it and the FMU's setReal refuses a value outside it.
+INPUT_RANGES: dict[str, tuple[float, float]] = _read_input_ranges()
 VR_TIME, VR_METHOD, VR_N_PAR = lib.STEWART_VR_TIME, lib.STEWART_VR_METHOD, lib.STEWART_VR_N_PARAMETERS
 VR_END: int = lib.STEWART_VR_N_OUTPUTS   # past the last value reference
 

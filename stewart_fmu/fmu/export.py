@@ -182,5 +182,9 @@ def _documentation(name: str, fmi_version: int) -> str:
             "solver.max_step, solver.rtol, solver.atol. A step into a stroke limit, a "
             "singular pose or a failed power-balance check returns Discard with the state "
             "unchanged, and the reason is logged (category logStatusDiscard) even with logging "
-            "off. Self-contained C (libm only); rebuild from sources/ with any C99 "
+            "off. An input outside its declared min/max, or not finite, is refused with Error; an "
+            "output that would be NaN or infinite is Error, never OK. A serialized FMU state "
+            "carries a checksum, which detects corruption, not forgery: every field of a state "
+            "is validated (finite, in range, consistent with the parameters) before it is "
+            "applied. Self-contained C (libm only); rebuild from sources/ with any C99 "
             "compiler.</p></body></html>\n")

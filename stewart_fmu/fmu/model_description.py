@@ -84,6 +84,8 @@ def build(model: Model, table: list[V.Variable], fmi_version: int, model_identif
                 real = {}
                 if var.unit:
                     real["unit"] = var.unit
+                if var.min is not None:
+                    real.update(min=_num(var.min), max=_num(var.max))
                 if var.start is not None:
                     real["start"] = _num(var.start)
                 SubElement(sv, "Real", real)
@@ -94,6 +96,8 @@ def build(model: Model, table: list[V.Variable], fmi_version: int, model_identif
             attrs3 = dict(common)
             if var.unit:
                 attrs3["unit"] = var.unit
+            if var.min is not None:
+                attrs3.update(min=_num(var.min), max=_num(var.max))
             if var.start is not None:   # an array's start: its values, row-major
                 attrs3["start"] = " ".join(map(_num, var.start)) if var.shape else _num(var.start)
             el = SubElement(mv, "Float64", attrs3)

@@ -21,6 +21,7 @@ import numpy as np
 
 from .. import table
 from ..dynamics import inverse_dynamics, present_parts
+from ..errors import SceneError
 from ..model import Model
 from ..native import core
 from ..stability import default_options
@@ -71,6 +72,8 @@ class Variable:
     start: float | str | tuple[float, ...] | None = None
     type: str = "Real"        # Real or String
     shape: tuple[int, ...] = ()
+    min: float | None = None  # the declared range (inputs: table.INPUT_RANGES), each element's
+    max: float | None = None
 
     @property
     def size(self) -> int:
@@ -121,20 +124,21 @@ def _group(g: table.VariableGroup, value: Any, fmi_version: int) -> list[Variabl
     parameter given as one number is the one variable under the group's plain name."""
     arr = np.zeros(_shape(g)) if value is None else np.asarray(value, dtype=float)
     start = (lambda x: None) if value is None else float
+    lo, hi = table.INPUT_RANGES.get(g.id, (None, None))
     if arr.ndim == 0:
-        return [Variable(g.name, g.vr, g.causality, _unit(g, (0,)), g.description, start(arr))]
+        return [Variable(g.name, g.vr, g.causality, _unit(g, (0,)), g.description, start(arr), min=lo, max=hi)]
     if fmi_version == 3:
         unit = None if g.unit in ("pose", "rate") else g.unit or None
         return [Variable(g.name, g.vr, g.causality, unit, g.description,
                          None if value is None else tuple(float(x) for x in arr.ravel()),
-                         shape=arr.shape)]
+                         shape=arr.shape, min=lo, max=hi)]
     out = []
     for k, idx in enumerate(np.ndindex(arr.shape)):
         element = ",".join(str(i + 1) for i in idx)
         what = f"{g.description}, leg {element}" if g.shape == table.PER_LEG else \
             f"{g.description}, element [{element}]"
         out.append(Variable(f"{g.name}[{element}]", g.vr + k, g.causality, _unit(g, idx), what,
-                            start(arr[idx])))
+                            start(arr[idx]), min=lo, max=hi))
     return out
 
 
@@ -174,6 +178,11 @@ def variables(model: Model, fmi_version: int = 2, solver: Mapping[str, Any] | No
     solver_defaults and hold_forces when already computed)."""
     solver = solver_defaults(model) if solver is None else solver
     hold = hold_forces(model) if hold is None else hold
+    lo, hi = table.INPUT_RANGES["SIGMA"]
+    for i, x in enumerate(hold):   # sigma's start must lie in its declared range
+        if not lo <= x <= hi:
+            raise SceneError("platform.mass", f"the force holding the home pose on leg {i + 1}, {x:g} N, lies "
+                             f"outside the FMU's input range [{lo:g}, {hi:g}] N of sigma", model.source)
     g = table.GROUPS
     v = [Variable("time", VR_TIME, "independent", "s", "simulation time")] if fmi_version == 3 else []
     v += scene_parameters(model, fmi_version)

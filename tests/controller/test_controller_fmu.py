@@ -10,6 +10,7 @@ the same numbers: the controller's arithmetic is axis.c's axis_step in both.
 """
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -26,7 +27,7 @@ from controller.config import controller_config
 from controller.cosim import run_closed_loop
 from controller.drive import axis_model
 from controller.feedforward import equilibrium, feedforward_voltage
-from controller.fmu import export_controller, start_values, variables
+from controller.fmu import export_controller, input_ranges, start_values, table_rows, variables
 from controller.moves import run_reference
 from controller.plants import FmuPlant
 from controller.design import tune_pid
@@ -190,3 +191,100 @@ def test_command(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "controller" in err[0], err
     assert not (tmp_path / "x.fmu").exists()
+
+
+def _fuzz_child(path: Path, seed: int, n_calls: int) -> dict:
+    """Random calls on one controller FMU: hostile inputs, steps of every size, outputs read
+    (run in a child process, so that a crash fails the test instead of ending it)."""
+    import math
+    import random
+
+    md = read_model_description(str(path))
+    version = 2 if md.fmiVersion == "2.0" else 3
+    cls = FMU2Slave if version == 2 else FMU3Slave
+    slave = cls(guid=md.guid if version == 2 else md.instantiationToken, unzipDirectory=extract(str(path)),
+                modelIdentifier=md.coSimulation.modelIdentifier, instanceName="fuzz")
+    inputs = {v.valueReference: (float(v.min), float(v.max)) for v in md.modelVariables if v.causality == "input"}
+    outputs = [v.valueReference for v in md.modelVariables if v.causality == "output"]
+    set_real = slave.setReal if version == 2 else slave.setFloat64
+    get_real = slave.getReal if version == 2 else slave.getFloat64
+    rng = random.Random(seed)
+    dt = 1.0 / float(next(v.start for v in md.modelVariables if v.name == "rate"))
+    out = {"calls": 0, "must_fail": 0, "errors": 0, "not_error": [], "nonfinite_ok": [], "values_read": 0}
+
+    def call(fn, *args, must_fail=False):
+        out["calls"] += 1
+        out["must_fail"] += must_fail
+        try:
+            result = fn(*args)
+        except FMICallException:
+            out["errors"] += must_fail
+            return None
+        if must_fail:
+            out["not_error"].append([fn.__name__, [a if isinstance(a, (int, float)) else None for a in args]])
+        return result if result is not None else True
+
+    slave.instantiate()
+    if version == 2:
+        slave.setupExperiment(startTime=0.0)
+        slave.enterInitializationMode()
+    else:
+        slave.enterInitializationMode(startTime=0.0)
+    slave.exitInitializationMode()
+    t = 0.0
+    for _ in range(n_calls):
+        action = rng.choice(["set", "set", "step", "step", "get"])
+        if action == "set":
+            ks = rng.sample(list(inputs), rng.randint(1, 6))
+            values = [rng.choice([rng.uniform(-1, 1), rng.uniform(-1e3, 1e3), 1e308, -1e308, math.nan, math.inf,
+                                  5e-324, -5e-324, 1e6, 1.0000001e6, 1e3, -1e3, 0.0]) for _ in ks]
+            outside = any(not inputs[k][0] <= x <= inputs[k][1] for k, x in zip(ks, values))
+            call(set_real, ks, values, must_fail=outside)
+        elif action == "step":
+            h = rng.choice([dt, dt, 3 * dt, 1000 * dt, 0.0, -dt, math.nan, math.inf, 1e308, 1.5 * dt, 2e7 * dt])
+            periods = h / dt   # model.c's rule: a whole number of periods, at most 1e7
+            whole = math.isfinite(periods) and 1 <= round(periods) <= 1e7 and \
+                abs(periods - round(periods)) <= 1e-9 * round(periods)
+            if call(slave.doStep, t, h, must_fail=not whole) is not None:
+                t += h
+        else:
+            ks = rng.sample(outputs, rng.randint(1, len(outputs)))
+            values = call(get_real, ks)
+            if values is not None:
+                out["values_read"] += len(values)
+                bad = [x for x in values if not math.isfinite(x)]
+                if bad:
+                    out["nonfinite_ok"].append([t, bad[:3]])
+    slave.terminate()
+    slave.freeInstance()
+    return out
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_inputs_are_ranged_and_outputs_never_ok_non_finite(micro, version):
+    """Every input declares min and max (axis_table.h's AXIS_FMU_INPUT_RANGES, read by C and
+    by controller/fmu.py); seeded random calls with hostile values (1e308, NaN, inf,
+    denormals, just outside a range) and steps: a value outside its range is refused with
+    Error, and no getReal answers OK with a NaN or an infinity."""
+    path = micro[3][version]
+    md = read_model_description(str(path))
+    ranges = input_ranges()
+    by_name = {name: ident for ident, name, *_ in table_rows()["INPUTS"]}
+    for v in md.modelVariables:
+        if v.causality == "input":
+            lo, hi = ranges[by_name[v.name.split("[")[0]]]
+            assert (float(v.min), float(v.max)) == (lo, hi) and lo <= float(v.start) <= hi, v.name
+    code = (f"import json, sys; sys.path.insert(0, {str(ROOT)!r}); "
+            f"from tests.controller.test_controller_fmu import _fuzz_child; from pathlib import Path; "
+            f"print('RESULT ' + json.dumps(_fuzz_child(Path({str(path)!r}), int(sys.argv[1]), 2500)))")
+    totals = {"calls": 0, "must_fail": 0, "errors": 0, "values_read": 0, "not_error": [], "nonfinite_ok": []}
+    for seed in range(2):
+        proc = subprocess.run([sys.executable, "-c", code, str(seed)], capture_output=True, text=True, timeout=300)
+        lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")]
+        assert proc.returncode == 0 and lines, proc.stderr[-3000:]
+        r = json.loads(lines[-1][7:])
+        for k in totals:
+            totals[k] += r[k]
+    assert totals["calls"] >= 5000 and totals["values_read"] > 10_000
+    assert totals["not_error"] == [] and totals["errors"] == totals["must_fail"] > 1000
+    assert totals["nonfinite_ok"] == []

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import random
+import struct
 from ctypes import byref
 
 import numpy as np
@@ -84,6 +85,9 @@ class Adapter:
         self.elements = Elements(md)   # element references: FMI 3.0 arrays set and read whole
         self.vr, self.start = self.elements.vr, self.elements.start
         self.outputs = [self.vr[n] for n in self.elements.outputs]
+        # the declared range of every input element (the model description's min and max)
+        self.range = {self.vr[n]: (float(v.min or -math.inf), float(v.max or math.inf))
+                      for n, v in self.elements.variable.items() if v.causality == "input"}
         self.current = self.elements.current()
         tok = token or (md.guid if version == 2 else md.instantiationToken)
         common = dict(guid=tok, unzipDirectory=unzipdir, modelIdentifier="StewartPlant", instanceName=name)
@@ -230,6 +234,16 @@ def calls_expected_to_fail(unzipdir: str, version: int) -> dict:
     st["terminate twice"] = fresh.terminate()
     fresh.free()
 
+    g = Adapter(unzipdir, version, messages, "gear")   # an overflowing parameter: never an OK with NaN/inf
+    g.set([g.vr["drive.gear_ratio"]], [1e308])
+    g.setup()
+    g.enter()
+    st["getReal rack_force in initialization with drive.gear_ratio = 1e308"] = g.get([g.vr["rack_force[1]"]])[0]
+    g.exit()
+    g.set([g.vr["tau[1]"]], [1.0])
+    st["getReal rack_force with drive.gear_ratio = 1e308"] = g.get([g.vr["rack_force[1]"]])[0]
+    g.free()
+
     a = Adapter(unzipdir, version, messages, "a")
     a.setup()
     a.enter()
@@ -247,6 +261,10 @@ def calls_expected_to_fail(unzipdir: str, version: int) -> dict:
     st["setReal output l[1]"] = a.set([a.vr["l[1]"]], [0.1])
     st["setReal NaN input"] = a.set([sig], [math.nan])
     st["setReal -inf input"] = a.set([sig], [-math.inf])
+    st["setReal tau = 1e308"] = a.set([a.vr["tau[1]"]], [1e308])
+    st["setReal tau just above its max"] = a.set([a.vr["tau[2]"]], [a.range[a.vr["tau[2]"]][1] * (1 + 1e-15)])
+    st["setReal sigma just below its min"] = a.set([sig], [a.range[sig][0] * (1 + 1e-15)])
+    st["doStep t + h overflows"] = a.step(1.7e308, 1.7e308)
     st["setReal parameter in step mode"] = a.set([a.vr["platform.mass"]], [0.6])
     st["setString solver.method in step mode"] = a.set_string([a.vr["solver.method"]], ["euler"])
     for h in (0.0, -1e-3, math.nan, math.inf, -math.inf):
@@ -293,9 +311,58 @@ def calls_expected_to_fail(unzipdir: str, version: int) -> dict:
             "messages": messages}
 
 
+HEADER, CHECKSUM = 32, 24   # a serialized state: header bytes, the checksum's offset (component.c)
+
+
+def fnv1a(data: bytes, h: int = 14695981039346656037) -> int:
+    """64-bit FNV-1a, as component.c's."""
+    for b in data:
+        h = ((h ^ b) * 1099511628211) & 0xFFFFFFFFFFFFFFFF
+    return h
+
+
+def reseal(blob: bytes | bytearray) -> bytes:
+    """A serialized state with its checksum recomputed (the header up to the checksum, then the
+    payload): an edit the checksum cannot see, as a forger makes it."""
+    b = bytearray(blob)
+    b[CHECKSUM:HEADER] = fnv1a(bytes(b[HEADER:]), fnv1a(bytes(b[:CHECKSUM]))).to_bytes(8, "little")
+    return bytes(b)
+
+
+def forged_states(unzipdir: str, version: int, edits: dict) -> dict:
+    """A running instance's serialized state, edited per case ({name: [(byte offset in the
+    state, struct format, value), ...]}) and resealed: each case's deserialize status, whether
+    setFMUstate of what it returned worked, and the messages. Case "unedited" is the state as
+    serialized, resealed."""
+    import struct
+    messages: list = []
+    a = Adapter(unzipdir, version, messages, "forger")
+    a.setup()
+    a.enter()
+    a.exit()
+    for k in range(3):
+        a.step(k * 1e-3, 1e-3)
+    _, state = a.get_state()
+    _, blob = a.serialize(state)
+    out = {}
+    for name, fields in {"unedited": [], **edits}.items():
+        b = bytearray(blob)
+        for offset, fmt, value in fields:
+            struct.pack_into("<" + fmt, b, HEADER + offset, value)
+        del messages[:]
+        status, restored = a.deserialize(reseal(b))
+        applied = a.set_state(restored) if status == OK else None
+        out[name] = {"status": status, "applied": applied, "messages": [m for _, _, m in messages]}
+    a.free()
+    return out
+
+
 def fuzz(unzipdir: str, version: int, seed: int, n_calls: int) -> dict:
     """Random calls; each call's status is checked against what it must be where that is
-    determined (Error for out-of-order and bad-argument calls)."""
+    determined (Error for out-of-order and bad-argument calls, an input outside its declared
+    range among them), and every value a getReal returns with OK is finite (nonfinite_ok lists
+    those that are not). Serialized states are also edited and resealed (their checksum
+    recomputed): a forged state that loads must still give finite outputs."""
     rng = random.Random(seed)
     messages: list = []
     inst = Adapter(unzipdir, version, messages, f"fuzz{seed}")
@@ -309,11 +376,27 @@ def fuzz(unzipdir: str, version: int, seed: int, n_calls: int) -> dict:
     states: list = []
     blobs: list = []
     out = {"calls": 0, "must_fail": 0, "errors_returned": 0, "discards": 0, "steps_ok": 0, "other_errors": 0,
-           "not_error": []}
+           "not_error": [], "gets_ok": 0, "values_read": 0, "nonfinite_ok": [], "forged": 0, "forged_loaded": 0,
+           "refused_own_state": []}
+    readable = inst.outputs + ([0] if version == 3 else [])   # FMI 3.0: time is readable too
 
     def weird(x: float) -> float:
         return rng.choice([x, x * (1 + rng.uniform(-0.1, 0.1)), -x, 0.0, 1e300, -1e300, math.nan, math.inf,
-                           -math.inf, 5e-324, x * 1e6])
+                           -math.inf, 5e-324, -5e-324, 2.2e-308, 1e308, -1.7976931348623157e308, x * 1e6,
+                           9.999e6, 1.0001e7, -1.0001e6, x * 1e300])
+
+    def outputs_finite(action: str, known: bool = True):
+        """Read random outputs: an OK must carry finite values only (known: the phase is
+        known, so whether the read must fail is too)."""
+        ks = rng.sample(readable, rng.randint(1, len(readable)))
+        s, values = inst.get(ks)
+        note(action, s, known and phase in ("inst", "failed"))
+        if s == OK:
+            out["gets_ok"] += 1
+            out["values_read"] += len(values)
+            bad = [(inst.elements.name.get(k, k), v) for k, v in zip(ks, values) if not math.isfinite(v)]
+            if bad:
+                out["nonfinite_ok"].append([action, phase, t, bad[:3]])
 
     def note(action: str, status: int, must_fail: bool):
         out["calls"] += 1
@@ -335,6 +418,7 @@ def fuzz(unzipdir: str, version: int, seed: int, n_calls: int) -> dict:
             action = rng.choice(["setup_enter", "exit", "terminate", "reset", "set_param", "set_input", "set_input",
                                  "set_output", "unknown", "get_outputs", *["step"] * 10,
                                  "get_state", "set_state", "serialize", "deserialize_bad", "wrong_type", "renew",
+                                 "deserialize_forged", "deserialize_forged",
                                  "set_method", *(["bad_count"] if version == 3 else [])])
         if action == "init_all":
             for name, call in (("setupExperiment", inst.setup), ("enterInitializationMode", inst.enter)):
@@ -372,7 +456,8 @@ def fuzz(unzipdir: str, version: int, seed: int, n_calls: int) -> dict:
             ks = rng.sample(inputs, rng.randint(1, 12))
             values = [weird(rng.uniform(-5, 5)) for _ in ks]
             s = inst.set(ks, values)
-            note("setReal(inputs)", s, not all(math.isfinite(v) for v in values) or phase in ("term", "failed"))
+            outside = any(not inst.range[k][0] <= v <= inst.range[k][1] for k, v in zip(ks, values))  # nan too
+            note("setReal(inputs)", s, outside or phase in ("term", "failed"))
         elif action == "set_output":
             s = inst.set([rng.choice(inst.outputs)], [rng.uniform(-1, 1)])
             note("setReal(output)", s, True)
@@ -381,11 +466,11 @@ def fuzz(unzipdir: str, version: int, seed: int, n_calls: int) -> dict:
             s = inst.get([k])[0] if rng.random() < 0.5 else inst.set([k], [1.0])
             note("unknown value reference", s, True)
         elif action == "get_outputs":
-            s, _ = inst.get(rng.sample(inst.outputs, rng.randint(1, len(inst.outputs))))
-            note("getReal(outputs)", s, phase in ("inst", "failed"))
+            outputs_finite("getReal(outputs)")
         elif action == "step":
-            h = rng.choice([1e-3, 1e-3, 1e-4, 2.5e-3, 0.05, 1e300, 1e-15, 0.0, -1e-3, math.nan, math.inf])
-            tc = t if rng.random() < 0.85 else rng.choice([t + 1.0, t - 1e-3, math.nan, -math.inf])
+            h = rng.choice([1e-3, 1e-3, 1e-4, 2.5e-3, 0.05, 1e300, 1e308, 1e-15, 5e-324, 0.0, -0.0, -1e-3, math.nan,
+                            math.inf])
+            tc = t if rng.random() < 0.85 else rng.choice([t + 1.0, t - 1e-3, math.nan, -math.inf, 1e308])
             s = inst.step(tc, h)
             bad = (phase != "step" or not (math.isfinite(h) and h > 0)
                    or not (abs(tc - t) <= 1e-9 * max(1.0, abs(t))))
@@ -393,6 +478,8 @@ def fuzz(unzipdir: str, version: int, seed: int, n_calls: int) -> dict:
             if s == OK and not bad:
                 t = tc + h
                 out["steps_ok"] += 1
+            if s == OK:
+                outputs_finite("getReal(outputs) after doStep")
         elif action == "get_state":
             s, state = inst.get_state()
             note("getFMUstate", s, False)
@@ -402,6 +489,8 @@ def fuzz(unzipdir: str, version: int, seed: int, n_calls: int) -> dict:
             state, ph, tt = rng.choice(states)
             s = inst.set_state(state)
             note("setFMUstate", s, False)
+            if s != OK:
+                out["refused_own_state"].append(["setFMUstate", ph])
             if s == OK:
                 phase, t = ph, tt
         elif action == "serialize" and states:
@@ -414,6 +503,8 @@ def fuzz(unzipdir: str, version: int, seed: int, n_calls: int) -> dict:
                 note("deSerializeFMUstate", s2, False)
                 if s2 == OK:
                     states.append((restored, ph, tt))
+                else:
+                    out["refused_own_state"].append(["deSerializeFMUstate", ph])
         elif action == "deserialize_bad":
             if blobs and rng.random() < 0.7:
                 blob = bytearray(rng.choice(blobs))
@@ -431,6 +522,27 @@ def fuzz(unzipdir: str, version: int, seed: int, n_calls: int) -> dict:
                 blob = bytearray(rng.randrange(256) for _ in range(rng.randint(1, 2000)))
             s, _ = inst.deserialize(bytes(blob))
             note("deSerializeFMUstate(foreign)", s, True)
+        elif action == "deserialize_forged" and blobs:
+            # edits a checksum cannot see: hostile doubles in random fields, random bytes, resealed
+            blob = bytearray(rng.choice(blobs))
+            for _ in range(rng.randint(1, 4)):
+                if rng.random() < 0.7:
+                    k = HEADER + 8 * rng.randrange((len(blob) - HEADER) // 8)
+                    blob[k:k + 8] = struct.pack("<d", rng.choice([math.nan, math.inf, -math.inf, 1e300, -1e300, 1e308,
+                                                                  5e-324, 0.0, -1.0, 1e7 + 1, rng.uniform(-10, 10)]))
+                else:
+                    blob[rng.randrange(HEADER, len(blob))] = rng.randrange(256)
+            s, restored = inst.deserialize(reseal(blob))
+            note("deSerializeFMUstate(forged)", s, False)
+            out["forged"] += 1
+            if s == OK:
+                out["forged_loaded"] += 1
+                _, before = inst.get_state()
+                s = inst.set_state(restored)
+                note("setFMUstate(forged)", s, False)
+                if s == OK:   # its phase may be edited too: read, then back to the state before
+                    outputs_finite("getReal(outputs) of a forged state", known=False)
+                    note("setFMUstate(back)", inst.set_state(before), False)
         elif action == "wrong_type":
             k = rng.choice(inputs[:6] + inst.outputs[:3])
             s = inst.get_string([k]) if rng.random() < 0.5 else inst.set_boolean([k])
@@ -443,10 +555,15 @@ def fuzz(unzipdir: str, version: int, seed: int, n_calls: int) -> dict:
             arrays = [a for a, n in inst.elements.size.items() if n > 1]
             ks = rng.sample(arrays, rng.randint(1, 3))
             right = sum(inst.elements.size[a] for a in ks)
-            n = rng.choice([0, 1, right - 1, right + 1, len(ks), 2 * right])
+            n = rng.choice([0, 1, right - 1, right + 1, len(ks), 2 * right, 2**31, 2**40])
             if n == right:
                 n += 1
-            if rng.random() < 0.5:
+            if n > 2 * right:   # a huge count with a small buffer: refused before any value is touched
+                import ctypes
+                fn = inst.fmu.fmi3GetFloat64 if rng.random() < 0.5 else inst.fmu.fmi3SetFloat64
+                s = inst.status(fn, inst.fmu.component, (ctypes.c_uint32 * len(ks))(*ks), len(ks),
+                                (ctypes.c_double * right)(), n)[0]
+            elif rng.random() < 0.5:
                 s = inst.status(inst.fmu.getFloat64, ks, n)[0]
             else:
                 s = inst.status(inst.fmu.setFloat64, ks, [rng.uniform(-1, 1) for _ in range(n)])[0]

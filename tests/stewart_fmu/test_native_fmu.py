@@ -29,11 +29,12 @@ from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from stewart_fmu import Model, inverse_dynamics, load_scene
+from stewart_fmu import Model, inverse_dynamics, load_scene, table
 from stewart_fmu.fmu import variables as V
 from stewart_fmu.fmu.export import export_fmu
 from stewart_fmu.integrators import IntegratorOptions
 from stewart_fmu.plant import Plant
+from stewart_fmu.errors import SceneError
 from stewart_fmu.scene import apply_overrides, scene_from_dict
 from tests.helpers import record
 from tests.stewart_fmu.native_fmu_child import Elements
@@ -921,34 +922,134 @@ def test_bad_calls_return_error_and_change_nothing(fmus, version):
     assert "platform.mass must be > 0, got -0.5" in messages
     assert "integrator 'rk4%s%n' unknown" in messages
     assert "not allowed in" in messages and "unknown value reference" in messages
+    assert "input tau[1] = 1e+308 at t = 0.001 s is outside its declared range [-1e+06, 1e+06]" in messages
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_inputs_declare_the_range_the_fmu_enforces(fmus, version):
+    """sigma and tau declare min and max (the table's STEWART_FMU_INPUT_RANGES, read once by
+    both the model description and the C code): the fuzz and the bad-calls test check that a
+    value outside them is refused; the start values lie inside."""
+    b = fmus[("micro", version)]
+    ranges = table.INPUT_RANGES
+    for var in b.md.modelVariables:
+        if var.causality == "input":
+            lo, hi = ranges["SIGMA" if var.name.startswith("sigma") else "TAU"]
+            assert (float(var.min), float(var.max)) == (lo, hi), var.name
+            assert all(lo <= float(x) <= hi for x in str(var.start).split())
+        else:
+            assert var.min is None and var.max is None, var.name
+    assert ranges == {"SIGMA": (-1e7, 1e7), "TAU": (-1e6, 1e6)}
+
+
+def test_a_hold_force_beyond_the_input_range_is_a_scene_error(fmus):
+    """sigma starts at the force holding home, which must lie in sigma's declared range: a
+    platform too heavy for it is refused naming platform.mass, before anything is built."""
+    b = fmus[("micro", 2)]
+    model = scene_from_dict(apply_overrides(b.data, {"platform.mass": 1e8}))
+    with pytest.raises(SceneError) as err:
+        V.variables(model, 2)
+    assert err.value.key == "platform.mass" and "outside the FMU's input range" in str(err.value)
+
+
+_FORGED_CHILD = r"""
+import json, sys
+sys.path.insert(0, sys.argv[1])
+from native_fmu_child import forged_states
+print("RESULT " + json.dumps(forged_states(sys.argv[2], int(sys.argv[3]), json.loads(sys.argv[4]))), flush=True)
+"""
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_forged_states_are_refused(fmus, version):
+    """A serialized state's checksum detects corruption, not forgery: a state edited with its
+    checksum recomputed is validated field by field before it is applied, and refused (Error,
+    logged naming the field) when a field is not finite, out of its bounds or inconsistent:
+    NaN forces, y[0] = 1e300, a NaN tolerance, ... The unedited state, resealed, loads."""
+    from stewart_fmu.native.core import ffi
+    comp = lambda f: ffi.offsetof("stewart_component", f)   # noqa: E731
+    tail = ffi.sizeof("stewart_component")   # then PlantData's own fields (fmi/model.h): method,
+    par = lambda vr: tail + 16 + 8 * vr      # noqa: E731  tolerance_defined, tolerance, par[]
+    nan = float("nan")
+    edits = {
+        "NaN force sigma[1]": [(comp("sigma"), "d", nan)],
+        "tau[1] = 1e308": [(comp("tau"), "d", 1e308)],
+        "sigma[2] beyond its range": [(comp("sigma") + 8, "d", 1.5e7)],
+        "y[0] = 1e300": [(comp("y"), "d", 1e300)],
+        "z outside the stroke": [(comp("y") + 16, "d", 5.0)],
+        "NaN tolerance": [(tail + 4, "i", 1), (tail + 8, "d", nan)],
+        "negative tolerance": [(tail + 4, "i", 1), (tail + 8, "d", -1e-6)],
+        "tolerance without tolerance_defined": [(tail + 8, "d", 1e-6)],
+        "time before the start": [(comp("time"), "d", -1.0)],
+        "infinite time": [(comp("time"), "d", float("inf"))],
+        "zero internal step": [(comp("step_guess"), "d", 0.0)],
+        "NaN internal step": [(comp("step_guess"), "d", nan)],
+        "negative evaluations": [(comp("evaluations"), "q", -5)],
+        "phase 9": [(comp("phase"), "i", 9)],
+        "state size 13": [(comp("n"), "i", 13)],
+        "method 7": [(tail, "i", 7)],
+        "NaN platform.mass": [(par(V.table.vr("MASS")), "d", nan)],
+        "negative platform.mass": [(par(V.table.vr("MASS")), "d", -1.0)],
+        "q0 not the initial pose": [(par(V.VR_Q0), "d", 1e-3)],
+    }
+    b = fmus[("micro", version)]
+    proc = subprocess.run([sys.executable, "-c", _FORGED_CHILD, str(HERE), str(b.unzipdir), str(version),
+                           json.dumps(edits)], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    result = json.loads([ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")][-1][7:])
+    assert result.pop("unedited") == {"status": 0, "applied": 0, "messages": []}
+    loaded = {k: r for k, r in result.items() if r["status"] != ERROR}
+    assert not loaded, loaded
+    # refused by the serialized form's own check (the component's fields) or the FMU's, each logged
+    assert all(any(m.startswith("deserializeFMUstate: not a ") for m in r["messages"]) for r in result.values())
+    why = {k: " ".join(r["messages"]) for k, r in result.items()}
+    assert "out of range or not finite" in why["NaN force sigma[1]"]
+    assert "parameter platform.mass = nan is not finite" in why["NaN platform.mass"]
+    assert "input tau[1] = 1e+308 lies outside its declared range" in why["tau[1] = 1e308"]
+    assert "outside the workspace" in why["y[0] = 1e300"] and "outside the workspace" in why["z outside the stroke"]
+    assert "the tolerance nan" in why["NaN tolerance"]
+    assert "initial values are not q0" in why["q0 not the initial pose"]
+
+
+FUZZ_SEEDS, FUZZ_CALLS = 4, 2500   # per FMI version: at least 10,000 calls (each action one or more)
 
 
 @pytest.mark.parametrize("version", [2, 3])
 def test_fuzz_random_call_sequences(fmus, version):
-    """A few thousand random FMI calls (NaN/inf/huge values, bad steps, calls out of order,
-    unknown value references, foreign/truncated states, double terminate) in child processes:
-    no crash, and every call that must fail returns Error."""
+    """Over 10,000 seeded random FMI calls per version, in child processes: hostile inputs
+    (NaN, inf, 1e308, denormals, just outside the declared range), steps of every size (zero,
+    negative, NaN, 1e308), calls out of order, unknown value references, huge nValues, foreign,
+    truncated and forged states (edited with their checksum recomputed). No crash; every call
+    that must fail returns Error; no getReal answers OK with a NaN or an infinity; the FMU's own
+    states always load."""
     b = fmus[("micro", version)]
     script = (f"import json, sys; sys.path.insert(0, {str(HERE)!r}); from native_fmu_child import fuzz; "
-              f"print('RESULT ' + json.dumps(fuzz({str(b.unzipdir)!r}, {version}, int(sys.argv[1]), 1000)), flush=True)")
-    totals = {"calls": 0, "must_fail": 0, "errors_returned": 0, "discards": 0, "steps_ok": 0, "other_errors": 0,
-              "crashes": 0, "not_error": []}
-    for seed in range(4):
+              f"print('RESULT ' + json.dumps(fuzz({str(b.unzipdir)!r}, {version}, int(sys.argv[1]), {FUZZ_CALLS})), "
+              "flush=True)")
+    counts = ("calls", "must_fail", "errors_returned", "discards", "steps_ok", "other_errors", "gets_ok",
+              "values_read", "forged", "forged_loaded")
+    lists = ("not_error", "nonfinite_ok", "refused_own_state")
+    totals = {**{k: 0 for k in counts}, **{k: [] for k in lists}, "crashes": 0}
+    for seed in range(FUZZ_SEEDS):
         proc = subprocess.run([sys.executable, "-c", script, str(seed)], capture_output=True, text=True, timeout=300)
         lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")]
         if proc.returncode != 0 or not lines:
             totals["crashes"] += 1
             continue
         r = json.loads(lines[-1][7:])
-        for k in ("calls", "must_fail", "errors_returned", "discards", "steps_ok", "other_errors"):
+        for k in counts + lists:
             totals[k] += r[k]
-        totals["not_error"] += r["not_error"]
     record(f"native fmu: fuzz FMI {version} calls={totals['calls']} must_fail={totals['must_fail']} "
-           f"errors={totals['errors_returned']} discards={totals['discards']}", totals["crashes"], 0)
+           f"errors={totals['errors_returned']} discards={totals['discards']} values read={totals['values_read']} "
+           f"forged states={totals['forged']} (loaded {totals['forged_loaded']})",
+           totals["crashes"] + len(totals["nonfinite_ok"]), 0)
     print(f"fuzz FMI {version}: {totals}")
     assert totals["crashes"] == 0
-    assert totals["calls"] >= 3000
-    assert totals["not_error"] == [] and totals["errors_returned"] == totals["must_fail"] > 500
+    assert totals["calls"] >= 10_000
+    assert totals["not_error"] == [] and totals["errors_returned"] == totals["must_fail"] > 2000
+    assert totals["nonfinite_ok"] == [] and totals["values_read"] > 10_000
+    assert totals["refused_own_state"] == []
+    assert totals["forged"] > 300 and totals["forged_loaded"] > 0   # forged edits both refused and harmless
     assert totals["steps_ok"] > 200 and totals["discards"] > 20   # the plant really stepped and refused
 
 

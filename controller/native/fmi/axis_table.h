@@ -2,7 +2,7 @@
  * (model.c) and by controller/fmu.py (the model description, the start values): the one
  * spelling of their names, sizes, units and value references.
  *
- * X(ID, NAME, COUNT, UNIT, DESCRIPTION), one row per line. Value references: a group's first is its section's
+ * X(ID, NAME, COUNT, UNIT, DESCRIPTION), one row per line (the inputs' ranges: AXIS_FMU_INPUT_RANGES). Value references: a group's first is its section's
  * base plus the values before it in the section (COUNT per row, in this order); FMI 3.0's
  * independent variable `time` is 0. Per-leg groups (COUNT 6) are NAME[1] .. NAME[6]. */
 #ifndef AXIS_TABLE_H
@@ -37,6 +37,18 @@
     X(V_FF, "v_ff", 6, "V", "feedforward voltage (the master's, 0 without feedforward)")        \
     X(L, "l", 6, "m", "measured leg length")                                                    \
     X(LDOT, "ldot", 6, "m/s", "measured leg rate")
+
+/* The declared range of each input group (min and max in the model description; setReal
+   refuses a value outside it, or a non-finite one, and changes nothing): X(ID, MIN, MAX), one
+   row per line. No scene table bounds them, so these are fixed generous magnitudes beyond any
+   Stewart platform's legs (1 km, 1 km/s) and any motor drive's voltage (1 MV) that keep the
+   controller's arithmetic finite. */
+#define AXIS_FMU_INPUT_RANGES(X)                                                                 \
+    X(L_REF, 0.0, 1e3)                                                                           \
+    X(LDOT_REF, -1e3, 1e3)                                                                       \
+    X(V_FF, -1e6, 1e6)                                                                           \
+    X(L, 0.0, 1e3)                                                                               \
+    X(LDOT, -1e3, 1e3)
 
 /* Outputs (Real, continuous). delay 0: the sample at the current communication point from the
    state and the inputs set (direct feedthrough), what doStep then holds over its first period.

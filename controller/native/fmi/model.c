@@ -2,8 +2,9 @@
  * outputs from axis.c's axis_step, whole-period steps, FMU states. The life cycle and its
  * call-sequence rules are the component's (stewart_fmu/native/src/component.c), as in the
  * plant's FMU: a call out of order, an unknown value reference, a write to an output, a
- * non-finite value or a step that is not a whole number of controller periods is fmiError with
- * a logged message and changes nothing. */
+ * non-finite value, an input outside its declared range or a step that is not a whole number of
+ * controller periods is fmiError with a logged message and changes nothing; a step whose state
+ * would not be finite is fmiDiscard, and an output that is not finite is never read as fmiOK. */
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -206,9 +207,11 @@ static void sample(const axis_loop *loop, Instance *c, double time, double *inte
     memcpy(out, &o, sizeof o);
 }
 
+#define MAX_PERIODS 1e7   /* controller periods one doStep takes at most (2.8 h at 1 kHz) */
+
 int model_do_step(Instance *c, double t, double h, double *last_time) {
     ControllerData *d = &c->d;
-    double periods;
+    double periods, before[12], last[N_OUT];
     long n, k;
     if (last_time) *last_time = d->s.time;
     if (model_require(c, "doStep", STEWART_CALL_DO_STEP)) return M_ERROR;
@@ -221,14 +224,40 @@ int model_do_step(Instance *c, double t, double h, double *last_time) {
         return M_ERROR;
     }
     periods = h * PAR(RATE);
+    if (!(periods <= MAX_PERIODS + 0.5)) {  /* bounded work per call (and a count a long holds) */
+        model_log(c, M_ERROR, "doStep: communicationStepSize %.17g s is %g controller periods, more than the %g "
+                  "one step takes: step in parts", h, periods, MAX_PERIODS);
+        return M_ERROR;
+    }
     n = (long)floor(periods + 0.5);
     if (n < 1 || fabs(periods - (double)n) > 1e-9 * (double)n) {
         model_log(c, M_ERROR, "doStep: communicationStepSize %.17g s is not a whole number of controller "
                   "periods (1 / rate = %.17g s): the controller samples at its rate only", h, d->loop.dt);
         return M_ERROR;
     }
+    if (!isfinite(t + h)) {
+        model_log(c, M_ERROR, "doStep: currentCommunicationPoint %.17g + communicationStepSize %.17g is not finite", t, h);
+        return M_ERROR;
+    }
+    memcpy(before, d->integral, sizeof d->integral);
+    memcpy(before + 6, d->current, sizeof d->current);
+    memcpy(last, d->last, sizeof last);
     for (k = 0; k < n; k++)  /* the inputs held over the step */
         sample(&d->loop, c, t + (double)k * d->loop.dt, d->integral, d->current, d->last);
+    for (k = 0; k < 12; k++)  /* one finiteness pass: a non-finite state is never kept */
+        if (!isfinite(k < 6 ? d->integral[k] : d->current[k - 6])) break;
+    if (k < 12) {
+        model_log(c, M_DISCARD, "doStep at t = %.17g s, h = %.17g s: the %s of axis %ld would not be finite: "
+                  "discarded, the state stays at the start of the step", t, h, k < 6 ? "PID integral" : "motor current",
+                  k % 6 + 1);
+        memcpy(d->integral, before, sizeof d->integral);
+        memcpy(d->current, before + 6, sizeof d->current);
+        memcpy(d->last, last, sizeof last);
+        c->have_out = 0;
+        c->discarded = 1;
+        return M_DISCARD;
+    }
+    c->discarded = 0;
     d->s.time = t + h;
     if (last_time) *last_time = d->s.time;
     c->have_out = 0;
@@ -299,6 +328,12 @@ int model_get_real(Instance *c, const unsigned vr[], size_t n, double value[], s
         case K_OUTPUT:
             if (outputs(c)) return M_ERROR;
             value[k] = c->out[vr[k] - AXIS_VR_OUTPUTS];
+            if (!isfinite(value[k])) {  /* never an OK with a NaN or an infinity */
+                char name[64];
+                model_log(c, M_ERROR, "getReal: output %s at t = %.17g s is not finite (%g): no value",
+                          vr_name(vr[k], name), c->d.s.time, value[k]);
+                return M_ERROR;
+            }
             break;
         default:
             model_log(c, M_ERROR, "getReal: unknown value reference %u", vr[k]);
@@ -308,9 +343,26 @@ int model_get_real(Instance *c, const unsigned vr[], size_t n, double value[], s
     return M_OK;
 }
 
+/* The inputs' declared ranges (AXIS_FMU_INPUT_RANGES, the model description's min and max). */
+#define RANGE_ROW(ID, MIN, MAX) {VR_##ID, (unsigned)(sizeof(((axis_fmu_inputs *)0)->ID) / sizeof(double)), MIN, MAX},
+static const struct { unsigned vr, count; double min, max; } RANGES[] = {AXIS_FMU_INPUT_RANGES(RANGE_ROW)};
+
+/* x lies in the declared range of input v (x finite). */
+static int in_range(unsigned v, double x, double *min, double *max) {
+    size_t k;
+    for (k = 0; k < sizeof RANGES / sizeof RANGES[0]; k++)
+        if (v >= RANGES[k].vr && v < RANGES[k].vr + RANGES[k].count) {
+            *min = RANGES[k].min;
+            *max = RANGES[k].max;
+            return x >= *min && x <= *max;
+        }
+    return 1;
+}
+
 int model_set_real(Instance *c, const unsigned vr[], size_t n, const double value[], size_t nvalues) {
     int phase = c->d.s.phase;
     size_t k;
+    double lo, hi;
     char name[64];
     if (check_args(c, "setReal", vr, n, value, nvalues)) return M_ERROR;
     for (k = 0; k < n; k++) {  /* every value checked first: an Error changes nothing */
@@ -338,6 +390,11 @@ int model_set_real(Instance *c, const unsigned vr[], size_t n, const double valu
         if (!isfinite(value[k])) {
             model_log(c, M_ERROR, "setReal: %s = %g at t = %.17g s is not finite: rejected",
                       vr_name(vr[k], name), value[k], c->d.s.time);
+            return M_ERROR;
+        }
+        if (kind == K_INPUT && !in_range(vr[k], value[k], &lo, &hi)) {
+            model_log(c, M_ERROR, "setReal: input %s = %g at t = %.17g s is outside its declared range [%g, %g]: "
+                      "rejected", vr_name(vr[k], name), value[k], c->d.s.time, lo, hi);
             return M_ERROR;
         }
     }

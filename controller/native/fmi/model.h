@@ -51,7 +51,7 @@ typedef struct Instance Instance;
 struct Instance {
     ControllerData d;
     int have_out;               /* out holds the sample of the state and inputs (cleared on change) */
-    int discarded;              /* never set: the controller takes every whole-period step */
+    int discarded;              /* the last doStep was discarded: its state would not have been finite */
     double out[N_OUT];
     FMU_GLUE_FIELDS
 };

@@ -293,7 +293,12 @@ int model_do_step(Instance *c, double t, double h, double *last_time) {
     char msg[1024];
     int status;
     if (last_time) *last_time = d->s.time;
+    if (isfinite(t) && isfinite(h) && !isfinite(t + h)) {  /* the time after the step would not be finite */
+        model_log(c, M_ERROR, "doStep: currentCommunicationPoint %.17g + communicationStepSize %.17g is not finite", t, h);
+        return M_ERROR;
+    }
     update_rack(c);
+    /* on OK the state y is finite: the step refuses a non-finite one (STEWART_STATE_NONFINITE) */
     status = stewart_component_do_step(&d->s, d->p, &o, t, h);
     switch (status) {
     case STEWART_OK:
@@ -383,6 +388,12 @@ static int output(Instance *c, unsigned vr, double *value) {
         }
         *value = c->parts[vr - VR_FORCE_PLATFORM];
     }
+    if (!isfinite(*value)) {  /* never an OK with a NaN or an infinity */
+        char name[64];
+        model_log(c, M_ERROR, "getReal: output %s at t = %.17g s is not finite (%g): no value", vr_name(vr, name),
+                  c->d.s.time, *value);
+        return M_ERROR;
+    }
     return M_OK;
 }
 
@@ -443,6 +454,17 @@ int model_get_real(Instance *c, const unsigned vr[], size_t nvr, double value[],
     return M_OK;
 }
 
+/* The inputs' declared ranges (STEWART_FMU_INPUT_RANGES, the model description's min and max). */
+#define RANGE_ROW(ID, MIN, MAX) {VR_##ID, MIN, MAX},
+static const struct { unsigned vr; double min, max; } RANGES[] = {STEWART_FMU_INPUT_RANGES(RANGE_ROW)};
+
+/* The range of input v (a value reference of sigma or tau: six values each). */
+static int input_range(unsigned v) {
+    int k = 0;
+    while (k + 1 < (int)(sizeof RANGES / sizeof RANGES[0]) && !(v >= RANGES[k].vr && v < RANGES[k].vr + 6)) k++;
+    return k;
+}
+
 int model_set_real(Instance *c, const unsigned vr[], size_t nvr, const double value[], size_t nvalues) {
     int phase = c->d.s.phase;
     size_t k, j;
@@ -478,6 +500,15 @@ int model_set_real(Instance *c, const unsigned vr[], size_t nvr, const double va
                       vr_name(v, name), value[j], c->d.s.time,
                       kind == K_PARAM ? c->d.par[v] : (v < VR_TAU ? c->d.s.sigma[v - VR_SIGMA] : c->d.s.tau[v - VR_TAU]));
             return M_ERROR;
+        }
+        if (kind == K_INPUT) {
+            int r = input_range(v);
+            if (!(value[j] >= RANGES[r].min && value[j] <= RANGES[r].max)) {
+                model_log(c, M_ERROR, "setReal: input %s = %g at t = %.17g s is outside its declared range [%g, %g]: "
+                          "rejected, the value stays %.17g", vr_name(v, name), value[j], c->d.s.time, RANGES[r].min,
+                          RANGES[r].max, v < VR_TAU ? c->d.s.sigma[v - VR_SIGMA] : c->d.s.tau[v - VR_TAU]);
+                return M_ERROR;
+            }
         }
     }
     FOR_EACH_VALUE(vr, nvr, k, e, j) {
@@ -582,21 +613,89 @@ int model_get_state(Instance *c, void **state) {
     return M_OK;
 }
 
-/* A state's content is usable: the component's check (stewart_component_check), the method in
- * range and, for a running plant, valid parameters packed as they are. */
-static int sane(Instance *c, const char *call, const PlantData *d) {
-    int running = d->s.phase == STEWART_PH_STEPPING || d->s.phase == STEWART_PH_TERMINATED;
-    int ok = d->method >= 0 && d->method <= 2 && (d->tolerance_defined == 0 || d->tolerance_defined == 1) &&
-             stewart_component_check(&d->s, running ? d->p : NULL) == STEWART_OK;
-    if (ok && running) {
-        double p[STEWART_N_PARAMS];
+/* The inconsistency of a state's content, field by field, written to why ("" when it is usable).
+ * A serialized state's checksum detects corruption, not forgery: a state edited with its
+ * checksum recomputed reaches this check, so every field is checked before anything is applied:
+ * the method, the tolerance, the inputs in their declared ranges (tau 0 without a drive), the
+ * parameters finite (those the FMU does not declare at their start values), the component's
+ * check (stewart_component_check: phase, state size, times, internal step, counters, finite
+ * initial values, rack forces and state); for a running plant the parameters valid and packed
+ * as they are, the initial values those of q0, qd0, and the pose inside the workspace: every
+ * leg within the stroke widened by the stroke's length (an accepted step checks the stroke at
+ * its stages, not at its end point) and the leg rates and angular velocity finite. The rack
+ * forces' values are not compared: they are recomputed from the inputs when the state is
+ * applied. */
+static void inconsistency(Instance *c, const char *call, const PlantData *d, char why[256]) {
+    const stewart_component *s = &d->s;
+    int running = s->phase == STEWART_PH_STEPPING || s->phase == STEWART_PH_TERMINATED;
+    int i, r;
+    unsigned vr;
+    char name[64];
+    why[0] = '\0';
+    if (!(d->method >= 0 && d->method < STEWART_N_METHODS)) {
+        snprintf(why, 256, "solver.method %d is not a method", d->method);
+        return;
+    }
+    if (!(d->tolerance_defined == 0 ? d->tolerance == 0.0
+                                    : d->tolerance_defined == 1 && isfinite(d->tolerance) && d->tolerance > 0)) {
+        snprintf(why, 256, "the tolerance %g (defined: %d) is not finite and > 0", d->tolerance, d->tolerance_defined);
+        return;
+    }
+    for (i = 0; i < 12; i++) {
+        double x = i < 6 ? s->sigma[i] : s->tau[i - 6];
+        vr = (unsigned)(i < 6 ? VR_SIGMA + i : VR_TAU + i - 6);
+        r = input_range(vr);
+        if (!(x >= RANGES[r].min && x <= RANGES[r].max) || (i >= 6 && !has_drive() && x != 0.0)) {
+            snprintf(why, 256, "input %s = %g lies outside its declared range [%g, %g]%s", vr_name(vr, name), x,
+                     RANGES[r].min, RANGES[r].max, has_drive() ? "" : " (0: no drive)");
+            return;
+        }
+    }
+    for (vr = 1; vr < VR_N_PAR; vr++)
+        if (has(vr) ? !isfinite(d->par[vr]) : d->par[vr] != STEWART_START[vr]) {
+            snprintf(why, 256, "parameter %s = %g is %s", vr_name(vr, name), d->par[vr],
+                     has(vr) ? "not finite" : "not declared: it keeps its start value");
+            return;
+        }
+    if (stewart_component_check(s, running ? d->p : NULL) != STEWART_OK) {
+        snprintf(why, 256, "%s: phase %d, %d states, time %g s from %g s, internal step %g s, %lld evaluations, "
+                 "or a non-finite initial value, rack force or state", stewart_status_why(STEWART_STATE_INVALID),
+                 s->phase, s->n, s->time, s->start_time, s->step_guess, s->evaluations);
+        return;
+    }
+    if (running) {
+        double p[STEWART_N_PARAMS], l[6], ld[6], om[3], margin;
         InstanceLogger log = c->log;
         c->log = NULL;
-        ok = validate(c, call, d->par, p) == M_OK && memcmp(p, d->p, sizeof p) == 0;
+        i = validate(c, call, d->par, p) == M_OK && memcmp(p, d->p, sizeof p) == 0;
         c->log = log;
+        if (!i) {
+            snprintf(why, 256, "its parameters are not valid, or not packed as they are");
+            return;
+        }
+        if (memcmp(s->initial, d->par + VR_Q0, 6 * sizeof(double)) || memcmp(s->initial + 6, d->par + VR_QD0, 6 * sizeof(double))) {
+            snprintf(why, 256, "its initial values are not q0, qd0");
+            return;
+        }
+        stewart_leg_state(d->p, s->y, s->y + 6, l, ld, om);
+        margin = d->p[STEWART_P_LEG_MAX] - d->p[STEWART_P_LEG_MIN];   /* inf without a stroke */
+        for (i = 0; i < 6; i++)
+            if (!(l[i] > 0 && isfinite(l[i]) && isfinite(ld[i]) && l[i] >= d->p[STEWART_P_LEG_MIN] - margin &&
+                  l[i] <= d->p[STEWART_P_LEG_MAX] + margin) || !(isfinite(om[i % 3]))) {
+                snprintf(why, 256, "its pose puts leg %d at %g m (rate %g m/s), outside the workspace (stroke [%g, %g] m)",
+                         i + 1, l[i], ld[i], d->p[STEWART_P_LEG_MIN], d->p[STEWART_P_LEG_MAX]);
+                return;
+            }
     }
-    if (!ok) model_log(c, M_ERROR, "%s: not a valid state of this FMU: %s", call, stewart_status_why(STEWART_STATE_INVALID));
-    return ok ? M_OK : M_ERROR;
+}
+
+/* A state's content is usable (inconsistency); M_ERROR, logged naming the field, if not. */
+static int sane(Instance *c, const char *call, const PlantData *d) {
+    char why[256];
+    inconsistency(c, call, d, why);
+    if (!why[0]) return M_OK;
+    model_log(c, M_ERROR, "%s: not a valid state of this FMU: %s", call, why);
+    return M_ERROR;
 }
 
 int model_set_state(Instance *c, const void *state) {

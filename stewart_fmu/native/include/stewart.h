@@ -53,6 +53,13 @@ typedef struct {
     const char *causality, *unit, *description;
 } stewart_variable_info;
 typedef struct {
+    const char *id;           /* ID of STEWART_FMU_INPUTS */
+    int vr, count;            /* the group's first value reference and its values */
+    double min, max;          /* its declared range (STEWART_FMU_INPUT_RANGES) */
+} stewart_input_range;
+extern const stewart_input_range stewart_input_range_table[];
+extern const int stewart_input_range_table_size;
+typedef struct {
     const char *name;         /* NAME of STEWART_STANDARD: STEWART_S_<name> */
     int column, count;
     const char *key, *unit, *description;
@@ -443,7 +450,8 @@ size_t stewart_component_refusal(char *buf, size_t size, const stewart_component
                                  int status);
 
 /* The sanity of a state: the phase a phase, n 12 or 24 (and, with params, the size of a
-   running plant's state), the times, inputs, initial values and y finite. OK or
+   running plant's state), the times finite and time >= start_time, the next internal step
+   finite and > 0, inputs, initial values and y finite. OK or
    STEWART_STATE_INVALID. */
 int stewart_component_check(const stewart_component *s, const double *params);
 /* s = from after stewart_component_check (s's evaluations are kept; energy recomputed). */

@@ -114,6 +114,15 @@
       "actuator force at the rack (starts at the force holding home)")                           \
     X(TAU, "tau", 6, STEWART_PER_LEG, "N.m", ANY, "motor torque")
 
+/* The declared range of each input (min and max in the model description; setReal refuses a
+   value outside it, or a non-finite one, and changes nothing): X(ID, MIN, MAX). No plant table
+   gives a force or torque limit, so these are fixed generous magnitudes that keep every derived
+   force finite: 1e7 N at the rack (the weight of 1,000 t; the motion simulator holds ~2.5e3 N a
+   leg) and 1e6 N m at the motor (above any electric servomotor's peak torque). */
+#define STEWART_FMU_INPUT_RANGES(X)                                                              \
+    X(SIGMA, -1e7, 1e7)                                                                          \
+    X(TAU, -1e6, 1e6)
+
 /* Outputs (Real, continuous, calculated on demand); force.<part> in STEWART_PART_* order, only
    the parts of the effects the scene declares. */
 #define STEWART_FMU_OUTPUTS(X)                                                                   \

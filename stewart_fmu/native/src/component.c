@@ -210,7 +210,8 @@ int stewart_component_check(const stewart_component *s, const double *params) {
     int ok = s->phase >= 0 && s->phase < STEWART_N_PHASES && (s->n == 12 || s->n == 24) &&
              (s->energy_valid == 0 || s->energy_valid == 1) && s->reserved == 0 &&
              s->evaluations >= 0 && isfinite(s->start_time) && isfinite(s->time) &&
-             !isnan(s->step_guess) && finite_all(s->initial, 12) && finite_all(s->sigma, 6) &&
+             s->time >= s->start_time && isfinite(s->step_guess) && s->step_guess > 0 &&
+             finite_all(s->initial, 12) && finite_all(s->sigma, 6) &&
              finite_all(s->tau, 6) && finite_all(s->rack, 6);
     if (ok) ok = finite_all(s->y, s->n);
     if (ok && params && (s->phase == STEWART_PH_STEPPING || s->phase == STEWART_PH_TERMINATED))

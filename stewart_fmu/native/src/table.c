@@ -32,3 +32,9 @@ const stewart_variable_info stewart_variable_table[] = {
     STEWART_FMU_INPUTS(INPUT_ROW) STEWART_FMU_OUTPUTS(OUTPUT_ROW) STEWART_FMU_OUTPUT_ARRAYS(ARRAY_ROW)};
 const int stewart_variable_table_size =
     sizeof stewart_variable_table / sizeof stewart_variable_table[0];
+
+#define RANGE_ROW(ID, MIN, MAX) \
+    {#ID, STEWART_VR(INPUTS, stewart_fmu_inputs, ID), (int)(sizeof(((stewart_fmu_inputs *)0)->ID) / sizeof(double)), MIN, MAX},
+const stewart_input_range stewart_input_range_table[] = {STEWART_FMU_INPUT_RANGES(RANGE_ROW)};
+const int stewart_input_range_table_size =
+    sizeof stewart_input_range_table / sizeof stewart_input_range_table[0];
