@@ -13,12 +13,12 @@ import csv
 import io as textio
 import json
 import os
-import stat
 from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
+from stewart_fmu.budget import InputFileError, read_input
 from stewart_fmu.errors import SweepError
 from stewart_fmu.io import write_text
 
@@ -53,27 +53,16 @@ def open_sweep(out: Path, fingerprint: str, columns: Sequence[str], total: int) 
     info = {"fingerprint": fingerprint, "columns": list(columns), "points": total}
     if os.path.lexists(manifest):
         try:
-            old = json.loads(_read_small(manifest).decode("utf-8"))
-        except (OSError, ValueError, RecursionError) as exc:
-            raise SweepError(None, f"{manifest}: unreadable ({exc}); remove it or choose another --out") from None
+            old = json.loads(read_input(manifest, MANIFEST_BYTES).decode("utf-8"))
+        except (InputFileError, ValueError, RecursionError) as exc:
+            reason = exc.reason if isinstance(exc, InputFileError) else exc
+            raise SweepError(None, f"{manifest}: unreadable ({reason}); remove it or choose another --out") from None
         if old != info:
             raise SweepError(None, f"{out} holds the rows of another sweep (different scene or "
                                    f"grid): choose another --out or remove the directory")
         return
     (out / CHUNKS).mkdir(parents=True, exist_ok=True)
     write_text(manifest, json.dumps(info, indent=1) + "\n")
-
-
-def _read_small(path: Path) -> bytes:
-    """The bytes of a regular file of at most MANIFEST_BYTES (OSError or ValueError else)."""
-    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)   # a FIFO's open does not wait
-    with os.fdopen(fd, "rb") as fh:
-        if not stat.S_ISREG(os.fstat(fh.fileno()).st_mode):
-            raise ValueError("not a regular file")
-        data = fh.read(MANIFEST_BYTES + 1)
-    if len(data) > MANIFEST_BYTES:
-        raise ValueError(f"larger than {MANIFEST_BYTES:,} bytes")
-    return data
 
 
 def merge(out: Path, columns: Sequence[str], rows: Mapping[int, Sequence[str]]) -> int:

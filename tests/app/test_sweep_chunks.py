@@ -319,7 +319,7 @@ def test_an_unreadable_manifest_is_one_line(sweep, tmp_path, capsys):
     os.mkfifo(out / "sweep.json")
     assert resume(sweep, out) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "sweep.json: unreadable (not a regular file)" in err
+    assert err.count("\n") == 1 and "sweep.json: unreadable (not a regular file (a device, pipe or socket))" in err
     (out / "sweep.json").unlink()
     (out / "sweep.json").write_text("[" * 100_000 + "]" * 100_000)
     assert resume(sweep, out) == 2
