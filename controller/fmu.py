@@ -91,7 +91,7 @@ def start_values(model: Model, config: ControllerConfig) -> dict[str, np.ndarray
     feedforward the scene chose); inputs: the home's leg lengths, at rest."""
     axis = axis_model(model, config.motor, config.load_mass)
     gains = tune_pid(axis, config.bandwidth, config.phase_margin)
-    check_stable(axis, gains, config.dt)
+    check_stable(axis, gains, config.dt, config.delay)
     zeros = np.zeros((2, 6))
     rest = Trajectory(np.array([0.0, config.dt]), np.tile(model.home, (2, 1)), zeros, zeros.copy())
     refs = leg_references(model, rest)
@@ -103,7 +103,7 @@ def start_values(model: Model, config: ControllerConfig) -> dict[str, np.ndarray
             "resistance": m.resistance, "inductance": m.inductance,
             "torque_constant": m.torque_constant, "emf_constant": axis.emf_constant,
             "force_per_torque": model.drive.force_per_torque, "integral0": integral0,
-            "current0": current0, "reference": 0.0, "delay": 0.0, "l_ref": refs.l[0], "ldot_ref": np.zeros(6), "v_ff": np.zeros(6),
+            "current0": current0, "reference": 0.0, "delay": float(config.delay), "l_ref": refs.l[0], "ldot_ref": np.zeros(6), "v_ff": np.zeros(6),
             "l": refs.l[0], "ldot": np.zeros(6)}
 
 
