@@ -2,7 +2,7 @@
 
 At each communication step (the controller period): measure leg lengths and rates, compute the
 voltages (PID + feedforward), advance the motor currents, hand the mean motor torques to the
-plant, step the plant (with the scene's `controller.delay` = 1, the torques of the sample before:
+plant, step the plant (with the scene's [controller] delay = 1, the torques of the sample before:
 ControllerConfig). The plant is the in-process component (stewart_fmu.plant.Plant) or the
 exported FMU driven through fmpy; both see the same calls, so their results are equal. With
 the in-process plant the whole loop runs in C (controller/native/axis.c, closed_loop_run, around

@@ -14,7 +14,7 @@ serves "none" (0), "constant_load" and "kane" alike. Outputs are the sample at t
 communication point (direct feedthrough from l, ldot and the references): a master reads tau
 after setting the measured lengths and before stepping the plant, and doStep then advances the
 controller over whole controller periods with the inputs held. With the parameter delay = 1
-(its start value is the scene's controller.delay) they are the last step's sample instead: one
+(its start value is the scene's [controller] delay) they are the last step's sample instead: one
 period of actuation delay, under that master or an SSP importer's step-then-exchange.
 """
 from __future__ import annotations

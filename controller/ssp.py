@@ -17,7 +17,7 @@ The move is `run`'s reference (controller.moves.run_reference) and its feedforwa
 Timing: SSP importers step every FMU over the period and then pass the outputs on (FMPy's
 simulate_ssp, libcosim's fixed-step algorithm), so the torque the controller computes from the
 lengths at t_k reaches the plant over [t_k+1, t_k+2]: one period of actuation delay, the
-scene's `controller.delay = 1` (config.ControllerConfig). The controller FMU's parameter
+scene's `[controller] delay = 1` (config.ControllerConfig). The controller FMU's parameter
 delay = 1 (its outputs are the last step's sample, before the first step the drives' start)
 makes that loop `run`'s with delay 1, sample for sample; so the SSP is always written with
 delay 1, whatever the scene's.

@@ -541,7 +541,7 @@ def _delayed_spectral_radius(axis, gains, dt: float) -> float:
 
 def test_actuation_delay_costs_sampled_stability(monkeypatch):
     """The micro PI at 5 Hz with all gains x 0.2 of its gain margin: stable sampled at 1 kHz
-    (spectral radius 0.989), unstable with controller.delay = 1 (1.037; the design module's
+    (spectral radius 0.989), unstable with [controller] delay = 1 (1.037; the design module's
     radius equals this test's construction to 1e-9), so run_closed_loop refuses it before
     running, naming the delay. The analysis predicts the simulation: with the check bypassed,
     after a 1 mm move and a 1 s hold the loop without delay has settled (|e| < 1e-9 m over the
@@ -572,7 +572,7 @@ def test_actuation_delay_costs_sampled_stability(monkeypatch):
 
 
 def test_delayed_loop_tracks_the_move():
-    """`run`'s move on the micro-manipulator (1 s) with controller.delay = 1: the loop stays
+    """`run`'s move on the micro-manipulator (1 s) with [controller] delay = 1: the loop stays
     stable and tracks; the period of delay costs tracking (measured: max |e| 3.6 um against
     1.1 um without) but at most 10 x, and in the final hold both errors decay below a tenth of
     their peak (measured: 0.02 x, 71 nm and 23 nm at the end)."""
@@ -650,7 +650,7 @@ def test_scene_controller_tables_are_valid():
 
 
 def test_delay_is_read():
-    """controller.delay: 0 when left out, else the table's 0 or 1."""
+    """[controller] delay: 0 when left out, else the table's 0 or 1."""
     assert controller_config(level_model("micro", "full")).delay == 0
     for delay in (0, 1):
         data = scene_dict("micro")

@@ -7,8 +7,8 @@ The master of a sample k: read the plant's l, ldot; set the controller's referen
 and measurements; read its tau (the sample at t_k, direct feedthrough); step the controller and
 the plant (tau held) over the period. That is closed_loop_run's order, so the two loops compute
 the same numbers: the controller's arithmetic is axis.c's axis_step in both. With the scene's
-controller.delay = 1 the FMU's parameter delay starts at 1: its tau is the last step's sample,
-and the same master reproduces the closed loop with that delay.
+[controller] delay = 1 the FMU's parameter delay starts at 1: its tau is the last step's
+sample, and the same master reproduces the closed loop with that delay.
 """
 from __future__ import annotations
 

@@ -10,7 +10,7 @@ drives the plant over [t_k+1, t_k+2] (the controller's parameter delay = 1); lib
 the initial exchange (the plant starts with the drives' holding torque), FMPy's simulate_ssp
 starts every connector at 0.0 (its first plant step has tau = 0, the controller's first sample
 sees l = 0). That loop is `run` (controller.cosim.run_closed_loop, both its paths) of the scene
-with `controller.delay = 1`: libcosim's lengths equal `run`'s bit for bit; FMPy's differ by its
+with `[controller] delay = 1`: libcosim's lengths equal `run`'s bit for bit; FMPy's differ by its
 zero start (the figure is printed). With delay 0 (the plant stepped after the controller within
 a sample) the lengths differ by that period's delay: printed too.
 """
@@ -93,7 +93,7 @@ def _lengths(table: np.ndarray) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def delayed_run(loop):
-    """`run`'s closed loop of the scene with controller.delay = 1: the C loop's table, after
+    """`run`'s closed loop of the scene with [controller] delay = 1: the C loop's table, after
     checking the Python loop's (around InProcessPlant) equals it bit for bit, every column."""
     model, config, traj, _ = loop
     compiled = run_closed_loop(model, config, traj).table
@@ -133,7 +133,7 @@ def delayed_loop(model, config, traj, times, sizes, fmpy_start: bool) -> np.ndar
 
 
 def test_run_with_delay_is_the_delayed_loop(loop, delayed_run):
-    """`run` with controller.delay = 1 (the C loop and the Python loop, equal: delayed_run) is
+    """`run` with [controller] delay = 1 (the C loop and the Python loop, equal: delayed_run) is
     the in-process loop of an SSP importer at `run`'s sample times, bit for bit; and the delay
     is a real one: the lengths differ from delay 0's."""
     model, config, traj, _ = loop
