@@ -22,7 +22,6 @@ from __future__ import annotations
 import hashlib
 import re
 import shutil
-import subprocess
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,8 +29,8 @@ from xml.etree.ElementTree import Element, SubElement, indent, tostring
 
 import numpy as np
 
-from stewart_fmu.fmu.export import (CFLAGS, NATIVE, BuildError, core_sources, find_compiler,
-                                    pack, platform_folder)
+from stewart_fmu.fmu.export import (NATIVE, build_binaries, core_sources, find_compiler, pack,
+                                    platform_folder)
 from stewart_fmu.model import Model
 
 from .config import ControllerConfig
@@ -252,7 +251,7 @@ def export_controller(model: Model, config: ControllerConfig, out_path: str | Pa
         values["l_ref"], values["ldot_ref"], values["v_ff"] = move[0, :6], move[0, 6:12], move[0, 12:]
     table = variables(values)
     compiler = find_compiler()
-    folder, ext = platform_folder(fmi_version)
+    platform_folder(fmi_version)   # BuildError now for a platform this version has no folder for
     core = core_sources()
     own = {**{rel: NATIVE / rel for rel in core + FMI_LAYER[fmi_version]}, **OWN_SOURCES}
     c_files = sorted(f for f in own if f.endswith(".c")) + [START_FILE]
@@ -268,14 +267,8 @@ def export_controller(model: Model, config: ControllerConfig, out_path: str | Pa
             (src / "buildDescription.xml").write_bytes(_build_description(c_files))
         (root / "modelDescription.xml").write_bytes(
             model_description(f"{model.name} controller", table, fmi_version, c_files, move))
-        binary = root / "binaries" / folder / f"{MODEL_IDENTIFIER}{ext}"
-        binary.parent.mkdir(parents=True)
-        flags = [f for f in CFLAGS if not (ext == ".dll" and f == "-fPIC")]
-        cmd = [compiler, *flags, "-I", str(src), "-I", str(src / "include"), "-shared", "-o", str(binary),
-               *[str(src / f) for f in c_files], "-lm"]
-        proc = subprocess.run(cmd, capture_output=True, text=True)
-        if proc.returncode != 0 or not binary.exists():
-            raise BuildError(f"compiling the controller FMU failed ({' '.join(cmd)}):\n"
-                             f"{proc.stderr[-4000:]}")
+        build_binaries(compiler, [str(src / f) for f in c_files],
+                       ["-I", str(src), "-I", str(src / "include")], root, MODEL_IDENTIFIER,
+                       fmi_version, "the controller FMU")
         pack(root, Path(tmp) / "packed.fmu", out)
     return out
