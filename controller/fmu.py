@@ -251,7 +251,7 @@ def export_controller(model: Model, config: ControllerConfig, out_path: str | Pa
         values["l_ref"], values["ldot_ref"], values["v_ff"] = move[0, :6], move[0, 6:12], move[0, 12:]
     table = variables(values)
     compiler = find_compiler()
-    platform_folder(fmi_version)   # BuildError now for a platform this version has no folder for
+    platform_folder(fmi_version)   # BuildError before any work: no binaries folder for this platform
     core = core_sources()
     own = {**{rel: NATIVE / rel for rel in core + FMI_LAYER[fmi_version]}, **OWN_SOURCES}
     c_files = sorted(f for f in own if f.endswith(".c")) + [START_FILE]

@@ -109,7 +109,7 @@ def export_model(model: Model, scene_text: bytes, out_path: str | Path,
     if fmi_version not in FMI_VERSIONS:
         raise ValueError(f"fmi_version must be 2 or 3, got {fmi_version!r}")
     compiler = find_compiler()
-    platform_folder(fmi_version)   # BuildError now for a platform this version has no folder for
+    platform_folder(fmi_version)   # BuildError before any work: no binaries folder for this platform
     out = Path(out_path)
     core = core_sources()
     c_files = [f for f in core if f.endswith(".c")] + FMI_SOURCES[fmi_version]
