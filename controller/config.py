@@ -6,6 +6,7 @@
     phase_margin = 60.0      # deg
     feedforward = "none"     # "none" | "constant_load" | "kane" (computed torque)
     load_mass = 0.5          # kg, optional: the constant load (default: from the Kane model)
+    delay = 0                # controller periods of actuation delay: 0 | 1 (see ControllerConfig)
     [controller.motor]
     resistance = 2.5         # ohm
     inductance = 5e-4        # H
@@ -28,12 +29,19 @@ from .drive import Motor, motor_from_table
 
 FEEDFORWARD = ("none", "constant_load", "kane")
 NUMBER_KEYS = ("rate", "bandwidth", "phase_margin", "load_mass")  # the table's numbers
-_KEYS = {*NUMBER_KEYS, "feedforward", "motor"}
+DELAYS = (0, 1)  # the actuation delays the closed loop implements, in controller periods
+_KEYS = {*NUMBER_KEYS, "feedforward", "delay", "motor"}
 
 
 @dataclass(frozen=True)
 class ControllerConfig:
-    """What the scene asks of the per-axis controllers."""
+    """What the scene asks of the per-axis controllers.
+
+    delay: the controller's computation (actuation) delay in periods. 0: the torque computed
+    from the measurement at t_k drives the plant over [t_k, t_k+1]. 1: it is latched and drives
+    the plant over [t_k+1, t_k+2], the drives holding their start torque over the first period
+    (a digital servo that writes its output at the next sample; also what an SSP importer's
+    step-then-exchange gives the controller FMU)."""
 
     motor: Motor
     rate: float = 1000.0
@@ -41,6 +49,7 @@ class ControllerConfig:
     phase_margin: float = 60.0
     feedforward: str = "none"
     load_mass: float | None = None
+    delay: int = 0
 
     @property
     def dt(self) -> float:
@@ -72,6 +81,11 @@ def controller_config(model: Model) -> ControllerConfig:
         raise SceneError("controller.feedforward", f"must be one of {FEEDFORWARD}, got {ff!r}",
                          model.source)
     values["feedforward"] = ff
+    delay = table.get("delay", 0)
+    if isinstance(delay, bool) or not isinstance(delay, int) or delay not in DELAYS:
+        raise SceneError("controller.delay", f"must be 0 or 1 (controller periods of actuation "
+                                             f"delay), got {delay!r}", model.source)
+    values["delay"] = delay
     return ControllerConfig(**values)
 
 

@@ -2,7 +2,8 @@
 
 At each communication step (the controller period): measure leg lengths and rates, compute the
 voltages (PID + feedforward), advance the motor currents, hand the mean motor torques to the
-plant, step the plant. The plant is the in-process component (stewart_fmu.plant.Plant) or the
+plant, step the plant (with the scene's [controller] delay = 1, the torques of the sample before:
+ControllerConfig). The plant is the in-process component (stewart_fmu.plant.Plant) or the
 exported FMU driven through fmpy; both see the same calls, so their results are equal. With
 the in-process plant the whole loop runs in C (controller/native/axis.c, closed_loop_run, around
 the plant's C core stewart_step), a chunk of samples per call.
@@ -73,7 +74,7 @@ def run_closed_loop(model: Model, config: ControllerConfig, traj: Trajectory,
     `options`: the in-process plant's integrator (default: stability.default_options, as Plant)."""
     axis = axis_model(model, config.motor, config.load_mass)
     gains = gains or tune_pid(axis, config.bandwidth, config.phase_margin)
-    analysis = check_stable(axis, gains, config.dt)
+    analysis = check_stable(axis, gains, config.dt, config.delay)
     _check_rate(traj, config)
     refs = leg_references(model, traj)
     v_ff, i_ff = feedforward_voltage(model, config, axis, traj, refs)
@@ -83,18 +84,28 @@ def run_closed_loop(model: Model, config: ControllerConfig, traj: Trajectory,
     if plant is None:  # in-process: the whole loop in C (controller/native/axis.c)
         start_at_equilibrium(model, traj, refs, gains, ctrl, motors, i_ff[0], None)
         wall = _run_compiled(model, traj, refs, v_ff, ctrl, motors, bound, rec, progress,
-                             options or default_options(model))
+                             options or default_options(model), _held(config, motors))
     else:
         start_at_equilibrium(model, traj, refs, gains, ctrl, motors, i_ff[0], plant)
         start = wallclock.perf_counter()
-        _run_ports(plant, traj, refs, v_ff, ctrl, motors, bound, rec, progress)
+        _run_ports(plant, traj, refs, v_ff, ctrl, motors, bound, rec, progress,
+                   _held(config, motors))
         wall = wallclock.perf_counter() - start
     table = rec.table(traj, refs, v_ff)
     return ClosedLoopResult(table, _summary(table, traj, config, wall), gains, analysis, axis, config)
 
 
-def _run_ports(plant, traj, refs, v_ff, ctrl, motors, bound, rec, progress) -> None:
-    """The master's loop in Python, around any PlantPort (e.g. an FMU): one servo_step per sample."""
+def _held(config: ControllerConfig, motors: MotorCurrents) -> np.ndarray | None:
+    """The torques latched for the first period with one period of actuation delay (the drives'
+    start: the torque the plant was started with), None without delay."""
+    if config.delay == 0:
+        return None
+    return np.ascontiguousarray(motors.current * motors.axis.motor.torque_constant, dtype=np.float64)
+
+
+def _run_ports(plant, traj, refs, v_ff, ctrl, motors, bound, rec, progress, held) -> None:
+    """The master's loop in Python, around any PlantPort (e.g. an FMU): one servo_step per
+    sample; held (_held): None, or the latched torques of one period of delay."""
     for k, t in enumerate(traj.t):
         l, ldot, q = plant.measure()
         v, torque, saturated = servo_step(ctrl, motors, refs.l[k], refs.ldot[k], l, ldot, v_ff[k])
@@ -103,7 +114,9 @@ def _run_ports(plant, traj, refs, v_ff, ctrl, motors, bound, rec, progress) -> N
         if np.any(err > bound) or not np.all(np.isfinite(err)):
             raise _diverged(float(t), err, bound)
         if k + 1 < len(traj.t):
-            plant.step(float(t), float(traj.t[k + 1] - t), torque)
+            plant.step(float(t), float(traj.t[k + 1] - t), torque if held is None else held)
+            if held is not None:  # latched after the step, as closed_loop_run
+                held = torque
         if progress is not None and k % 1000 == 0:
             progress(k, len(traj.t))
 
@@ -118,11 +131,11 @@ CHUNK = 20_000  # samples per C call, so that long runs can report progress
 _STATUS = {core.UNSTABLE: ENERGY_GAIN, core.STATE_NONFINITE: STATE_NONFINITE}
 
 
-def _run_compiled(model, traj, refs, v_ff, ctrl, motors, bound, rec, progress, o) -> float:
+def _run_compiled(model, traj, refs, v_ff, ctrl, motors, bound, rec, progress, o, held) -> float:
     """The in-process loop in C (controller/native/axis.c: closed_loop_run, CHUNK samples per
     call, the plant step being the C core's stewart_step); the same arithmetic as _run_ports
-    with InProcessPlant (the default integrator options of stewart_fmu.plant.Plant). Returns
-    the loop's wall time."""
+    with InProcessPlant (the default integrator options of stewart_fmu.plant.Plant); held as
+    there, updated in place. Returns the loop's wall time."""
     g, m, ax = ctrl.gains, motors.axis.motor, motors.axis
     n = len(traj.t)
     P = model.native
@@ -148,12 +161,14 @@ def _run_compiled(model, traj, refs, v_ff, ctrl, motors, bound, rec, progress, o
         setattr(r, name, ffi.cast("double *", b))
     r.sat = ffi.cast("unsigned char *", bufs[-1])
     integral, current = ffi.from_buffer(ctrl.integral), ffi.from_buffer(motors.current)
+    held_buf = ffi.NULL if held is None else ffi.from_buffer(held, require_writable=True)
     k_fail = ffi.new("long *")
     start = wallclock.perf_counter()
     status = 0
     for k0 in range(0, n, CHUNK):
         status = lib.closed_loop_run(P.ptr, opts, c, d, integral, current, keep[0], n, keep[1],
-                                     keep[2], keep[3], k0, min(k0 + CHUNK, n), r, k_fail)
+                                     keep[2], keep[3], k0, min(k0 + CHUNK, n), held_buf, r,
+                                     k_fail)
         if status:
             break
         if progress is not None:
@@ -166,7 +181,8 @@ def _run_compiled(model, traj, refs, v_ff, ctrl, motors, bound, rec, progress, o
     if status:  # the state in d is the failed step's start: the core's one refusal message
         t_k, h = float(traj.t[k]), float(traj.t[k + 1] - traj.t[k])
         y = np.frombuffer(ffi.buffer(d.y), dtype=np.float64)[:d.n]
-        rack = 0.0 + model.drive.force_per_torque * rec.data["tau"][k]  # as closed_loop_run
+        tau = rec.data["tau"][k] if held is None else held   # the failed step's torques
+        rack = 0.0 + model.drive.force_per_torque * tau  # as closed_loop_run
         text = core.refusal(P, o.method, t_k, h, status, y, rack, d.excess, d.allowed)
         if status in (ENERGY_GAIN, STATE_NONFINITE):  # numerically unstable: as Plant.do_step
             step = internal_step(o, h)

@@ -74,17 +74,25 @@ def tune_pid(axis: AxisModel, bandwidth_hz: float, phase_margin_deg: float) -> P
     return PidGains(float(kp), float(ki), 0.0)
 
 
-def sampled_spectral_radius(axis: AxisModel, gains: PidGains, dt: float) -> float:
+def sampled_spectral_radius(axis: AxisModel, gains: PidGains, dt: float, delay: int = 0) -> float:
     """Largest |eigenvalue| of the loop as it runs: the axis sampled with a zero-order hold at
-    dt, the integral summed per sample and the derivative on the measured rate (axis.py).
+    dt, the integral summed per sample and the derivative on the measured rate (axis.py), the
+    voltage applied `delay` periods after its sample (0 or 1: ControllerConfig.delay).
     Below 1 the sampled loop is stable; the continuous margins alone do not show that."""
+    if delay not in (0, 1):
+        raise ValueError(f"delay must be 0 or 1 controller periods, got {delay!r}")
     sys = ct.c2d(axis.state_space(), dt, method="zoh")
     Ad, Bd = np.asarray(sys.A), np.asarray(sys.B)[:, 0]
-    # states (x, v, i, integral); reference 0: e = -x, V = -kp x - kd v + ki integral
+    # states (x, v, i, integral[, the latched voltage]); reference 0: e = -x,
+    # V = -kp x - kd v + ki integral, driving the axis now or (delay 1) over the next period
     K = np.array([-gains.kp, -gains.kd, 0.0, gains.ki])
-    M = np.zeros((4, 4))
+    M = np.zeros((4 + delay, 4 + delay))
     M[:3, :3] = Ad
-    M[:3, :] += np.outer(Bd, K)
+    if delay:
+        M[:3, 4] = Bd
+        M[4, :4] = K
+    else:
+        M[:3, :] += np.outer(Bd, K)
     M[3, 0], M[3, 3] = -dt, 1.0
     return float(np.max(np.abs(np.linalg.eigvals(M))))
 
@@ -114,16 +122,18 @@ def design_axis(model: Model, config: ControllerConfig) -> tuple[AxisModel, PidG
     """The constant-load drive, its tuned gains and the loop's analysis; refuses unstable loops."""
     axis = axis_model(model, config.motor, config.load_mass)
     gains = tune_pid(axis, config.bandwidth, config.phase_margin)
-    return axis, gains, check_stable(axis, gains, config.dt)
+    return axis, gains, check_stable(axis, gains, config.dt, config.delay)
 
 
-def check_stable(axis: AxisModel, gains: PidGains, dt: float) -> Analysis:
+def check_stable(axis: AxisModel, gains: PidGains, dt: float, delay: int = 0) -> Analysis:
     """analyse(), raising UnstableLoopError (with the margins) when the continuous loop or the
-    loop sampled at dt is unstable."""
+    loop sampled at dt (with `delay` periods of actuation delay) is unstable."""
     a = analyse(axis, gains)
-    rho = sampled_spectral_radius(axis, gains, dt)
+    rho = sampled_spectral_radius(axis, gains, dt, delay)
     if not a.stable or not rho < 1.0:
-        where = "closed loop" if not a.stable else f"loop sampled at {1 / dt:g} Hz (spectral radius {rho:.4g})"
+        late = f" with {delay} period of actuation delay" if delay else ""
+        where = ("closed loop" if not a.stable else
+                 f"loop sampled at {1 / dt:g} Hz{late} (spectral radius {rho:.4g})")
         raise UnstableLoopError(
             f"{where} unstable with gains {gains}: gain margin {a.gain_margin_db:.3g} dB, "
             f"phase margin {a.phase_margin_deg:.3g} deg at {a.crossover_hz:.3g} Hz")

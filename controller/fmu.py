@@ -13,14 +13,15 @@ the Kane feedforward needs the plant's model, which the controller does not hold
 serves "none" (0), "constant_load" and "kane" alike. Outputs are the sample at the current
 communication point (direct feedthrough from l, ldot and the references): a master reads tau
 after setting the measured lengths and before stepping the plant, and doStep then advances the
-controller over whole controller periods with the inputs held.
+controller over whole controller periods with the inputs held. With the parameter delay = 1
+(its start value is the scene's [controller] delay) they are the last step's sample instead: one
+period of actuation delay, under that master or an SSP importer's step-then-exchange.
 """
 from __future__ import annotations
 
 import hashlib
 import re
 import shutil
-import subprocess
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,8 +29,8 @@ from xml.etree.ElementTree import Element, SubElement, indent, tostring
 
 import numpy as np
 
-from stewart_fmu.fmu.export import (CFLAGS, NATIVE, BuildError, core_sources, find_compiler,
-                                    pack, platform_folder)
+from stewart_fmu.fmu.export import (NATIVE, build_binaries, core_sources, find_compiler, pack,
+                                    platform_folder)
 from stewart_fmu.model import Model
 
 from .config import ControllerConfig
@@ -102,7 +103,7 @@ def start_values(model: Model, config: ControllerConfig) -> dict[str, np.ndarray
     feedforward the scene chose); inputs: the home's leg lengths, at rest."""
     axis = axis_model(model, config.motor, config.load_mass)
     gains = tune_pid(axis, config.bandwidth, config.phase_margin)
-    check_stable(axis, gains, config.dt)
+    check_stable(axis, gains, config.dt, config.delay)
     zeros = np.zeros((2, 6))
     rest = Trajectory(np.array([0.0, config.dt]), np.tile(model.home, (2, 1)), zeros, zeros.copy())
     refs = leg_references(model, rest)
@@ -114,7 +115,7 @@ def start_values(model: Model, config: ControllerConfig) -> dict[str, np.ndarray
             "resistance": m.resistance, "inductance": m.inductance,
             "torque_constant": m.torque_constant, "emf_constant": axis.emf_constant,
             "force_per_torque": model.drive.force_per_torque, "integral0": integral0,
-            "current0": current0, "reference": 0.0, "delay": 0.0, "l_ref": refs.l[0], "ldot_ref": np.zeros(6), "v_ff": np.zeros(6),
+            "current0": current0, "reference": 0.0, "delay": float(config.delay), "l_ref": refs.l[0], "ldot_ref": np.zeros(6), "v_ff": np.zeros(6),
             "l": refs.l[0], "ldot": np.zeros(6)}
 
 
@@ -267,7 +268,7 @@ def export_controller(model: Model, config: ControllerConfig, out_path: str | Pa
         values["l_ref"], values["ldot_ref"], values["v_ff"] = move[0, :6], move[0, 6:12], move[0, 12:]
     table = variables(values)
     compiler = find_compiler()
-    folder, ext = platform_folder(fmi_version)
+    platform_folder(fmi_version)   # BuildError before any work: no binaries folder for this platform
     core = core_sources()
     own = {**{rel: NATIVE / rel for rel in core + FMI_LAYER[fmi_version]}, **OWN_SOURCES}
     c_files = sorted(f for f in own if f.endswith(".c")) + [START_FILE]
@@ -283,14 +284,8 @@ def export_controller(model: Model, config: ControllerConfig, out_path: str | Pa
             (src / "buildDescription.xml").write_bytes(_build_description(c_files))
         (root / "modelDescription.xml").write_bytes(
             model_description(f"{model.name} controller", table, fmi_version, c_files, move))
-        binary = root / "binaries" / folder / f"{MODEL_IDENTIFIER}{ext}"
-        binary.parent.mkdir(parents=True)
-        flags = [f for f in CFLAGS if not (ext == ".dll" and f == "-fPIC")]
-        cmd = [compiler, *flags, "-I", str(src), "-I", str(src / "include"), "-shared", "-o", str(binary),
-               *[str(src / f) for f in c_files], "-lm"]
-        proc = subprocess.run(cmd, capture_output=True, text=True)
-        if proc.returncode != 0 or not binary.exists():
-            raise BuildError(f"compiling the controller FMU failed ({' '.join(cmd)}):\n"
-                             f"{proc.stderr[-4000:]}")
+        build_binaries(compiler, [str(src / f) for f in c_files],
+                       ["-I", str(src), "-I", str(src / "include")], root, MODEL_IDENTIFIER,
+                       fmi_version, "the controller FMU")
         pack(root, Path(tmp) / "packed.fmu", out)
     return out

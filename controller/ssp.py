@@ -9,21 +9,23 @@ set per component, and the move.
     resources/controller.fmu  export-fmu --controller, carrying the move (controller.fmu: its
                               parameter reference = 1: l_ref, ldot_ref, v_ff from the move)
     resources/plant.ssv       sigma = 0 (the drives alone push), q0, qd0 the move's start
-    resources/controller.ssv  the design: gains, limits, rate, the drives' start
+    resources/controller.ssv  the design: gains, limits, rate, the drives' start, delay = 1
 
 The move is `run`'s reference (controller.moves.run_reference) and its feedforward voltage
 (feedforward.feedforward_voltage), sampled at the controller rate.
 
 Timing: SSP importers step every FMU over the period and then pass the outputs on (FMPy's
 simulate_ssp, libcosim's fixed-step algorithm), so the torque the controller computes from the
-lengths at t_k reaches the plant one period later than in `run`, where the plant steps after
-the controller within the same sample. The controller's outputs are the sample at its current
-time from its inputs (direct feedthrough), so after its step at t_k it offers the torque of
-t_k+1 from the lengths of t_k.
+lengths at t_k reaches the plant over [t_k+1, t_k+2]: one period of actuation delay, the
+scene's `[controller] delay = 1` (config.ControllerConfig). The controller FMU's parameter
+delay = 1 (its outputs are the last step's sample, before the first step the drives' start)
+makes that loop `run`'s with delay 1, sample for sample; so the SSP is always written with
+delay 1, whatever the scene's.
 """
 from __future__ import annotations
 
 import tempfile
+from dataclasses import replace
 from pathlib import Path
 from xml.etree.ElementTree import Element, SubElement, indent, register_namespace, tostring
 
@@ -124,16 +126,18 @@ def system_structure(name: str, stop_time: float, step: float) -> bytes:
 def export_ssp(model: Model, scene_text: bytes, config: ControllerConfig, traj: Trajectory,
                out_path: str | Path) -> Path:
     """Write the SSP of the closed loop along traj (sampled at the controller rate, starting at
-    rest: `run`'s reference) at out_path; returns it. The errors of export_model and
-    export_controller."""
+    rest: `run`'s reference) at out_path; returns it. The loop has one period of actuation
+    delay whatever config.delay (see the module doc). The errors of export_model and
+    export_controller (UnstableLoopError: the design with that delay is unstable)."""
     out = Path(out_path)
+    config = replace(config, delay=1)   # the importers' step-then-exchange
     move = move_of(model, config, traj)
     start = start_values(model, config)
     plant_set = {**_scalars("sigma", np.zeros(6)), **_scalars("q0", traj.q[0]),
                  **_scalars("qd0", traj.qd[0])}
     controller_set = {}
     for key in CONTROLLER_PARAMETERS:
-        controller_set.update(_scalars(key, 1.0 if key in ("reference", "delay") else start[key]))
+        controller_set.update(_scalars(key, 1.0 if key == "reference" else start[key]))
     with tempfile.TemporaryDirectory(prefix="stewart_ssp_") as tmp:
         root = Path(tmp) / "ssp"
         res = root / "resources"

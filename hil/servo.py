@@ -32,7 +32,7 @@ from controller.design import design_axis
 from controller.feedforward import start_at_equilibrium
 from controller.plants import InProcessPlant
 from controller.trajectory import QUINTIC_PEAK_RATE, Trajectory, leg_references, minimum_jerk
-from stewart_fmu.errors import StewartError
+from stewart_fmu.errors import SceneError, StewartError
 from stewart_fmu.model import Model
 
 HOMING_SPEED = 0.25        # peak homing leg rate, stroke fractions per second
@@ -44,6 +44,10 @@ class Servo:
 
     def __init__(self, model: Model, config: ControllerConfig,
                  plant_model: Model | None = None) -> None:
+        if config.delay:   # the ticks below apply each sample's torque within its own tick
+            raise SceneError("controller.delay", f"the device's drive loops have no actuation "
+                                                 f"delay: must be 0, got {config.delay}",
+                             model.source)
         self.model = model
         self.plant_model = model if plant_model is None else plant_model
         self.dt = config.dt

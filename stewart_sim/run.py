@@ -155,6 +155,8 @@ def run_summary(model: Model, result, traj, where: str) -> str:
         f"{len(traj.t)} samples at {cfg.rate:.6g} Hz; goal pose "
         f"{format_vector(traj.q[int(round(RUN_MOVE * duration * cfg.rate))])}",
         f"- feedforward: {cfg.feedforward}",
+        *([f"- actuation delay: {cfg.delay} controller period (controller.delay: each "
+           f"sample's torque drives the period after it)"] if cfg.delay else []),
         "",
         "## Design (each axis, constant load)",
         "",

@@ -59,7 +59,7 @@ void axis_step(const axis_loop *c, double *integral, double *current, const doub
 int closed_loop_run(const double *params, const stewart_options *o, const axis_loop *c,
                     stewart_data *d, double *integral, double *current, const double *t,
                     long n, const double *l_ref, const double *ldot_ref, const double *v_ff,
-                    long k0, long k1, const axis_records *rec, long *k_fail)
+                    long k0, long k1, double *held, const axis_records *rec, long *k_fail)
 {
     double l[6], ldot[6], om[3], v[6], torque[6], rack[6];
     unsigned char sat[6];
@@ -88,13 +88,20 @@ int closed_loop_run(const double *params, const stewart_options *o, const axis_l
             return AXIS_DIVERGED;
         }
         if (k + 1 < n) {
+            /* the torque over this period: this sample's, or (one period of delay) the one
+               latched at the last sample; this sample's is latched after the step, so that a
+               failed step leaves in held the torque it was given */
+            const double *applied = held ? held : torque;
             for (i = 0; i < 6; ++i)
-                rack[i] = 0.0 + c->gain * torque[i]; /* the rack force: sigma (0) + zeta/r tau */
+                rack[i] = 0.0 + c->gain * applied[i]; /* the rack force: sigma (0) + zeta/r tau */
             status = stewart_data_step(params, o, d, rack, t[k + 1] - t[k]);
             if (status != STEWART_OK) {
                 *k_fail = k;
                 return status;
             }
+            if (held)
+                for (i = 0; i < 6; ++i)
+                    held[i] = torque[i];
         }
     }
     *k_fail = -1;

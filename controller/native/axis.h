@@ -60,14 +60,17 @@ typedef struct {
 /* Samples k0..k1-1 of the closed loop: measure the legs (stewart_leg_state at the plant state
    d->y) -> pid_voltages -> advance_currents -> record -> divergence check -> (unless k is the
    last sample, k + 1 == n) the plant step over t[k+1] - t[k] with the rack forces gain * torque
-   (stewart_data_step with options o). The state carries across calls in d (y, energy terms,
-   step guess, time), integral and current, so consecutive calls equal one call. Returns 0
-   with *k_fail = -1 when all samples ran; else the status (AXIS_DIVERGED, or the plant step's,
-   the state then is that at the start of the failed step) with *k_fail = the sample. */
+   (stewart_data_step with options o). held NULL: the torque of sample k drives the step from
+   t[k] (no delay); else one period of actuation delay: the step from t[k] takes the torques in
+   held (on the first call the drives' start torque), and held then takes sample k's. The state
+   carries across calls in d (y, energy terms, step guess, time), integral, current and held,
+   so consecutive calls equal one call. Returns 0 with *k_fail = -1 when all samples ran; else
+   the status (AXIS_DIVERGED, or the plant step's, the state then is that at the start of the
+   failed step, held still the torques it took) with *k_fail = the sample. */
 int closed_loop_run(const double *params, const stewart_options *o, const axis_loop *c,
                     stewart_data *d, double *integral, double *current, const double *t,
                     long n, const double *l_ref, const double *ldot_ref, const double *v_ff,
-                    long k0, long k1, const axis_records *rec, long *k_fail);
+                    long k0, long k1, double *held, const axis_records *rec, long *k_fail);
 
 #ifdef __cplusplus
 }

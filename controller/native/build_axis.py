@@ -52,7 +52,7 @@ typedef struct {
 } axis_records;
 int closed_loop_run(void *params, const stewart_options *o, const axis_loop *c,
                     stewart_data *d, void *integral, void *current, void *t, long n,
-                    void *l_ref, void *ldot_ref, void *v_ff, long k0, long k1,
+                    void *l_ref, void *ldot_ref, void *v_ff, long k0, long k1, void *held,
                     const axis_records *rec, long *k_fail);
 """
 

@@ -109,7 +109,7 @@ def export_model(model: Model, scene_text: bytes, out_path: str | Path,
     if fmi_version not in FMI_VERSIONS:
         raise ValueError(f"fmi_version must be 2 or 3, got {fmi_version!r}")
     compiler = find_compiler()
-    folder, ext = platform_folder(fmi_version)
+    platform_folder(fmi_version)   # BuildError before any work: no binaries folder for this platform
     out = Path(out_path)
     core = core_sources()
     c_files = [f for f in core if f.endswith(".c")] + FMI_SOURCES[fmi_version]
@@ -126,20 +126,8 @@ def export_model(model: Model, scene_text: bytes, out_path: str | Path,
                 model_description.build_description_xml(MODEL_IDENTIFIER, c_files))
         (root / "modelDescription.xml").write_bytes(
             model_description.build(model, table, fmi_version, MODEL_IDENTIFIER, c_files))
-        binary = root / "binaries" / folder / f"{MODEL_IDENTIFIER}{ext}"
-        binary.parent.mkdir(parents=True)
-        flags = [f for f in CFLAGS if not (ext == ".dll" and f == "-fPIC")]
-        sources = [str(src / f) for f in c_files]
-        builds = [([compiler, *flags, "-shared", "-o", str(binary), *sources, "-lm"], binary)]
-        win_folder, _ = platform_folder(fmi_version, windows.SYSTEM, windows.MACHINE)
-        mingw = windows.find_mingw()
-        if win_folder != folder and mingw is None:
-            print(windows.missing_note(), file=sys.stderr)
-        elif win_folder != folder:
-            dll = root / "binaries" / win_folder / f"{MODEL_IDENTIFIER}.dll"
-            dll.parent.mkdir(parents=True)
-            builds.append((windows.command(mingw, CFLAGS, sources, dll), dll))
-        _compile(builds)
+        build_binaries(compiler, [str(src / f) for f in c_files], [], root, MODEL_IDENTIFIER,
+                       fmi_version, "the FMU")
         (root / "resources").mkdir()   # the scene as given: `run --fmu` checks it matches
         (root / "resources" / SCENE_RESOURCE).write_bytes(scene_text)
         doc = root / "documentation"
@@ -160,14 +148,31 @@ def pack(root: Path, packed: Path, out: Path) -> None:
     shutil.move(packed, out)
 
 
-def _compile(builds: list[tuple[list[str], Path]]) -> None:
-    """Run the compiler commands (command line, the file it makes) side by side: BuildError
-    with the first failure's output."""
+def build_binaries(compiler: str, sources: list[str], flags: list[str], root: Path,
+                   identifier: str, fmi_version: int, what: str) -> None:
+    """Compile the C `sources` (with CFLAGS and the extra `flags`, e.g. include directories)
+    into the FMU tree `root`: binaries/<this platform>/<identifier><ext> with `compiler` and,
+    where mingw-w64 is installed, binaries/<Windows>/<identifier>.dll beside it (windows.py;
+    without it one line on stderr says why), side by side. BuildError naming `what` with the
+    first failure's output."""
+    folder, ext = platform_folder(fmi_version)
+    binary = root / "binaries" / folder / f"{identifier}{ext}"
+    binary.parent.mkdir(parents=True)
+    host = [f for f in CFLAGS if not (ext == ".dll" and f == "-fPIC")] + flags
+    builds = [([compiler, *host, "-shared", "-o", str(binary), *sources, "-lm"], binary)]
+    win_folder, _ = platform_folder(fmi_version, windows.SYSTEM, windows.MACHINE)
+    mingw = windows.find_mingw()
+    if win_folder != folder and mingw is None:
+        print(windows.missing_note(), file=sys.stderr)
+    elif win_folder != folder:
+        dll = root / "binaries" / win_folder / f"{identifier}.dll"
+        dll.parent.mkdir(parents=True)
+        builds.append((windows.command(mingw, CFLAGS + flags, sources, dll), dll))
     with ThreadPoolExecutor(len(builds)) as pool:
         procs = list(pool.map(lambda b: subprocess.run(b[0], capture_output=True, text=True), builds))
     for proc, (cmd, out) in zip(procs, builds):
         if proc.returncode != 0 or not out.exists():
-            raise BuildError(f"compiling the FMU failed ({' '.join(cmd)}):\n{proc.stderr[-4000:]}")
+            raise BuildError(f"compiling {what} failed ({' '.join(cmd)}):\n{proc.stderr[-4000:]}")
 
 
 def _documentation(name: str, fmi_version: int) -> str:

@@ -27,7 +27,8 @@ def add_parser(sub, help_text: str) -> None:
                    help="export the scene's [controller] instead: the six PIDs with anti-windup "
                         "and the motor currents (axis.c, as the closed loop), leg references, "
                         "feedforward voltage and measured leg lengths and rates in, motor "
-                        "torques out, at the controller rate")
+                        "torques out, at the controller rate (with the scene's "
+                        "[controller] delay = 1 a period late: parameter delay)")
     p.set_defaults(run=run)
 
 

@@ -24,7 +24,8 @@ def add_parser(sub, help_text: str) -> None:
                                    "plant.ldot -> controller, controller.tau -> plant, and a "
                                    "parameter set per FMU. Runs in FMPy's simulate_ssp and "
                                    "libcosim; their exchange after every step delays the "
-                                   "torque by one controller period against `run`.")
+                                   "torque by one controller period: the SSP is `run` of the "
+                                   "scene with controller.delay = 1.")
     p.add_argument("scene", metavar="SCENE", help="scene file (TOML) with a [controller] table")
     p.add_argument("-o", "--out", required=True, metavar="LOOP.ssp", help="the SSP to write")
     p.add_argument("--duration", type=positive_seconds, metavar="SECONDS", default=duration,
@@ -59,6 +60,10 @@ def run(args: argparse.Namespace) -> None:
                            f"{MAX_MOVE_SAMPLES} (use --duration "
                            f"{MAX_MOVE_SAMPLES / config.rate:g} or less)")
     traj = run_reference(model, config, args.duration)
+    if config.delay == 0:
+        print(f"note: {args.scene} has controller.delay = 0; SSP importers step every FMU before "
+              f"passing outputs on, which adds one period of actuation delay: the SSP equals "
+              f"`run` with controller.delay = 1")
     with writing(out):
         export_ssp(model, text, config, traj, out)
     print(f"wrote {out}")

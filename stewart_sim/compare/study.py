@@ -235,7 +235,8 @@ def _point(model: Model, config: ControllerConfig, traj: Trajectory, refs, modes
         axis, gains, analysis = design_axis(model, config)
     except StewartError as exc:  # DesignError, UnstableLoopError
         return SweepPoint(status="infeasible", message=f"{type(exc).__name__}: {exc}", **base)
-    pm, fc = zip(*(_margins(replace(axis, load_mass=lam), gains, config.dt) for lam in eig))
+    pm, fc = zip(*(_margins(replace(axis, load_mass=lam), gains, config.dt, config.delay)
+                   for lam in eig))
     runs = {mode: run_mode(model, config, traj, gains, mode) for mode in modes}
     return SweepPoint(status="ok", gains=gains, phase_margin=analysis.phase_margin_deg,
                       crossover_hz=analysis.crossover_hz, gain_margin_db=analysis.gain_margin_db,
@@ -257,13 +258,13 @@ def run_mode(model: Model, config: ControllerConfig, traj: Trajectory, gains: Pi
                    s.wall_time)
 
 
-def _margins(axis: AxisModel, gains: PidGains, dt: float) -> tuple[float, float]:
-    """Phase margin (deg; NaN when the loop, continuous or sampled at dt, is unstable) and
-    crossover (Hz) of the loop."""
+def _margins(axis: AxisModel, gains: PidGains, dt: float, delay: int) -> tuple[float, float]:
+    """Phase margin (deg; NaN when the loop, continuous or sampled at dt with `delay` periods
+    of actuation delay, is unstable) and crossover (Hz) of the loop."""
     L = loop(axis, gains)
     _, pm, _, wc = ct.margin(L)
     stable = (bool(np.all(np.real(ct.poles(ct.feedback(L, 1))) < 0))
-              and sampled_spectral_radius(axis, gains, dt) < 1.0)
+              and sampled_spectral_radius(axis, gains, dt, delay) < 1.0)
     return (float(pm) if stable else np.nan), float(wc / (2 * np.pi))
 
 

@@ -103,6 +103,21 @@ def test_run_writes_files_and_summary_equals_result(scene, tmp_path, capsys) -> 
     assert f"peak current: {g6(np.max(s.current_max))} A" in summary
 
 
+def test_summary_states_an_actuation_delay() -> None:
+    """A run with [controller] delay = 1 says so in summary.md (one line); without, no line."""
+    import dataclasses
+
+    model = load_scene(MICRO)
+    for delay in (0, 1):
+        config = dataclasses.replace(controller_config(model), delay=delay)
+        traj = run_reference(model, config, 0.3)
+        text = run_files.run_summary(model, run_closed_loop(model, config, traj), traj, "in-process")
+        lines = [ln for ln in text.splitlines() if ln.startswith("- actuation delay:")]
+        assert lines == ([] if delay == 0 else [
+            "- actuation delay: 1 controller period (controller.delay: each sample's torque "
+            "drives the period after it)"])
+
+
 def test_run_feedforward_override(tmp_path, capsys) -> None:
     """--feedforward replaces the scene's mode (kane) and changes the run."""
     assert run_cli(MICRO, tmp_path / "kane") == 0

@@ -6,10 +6,13 @@ bit; it refuses a step that is not a whole number of controller periods and name
 The master of a sample k: read the plant's l, ldot; set the controller's references, feedforward
 and measurements; read its tau (the sample at t_k, direct feedthrough); step the controller and
 the plant (tau held) over the period. That is closed_loop_run's order, so the two loops compute
-the same numbers: the controller's arithmetic is axis.c's axis_step in both.
+the same numbers: the controller's arithmetic is axis.c's axis_step in both. With the scene's
+[controller] delay = 1 the FMU's parameter delay starts at 1: its tau is the last step's
+sample, and the same master reproduces the closed loop with that delay.
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import subprocess
 import sys
@@ -47,7 +50,9 @@ def micro(tmp_path_factory):
     model = load_scene(path)
     config = controller_config(model)
     plant = export_model(model, path.read_bytes(), tmp / "plant.fmu", 2)
-    ctl = {v: export_controller(model, config, tmp / f"controller{v}.fmu", v) for v in (2, 3)}
+    ctl = {(v, 0): export_controller(model, config, tmp / f"controller{v}.fmu", v) for v in (2, 3)}
+    late = dataclasses.replace(config, delay=1)
+    ctl[2, 1] = export_controller(model, late, tmp / "controller2_delay1.fmu", 2)
     return model, config, plant, ctl
 
 
@@ -66,14 +71,19 @@ def _group(vr: dict[str, int], name: str) -> list[int]:
 
 @pytest.mark.parametrize("version", [2, 3])
 def test_validates(micro, version):
-    assert validate_fmu(str(micro[3][version])) == []
+    assert validate_fmu(str(micro[3][version, 0])) == []
 
 
-@pytest.mark.parametrize("version", [2, 3])
-def test_loop_of_two_fmus_equals_closed_loop(micro, version):
+@pytest.mark.parametrize("version,delay", [(2, 0), (3, 0), (2, 1)])
+def test_loop_of_two_fmus_equals_closed_loop(micro, version, delay):
     """Plant FMU + controller FMU under an fmpy master == run_closed_loop (in-process, the C
-    loop), bit for bit on the leg lengths, torques and voltages of every sample."""
+    loop) with the scene's delay, bit for bit on the leg lengths, torques and voltages of every
+    sample (with delay 1 the FMU's tau and voltage are the closed loop's of the sample before,
+    the drives' start at the first)."""
     model, config, plant_path, ctl = micro
+    config = dataclasses.replace(config, delay=delay)
+    md = read_model_description(str(ctl[version, delay]))
+    assert [float(v.start) for v in md.modelVariables if v.name == "delay"] == [float(delay)]
     traj = run_reference(model, config, DURATION)
     ref = run_closed_loop(model, config, traj).table
     refs = leg_references(model, traj)
@@ -85,7 +95,7 @@ def test_loop_of_two_fmus_equals_closed_loop(micro, version):
     start = start_values(model, config)
     assert np.array_equal(start["current0"], current0) and np.array_equal(start["integral0"], integral0)
 
-    md, ctrl, vr = _slave(ctl[version], "controller")
+    md, ctrl, vr = _slave(ctl[version, delay], "controller")
     set_real = ctrl.setReal if version == 2 else ctrl.setFloat64
     get_real = ctrl.getReal if version == 2 else ctrl.getFloat64
     ctrl.instantiate()
@@ -120,10 +130,14 @@ def test_loop_of_two_fmus_equals_closed_loop(micro, version):
         return np.column_stack([ref[f"{prefix}{i}"] for i in range(1, 7)])
 
     diff = np.max(np.abs(l_rec - legs("l")))
-    print(f"FMI {version}.0 controller FMU + plant FMU vs run_closed_loop: max |dl| = {diff:.3g} m "
-          f"over {n} samples")
+    print(f"FMI {version}.0 controller FMU (delay {delay}) + plant FMU vs run_closed_loop: "
+          f"max |dl| = {diff:.3g} m over {n} samples")
     assert diff == 0.0
-    assert np.array_equal(tau_rec, legs("torque")) and np.array_equal(v_rec, legs("voltage"))
+    if delay:
+        assert np.array_equal(tau_rec[0], current0 * config.motor.torque_constant)
+        tau_rec, v_rec = tau_rec[1:], v_rec[1:]
+    assert np.array_equal(tau_rec, legs("torque")[:n - delay])
+    assert np.array_equal(v_rec, legs("voltage")[:n - delay])
     assert np.ptp(legs("l")) > 1e-3   # the move is a real one
 
 
@@ -135,7 +149,7 @@ import sys
 from fmpy import extract, read_model_description
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave
-path = {str(ctl[2])!r}
+path = {str(ctl[2, 0])!r}
 md = read_model_description(path)
 s = FMU2Slave(guid=md.guid, unzipDirectory=extract(path), modelIdentifier=md.coSimulation.modelIdentifier,
               instanceName="c")
@@ -158,7 +172,7 @@ def test_variables_follow_the_table(micro):
     """Names and value references come from native/fmi/axis_table.h: every group of six,
     consecutive; the FMU answers each (the C and the Python reading of the table agree)."""
     _, config, _, ctl = micro
-    md, slave, vr = _slave(ctl[2], "c")
+    md, slave, vr = _slave(ctl[2, 0], "c")
     table = variables()
     assert [(x.name, x.vr) for x in table] == [(v.name, v.valueReference) for v in md.modelVariables]
     slave.instantiate()

@@ -9,11 +9,16 @@ both step every FMU over the period and then pass outputs on, so the torque of t
 drives the plant over [t_k+1, t_k+2] (the controller's parameter delay = 1); libcosim first runs
 the initial exchange (the plant starts with the drives' holding torque), FMPy's simulate_ssp
 starts every connector at 0.0 (its first plant step has tau = 0, the controller's first sample
-sees l = 0). Against `run` (controller.cosim.run_closed_loop), where the plant steps after the
-controller within a sample, the lengths differ by that period's delay: the figure is printed.
+sees l = 0). That loop is `run` (controller.cosim.run_closed_loop, both its paths) of the scene
+with `[controller] delay = 1`: libcosim's lengths equal `run`'s bit for bit; FMPy's differ by its
+zero start (the figure is printed). With delay 0 (the plant stepped after the controller within
+a sample) the lengths differ by that period's delay: printed too.
 """
 from __future__ import annotations
 
+import contextlib
+import dataclasses
+import io
 import json
 import shutil
 import subprocess
@@ -57,9 +62,15 @@ def loop(tmp_path_factory):
 
     tmp = tmp_path_factory.mktemp("ssp")
     ssp = tmp / "loop.ssp"
-    assert cli.main(["export-ssp", str(SCENE), "-o", str(ssp), "--duration", str(DURATION)]) == 0
+    said = io.StringIO()
+    with contextlib.redirect_stdout(said):
+        assert cli.main(["export-ssp", str(SCENE), "-o", str(ssp), "--duration", str(DURATION)]) == 0
     model = load_scene(SCENE)
     config = controller_config(model)
+    assert config.delay == 0   # the scene's: export-ssp says the SSP is delay 1's
+    notes = [ln for ln in said.getvalue().splitlines() if "controller.delay = 1" in ln]
+    assert len(notes) == 1 and "controller.delay = 0" in notes[0], said.getvalue()
+    config = dataclasses.replace(config, delay=1)
     traj = run_reference(model, config, DURATION)
     steps = len(traj.t) - 1
     work = tmp / "clean"
@@ -73,6 +84,23 @@ def loop(tmp_path_factory):
     assert proc.returncode == 0 and lines, proc.stdout[-2000:] + proc.stderr[-4000:]
     got = {k: np.array(v) for k, v in json.loads(lines[-1][7:]).items()}
     return model, config, traj, got
+
+
+def _lengths(table: np.ndarray) -> np.ndarray:
+    """The leg lengths after every step of a `run` table (its samples 1..n-1), shape (steps, 6)."""
+    return np.column_stack([table[f"l{i}"] for i in range(1, 7)])[1:]
+
+
+@pytest.fixture(scope="module")
+def delayed_run(loop):
+    """`run`'s closed loop of the scene with [controller] delay = 1: the C loop's table, after
+    checking the Python loop's (around InProcessPlant) equals it bit for bit, every column."""
+    model, config, traj, _ = loop
+    compiled = run_closed_loop(model, config, traj).table
+    python = run_closed_loop(model, config, traj, plant=InProcessPlant(model)).table
+    for name in compiled.dtype.names:
+        assert np.array_equal(compiled[name], python[name]), name
+    return compiled
 
 
 def delayed_loop(model, config, traj, times, sizes, fmpy_start: bool) -> np.ndarray:
@@ -104,9 +132,21 @@ def delayed_loop(model, config, traj, times, sizes, fmpy_start: bool) -> np.ndar
     return np.array(out)
 
 
-def test_libcosim_runs_the_loop(loop):
+def test_run_with_delay_is_the_delayed_loop(loop, delayed_run):
+    """`run` with [controller] delay = 1 (the C loop and the Python loop, equal: delayed_run) is
+    the in-process loop of an SSP importer at `run`'s sample times, bit for bit; and the delay
+    is a real one: the lengths differ from delay 0's."""
+    model, config, traj, _ = loop
+    want = delayed_loop(model, config, traj, list(traj.t), list(np.diff(traj.t)), fmpy_start=False)
+    assert np.array_equal(_lengths(delayed_run), want)
+    prompt = run_closed_loop(model, dataclasses.replace(config, delay=0), traj).table
+    assert not np.array_equal(_lengths(prompt), want)
+
+
+def test_libcosim_runs_the_loop(loop, delayed_run):
     """libcosim: communication points at integer nanoseconds, t = ns / 1e9 and h = t1 - t0; the
-    plant's lengths equal the in-process loop's bit for bit."""
+    plant's lengths equal the in-process loop's bit for bit, and so `run`'s with delay 1: its
+    points are `run`'s sample times (k / rate, the same doubles), so the figure is 0."""
     model, config, traj, got = loop
     step_ns = round(config.dt * 1e9)
     times = [k * step_ns / 1e9 for k in range(len(traj.t))]
@@ -114,6 +154,11 @@ def test_libcosim_runs_the_loop(loop):
     want = delayed_loop(model, config, traj, times, sizes, fmpy_start=False)
     assert got["libcosim"].shape == want.shape
     assert np.array_equal(got["libcosim"], want)
+    assert np.array_equal(np.array(times), traj.t)
+    diff = float(np.max(np.abs(got["libcosim"] - _lengths(delayed_run))))
+    print(f"libcosim: max |l - run's l (delay 1)| = {diff:.3g} m over {len(times) - 1} steps")
+    assert diff <= 1e-9
+    assert np.array_equal(got["libcosim"], _lengths(delayed_run))
 
 
 def test_fmpy_runs_the_loop(loop):
@@ -128,16 +173,19 @@ def test_fmpy_runs_the_loop(loop):
     assert np.array_equal(got["fmpy"], want)
 
 
-def test_against_run(loop):
-    """The figures against `run` (the plant stepped after the controller within a sample): the
-    difference is the SSP exchange's period of delay, not an error of either FMU (those equal
-    `run` bit for bit under a master that passes the torque within the sample:
+def test_against_run(loop, delayed_run):
+    """The figures against `run`: with delay 1, FMPy's differ only by its zero start (the first
+    period without torque, the first sample seeing l = 0; libcosim's are equal:
+    test_libcosim_runs_the_loop); with delay 0 (the plant stepped after the controller within
+    a sample) both differ by the SSP exchange's period of delay, not an error of either FMU
+    (those equal `run` bit for bit under a master that passes the torque within the sample:
     test_controller_fmu.py)."""
     model, config, traj, got = loop
-    table = run_closed_loop(model, config, traj).table
-    run_l = np.column_stack([table[f"l{i}"] for i in range(1, 7)])[1:]
-    run_err = np.max(np.abs(np.column_stack([table[f"e{i}"] for i in range(1, 7)])))
-    for name, lengths in got.items():
-        print(f"{name}: max |l - run's l| = {np.max(np.abs(lengths - run_l)):.3g} m "
-              f"(run's own tracking error up to {run_err:.3g} m)")
-        assert np.all(np.isfinite(lengths))
+    prompt = run_closed_loop(model, dataclasses.replace(config, delay=0), traj).table
+    for delay, table in ((1, delayed_run), (0, prompt)):
+        run_err = np.max(np.abs(np.column_stack([table[f"e{i}"] for i in range(1, 7)])))
+        for name, lengths in got.items():
+            diff = np.abs(lengths - _lengths(table))
+            print(f"{name}: max |l - run's l (delay {delay})| = {np.max(diff):.3g} m, at the end "
+                  f"{np.max(diff[-1]):.3g} m (run's own tracking error up to {run_err:.3g} m)")
+            assert np.all(np.isfinite(lengths))

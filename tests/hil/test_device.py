@@ -100,6 +100,20 @@ def test_starts_at_home_holding_and_streams_telemetry(model):
     assert (lp.x, lp.y, lp.z) == pytest.approx((0.0, 0.0, -model.home[2]), abs=1e-12)  # NED: z down
 
 
+def test_refuses_an_actuation_delay(model):
+    """The device's ticks apply each sample's torque within the tick: a [controller] with
+    delay = 1 (run's closed loop has it) is refused, naming the key, not ignored."""
+    import dataclasses
+
+    from controller.config import controller_config
+    from stewart_fmu.errors import SceneError
+
+    late = dataclasses.replace(controller_config(model), delay=1)
+    with pytest.raises(SceneError) as info:
+        Device(model, late)
+    assert info.value.key == "controller.delay"
+
+
 def test_attitude_quaternion_is_the_ned_rotation():
     """q(w, x, y, z) reported == the rotation T R T (T: half turn about x, z-up -> NED)."""
     rng = np.random.default_rng(3)
