@@ -3,8 +3,8 @@
 Both FMUs of the micro-manipulator, FMI 2.0 and 3.0: the plant (rk4, 1 ms step, one internal
 step with the power-balance check; inputs sigma, outputs the leg lengths l; FMI 3.0: the
 arrays) and the controller (`export-fmu --controller`: one 1 kHz sample; inputs the measured
-l, outputs tau), each against a trivial FMU of the same shape (6 inputs, 6 outputs, x += h u)
-that this script writes and compiles itself. Each is timed through fmpy (FMU2Slave /
+l, outputs tau; scalars), each against a trivial FMU of the same shape (6 inputs, 6 outputs,
+x += h u; scalars or arrays as ours) that this script writes and compiles itself. Each is timed through fmpy (FMU2Slave /
 FMU3Slave, the calls a Python master makes) and through a C master
 (tests/stewart_fmu/fmi_master.c, dlopen), where the call costs next to nothing: the C column
 of the trivial FMU is the FMI call floor, that of ours its step, and fmpy's per-step overhead
@@ -102,8 +102,23 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String a, fmi3String b, fmi3String 
     fmi3LogMessageCallback k, fmi3IntermediateUpdateCallback l) {
     (void)a,(void)b,(void)c,(void)d,(void)e,(void)f,(void)g,(void)h,(void)i,(void)j,(void)k,(void)l; return calloc(1, sizeof(M)); }
 void fmi3FreeInstance(fmi3Instance c) { free(c); }
-fmi3Status fmi3SetFloat64(fmi3Instance c, const fmi3ValueReference vr[], size_t n, const fmi3Float64 v[], size_t m) { (void)m; return setv(c, vr, n, v); }
-fmi3Status fmi3GetFloat64(fmi3Instance c, const fmi3ValueReference vr[], size_t n, fmi3Float64 v[], size_t m) { (void)m; return getv(c, vr, n, v); }
+/* u and y also as arrays of six, ua (13) and ya (14), as the plant's FMI 3.0 sigma and l */
+fmi3Status fmi3SetFloat64(fmi3Instance c, const fmi3ValueReference vr[], size_t n, const fmi3Float64 v[], size_t m) {
+    M *x = c; size_t k, j = 0;
+    for (k = 0; k < n; k++) {
+        if (vr[k] == 13 && j + 6 <= m) { memcpy(x->u, v + j, sizeof x->u); j += 6; }
+        else if (vr[k] >= 1 && vr[k] <= 6 && j < m) x->u[vr[k] - 1] = v[j++];
+        else return fmi3Error;
+    }
+    return j == m ? fmi3OK : fmi3Error; }
+fmi3Status fmi3GetFloat64(fmi3Instance c, const fmi3ValueReference vr[], size_t n, fmi3Float64 v[], size_t m) {
+    M *x = c; size_t k, j = 0;
+    for (k = 0; k < n; k++) {
+        if (vr[k] == 14 && j + 6 <= m) { memcpy(v + j, x->x, sizeof x->x); j += 6; }
+        else if (vr[k] >= 7 && vr[k] <= 12 && j < m) v[j++] = x->x[vr[k] - 7];
+        else return fmi3Error;
+    }
+    return j == m ? fmi3OK : fmi3Error; }
 fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 t, fmi3Float64 h, fmi3Boolean a, fmi3Boolean *b, fmi3Boolean *d,
     fmi3Boolean *e, fmi3Float64 *f) { (void)t,(void)a; *b = *d = *e = 0; *f = ((M *)c)->t + h; return step(c, h); }
 fmi3Status fmi3EnterInitializationMode(fmi3Instance c, fmi3Boolean a, fmi3Float64 b, fmi3Float64 d, fmi3Boolean e,
@@ -115,7 +130,8 @@ fmi3Status fmi3Terminate(fmi3Instance c) { (void)c; return fmi3OK; }
 
 
 def build_trivial(folder: Path, version: int) -> Path:
-    """A 6-in 6-out FMU (u[1..6] -> y[1..6], x += h u) compiled here; its path."""
+    """A 6-in 6-out FMU (u[1..6] -> y[1..6], x += h u; FMI 3.0: also the arrays ua -> ya) compiled
+    here; its path."""
     root = folder / f"trivial{version}"
     plat = "linux64" if version == 2 else "x86_64-linux"
     (root / "binaries" / plat).mkdir(parents=True)
@@ -148,7 +164,12 @@ def build_trivial(folder: Path, version: int) -> Path:
               f'<ModelVariables>{"".join(var)}</ModelVariables><ModelStructure><Outputs>{outs}</Outputs>'
               '</ModelStructure></fmiModelDescription>')
     else:
-        outs = "".join(f'<Output valueReference="{i}"/>' for i in range(7, 13))
+        zeros = " ".join(["0"] * 6)
+        var += [f'<Float64 name="ua" valueReference="13" causality="input" variability="continuous" start="{zeros}">'
+                '<Dimension start="6"/></Float64>',
+                f'<Float64 name="ya" valueReference="14" causality="output" variability="continuous" initial="exact" '
+                f'start="{zeros}"><Dimension start="6"/></Float64>']
+        outs = "".join(f'<Output valueReference="{i}"/>' for i in (*range(7, 13), 14))
         md = ('<?xml version="1.0" encoding="UTF-8"?><fmiModelDescription fmiVersion="3.0" modelName="trivial" '
               'instantiationToken="{trivial}" variableNamingConvention="structured"><CoSimulation '
               'modelIdentifier="Trivial"/><ModelVariables><Float64 name="time" valueReference="0" '
@@ -248,7 +269,8 @@ def cases(folder: Path, steps: int) -> list[tuple[str, Case, Case]]:
         plant = export_fmu(SCENE, folder / f"plant{version}.fmu", fmi_version=version)
         names = (([f"sigma{i}" for i in six], [f"l{i}" for i in six]) if version == 2
                  else (["sigma"], ["l"]))   # FMI 3.0: the arrays
-        out.append((f"plant {version}.0", Case(plant, version, *names, sigma), trivial))
+        same = trivial if version == 2 else replace(trivial, inputs=["ua"], outputs=["ya"])   # arrays for arrays
+        out.append((f"plant {version}.0", Case(plant, version, *names, sigma), same))
         ctl = export_controller(model, config, folder / f"controller{version}.fmu", version)
         out.append((f"controller {version}.0", Case(ctl, version, [f"l{i}" for i in six], [f"tau{i}" for i in six],
                                                     lengths), replace(trivial, values=lengths)))
