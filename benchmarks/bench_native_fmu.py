@@ -9,8 +9,9 @@ FMU3Slave, the calls a Python master makes) and through a C master
 (tests/stewart_fmu/fmi_master.c, dlopen), where the call costs next to nothing: the C column
 of the trivial FMU is the FMI call floor, that of ours its step, and fmpy's per-step overhead
 is fmpy's trivial time less the C one, the same for any FMU of this shape. So the fmpy ratio
-is (fmpy overhead + our step) / (fmpy overhead + trivial step). Best of several repeats, ours
-and the trivial FMU alternated (a burst of load hits both alike); ratios within one run.
+is (fmpy overhead + our step) / (fmpy overhead + trivial step). Times are the thread's CPU
+time (a machine shared with other jobs preempts the loop), best of several rounds, each round
+timing every FMU in turn (a burst of load hits all alike); ratios within one run.
 Run: .venv/bin/python benchmarks/bench_native_fmu.py [--steps N] [--repeats R]
 """
 from __future__ import annotations
@@ -224,12 +225,12 @@ def fmpy_step_time(case: Case, unzip: str) -> float:
     vin, vout = [vr[n] for n in case.inputs], [vr[n] for n in case.outputs]
     f, set_, get = _slave(case, unzip)
     rows, step = case.values.tolist(), f.doStep
-    t0 = time.perf_counter()
+    t0 = time.thread_time()   # CPU time, as the C master's: preemption by other jobs is not counted
     for k in range(len(rows)):
         set_(vin, rows[k])
         step(k * H, H)
         get(vout)
-    elapsed = (time.perf_counter() - t0) / len(rows)
+    elapsed = (time.thread_time() - t0) / len(rows)
     f.terminate()
     f.freeInstance()
     return elapsed
