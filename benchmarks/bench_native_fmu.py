@@ -1,11 +1,18 @@
-"""Speed of the native FMU: one co-simulation step (set 6 inputs + doStep + get 6 outputs).
+"""Speed of the native FMUs: one co-simulation step (set 6 inputs + doStep + get 6 outputs).
 
-Through fmpy (FMU2Slave / FMU3Slave, the calls a Python master makes), our FMU of the
-micro-manipulator (rk4, 1 ms step, one internal step with the power-balance check) against a
-trivial FMU of the same shape (6 inputs, 6 outputs, x += h u) that this script writes and
-compiles itself; and the same loop in C (tests/stewart_fmu/fmi_master.c, dlopen), where the
-FMI call overhead is negligible and the time is the plant's. Best of several repeats.
-Run: .venv/bin/python benchmarks/bench_native_fmu.py [--steps N]
+Both FMUs of the micro-manipulator, FMI 2.0 and 3.0: the plant (rk4, 1 ms step, one internal
+step with the power-balance check; inputs sigma, outputs the leg lengths l; FMI 3.0: the
+arrays) and the controller (`export-fmu --controller`: one 1 kHz sample; inputs the measured
+l, outputs tau; scalars), each against a trivial FMU of the same shape (6 inputs, 6 outputs,
+x += h u; scalars or arrays as ours) that this script writes and compiles itself. Each is timed through fmpy (FMU2Slave /
+FMU3Slave, the calls a Python master makes) and through a C master
+(tests/stewart_fmu/fmi_master.c, dlopen), where the call costs next to nothing: the C column
+of the trivial FMU is the FMI call floor, that of ours its step, and fmpy's per-step overhead
+is fmpy's trivial time less the C one, the same for any FMU of this shape. So the fmpy ratio
+is (fmpy overhead + our step) / (fmpy overhead + trivial step). Times are the thread's CPU
+time (a machine shared with other jobs preempts the loop), best of several rounds, each round
+timing every FMU in turn (a burst of load hits all alike); ratios within one run.
+Run: .venv/bin/python benchmarks/bench_native_fmu.py [--steps N] [--repeats R]
 """
 from __future__ import annotations
 
@@ -17,11 +24,17 @@ import time
 import zipfile
 from pathlib import Path
 
+from dataclasses import dataclass, replace
+
 import numpy as np
 from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+from fmpy.fmi3 import FMU3Slave
 
-from stewart_fmu import inverse_dynamics, load_scene
-from stewart_fmu.fmu.export import export_fmu
+from controller.config import controller_config
+from controller.fmu import export_controller
+from stewart_fmu import inverse_dynamics, inverse_kinematics, load_scene
+from stewart_fmu.fmu.export import FMI_VERSIONS, export_fmu
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "scenes" / "micro_manipulator.toml"
@@ -90,8 +103,23 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String a, fmi3String b, fmi3String 
     fmi3LogMessageCallback k, fmi3IntermediateUpdateCallback l) {
     (void)a,(void)b,(void)c,(void)d,(void)e,(void)f,(void)g,(void)h,(void)i,(void)j,(void)k,(void)l; return calloc(1, sizeof(M)); }
 void fmi3FreeInstance(fmi3Instance c) { free(c); }
-fmi3Status fmi3SetFloat64(fmi3Instance c, const fmi3ValueReference vr[], size_t n, const fmi3Float64 v[], size_t m) { (void)m; return setv(c, vr, n, v); }
-fmi3Status fmi3GetFloat64(fmi3Instance c, const fmi3ValueReference vr[], size_t n, fmi3Float64 v[], size_t m) { (void)m; return getv(c, vr, n, v); }
+/* u and y also as arrays of six, ua (13) and ya (14), as the plant's FMI 3.0 sigma and l */
+fmi3Status fmi3SetFloat64(fmi3Instance c, const fmi3ValueReference vr[], size_t n, const fmi3Float64 v[], size_t m) {
+    M *x = c; size_t k, j = 0;
+    for (k = 0; k < n; k++) {
+        if (vr[k] == 13 && j + 6 <= m) { memcpy(x->u, v + j, sizeof x->u); j += 6; }
+        else if (vr[k] >= 1 && vr[k] <= 6 && j < m) x->u[vr[k] - 1] = v[j++];
+        else return fmi3Error;
+    }
+    return j == m ? fmi3OK : fmi3Error; }
+fmi3Status fmi3GetFloat64(fmi3Instance c, const fmi3ValueReference vr[], size_t n, fmi3Float64 v[], size_t m) {
+    M *x = c; size_t k, j = 0;
+    for (k = 0; k < n; k++) {
+        if (vr[k] == 14 && j + 6 <= m) { memcpy(v + j, x->x, sizeof x->x); j += 6; }
+        else if (vr[k] >= 7 && vr[k] <= 12 && j < m) v[j++] = x->x[vr[k] - 7];
+        else return fmi3Error;
+    }
+    return j == m ? fmi3OK : fmi3Error; }
 fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 t, fmi3Float64 h, fmi3Boolean a, fmi3Boolean *b, fmi3Boolean *d,
     fmi3Boolean *e, fmi3Float64 *f) { (void)t,(void)a; *b = *d = *e = 0; *f = ((M *)c)->t + h; return step(c, h); }
 fmi3Status fmi3EnterInitializationMode(fmi3Instance c, fmi3Boolean a, fmi3Float64 b, fmi3Float64 d, fmi3Boolean e,
@@ -103,7 +131,8 @@ fmi3Status fmi3Terminate(fmi3Instance c) { (void)c; return fmi3OK; }
 
 
 def build_trivial(folder: Path, version: int) -> Path:
-    """A 6-in 6-out FMU (u[1..6] -> y[1..6], x += h u) compiled here; its path."""
+    """A 6-in 6-out FMU (u[1..6] -> y[1..6], x += h u; FMI 3.0: also the arrays ua -> ya) compiled
+    here; its path."""
     root = folder / f"trivial{version}"
     plat = "linux64" if version == 2 else "x86_64-linux"
     (root / "binaries" / plat).mkdir(parents=True)
@@ -136,7 +165,12 @@ def build_trivial(folder: Path, version: int) -> Path:
               f'<ModelVariables>{"".join(var)}</ModelVariables><ModelStructure><Outputs>{outs}</Outputs>'
               '</ModelStructure></fmiModelDescription>')
     else:
-        outs = "".join(f'<Output valueReference="{i}"/>' for i in range(7, 13))
+        zeros = " ".join(["0"] * 6)
+        var += [f'<Float64 name="ua" valueReference="13" causality="input" variability="continuous" start="{zeros}">'
+                '<Dimension start="6"/></Float64>',
+                f'<Float64 name="ya" valueReference="14" causality="output" variability="continuous" initial="exact" '
+                f'start="{zeros}"><Dimension start="6"/></Float64>']
+        outs = "".join(f'<Output valueReference="{i}"/>' for i in (*range(7, 13), 14))
         md = ('<?xml version="1.0" encoding="UTF-8"?><fmiModelDescription fmiVersion="3.0" modelName="trivial" '
               'instantiationToken="{trivial}" variableNamingConvention="structured"><CoSimulation '
               'modelIdentifier="Trivial"/><ModelVariables><Float64 name="time" valueReference="0" '
@@ -157,96 +191,126 @@ def _section(text: str, version: int) -> str:
     return two if version == 2 else three
 
 
-def fmpy_step_time(fmu: Path, version: int, inputs: list[str], outputs: list[str], values: np.ndarray,
-                   steps: int, repeats: int) -> float:
-    """Best time per step of setReal(6) + doStep + getReal(6) through fmpy's FMU2Slave / FMU3Slave."""
-    unzip = extract(str(fmu))
+@dataclass
+class Case:
+    """One FMU under test: its file and the 6 inputs and outputs a step sets and gets."""
+    fmu: Path
+    version: int
+    inputs: list[str]   # variable names (an FMI 3.0 array: its one name)
+    outputs: list[str]
+    values: np.ndarray  # (steps, 6) inputs per step
+
+
+def _slave(case: Case, unzip: str):
+    md = read_model_description(unzip)
+    if case.version == 2:
+        f = FMU2Slave(guid=md.guid, unzipDirectory=unzip, modelIdentifier=md.coSimulation.modelIdentifier)
+        f.instantiate()
+        f.setupExperiment(startTime=0.0)
+        f.enterInitializationMode()
+        f.exitInitializationMode()
+        return f, f.setReal, f.getReal
+    f = FMU3Slave(guid=md.instantiationToken, unzipDirectory=unzip, modelIdentifier=md.coSimulation.modelIdentifier)
+    f.instantiate()
+    f.enterInitializationMode(startTime=0.0)
+    f.exitInitializationMode()
+    return f, f.setFloat64, lambda vrs: f.getFloat64(vrs, 6)   # 6 values: 6 scalars or an array
+
+
+def fmpy_step_time(case: Case, unzip: str) -> float:
+    """Time per step of setReal(6) + doStep + getReal(6) through fmpy's FMU2Slave / FMU3Slave,
+    one fresh instance."""
     md = read_model_description(unzip)
     vr = {v.name: v.valueReference for v in md.modelVariables}
-    vin, vout = [vr[n] for n in inputs], [vr[n] for n in outputs]
-    best = float("inf")
-    for _ in range(repeats):
-        if version == 2:
-            from fmpy.fmi2 import FMU2Slave
-            f = FMU2Slave(guid=md.guid, unzipDirectory=unzip, modelIdentifier=md.coSimulation.modelIdentifier)
-            f.instantiate()
-            f.setupExperiment(startTime=0.0)
-            f.enterInitializationMode()
-            f.exitInitializationMode()
-            set_, get = f.setReal, f.getReal
-        else:
-            from fmpy.fmi3 import FMU3Slave
-            f = FMU3Slave(guid=md.instantiationToken, unzipDirectory=unzip,
-                          modelIdentifier=md.coSimulation.modelIdentifier)
-            f.instantiate()
-            f.enterInitializationMode(startTime=0.0)
-            f.exitInitializationMode()
-            set_, get = f.setFloat64, lambda vrs: f.getFloat64(vrs, 6)   # 6 values: 6 scalars or an array
-        rows = values.tolist()
-        step = f.doStep
-        t0 = time.perf_counter()
-        for k in range(steps):
-            set_(vin, rows[k])
-            step(k * H, H)
-            get(vout)
-        best = min(best, (time.perf_counter() - t0) / steps)
-        f.terminate()
-        f.freeInstance()
-    return best
+    vin, vout = [vr[n] for n in case.inputs], [vr[n] for n in case.outputs]
+    f, set_, get = _slave(case, unzip)
+    rows, step = case.values.tolist(), f.doStep
+    t0 = time.thread_time()   # CPU time, as the C master's: preemption by other jobs is not counted
+    for k in range(len(rows)):
+        set_(vin, rows[k])
+        step(k * H, H)
+        get(vout)
+    elapsed = (time.thread_time() - t0) / len(rows)
+    f.terminate()
+    f.freeInstance()
+    return elapsed
 
 
-def c_step_time(master: Path, binary: Path, token: str, version: int, vin, vout, values, steps: int,
-                folder: Path) -> float:
+def c_step_time(master: Path, case: Case, unzip: str, folder: Path, repeats: int) -> float:
+    """Best time per step of the same loop in the C master (fmi_master bench)."""
+    md = read_model_description(unzip)
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    vin, vout = [vr[n] for n in case.inputs], [vr[n] for n in case.outputs]
+    binary = next(Path(unzip).glob(f"binaries/*/{md.coSimulation.modelIdentifier}.so"))
+    token = md.guid if case.version == 2 else md.instantiationToken
     script = folder / "script.txt"
-    lines = [f"{steps} {H!r}", " ".join(map(str, [6, len(vin), *vin])), " ".join(map(str, [6, len(vout), *vout]))]
-    lines += [" ".join(repr(x) for x in row) for row in values.tolist()]
+    lines = [f"{len(case.values)} {H!r}", " ".join(map(str, [6, len(vin), *vin])),
+             " ".join(map(str, [6, len(vout), *vout]))]
+    lines += [" ".join(repr(x) for x in row) for row in case.values.tolist()]
     script.write_text("\n".join(lines) + "\n")
-    out = subprocess.run([str(master), "bench", str(version), str(binary), token, str(script), "5"],
+    out = subprocess.run([str(master), "bench", str(case.version), str(binary), token, str(script), str(repeats)],
                          capture_output=True, text=True, check=True).stdout
     return min(float(line.split()[0]) for line in out.splitlines()) * 1e-6
+
+
+def cases(folder: Path, steps: int) -> list[tuple[str, Case, Case]]:
+    """(label, ours, trivial) for the plant and the controller FMU, FMI 2.0 and 3.0."""
+    model = load_scene(SCENE)
+    config = controller_config(model)
+    t = np.arange(steps)[:, None] * H
+    wave = np.sin(2 * np.pi * 10 * t + np.arange(6))
+    hold = inverse_dynamics(model, model.home, np.zeros(6), np.zeros(6))
+    sigma = hold + 0.01 * np.abs(hold).max() * wave        # near the force holding home
+    lengths = inverse_kinematics(model, model.home, with_cond=False).lengths + 1e-4 * wave   # 0.1 mm about home
+    six = [f"[{i}]" for i in range(1, 7)]
+    out = []
+    for version in FMI_VERSIONS:
+        trivial = Case(build_trivial(folder, version), version, [f"u{i}" for i in six], [f"y{i}" for i in six],
+                       sigma)
+        plant = export_fmu(SCENE, folder / f"plant{version}.fmu", fmi_version=version)
+        names = (([f"sigma{i}" for i in six], [f"l{i}" for i in six]) if version == 2
+                 else (["sigma"], ["l"]))   # FMI 3.0: the arrays
+        same = trivial if version == 2 else replace(trivial, inputs=["ua"], outputs=["ya"])   # arrays for arrays
+        out.append((f"plant {version}.0", Case(plant, version, *names, sigma), same))
+        ctl = export_controller(model, config, folder / f"controller{version}.fmu", version)
+        out.append((f"controller {version}.0", Case(ctl, version, [f"l{i}" for i in six], [f"tau{i}" for i in six],
+                                                    lengths), replace(trivial, values=lengths)))
+    return out
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--steps", type=int, default=2000)
-    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--repeats", type=int, default=7)
     args = ap.parse_args()
-    model = load_scene(SCENE)
-    hold = inverse_dynamics(model, model.home, np.zeros(6), np.zeros(6))
-    t = np.arange(args.steps)[:, None] * H
-    sigma = hold + 0.01 * np.abs(hold).max() * np.sin(2 * np.pi * 10 * t + np.arange(6))
+    if not 1 <= args.steps <= 100_000 or not 1 <= args.repeats <= 100:
+        ap.error("--steps must be in 1..100000 and --repeats in 1..100")
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         master = folder / "fmi_master"
         subprocess.run(["cc", "-std=c99", "-O2", "-I", str(FMI), "-o", str(master), str(MASTER), "-ldl"], check=True)
-        rows = []
-        for version in (2, 3):
-            ours = export_fmu(SCENE, folder / f"micro{version}.fmu", fmi_version=version)
-            trivial = build_trivial(folder, version)
-            ins, outs = (([f"sigma[{i}]" for i in range(1, 7)], [f"l[{i}]" for i in range(1, 7)]) if version == 2
-                         else (["sigma"], ["l"]))   # FMI 3.0: the arrays
-            tins, touts = [f"u[{i}]" for i in range(1, 7)], [f"y[{i}]" for i in range(1, 7)]
-            ours_t = triv_t = float("inf")
-            for _ in range(args.repeats):   # alternated: a burst of load hits both alike
-                ours_t = min(ours_t, fmpy_step_time(ours, version, ins, outs, sigma, args.steps, 1))
-                triv_t = min(triv_t, fmpy_step_time(trivial, version, tins, touts, sigma, args.steps, 1))
-            md = read_model_description(str(ours))
-            unzip = Path(extract(str(ours)))
-            binary = next(unzip.glob("binaries/*/StewartPlant.so"))
-            vr = {v.name: v.valueReference for v in md.modelVariables}
-            token = md.guid if version == 2 else md.instantiationToken
-            c_ours = c_step_time(master, binary, token, version, [vr[n] for n in ins], [vr[n] for n in outs],
-                                 sigma, args.steps, folder)
-            tunzip = Path(extract(str(trivial)))
-            c_triv = c_step_time(master, next(tunzip.glob("binaries/*/Trivial.so")), "{trivial}", version,
-                                 list(range(1, 7)), list(range(7, 13)), sigma, args.steps, folder)
-            rows.append((version, ours_t, triv_t, c_ours, c_triv))
-    print(f"one step = set 6 inputs + doStep(1 ms) + get 6 outputs; best of {args.repeats} x {args.steps} steps")
-    print(f"{'FMI':>4} | {'fmpy: ours':>11} | {'fmpy: trivial':>13} | {'ratio':>5} | {'C: ours':>9} | {'C: trivial':>10}")
-    for version, a, b, c, d in rows:
-        print(f"{version:>4} | {a * 1e6:8.2f} us | {b * 1e6:10.2f} us | {a / b:5.2f} | {c * 1e6:6.2f} us | "
-              f"{d * 1e6:7.3f} us")
-
+        runs = cases(folder, args.steps)
+        unzip = {c.fmu: extract(str(c.fmu)) for _, ours, trivial in runs for c in (ours, trivial)}
+        best: dict[tuple[str, int, str], float] = {}
+        for _ in range(args.repeats):   # every case in each round: a burst of load hits all alike
+            for label, ours, trivial in runs:
+                for k, case in enumerate((ours, trivial)):
+                    for how, t in (("C", c_step_time(master, case, unzip[case.fmu], folder, 1)),
+                                   ("fmpy", fmpy_step_time(case, unzip[case.fmu]))):
+                        best[label, k, how] = min(best.get((label, k, how), float("inf")), t)
+    print(f"one step = set 6 inputs + doStep(1 ms) + get 6 outputs, in us; best of {args.repeats} rounds of "
+          f"{args.steps} steps")
+    print(f"{'FMU, FMI':>15} | {'C: ours':>7} | {'trivial':>7} | {'fmpy: ours':>10} | {'trivial':>7} | {'ratio':>5} | "
+          f"{'fmpy overhead':>13} | {'predicted':>9} | {'ours for 1.3x':>13}")
+    for label, _, _ in runs:
+        c_ours, c_triv, py_ours, py_triv = (best[label, k, how] for how in ("C", "fmpy") for k in (0, 1))
+        overhead = py_triv - c_triv   # fmpy's own cost per step, the same for any FMU of this shape
+        print(f"{label:>15} | {c_ours * 1e6:7.3f} | {c_triv * 1e6:7.3f} | {py_ours * 1e6:10.2f} | {py_triv * 1e6:7.2f} | "
+              f"{py_ours / py_triv:5.2f} | {overhead * 1e6:13.2f} | {(overhead + c_ours) / py_triv:9.2f} | "
+              f"{(0.3 * py_triv + c_triv) * 1e6:13.2f}")
+    print("fmpy overhead: fmpy trivial - C trivial. predicted: (fmpy overhead + C ours) / fmpy trivial, the ratio "
+          "if fmpy's cost is the same for both FMUs. ours for 1.3x: the C step of ours that would give 1.3x through "
+          "fmpy (0.3 fmpy trivial + C trivial).")
 
 if __name__ == "__main__":
     main()

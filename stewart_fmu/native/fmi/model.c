@@ -356,10 +356,22 @@ static int output_source(Instance *c, const double **p, const double **y) {
     return M_OK;
 }
 
+/* The leg lengths at the state are the driven coordinates of its energy terms when the
+ * component holds them and the plant is rigid (energy.c: every step's power balance computes them
+ * at the new state, with stewart_leg_state's arithmetic): an importer that reads only l (a
+ * controller's measurement) costs no kinematics per step. */
+static int lengths_held(const Instance *c) {
+    const stewart_component *s = &c->d.s;
+    return s->energy_valid && !has_transmission() &&
+           (s->phase == STEWART_PH_STEPPING || s->phase == STEWART_PH_TERMINATED);
+}
+
 static int output(Instance *c, unsigned vr, double *value) {
     const double *p, *y;
     if (output_source(c, &p, &y)) return M_ERROR;
-    if ((vr >= VR_L && vr < VR_Q_X) || (vr >= VR_OMEGA && vr < VR_OMEGA + 3)) {
+    if (vr >= VR_L && vr < VR_LDOT && !c->have_legs && lengths_held(c)) {
+        *value = c->d.s.energy[STEWART_ENERGY_DRIVEN + (vr - VR_L)];
+    } else if ((vr >= VR_L && vr < VR_Q_X) || (vr >= VR_OMEGA && vr < VR_OMEGA + 3)) {
         if (!c->have_legs) {
             stewart_leg_state(p, y, y + 6, c->l, c->ldot, c->omega);
             c->have_legs = 1;

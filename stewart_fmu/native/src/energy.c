@@ -64,6 +64,7 @@ int stewart_step_energy(const double *params, const double *y1, const double e0[
     const double *p = params;
     const int n = stewart_state_size(params);
     double work = 0.0, moved[6], coulomb = 0.0, allowance = 0.0, scale;
+    sw_ws ws;
     int i;
     for (i = 0; i < n; ++i)
         if (!isfinite(y1[i])) {
@@ -71,7 +72,8 @@ int stewart_step_energy(const double *params, const double *y1, const double e0[
             *allowed = 0.0;
             return 0;
         }
-    stewart_energy_terms(params, y1, e1);
+    sw_ws_init(&ws);
+    sw_energy_terms(params, y1, &ws, e1);
     for (i = 0; i < 6; ++i) {
         const double d = e1[STEWART_ENERGY_DRIVEN + i] - e0[STEWART_ENERGY_DRIVEN + i];
         work += rack[i] * d;
@@ -82,11 +84,10 @@ int stewart_step_energy(const double *params, const double *y1, const double e0[
     scale = e0[0] + e1[0] + e0[2] + e1[2] + fabs(work) + 1e-9 * (fabs(e0[1]) + fabs(e1[1]));
     if (coulomb > 0.0) {
         /* the friction's sign changes inside the step: its work bound also counts the path
-           the legs would cover at their end rates (h |ldot_i|) */
-        double l1[6], ld1[6], om1[3];
-        stewart_leg_state(params, y1, y1 + 6, l1, ld1, om1);
+           the legs would cover at their end rates (h |ldot_i|: the leg rows the energy terms
+           computed at y1, as stewart_leg_state would) */
         for (i = 0; i < 6; ++i)
-            moved[i] += h * fabs(ld1[i]);
+            moved[i] += h * fabs(ws.leg[3 * i + 1]);
     }
     for (i = 0; i < 6; ++i)  /* each leg's Coulomb force times its path */
         allowance += p[STEWART_P_COULOMB + i] * moved[i];
