@@ -280,7 +280,7 @@ def test_inputs_are_ranged_and_outputs_never_ok_non_finite(micro, version):
     by controller/fmu.py); seeded random calls with hostile values (1e308, NaN, inf,
     denormals, just outside a range) and steps: a value outside its range is refused with
     Error, and no getReal answers OK with a NaN or an infinity."""
-    path = micro[3][version]
+    path = micro[3][version, 0]
     md = read_model_description(str(path))
     ranges = input_ranges()
     by_name = {name: ident for ident, name, *_ in table_rows()["INPUTS"]}
