@@ -10,7 +10,9 @@
  * and gets the outputs. Output lines: "k status v1 v2 ..." with %.17g.
  *
  * It builds for Windows too (x86_64-w64-mingw32-gcc -D__USE_MINGW_ANSI_STDIO=1: mingw's own
- * printf and scanf, correctly rounded as glibc's), loading the DLL with LoadLibrary. */
+ * printf and scanf), loading the DLL with LoadLibrary. mingw-w64's scanf rounds a few 17-digit
+ * decimals to the neighbouring double, so scripts for both carry hexadecimal floats (C99 %lf
+ * reads them exactly). */
 #define _POSIX_C_SOURCE 200809L
 #include <stdio.h>
 #include <stdlib.h>
