@@ -18,47 +18,16 @@ from stewart_fmu import io, load_scene
 from stewart_sim import cli, interrupt, limits, outputs, progress
 from stewart_sim.outputs import MANIFEST
 from stewart_sim.view import files as view_command
+from tests.app.console import EXE, WAIT, partials, signal_when_ready
 
 ROOT = Path(__file__).resolve().parents[2]
 MICRO = ROOT / "scenes" / "micro_manipulator.toml"
-EXE = Path(sys.executable).parent / "stewart-sim"
-WAIT = 120.0
 EARLIER = {"summary.md": "# an earlier result that must survive\n",
            "run.csv": "t,x\n0.0,1.0\n"}
 
 
 def _listing(d: Path) -> dict[str, str]:
     return {p.name: p.read_text() for p in d.iterdir()} if d.exists() else {}
-
-
-def _partials(out: Path) -> list[Path]:
-    return sorted(out.parent.glob(f".{out.name}.partial-*"))
-
-
-def _interrupt(args: list[str], out: Path, ready) -> tuple[int, str]:
-    """Run `stewart-sim ARGS`, send SIGINT once ready(partial dir) holds, return (status, err).
-    The console script imports the packages of this tree (PYTHONPATH before the editable
-    install's finder), as the in-process tests do."""
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-        filter(None, [str(ROOT), os.environ.get("PYTHONPATH", "")]))}
-    proc = subprocess.Popen([str(EXE), *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env=env)
-    try:
-        deadline = time.monotonic() + WAIT
-        while True:
-            assert proc.poll() is None, proc.communicate()
-            assert time.monotonic() < deadline, "the command never got going"
-            parts = _partials(out)
-            if parts and ready(parts[0]):
-                break
-            time.sleep(0.01)
-        proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=WAIT)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait(timeout=WAIT)
-    return proc.returncode, err
 
 
 def _after(seconds: float):
@@ -87,13 +56,13 @@ def test_sigint_keeps_the_earlier_set_whole(command, earlier, tmp_path) -> None:
             "accuracy": ["accuracy", str(MICRO), "--repeats", "1"]}[command]
     # run: once run.csv is written into the temporary directory (the plots take seconds more)
     ready = (lambda d: (d / "run.csv").exists()) if command == "run" else _after(0.3)
-    status, err = _interrupt([*args, "--out", str(out)], out, ready)
+    status, err = signal_when_ready([*args, "--out", str(out)], out, ready)
     assert status == 130, err
     line = err.rstrip().splitlines()[-1]
     assert line.startswith(f"stewart-sim: error: interrupted: nothing new written, {out} ")
     assert ("the earlier set untouched" if earlier else "not created") in line
     assert _listing(out) == (EARLIER if earlier else {})
-    assert _partials(out) == []
+    assert partials(out) == []
 
 
 def test_a_rerun_replaces_the_earlier_set_whole(tmp_path, capsys) -> None:
@@ -106,7 +75,7 @@ def test_a_rerun_replaces_the_earlier_set_whole(tmp_path, capsys) -> None:
     names = {p.name for p in out.iterdir()}
     assert names == {"open_loop.csv", "work_precision.png", "summary.md", "notes.txt", MANIFEST}
     assert "Closed-loop run" not in (out / "summary.md").read_text()
-    assert _partials(out) == []
+    assert partials(out) == []
     capsys.readouterr()
 
 
@@ -227,7 +196,7 @@ def test_inverse_refuses_a_directory_or_a_page_over_its_forces(tmp_path, capsys)
     assert (tmp_path / "F.csv").read_text() == EARLIER_PAIR["F.csv"]
     assert cli.main(_inverse(tmp_path / "nope.csv", tmp_path / "G.html")) == 2
     assert "the 3D view would be written over it" in _one_error_line(capsys)
-    assert _partials(tmp_path / "F.csv") == [] and not (tmp_path / "G.html").exists()
+    assert partials(tmp_path / "F.csv") == [] and not (tmp_path / "G.html").exists()
 
 
 def test_sigint_while_the_pair_moves_in_is_held(tmp_path, monkeypatch) -> None:
@@ -258,13 +227,13 @@ def test_sigint_during_inverse_keeps_both_earlier_files(long_traj, tmp_path) -> 
     FORCES.csv and FORCES.html exactly the earlier ones, no temporary left."""
     _earlier_pair(tmp_path)
     out = tmp_path / "F.csv"
-    status, err = _interrupt(_inverse(long_traj, out), out, lambda d: any(d.iterdir()))
+    status, err = signal_when_ready(_inverse(long_traj, out), out, lambda d: any(d.iterdir()))
     assert status == 130, err
     assert err.rstrip().splitlines()[-1] == (
         f"stewart-sim: error: interrupted: nothing new written, {out} left as it was, "
         f"{tmp_path / 'F.html'} left as it was")
     assert _listing(tmp_path) == EARLIER_PAIR
-    assert _partials(out) == []
+    assert partials(out) == []
 
 
 def test_out_is_a_file_exit_1(tmp_path, capsys) -> None:
@@ -548,4 +517,4 @@ def test_a_swallowed_sigint_still_stops_the_set(tmp_path) -> None:
         assert info.value.kept == f"nothing new written, {out} not created"
     finally:
         interrupt.reset_interrupt()
-    assert not out.exists() and _partials(out) == []
+    assert not out.exists() and partials(out) == []

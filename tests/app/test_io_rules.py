@@ -12,7 +12,6 @@ import signal
 import socket
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -22,18 +21,11 @@ from stewart_fmu import budget, io
 from stewart_fmu.errors import SceneError, TrajectoryError
 from stewart_sim import cli, interrupt, outputs, terminal
 from stewart_sim.view.data import frame_indices
+from tests.app.console import EXE, WAIT, console_env, partials, signal_when_ready
 
 ROOT = Path(__file__).resolve().parents[2]
 MICRO = ROOT / "scenes" / "micro_manipulator.toml"
-EXE = Path(sys.executable).parent / "stewart-sim"
-WAIT = 120.0           # a bound on waiting for a command: a hang fails, no speed is judged
 EARLIER = {"summary.md": "# an earlier result that must survive\n", "run.csv": "t,x\n0.0,1.0\n"}
-
-
-def _env() -> dict[str, str]:
-    """The console script imports the packages of this tree (as in test_cli_edges)."""
-    return {**os.environ, "PYTHONPATH": os.pathsep.join(
-        filter(None, [str(ROOT), os.environ.get("PYTHONPATH", "")]))}
 
 
 def _error(capsys) -> str:
@@ -43,10 +35,6 @@ def _error(capsys) -> str:
     assert len(lines) == 1 and lines[0].startswith("stewart-sim: error: "), err
     assert "Traceback" not in err
     return lines[0]
-
-
-def _partials(out: Path) -> list[Path]:
-    return sorted(out.parent.glob(f".{out.name}.partial-*"))
 
 
 @pytest.fixture(scope="module")
@@ -129,22 +117,8 @@ def test_every_writer_refuses_a_device(tmp_path) -> None:
 def _signal_mid_run(sig: int, out: Path) -> tuple[int, str]:
     """`run` into `out` (holding EARLIER), sent `sig` once run.csv is in its temporary
     directory; returns (status, stderr)."""
-    proc = subprocess.Popen([str(EXE), "run", str(MICRO), "--duration", "1", "--out", str(out)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env=_env())
-    try:
-        deadline = time.monotonic() + WAIT
-        while not any((p / "run.csv").exists() for p in _partials(out)):
-            assert proc.poll() is None, proc.communicate()
-            assert time.monotonic() < deadline, "the command never got going"
-            time.sleep(0.01)
-        proc.send_signal(sig)
-        _, err = proc.communicate(timeout=WAIT)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait(timeout=WAIT)
-    return proc.returncode, err
+    return signal_when_ready(["run", str(MICRO), "--duration", "1", "--out", str(out)], out,
+                             lambda part: (part / "run.csv").exists(), sig)
 
 
 @pytest.mark.parametrize("sig, status", [(signal.SIGTERM, 143), (signal.SIGHUP, 129)],
@@ -163,7 +137,7 @@ def test_sigterm_and_sighup_end_a_run_as_ctrl_c(sig, status, tmp_path) -> None:
     assert line == (f"stewart-sim: error: interrupted ({signal.Signals(sig).name}): nothing "
                     f"new written, {out} left as it was (the earlier set untouched)")
     assert {p.name: p.read_text() for p in out.iterdir()} == EARLIER
-    assert _partials(out) == []
+    assert partials(out) == []
 
 
 def test_a_signal_held_during_the_moves_sets_the_exit_status(tmp_path, monkeypatch) -> None:
@@ -188,7 +162,7 @@ def test_a_signal_held_during_the_moves_sets_the_exit_status(tmp_path, monkeypat
     finally:
         signal.signal(signal.SIGTERM, previous)
         interrupt.reset_interrupt()
-    assert (out / "a.txt").read_text() == "a\n" and _partials(out) == []
+    assert (out / "a.txt").read_text() == "a\n" and partials(out) == []
 
 
 def _dead_pid() -> int:
@@ -230,25 +204,13 @@ def test_stale_temporaries_of_a_single_file_are_removed(tmp_path) -> None:
 def test_sigkill_leaves_a_partial_that_the_next_run_removes(tmp_path, capsys) -> None:
     """The repro end to end: `run` killed by SIGKILL mid-way, then `run` again into DIR."""
     out = tmp_path / "out"
-    proc = subprocess.Popen([str(EXE), "run", str(MICRO), "--duration", "1", "--out", str(out)],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=_env())
-    try:
-        deadline = time.monotonic() + WAIT
-        while not _partials(out):
-            assert proc.poll() is None
-            assert time.monotonic() < deadline, "the command never got going"
-            time.sleep(0.01)
-        proc.kill()
-        proc.wait(timeout=WAIT)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait(timeout=WAIT)
-    assert _partials(out)
+    signal_when_ready(["run", str(MICRO), "--duration", "1", "--out", str(out)], out,
+                      lambda part: True, signal.SIGKILL)
+    assert partials(out)
     assert cli.main(["run", str(MICRO), "--duration", "0.1", "--no-view", "--out",
                      str(out)]) == 0
     capsys.readouterr()
-    assert _partials(out) == []
+    assert partials(out) == []
 
 
 class _FullDisk:
@@ -299,7 +261,7 @@ def test_a_full_disk_in_a_result_set_keeps_the_earlier_set(tmp_path) -> None:
         with outputs.result_set(out) as stage:
             (stage / "run.csv").write_text("new\n")
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(stage / "fig.png"))
-    assert (out / "run.csv").read_text() == "earlier\n" and _partials(out) == []
+    assert (out / "run.csv").read_text() == "earlier\n" and partials(out) == []
 
 
 def test_an_oserror_of_a_write_escaping_a_command_is_one_line(monkeypatch, capsys) -> None:
@@ -329,7 +291,7 @@ def test_a_fifo_scene_is_refused_without_waiting_for_a_writer(tmp_path) -> None:
     fifo = tmp_path / "scene.toml"
     os.mkfifo(fifo)
     r = subprocess.run([str(EXE), "scene-info", str(fifo)], capture_output=True, text=True,
-                       env=_env(), timeout=WAIT)
+                       env=console_env(), timeout=WAIT)
     assert r.returncode == 2, r.stderr
     assert r.stderr == (f"stewart-sim: error: {fifo}: is a device, pipe or socket, not a "
                         "scene file\n")
@@ -342,7 +304,7 @@ def test_a_fifo_trajectory_or_scene_for_inverse_is_refused(option, traj, tmp_pat
     args = (["inverse", str(MICRO), "--trajectory", str(fifo)] if option == "--trajectory"
             else ["inverse", str(fifo), "--trajectory", str(traj)])
     r = subprocess.run([str(EXE), *args, "--out", str(tmp_path / "F.csv")],
-                       capture_output=True, text=True, env=_env(), timeout=WAIT)
+                       capture_output=True, text=True, env=console_env(), timeout=WAIT)
     assert r.returncode == 2 and "device, pipe or socket" in r.stderr, r.stderr
     assert len(r.stderr.splitlines()) == 1 and not (tmp_path / "F.csv").exists()
 
@@ -473,7 +435,7 @@ def test_a_closed_pipe_ends_quietly() -> None:
     os.close(read)          # the reader has gone before anything is written
     try:
         r = subprocess.run([str(EXE), "scene-info", str(MICRO)], stdout=write,
-                           stderr=subprocess.PIPE, text=True, env=_env(), timeout=WAIT)
+                           stderr=subprocess.PIPE, text=True, env=console_env(), timeout=WAIT)
     finally:
         os.close(write)
     assert r.returncode == 141, r.stderr
@@ -482,6 +444,6 @@ def test_a_closed_pipe_ends_quietly() -> None:
 
 def test_head_1_through_a_shell_is_quiet() -> None:
     r = subprocess.run(f"'{EXE}' scene-info '{MICRO}' | head -1", shell=True,
-                       capture_output=True, text=True, env=_env(), timeout=WAIT)
+                       capture_output=True, text=True, env=console_env(), timeout=WAIT)
     assert r.returncode == 0 and r.stderr == ""
     assert r.stdout.startswith("scene: micro-manipulator")
