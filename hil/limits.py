@@ -7,7 +7,7 @@ drives. The motor's ratings are those of the scene's [controller.motor] table; K
 =================  ==========================================  ===========================
 what               bound                                       micro-manipulator scene
 =================  ==========================================  ===========================
-setpoint length    [leg_min, leg_max] (the scene's stroke)     [0.07, 0.19] m
+setpoint length    [leg_min + room, leg_max - room] (below)    [0.0747, 0.1853] m
 setpoint rate      |ldot| <= 10 V_max / Ke' (no-load speed)    3 m/s   (V_max/Ke' = 0.3 m/s)
 feed-fwd force     |F| <= 50 Kf I_max (the drive's peak)       8 kN    (Kf I_max = 160 N)
 force rate         |dF/dt| <= 10 Kf V_max / L (di/dt limit)    3.84e7 N/s
@@ -18,6 +18,16 @@ WDG_TIMEOUT        [0.01, 10] s                                (also the constru
 SP_COND_MAX        (1, 1e4]
 SR_* (streams)     [0, min(controller rate, 1000)] Hz          [0, 1000] Hz
 =================  ==========================================  ===========================
+
+The room kept free at each end of the stroke is the servo's own overshoot: a leg that arrives
+at a setpoint at the drive's no-load speed v0 = V_max / Ke' runs on until the peak force Kf I_max,
+less the static leg force F_hold the drive holds at home (gravity may push the same way), stops its
+moving mass m (the axis model's load plus m_d): room = m v0^2 / (2 (Kf I_max - F_hold)), 4.7 mm of
+the micro-manipulator's 120 mm stroke (its worst full-stroke step overshoots 2.7 mm). The bound,
+not the servo, keeps the room: the servo's tick is the co-simulation master's
+(controller.axis.servo_step), so a host following the bounds gets the loop it designed, and the
+room is a read-only fact a host reads (SP_LEN_MIN, SP_LEN_MAX), not a hidden change of dynamics
+near the stops.
 
 The setpoint bounds are also reported as read-only parameters (SP_RATE_MAX, SP_FORCE_MAX,
 SP_FRATE_MAX, SP_LEN_MIN, SP_LEN_MAX) so a host can read them with PARAM_REQUEST_LIST.
@@ -85,13 +95,25 @@ class Bounds:
         return None
 
 
-def bounds(leg_min: float, leg_max: float, axis: Any, gains: Any) -> Bounds:
-    """The bounds of a device whose drive is `axis` (controller.drive.AxisModel, with the scene's
-    motor ratings) and whose designed gains are `gains` (controller.design.PidGains)."""
+def overshoot_room(axis: Any, holding_force: float) -> float:
+    """m, the stroke kept free at each end (see the module doc): the distance in which the drive
+    `axis` (controller.drive.AxisModel) stops its moving mass from its no-load speed with its
+    peak force less `holding_force` (N); inf when the drive cannot out-push the load it holds."""
+    brake = axis.peak_force - abs(holding_force)
+    if not brake > 0:
+        return float("inf")
+    return axis.moving_mass * axis.no_load_speed ** 2 / (2.0 * brake)
+
+
+def bounds(leg_min: float, leg_max: float, axis: Any, gains: Any, room: float = 0.0) -> Bounds:
+    """The bounds of a device whose stroke is [leg_min, leg_max], whose drive is `axis`
+    (controller.drive.AxisModel, with the scene's motor ratings) and whose designed gains are
+    `gains` (controller.design.PidGains); setpoint lengths keep `room` (overshoot_room) free at
+    each end of the stroke."""
     m = axis.motor
     kf, ke = axis.force_constant, axis.emf_constant
     return Bounds(
-        leg_min=leg_min, leg_max=leg_max,
+        leg_min=leg_min + room, leg_max=leg_max - room,
         rate_max=RATE_MARGIN * m.voltage_limit / ke,
         force_max=FORCE_MARGIN * kf * m.current_limit,
         force_rate_max=FORCE_RATE_MARGIN * kf * m.voltage_limit / m.inductance,

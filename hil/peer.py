@@ -8,7 +8,11 @@ unaddressed; with a signing key: correctly signed with an acceptable timestamp, 
 
 * the first such frame's sender becomes the peer (before it, telemetry goes nowhere);
 * signing on: only an authenticated frame can change the peer (unsigned or forged frames are
-  dropped by the device, so they never count as valid);
+  dropped by the device, so they never count as valid), and never while the device is armed: a
+  second holder of the key (or a replay from another port) cannot take the replies and the
+  telemetry away from the host that is driving the platform. Such a frame is still handled
+  (it is authenticated), its replies go to the peer, the refusal is counted
+  (`DeviceCounters.peer_kept`) and told to the peer; after disarm the peer may move again;
 * unsigned: the device answers the sender of the last valid frame, and every change of peer is
   reported with a STATUSTEXT (WARNING) to the new and to the old peer, and counted
   (`DeviceCounters.peer_changes`).
@@ -47,11 +51,18 @@ class PeerGuard:
         sender = getattr(tr, "sender", None)
         if not valid or sender is None or sender == tr.peer:
             return 0
+        signed = dev.verifier is not None
+        if signed and dev.armed and tr.peer is not None:
+            dev.counters.peer_kept += 1
+            frames = [dev.pack(m) for m in dev.say(
+                ms.MAV_SEVERITY_WARNING, f"peer kept while armed: {_fmt(sender)}", key="peer-kept")]
+            for f in frames:
+                tr.send(f)
+            return len(frames)
         old, tr.peer = tr.peer, sender
         if old is None:
             return 0
         dev.counters.peer_changes += 1
-        signed = dev.verifier is not None
         msgs = dev.say(ms.MAV_SEVERITY_NOTICE if signed else ms.MAV_SEVERITY_WARNING,
                        f"peer {_fmt(old)} -> {_fmt(sender)}" + (" (signed)" if signed else ""),
                        key="peer")
