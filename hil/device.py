@@ -132,6 +132,7 @@ class DeviceCounters:
     frames_valid: int = 0           # decoded (and authenticated) frames for this system
     peer_changes: int = 0           # UDP peer switches (hil.peer)
     peer_kept: int = 0              # signed frames from another address while armed (hil.peer)
+    flood_dropped: int = 0          # datagrams over their sender's budget, undecoded (hil.peer)
 
 
 class Device:

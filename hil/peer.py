@@ -13,15 +13,29 @@ unaddressed; with a signing key: correctly signed with an acceptable timestamp, 
   telemetry away from the host that is driving the platform. Such a frame is still handled
   (it is authenticated), its replies go to the peer, the refusal is counted
   (`DeviceCounters.peer_kept`) and told to the peer; after disarm the peer may move again;
-* unsigned: the device answers the sender of the last valid frame, and every change of peer is
-  reported with a STATUSTEXT (WARNING) to the new and to the old peer, and counted
-  (`DeviceCounters.peer_changes`).
+* unsigned: the device answers the sender of the last valid frame, unless the peer itself sent a
+  valid frame less than PEER_HOLD s ago (a host streaming setpoints keeps its replies whatever
+  another port sends; a host that went quiet can be replaced at once), and every change of peer
+  is reported with a STATUSTEXT (WARNING) to the new and to the old peer, and counted
+  (`DeviceCounters.peer_changes`); a change refused by the hold is counted
+  (`DeviceCounters.peer_kept`).
+
+Served in real time, every datagram first passes its sender's token bucket
+(hil.limits.SourceLimiter, on the serve loop's clock): the peer may stream a setpoint per tick
+with room to spare, any other address a trickle. A datagram over the budget is dropped before it
+is decoded (so it can neither cost decoding time nor move the peer) and counted: a flood of valid
+frames from another port cannot make the ticks late. In lockstep there are no ticks to protect:
+the host drives time, and nothing is limited.
 """
 from __future__ import annotations
 
-from typing import Any
+import time
+from typing import Any, Callable
 
 from hil import mavlink_stewart as ms
+from hil.limits import SourceLimiter
+
+PEER_HOLD = 0.05   # s (the serve loop's clock): how long a valid frame of the peer keeps it
 
 
 def _fmt(addr: Any) -> str:
@@ -31,10 +45,26 @@ def _fmt(addr: Any) -> str:
 class PeerGuard:
     """Peer rule of one device on one unconnected UDP transport (see the module doc)."""
 
-    def __init__(self, device: Any, transport: Any) -> None:
-        self.device, self.transport = device, transport
+    def __init__(self, device: Any, transport: Any, limit: bool = False,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.device, self.transport, self.clock = device, transport, clock
         transport.follow_sender = False
         self._valid = device.counters.frames_valid
+        self.limiter = SourceLimiter(device.dt) if limit else None
+        self._peer_heard = -float("inf")    # clock time of the peer's last valid frame
+
+    def admit(self, nbytes: int, now: float) -> bool:
+        """Whether the datagram just received (`nbytes` long, at clock time `now`) is within
+        its sender's budget (hil.limits.SourceLimiter; always, without a limiter). A datagram
+        over it is dropped undecoded and counted (`DeviceCounters.flood_dropped`)."""
+        lim = self.limiter
+        if lim is None:
+            return True
+        sender = getattr(self.transport, "sender", None)
+        if lim.admit(sender, nbytes, now, sender is not None and sender == self.transport.peer):
+            return True
+        self.device.counters.flood_dropped += 1
+        return False
 
     @staticmethod
     def applies(transport: Any) -> bool:
@@ -49,17 +79,24 @@ class PeerGuard:
         n = dev.counters.frames_valid
         valid, self._valid = n > self._valid, n
         sender = getattr(tr, "sender", None)
-        if not valid or sender is None or sender == tr.peer:
+        if not valid or sender is None:
+            return 0
+        now = self.clock()
+        if sender == tr.peer:
+            self._peer_heard = now
             return 0
         signed = dev.verifier is not None
-        if signed and dev.armed and tr.peer is not None:
+        held = signed and dev.armed or not signed and now - self._peer_heard < PEER_HOLD
+        if held and tr.peer is not None:
             dev.counters.peer_kept += 1
+            why = "while armed" if signed else "while it streams"
             frames = [dev.pack(m) for m in dev.say(
-                ms.MAV_SEVERITY_WARNING, f"peer kept while armed: {_fmt(sender)}", key="peer-kept")]
+                ms.MAV_SEVERITY_WARNING, f"peer kept {why}: {_fmt(sender)}", key="peer-kept")]
             for f in frames:
                 tr.send(f)
             return len(frames)
         old, tr.peer = tr.peer, sender
+        self._peer_heard = now
         if old is None:
             return 0
         dev.counters.peer_changes += 1

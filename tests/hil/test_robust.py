@@ -525,6 +525,57 @@ def test_signed_frames_from_another_address_do_not_move_the_peer_while_armed(mod
     still_serving(dev)
 
 
+def test_unsigned_a_streaming_peer_keeps_its_replies(model):
+    """Unsigned: a valid frame from another port moves the peer only when the peer has sent no
+    valid frame for PEER_HOLD s (a host streaming setpoints keeps its replies under a flood of
+    valid frames; a host gone quiet is replaced at once, and the change is told)."""
+    from hil.peer import PEER_HOLD, PeerGuard
+
+    t = [0.0]
+    dev, tr = Device(model), _Server()
+    guard = PeerGuard(dev, tr, clock=lambda: t[0])
+    host, other = ("127.0.0.1", 1000), ("127.0.0.1", 2000)
+
+    def datagram(at, sender):
+        t[0], tr.sender = at, sender
+        dev.feed(pack(host_mav(), read_kp()))
+        guard.after_feed()
+
+    datagram(0.0, host)
+    assert tr.peer == host
+    for k in range(1, 40):                       # the host streams every 1 ms...
+        datagram(k * 1e-3, host)
+        datagram(k * 1e-3 + 5e-4, other)         # ... another port floods valid frames
+    assert tr.peer == host and dev.counters.peer_kept == 39 and dev.counters.peer_changes == 0
+    datagram(0.039 + PEER_HOLD * 0.99, other)    # the host quiet for less than the hold
+    assert tr.peer == host
+    datagram(0.039 + PEER_HOLD * 1.01, other)    # ... and for the hold: the peer moves
+    assert tr.peer == other and dev.counters.peer_changes == 1
+
+
+def test_source_limiter_budgets_and_bounded_memory():
+    """hil.limits.SourceLimiter: the peer streams its setpoints untouched, a stranger gets its
+    burst and its rate, 10,000 rotating source addresses hold at most SOURCES + 1 buckets and
+    share one budget beyond SOURCES, and an idle source is forgotten."""
+    period = 0.001
+    lim = limits.SourceLimiter(period)
+    # the peer: a 121-byte LEG_SETPOINT every tick for 10 s, all admitted
+    assert all(lim.admit("host", 121, k * period, True) for k in range(10_000))
+    # one stranger flooding 21-byte frames every 10 us for 1 s: its burst, then its rate
+    ok = sum(lim.admit("a", 21, 10.0 + k * 1e-5, False) for k in range(100_000))
+    assert ok * 21 <= limits.STRANGER_BURST + limits.STRANGER_RATE * 1.0 + 21
+    assert ok * 21 >= limits.STRANGER_RATE * 1.0
+    # 10,000 addresses, each one datagram, within 0.1 s: bounded table, bounded total
+    lim2 = limits.SourceLimiter(period)
+    ok = sum(lim2.admit(("127.0.0.1", 1024 + i), 100, i * 1e-5, False) for i in range(10_000))
+    assert len(lim2) <= limits.SOURCES + 1
+    assert ok * 100 <= (limits.SOURCES + 1) * limits.STRANGER_BURST + limits.STRANGER_RATE * 0.1
+    assert lim2.dropped == 10_000 - ok and lim2.bytes_dropped == 100 * lim2.dropped
+    # 2 s later the table's sources are idle: a new address gets a bucket of its own
+    assert lim2.admit(("127.0.0.1", 9), 1000, 2.1, False) and len(lim2) <= limits.SOURCES + 1
+    assert ("127.0.0.1", 9) in lim2._buckets
+
+
 # --------------------------------------------------------------------------- fuzz
 
 _HANDLED = (ms.MAVLINK_MSG_ID_LEG_SETPOINT, ms.MAVLINK_MSG_ID_COMMAND_LONG,
@@ -633,7 +684,10 @@ def test_fuzz_device_process_over_udp(model, capsys):
             host.send(b"".join(frames[i:i + 4]))
             sent += 1
             if sent % 10 == 0:
-                time.sleep(0.003)  # pace below the socket buffer (no pass/fail on time)
+                # pace below the socket buffer and within the peer's budget (about 2 kB per
+                # 10 datagrams: 180 B/ms of hil.limits.PEER_BYTES' 256 per tick), so the
+                # hostile frames are decoded, not dropped as a flood (no pass/fail on time)
+                time.sleep(0.012)
         match = _has("PARAM_VALUE", lambda m: m.param_id == "CTRL_KP")
         ok = False
         for _ in range(20):
