@@ -8,7 +8,8 @@ Prints one row per run (RMS / max leg error, states, lost, wall time) and the me
 
 With --flood every run is made twice, quiet and under a flood: a child process sends valid
 HEARTBEATs (well-formed, unsigned, from another local port) to the device for the whole run
-(R per second, default 20,000; 0: as fast as it can). The device prints the lateness of its
+(R per second, default 20,000; 0: as fast as it can), starting once the host is the device's
+peer (hil.peer), as an attack on a running session. The device prints the lateness of its
 ticks (hil.timing.Lateness) and its counts when it stops; the table gives p50 / p99 / max tick lateness, how far device time fell behind
 wall time (the serve loop's wall time less ticks / rate), the host's tracking error and lost
 states, and the flood datagrams the device dropped (hil.limits.SourceLimiter). --device-tree runs
@@ -86,6 +87,7 @@ def flood_run(ref, rate: float, flood: float, tree: Path | None) -> dict:
         first = proc.stdout.readline().strip()
         client = Client(connect_device("udp", first)[0])
         try:
+            client.get_param("CTRL_KP")   # the host is the device's peer before any flood
             if flood is not None:
                 flooder = mp.Process(target=_flood, args=(parse_udp(first), flood, stop, sent),
                                      daemon=True)

@@ -59,16 +59,15 @@ STATUS_RATE = 20.0
 STATUS_BURST = 30.0
 STATUS_RESERVE = 10.0
 
-# Input on a UDP server end (hil.peer, real time only): a token bucket of bytes per source
-# address on the serve loop's clock. Decoding costs about 27 us a frame (a 21-byte HEARTBEAT) and
-# a tick 110 us at 1 kHz on the reference machine, so unchecked input from a flood of small frames
-# is what put device time behind wall time. The peer streams one LEG_SETPOINT frame (121 bytes)
-# per tick: it may send PEER_BYTES per controller period, in bursts of PEER_BURST; any other
-# source STRANGER_RATE in bursts of STRANGER_BURST (a new host's first frames, a peer change).
-# SOURCES addresses get a bucket of their own; beyond, new sources share one (bounded memory),
-# and a source idle for STRANGER_BURST / STRANGER_RATE s is forgotten (its bucket was full again).
-PEER_BYTES = 256.0
-PEER_BURST = 8192.0
+# Input on a UDP server end from any address but the peer's (hil.peer, real time only): a token
+# bucket of bytes per source address on the serve loop's clock. Decoding costs about 27 us a
+# frame (a 21-byte HEARTBEAT) and a tick 110 us at 1 kHz on the reference machine, so a flood of
+# small valid frames decoded in full is what put device time behind wall time. A stranger may
+# send STRANGER_RATE in bursts of STRANGER_BURST (enough for a new host's first frames, or a
+# second station's occasional request); the peer is not limited (a host streaming setpoints
+# must never lose one, nor the backlog of a stall). SOURCES addresses get a bucket of their own;
+# beyond, new sources share one (bounded memory), and a source idle for STRANGER_BURST /
+# STRANGER_RATE s is forgotten (its bucket was full again).
 STRANGER_RATE = 1024.0     # bytes/s
 STRANGER_BURST = 1024.0    # bytes
 SOURCES = 16
@@ -195,22 +194,21 @@ class StatusLimiter:
 
 
 class SourceLimiter:
-    """Token buckets of bytes per source address (see PEER_BYTES...): a datagram over its
+    """Token buckets of bytes per source address (see STRANGER_RATE...): a datagram over its
     source's budget is dropped before it is decoded, and counted (`dropped`, `bytes_dropped`).
     Memory: at most SOURCES + 1 buckets, whatever the number of addresses."""
 
-    def __init__(self, period: float, sources: int = SOURCES) -> None:
-        self.peer_rate = PEER_BYTES / period
+    def __init__(self, sources: int = SOURCES) -> None:
         self.sources = sources
         self._buckets: dict[Any, list[float]] = {}   # source -> [tokens, time of last update]
         self._shared: list[float] | None = None      # of the sources beyond `sources`
         self.dropped = 0
         self.bytes_dropped = 0
 
-    def admit(self, source: Any, nbytes: int, now: float, peer: bool) -> bool:
-        """True when `nbytes` from `source` (the peer's budget if `peer`) fit its budget at
-        clock time `now` (s); else False, counted."""
-        rate, burst = (self.peer_rate, PEER_BURST) if peer else (STRANGER_RATE, STRANGER_BURST)
+    def admit(self, source: Any, nbytes: int, now: float) -> bool:
+        """True when `nbytes` from `source` fit its budget at clock time `now` (s); else False,
+        counted."""
+        rate, burst = STRANGER_RATE, STRANGER_BURST
         b = self._buckets.get(source)
         if b is None:
             if len(self._buckets) >= self.sources:
@@ -219,7 +217,7 @@ class SourceLimiter:
                 b = self._buckets[source] = [burst, now]
             else:
                 if self._shared is None:
-                    self._shared = [STRANGER_BURST, now]
+                    self._shared = [burst, now]
                 b = self._shared
         tokens = min(burst, b[0] + max(0.0, now - b[1]) * rate)
         b[1] = now

@@ -20,12 +20,15 @@ unaddressed; with a signing key: correctly signed with an acceptable timestamp, 
   (`DeviceCounters.peer_changes`); a change refused by the hold is counted
   (`DeviceCounters.peer_kept`).
 
-Served in real time, every datagram first passes its sender's token bucket
-(hil.limits.SourceLimiter, on the serve loop's clock): the peer may stream a setpoint per tick
-with room to spare, any other address a trickle. A datagram over the budget is dropped before it
-is decoded (so it can neither cost decoding time nor move the peer) and counted: a flood of valid
-frames from another port cannot make the ticks late. In lockstep there are no ticks to protect:
-the host drives time, and nothing is limited.
+Served in real time, every datagram from an address other than the peer first passes its
+sender's token bucket (hil.limits.SourceLimiter, on the serve loop's clock): a trickle. A
+datagram over the budget is dropped before it is decoded (so it can neither cost decoding time
+nor move the peer) and counted: a flood of valid frames from another port does not reach the
+decoder, and the host's frames behind it in the socket are read within the tick. (That the ticks
+start on time whatever arrives is the serve loop's drain deadline, hil.serve.) In lockstep
+there are no ticks to protect: the host drives time, and nothing is limited. Unsigned, the flood
+source that got to be the peer first (before any host spoke, or after the host's hold ran out)
+is the peer, and unlimited: use signing where another local process may be hostile.
 """
 from __future__ import annotations
 
@@ -35,7 +38,9 @@ from typing import Any, Callable
 from hil import mavlink_stewart as ms
 from hil.limits import SourceLimiter
 
-PEER_HOLD = 0.05   # s (the serve loop's clock): how long a valid frame of the peer keeps it
+# s (the serve loop's clock): how long a valid frame of the peer keeps it; longer than a host's
+# pause between commands, shorter than a restart of its process on a new port
+PEER_HOLD = 0.5
 
 
 def _fmt(addr: Any) -> str:
@@ -50,18 +55,18 @@ class PeerGuard:
         self.device, self.transport, self.clock = device, transport, clock
         transport.follow_sender = False
         self._valid = device.counters.frames_valid
-        self.limiter = SourceLimiter(device.dt) if limit else None
+        self.limiter = SourceLimiter() if limit else None
         self._peer_heard = -float("inf")    # clock time of the peer's last valid frame
 
     def admit(self, nbytes: int, now: float) -> bool:
-        """Whether the datagram just received (`nbytes` long, at clock time `now`) is within
-        its sender's budget (hil.limits.SourceLimiter; always, without a limiter). A datagram
-        over it is dropped undecoded and counted (`DeviceCounters.flood_dropped`)."""
+        """Whether the datagram just received (`nbytes` long, at clock time `now`) is the peer's
+        or within its sender's budget (hil.limits.SourceLimiter; always, without a limiter). A
+        datagram over it is dropped undecoded and counted (`DeviceCounters.flood_dropped`)."""
         lim = self.limiter
-        if lim is None:
-            return True
         sender = getattr(self.transport, "sender", None)
-        if lim.admit(sender, nbytes, now, sender is not None and sender == self.transport.peer):
+        if lim is None or sender == self.transport.peer and sender is not None:
+            return True
+        if lim.admit(sender, nbytes, now):
             return True
         self.device.counters.flood_dropped += 1
         return False
