@@ -8,8 +8,8 @@ device ticks at its controller rate by the monotonic clock: the loop waits in th
 drains all pending input (every datagram or byte already waiting is decoded and handled, and
 on a UDP server end seen by the peer rule of hil.peer, as any other input), so a
 backlog never delays a setpoint by more than the ticks it arrives between; a drain stops when
-the tick is due (just before a tick: after DRAIN_SHARE of a period), so input without end, a
-flood, cannot hold the ticks back. On a UDP server end in real time, a datagram over its sender's
+the tick is due (just before a tick: DRAIN_SHARE of a period after its due time; when the loop is
+further behind, after one datagram), so input without end, a flood, cannot hold the ticks back. On a UDP server end in real time, a datagram over its sender's
 budget (hil.peer, hil.limits.SourceLimiter) is dropped before it is decoded, and counted. Tick k (the one that
 takes device time from k / rate to (k + 1) / rate) is due at wall time start + (k + 1) / rate on
 the monotonic clock, and no tick is ever skipped: device time t maps to wall time start + t
@@ -38,7 +38,7 @@ IDLE_FLUSH = 0.005   # s without input after which a partial frame is given up (
 POLL = 0.05          # s: the longest wait before `stop` is looked at again
 MAX_LAG = 0.05       # s behind the tick schedule beyond which a catch-up counts as an overrun
 MAX_DRAIN = 10000    # datagrams handled at most in one drain (a flood cannot stop the ticks)
-DRAIN_SHARE = 0.5    # of a period: the most the input drained just before a tick may take
+DRAIN_SHARE = 0.5    # of a period after a tick's due time: the input drained before it stops
 
 
 @dataclass
@@ -136,9 +136,10 @@ def serve(device: Device, transport, realtime: bool | None = None,
             behind = late > max_lag
             st.late.add(late)
             st.max_late = max(st.max_late, late)
-            # input, then the tick; a flood gets at most DRAIN_SHARE of a period here
+            # input, then the tick: input is drained until DRAIN_SHARE of a period after the
+            # tick's due time (behind schedule: one datagram), so a catch-up is ticks, not input
             if _drain(device, transport, transport.recv(0.0), st, peers, clock,
-                      now + DRAIN_SHARE * period):
+                      next_tick + DRAIN_SHARE * period):
                 last_input = clock()
             st.messages_out += _send_all(device, transport, device.tick())
             st.ticks += 1

@@ -418,3 +418,21 @@ def test_a_flood_from_another_port_cannot_make_the_ticks_late(model):
     dev0, tr0, st0, lag0 = _flooded_run(model, flood_limit=False, seconds=0.5)
     assert dev0.counters.flood_dropped == 0
     assert dev0.counters.setpoints_accepted < 0.7 * 500 and lag0 > 0.1   # 0.1 s late and more
+
+
+def test_ticks_start_on_time_even_when_the_flood_is_the_peer(model):
+    """The worst case of an unsigned device: the flooding port spoke first, so it is the peer
+    and its input is not limited (hil.peer): 50,000 valid HEARTBEATs a second, 1.35 ms of
+    decoding per millisecond. The drains stop at the ticks' due times (hil.serve), so every tick
+    still starts within half a period and device time stays on the wall clock; the surplus
+    waits in the socket. Simulated clock."""
+    clock = SimClock()
+    dev = Costly(model, clock=clock)
+    tr = FloodedServer(clock, [], clock.t, 50_000.0)
+    start = clock.t
+    st = serve(dev, tr, True, max_ticks=500, clock=clock)
+    assert tr.peer == ATTACKER and dev.counters.flood_dropped == 0
+    assert st.ticks == dev.k == 500 and st.late.misses == 0
+    assert st.late.max <= 0.5 * dev.dt + FEED_COST + RECV_COST + 1e-12
+    assert dev.time == pytest.approx(clock.t - start, abs=dev.dt)
+    assert dev.counters.frames_valid > 0.5 * tr.flood_sent    # the flood was decoded
