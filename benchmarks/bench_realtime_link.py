@@ -109,7 +109,9 @@ def flood_run(ref, rate: float, flood: float, tree: Path | None) -> dict:
     ticks, wall = (int(stopped.group(1)), float(stopped.group(2))) if stopped else (0, float("nan"))
     return {"late": [float(x) for x in late.groups()] if late else [float("nan")] * 6,
             "behind": wall - ticks / rate, "sent": sent.value, "failed": failed,
-            "track": "" if s is None else f"{s.rms * 1e6:.1f} | {s.lost} of {s.samples + s.lost}",
+            "track": "" if s is None else ("- | no state reached the host" if s.samples == 0
+                                           else f"{s.rms * 1e6:.1f} | {s.lost} of "
+                                                f"{s.samples + s.lost}"),
             "dropped": int(dropped.group(1)) if dropped else None}
 
 

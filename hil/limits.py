@@ -35,6 +35,7 @@ Out-of-range values are refused: a STATUSTEXT names the value and the bound.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -66,11 +67,13 @@ STATUS_RESERVE = 10.0
 # send STRANGER_RATE in bursts of STRANGER_BURST (enough for a new host's first frames, or a
 # second station's occasional request); the peer is not limited (a host streaming setpoints
 # must never lose one, nor the backlog of a stall). SOURCES addresses get a bucket of their own;
-# beyond, new sources share one (bounded memory), and a source idle for STRANGER_BURST /
-# STRANGER_RATE s is forgotten (its bucket was full again).
+# beyond, new sources share one (bounded memory), and a source idle for FLOOD_MEMORY s is
+# forgotten (its bucket was full again). A source that went over its budget within FLOOD_MEMORY
+# s is flooding: it never becomes the peer (hil.peer).
 STRANGER_RATE = 1024.0     # bytes/s
 STRANGER_BURST = 1024.0    # bytes
 SOURCES = 16
+FLOOD_MEMORY = STRANGER_BURST / STRANGER_RATE   # s
 
 
 @dataclass(frozen=True)
@@ -200,7 +203,8 @@ class SourceLimiter:
 
     def __init__(self, sources: int = SOURCES) -> None:
         self.sources = sources
-        self._buckets: dict[Any, list[float]] = {}   # source -> [tokens, time of last update]
+        # source -> [tokens, time of the last update, time of the last drop]
+        self._buckets: dict[Any, list[float]] = {}
         self._shared: list[float] | None = None      # of the sources beyond `sources`
         self.dropped = 0
         self.bytes_dropped = 0
@@ -214,25 +218,33 @@ class SourceLimiter:
             if len(self._buckets) >= self.sources:
                 self._forget_idle(now)
             if len(self._buckets) < self.sources:
-                b = self._buckets[source] = [burst, now]
+                b = self._buckets[source] = [burst, now, -math.inf]
             else:
                 if self._shared is None:
-                    self._shared = [burst, now]
+                    self._shared = [burst, now, -math.inf]
                 b = self._shared
         tokens = min(burst, b[0] + max(0.0, now - b[1]) * rate)
         b[1] = now
         if nbytes <= tokens:
             b[0] = tokens - nbytes
             return True
-        b[0] = tokens
+        b[0], b[2] = tokens, now
         self.dropped += 1
         self.bytes_dropped += nbytes
         return False
 
+    def flooding(self, source: Any, now: float) -> bool:
+        """Whether `source` (or the shared bucket it falls in) went over its budget within
+        FLOOD_MEMORY s of `now`."""
+        b = self._buckets.get(source)
+        if b is None and len(self._buckets) >= self.sources:
+            b = self._shared
+        return b is not None and now - b[2] < FLOOD_MEMORY
+
     def _forget_idle(self, now: float) -> None:
-        """Forget the sources idle long enough that a stranger's bucket would be full again."""
-        idle = STRANGER_BURST / STRANGER_RATE
-        for key in [k for k, b in self._buckets.items() if now - b[1] >= idle]:
+        """Forget the sources idle for FLOOD_MEMORY s: their buckets are full again and their
+        last drop is older than FLOOD_MEMORY."""
+        for key in [k for k, b in self._buckets.items() if now - b[1] >= FLOOD_MEMORY]:
             del self._buckets[key]
 
     def __len__(self) -> int:

@@ -24,11 +24,13 @@ Served in real time, every datagram from an address other than the peer first pa
 sender's token bucket (hil.limits.SourceLimiter, on the serve loop's clock): a trickle. A
 datagram over the budget is dropped before it is decoded (so it can neither cost decoding time
 nor move the peer) and counted: a flood of valid frames from another port does not reach the
-decoder, and the host's frames behind it in the socket are read within the tick. (That the ticks
-start on time whatever arrives is the serve loop's drain deadline, hil.serve.) In lockstep
-there are no ticks to protect: the host drives time, and nothing is limited. Unsigned, the flood
-source that got to be the peer first (before any host spoke, or after the host's hold ran out)
-is the peer, and unlimited: use signing where another local process may be hostile.
+decoder, and the host's frames behind it in the socket are read within the tick. An address
+that went over its budget within hil.limits.FLOOD_MEMORY s never becomes the peer, signed or
+not (the change is refused and counted as `peer_kept`), even when the host has gone quiet.
+(That the ticks start on time whatever arrives is the serve loop's drain deadline, hil.serve.)
+In lockstep there are no ticks to protect: the host drives time, and nothing is limited.
+Unsigned, a flood source that spoke before any host did is the peer, and unlimited: use signing
+where another local process may be hostile.
 """
 from __future__ import annotations
 
@@ -91,10 +93,12 @@ class PeerGuard:
             self._peer_heard = now
             return 0
         signed = dev.verifier is not None
-        held = signed and dev.armed or not signed and now - self._peer_heard < PEER_HOLD
+        flooding = self.limiter is not None and self.limiter.flooding(sender, now)
+        held = (signed and dev.armed or not signed and now - self._peer_heard < PEER_HOLD
+                or flooding)
         if held and tr.peer is not None:
             dev.counters.peer_kept += 1
-            why = "while armed" if signed else "while it streams"
+            why = "from a flood" if flooding else "while armed" if signed else "while it streams"
             frames = [dev.pack(m) for m in dev.say(
                 ms.MAV_SEVERITY_WARNING, f"peer kept {why}: {_fmt(sender)}", key="peer-kept")]
             for f in frames:

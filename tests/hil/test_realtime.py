@@ -436,3 +436,20 @@ def test_ticks_start_on_time_even_when_the_flood_is_the_peer(model):
     assert st.late.max <= 0.5 * dev.dt + FEED_COST + RECV_COST + 1e-12
     assert dev.time == pytest.approx(clock.t - start, abs=dev.dt)
     assert dev.counters.frames_valid > 0.5 * tr.flood_sent    # the flood was decoded
+
+
+def test_a_flooding_port_never_takes_the_peer_even_when_the_host_goes_quiet(model):
+    """Unsigned: the host streams for 0.1 s and then goes quiet for 0.9 s (far past the peer's
+    hold) while another port floods valid HEARTBEATs. That port has been over its budget within
+    FLOOD_MEMORY s at every one of its admitted frames, so it never becomes the peer: the
+    replies and the telemetry stay with the host. Simulated clock."""
+    clock = SimClock()
+    dev = Costly(model, clock=clock)
+    mav, l0, t0 = host(), dev.plant.outputs.lengths.copy(), clock.t
+    frames = [(t0 + (k + 0.5) * dev.dt, frame(mav, setpoint(k, l0))) for k in range(100)]
+    tr = FloodedServer(clock, frames, t0 + 0.01, 50_000.0)
+    st = serve(dev, tr, True, max_ticks=1000, clock=clock)
+    c = dev.counters
+    assert st.ticks == 1000 and st.late.misses == 0
+    assert tr.peer == HOST and c.peer_changes == 0 and c.peer_kept > 0
+    assert tr.sent_to.get(ATTACKER, 0) == 0 and c.flood_dropped > 0.99 * tr.flood_sent

@@ -572,6 +572,9 @@ def test_source_limiter_budgets_and_bounded_memory():
     assert lim2.dropped == 10_000 - ok and lim2.bytes_dropped == 100 * lim2.dropped
     # 2 s later the table's sources are idle: a new address gets a bucket of its own
     assert lim2.admit(("127.0.0.1", 9), 1000, 2.1) and len(lim2) <= limits.SOURCES + 1
+    # flooding: over the budget within FLOOD_MEMORY s (the shared bucket for sources beyond)
+    assert lim.flooding("a", 11.0) and not lim.flooding("a", 11.0 + limits.FLOOD_MEMORY)
+    assert not lim2.flooding(("127.0.0.1", 9), 2.1) and not lim.flooding("b", 11.0)
     assert ("127.0.0.1", 9) in lim2._buckets
 
 
