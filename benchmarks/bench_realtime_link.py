@@ -2,7 +2,8 @@
 realtime` does), repeated: a wall-clock figure, so it is measured here and not asserted in tests.
 
     python benchmarks/bench_realtime_link.py [--runs N]
-    python benchmarks/bench_realtime_link.py --flood [--runs N] [--flood-rate R] [--device-tree PATH]
+    python benchmarks/bench_realtime_link.py --flood [--runs N] [--flood-rate R]
+                                             [--device-tree PATH]
 
 Prints one row per run (RMS / max leg error, states, lost, wall time) and the median.
 
@@ -10,9 +11,10 @@ With --flood every run is made twice, quiet and under a flood: a child process s
 HEARTBEATs (well-formed, unsigned, from another local port) to the device for the whole run
 (R per second, default 20,000; 0: as fast as it can), starting once the host is the device's
 peer (hil.peer), as an attack on a running session. The device prints the lateness of its
-ticks (hil.timing.Lateness) and its counts when it stops; the table gives p50 / p99 / max tick lateness, how far device time fell behind
-wall time (the serve loop's wall time less ticks / rate), the host's tracking error and lost
-states, and the flood datagrams the device dropped (hil.limits.SourceLimiter). --device-tree runs
+ticks (hil.timing.Lateness) and its counts when it stops; the table gives p50 / p99 / max tick
+lateness, how far device time fell behind wall time (the serve loop's wall time less ticks /
+rate), the host's tracking error and lost states, and the flood datagrams the device dropped
+(hil.limits.SourceLimiter). --device-tree runs
 the device from another checkout (e.g. main's, before the limiter) for the "before" rows; the
 host side is always this tree's.
 """

@@ -131,7 +131,7 @@ class DeviceCounters:
     statustexts_rate_limited: int = 0  # cut by the STATUSTEXT token bucket (hil.limits)
     frames_valid: int = 0           # decoded (and authenticated) frames for this system
     peer_changes: int = 0           # UDP peer switches (hil.peer)
-    peer_kept: int = 0              # signed frames from another address while armed (hil.peer)
+    peer_kept: int = 0              # peer changes refused: armed, hold, a flood (hil.peer)
     flood_dropped: int = 0          # datagrams over their sender's budget, undecoded (hil.peer)
 
 

@@ -15,7 +15,7 @@ unaddressed; with a signing key: correctly signed with an acceptable timestamp, 
   (`DeviceCounters.peer_kept`) and told to the peer; after disarm the peer may move again;
 * unsigned: the device answers the sender of the last valid frame, unless the peer itself sent a
   valid frame less than PEER_HOLD s ago (a host streaming setpoints keeps its replies whatever
-  another port sends; a host that went quiet can be replaced at once), and every change of peer
+  another port sends; a host quiet for PEER_HOLD s can be replaced), and every change of peer
   is reported with a STATUSTEXT (WARNING) to the new and to the old peer, and counted
   (`DeviceCounters.peer_changes`); a change refused by the hold is counted
   (`DeviceCounters.peer_kept`).
@@ -41,7 +41,7 @@ from hil import mavlink_stewart as ms
 from hil.limits import SourceLimiter
 
 # s (the serve loop's clock): how long a valid frame of the peer keeps it; longer than a host's
-# pause between commands, shorter than a restart of its process on a new port
+# pause between commands (a restarted host on a new port waits this long to be answered)
 PEER_HOLD = 0.5
 
 
