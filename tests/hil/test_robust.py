@@ -173,6 +173,16 @@ def test_every_accepted_bound_is_reached_without_a_fault(scene):
             assert c.setpoints_accepted == 0 or dev.armed
 
 
+def test_a_stroke_shorter_than_the_overshoot_room_is_refused(model):
+    """A stroke that leaves no setpoint once the overshoot room is kept at both ends: the device
+    is not built (one line naming the stroke and the room), it does not accept setpoints it
+    could only fault on."""
+    l0 = float(inverse_kinematics(model, model.home).lengths[0])
+    narrow = replace(model, leg_min=l0 - 0.004, leg_max=l0 + 0.004)   # room 4.7 mm > 4 mm
+    with pytest.raises(DeviceError, match=r"leaves no setpoint .*overshoot room \(0\.0046"):
+        Device(narrow)
+
+
 def test_a_setpoint_past_the_overshoot_room_is_refused(model):
     """Between SP_LEN_MAX and the stroke's end: refused, the text names the setpoint stroke."""
     dev = Device(model)
