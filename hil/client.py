@@ -61,7 +61,7 @@ from controller.trajectory import LegReferences, Trajectory, leg_references
 from hil import mavlink_stewart as ms
 from hil.dialect import connection
 from hil.errors import LinkError
-from hil.framing import Receiver
+from hil.framing import Receiver, pack
 from hil.link import MavutilTransport
 from hil.spawn import parse_udp
 from hil.timing import Lateness, gc_frozen, wait_until
@@ -143,14 +143,15 @@ class Client:
     # --- bytes and messages --------------------------------------------------------------
 
     def send(self, *msgs: Any) -> None:
-        """Pack and send each message (one transport send per message)."""
+        """Pack and send each message (one transport send per message), each frame numbered
+        (hil.framing.pack)."""
         for m in msgs:
-            self.transport.send(bytes(m.pack(self.mav)))
+            self.transport.send(pack(self.mav, m))
             self.counters.sent += 1
 
     def send_together(self, *msgs: Any) -> None:
         """Pack the messages into one transport send (one datagram: lost or delivered together)."""
-        self.transport.send(b"".join(bytes(m.pack(self.mav)) for m in msgs))
+        self.transport.send(b"".join(pack(self.mav, m) for m in msgs))
         self.counters.sent += len(msgs)
 
     def poll(self, timeout: float = 0.0) -> list[Any]:

@@ -16,7 +16,8 @@ Setpoints (LEG_SETPOINT)
 ------------------------
 A setpoint is refused (STATUSTEXT, counted, never applied) when a length, rate or force is not
 finite, a rate, force or force rate is beyond the bounds of hil.limits (the text names the leg,
-the value and the bound), a length is outside [leg_min, leg_max], forward kinematics finds no
+the value and the bound), a length is outside [SP_LEN_MIN, SP_LEN_MAX] (the stroke less the
+servo's overshoot room at each end, hil.limits.overshoot_room), forward kinematics finds no
 pose for the lengths (Newton from the last accepted pose), or cond(J) at that pose exceeds the
 parameter SP_COND_MAX. A valid setpoint is the event SETPOINT: applied while armed, ignored and
 counted while disarmed (hil.modes). Rates are used with STEWART_SETPOINT_FLAG_RATE_VALID, forces
@@ -31,8 +32,9 @@ device holds the leg lengths measured at that tick and sends one STATUSTEXT. If 
 a step (a leg at its end stop), the device stops the platform where it is (restarted at rest,
 drives holding), disarms and says so. Any numerical failure of a tick (non-finite voltage or
 torque, IntegrationError...) restarts the plant at rest at the last good pose, drives holding with
-the designed gains and rated limits, disarms and sends one CRITICAL STATUSTEXT: the device never
-exits on numbers. With a signing key, frames pass `hil.signing.Verifier` (the signature before
+the designed gains and rated limits, disarms and sends one CRITICAL STATUSTEXT that names each gain
+and limit it restored, with the value before and after: the device never exits on numbers.
+With a signing key, frames pass `hil.signing.Verifier` (the signature before
 any timestamp is stored) before they are decoded.
 
 Commands (COMMAND_LONG or COMMAND_INT -> COMMAND_ACK)
@@ -86,7 +88,7 @@ from controller.design import PidGains
 from controller.plants import PlantStepError
 from hil import limits, modes, params, protocol, telemetry
 from hil import mavlink_stewart as ms
-from hil.framing import Receiver
+from hil.framing import Receiver, pack
 from hil.modes import Event, Mode
 from hil.observe import OBSERVE_HZ, Latest, Snapshot
 from hil.sensors import SensorConfig, Sensors
@@ -129,6 +131,8 @@ class DeviceCounters:
     statustexts_rate_limited: int = 0  # cut by the STATUSTEXT token bucket (hil.limits)
     frames_valid: int = 0           # decoded (and authenticated) frames for this system
     peer_changes: int = 0           # UDP peer switches (hil.peer)
+    peer_kept: int = 0              # peer changes refused: armed, hold, a flood (hil.peer)
+    flood_dropped: int = 0          # datagrams over their sender's budget, undecoded (hil.peer)
 
 
 class Device:
@@ -179,8 +183,14 @@ class Device:
         self.leg_min = model.leg_min if model.leg_min is not None else 0.0
         self.leg_max = model.leg_max if model.leg_max is not None else math.inf
         self.home_lengths = inverse_kinematics(model, model.home, with_cond=False).lengths.copy()
+        room = limits.overshoot_room(self.servo.ctrl.axis, float(np.max(np.abs(
+            self.plant.rack_force))))
         self.bounds = limits.bounds(self.leg_min, self.leg_max, self.servo.ctrl.axis,
-                                    self.servo.design_gains)
+                                    self.servo.design_gains, room)
+        if not self.bounds.leg_min < self.bounds.leg_max:
+            raise DeviceError(f"the stroke [{self.leg_min:g}, {self.leg_max:g}] m leaves no "
+                              f"setpoint once the servo's overshoot room ({room:.3g} m at each "
+                              "end, hil.limits) is kept free")
 
         self._mode = Mode.DISARMED        # moved only by _fire (hil.modes.transition)
         self.k = 0                       # ticks done; device time = k / rate
@@ -299,9 +309,7 @@ class Device:
 
     def pack(self, msg: Any) -> bytes:
         """The MAVLink 2 frame of `msg` from this device (signed when a key is set)."""
-        frame = bytes(msg.pack(self.mav))
-        self.mav.seq = (self.mav.seq + 1) % 256   # MAVLink's per-sender sequence, every frame
-        return frame
+        return pack(self.mav, msg)
 
     # --- observers -----------------------------------------------------------------------
 
@@ -432,11 +440,12 @@ class Device:
                                    ms.STEWART_SETPOINT_FLAG_FORCE_RATE_VALID)
         if why is not None:
             return why, None
-        bad = [i for i in range(6) if not self.leg_min <= lengths[i] <= self.leg_max]
+        lo, hi = self.bounds.leg_min, self.bounds.leg_max
+        bad = [i for i in range(6) if not lo <= lengths[i] <= hi]
         if bad:
             i = bad[0]
-            return (f"leg {i + 1} at {lengths[i]:.4g} m, stroke [{self.leg_min:g}, "
-                    f"{self.leg_max:g}]"), None
+            side, bound = ("min", lo) if lengths[i] < lo else ("max", hi)
+            return f"leg {i + 1} at {lengths[i]:.4g} m, stroke {side} {bound:.4g}", None
         try:
             pose = forward_kinematics(self.model, lengths, guess=self._last_pose)
         except StewartError:
@@ -589,17 +598,21 @@ class Device:
     def _numeric_fault(self, good_q: np.ndarray, exc: BaseException) -> list[Any]:
         """A numerical failure in the loop: restart the plant at rest at the last good pose,
         drives holding it with the designed gains and the motor's rated limits, disarm, one
-        CRITICAL STATUSTEXT; the device keeps serving."""
+        CRITICAL STATUSTEXT (in chunks) that names every gain and limit restored with its value
+        before and after (hil.params.restored_text); the device keeps serving."""
         self.counters.numeric_faults += 1
+        before = {n: self.params[n].get() for n in params.DESIGN_PARAMS}
         self.servo.restore_design()
+        restored = params.restored_text(before, self.params)
         self.servo.restart_after_failure(good_q, self._last_pose, self.k * self.dt)
         self._fire(Event.FAULT)
         self.servo.hold()
         self.servo.idle()
-        self.last_fault = f"{type(exc).__name__}: {exc}"
+        self.last_fault = f"{type(exc).__name__}: {exc}; {restored}"
+        # the first chunk (50 bytes) says what happened, the rest which values now hold
         return self._say_once(ms.MAV_SEVERITY_CRITICAL,
-                              f"numeric fault ({type(exc).__name__})"[:34] + ": hold, disarmed",
-                              key="numeric-fault")
+                              f"numeric fault ({type(exc).__name__})"[:34] + ": hold, disarmed"
+                              + f"; {restored}", key="numeric-fault")
 
     def _watchdog_expired(self) -> bool:
         """`watchdog` s without a valid setpoint: by the wall clock when served in real time

@@ -56,6 +56,16 @@ class FrameStats:
                 + self.decode_errors + self.truncated)
 
 
+def pack(mav: Any, msg: Any) -> bytes:
+    """The frame of `msg` from the sender `mav` (a dialect's MAVLink: ids, signing), carrying the
+    sender's next sequence number: MAVLink's per-sender count (mod 256) by which a receiver sees
+    lost frames. `msg.pack` alone sends the same number every time; every frame a device or a
+    host sends is packed here."""
+    frame = bytes(msg.pack(mav))
+    mav.seq = (mav.seq + 1) % 256
+    return frame
+
+
 def frame_length(payload_len: int, signed: bool = False) -> int:
     """Bytes on the wire of a MAVLink 2 frame with `payload_len` payload bytes."""
     return HEADER_LEN + payload_len + CRC_LEN + (SIGNATURE_LEN if signed else 0)

@@ -7,7 +7,7 @@ drives. The motor's ratings are those of the scene's [controller.motor] table; K
 =================  ==========================================  ===========================
 what               bound                                       micro-manipulator scene
 =================  ==========================================  ===========================
-setpoint length    [leg_min, leg_max] (the scene's stroke)     [0.07, 0.19] m
+setpoint length    [leg_min + room, leg_max - room] (below)    [0.0747, 0.1853] m
 setpoint rate      |ldot| <= 10 V_max / Ke' (no-load speed)    3 m/s   (V_max/Ke' = 0.3 m/s)
 feed-fwd force     |F| <= 50 Kf I_max (the drive's peak)       8 kN    (Kf I_max = 160 N)
 force rate         |dF/dt| <= 10 Kf V_max / L (di/dt limit)    3.84e7 N/s
@@ -19,12 +19,23 @@ SP_COND_MAX        (1, 1e4]
 SR_* (streams)     [0, min(controller rate, 1000)] Hz          [0, 1000] Hz
 =================  ==========================================  ===========================
 
+The room kept free at each end of the stroke is the servo's own overshoot: a leg that arrives
+at a setpoint at the drive's no-load speed v0 = V_max / Ke' runs on until the peak force Kf I_max,
+less the static leg force F_hold the drive holds at home (gravity may push the same way), stops its
+moving mass m (the axis model's load plus m_d): room = m v0^2 / (2 (Kf I_max - F_hold)), 4.7 mm of
+the micro-manipulator's 120 mm stroke (its worst full-stroke step overshoots 2.7 mm). The bound,
+not the servo, keeps the room: the servo's tick is the co-simulation master's
+(controller.axis.servo_step), so a host following the bounds gets the loop it designed, and the
+room is a read-only fact a host reads (SP_LEN_MIN, SP_LEN_MAX), not a hidden change of dynamics
+near the stops.
+
 The setpoint bounds are also reported as read-only parameters (SP_RATE_MAX, SP_FORCE_MAX,
 SP_FRATE_MAX, SP_LEN_MIN, SP_LEN_MAX) so a host can read them with PARAM_REQUEST_LIST.
 Out-of-range values are refused: a STATUSTEXT names the value and the bound.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -48,6 +59,21 @@ STREAM_MAX = 1000.0     # Hz
 STATUS_RATE = 20.0
 STATUS_BURST = 30.0
 STATUS_RESERVE = 10.0
+
+# Input on a UDP server end from any address but the peer's (hil.peer, real time only): a token
+# bucket of bytes per source address on the serve loop's clock. Decoding costs about 27 us a
+# frame (a 21-byte HEARTBEAT) and a tick 110 us at 1 kHz on the reference machine, so a flood of
+# small valid frames decoded in full is what put device time behind wall time. A stranger may
+# send STRANGER_RATE in bursts of STRANGER_BURST (enough for a new host's first frames, or a
+# second station's occasional request); the peer is not limited (a host streaming setpoints
+# must never lose one, nor the backlog of a stall). SOURCES addresses get a bucket of their own;
+# beyond, new sources share one (bounded memory), and a source idle for FLOOD_MEMORY s is
+# forgotten (its bucket was full again). A source that went over its budget within FLOOD_MEMORY
+# s is flooding: it never becomes the peer (hil.peer).
+STRANGER_RATE = 1024.0     # bytes/s
+STRANGER_BURST = 1024.0    # bytes
+SOURCES = 16
+FLOOD_MEMORY = STRANGER_BURST / STRANGER_RATE   # s
 
 
 @dataclass(frozen=True)
@@ -85,13 +111,25 @@ class Bounds:
         return None
 
 
-def bounds(leg_min: float, leg_max: float, axis: Any, gains: Any) -> Bounds:
-    """The bounds of a device whose drive is `axis` (controller.drive.AxisModel, with the scene's
-    motor ratings) and whose designed gains are `gains` (controller.design.PidGains)."""
+def overshoot_room(axis: Any, holding_force: float) -> float:
+    """m, the stroke kept free at each end (see the module doc): the distance in which the drive
+    `axis` (controller.drive.AxisModel) stops its moving mass from its no-load speed with its
+    peak force less `holding_force` (N); inf when the drive cannot out-push the load it holds."""
+    brake = axis.peak_force - abs(holding_force)
+    if not brake > 0:
+        return float("inf")
+    return axis.moving_mass * axis.no_load_speed ** 2 / (2.0 * brake)
+
+
+def bounds(leg_min: float, leg_max: float, axis: Any, gains: Any, room: float = 0.0) -> Bounds:
+    """The bounds of a device whose stroke is [leg_min, leg_max], whose drive is `axis`
+    (controller.drive.AxisModel, with the scene's motor ratings) and whose designed gains are
+    `gains` (controller.design.PidGains); setpoint lengths keep `room` (overshoot_room) free at
+    each end of the stroke."""
     m = axis.motor
     kf, ke = axis.force_constant, axis.emf_constant
     return Bounds(
-        leg_min=leg_min, leg_max=leg_max,
+        leg_min=leg_min + room, leg_max=leg_max - room,
         rate_max=RATE_MARGIN * m.voltage_limit / ke,
         force_max=FORCE_MARGIN * kf * m.current_limit,
         force_rate_max=FORCE_RATE_MARGIN * kf * m.voltage_limit / m.inductance,
@@ -156,3 +194,59 @@ class StatusLimiter:
             else:
                 self.suppressed += 1
         return out
+
+
+class SourceLimiter:
+    """Token buckets of bytes per source address (see STRANGER_RATE...): a datagram over its
+    source's budget is dropped before it is decoded, and counted (`dropped`, `bytes_dropped`).
+    Memory: at most SOURCES + 1 buckets, whatever the number of addresses."""
+
+    def __init__(self, sources: int = SOURCES) -> None:
+        self.sources = sources
+        # source -> [tokens, time of the last update, time of the last drop]
+        self._buckets: dict[Any, list[float]] = {}
+        self._shared: list[float] | None = None      # of the sources beyond `sources`
+        self.dropped = 0
+        self.bytes_dropped = 0
+
+    def admit(self, source: Any, nbytes: int, now: float) -> bool:
+        """True when `nbytes` from `source` fit its budget at clock time `now` (s); else False,
+        counted."""
+        rate, burst = STRANGER_RATE, STRANGER_BURST
+        b = self._buckets.get(source)
+        if b is None:
+            if len(self._buckets) >= self.sources:
+                self._forget_idle(now)
+            if len(self._buckets) < self.sources:
+                b = self._buckets[source] = [burst, now, -math.inf]
+            else:
+                if self._shared is None:
+                    self._shared = [burst, now, -math.inf]
+                b = self._shared
+        tokens = min(burst, b[0] + max(0.0, now - b[1]) * rate)
+        b[1] = now
+        if nbytes <= tokens:
+            b[0] = tokens - nbytes
+            return True
+        b[0], b[2] = tokens, now
+        self.dropped += 1
+        self.bytes_dropped += nbytes
+        return False
+
+    def flooding(self, source: Any, now: float) -> bool:
+        """Whether `source` (or the shared bucket it falls in) went over its budget within
+        FLOOD_MEMORY s of `now`."""
+        b = self._buckets.get(source)
+        if b is None and len(self._buckets) >= self.sources:
+            b = self._shared
+        return b is not None and now - b[2] < FLOOD_MEMORY
+
+    def _forget_idle(self, now: float) -> None:
+        """Forget the sources idle for FLOOD_MEMORY s: their buckets are full again and their
+        last drop is older than FLOOD_MEMORY."""
+        for key in [k for k, b in self._buckets.items() if now - b[1] >= FLOOD_MEMORY]:
+            del self._buckets[key]
+
+    def __len__(self) -> int:
+        """The buckets held (at most `sources` + 1)."""
+        return len(self._buckets) + (self._shared is not None)

@@ -24,6 +24,9 @@ from hil.servo import Servo
 from hil.telemetry import TELEMETRY
 
 COND_MAX = 100.0           # default SP_COND_MAX: cond(J) (scaled) above this counts as singular
+#: The parameters hil.servo.Servo.restore_design brings back to the design after a numerical
+#: fault: the PID gains and the drive limits.
+DESIGN_PARAMS = ("CTRL_KP", "CTRL_KI", "CTRL_KD", "DRV_V_LIMIT", "DRV_I_LIMIT")
 #: Parameter names of the stream rates.
 STREAM_PARAMS = {"SR_SYS_STATUS": "SYS_STATUS", "SR_LEG_STATE": "LEG_STATE",
                  "SR_DRIVE_STATUS": "DRIVE_STATUS", "SR_ATTITUDE": "ATTITUDE_QUATERNION",
@@ -133,3 +136,18 @@ def set_from(params: dict[str, Param], msg: Any) -> tuple[list[Any], str | None]
         return [value_message(params, name)], f"{name} {x:g} refused: {why}"
     p.set(x)
     return [value_message(params, name)], None
+
+
+def restored_text(before: dict[str, float], params: dict[str, Param]) -> str:
+    """What a restore of DESIGN_PARAMS did, from their values `before` it: "restored CTRL_KP
+    1e+09 -> 1.261e+04, ... (CTRL_KI 1.585e+05 ... kept)" (every one named with its value)."""
+    changed, kept = [], []
+    for name in DESIGN_PARAMS:
+        old, new = before[name], params[name].get()
+        if old == new:
+            kept.append(f"{name} {new:.4g}")
+        else:
+            changed.append(f"{name} {old:.4g} -> {new:.4g}")
+    if not changed:
+        return "design gains and limits kept: " + ", ".join(kept)
+    return "restored " + ", ".join(changed) + (f" ({', '.join(kept)} kept)" if kept else "")

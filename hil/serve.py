@@ -7,7 +7,11 @@ device ticks at its controller rate by the monotonic clock: the loop waits in th
 `recv` (select) until the next tick is due, so it sleeps rather than spins. Before every tick it
 drains all pending input (every datagram or byte already waiting is decoded and handled, and
 on a UDP server end seen by the peer rule of hil.peer, as any other input), so a
-backlog never delays a setpoint by more than the ticks it arrives between. Tick k (the one that
+backlog never delays a setpoint by more than the ticks it arrives between; a drain stops when
+the tick is due (just before a tick: DRAIN_SHARE of a period after its due time; when the loop is
+further behind, after one datagram), so input without end, a flood, cannot hold the ticks back.
+On a UDP server end in real time, a datagram over its sender's budget (hil.peer,
+hil.limits.SourceLimiter) is dropped before it is decoded, and counted. Tick k (the one that
 takes device time from k / rate to (k + 1) / rate) is due at wall time start + (k + 1) / rate on
 the monotonic clock, and no tick is ever skipped: device time t maps to wall time start + t
 (+ the tick's lateness, which does not accumulate). When the loop falls behind it catches up
@@ -20,6 +24,7 @@ for input. The loop ends when `stop` is set (checked at least every `poll` secon
 from __future__ import annotations
 
 import ipaddress
+import math
 import threading
 import time
 from dataclasses import dataclass
@@ -34,6 +39,7 @@ IDLE_FLUSH = 0.005   # s without input after which a partial frame is given up (
 POLL = 0.05          # s: the longest wait before `stop` is looked at again
 MAX_LAG = 0.05       # s behind the tick schedule beyond which a catch-up counts as an overrun
 MAX_DRAIN = 10000    # datagrams handled at most in one drain (a flood cannot stop the ticks)
+DRAIN_SHARE = 0.5    # of a period after a tick's due time: the input drained before it stops
 
 
 @dataclass
@@ -57,17 +63,22 @@ def _send_all(device: Device, transport, msgs: list) -> int:
 
 
 def _drain(device: Device, transport, data: bytes, st: ServeStats,
-           peers: PeerGuard | None = None) -> bool:
-    """Handle `data` and then everything else already waiting; True if anything came. Each
-    datagram's replies go out after the peer rule has seen it (hil.peer)."""
+           peers: PeerGuard | None = None, clock: Callable[[], float] = time.monotonic,
+           until: float = math.inf) -> bool:
+    """Handle `data` and then everything else already waiting, until clock() reaches `until`
+    (a flood cannot hold the tick back); True if anything came. A datagram over its sender's
+    budget is dropped undecoded (PeerGuard.admit); each other datagram's replies go out after
+    the peer rule has seen it (hil.peer)."""
     n = 0
     while data:
-        replies = device.feed(data)
-        if peers is not None:
-            st.messages_out += peers.after_feed()
-        st.messages_out += _send_all(device, transport, replies)
+        now = clock()
+        if peers is None or peers.admit(len(data), now):
+            replies = device.feed(data)
+            if peers is not None:
+                st.messages_out += peers.after_feed()
+            st.messages_out += _send_all(device, transport, replies)
         n += 1
-        if n >= MAX_DRAIN:
+        if n >= MAX_DRAIN or now >= until:
             break
         data = transport.recv(0.0)
     return n > 0
@@ -76,12 +87,14 @@ def _drain(device: Device, transport, data: bytes, st: ServeStats,
 def serve(device: Device, transport, realtime: bool | None = None,
           stop: threading.Event | None = None, *, max_ticks: int | None = None,
           poll: float = POLL, max_lag: float = MAX_LAG,
-          clock: Callable[[], float] = time.monotonic) -> ServeStats:
+          clock: Callable[[], float] = time.monotonic, flood_limit: bool = True) -> ServeStats:
     """Run `device` over `transport` until `stop` is set (or `max_ticks` real-time ticks).
 
     `realtime` defaults to `not device.lockstep`; a device in lockstep mode cannot be served in
     real time nor the other way round (DeviceError). `clock` is the monotonic wall clock of the
     tick schedule and of the watchdog (a test may pass its own, with a transport advancing it).
+    `flood_limit=False` turns the per-source budget of a UDP server end off (the "before" of
+    tests and benchmarks; hil.peer).
     """
     if realtime is None:
         realtime = not device.lockstep
@@ -99,14 +112,15 @@ def serve(device: Device, transport, realtime: bool | None = None,
     last_input = start
     behind = False
     window_start, window_busy, window_ticks = start, 0.0, 0
-    peers = PeerGuard(device, transport) if PeerGuard.applies(transport) else None
+    peers = (PeerGuard(device, transport, limit=realtime and flood_limit, clock=clock)
+             if PeerGuard.applies(transport) else None)
     while not stop.is_set():
         now = clock()
         timeout = min(poll, max(0.0, next_tick - now)) if realtime else poll
         data = transport.recv(timeout)
         t0 = clock()
         if data:
-            _drain(device, transport, data, st, peers)
+            _drain(device, transport, data, st, peers, clock, next_tick if realtime else math.inf)
             last_input = t1 = clock()
             st.busy += t1 - t0
             window_busy += t1 - t0
@@ -123,7 +137,10 @@ def serve(device: Device, transport, realtime: bool | None = None,
             behind = late > max_lag
             st.late.add(late)
             st.max_late = max(st.max_late, late)
-            if _drain(device, transport, transport.recv(0.0), st, peers):   # input, then tick
+            # input, then the tick: input is drained until DRAIN_SHARE of a period after the
+            # tick's due time (behind schedule: one datagram), so a catch-up is ticks, not input
+            if _drain(device, transport, transport.recv(0.0), st, peers, clock,
+                      next_tick + DRAIN_SHARE * period):
                 last_input = clock()
             st.messages_out += _send_all(device, transport, device.tick())
             st.ticks += 1

@@ -166,7 +166,8 @@ def serve_device(model: Model, config: ControllerConfig, udp: str | None,
     c = device.counters
     print(f"device stopped: {stats.ticks} ticks in {stats.wall:.3g} s, {stats.overruns} overruns, "
           f"{stats.messages_in} messages in, {stats.messages_out} out, "
-          f"{device.link_errors} bad frames, {c.setpoints_refused} setpoints refused"
+          f"{device.link_errors} bad frames, {c.setpoints_refused} setpoints refused, "
+          f"{c.flood_dropped} flood datagrams dropped"
           + (f"; ticks {stats.late.text()}" if stats.late is not None else ""),
           file=sys.stderr, flush=True)
 

@@ -18,6 +18,7 @@ import numpy as np
 from controller.config import ControllerConfig
 from hil import mavlink_stewart as ms
 from hil.device import Device
+from hil.framing import pack
 from hil.sensors import SensorConfig
 from stewart_fmu.model import Model
 
@@ -25,11 +26,7 @@ TICKS = 300   # enough for every stream (the slowest, SYS_STATUS and HEARTBEAT, 
 
 
 def _frames(host: Any, *msgs: Any) -> bytes:
-    out = b""
-    for m in msgs:
-        out += bytes(m.pack(host))
-        host.seq = (host.seq + 1) % 256
-    return out
+    return b"".join(pack(host, m) for m in msgs)
 
 
 def warm_up(model: Model, config: ControllerConfig, ticks: int = TICKS, *,

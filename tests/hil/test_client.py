@@ -369,3 +369,25 @@ def test_link_figures_report_end_to_end(tmp_path, model, config):
     tracking = [r for r in rows if r.split("|")[1].strip() in ("0", "5")]
     assert len(tracking) == 3 and all(math.isfinite(float(r.split("|")[3])) for r in tracking)
     assert (tmp_path / "tracking_vs_link.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_the_client_numbers_its_frames_per_link():
+    """Every frame the host sends carries the next MAVLink sequence number (mod 256), one and
+    several per send alike, each client (link) counting from 0 on its own: the old client sent
+    0 on every frame, so the device could not see a lost one."""
+    from hil.framing import Receiver
+
+    a, b = queue_pair()
+    c, d = queue_pair()
+    host, other = Client(a), Client(c)
+    hb = ms.MAVLink_heartbeat_message(ms.MAV_TYPE_GCS, ms.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3)
+    for _ in range(200):
+        host.send(hb)
+    for _ in range(30):
+        host.send_together(hb, hb)
+    other.send(hb, hb, hb)
+    rx = Receiver(ms)
+    seqs = [m.get_seq() for data in iter(lambda: b.recv(0.0), b"") for m in rx.feed(data)]
+    assert seqs == [k % 256 for k in range(260)]
+    assert [m.get_seq() for data in iter(lambda: d.recv(0.0), b"") for m in rx.feed(data)] == [0, 1, 2]
+    assert host.counters.sent == 260

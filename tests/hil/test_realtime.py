@@ -301,3 +301,155 @@ def test_warm_up_leaves_no_state(model):
     l0 = dev.plant.outputs.lengths.copy()
     assert warm_up(model, dev.config, ticks=100) > 0
     assert dev.k == 0 and not dev.armed and np.array_equal(dev.plant.outputs.lengths, l0)
+
+
+# --------------------------------------------------------------------------- a flood
+
+# Costs on the simulated clock, as measured on the reference machine: decoding one datagram
+# (a 21-byte HEARTBEAT: Device.feed), one tick, one recv that returns a datagram.
+FEED_COST, TICK_COST, RECV_COST = 27e-6, 110e-6, 4e-6
+HOST, ATTACKER = ("127.0.0.1", 40000), ("127.0.0.1", 50000)
+
+
+class Costly(Device):
+    """A device whose feed and tick take their measured time on the simulated clock."""
+
+    def __init__(self, *a, clock: SimClock, **kw):
+        super().__init__(*a, **kw)
+        self._clock = clock
+
+    def feed(self, data: bytes):
+        self._clock.t += FEED_COST
+        return super().feed(data)
+
+    def tick(self, step=None):
+        self._clock.t += TICK_COST
+        return super().tick(step)
+
+
+class FloodedServer:
+    """An unconnected UDP server end on the simulated clock: the host's datagrams at their
+    times, and from `flood_start` on valid HEARTBEATs from another port at `flood_rate` per s,
+    in order of arrival; each datagram received costs RECV_COST."""
+
+    connected = False
+
+    def __init__(self, clock: SimClock, host_frames, flood_start: float, flood_rate: float):
+        self.clock, self.host = clock, list(reversed(host_frames))
+        self.follow_sender = True
+        self.peer = self.sender = None
+        self.flood_next, self.flood_dt, self.flood_sent = flood_start, 1.0 / flood_rate, 0
+        self.heartbeat = frame(ms.MAVLink(None, srcSystem=200, srcComponent=1),
+                               ms.MAVLink_heartbeat_message(6, 8, 0, 0, 0, 3))
+        self.sent_to: dict = {}
+
+    def send(self, data: bytes) -> int:
+        if self.peer is not None:
+            self.sent_to[self.peer] = self.sent_to.get(self.peer, 0) + 1
+        return len(data)
+
+    def recv(self, timeout: float = 0.0) -> bytes:
+        t_host = self.host[-1][0] if self.host else math.inf
+        nxt = min(t_host, self.flood_next)
+        if nxt > self.clock.t:
+            self.clock.t = min(self.clock.t + timeout, nxt)
+            if nxt > self.clock.t:
+                return b""
+        self.clock.t += RECV_COST
+        if t_host <= self.flood_next:
+            self.sender = HOST
+            return self.host.pop()[1]
+        self.sender = ATTACKER
+        self.flood_next += self.flood_dt
+        self.flood_sent += 1
+        return self.heartbeat
+
+    def close(self) -> None:
+        pass
+
+
+def _flooded_run(model, flood_limit: bool, seconds: float = 1.0, flood_rate: float = 50_000.0):
+    """The host arms and streams a setpoint per tick; from 10 ms on another local port floods
+    valid HEARTBEATs (unsigned device). Simulated clock: (device, server, ServeStats, lag),
+    lag: the most a setpoint waited between its arrival and its handling (s)."""
+    clock = SimClock()
+    dev = Costly(model, clock=clock)
+    mav, l0, t0 = host(), dev.plant.outputs.lengths.copy(), clock.t
+    frames = [(t0, frame(mav, ms.MAVLink_command_long_message(
+        1, 1, ms.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0)))]
+    n = round(seconds * dev.rate)
+    frames += [(t0 + (k + 0.5) * dev.dt, frame(mav, setpoint(k, l0))) for k in range(n)]
+    tr = FloodedServer(clock, frames, t0 + 0.01, flood_rate)
+    arrival = {k: t for k, (t, _) in enumerate(frames[1:])}
+    lag = [0.0]
+    receive = dev.receive
+
+    def timed(msg):
+        if msg.get_type() == "LEG_SETPOINT":
+            lag[0] = max(lag[0], clock.t - arrival[msg.sequence])
+        return receive(msg)
+
+    dev.receive = timed
+    st = serve(dev, tr, True, max_ticks=n, clock=clock, flood_limit=flood_limit)
+    return dev, tr, st, lag[0]
+
+
+def test_a_flood_from_another_port_cannot_make_the_ticks_late(model):
+    """50,000 valid HEARTBEATs a second from another local port (what the old device served
+    1.2 s behind wall time): each tick starts on time, the host's setpoints are handled
+    within the tick they arrive in and its replies stay with it, and the flood's datagrams
+    over their budget are dropped undecoded and counted. Without the budget the same flood is
+    decoded in full: 1.35 ms of work a millisecond, a backlog that grows without end, and the
+    host's setpoints reach the device later and later (a third never in the run). Simulated
+    clock, measured costs (FEED_COST...): no wall-clock figure."""
+    dev, tr, st, lag = _flooded_run(model, flood_limit=True)
+    c = dev.counters
+    assert st.ticks == dev.k == 1000 and st.late.misses == 0 and st.late.max < 0.5 * dev.dt
+    assert c.setpoints_accepted == 1000 and c.watchdog_trips == 0 and dev.armed
+    assert lag < dev.dt                                     # within the tick it arrived in
+    assert tr.peer == HOST and c.peer_changes == 0
+    assert tr.sent_to.get(ATTACKER, 0) == 0                # nothing goes to the flooder
+    assert tr.flood_sent > 45_000 and c.flood_dropped > 0.99 * tr.flood_sent
+    # the flood's admitted part: one stranger's burst plus its rate, and nothing more
+    from hil import limits
+    admitted = tr.flood_sent - c.flood_dropped
+    assert admitted * len(tr.heartbeat) <= limits.STRANGER_BURST + limits.STRANGER_RATE * 1.0
+    # "before": no budget (the drain still stops at the tick's due time)
+    dev0, tr0, st0, lag0 = _flooded_run(model, flood_limit=False, seconds=0.5)
+    assert dev0.counters.flood_dropped == 0
+    assert dev0.counters.setpoints_accepted < 0.7 * 500 and lag0 > 0.1   # 0.1 s late and more
+
+
+def test_ticks_start_on_time_even_when_the_flood_is_the_peer(model):
+    """The worst case of an unsigned device: the flooding port spoke first, so it is the peer
+    and its input is not limited (hil.peer): 50,000 valid HEARTBEATs a second, 1.35 ms of
+    decoding per millisecond. The drains stop at the ticks' due times (hil.serve), so every tick
+    still starts within half a period and device time stays on the wall clock; the surplus
+    waits in the socket. Simulated clock."""
+    clock = SimClock()
+    dev = Costly(model, clock=clock)
+    tr = FloodedServer(clock, [], clock.t, 50_000.0)
+    start = clock.t
+    st = serve(dev, tr, True, max_ticks=500, clock=clock)
+    assert tr.peer == ATTACKER and dev.counters.flood_dropped == 0
+    assert st.ticks == dev.k == 500 and st.late.misses == 0
+    assert st.late.max <= 0.5 * dev.dt + FEED_COST + RECV_COST + 1e-12
+    assert dev.time == pytest.approx(clock.t - start, abs=dev.dt)
+    assert dev.counters.frames_valid > 0.5 * tr.flood_sent    # the flood was decoded
+
+
+def test_a_flooding_port_never_takes_the_peer_even_when_the_host_goes_quiet(model):
+    """Unsigned: the host streams for 0.1 s and then goes quiet for 0.9 s (far past the peer's
+    hold) while another port floods valid HEARTBEATs. That port has been over its budget within
+    FLOOD_MEMORY s at every one of its admitted frames, so it never becomes the peer: the
+    replies and the telemetry stay with the host. Simulated clock."""
+    clock = SimClock()
+    dev = Costly(model, clock=clock)
+    mav, l0, t0 = host(), dev.plant.outputs.lengths.copy(), clock.t
+    frames = [(t0 + (k + 0.5) * dev.dt, frame(mav, setpoint(k, l0))) for k in range(100)]
+    tr = FloodedServer(clock, frames, t0 + 0.01, 50_000.0)
+    st = serve(dev, tr, True, max_ticks=1000, clock=clock)
+    c = dev.counters
+    assert st.ticks == 1000 and st.late.misses == 0
+    assert tr.peer == HOST and c.peer_changes == 0 and c.peer_kept > 0
+    assert tr.sent_to.get(ATTACKER, 0) == 0 and c.flood_dropped > 0.99 * tr.flood_sent

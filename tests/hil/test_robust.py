@@ -23,8 +23,9 @@ pytest.importorskip("pymavlink")
 from hil import limits  # noqa: E402
 from hil import mavlink_stewart as ms  # noqa: E402
 from hil.device import Device, DeviceError  # noqa: E402
-from hil.framing import Receiver, crc16  # noqa: E402
+from hil.framing import Receiver, crc16, pack  # noqa: E402
 from hil.link import udp_server  # noqa: E402
+from hil.peer import PEER_HOLD  # noqa: E402
 from hil.serve import serve_in_thread  # noqa: E402
 from hil.signing import SIGNING_EPOCH  # noqa: E402
 from hil.spawn import _first_line, device_command, parse_udp  # noqa: E402
@@ -61,6 +62,12 @@ def types(msgs) -> list[str]:
 
 def texts(msgs) -> list[str]:
     return [m.text for m in msgs if m.get_type() == "STATUSTEXT"]
+
+
+def joined(msgs) -> str:
+    """The one text that STATUSTEXT chunks (one id, chunk_seq 0, 1, ...) carry."""
+    assert len({m.id for m in msgs}) == 1 and [m.chunk_seq for m in msgs] == list(range(len(msgs)))
+    return "".join(m.text for m in msgs)
 
 RATE, FORCE, FORCE_RATE = (ms.STEWART_SETPOINT_FLAG_RATE_VALID, ms.STEWART_SETPOINT_FLAG_FORCE_VALID,
                            ms.STEWART_SETPOINT_FLAG_FORCE_RATE_VALID)
@@ -115,6 +122,77 @@ def test_rate_1e307_with_force_is_refused_and_nothing_moves(model):
     still_serving(dev)
 
 
+
+def _follow(dev: Device, lengths, seconds: float, seq: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """Stream one setpoint for `seconds` of device time (one per tick, as a host does); the
+    smallest and largest length each leg reached, and the next sequence number."""
+    lo, hi = np.full(6, np.inf), np.full(6, -np.inf)
+    for _ in range(round(seconds * dev.rate)):
+        dev.receive(setpoint(seq, lengths))
+        seq += 1
+        dev.tick()
+        lo = np.minimum(lo, dev.plant.outputs.lengths)
+        hi = np.maximum(hi, dev.plant.outputs.lengths)
+    return lo, hi, seq
+
+
+@pytest.mark.parametrize("scene", ["micro_manipulator", "motion_simulator"])
+def test_every_accepted_bound_is_reached_without_a_fault(scene):
+    """A setpoint of exactly SP_LEN_MAX (then SP_LEN_MIN, then SP_LEN_MAX again) on every leg,
+    each a full-stroke step at the drive's no-load speed: the old device accepted SP_LEN_MAX =
+    leg_max and its servo overshot into the end stop (fault, disarmed). Now the bounds keep the
+    servo's overshoot room free: every step is accepted, reached, and nothing faults. Device
+    time only (ticks), deterministic."""
+    m = load_scene(ROOT / "scenes" / f"{scene}.toml")
+    dev = Device(m)
+    room = limits.overshoot_room(dev.ctrl.axis, float(np.max(np.abs(dev.plant.rack_force))))
+    b = dev.bounds
+    assert room > 0 and (b.leg_min, b.leg_max) == pytest.approx((m.leg_min + room, m.leg_max - room))
+    values = {p.param_id: p.param_value for p in dev.receive(ms.MAVLink_param_request_list_message(1, 1))}
+    assert (values["SP_LEN_MIN"], values["SP_LEN_MAX"]) == pytest.approx((b.leg_min, b.leg_max))
+    dev.receive(arm())
+    seconds = 1.0 if scene == "micro_manipulator" else 2.0   # a full stroke, then settled
+    seq = 1
+    for bound in (b.leg_max, b.leg_min, b.leg_max):
+        target = np.full(6, bound)
+        lo, hi, seq = _follow(dev, target, seconds, seq)
+        assert dev.counters.setpoints_refused == 0 and dev.counters.faults == 0
+        assert dev.counters.numeric_faults == 0 and dev.armed
+        assert np.all(lo > m.leg_min) and np.all(hi < m.leg_max)          # never at a stop
+        assert np.max(np.abs(dev.plant.outputs.lengths - target)) < 1e-3 * (m.leg_max - m.leg_min)
+    # one leg at a time to each bound from home, where the lengths have a pose (others refused)
+    for leg in range(6):
+        for bound in (b.leg_max, b.leg_min):
+            dev = Device(m)
+            dev.receive(arm())
+            target = dev.plant.outputs.lengths.copy()
+            target[leg] = bound
+            _, _, _ = _follow(dev, target, seconds, 1)
+            c = dev.counters
+            assert c.faults == 0 and c.numeric_faults == 0, (leg, bound)
+            assert c.setpoints_accepted == 0 or dev.armed
+
+
+def test_a_stroke_shorter_than_the_overshoot_room_is_refused(model):
+    """A stroke that leaves no setpoint once the overshoot room is kept at both ends: the device
+    is not built (one line naming the stroke and the room), it does not accept setpoints it
+    could only fault on."""
+    l0 = float(inverse_kinematics(model, model.home).lengths[0])
+    narrow = replace(model, leg_min=l0 - 0.004, leg_max=l0 + 0.004)   # room 4.7 mm > 4 mm
+    with pytest.raises(DeviceError, match=r"leaves no setpoint .*overshoot room \(0\.0046"):
+        Device(narrow)
+
+
+def test_a_setpoint_past_the_overshoot_room_is_refused(model):
+    """Between SP_LEN_MAX and the stroke's end: refused, the text names the setpoint stroke."""
+    dev = Device(model)
+    dev.receive(arm())
+    past = np.full(6, dev.bounds.leg_max + 1e-5)
+    assert past[0] < model.leg_max
+    [t] = texts(dev.receive(setpoint(1, past)))
+    assert t == f"refused: leg 1 at {past[0]:.4g} m, stroke max {dev.bounds.leg_max:.4g}", t
+    assert dev.counters.setpoints_refused == 1 and dev.counters.setpoints_accepted == 0
+
 @pytest.mark.parametrize("field, value, flags", [("force", 1e308, FORCE), ("rate", 1e300, RATE),
                                                  ("force_rate", 1e300, FORCE | FORCE_RATE),
                                                  ("force", -1e5, FORCE), ("rate", 3.5, RATE)])
@@ -140,7 +218,8 @@ def test_bounds_table_follows_the_drive(model):
     b, ax = dev.bounds, dev.ctrl.axis
     assert b.rate_max == pytest.approx(limits.RATE_MARGIN * 24.0 / ax.emf_constant)  # 10 x 0.3 m/s
     assert b.force_max == pytest.approx(limits.FORCE_MARGIN * ax.force_constant * 2.0)
-    assert (b.leg_min, b.leg_max) == (model.leg_min, model.leg_max)
+    room = limits.overshoot_room(ax, float(np.max(np.abs(dev.plant.rack_force))))
+    assert (b.leg_min, b.leg_max) == (model.leg_min + room, model.leg_max - room)
     assert b.voltage_range[1] == 24.0 and b.current_range[1] == 2.0
     values = {m.param_id: m.param_value for m in dev.receive(ms.MAVLink_param_request_list_message(1, 1))}
     assert values["SP_RATE_MAX"] == pytest.approx(b.rate_max)
@@ -228,9 +307,16 @@ def test_numerical_failure_in_the_loop_gives_a_safe_hold(model):
     for _ in range(300):
         out += dev.tick()
     crit = [m for m in out if m.get_type() == "STATUSTEXT" and m.severity == ms.MAV_SEVERITY_CRITICAL]
-    assert len(crit) == 1 and crit[0].text.startswith("numeric fault (IntegrationError)")
+    assert len({m.id for m in crit}) == 1 and crit[0].text.startswith("numeric fault (IntegrationError)")
     assert dev.counters.numeric_faults == 1 and not dev.armed
     assert dev.gains == dev.design_gains and dev.ctrl.axis.motor.voltage_limit == 24.0
+    # the text (one text in chunks) names every gain and limit restored, before and after
+    g = dev.design_gains
+    assert joined(crit) == (
+        "numeric fault (IntegrationError): hold, disarmed; restored "
+        f"CTRL_KP 1e+09 -> {g.kp:.4g}, DRV_V_LIMIT 1e+06 -> 24, DRV_I_LIMIT 1e+06 -> 2 "
+        f"(CTRL_KI {g.ki:.4g}, CTRL_KD {g.kd:.4g} kept)")
+    assert dev.last_fault.endswith(joined(crit).split("; ", 1)[1])
     assert np.max(np.abs(dev.plant.outputs.lengths - l0)) < 1e-6   # held at the last good pose
     still_serving(dev)
 
@@ -251,7 +337,11 @@ def test_non_finite_torque_gives_a_safe_hold(model, monkeypatch):
     out = []
     for _ in range(100):
         out += dev.tick()
-    assert [t for t in texts(out) if "numeric" in t] == ["numeric fault (FloatingPointError): hold, disarmed"]
+    crit = [m for m in out if m.get_type() == "STATUSTEXT" and m.severity == ms.MAV_SEVERITY_CRITICAL]
+    g = dev.design_gains
+    assert joined(crit) == (
+        "numeric fault (FloatingPointError): hold, disarmed; design gains and limits kept: "
+        f"CTRL_KP {g.kp:.4g}, CTRL_KI {g.ki:.4g}, CTRL_KD {g.kd:.4g}, DRV_V_LIMIT 24, DRV_I_LIMIT 2")
     assert dev.counters.numeric_faults == 1 and not dev.armed
     assert np.max(np.abs(dev.plant.outputs.lengths - l0)) < 1e-9
     still_serving(dev)
@@ -374,7 +464,8 @@ def test_a_datagram_cannot_hijack_the_replies(model, signed):
         assert server.peer == host.s.getsockname()
         assert attacker.drain() == 0                                 # the attacker gets nothing
         assert dev.counters.peer_changes == 0
-        if not signed:  # a valid frame from a new port moves the peer, and the old one is told
+        if not signed:  # a valid frame from a new port moves the peer (once the host has been
+            time.sleep(PEER_HOLD)   # quiet for the hold, hil.peer), and the old one is told
             attacker.send(bytes(read_kp().pack(host_mav())))
             told = host.collect(Receiver(ms), _has("STATUSTEXT", lambda m: "peer" in m.text))
             assert _has("STATUSTEXT", lambda m: m.text.startswith("peer 127.0.0.1:"))(told)
@@ -387,6 +478,114 @@ def test_a_datagram_cannot_hijack_the_replies(model, signed):
         attacker.s.close()
     assert not thread.is_alive()
     assert dev.counters.handler_errors == 0 and dev.counters.numeric_faults == 0
+
+
+class _Server:
+    """An unconnected UDP server end as hil.peer sees it, without a socket: the test says who
+    sent each datagram (deterministic, no wall clock)."""
+
+    connected = False
+
+    def __init__(self):
+        self.follow_sender = True
+        self.peer = self.sender = None
+        self.sent: list[tuple[tuple[str, int], bytes]] = []
+
+    def send(self, data: bytes) -> int:
+        self.sent.append((self.peer, data))
+        return len(data)
+
+
+def test_signed_frames_from_another_address_do_not_move_the_peer_while_armed(model):
+    """Signed: the host arms from port 1000; a correctly signed frame from port 2000 (another
+    holder of the key, or a replayed stream on a new link) is handled, but the replies and the
+    telemetry stay with the host while armed (the old device moved them); after disarm a
+    signed frame from port 2000 may take the peer, and says so."""
+    from hil.peer import PeerGuard
+
+    dev, tr = signed_device(model), _Server()
+    guard = PeerGuard(dev, tr)
+    host, other = ("127.0.0.1", 1000), ("127.0.0.1", 2000)
+    hmav, omav = host_at(T0 - 1000, link_id=0), host_at(T0 - 1000, link_id=1)
+
+    def datagram(sender, mav, msg):
+        tr.sender = sender
+        out = dev.feed(pack(mav, msg))
+        guard.after_feed()
+        return out
+
+    assert types(datagram(host, hmav, arm()))[0] == "COMMAND_ACK" and dev.armed
+    assert tr.peer == host
+    tr.sent.clear()
+    assert types(datagram(other, omav, read_kp())) == ["PARAM_VALUE"]   # authenticated: handled
+    assert tr.peer == host and dev.counters.peer_kept == 1 and dev.counters.peer_changes == 0
+    notice = Receiver(ms).feed(b"".join(f for _, f in tr.sent))
+    assert {p for p, _ in tr.sent} == {host}
+    assert texts(notice) == ["peer kept while armed: 127.0.0.1:2000"]
+    for _ in range(5):                                                  # and again: still kept
+        datagram(other, omav, read_kp())
+    assert tr.peer == host and dev.counters.peer_kept == 6
+    datagram(host, hmav, arm(0))
+    assert not dev.armed
+    datagram(other, omav, read_kp())                                     # disarmed: it may move
+    assert tr.peer == other and dev.counters.peer_changes == 1 and dev.counters.peer_kept == 6
+    # the new peer arms; the old host's signed frames no longer move it
+    datagram(other, omav, arm())
+    assert dev.armed
+    datagram(host, hmav, read_kp())
+    assert tr.peer == other and dev.counters.peer_kept == 7
+    still_serving(dev)
+
+
+def test_unsigned_a_streaming_peer_keeps_its_replies(model):
+    """Unsigned: a valid frame from another port moves the peer only when the peer has sent no
+    valid frame for PEER_HOLD s (a host streaming setpoints keeps its replies under a flood of
+    valid frames; a host gone quiet is replaced at once, and the change is told)."""
+    from hil.peer import PEER_HOLD, PeerGuard
+
+    t = [0.0]
+    dev, tr = Device(model), _Server()
+    guard = PeerGuard(dev, tr, clock=lambda: t[0])
+    host, other = ("127.0.0.1", 1000), ("127.0.0.1", 2000)
+
+    def datagram(at, sender):
+        t[0], tr.sender = at, sender
+        dev.feed(pack(host_mav(), read_kp()))
+        guard.after_feed()
+
+    datagram(0.0, host)
+    assert tr.peer == host
+    for k in range(1, 40):                       # the host streams every 1 ms...
+        datagram(k * 1e-3, host)
+        datagram(k * 1e-3 + 5e-4, other)         # ... another port floods valid frames
+    assert tr.peer == host and dev.counters.peer_kept == 39 and dev.counters.peer_changes == 0
+    datagram(0.039 + PEER_HOLD * 0.99, other)    # the host quiet for less than the hold
+    assert tr.peer == host
+    datagram(0.039 + PEER_HOLD * 1.01, other)    # ... and for the hold: the peer moves
+    assert tr.peer == other and dev.counters.peer_changes == 1
+
+
+def test_source_limiter_budgets_and_bounded_memory():
+    """hil.limits.SourceLimiter: a stranger gets its burst and its rate, 10,000 rotating source
+    addresses hold at most SOURCES + 1 buckets and share one budget beyond SOURCES, and an idle
+    source is forgotten."""
+    lim = limits.SourceLimiter()
+    # one stranger flooding 21-byte frames every 10 us for 1 s: its burst, then its rate
+    ok = sum(lim.admit("a", 21, 10.0 + k * 1e-5) for k in range(100_000))
+    assert ok * 21 <= limits.STRANGER_BURST + limits.STRANGER_RATE * 1.0 + 21
+    assert ok * 21 >= limits.STRANGER_RATE * 1.0
+    # 10,000 addresses, each one datagram, within 0.1 s: bounded table, bounded total
+    lim2 = limits.SourceLimiter()
+    ok = sum(lim2.admit(("127.0.0.1", 1024 + i), 100, i * 1e-5) for i in range(10_000))
+    assert len(lim2) <= limits.SOURCES + 1
+    assert ok * 100 <= (limits.SOURCES + 1) * limits.STRANGER_BURST + limits.STRANGER_RATE * 0.1
+    assert lim2.dropped == 10_000 - ok and lim2.bytes_dropped == 100 * lim2.dropped
+    # 2 s later the table's sources are idle: a new address gets a bucket of its own
+    assert lim2.admit(("127.0.0.1", 9), 1000, 2.1) and len(lim2) <= limits.SOURCES + 1
+    # flooding: over the budget within FLOOD_MEMORY s (the shared bucket for sources beyond)
+    assert lim.flooding("a", 11.0) and not lim.flooding("a", 11.0 + limits.FLOOD_MEMORY)
+    assert not lim2.flooding(("127.0.0.1", 9), 2.1) and not lim.flooding("b", 11.0)
+    assert ("127.0.0.1", 9) in lim2._buckets
 
 
 # --------------------------------------------------------------------------- fuzz
