@@ -259,6 +259,15 @@ def check_rules(params, home) -> tuple[int, int, int, str]:
     return rule, out.vr, out.element, ffi.string(out.reason).decode()
 
 
+def check_drive(gear_ratio: float, pinion_radius: float, rotor_inertia) -> tuple[int, int, str]:
+    """stewart_check_drive: (rule, vr, reason) of the drive's derived quantities (the rack
+    ratio, each leg's m_d) computed from its keys; rule is RULE_OK when they are in bounds."""
+    out = ffi.new("stewart_rule_break *")
+    rotor = np.ascontiguousarray(np.broadcast_to(np.asarray(rotor_inertia, dtype=float), (6,)))
+    rule = lib.stewart_check_drive(gear_ratio, pinion_radius, _buf(rotor), out)
+    return rule, out.vr, ffi.string(out.reason).decode()
+
+
 def check_pose(params, q, vr: int) -> tuple[int, str]:
     """stewart_check_pose: (rule, reason) of a pose the plant would start from, named by the
     value reference vr (RULE_OK, RULE_POSE_STROKE or RULE_POSE_SINGULAR)."""
