@@ -47,7 +47,8 @@ def hold_state(model: Model) -> tuple[np.ndarray, np.ndarray]:
 
 def spectral_radius(model: Model, y: np.ndarray, F: np.ndarray) -> float:
     """max |lambda| of the Jacobian of y' = f(y, F) (central differences, Coulomb left out);
-    NaN when a neighbouring state cannot be evaluated (stroke, singularity)."""
+    NaN when a neighbouring state cannot be evaluated (stroke, singularity) or the Jacobian is
+    not finite (a state or force beyond what float64 holds: there is no step to advise)."""
     p = model.params.copy()
     p[M.P_COULOMB:M.P_COULOMB + 6] = 0.0   # every leg's
     # packed for the core once for the 2 n derivatives below (the model's own when unchanged)
@@ -61,8 +62,12 @@ def spectral_radius(model: Model, y: np.ndarray, F: np.ndarray) -> float:
         lo, s2 = derivative(packed, y - e, F)
         if s1 != OK or s2 != OK:  # a neighbour leaves the valid region: no estimate
             return math.nan
-        cols.append((hi - lo) / (2.0 * e[j]))
-    return float(np.max(np.abs(np.linalg.eigvals(np.column_stack(cols)))))
+        with np.errstate(all="ignore"):
+            cols.append((hi - lo) / (2.0 * e[j]))
+    jac = np.column_stack(cols)
+    if not np.all(np.isfinite(jac)):
+        return math.nan
+    return float(np.max(np.abs(np.linalg.eigvals(jac))))
 
 
 def stable_step(model: Model, y: np.ndarray | None = None, F: np.ndarray | None = None) -> float:

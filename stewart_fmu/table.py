@@ -90,6 +90,11 @@ def vr(group_id: str) -> int:
 SCENE_GROUPS: dict[str, VariableGroup] = {g.name: g for g in VARIABLES if g.scene}
 
 
+# The FMU's solver settings by key (rtol, atol, max_step): a scene's [solver] takes their bounds.
+SOLVER_GROUPS: dict[str, VariableGroup] = {g.name.removeprefix("solver."): g for g in VARIABLES
+                                           if g.name.startswith("solver.") and g.shape != STRING}
+
+
 _BY_VR: dict[int, VariableGroup] = {g.vr: g for g in VARIABLES}
 
 

@@ -92,6 +92,8 @@ def command_module(name: str):
 def _run(args: argparse.Namespace) -> int:
     """Run the command parsed, SIGINT caught; returns the exit status (see main)."""
     # imported after parsing: --help, --version and usage errors need none of the packages
+    from numpy.linalg import LinAlgError
+
     from stewart_fmu.errors import StewartError
     from stewart_fmu.io import OutputError
     from stewart_sim import interrupt, outputs
@@ -110,6 +112,9 @@ def _run(args: argparse.Namespace) -> int:
         return _fail(str(exc), 2)
     except OutputError as exc:
         return _fail(str(exc), 1)
+    except (ArithmeticError, LinAlgError) as exc:   # inputs within their bounds still overflowed
+        return _fail(f"the inputs are beyond what the computation holds in float64 "
+                     f"({type(exc).__name__}: {exc})", 2)
     return 0
 
 

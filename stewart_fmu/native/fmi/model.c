@@ -239,7 +239,7 @@ static const char *unit_text(const char *unit, char buf[32]) {
  * one: finite values, the per-key bounds of the table, the drive's derived quantities, then the
  * rules between keys and the home pose on the packed parameters (native/src/rules.c). */
 static int validate(Instance *c, const char *call, const double *v, double *p) {
-    char name[64], unit[32];
+    char name[64], unit[32], got[32];
     stewart_rule_break broken;
     unsigned vr;
     int k;
@@ -257,9 +257,10 @@ static int validate(Instance *c, const char *call, const double *v, double *p) {
             int open = BOUNDS[k].bound == STEWART_BOUND_OPEN;
             const char *u = unit_text(BOUNDS[k].unit, unit);
             if (!has(vr)) continue;
+            stewart_format_double(got, v[vr]);  /* as the scene reader's repr */
             if (open ? !(v[vr] > BOUNDS[k].min) : !(v[vr] >= BOUNDS[k].min))
-                FAIL(vr, "must be %s %g%s, got %g", open ? ">" : ">=", BOUNDS[k].min, BOUNDS[k].min == 0 ? "" : u, v[vr]);
-            if (!(v[vr] <= BOUNDS[k].max)) FAIL(vr, "must be <= %g%s, got %g", BOUNDS[k].max, u, v[vr]);
+                FAIL(vr, "must be %s %g%s, got %s", open ? ">" : ">=", BOUNDS[k].min, BOUNDS[k].min == 0 ? "" : u, got);
+            if (!(v[vr] <= BOUNDS[k].max)) FAIL(vr, "must be <= %g%s, got %s", BOUNDS[k].max, u, got);
         }
 #undef FAIL
     if (has_drive()) {  /* the rack ratio and m_d, from the keys (rotor inertia given once: all legs) */

@@ -51,15 +51,14 @@ static const struct { const char *name, *unit; int bound; double min, max; } DER
 /* A derived quantity's value checked finite and within its bounds: else STEWART_RULE_DERIVED
    naming the key vr and, in the reason, the quantity and the keys it comes from (`from`). */
 static int derived(stewart_rule_break *out, int id, double value, int vr, const char *from) {
-    char v[32], lo[32], hi[32];
+    char v[32];
     int low = DERIVED[id].bound == STEWART_BOUND_OPEN ? !(value > DERIVED[id].min) : !(value >= DERIVED[id].min);
     if (isfinite(value) && !low && value <= DERIVED[id].max) return STEWART_RULE_OK;
     stewart_format_double(v, value);
-    stewart_format_double(lo, DERIVED[id].min);
-    stewart_format_double(hi, DERIVED[id].max);
-    return fail(out, STEWART_RULE_DERIVED, vr, -1, "gives %s = %s %s (%s): must be %s %s and <= %s %s",
+    return fail(out, STEWART_RULE_DERIVED, vr, -1, "gives %s = %s %s (%s): must be %s %g and <= %g %s",
                 DERIVED[id].name, v, DERIVED[id].unit, from,
-                DERIVED[id].bound == STEWART_BOUND_OPEN ? ">" : ">=", lo, hi, DERIVED[id].unit);
+                DERIVED[id].bound == STEWART_BOUND_OPEN ? ">" : ">=", DERIVED[id].min, DERIVED[id].max,
+                DERIVED[id].unit);
 }
 
 int stewart_check_drive(double zeta, double r, const double I[6], stewart_rule_break *out) {
