@@ -247,8 +247,9 @@ def refusal(params, method: str, t: float, h: float, status: int, y, rack, exces
 
 # --- the rules between a scene's keys (rules.c) -----------------------------------------------
 
-RULE_OK, RULE_POSE_STROKE, RULE_POSE_SINGULAR = (
-    lib.STEWART_RULE_OK, lib.STEWART_RULE_POSE_STROKE, lib.STEWART_RULE_POSE_SINGULAR)
+RULE_OK, RULE_POSE_STROKE, RULE_POSE_SINGULAR, RULE_DERIVED = (
+    lib.STEWART_RULE_OK, lib.STEWART_RULE_POSE_STROKE, lib.STEWART_RULE_POSE_SINGULAR,
+    lib.STEWART_RULE_DERIVED)
 
 
 def check_rules(params, home) -> tuple[int, int, int, str]:
