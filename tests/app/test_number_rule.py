@@ -74,8 +74,8 @@ def test_cue_with_times_times_1e_300_is_refused_by_the_step_bound(tmp_path, caps
 
 @pytest.mark.parametrize("bandwidth", [1e308, 1e200, float("inf")])
 def test_gains_from_a_huge_bandwidth_are_a_design_error_not_linalg(bandwidth):
-    """The gain computation itself (below the key's bound): DesignError naming
-    controller.bandwidth, never LinAlgError."""
+    """The gain computation itself (below the key's bound): DesignError naming the [controller]
+    bandwidth, never LinAlgError."""
     scene = load(SCENE_FILES["micro"])
     axis = axis_model(scene.model, scene.controller.motor)
     with pytest.raises(DesignError, match="controller.bandwidth"):
