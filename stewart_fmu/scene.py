@@ -108,7 +108,7 @@ def _deep_key(text: str) -> str | None:
     """The dotted key of the first value nested more than MAX_DEPTH arrays or inline tables
     deep, None when there is none (or the text is not TOML: the reader says so). One pass over
     the tokens, the nesting counted, never recursing."""
-    table, key, depth, at_line_start, pos = "", "", 0, True, 0
+    table, key, depth, pos = "", "", 0, 0
     while pos < len(text):
         m = _NESTING.search(text, pos)
         if m is None:
@@ -118,30 +118,25 @@ def _deep_key(text: str) -> str | None:
             end = text.find(tok, pos)
             if end < 0:
                 return None
-            pos, at_line_start = end + 3, False
-            continue
-        if tok == "\n":
-            at_line_start = depth == 0 or at_line_start
-            continue
-        if tok == "=":
-            if depth == 0:
-                line_start = text.rfind("\n", 0, m.start()) + 1
-                key = text[line_start:m.start()].strip().strip('"\'')
-            at_line_start = False
-            continue
-        if tok in "[{":
-            if depth == 0 and tok == "[" and text[text.rfind("\n", 0, m.start()) + 1:m.start()].strip() == "":
-                end = text.find("\n", pos)     # a table header [name] or [[name]]
-                table = text[pos:end if end >= 0 else len(text)].strip("[] \t").split("]")[0]
-                pos = end if end >= 0 else len(text)
-                continue
+            pos = end + 3
+        elif tok == "=" and depth == 0:
+            key = _line_before(text, m.start()).strip().strip('"\'')
+        elif tok == "[" and depth == 0 and not _line_before(text, m.start()).strip():   # a table header [name], [[name]]
+            end = text.find("\n", pos)
+            end = len(text) if end < 0 else end
+            table, pos = text[pos:end].strip("[] \t").split("]")[0], end
+        elif tok in "[{":
             depth += 1
             if depth > MAX_DEPTH:
                 return f"{table}.{key}" if table else key
         elif tok in "]}":
             depth = max(0, depth - 1)
-        at_line_start = False
     return None
+
+
+def _line_before(text: str, at: int) -> str:
+    """The text of at's line before it."""
+    return text[text.rfind("\n", 0, at) + 1:at]
 
 
 def apply_overrides(data: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
