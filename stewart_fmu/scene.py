@@ -91,6 +91,11 @@ def parse_scene_bytes(text: bytes, path: str | Path) -> dict[str, Any]:
         return tomllib.loads(decoded)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError("<file>", f"not valid TOML: {exc}", str(path)) from None
+    except ValueError:   # an integer of more digits than Python converts (4300)
+        digits = re.search(r"\d{4000,}", decoded)
+        where = _key_at(decoded, digits.start()) if digits else "<file>"
+        raise SceneKeyError(where, "integer of over 4000 digits is beyond 2^53, what a float64 "
+                            "holds exactly", str(path)) from None
     except RecursionError:   # the reader recurses per level: find the key without recursing
         deep = _deep_key(decoded)
         if deep is None:
@@ -121,8 +126,8 @@ def _deep_key(text: str) -> str | None:
             pos = end + 3
         elif tok == "=" and depth == 0:
             key = _line_before(text, m.start()).strip().strip('"\'')
-        elif tok == "[" and depth == 0 and not _line_before(text, m.start()).strip():   # a table header [name], [[name]]
-            end = text.find("\n", pos)
+        elif tok == "[" and depth == 0 and not _line_before(text, m.start()).strip():
+            end = text.find("\n", pos)   # a table header [name] or [[name]]
             end = len(text) if end < 0 else end
             table, pos = text[pos:end].strip("[] \t").split("]")[0], end
         elif tok in "[{":
@@ -132,6 +137,15 @@ def _deep_key(text: str) -> str | None:
         elif tok in "]}":
             depth = max(0, depth - 1)
     return None
+
+
+def _key_at(text: str, at: int) -> str:
+    """The dotted key whose value holds the character at `at`: the last table header and the
+    last `key =` at a line's start before it."""
+    headers = re.findall(r"^\s*\[+\s*([A-Za-z_\"\'][\w.\"\' -]*?)\s*\]+\s*(?:#.*)?$", text[:at], re.M)
+    keys = re.findall(r"^\s*([\w.\"\'-]+)\s*=", text[:at], re.M)
+    key = keys[-1].strip("\"\'") if keys else "<file>"
+    return f"{headers[-1].strip()}.{key}" if headers else key
 
 
 def _line_before(text: str, at: int) -> str:

@@ -159,6 +159,7 @@ REPROS = [
     ("pinion_radius = 0.005", "pinion_radius = 1e-300", "drive.pinion_radius", "must be >= 1e-06 m"),
     ("rate = 1000.0", "rate = " + "1" * 31, "controller.rate", "integer of 31 digits"),
     ("mass = 0.5", "mass = 1" + "0" * 400, "platform.mass", "integer of 401 digits"),
+    ("mass = 0.5", "mass = 1" + "0" * 5000, "platform.mass", "integer of over 4000 digits"),
     ("lower_mass = 0.065", "lower_mass = 1e308", "legs.lower_mass", "must be <= 100000 kg"),
     ("bandwidth = 20.0", "bandwidth = 1e308", "controller.bandwidth", "must be <= 10000 Hz"),
     ("gravity = [0.0, 0.0, -9.81]", "gravity = " + "[" * 50000 + "]" * 50000, "gravity",
@@ -175,7 +176,7 @@ def micro_trajectory(tmp_path_factory) -> Path:
     return path
 
 
-@pytest.mark.parametrize("old,new,key,why", REPROS, ids=[r[2] for r in REPROS])
+@pytest.mark.parametrize("old,new,key,why", REPROS, ids=[f"{r[2]}-{k}" for k, r in enumerate(REPROS)])
 @pytest.mark.parametrize("command", ["scene-info", "inverse", "run"])
 def test_issue_repros_scene_values(tmp_path, capsys, micro_trajectory, command, old, new, key,
                                    why):
