@@ -9,6 +9,8 @@ gives Kd < 0: the design is then a PI (Kd = 0) with Kp and Ki from the same two 
 """
 from __future__ import annotations
 
+import math
+import warnings
 from dataclasses import dataclass
 
 import control as ct
@@ -58,20 +60,37 @@ def tune_pid(axis: AxisModel, bandwidth_hz: float, phase_margin_deg: float) -> P
         raise DesignError(f"bandwidth {bandwidth_hz} Hz must be > 0 and phase margin "
                           f"{phase_margin_deg} deg in (0, 90)")
     wc = 2 * np.pi * bandwidth_hz
-    P = complex(axis.position_tf()(1j * wc))
-    target = np.exp(1j * np.deg2rad(phase_margin_deg - 180.0)) / P
+    with np.errstate(all="ignore"), warnings.catch_warnings():   # refused below when not finite
+        warnings.simplefilter("ignore", RuntimeWarning)
+        P = complex(axis.position_tf()(1j * wc))
+        target = np.exp(1j * np.deg2rad(phase_margin_deg - 180.0)) / P
+    if not (np.isfinite(wc) and np.isfinite(P) and P != 0 and np.isfinite(target)):
+        raise DesignError(f"the drive's response at the crossover (controller.bandwidth "
+                          f"{bandwidth_hz:g} Hz) is {P:.3g}, not a finite non-zero number: the "
+                          "bandwidth, the [drive] and [controller.motor] keys are beyond what "
+                          "the design can compute")
     a = 1 + 1 / (INTEGRAL_RATIO * 1j)   # C = Kp a + Kd b
     b = 1j * wc
-    M = np.array([[a.real, b.real], [a.imag, b.imag]])
+    M = np.array([[a.real, b.real], [a.imag, b.imag]])   # det = wc: regular for wc > 0
     kp, kd = np.linalg.solve(M, [target.real, target.imag])
     if kd >= 0 and kp > 0:
-        return PidGains(float(kp), float(kp * wc / INTEGRAL_RATIO), float(kd))
+        return _finite(PidGains(float(kp), float(kp * wc / INTEGRAL_RATIO), float(kd)),
+                       bandwidth_hz, phase_margin_deg)
     kp, ki = target.real, -target.imag * wc   # PI: C(j wc) = Kp - j Ki / wc
     if kp <= 0 or ki < 0:
         raise DesignError(f"no PID with non-negative gains reaches {bandwidth_hz} Hz at "
                           f"{phase_margin_deg} deg phase margin (PI would need Kp = {kp:.3g}, "
                           f"Ki = {ki:.3g})")
-    return PidGains(float(kp), float(ki), 0.0)
+    return _finite(PidGains(float(kp), float(ki), 0.0), bandwidth_hz, phase_margin_deg)
+
+
+def _finite(gains: PidGains, bandwidth_hz: float, phase_margin_deg: float) -> PidGains:
+    """The gains, once computed: finite (DesignError naming the keys they come from)."""
+    if not all(np.isfinite(g) for g in (gains.kp, gains.ki, gains.kd)):
+        raise DesignError(f"the PID gains {gains} from controller.bandwidth {bandwidth_hz:g} Hz, "
+                          f"controller.phase_margin {phase_margin_deg:g} deg and the drive "
+                          "([drive], [controller.motor]) are not finite")
+    return gains
 
 
 def sampled_spectral_radius(axis: AxisModel, gains: PidGains, dt: float, delay: int = 0) -> float:
@@ -94,6 +113,8 @@ def sampled_spectral_radius(axis: AxisModel, gains: PidGains, dt: float, delay: 
     else:
         M[:3, :] += np.outer(Bd, K)
     M[3, 0], M[3, 3] = -dt, 1.0
+    if not np.all(np.isfinite(M)):   # the loop's numbers overflow: no stable loop either
+        return math.inf
     return float(np.max(np.abs(np.linalg.eigvals(M))))
 
 

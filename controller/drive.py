@@ -13,7 +13,6 @@ design sees the platform and leg inertia but none of the coupling. A scene can g
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Mapping
 
 import control as ct
 import numpy as np
@@ -129,22 +128,3 @@ def axis_model(model: Model, motor: Motor, load_mass: float | None = None) -> Ax
     return AxisModel(motor, d.gear_ratio, d.pinion_radius, float(np.max(per_leg(d.rotor_inertia))),
                      constant_load(model) if load_mass is None else load_mass,
                      float(np.min(model.friction.viscous_legs)) if model.friction is not None else 0.0)
-
-
-def motor_from_table(table: Mapping[str, Any], where: str = "controller.motor",
-                     source: str | None = None) -> Motor:
-    """Read and check a motor table: every key present, finite and > 0."""
-    if not isinstance(table, Mapping):
-        raise SceneError(where, "must be a table", source)
-    unknown = sorted(set(table) - set(MOTOR_KEYS))
-    if unknown:
-        raise SceneError(f"{where}.{unknown[0]}", f"unknown key (allowed: {list(MOTOR_KEYS)})", source)
-    values = {}
-    for key in MOTOR_KEYS:
-        if key not in table:
-            raise SceneError(f"{where}.{key}", "required key is missing", source)
-        x = table[key]
-        if isinstance(x, bool) or not isinstance(x, (int, float)) or not np.isfinite(x) or x <= 0:
-            raise SceneError(f"{where}.{key}", f"must be a finite number > 0, got {x!r}", source)
-        values[key] = float(x)
-    return Motor(**values)

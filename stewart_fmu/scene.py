@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+import re
 import tomllib
 from dataclasses import fields
 from pathlib import Path
@@ -14,7 +15,6 @@ from .errors import SceneError, SceneKeyError
 from . import table
 from .native import core
 from .model import DriveParams, FrictionParams, LegParams, Model, TransmissionParams
-from .table import BOUND_NONNEG, BOUND_POS, BOUND_WORDS
 
 DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
 # Tables the project defines on top of the contract, each read by a command and checked where it
@@ -24,6 +24,12 @@ PROJECT_TABLES = frozenset({"controller", "case", "cueing", "solver", "sensors"}
 _TOP_KEYS = {"name", "gravity", "geometry", "platform", "legs", "drive", "friction",
              "transmission"}
 _OPTIONAL_KEYS = {"geometry.leg_min", "geometry.leg_max"}   # every other plant key is required
+# Every value of a scene, in every table: nested at most MAX_DEPTH tables and arrays deep (a
+# joint list is 2 inside its table; TOML readers recurse per level, so 50,000 levels are a
+# RecursionError), and an integer at most 2^53 in magnitude (TOML integers are Python ints of
+# any size; beyond 2^53 a float64 cannot hold them exactly, beyond ~1.8e308 not at all).
+MAX_DEPTH = 16
+MAX_INTEGER = 2**53
 
 
 def _plant_table_keys() -> dict[str, tuple[set[str], set[str]]]:
@@ -74,14 +80,77 @@ def read_scene_bytes(path: str | Path) -> bytes:
 
 
 def parse_scene_bytes(text: bytes, path: str | Path) -> dict[str, Any]:
-    """The parsed TOML of a scene file's bytes, not yet checked (SceneError: not TOML)."""
+    """The parsed TOML of a scene file's bytes, not yet checked (SceneError: not TOML; a value
+    nested beyond MAX_DEPTH, SceneKeyError naming its key)."""
     try:
-        return tomllib.loads(text.decode())
+        decoded = text.decode()
     except UnicodeDecodeError as exc:
         raise SceneError("<file>", f"not a text (TOML) file: {exc.reason} at byte {exc.start}",
                          str(path)) from None
+    try:
+        return tomllib.loads(decoded)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError("<file>", f"not valid TOML: {exc}", str(path)) from None
+    except ValueError:   # an integer of more digits than Python converts (4300)
+        digits = re.search(r"\d{4000,}", decoded)
+        where = _key_at(decoded, digits.start()) if digits else "<file>"
+        raise SceneKeyError(where, "integer of over 4000 digits is beyond 2^53, what a float64 "
+                            "holds exactly", str(path)) from None
+    except RecursionError:   # the reader recurses per level: find the key without recursing
+        deep = _deep_key(decoded)
+        if deep is None:
+            raise SceneError("<file>", "nested too deep to read", str(path)) from None
+        raise SceneKeyError(deep, f"nested more than {MAX_DEPTH} arrays or tables deep",
+                            str(path)) from None
+
+
+# The tokens that open or close a value's nesting, or hide brackets (strings, comments): what
+# _deep_key reads of the text before the TOML reader recurses into it.
+_NESTING = re.compile(r'"""|\'\'\'|"(?:[^"\\\n]|\\.)*"|\'[^\'\n]*\'|#[^\n]*|[\[\]{}=\n]')
+
+
+def _deep_key(text: str) -> str | None:
+    """The dotted key of the first value nested more than MAX_DEPTH arrays or inline tables
+    deep, None when there is none (or the text is not TOML: the reader says so). One pass over
+    the tokens, the nesting counted, never recursing."""
+    table, key, depth, pos = "", "", 0, 0
+    while pos < len(text):
+        m = _NESTING.search(text, pos)
+        if m is None:
+            return None
+        tok, pos = m.group(0), m.end()
+        if tok in ('"""', "'''"):   # a multi-line string: skip to its end
+            end = text.find(tok, pos)
+            if end < 0:
+                return None
+            pos = end + 3
+        elif tok == "=" and depth == 0:
+            key = _line_before(text, m.start()).strip().strip('"\'')
+        elif tok == "[" and depth == 0 and not _line_before(text, m.start()).strip():
+            end = text.find("\n", pos)   # a table header [name] or [[name]]
+            end = len(text) if end < 0 else end
+            table, pos = text[pos:end].strip("[] \t").split("]")[0], end
+        elif tok in "[{":
+            depth += 1
+            if depth > MAX_DEPTH:
+                return f"{table}.{key}" if table else key
+        elif tok in "]}":
+            depth = max(0, depth - 1)
+    return None
+
+
+def _key_at(text: str, at: int) -> str:
+    """The dotted key whose value holds the character at `at`: the last table header and the
+    last `key =` at a line's start before it."""
+    headers = re.findall(r"^\s*\[+\s*([A-Za-z_\"\'][\w.\"\' -]*?)\s*\]+\s*(?:#.*)?$", text[:at], re.M)
+    keys = re.findall(r"^\s*([\w.\"\'-]+)\s*=", text[:at], re.M)
+    key = keys[-1].strip("\"\'") if keys else "<file>"
+    return f"{headers[-1].strip()}.{key}" if headers else key
+
+
+def _line_before(text: str, at: int) -> str:
+    """The text of at's line before it."""
+    return text[text.rfind("\n", 0, at) + 1:at]
 
 
 def apply_overrides(data: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
@@ -108,6 +177,7 @@ def scene_from_dict(data: Mapping[str, Any], source: str | None = None) -> Model
     one table), then the rules between keys on the packed Model (native/src/rules.c, which the
     FMU's validation calls too)."""
     v = _Validator(source)
+    _check_values(v, data)
     unknown = set(data) - _TOP_KEYS - PROJECT_TABLES
     if unknown:
         v.fail_key(sorted(unknown)[0], f"unknown key (allowed: {sorted(_TOP_KEYS | PROJECT_TABLES)})")
@@ -133,6 +203,25 @@ def scene_from_dict(data: Mapping[str, Any], source: str | None = None) -> Model
     )
     _check_rules(v, model)
     return model
+
+
+def _check_values(v: "_Validator", data: Mapping[str, Any]) -> None:
+    """Every value of every table, before any is read: nested at most MAX_DEPTH deep, integers
+    at most MAX_INTEGER (SceneKeyError naming the dotted key). Iterative: a walk of a value
+    nested deeper than the interpreter's recursion limit must not recurse."""
+    stack: list[tuple[str, Any, int]] = [("", data, 0)]
+    while stack:
+        key, value, depth = stack.pop()
+        if depth > MAX_DEPTH:
+            v.fail_key(key, f"nested more than {MAX_DEPTH} arrays or tables deep")
+        if isinstance(value, Mapping):
+            stack += [(f"{key}.{k}" if key else str(k), x, depth + 1) for k, x in value.items()]
+        elif isinstance(value, (list, tuple)):
+            stack += [(key, x, depth + 1) for x in value]
+        elif isinstance(value, int) and not isinstance(value, bool) and abs(value) > MAX_INTEGER:
+            digits = len(str(abs(value))) if abs(value) < 10**4300 else "over 4300"
+            v.fail_key(key, f"integer of {digits} digits is beyond 2^53, what a float64 holds "
+                            "exactly: write a float (1e30), within the key's bounds")
 
 
 def _legs(v: "_Validator", data: Mapping[str, Any]) -> LegParams | None:
@@ -179,6 +268,11 @@ def _check_rules(v: "_Validator", model: Model) -> None:
     """The rules between keys, once every key has passed its own (native/src/rules.c, the
     FMU's validation too): coincident joints, leg_min below leg_max, the inertias a rigid body
     can have, a home pose within the stroke and away from singularities."""
+    if model.drive is not None:   # its derived quantities first, as the FMU's validation
+        d = model.drive
+        rule, vr, reason = core.check_drive(d.gear_ratio, d.pinion_radius, d.rotor_inertia)
+        if rule != core.RULE_OK:
+            v.fail(table.group_at(vr).name, reason)
     rule, vr, _, reason = core.check_rules(model.native, model.home)
     if rule != core.RULE_OK:
         v.fail(table.group_at(vr).name, reason)
@@ -213,8 +307,7 @@ class _Validator:
             self.fail_key(f"{name}.{key}", "required key is missing")
         return t
 
-    def number(self, t: Mapping[str, Any], dotted: str, positive: bool = False,
-               nonnegative: bool = False, optional: bool = False) -> float | None:
+    def number(self, t: Mapping[str, Any], dotted: str, optional: bool = False) -> float | None:
         key = dotted.rsplit(".", 1)[-1]
         if key not in t:
             if optional:
@@ -226,8 +319,7 @@ class _Validator:
         x = float(x)
         if not math.isfinite(x):
             self.fail_key(dotted, f"must be finite, got {x}")
-        self._bound(dotted, np.array(x), BOUND_POS if positive else BOUND_NONNEG if nonnegative
-                    else table.bound(dotted))
+        self._bound(dotted, np.array(x))
         return x
 
     def value(self, t: Mapping[str, Any], dotted: str):
@@ -273,11 +365,11 @@ class _Validator:
             bad(f"wrong shape: expected {shape}, got {arr.shape}")
         if not np.all(np.isfinite(arr)):
             bad(f"must be finite, got {np.asarray(x).tolist()}")
-        self._bound(dotted, arr, table.bound(dotted))
+        self._bound(dotted, arr)
         return arr
 
-    def _bound(self, dotted: str, arr: np.ndarray, rule: int) -> None:
-        """The key's lower bound (table.bound: the one table's, for the plant keys)."""
-        low = arr <= 0 if rule == BOUND_POS else arr < 0 if rule == BOUND_NONNEG else np.zeros(1, bool)
-        if np.any(low):
-            self.fail_key(dotted, f"must be {BOUND_WORDS[rule]}, got {arr.tolist()}")
+    def _bound(self, dotted: str, arr: np.ndarray) -> None:
+        """The key's physical bounds: the one table's (native/include/stewart_table.h)."""
+        reason = table.bound_reason(table.scene_groups()[dotted], arr)
+        if reason is not None:
+            self.fail_key(dotted, reason)

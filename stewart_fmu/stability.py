@@ -47,7 +47,8 @@ def hold_state(model: Model) -> tuple[np.ndarray, np.ndarray]:
 
 def spectral_radius(model: Model, y: np.ndarray, F: np.ndarray) -> float:
     """max |lambda| of the Jacobian of y' = f(y, F) (central differences, Coulomb left out);
-    NaN when a neighbouring state cannot be evaluated (stroke, singularity)."""
+    NaN when a neighbouring state cannot be evaluated (stroke, singularity) or the Jacobian is
+    not finite (a state or force beyond what float64 holds: there is no step to advise)."""
     p = model.params.copy()
     p[M.P_COULOMB:M.P_COULOMB + 6] = 0.0   # every leg's
     # packed for the core once for the 2 n derivatives below (the model's own when unchanged)

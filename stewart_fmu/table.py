@@ -10,11 +10,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from .native.core import ffi, lib
 
-# Bounds of a value, per key (stewart_table.h STEWART_BOUND_*): the rule and its words.
-BOUND_ANY, BOUND_NONNEG, BOUND_POS = lib.STEWART_BOUND_ANY, lib.STEWART_BOUND_NONNEG, lib.STEWART_BOUND_POS
-BOUND_WORDS = {BOUND_NONNEG: ">= 0", BOUND_POS: "> 0"}
+# The kind of a parameter's bounds (stewart_table.h STEWART_BOUND_*): MIN <= x <= MAX (CLOSED),
+# MIN < x <= MAX (OPEN); inputs and outputs have none (ANY).
+BOUND_ANY, BOUND_CLOSED, BOUND_OPEN = lib.STEWART_BOUND_ANY, lib.STEWART_BOUND_CLOSED, lib.STEWART_BOUND_OPEN
 # Shapes beyond a group's count: a plain vector, or one value per leg (or one for all legs).
 VECTOR, PER_LEG, STRING = lib.STEWART_VECTOR, lib.STEWART_PER_LEG, lib.STEWART_STRING
 
@@ -40,7 +42,9 @@ class VariableGroup:
     vr: int             # the first value reference
     count: int
     shape: int          # VECTOR, PER_LEG, or the columns of a matrix
-    bound: int          # BOUND_*
+    bound: int          # BOUND_*: the kind of [min, max]
+    min: float          # the physical bounds of each value, in `unit` (-inf, inf: none)
+    max: float
     scene: bool         # a scene key of the plant tables (its name is the dotted key)
     fmi3_only: bool     # an FMI 3.0 array only (q, qd: the pose beside its named scalars)
     causality: str      # parameter, input or output
@@ -60,8 +64,9 @@ def _read_params() -> dict[str, Param]:
 
 def _read_variables() -> tuple[VariableGroup, ...]:
     rows = (lib.stewart_variable_table[k] for k in range(lib.stewart_variable_table_size))
-    return tuple(VariableGroup(_text(r.id), _text(r.name), r.vr, r.count, r.shape, r.bound, bool(r.scene),
-                               bool(r.fmi3_only), _text(r.causality), _text(r.unit), _text(r.description))
+    return tuple(VariableGroup(_text(r.id), _text(r.name), r.vr, r.count, r.shape, r.bound, r.min, r.max,
+                               bool(r.scene), bool(r.fmi3_only), _text(r.causality), _text(r.unit),
+                               _text(r.description))
                  for r in rows)
 
 
@@ -94,6 +99,11 @@ def vr(group_id: str) -> int:
 SCENE_GROUPS: dict[str, VariableGroup] = {g.name: g for g in VARIABLES if g.scene}
 
 
+# The FMU's solver settings by key (rtol, atol, max_step): a scene's [solver] takes their bounds.
+SOLVER_GROUPS: dict[str, VariableGroup] = {g.name.removeprefix("solver."): g for g in VARIABLES
+                                           if g.name.startswith("solver.") and g.shape != STRING}
+
+
 _BY_VR: dict[int, VariableGroup] = {g.vr: g for g in VARIABLES}
 
 
@@ -108,7 +118,24 @@ def scene_groups() -> dict[str, VariableGroup]:
     return SCENE_GROUPS
 
 
-def bound(key: str) -> int:
-    """The per-key bound of a scene key (BOUND_ANY for a key the table does not bound)."""
-    group = scene_groups().get(key)
-    return BOUND_ANY if group is None else group.bound
+def unit_text(unit: str) -> str:
+    """A unit after a bound: " kg", " (m, rad)" for a pose, "" for none (as fmi/model.c words it)."""
+    return {"pose": " (m, rad)", "rate": " (m/s, rad/s)", "": "", "1": ""}.get(unit, f" {unit}")
+
+
+def bound_reason(group: VariableGroup, values) -> str | None:
+    """Why values (a number or an array) break their group's bounds, None when they do not: the
+    words of the FMU's validation (fmi/model.c validate), e.g. "must be > 0, got -0.5" or
+    "must be <= 1e+06 kg, got 1e+308"."""
+    arr = np.asarray(values, dtype=float)
+    unit = unit_text(group.unit)
+    if group.bound == BOUND_ANY:
+        return None
+    open_ = group.bound == BOUND_OPEN
+    low = ~(arr > group.min) if open_ else ~(arr >= group.min)
+    got = arr.tolist()
+    if np.any(low):
+        return f"must be {'>' if open_ else '>='} {group.min:g}{'' if group.min == 0 else unit}, got {got}"
+    if np.any(~(arr <= group.max)):
+        return f"must be <= {group.max:g}{unit}, got {got}"
+    return None

@@ -103,6 +103,8 @@ def command_module(name: str):
 def _run(args: argparse.Namespace) -> int:
     """Run the command parsed, SIGINT caught; returns the exit status (see main)."""
     # imported after parsing: --help, --version and usage errors need none of the packages
+    from numpy.linalg import LinAlgError
+
     from stewart_fmu.errors import StewartError
     from stewart_fmu.io import WRITE_ERRNOS, OutputError, SpecialOutputError, check_output
     from stewart_sim import interrupt, outputs
@@ -133,6 +135,9 @@ def _run(args: argparse.Namespace) -> int:
         if exc.errno not in WRITE_ERRNOS:   # not an output that cannot be written: a bug
             raise
         return _fail(f"cannot write {exc.filename or 'the output'}: {exc.strerror or exc}", 1)
+    except (ArithmeticError, LinAlgError) as exc:   # inputs within their bounds still overflowed
+        return _fail(f"the inputs are beyond what the computation holds in float64 "
+                     f"({type(exc).__name__}: {exc})", 2)
     return 0
 
 

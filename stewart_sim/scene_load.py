@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping
 
 from hil.sensors import SensorConfig, sensor_config
+from stewart_fmu import table as fmu_table
 from stewart_fmu.errors import SceneError, SceneKeyError, StewartError
 from stewart_fmu.integrators import COMPILED, IntegratorOptions
 from stewart_fmu.model import Model
@@ -28,8 +29,8 @@ if TYPE_CHECKING:   # the readers import control and the closed loop: only when 
     from controller.config import ControllerConfig
     from stewart_sim.cases import Case
 
-# [solver]: the in-process plant's integrator, with the names of the FMU's solver.* parameters
-# (stewart_fmu.fmu.variables); absent keys keep stability.default_options of the model
+# [solver]: the in-process plant's integrator, with the names and bounds of the FMU's solver.*
+# parameters (stewart_fmu.table); absent keys keep stability.default_options of the model
 SOLVER_KEYS = ("method", "rtol", "atol", "max_step")
 
 
@@ -104,6 +105,9 @@ def solver_options(model: Model) -> IntegratorOptions:
                     or x <= 0:
                 raise SceneKeyError(f"solver.{key}", f"must be a finite number > 0, got {x!r}",
                                     model.source)
+            beyond = fmu_table.bound_reason(fmu_table.SOLVER_GROUPS[key], x)   # the FMU's bounds
+            if beyond is not None:
+                raise SceneKeyError(f"solver.{key}", beyond, model.source)
             values[key] = float(x)
     if "method" in table:
         if table["method"] not in COMPILED:

@@ -59,7 +59,11 @@ def simulate(model: Model, t: np.ndarray, sigma: np.ndarray, integrator: str | N
     rows[0] = _row(plant, t[0])
     for k in range(t.size - 1):
         plant.set_force(sigma[k])
-        plant.do_step(plant.time, float(t[k + 1] - plant.time))
+        try:
+            plant.do_step(plant.time, float(t[k + 1] - plant.time))
+        except StewartError as exc:   # typed as the plant raised it, the sample named first
+            exc.args = (f"forces sample {k} (t = {float(t[k])!r} s): {exc}",)
+            raise
         rows[k + 1] = _row(plant, t[k + 1])
     return io.named_array({name: rows[:, k] for k, name in enumerate(MOTION_COLUMNS)})
 

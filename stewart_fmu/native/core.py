@@ -247,8 +247,9 @@ def refusal(params, method: str, t: float, h: float, status: int, y, rack, exces
 
 # --- the rules between a scene's keys (rules.c) -----------------------------------------------
 
-RULE_OK, RULE_POSE_STROKE, RULE_POSE_SINGULAR = (
-    lib.STEWART_RULE_OK, lib.STEWART_RULE_POSE_STROKE, lib.STEWART_RULE_POSE_SINGULAR)
+RULE_OK, RULE_POSE_STROKE, RULE_POSE_SINGULAR, RULE_DERIVED = (
+    lib.STEWART_RULE_OK, lib.STEWART_RULE_POSE_STROKE, lib.STEWART_RULE_POSE_SINGULAR,
+    lib.STEWART_RULE_DERIVED)
 
 
 def check_rules(params, home) -> tuple[int, int, int, str]:
@@ -257,6 +258,15 @@ def check_rules(params, home) -> tuple[int, int, int, str]:
     out = ffi.new("stewart_rule_break *")
     rule = lib.stewart_check_rules(_p(params), _buf(np.ascontiguousarray(home, dtype=float)), out)
     return rule, out.vr, out.element, ffi.string(out.reason).decode()
+
+
+def check_drive(gear_ratio: float, pinion_radius: float, rotor_inertia) -> tuple[int, int, str]:
+    """stewart_check_drive: (rule, vr, reason) of the drive's derived quantities (the rack
+    ratio, each leg's m_d) computed from its keys; rule is RULE_OK when they are in bounds."""
+    out = ffi.new("stewart_rule_break *")
+    rotor = np.ascontiguousarray(np.broadcast_to(np.asarray(rotor_inertia, dtype=float), (6,)))
+    rule = lib.stewart_check_drive(gear_ratio, pinion_radius, _buf(rotor), out)
+    return rule, out.vr, ffi.string(out.reason).decode()
 
 
 def check_pose(params, q, vr: int) -> tuple[int, str]:

@@ -148,3 +148,64 @@ def test_plant_and_fmu_refuse_the_same_initial_pose(refusals, request, q0, error
     reason = str(info.value).removeprefix("the initial pose ")
     assert why in reason
     assert _fmu_refusal(refusals[request.node.callspec.id]) == f"{CALL}: parameter q0 {reason}"
+
+
+# --- the physical bounds of the one table: the scene reader and both FMUs -----------------------
+
+# (id, {dotted key: value}, the key named, the reason as both give it)
+BEYOND = [
+    ("gear ratio 1e308", {"drive.gear_ratio": 1e308}, "drive.gear_ratio", "must be <= 100000, got 1e+308"),
+    ("pinion radius 1e-300", {"drive.pinion_radius": 1e-300}, "drive.pinion_radius",
+     "must be >= 1e-06 m, got 1e-300"),
+    ("lower mass 1e308", {"legs.lower_mass": 1e308}, "legs.lower_mass", "must be <= 100000 kg, got 1e+308"),
+    ("platform mass 1e7", {"platform.mass": 1e7}, "platform.mass", "must be <= 1e+06 kg, got 10000000.0"),
+    ("gravity -1e4", {"gravity": [0.0, 0.0, -1e4]}, "gravity", "must be >= -1000 m/s2, got "),
+    ("m_d beyond its bound", {"drive.gear_ratio": 1e5, "drive.rotor_inertia": 1.0}, "drive.gear_ratio",
+     "gives the reflected drive mass m_d = zeta^2 I / r^2 = 400000000000000.0 kg (leg 1: drive.gear_ratio 100000.0, "
+     "drive.rotor_inertia 1.0, drive.pinion_radius 0.005): must be >= 0 and <= 1e+08 kg"),
+]
+
+
+@pytest.fixture(scope="module", params=[2, 3], ids=["fmi2", "fmi3"])
+def bound_refusals(request, tmp_path_factory) -> dict:
+    """Each BEYOND case through an exported FMU of the micro scene (FMI 2.0 and 3.0), in a child
+    process: its exitInitializationMode status and log."""
+    version = request.param
+    folder = tmp_path_factory.mktemp(f"bounds_fmu{version}")
+    fmu = export_fmu(SCENE_FILES["micro"], folder / "micro.fmu", fmi_version=version)
+    from fmpy import extract
+    unzipdir = extract(str(fmu), str(folder / "micro"))
+    cases = {name: _values(changes) for name, changes, _, _ in BEYOND}
+    child = _CHILD.replace("initialization_refusals(sys.argv[2], 2, cases)",
+                           f"initialization_refusals(sys.argv[2], {version}, cases)")
+    proc = subprocess.run([sys.executable, "-c", child, str(HERE), unzipdir], capture_output=True,
+                          text=True, timeout=120, input=json.dumps(cases))
+    lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")]
+    assert proc.returncode == 0 and lines, proc.stderr[-3000:]
+    return json.loads(lines[-1][7:])
+
+
+@pytest.mark.parametrize("changes,key,why", [c[1:] for c in BEYOND], ids=[c[0] for c in BEYOND])
+def test_scene_reader_and_fmu_refuse_values_beyond_the_bounds(bound_refusals, request, changes,
+                                                              key, why):
+    """A value beyond its key's physical bounds (the one table, native/include/stewart_table.h),
+    or a derived quantity beyond its own: the scene reader names the key; exitInitializationMode
+    of FMI 2.0 and 3.0 returns Error, logging 'parameter <key> <the same reason>' (no NaN
+    answered with OK later: drive.gear_ratio = 1e308 gave one)."""
+    data = scene_dict("micro")
+    for dotted, value in changes.items():
+        *tables, name = dotted.split(".")
+        node = data
+        for t in tables:
+            node = node[t]
+        node[name] = value
+    with pytest.raises(SceneError) as info:
+        scene_from_dict(data)
+    err = info.value
+    assert err.key == key and why in err.reason, (err.key, err.reason)
+    name = request.node.callspec.id.split("-", 1)[1]   # "fmi2-<case>"
+    message = _fmu_refusal(bound_refusals[name])
+    named = re.match(rf"{CALL}: parameter {re.escape(key)}(\[\d+\])? ", message)
+    assert named and why in message, message
+    if not named.group(1):   # a scalar: the very same reason (an element's names its value)
+        assert message == f"{named.group(0)}{err.reason}", (message, err.reason)

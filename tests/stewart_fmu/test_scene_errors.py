@@ -92,7 +92,7 @@ CASES = [
     ("negative lower mass", setting("legs.lower_mass", -0.065), "legs.lower_mass", "must be >= 0"),
     ("negative upper mass", setting("legs.upper_mass", -0.065), "legs.upper_mass", "must be >= 0"),
     ("negative platform moment", setting("platform.inertia", [-6e-4, 6e-4, 1.1e-3]),
-     "platform.inertia", "not positive definite"),
+     "platform.inertia", "must be >= 0"),
     ("zero platform moment", setting("platform.inertia", [6e-4, 0.0, 1.1e-3]), "platform.inertia",
      "not positive definite"),
     ("triangle-violating inertia", setting("platform.inertia", [6e-4, 6e-4, 1.3e-3]),
@@ -107,8 +107,10 @@ CASES = [
     ("negative upper com", setting("legs.upper_com", -0.04), "legs.upper_com", "must be >= 0"),
     # drive and friction
     *[(f"{how} {k}", setting(f"drive.{k}", v), f"drive.{k}", "must be > 0")
-      for k in ("gear_ratio", "rotor_inertia", "pinion_radius")
+      for k in ("gear_ratio", "rotor_inertia")
       for how, v in (("zero", 0.0), ("negative", -1.0))],
+    *[(f"{how} pinion_radius", setting("drive.pinion_radius", v), "drive.pinion_radius",
+       "must be >= 1e-06 m") for how, v in (("zero", 0.0), ("negative", -1.0))],
     ("negative viscous", setting("friction.viscous", -5.0), "friction.viscous", "must be >= 0"),
     ("negative coulomb", setting("friction.coulomb", -0.1), "friction.coulomb", "must be >= 0"),
     # stroke and home

@@ -193,3 +193,29 @@ def test_integrator_names_are_the_cores():
     assert lib.stewart_method_name(-1) == ffi.NULL
     assert core.METHODS == {"rk4": lib.STEWART_RK4, "euler": lib.STEWART_EULER,
                             "dopri5": lib.STEWART_DOPRI5}
+
+
+def test_every_parameter_has_physical_bounds_and_every_scene_meets_them():
+    """Each FMU parameter group (scene keys and settings) declares finite bounds min < max of
+    kind CLOSED or OPEN in the one table, read alike by C (the FMU's validation) and Python
+    (table.bound_reason); the values of every shipped scene lie within them; the controller's
+    numbers have theirs in one table too (controller/config.py BOUNDS)."""
+    from controller.config import BOUNDS, NUMBER_KEYS
+    from controller.drive import MOTOR_KEYS
+
+    params = [g for g in table.VARIABLES if g.causality == "parameter" and g.shape != table.STRING]
+    assert params and all(g.bound in (table.BOUND_CLOSED, table.BOUND_OPEN) for g in params)
+    assert all(np.isfinite(g.min) and np.isfinite(g.max) and g.min < g.max for g in params)
+    assert all(g.bound == table.BOUND_ANY for g in table.VARIABLES if g.causality != "parameter")
+    for path in sorted((ROOT / "scenes").rglob("*.toml")):
+        if "sweeps" in path.parts:
+            continue
+        model = load_scene(path)
+        for key, g in table.scene_groups().items():
+            value = V.scene_value(model, key)
+            if value is not None:
+                assert table.bound_reason(g, value) is None, (path.name, key)
+    assert set(BOUNDS) == {*NUMBER_KEYS, *(f"motor.{k}" for k in MOTOR_KEYS)}
+    mass = table.scene_groups()["platform.mass"]
+    assert table.bound_reason(mass, 1e308) == "must be <= 1e+06 kg, got 1e+308"
+    assert table.bound_reason(mass, 0.0) == "must be > 0, got 0.0"

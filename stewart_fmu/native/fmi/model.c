@@ -220,17 +220,26 @@ static int check_q0(Instance *c, const char *call, const double *p) {
     return rule_broken(c, call, &b);
 }
 
-/* The per-key bounds of the table (BOUND of STEWART_FMU_SCENE and _SETTINGS). */
-#define BOUND_ROW(ID, NAME, COUNT, SHAPE, UNIT, BOUND, ...) {VR_##ID, COUNT, STEWART_BOUND_##BOUND},
-static const struct { unsigned vr, count; int bound; } BOUNDS[] = {
+/* The per-key bounds of the table (BOUND, MIN, MAX of STEWART_FMU_SCENE and _SETTINGS). */
+#define BOUND_ROW(ID, NAME, COUNT, SHAPE, UNIT, BOUND, MIN, MAX, ...) \
+    {VR_##ID, COUNT, STEWART_BOUND_##BOUND, MIN, MAX, UNIT},
+static const struct { unsigned vr, count; int bound; double min, max; const char *unit; } BOUNDS[] = {
     STEWART_FMU_SCENE(BOUND_ROW) STEWART_FMU_SETTINGS(BOUND_ROW)
 };
 
+/* " m" after a bound: the unit as the scene reader words it (stewart_fmu/table.py unit_text). */
+static const char *unit_text(const char *unit, char buf[32]) {
+    if (strcmp(unit, "pose") == 0) return " (m, rad)";
+    if (strcmp(unit, "rate") == 0) return " (m/s, rad/s)";
+    snprintf(buf, 32, "%s%s", *unit && strcmp(unit, "1") != 0 ? " " : "", strcmp(unit, "1") ? unit : "");
+    return buf;
+}
+
 /* The rules of a scene, as stewart_fmu/scene.py checks them, naming the parameter that breaks
- * one: finite values, the per-key bounds of the table, then the rules between keys and the home
- * pose on the packed parameters (native/src/rules.c). */
+ * one: finite values, the per-key bounds of the table, the drive's derived quantities, then the
+ * rules between keys and the home pose on the packed parameters (native/src/rules.c). */
 static int validate(Instance *c, const char *call, const double *v, double *p) {
-    char name[64];
+    char name[64], unit[32], got[32];
     stewart_rule_break broken;
     unsigned vr;
     int k;
@@ -245,11 +254,22 @@ static int validate(Instance *c, const char *call, const double *v, double *p) {
         if (has(vr) && !isfinite(v[vr])) FAIL(vr, "must be finite, got %g", v[vr]);
     for (k = 0; k < (int)(sizeof BOUNDS / sizeof BOUNDS[0]); k++)  /* the per-key bounds */
         for (vr = BOUNDS[k].vr; vr < BOUNDS[k].vr + BOUNDS[k].count; vr++) {
+            int open = BOUNDS[k].bound == STEWART_BOUND_OPEN;
+            const char *u = unit_text(BOUNDS[k].unit, unit);
             if (!has(vr)) continue;
-            if (BOUNDS[k].bound == STEWART_BOUND_POS && !(v[vr] > 0)) FAIL(vr, "must be > 0, got %g", v[vr]);
-            if (BOUNDS[k].bound == STEWART_BOUND_NONNEG && v[vr] < 0) FAIL(vr, "must be >= 0, got %g", v[vr]);
+            stewart_format_double(got, v[vr]);  /* as the scene reader's repr */
+            if (open ? !(v[vr] > BOUNDS[k].min) : !(v[vr] >= BOUNDS[k].min))
+                FAIL(vr, "must be %s %g%s, got %s", open ? ">" : ">=", BOUNDS[k].min, BOUNDS[k].min == 0 ? "" : u, got);
+            if (!(v[vr] <= BOUNDS[k].max)) FAIL(vr, "must be <= %g%s, got %s", BOUNDS[k].max, u, got);
         }
 #undef FAIL
+    if (has_drive()) {  /* the rack ratio and m_d, from the keys (rotor inertia given once: all legs) */
+        double rotor[6];
+        int once = !has(VR_ROTOR_INERTIA + 1);
+        for (k = 0; k < 6; k++) rotor[k] = v[VR_ROTOR_INERTIA + (once ? 0 : k)];
+        if (stewart_check_drive(v[VR_GEAR_RATIO], v[VR_PINION_RADIUS], rotor, &broken) != STEWART_RULE_OK)
+            return rule_broken(c, call, &broken);
+    }
     pack(v, p);
     if (stewart_check_rules(p, v + VR_HOME, &broken) != STEWART_RULE_OK) return rule_broken(c, call, &broken);
     return M_OK;

@@ -48,6 +48,7 @@ typedef struct {
     const char *id;           /* ID of STEWART_FMU_*: VR_<id> of fmi/model.h */
     const char *name;         /* the variable's (group's) name in the model description */
     int vr, count, shape, bound;
+    double min, max;          /* the bounds of a parameter's values (BOUND_ANY: -inf, inf) */
     int scene;                /* 1: a scene key of the plant tables (STEWART_FMU_SCENE) */
     int fmi3_only;            /* 1: an FMI 3.0 array only (STEWART_FMU_OUTPUT_ARRAYS) */
     const char *causality, *unit, *description;
@@ -332,7 +333,8 @@ enum {  /* numbered from 0 in this order (they are not status codes) */
     STEWART_RULE_INERTIA_TRIANGLE,  /* the platform's moments break the triangle inequality */
     STEWART_RULE_LEG_INERTIA,       /* a leg part's axial moment above twice its transverse */
     STEWART_RULE_POSE_STROKE,       /* the pose puts a leg outside [leg_min, leg_max] */
-    STEWART_RULE_POSE_SINGULAR      /* the pose's cond(J) >= STEWART_COND_LIMIT */
+    STEWART_RULE_POSE_SINGULAR,     /* the pose's cond(J) >= STEWART_COND_LIMIT */
+    STEWART_RULE_DERIVED            /* a STEWART_DERIVED quantity non-finite or beyond its bounds */
 };
 
 /* The first broken rule: vr the first value reference of the FMU variable group at fault (in
@@ -345,8 +347,15 @@ typedef struct {
     char reason[512];
 } stewart_rule_break;
 
-/* The rules between the packed parameters (STEWART_RULE_JOINTS .. LEG_INERTIA, in that order):
-   returns the first broken one (out filled) or STEWART_RULE_OK. */
+/* The drive's derived quantities (STEWART_DERIVED of stewart_table.h: the rack ratio zeta / r,
+   then each leg's m_d = zeta^2 I_i / r^2 of the keys drive.gear_ratio, drive.rotor_inertia (six
+   values, one per leg) and drive.pinion_radius), computed and checked finite and within their
+   bounds: STEWART_RULE_DERIVED naming drive.gear_ratio, or STEWART_RULE_OK. */
+int stewart_check_drive(double gear_ratio, double pinion_radius, const double rotor_inertia[6],
+                        stewart_rule_break *out);
+/* The rules between the packed parameters (STEWART_RULE_JOINTS .. LEG_INERTIA, in that order,
+   then the moving mass of STEWART_DERIVED): returns the first broken one (out filled) or
+   STEWART_RULE_OK. */
 int stewart_check_params(const double *params, stewart_rule_break *out);
 /* A pose the plant may start from: within the stroke, then cond(J) < STEWART_COND_LIMIT;
    vr names the pose's variable (the home, the FMU's q0). */

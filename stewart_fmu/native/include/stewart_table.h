@@ -18,10 +18,11 @@
 
 #include <stddef.h>
 
-/* Lower bound of a value (checked per key by the scene reader and by the FMU's validation). */
-#define STEWART_BOUND_ANY 0      /* any finite number */
-#define STEWART_BOUND_NONNEG 1   /* >= 0 */
-#define STEWART_BOUND_POS 2      /* > 0 */
+/* The kind of a value's bounds (BOUND, with MIN and MAX, of the parameters' rows below; checked
+   per key by the scene reader, stewart_fmu/scene.py, and by the FMU's validation, fmi/model.c). */
+#define STEWART_BOUND_ANY 0      /* any finite number: inputs and outputs (their rows have no MIN, MAX) */
+#define STEWART_BOUND_CLOSED 1   /* MIN <= x <= MAX */
+#define STEWART_BOUND_OPEN 2     /* MIN < x <= MAX: a quantity that cannot be MIN (a mass of 0) */
 
 /* Shape of an FMU variable group beyond its COUNT: COLS > 0 is a matrix of COUNT / COLS rows;
    STEWART_VECTOR a plain vector (a scalar when COUNT is 1); STEWART_PER_LEG six values, one
@@ -58,51 +59,64 @@
 
 /* FMU variables by group, value references from STEWART_VR_PARAMETERS, _INPUTS and _OUTPUTS
    on (0 is time, FMI 3.0's independent variable): X(ID, NAME, COUNT, SHAPE, UNIT, BOUND,
-   DESCRIPTION). UNIT "pose" is m for x, y, z and rad for the angles, "rate" their rates;
-   "" none. The parameters are Real, fixed: first the scene keys of the plant tables (a scene
+   DESCRIPTION), the parameters X(ID, NAME, COUNT, SHAPE, UNIT, BOUND, MIN, MAX, DESCRIPTION)
+   with the physical bounds of each of their values, in UNIT (STEWART_BOUND_CLOSED or _OPEN).
+   UNIT "pose" is m for x, y, z and rad for the angles, "rate" their rates; "" none. The parameters are Real, fixed: first the scene keys of the plant tables (a scene
    declares those of the tables it has), then the FMU's settings. FMI 2.0 declares a group of
    COUNT > 1 as COUNT scalars NAME[i] (NAME[i,j] for a matrix) at consecutive value references;
    FMI 3.0 as one array variable NAME of its shape at the group's first value reference, its
    values in row-major order (a per-leg key given once is a scalar in both). */
-#define STEWART_FMU_SCENE(X)                                                                \
-    X(GRAVITY, "gravity", 3, STEWART_VECTOR, "m/s2", ANY, "gravity in N")                        \
-    X(BASE, "geometry.base_joints", 18, 3, "m", ANY, "base joint a_i in N")                      \
-    X(PLATFORM, "geometry.platform_joints", 18, 3, "m", ANY, "platform joint p_i in C")          \
-    X(HOME, "geometry.home", 6, STEWART_VECTOR, "pose", ANY, "home pose (x, y, z, thx, thy, thz)") \
-    X(LEG_MIN, "geometry.leg_min", 1, STEWART_VECTOR, "m", POS, "shortest leg length (stroke)")  \
-    X(LEG_MAX, "geometry.leg_max", 1, STEWART_VECTOR, "m", POS, "longest leg length (stroke)")   \
-    X(MASS, "platform.mass", 1, STEWART_VECTOR, "kg", POS, "platform mass")                      \
-    X(INERTIA, "platform.inertia", 3, STEWART_VECTOR, "kg.m2", ANY,                              \
-      "platform principal moments about its centre of mass")                                     \
-    X(LOWER_MASS, "legs.lower_mass", 1, STEWART_VECTOR, "kg", NONNEG, "lower leg part (cylinder) mass") \
-    X(LOWER_COM, "legs.lower_com", 1, STEWART_VECTOR, "m", NONNEG,                               \
-      "lower part centre of mass from the base joint")                                           \
-    X(LOWER_INERTIA, "legs.lower_inertia", 2, STEWART_VECTOR, "kg.m2", NONNEG,                   \
-      "lower part [transverse, axial] moments")                                                  \
-    X(UPPER_MASS, "legs.upper_mass", 1, STEWART_VECTOR, "kg", NONNEG, "upper leg part (piston) mass") \
-    X(UPPER_COM, "legs.upper_com", 1, STEWART_VECTOR, "m", NONNEG,                               \
-      "upper part centre of mass from the platform joint")                                       \
-    X(UPPER_INERTIA, "legs.upper_inertia", 2, STEWART_VECTOR, "kg.m2", NONNEG,                   \
-      "upper part [transverse, axial] moments")                                                  \
-    X(GEAR_RATIO, "drive.gear_ratio", 1, STEWART_VECTOR, "1", POS, "gearbox reduction ratio zeta") \
-    X(ROTOR_INERTIA, "drive.rotor_inertia", 6, STEWART_PER_LEG, "kg.m2", POS, "motor rotor inertia") \
-    X(PINION_RADIUS, "drive.pinion_radius", 1, STEWART_VECTOR, "m", POS, "rack-and-pinion radius") \
-    X(VISCOUS, "friction.viscous", 6, STEWART_PER_LEG, "N.s/m", NONNEG,                          \
-      "viscous friction of each prismatic joint")                                                \
-    X(COULOMB, "friction.coulomb", 6, STEWART_PER_LEG, "N", NONNEG,                              \
-      "Coulomb friction of each prismatic joint")                                                \
-    X(STIFFNESS, "transmission.stiffness", 1, STEWART_VECTOR, "N/m", POS,                        \
-      "transmission stiffness, motor to leg (leg axis)")                                         \
-    X(DAMPING, "transmission.damping", 1, STEWART_VECTOR, "N.s/m", NONNEG,                       \
+/* The bounds are engineering ones, wide enough for any machine this model describes (from a
+   micro-manipulator of grams and millimetres to a motion simulator of tonnes and metres, with
+   two or three orders of magnitude to spare) and narrow enough that every product the model
+   forms of them stays far inside float64 (a mass times a length squared is at most ~1e12, a
+   force ~1e20): a value beyond them is a typo or a unit error (mm for m, g for kg), refused by
+   the scene reader and the FMU alike, never a NaN later. Lengths within 1 km, masses up to
+   1,000 t (platform) and 100 t (a leg part), gear ratios up to 1e5 (multi-stage reducers),
+   pinions of 1 um to 10 m, frictions up to 1e7 N (s/m), springs up to 1e12 N/m (a steel bar
+   of 1 m^2 section and 0.2 m length); the lower bound 0 is OPEN where the model divides by the
+   value or a zero makes no body (mass, stroke, gear ratio, rotor, stiffness). Every shipped
+   scene (scenes/) lies within them (tests/stewart_fmu/test_table.py). */
+#define STEWART_FMU_SCENE(X)                                                                       \
+    X(GRAVITY, "gravity", 3, STEWART_VECTOR, "m/s2", CLOSED, -1e3, 1e3, "gravity in N")            \
+    X(BASE, "geometry.base_joints", 18, 3, "m", CLOSED, -1e3, 1e3, "base joint a_i in N")          \
+    X(PLATFORM, "geometry.platform_joints", 18, 3, "m", CLOSED, -1e3, 1e3, "platform joint p_i in C") \
+    X(HOME, "geometry.home", 6, STEWART_VECTOR, "pose", CLOSED, -1e3, 1e3, "home pose (x, y, z, thx, thy, thz)") \
+    X(LEG_MIN, "geometry.leg_min", 1, STEWART_VECTOR, "m", OPEN, 0.0, 1e3, "shortest leg length (stroke)") \
+    X(LEG_MAX, "geometry.leg_max", 1, STEWART_VECTOR, "m", OPEN, 0.0, 1e3, "longest leg length (stroke)") \
+    X(MASS, "platform.mass", 1, STEWART_VECTOR, "kg", OPEN, 0.0, 1e6, "platform mass")             \
+    X(INERTIA, "platform.inertia", 3, STEWART_VECTOR, "kg.m2", CLOSED, 0.0, 1e10,                  \
+      "platform principal moments about its centre of mass")                                       \
+    X(LOWER_MASS, "legs.lower_mass", 1, STEWART_VECTOR, "kg", CLOSED, 0.0, 1e5, "lower leg part (cylinder) mass") \
+    X(LOWER_COM, "legs.lower_com", 1, STEWART_VECTOR, "m", CLOSED, 0.0, 1e3,                       \
+      "lower part centre of mass from the base joint")                                             \
+    X(LOWER_INERTIA, "legs.lower_inertia", 2, STEWART_VECTOR, "kg.m2", CLOSED, 0.0, 1e9,           \
+      "lower part [transverse, axial] moments")                                                    \
+    X(UPPER_MASS, "legs.upper_mass", 1, STEWART_VECTOR, "kg", CLOSED, 0.0, 1e5, "upper leg part (piston) mass") \
+    X(UPPER_COM, "legs.upper_com", 1, STEWART_VECTOR, "m", CLOSED, 0.0, 1e3,                       \
+      "upper part centre of mass from the platform joint")                                         \
+    X(UPPER_INERTIA, "legs.upper_inertia", 2, STEWART_VECTOR, "kg.m2", CLOSED, 0.0, 1e9,           \
+      "upper part [transverse, axial] moments")                                                    \
+    X(GEAR_RATIO, "drive.gear_ratio", 1, STEWART_VECTOR, "1", OPEN, 0.0, 1e5, "gearbox reduction ratio zeta") \
+    X(ROTOR_INERTIA, "drive.rotor_inertia", 6, STEWART_PER_LEG, "kg.m2", OPEN, 0.0, 1e3, "motor rotor inertia") \
+    X(PINION_RADIUS, "drive.pinion_radius", 1, STEWART_VECTOR, "m", CLOSED, 1e-6, 10.0, "rack-and-pinion radius") \
+    X(VISCOUS, "friction.viscous", 6, STEWART_PER_LEG, "N.s/m", CLOSED, 0.0, 1e7,                  \
+      "viscous friction of each prismatic joint")                                                  \
+    X(COULOMB, "friction.coulomb", 6, STEWART_PER_LEG, "N", CLOSED, 0.0, 1e7,                      \
+      "Coulomb friction of each prismatic joint")                                                  \
+    X(STIFFNESS, "transmission.stiffness", 1, STEWART_VECTOR, "N/m", OPEN, 0.0, 1e12,              \
+      "transmission stiffness, motor to leg (leg axis)")                                           \
+    X(DAMPING, "transmission.damping", 1, STEWART_VECTOR, "N.s/m", CLOSED, 0.0, 1e9,               \
       "transmission damping, motor to leg (leg axis)")
 
-/* The FMU's own parameters (Real, fixed), after the scene's: the start state and the solver. */
-#define STEWART_FMU_SETTINGS(X)                                                                  \
-    X(Q0, "q0", 6, STEWART_VECTOR, "pose", ANY, "initial pose")                                  \
-    X(QD0, "qd0", 6, STEWART_VECTOR, "rate", ANY, "initial pose rates")                          \
-    X(RTOL, "solver.rtol", 1, STEWART_VECTOR, "", POS, "integrator relative tolerance (dopri5)") \
-    X(ATOL, "solver.atol", 1, STEWART_VECTOR, "", POS, "integrator absolute tolerance (dopri5)") \
-    X(MAX_STEP, "solver.max_step", 1, STEWART_VECTOR, "s", POS, "largest internal step (s)")
+/* The FMU's own parameters (Real, fixed), after the scene's: the start state and the solver
+   (a scene's [solver] table takes the same bounds: stewart_sim/scene_load.py). */
+#define STEWART_FMU_SETTINGS(X)                                                                    \
+    X(Q0, "q0", 6, STEWART_VECTOR, "pose", CLOSED, -1e3, 1e3, "initial pose")                      \
+    X(QD0, "qd0", 6, STEWART_VECTOR, "rate", CLOSED, -1e3, 1e3, "initial pose rates")              \
+    X(RTOL, "solver.rtol", 1, STEWART_VECTOR, "", OPEN, 0.0, 1.0, "integrator relative tolerance (dopri5)") \
+    X(ATOL, "solver.atol", 1, STEWART_VECTOR, "", OPEN, 0.0, 1e3, "integrator absolute tolerance (dopri5)") \
+    X(MAX_STEP, "solver.max_step", 1, STEWART_VECTOR, "s", OPEN, 0.0, 1e3, "largest internal step (s)")
 
 /* The String parameter, after the Real ones (value reference STEWART_VR_METHOD):
    X(ID, NAME, DESCRIPTION). */
@@ -185,6 +199,16 @@
     X(DRIVE_MASS, 6, "drive.reflected_mass", "kg", "reflected drive inertia m_d of each leg")   \
     X(VISCOUS, 6, "friction.viscous", "N.s/m", "viscous friction of each prismatic joint")      \
     X(COULOMB, 6, "friction.coulomb", "N", "Coulomb friction of each prismatic joint")
+
+/* Quantities derived from the scene's keys, checked finite and within their bounds once
+   computed (native/src/rules.c, for the scene reader and the FMU alike; the reason names the
+   keys they come from): X(ID, NAME, UNIT, BOUND, MIN, MAX). The key bounds above keep them
+   finite; these bounds refuse the combinations no machine has (a reflected drive mass above
+   100 times the heaviest platform). */
+#define STEWART_DERIVED(X)                                                                       \
+    X(RACK_RATIO, "the rack ratio zeta / r", "1/m", OPEN, 0.0, 1e8)                                \
+    X(DRIVE_MASS, "the reflected drive mass m_d = zeta^2 I / r^2", "kg", CLOSED, 0.0, 1e8)         \
+    X(MOVING_MASS, "the moving mass (platform and 12 leg parts)", "kg", OPEN, 0.0, 1e7)
 
 #define STEWART_VR_TIME 0          /* FMI 3.0's independent variable */
 #define STEWART_VR_PARAMETERS 1    /* first value reference of each section */

@@ -41,6 +41,43 @@ static void clear(stewart_rule_break *out) {
     out->element = -1;
 }
 
+/* The derived quantities of stewart_table.h, by ID: their names, units and bounds. */
+#define DERIVED_ID(ID, ...) D_##ID,
+enum { STEWART_DERIVED(DERIVED_ID) N_DERIVED };
+#define DERIVED_ROW(ID, NAME, UNIT, BOUND, MIN, MAX) {NAME, UNIT, STEWART_BOUND_##BOUND, MIN, MAX},
+static const struct { const char *name, *unit; int bound; double min, max; } DERIVED[] = {
+    STEWART_DERIVED(DERIVED_ROW)};
+
+/* A derived quantity's value checked finite and within its bounds: else STEWART_RULE_DERIVED
+   naming the key vr and, in the reason, the quantity and the keys it comes from (`from`). */
+static int derived(stewart_rule_break *out, int id, double value, int vr, const char *from) {
+    char v[32];
+    int low = DERIVED[id].bound == STEWART_BOUND_OPEN ? !(value > DERIVED[id].min) : !(value >= DERIVED[id].min);
+    if (isfinite(value) && !low && value <= DERIVED[id].max) return STEWART_RULE_OK;
+    stewart_format_double(v, value);
+    return fail(out, STEWART_RULE_DERIVED, vr, -1, "gives %s = %s %s (%s): must be %s %g and <= %g %s",
+                DERIVED[id].name, v, DERIVED[id].unit, from,
+                DERIVED[id].bound == STEWART_BOUND_OPEN ? ">" : ">=", DERIVED[id].min, DERIVED[id].max,
+                DERIVED[id].unit);
+}
+
+int stewart_check_drive(double zeta, double r, const double I[6], stewart_rule_break *out) {
+    char from[256], a[32], b[32], c[32];
+    int i;
+    clear(out);
+    stewart_format_double(a, zeta);
+    stewart_format_double(b, r);
+    snprintf(from, sizeof from, "drive.gear_ratio %s / drive.pinion_radius %s", a, b);
+    if (derived(out, D_RACK_RATIO, zeta / r, PARAM_VR(GEAR_RATIO), from)) return out->rule;
+    for (i = 0; i < 6; i++) {
+        stewart_format_double(c, I[i]);
+        snprintf(from, sizeof from, "leg %d: drive.gear_ratio %s, drive.rotor_inertia %s, drive.pinion_radius %s",
+                 i + 1, a, c, b);
+        if (derived(out, D_DRIVE_MASS, zeta * zeta * I[i] / (r * r), PARAM_VR(GEAR_RATIO), from)) return out->rule;
+    }
+    return STEWART_RULE_OK;
+}
+
 int stewart_check_params(const double *p, stewart_rule_break *out) {
     static const int joints[2] = {STEWART_P_BASE, STEWART_P_PLATFORM};
     static const int joint_vr[2] = {PARAM_VR(BASE), PARAM_VR(PLATFORM)};
@@ -88,6 +125,16 @@ int stewart_check_params(const double *p, stewart_rule_break *out) {
             return fail(out, STEWART_RULE_LEG_INERTIA, part_vr[k], 1,
                         "has an axial moment %s that exceeds twice the transverse %s: no rigid body has it", b, c);
         }
+    }
+    stewart_format_double(a, p[STEWART_P_MASS]);
+    stewart_format_double(b, p[STEWART_P_LOWER]);
+    stewart_format_double(c, p[STEWART_P_UPPER]);
+    {
+        char from[256];
+        snprintf(from, sizeof from, "platform.mass %s + 6 (legs.lower_mass %s + legs.upper_mass %s)", a, b, c);
+        if (derived(out, D_MOVING_MASS, p[STEWART_P_MASS] + 6.0 * (p[STEWART_P_LOWER] + p[STEWART_P_UPPER]),
+                    PARAM_VR(MASS), from))
+            return out->rule;
     }
     return STEWART_RULE_OK;
 }

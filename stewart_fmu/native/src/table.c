@@ -1,6 +1,8 @@
 /* table.c -- the tables of stewart_table.h compiled into the core, for the Python side
    (stewart_fmu/model.py reads the packed layout, stewart_fmu/standard.py the standard parameters, stewart_fmu/fmu/variables.py the FMU
    variables): one expansion of each X-macro table. */
+#include <math.h>
+
 #include "../include/stewart.h"
 
 #define PARAM_ROW(NAME, COUNT, SOURCE, UNIT, WHAT) {#NAME, STEWART_P_##NAME, COUNT, #SOURCE, UNIT, WHAT},
@@ -12,19 +14,20 @@ const stewart_standard_info stewart_standard_table[] = {STEWART_STANDARD(STANDAR
 const int stewart_standard_table_size =
     sizeof stewart_standard_table / sizeof stewart_standard_table[0];
 
-#define PARAMETER_ROW(ID, NAME, COUNT, SHAPE, UNIT, BOUND, WHAT, SCENE)                           \
+#define PARAMETER_ROW(ID, NAME, COUNT, SHAPE, UNIT, BOUND, MIN, MAX, WHAT, SCENE)                 \
     {#ID, NAME, STEWART_VR(PARAMETERS, stewart_fmu_parameters, ID), COUNT, SHAPE,                 \
-     STEWART_BOUND_##BOUND, SCENE, 0, "parameter", UNIT, WHAT},
+     STEWART_BOUND_##BOUND, MIN, MAX, SCENE, 0, "parameter", UNIT, WHAT},
 #define SCENE_ROW(...) PARAMETER_ROW(__VA_ARGS__, 1)
 #define SETTING_ROW(...) PARAMETER_ROW(__VA_ARGS__, 0)
 #define STRING_ROW(ID, NAME, WHAT)                                                                \
-    {#ID, NAME, STEWART_VR_METHOD, 1, STEWART_STRING, STEWART_BOUND_ANY, 0, 0, "parameter", "", WHAT},
+    {#ID, NAME, STEWART_VR_METHOD, 1, STEWART_STRING, STEWART_BOUND_ANY, -INFINITY, INFINITY, 0, 0,  \
+     "parameter", "", WHAT},
 #define INPUT_ROW(ID, NAME, COUNT, SHAPE, UNIT, BOUND, WHAT)                                      \
     {#ID, NAME, STEWART_VR(INPUTS, stewart_fmu_inputs, ID), COUNT, SHAPE, STEWART_BOUND_##BOUND,  \
-     0, 0, "input", UNIT, WHAT},
+     -INFINITY, INFINITY, 0, 0, "input", UNIT, WHAT},
 #define OUTPUT_ROW_OF(ID, NAME, COUNT, SHAPE, UNIT, BOUND, WHAT, FMI3_ONLY)                       \
     {#ID, NAME, STEWART_VR(OUTPUTS, stewart_fmu_outputs, ID), COUNT, SHAPE,                       \
-     STEWART_BOUND_##BOUND, 0, FMI3_ONLY, "output", UNIT, WHAT},
+     STEWART_BOUND_##BOUND, -INFINITY, INFINITY, 0, FMI3_ONLY, "output", UNIT, WHAT},
 #define OUTPUT_ROW(...) OUTPUT_ROW_OF(__VA_ARGS__, 0)
 #define ARRAY_ROW(...) OUTPUT_ROW_OF(__VA_ARGS__, 1)
 const stewart_variable_info stewart_variable_table[] = {
