@@ -114,6 +114,7 @@ def _check_samples(data: np.ndarray, where: str, first_line: int) -> None:
     r = first_irregular_step(data[:, 0])
     if r is None:
         return
+    steps = np.diff(data[:, 0])
     if steps[r - 1] <= 0:
         raise MotionError(f"{where}: {at(r, 't')}: time must increase strictly")
     raise MotionError(f"{where}: {at(r, 't')}: sampling must be uniform: step "
