@@ -72,7 +72,8 @@ class Variable:
     start: float | str | tuple[float, ...] | None = None
     type: str = "Real"        # Real or String
     shape: tuple[int, ...] = ()
-    min: float | None = None  # the declared range (inputs: table.INPUT_RANGES), each element's
+    min: float | None = None  # the declared range (inputs: table.INPUT_RANGES; parameters: their
+                              # group's physical bounds), each element's
     max: float | None = None
 
     @property
@@ -118,13 +119,21 @@ def _unit(g: table.VariableGroup, idx: tuple[int, ...]) -> str | None:
     return g.unit or None
 
 
+def _declared_bounds(g: table.VariableGroup) -> tuple[float | None, float | None]:
+    """A parameter's physical bounds from the table, as min and max (FMI's are inclusive: an
+    open bound's end, e.g. a mass of 0, is declared but refused by exitInitializationMode)."""
+    if g.causality != "parameter" or g.bound == table.BOUND_ANY:
+        return None, None
+    return g.min, g.max
+
+
 def _group(g: table.VariableGroup, value: Any, fmi_version: int) -> list[Variable]:
     """The variables of one group holding `value` (None: outputs, no start): FMI 2.0 scalars,
     or one FMI 3.0 array (no unit when its elements' units differ: q0, qd0, q, qd); a per-leg
     parameter given as one number is the one variable under the group's plain name."""
     arr = np.zeros(_shape(g)) if value is None else np.asarray(value, dtype=float)
     start = (lambda x: None) if value is None else float
-    lo, hi = table.INPUT_RANGES.get(g.id, (None, None))
+    lo, hi = table.INPUT_RANGES.get(g.id, _declared_bounds(g))
     if arr.ndim == 0:
         return [Variable(g.name, g.vr, g.causality, _unit(g, (0,)), g.description, start(arr), min=lo, max=hi)]
     if fmi_version == 3:

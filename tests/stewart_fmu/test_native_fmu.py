@@ -929,16 +929,27 @@ def test_bad_calls_return_error_and_change_nothing(fmus, version):
 def test_inputs_declare_the_range_the_fmu_enforces(fmus, version):
     """sigma and tau declare min and max (the table's STEWART_FMU_INPUT_RANGES, read once by
     both the model description and the C code): the fuzz and the bad-calls test check that a
-    value outside them is refused; the start values lie inside."""
+    value outside them is refused; the start values lie inside. Each bounded parameter declares
+    its physical bounds (the scene table's, which exitInitializationMode applies); outputs and
+    unbounded parameters declare none."""
     b = fmus[("micro", version)]
     ranges = table.INPUT_RANGES
+    groups = {g.name: g for g in table.VARIABLES}
+    bounded = 0
     for var in b.md.modelVariables:
         if var.causality == "input":
             lo, hi = ranges["SIGMA" if var.name.startswith("sigma") else "TAU"]
             assert (float(var.min), float(var.max)) == (lo, hi), var.name
             assert all(lo <= float(x) <= hi for x in str(var.start).split())
+            continue
+        g = groups.get(var.name.partition("[")[0])
+        if var.causality == "parameter" and g is not None and g.bound != table.BOUND_ANY:
+            assert (float(var.min), float(var.max)) == (g.min, g.max), var.name
+            assert all(g.min <= float(x) <= g.max for x in str(var.start).split()), var.name
+            bounded += 1
         else:
             assert var.min is None and var.max is None, var.name
+    assert bounded >= 10
     assert ranges == {"SIGMA": (-1e7, 1e7), "TAU": (-1e6, 1e6)}
 
 
