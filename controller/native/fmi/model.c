@@ -439,46 +439,23 @@ typedef struct {
 } State;
 
 int model_get_state(Instance *c, void **state) {
-    State *s;
-    if (!state) {
-        model_log(c, M_ERROR, "getFMUstate: FMUstate is NULL");
-        return M_ERROR;
-    }
-    s = *state ? (State *)*state : calloc(1, sizeof *s);
-    if (!s) {
-        model_log(c, M_ERROR, "getFMUstate: out of memory");
-        return M_ERROR;
-    }
-    if (s->magic && s->magic != STATE_MAGIC) {
-        model_log(c, M_ERROR, "getFMUstate: *FMUstate is not NULL and not a state of this FMU");
-        return M_ERROR;
-    }
-    s->magic = STATE_MAGIC;
+    State *s = glue_state_block(c, "getFMUstate", state, STATE_MAGIC, sizeof *s);
+    if (!s) return M_ERROR;
     s->d = c->d;
-    *state = s;
     return M_OK;
 }
 
 int model_set_state(Instance *c, const void *state) {
-    const State *s = (const State *)state;
-    if (!s || s->magic != STATE_MAGIC) {
-        model_log(c, M_ERROR, "setFMUstate: not a state of this FMU%s", s ? "" : " (NULL)");
-        return M_ERROR;
-    }
+    const State *s = glue_state_of(c, "setFMUstate", state, STATE_MAGIC);
+    if (!s) return M_ERROR;
     c->d = s->d;
     c->have_out = 0;
     return M_OK;
 }
 
 int model_free_state(Instance *c, void **state) {
-    State *s;
     (void)c;
-    if (!state || !*state) return M_OK;
-    s = (State *)*state;
-    s->magic = 0;
-    free(s);
-    *state = NULL;
-    return M_OK;
+    return glue_free_state(state);
 }
 
 size_t model_serialized_size(void) { return 0; }

@@ -56,29 +56,8 @@ struct Instance {
     FMU_GLUE_FIELDS
 };
 
-int model_init(Instance *c, const char *name, const char *token);
-void model_reset(Instance *c);
-
-int model_setup(Instance *c, int tolerance_defined, double tolerance, double start_time);
-int model_enter_init(Instance *c);
-int model_exit_init(Instance *c);
-int model_terminate(Instance *c);
-int model_do_step(Instance *c, double t, double h, double *last_time);
-
-/* The shared FMI layer passes the number of values too (FMI 3.0 arrays, stewart_fmu's
-   fmi3Functions.c); the controller's variables are all scalars: nvalues must equal nvr. */
-int model_get_real(Instance *c, const unsigned vr[], size_t nvr, double value[], size_t nvalues);
-int model_set_real(Instance *c, const unsigned vr[], size_t nvr, const double value[], size_t nvalues);
-int model_get_string(Instance *c, const unsigned vr[], size_t n, const char *value[]);
-int model_set_string(Instance *c, const unsigned vr[], size_t n, const char *const value[]);
-int model_wrong_type(Instance *c, const char *call, const unsigned vr[], size_t n);
-
-/* FMU states: a heap copy of ControllerData; not serializable (canSerializeFMUstate false). */
-int model_get_state(Instance *c, void **state);
-int model_set_state(Instance *c, const void *state);
-int model_free_state(Instance *c, void **state);
-size_t model_serialized_size(void);
-int model_serialize(Instance *c, const void *state, unsigned char *out, size_t size);
-int model_deserialize(Instance *c, const unsigned char *in, size_t size, void **state);
+/* The model_* calls the FMI layers make are declared once, in glue.h. The controller's variables
+ * are all scalars (nvalues must equal nvr); its FMU states are heap copies of ControllerData,
+ * not serializable (canSerializeFMUstate false). */
 
 #endif

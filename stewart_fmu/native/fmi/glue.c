@@ -1,8 +1,9 @@
-/* glue.c -- logging, setDebugLogging and the call-sequence check of an FMU's Instance (glue.h),
- * written once for the plant's FMU and the controller's: compiled beside the model.h of the FMU
- * it goes into, which defines Instance. */
+/* glue.c -- logging, setDebugLogging, the call-sequence check and the FMU-state blocks of an
+ * FMU's Instance (glue.h), written once for the plant's FMU and the controller's: compiled
+ * beside the model.h of the FMU it goes into, which defines Instance. */
 #include <stdarg.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "model.h"
@@ -55,4 +56,38 @@ int model_require(Instance *c, const char *call, int rule) {
     stewart_call_refusal(msg, sizeof msg, call, rule, c->d.s.phase);
     model_log(c, M_ERROR, "%s", msg);
     return M_ERROR;
+}
+
+void *glue_state_block(Instance *c, const char *call, void **state, unsigned magic, size_t size) {
+    unsigned *block;
+    if (!state) {
+        model_log(c, M_ERROR, "%s: FMUstate is NULL", call);
+        return NULL;
+    }
+    block = *state ? (unsigned *)*state : calloc(1, size);
+    if (!block) {
+        model_log(c, M_ERROR, "%s: out of memory", call);
+        return NULL;
+    }
+    if (*block && *block != magic) {
+        model_log(c, M_ERROR, "%s: *FMUstate is not NULL and not a state of this FMU", call);
+        return NULL;
+    }
+    *block = magic;
+    *state = block;
+    return block;
+}
+
+const void *glue_state_of(Instance *c, const char *call, const void *state, unsigned magic) {
+    if (state && *(const unsigned *)state == magic) return state;
+    model_log(c, M_ERROR, "%s: not a state of this FMU%s", call, state ? "" : " (NULL)");
+    return NULL;
+}
+
+int glue_free_state(void **state) {
+    if (!state || !*state) return M_OK;
+    *(unsigned *)*state = 0;
+    free(*state);
+    *state = NULL;
+    return M_OK;
 }

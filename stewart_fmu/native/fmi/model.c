@@ -625,23 +625,9 @@ static unsigned long long token_key(void) {
 }
 
 int model_get_state(Instance *c, void **state) {
-    State *s;
-    if (!state) {
-        model_log(c, M_ERROR, "getFMUstate: FMUstate is NULL");
-        return M_ERROR;
-    }
-    s = *state ? (State *)*state : calloc(1, sizeof *s);
-    if (!s) {
-        model_log(c, M_ERROR, "getFMUstate: out of memory");
-        return M_ERROR;
-    }
-    if (s->magic && s->magic != STATE_MAGIC) {
-        model_log(c, M_ERROR, "getFMUstate: *FMUstate is not NULL and not a state of this FMU");
-        return M_ERROR;
-    }
-    s->magic = STATE_MAGIC;
+    State *s = glue_state_block(c, "getFMUstate", state, STATE_MAGIC, sizeof *s);
+    if (!s) return M_ERROR;
     s->d = c->d;
-    *state = s;
     return M_OK;
 }
 
@@ -731,11 +717,8 @@ static int sane(Instance *c, const char *call, const PlantData *d) {
 }
 
 int model_set_state(Instance *c, const void *state) {
-    const State *s = (const State *)state;
-    if (!s || s->magic != STATE_MAGIC) {
-        model_log(c, M_ERROR, "setFMUstate: not a state of this FMU%s", s ? "" : " (NULL)");
-        return M_ERROR;
-    }
+    const State *s = glue_state_of(c, "setFMUstate", state, STATE_MAGIC);
+    if (!s) return M_ERROR;
     if (sane(c, "setFMUstate", &s->d)) return M_ERROR;
     stewart_component_load(&c->d.s, &s->d.s, s->d.p);  /* as Plant.set_state */
     memcpy((char *)&c->d + TAIL, (const char *)&s->d + TAIL, sizeof(PlantData) - TAIL);
@@ -745,22 +728,17 @@ int model_set_state(Instance *c, const void *state) {
 }
 
 int model_free_state(Instance *c, void **state) {
-    State *s;
     (void)c;
-    if (!state || !*state) return M_OK;
-    s = (State *)*state;
-    s->magic = 0;
-    free(s);
-    *state = NULL;
-    return M_OK;
+    return glue_free_state(state);
 }
 
 size_t model_serialized_size(void) { return stewart_serialized_size(sizeof(PlantData) - TAIL); }
 
 int model_serialize(Instance *c, const void *state, unsigned char *out, size_t size) {
-    const State *s = (const State *)state;
-    if (!s || s->magic != STATE_MAGIC || !out) {
-        model_log(c, M_ERROR, "serializeFMUstate: %s", !out ? "the buffer is NULL" : "not a state of this FMU");
+    const State *s = glue_state_of(c, "serializeFMUstate", state, STATE_MAGIC);
+    if (!s) return M_ERROR;
+    if (!out) {
+        model_log(c, M_ERROR, "serializeFMUstate: the buffer is NULL");
         return M_ERROR;
     }
     if (size < model_serialized_size()) {
@@ -792,21 +770,8 @@ int model_deserialize(Instance *c, const unsigned char *in, size_t size, void **
         return M_ERROR;
     }
     if (sane(c, "deserializeFMUstate", &d)) return M_ERROR;
-    if (*state) {
-        s = (State *)*state;
-        if (s->magic != STATE_MAGIC) {
-            model_log(c, M_ERROR, "deserializeFMUstate: *FMUstate is not NULL and not a state of this FMU");
-            return M_ERROR;
-        }
-    } else {
-        s = calloc(1, sizeof *s);
-        if (!s) {
-            model_log(c, M_ERROR, "deserializeFMUstate: out of memory");
-            return M_ERROR;
-        }
-    }
-    s->magic = STATE_MAGIC;
+    s = glue_state_block(c, "deserializeFMUstate", state, STATE_MAGIC, sizeof *s);
+    if (!s) return M_ERROR;
     s->d = d;
-    *state = s;
     return M_OK;
 }

@@ -63,29 +63,7 @@ struct Instance {
     const char *method_text;    /* for getString */
 };
 
-int model_init(Instance *c, const char *name, const char *token);  /* after zeroing; M_OK/M_ERROR */
-void model_reset(Instance *c);
-
-int model_setup(Instance *c, int tolerance_defined, double tolerance, double start_time);
-int model_enter_init(Instance *c);
-int model_exit_init(Instance *c);
-int model_terminate(Instance *c);
-int model_do_step(Instance *c, double t, double h, double *last_time);
-
-/* nvr value references, nvalues values: an array's elements follow one another in row-major
- * order (FMI 3.0); for FMI 2.0 nvalues = nvr. A mismatch is M_ERROR, logged, nothing touched. */
-int model_get_real(Instance *c, const unsigned vr[], size_t nvr, double value[], size_t nvalues);
-int model_set_real(Instance *c, const unsigned vr[], size_t nvr, const double value[], size_t nvalues);
-int model_get_string(Instance *c, const unsigned vr[], size_t n, const char *value[]);
-int model_set_string(Instance *c, const unsigned vr[], size_t n, const char *const value[]);
-int model_wrong_type(Instance *c, const char *call, const unsigned vr[], size_t n);
-
-/* FMU states: a heap copy of PlantData; serialized by the component (stewart_serialize). */
-int model_get_state(Instance *c, void **state);
-int model_set_state(Instance *c, const void *state);
-int model_free_state(Instance *c, void **state);
-size_t model_serialized_size(void);
-int model_serialize(Instance *c, const void *state, unsigned char *out, size_t size);
-int model_deserialize(Instance *c, const unsigned char *in, size_t size, void **state);
+/* The model_* calls the FMI layers make are declared once, in glue.h. The plant's FMU states
+ * are heap copies of PlantData, serialized by the component (stewart_serialize). */
 
 #endif
