@@ -113,10 +113,9 @@ def _fmu_refusal(run: dict) -> str:
     return found[0]
 
 
-@pytest.mark.parametrize("changes,key,why", [c[1:] for c in BROKEN], ids=[c[0] for c in BROKEN])
-def test_scene_reader_and_fmu_refuse_for_the_same_rule(refusals, request, changes, key, why):
-    """The scene reader's SceneError names the key; the FMU logs 'parameter <key> <reason>' (or
-    an element of the key, '<key>[i]' / '<key>[row,col]') with the very same reason."""
+def _reader_refusal(changes: dict) -> SceneError:
+    """The scene reader's SceneError for the micro-manipulator's scene with `changes` (dotted
+    key: value) applied."""
     data = scene_dict("micro")
     for dotted, value in changes.items():
         *tables, name = dotted.split(".")
@@ -126,7 +125,14 @@ def test_scene_reader_and_fmu_refuse_for_the_same_rule(refusals, request, change
         node[name] = value
     with pytest.raises(SceneError) as info:
         scene_from_dict(data)
-    err = info.value
+    return info.value
+
+
+@pytest.mark.parametrize("changes,key,why", [c[1:] for c in BROKEN], ids=[c[0] for c in BROKEN])
+def test_scene_reader_and_fmu_refuse_for_the_same_rule(refusals, request, changes, key, why):
+    """The scene reader's SceneError names the key; the FMU logs 'parameter <key> <reason>' (or
+    an element of the key, '<key>[i]' / '<key>[row,col]') with the very same reason."""
+    err = _reader_refusal(changes)
     assert err.key == key and why in err.reason, (err.key, err.reason)
     message = _fmu_refusal(refusals[request.node.callspec.id])
     named = re.match(rf"{CALL}: parameter ({re.escape(key)}(?:\[\d+(?:,\d+)?\])?) ", message)
@@ -192,16 +198,7 @@ def test_scene_reader_and_fmu_refuse_values_beyond_the_bounds(bound_refusals, re
     or a derived quantity beyond its own: the scene reader names the key; exitInitializationMode
     of FMI 2.0 and 3.0 returns Error, logging 'parameter <key> <the same reason>' (no NaN
     answered with OK later: drive.gear_ratio = 1e308 gave one)."""
-    data = scene_dict("micro")
-    for dotted, value in changes.items():
-        *tables, name = dotted.split(".")
-        node = data
-        for t in tables:
-            node = node[t]
-        node[name] = value
-    with pytest.raises(SceneError) as info:
-        scene_from_dict(data)
-    err = info.value
+    err = _reader_refusal(changes)
     assert err.key == key and why in err.reason, (err.key, err.reason)
     name = request.node.callspec.id.split("-", 1)[1]   # "fmi2-<case>"
     message = _fmu_refusal(bound_refusals[name])
