@@ -9,8 +9,10 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.text import Text
 
 from stewart_fmu.io import atomic_write
+from stewart_sim.terminal import printable
 
 LEG_COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown")
 
@@ -51,7 +53,11 @@ def plot_line(ax: Axes, t: np.ndarray, y: np.ndarray, *args, **kwargs):
 
 
 def save_figure(fig: Figure, path: str | Path, dpi: int = 110) -> Path:
-    """Render a figure to PNG with the Agg canvas (no display needed), atomically."""
+    """Render a figure to PNG with the Agg canvas (no display needed), atomically. Control
+    characters in its texts (a scene's name in a title) are drawn escaped, as printed, and a
+    tab as a space."""
+    for text in fig.findobj(Text):
+        text.set_text(printable(text.get_text()).replace("\t", " "))   # no glyph for a tab
     FigureCanvasAgg(fig)
     return atomic_write(path, lambda fh: fig.savefig(fh, format="png", dpi=dpi), binary=True)
 

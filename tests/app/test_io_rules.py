@@ -447,3 +447,22 @@ def test_head_1_through_a_shell_is_quiet() -> None:
                        capture_output=True, text=True, env=console_env(), timeout=WAIT)
     assert r.returncode == 0 and r.stderr == ""
     assert r.stdout.startswith("scene: micro-manipulator")
+
+
+def test_control_characters_in_a_figure_are_drawn_escaped(tmp_path) -> None:
+    """A scene name with an ANSI escape and a tab in a plot's title: drawn as printed (\\x1b),
+    the tab a space, with no missing-glyph warning (the scene fuzz met one)."""
+    import warnings
+
+    from matplotlib.figure import Figure
+
+    from stewart_sim.plots import save_figure
+
+    fig = Figure()
+    ax = fig.add_subplot()
+    ax.set_title("evil\x1b[31mname\ttab")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        save_figure(fig, tmp_path / "f.png")
+    assert ax.get_title() == "evil\\x1b[31mname tab"
+    assert (tmp_path / "f.png").stat().st_size > 0
