@@ -20,7 +20,7 @@ demo: $(STAMP)
 	$(VENV)/bin/stewart-sim run scenes/micro_manipulator.toml --out results/run
 
 test: $(STAMP) system-packages
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n auto --dist loadfile
 
 # Debian packages the tests use, as command:package: mingw-w64's C compiler (export-fmu's
 # Windows DLL; stewart_fmu/fmu/windows.py) and wine (runs it). Installed with apt-get, without
