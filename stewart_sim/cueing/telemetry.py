@@ -15,8 +15,8 @@ velocity are in the vehicle frame, x forward, y left, z up (at rest on level gro
 Z-Y-X (yaw, pitch, roll) angles in a z-up world frame, each a right-handed rotation about our
 axes (so a positive pitch lowers the nose).
 
-OutSim (`decode_outsim`): the packet Live for Speed sends with "OutSim Opts 0", 64 bytes, or 68
-with the optional trailing ID:
+OutSim (`decode_outsim`): the packet Live for Speed sends with "OutSim Opts 0" (and games that
+copied it), 64 bytes, or 68 with the optional trailing ID:
 
     offset  type        field
     0       uint32      Time (ms)
@@ -30,12 +30,13 @@ with the optional trailing ID:
     64      int32       ID (optional)
 
 LFS's axes are X right, Y forward, Z up, and AngVel and Accel are given in its world axes (X, Y
-on the ground). The car's orientation is R = Rz(Heading) Rx(Pitch) Ry(Roll) (car axes to world;
-heading 0 faces world +Y); Accel is the acceleration, so the specific force is Accel - g with
-g = (0, 0, -9.81) in the world, rotated into the car (R^T), and so is AngVel. The car's axes
-(right, forward, up) then map onto ours as x = forward, y = -right, z = up; the attitude
-reported is roll = Roll, pitch = -Pitch (LFS's positive pitch raises the nose), yaw = Heading.
-Vel and Pos are not used (a sample needs neither) and are not checked.
+on the ground). The car's orientation is taken as R = Rz(Heading) Rx(Pitch) Ry(Roll) (car axes
+to world, heading 0 facing world +Y; LFS names the three angles' axes, not their order).
+Accel is the acceleration, so the specific force is Accel - g with g = (0, 0, -9.81) in the
+world, rotated into the car (R^T), and so is AngVel. The car's axes (right, forward, up) then
+map onto ours as x = forward, y = -right, z = up; the attitude reported is roll = Roll,
+pitch = -Pitch (LFS's positive pitch raises the nose), yaw = Heading. Vel and Pos are not used
+(a sample needs neither) and are not checked.
 
 Bad input (wrong size, magic or version, a non-finite value, a specific force or angular
 velocity beyond motion.py's VALUE_BOUNDS) raises TelemetryError with a one-line reason; no
@@ -61,10 +62,16 @@ _NATIVE_ATTITUDE = struct.Struct("<3d")
 NATIVE_SIZES = (_NATIVE_HEADER.size + _NATIVE_BODY.size,
                 _NATIVE_HEADER.size + _NATIVE_BODY.size + _NATIVE_ATTITUDE.size)  # 60, 84
 
-# Live for Speed's OutSimPack (InSim.txt / OutSimPack.txt, "OutSim - MOTION SIMULATOR SUPPORT"),
-# its layout as documented in https://app.unpkg.com/node-insim@4.7.0/files/dist/types/out/OutSimPack.d.ts
-# (MIN_SIZE 64, MAX_SIZE 68) and https://docs.rs/crate/outsim/0.1.1/source/src/outsimpack.rs.
-# BeamNG.drive lists its UDP protocols at https://documentation.beamng.com/modding/protocols.
+# Live for Speed's OutSimPack (InSim.txt, "OutSim - MOTION SIMULATOR SUPPORT": "X and Y axes
+# are on the ground, Z is up"), its layout as quoted in
+# https://lfs.net/forum/thread/775-Motion-Data-with-External-View and in
+# https://app.unpkg.com/node-insim@4.7.0/files/dist/types/out/OutSimPack.d.ts (sizes 64, 68);
+# heading 0 is "world y direction" as InSim's CarContact says
+# (https://simbroadcasts.github.io/node-insim/classes/packets.CarContact.html).
+# Codemasters' GRID, DiRT 2 and F1 2010 send an output "designed to be compatible" with it
+# (http://www.lfsforum.net/showthread.php?t=73997). BeamNG.drive's own OutSim template was
+# deprecated in its 0.32 protocol overhaul for its MotionSim protocol, a different packet
+# (https://forum.beamng.tech/t/confirmation-of-measurement-scale-in-beamng-tech/78).
 _OUTSIM = struct.Struct("<I3f3f3f3f3i")
 OUTSIM_SIZES = (_OUTSIM.size, _OUTSIM.size + 4)  # 64, 68 with the ID
 

@@ -167,3 +167,25 @@ def test_fuzz_only_telemetry_error_or_a_finite_sample():
             assert max(abs(v) for v in s.angular_velocity) <= 1e3
             counts["decoded"] += 1
     assert counts["refused"] > 1000 and counts["decoded"] > 100
+
+
+def test_outsim_any_attitude_against_an_independent_rotation():
+    # the car's axes from scipy's intrinsic Z-X-Y Euler angles (heading about Z, then pitch
+    # about the car's X, then roll about its Y): the decoded vectors, mapped back to LFS's car
+    # axes and into the world, give back the packet's Accel - g and AngVel
+    from scipy.spatial.transform import Rotation
+    rng = np.random.default_rng(5)
+    for _ in range(50):
+        h, p, r = (float(np.float32(v)) for v in rng.uniform(-3.0, 3.0, 3) * (1.0, 0.4, 0.4))
+        accel = tuple(float(np.float32(v)) for v in rng.normal(0.0, 5.0, 3))
+        ang_vel = tuple(float(np.float32(v)) for v in rng.normal(0.0, 1.0, 3))
+        s = decode_outsim(outsim(ang_vel=ang_vel, heading=h, pitch=p, roll=r, accel=accel))
+        car_to_world = Rotation.from_euler("ZXY", [h, p, r]).as_matrix()
+
+        def lfs_car(v):  # ours (forward, left, up) -> LFS car (right, forward, up)
+            return np.array([-v[1], v[0], v[2]])
+        np.testing.assert_allclose(car_to_world @ lfs_car(s.specific_force),
+                                   np.array(accel) + (0.0, 0.0, G), atol=1e-12)
+        np.testing.assert_allclose(car_to_world @ lfs_car(s.angular_velocity), ang_vel,
+                                   atol=1e-12)
+        assert s.attitude == (r, -p, h)
