@@ -91,3 +91,15 @@ int glue_free_state(void **state) {
     *state = NULL;
     return M_OK;
 }
+
+int glue_instantiate(Instance *c, const char *name, const char *token, const char *expected) {
+    if (!token || strcmp(token, expected) != 0) {
+        model_log(c, M_ERROR, "instantiate: the token '%s' is not this FMU's '%s'",
+                  token ? token : "(null)", expected);
+        return M_ERROR;
+    }
+    c->name = malloc(strlen(name) + 1);
+    if (!c->name) return M_ERROR;
+    strcpy(c->name, name);
+    return M_OK;
+}

@@ -1,7 +1,8 @@
 /* glue.h -- what every FMU of this project shares between its model and the FMI 2.0 / 3.0
  * layers (fmi2Functions.c, fmi3Functions.c): status words, log categories, the importer glue
- * of an Instance, and the three calls glue.c implements once for all of them (logging,
- * setDebugLogging, the call-sequence check). A model.h (the plant's here, the controller's in
+ * of an Instance, and the calls glue.c implements once for all of them (logging,
+ * setDebugLogging, the call-sequence check, instantiate's checks, the FMU-state blocks), and
+ * the model_* calls each model.c implements. A model.h (the plant's here, the controller's in
  * controller/native/fmi/) includes it after `typedef struct Instance Instance;`, puts
  * FMU_GLUE_FIELDS in its struct Instance and keeps the component (stewart_component, stewart.h)
  * at c->d.s; glue.c, compiled beside that model.h, reads those names. */
@@ -33,6 +34,9 @@ void model_log(Instance *c, int status, const char *fmt, ...)
     ;
 int model_require(Instance *c, const char *call, int rule); /* stewart_call rule: M_OK/M_ERROR */
 int model_set_debug_logging(Instance *c, int on, size_t n, const char *const categories[]);
+/* instantiate's checks: `token` is this FMU's (`expected`), and the instance keeps a copy of
+ * `name`; M_OK, or M_ERROR (logged) for another FMU's token or no memory. */
+int glue_instantiate(Instance *c, const char *name, const char *token, const char *expected);
 
 /* FMU states (get/set/free FMUstate, deserialize): a heap block of `size` bytes whose first
  * member is an `unsigned` magic naming the FMU, so that a state of another FMU is refused.

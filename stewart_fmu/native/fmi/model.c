@@ -129,14 +129,7 @@ void model_reset(Instance *c) {
 }
 
 int model_init(Instance *c, const char *name, const char *token) {
-    if (!token || strcmp(token, STEWART_MODEL_TOKEN) != 0) {
-        model_log(c, M_ERROR, "instantiate: the token '%s' is not this FMU's '%s'",
-                  token ? token : "(null)", STEWART_MODEL_TOKEN);
-        return M_ERROR;
-    }
-    c->name = malloc(strlen(name) + 1);
-    if (!c->name) return M_ERROR;
-    strcpy(c->name, name);
+    if (glue_instantiate(c, name, token, STEWART_MODEL_TOKEN)) return M_ERROR;
     model_reset(c);
     return M_OK;
 }
