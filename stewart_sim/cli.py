@@ -44,6 +44,7 @@ COMMANDS = {
     "calibrate": "kinematic calibration: joints and leg offsets from measured poses",
     "identify": "identify inertial and friction parameters from measured runs",
     "excite": "excitation trajectory for identification (optimised regressor condition)",
+    "size": "actuator sizing: what the motions ask of the drives, a catalogue ranked",
 }
 KEPT = "nothing new written (an earlier output is left as it was)"  # on Ctrl-C
 # the arguments that name what a command writes (the output rule checks them before any work)

@@ -12,8 +12,6 @@ once, when its future completes.
 """
 from __future__ import annotations
 
-import logging
-import os
 import time
 from contextlib import ExitStack
 from dataclasses import dataclass
@@ -26,12 +24,11 @@ from stewart_fmu.io import read_trajectory
 from stewart_fmu.scene import read_scene_dict, scene_from_dict
 from stewart_sim.progress import Progress
 from stewart_sim.sweep.chunks import ChunkRules, chunk_rules, resume_rows, write_chunk
+from stewart_sim.sweep.cluster import dask_client
 from stewart_sim.sweep.evaluate import (EvalSpec, columns, evaluate_batch, has_drive, point_label,
                                         point_model)
 from stewart_sim.sweep.grid import GridSpec
 from stewart_sim.sweep.table import merge, open_sweep
-
-CONNECT_TIMEOUT = 30.0   # s to reach a scheduler or start the local cluster
 
 
 @dataclass(frozen=True)
@@ -126,7 +123,7 @@ def run_sweep(scene: Path, grid: GridSpec, out: Path, scheduler: str | None = No
     try:
         if batches:
             with ExitStack() as stack:
-                client = stack.enter_context(_client(scheduler, workers))
+                client = stack.enter_context(dask_client(scheduler, workers))
                 n_workers = len(client.scheduler_info()["workers"])
                 start = time.monotonic()
                 computed = _run_batches(client, spec, batches, out, rules, rows,
@@ -140,35 +137,6 @@ def run_sweep(scene: Path, grid: GridSpec, out: Path, scheduler: str | None = No
         raise SweepError(None, f"{table}: {len(rows)} rows for {len(points)} points")
     return SweepSummary(table, len(points), resumed, computed, failed, n_workers, wall,
                         len(refused))
-
-
-def _client(scheduler: str | None, workers: int | None):
-    """A dask.distributed Client on the scheduler, or on a new local cluster of processes."""
-    from distributed import Client, LocalCluster
-
-    if scheduler is not None:
-        try:
-            return Client(scheduler, timeout=CONNECT_TIMEOUT)
-        except (OSError, TimeoutError) as exc:
-            raise SweepError(None, f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
-    n = workers or os.cpu_count() or 1
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                           dashboard_address=":0", silence_logs=logging.ERROR)
-    return _OwnedClient(Client(cluster, timeout=CONNECT_TIMEOUT), cluster)
-
-
-class _OwnedClient:
-    """A client that closes its local cluster with it (context manager)."""
-
-    def __init__(self, client, cluster):
-        self.client, self.cluster = client, cluster
-
-    def __enter__(self):
-        return self.client
-
-    def __exit__(self, *exc) -> None:
-        self.client.close()
-        self.cluster.close()
 
 
 def _run_batches(client, spec: EvalSpec, batches: Sequence[list], out: Path,

@@ -1,0 +1,43 @@
+"""The Dask client a study runs on: a running scheduler (`scheduler` = "tcp://HOST:PORT") or a
+new LocalCluster of worker processes (one thread each) on this machine, closed with the client.
+Shared by the design sweep (stewart_sim/sweep/run.py) and the actuator sizing's catalogue sweep
+(stewart_sim/sizing/study.py)."""
+from __future__ import annotations
+
+import logging
+import os
+
+from stewart_fmu.errors import SweepError
+
+CONNECT_TIMEOUT = 30.0   # s to reach a scheduler or start the local cluster
+
+
+def dask_client(scheduler: str | None, workers: int | None):
+    """A dask.distributed Client on the scheduler, or on a new local cluster of `workers`
+    processes (default: one per core); use it as a context manager (`with dask_client(...) as
+    client`), which closes a local cluster with it. An unreachable scheduler is a SweepError."""
+    from distributed import Client, LocalCluster
+
+    if scheduler is not None:
+        try:
+            return Client(scheduler, timeout=CONNECT_TIMEOUT)
+        except (OSError, TimeoutError) as exc:
+            raise SweepError(None, f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+    n = workers or os.cpu_count() or 1
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+                           dashboard_address=":0", silence_logs=logging.ERROR)
+    return OwnedClient(Client(cluster, timeout=CONNECT_TIMEOUT), cluster)
+
+
+class OwnedClient:
+    """A client that closes its local cluster with it (context manager)."""
+
+    def __init__(self, client, cluster):
+        self.client, self.cluster = client, cluster
+
+    def __enter__(self):
+        return self.client
+
+    def __exit__(self, *exc) -> None:
+        self.client.close()
+        self.cluster.close()
