@@ -35,7 +35,7 @@ def add_parser(sub, help_text: str) -> None:
     p.add_argument("--catalogue", metavar="drives.csv",
                    help="drives to choose from: name, gear_ratio, pinion_radius (m), "
                         "rotor_inertia (kg m^2), peak_torque, continuous_torque (N m), max_speed "
-                        "(rad/s), price and/or mass (kg) (scenes/drives/README.md)")
+                        "(rad/s), price and/or mass (kg) (scenes/catalogues/README.md)")
     p.add_argument("--margin", type=_margin, default=margin, metavar="F",
                    help="fraction of every rating kept free (default: %(default)s)")
     where = p.add_mutually_exclusive_group()

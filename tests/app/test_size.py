@@ -22,7 +22,7 @@ from tests.app.console import EXE, WAIT, console_env
 ROOT = Path(__file__).resolve().parents[2]
 SIM = ROOT / "scenes" / "motion_simulator.toml"
 MOTIONS = [ROOT / "scenes" / "motions" / f"{n}.csv" for n in ("braking_car", "lane_change", "takeoff")]
-CATALOGUE = ROOT / "scenes" / "drives" / "catalogue.csv"
+CATALOGUE = ROOT / "scenes" / "catalogues" / "drives.csv"
 MARGIN = 0.2                 # size's default (stewart_sim.sizing.study.DEFAULT_MARGIN)
 SAME = 1e-12                 # the same float64 computation on the same numbers, relative
 
