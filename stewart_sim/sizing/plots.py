@@ -13,11 +13,10 @@ from matplotlib.patches import Rectangle
 
 from stewart_sim.plots import LEG_COLOURS, plot_line
 
-from .study import CANDIDATE_CHECKS, CandidateResult, SceneSizing
+from .study import CANDIDATE_CHECKS, CandidateResult, SceneSizing, operating_points
 
 MOTION_COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown",
                   "tab:pink", "tab:gray", "tab:olive", "tab:cyan")
-MAX_POINTS_DRAWN = 3000   # operating points drawn per motion and drive (every k-th sample)
 MAX_PANELS = 24           # torque-speed panels: the scene's drive and the first ranked drives
 
 
@@ -61,28 +60,31 @@ def demand_figure(scene: SceneSizing, leg_min: float | None, leg_max: float | No
 
 
 def torque_speed_figure(scene: SceneSizing, ranked: Sequence[CandidateResult],
-                        motions: Sequence[str], title: str) -> Figure:
-    """One panel per drive: motor speed (x) against motor torque (y) at every sample and leg,
-    a colour per motion; the drive's limits as boxes (peak torque and speed: solid;
+                        motions: Sequence[str], title: str) -> Figure | None:
+    """One panel per drive: motor speed (x) against motor torque (y), every leg at the samples
+    of study.operating_points, a colour per motion; the drive's limits as boxes (peak torque and speed: solid;
     continuous torque: dashed). The scene's drive first (its motor's Kt I_max and no-load
-    speed), then the catalogue drives in ranked order."""
+    speed), then the catalogue drives in ranked order. None when no drive has a torque (a
+    scene without [drive] and no catalogue)."""
     panels: list[tuple[str, list, float | None, float | None, float | None]] = []
     if all(d.values["torque"] is not None for d in scene.demands):
-        panels.append(("scene's drive", [(d.values["motor_speed"], d.values["torque"])
+        panels.append(("scene's drive", [operating_points(d.values["motor_speed"],
+                                                          d.values["torque"])
                                          for d in scene.demands],
                        scene.peak_torque, None, scene.no_load_speed))
     for r in ranked[:MAX_PANELS - len(panels)]:
         if r.error is None:
             panels.append((r.drive.name, list(r.points), r.drive.peak_torque,
                            r.drive.continuous_torque, r.drive.max_speed))
-    cols = min(4, max(1, len(panels)))
+    if not panels:
+        return None
+    cols = min(4, len(panels))
     rows = max(1, math.ceil(len(panels) / cols))
     fig = Figure(figsize=(4.2 * cols, 3.6 * rows + 0.8), layout="constrained")
     axes = np.asarray(fig.subplots(rows, cols, squeeze=False)).ravel()
     for ax, (name, points, peak, continuous, top) in zip(axes, panels):
         for k, (speed, torque) in enumerate(points):
-            step = max(1, math.ceil(speed.shape[0] / MAX_POINTS_DRAWN))
-            ax.plot(speed[::step].ravel(), torque[::step].ravel(), ".", ms=1.5,
+            ax.plot(speed.ravel(), torque.ravel(), ".", ms=1.5,
                     color=motion_colour(k), rasterized=True, label=motions[k])
         if peak is not None and top is not None:
             ax.add_patch(Rectangle((-top, -peak), 2 * top, 2 * peak, fill=False, color="k",
@@ -97,8 +99,7 @@ def torque_speed_figure(scene: SceneSizing, ranked: Sequence[CandidateResult],
         ax.grid(alpha=0.3)
     for ax in axes[len(panels):]:
         ax.set_visible(False)
-    if panels:
-        axes[0].legend(fontsize=7, markerscale=6)
+    axes[0].legend(fontsize=7, markerscale=6)
     fig.suptitle(f"{title}: operating points in the torque-speed plane")
     return fig
 

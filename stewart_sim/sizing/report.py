@@ -5,7 +5,8 @@
                              leg) and the worst leg's RMS, on the scene's drive
     scene_checks.csv         per motion and check: the scene's drive and motor against it
     demand.png               leg lengths, rack forces and leg speeds of every motion
-    torque_speed.png         operating points against every drive's limits (with torque)
+    torque_speed.png         operating points against every drive's limits (when a drive is
+                             known: the scene's [drive], or a catalogue)
     with --catalogue:
     candidates.csv           per catalogue drive, ranked: its values, worst ratio of each check
                              and its motion, whether it qualifies, its error if it failed
@@ -124,8 +125,9 @@ def write_size_report(out: Path, model: Model, motions: Sequence[Motion], scene:
             names.append(name)
 
         def figure(name: str, fig) -> None:
-            save_figure(fig, stage / name)
-            names.append(name)
+            if fig is not None:
+                save_figure(fig, stage / name)
+                names.append(name)
 
         table("motions.csv", motion_rows(motions, scene))
         table("scene_checks.csv", check_rows(scene, margin))

@@ -42,6 +42,7 @@ from .motions import Motion
 DEFAULT_MARGIN = 0.2     # 20 % of every rating kept free: a common reserve in drive sizing
 CANDIDATE_CHECKS = ("torque_peak", "torque_rms", "motor_speed")
 ERROR_CHARS = 2000       # a failed drive's error text is cut to this
+POINTS_KEPT = 3000       # operating points a task sends back per motion, for the figure only
 
 
 GEOMETRY_CHECKS = ("stroke_min", "stroke_max", "cond")   # judged against the limit alone
@@ -103,7 +104,8 @@ class CandidateMotion:
 @dataclass(frozen=True)
 class CandidateResult:
     """One catalogue drive on every motion; `error` when its evaluation failed (then no
-    motions), and the operating points (motor speed, torque: (N, 6) each) per motion."""
+    motions), and operating points (motor speed, torque: (K, 6) each, K <= POINTS_KEPT + 2
+    samples: operating_points) per motion, for the figure."""
 
     drive: Drive
     motions: tuple[CandidateMotion, ...]
@@ -144,10 +146,20 @@ def evaluate_drive(scene: Mapping[str, Any], source: str | None, drive: Drive,
                        stats["torque"].rms_leg),
                 _peak_check("motor_speed", speed, d.t, drive.max_speed, "rad/s"))
             rows.append(CandidateMotion(m.name, checks, stats))
-            points.append((speed, torque))
+            points.append(operating_points(speed, torque))
         return CandidateResult(drive, tuple(rows), tuple(points))
     except StewartError as exc:
         return CandidateResult(drive, (), (), str(exc)[:ERROR_CHARS])
+
+
+def operating_points(speed: np.ndarray, torque: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every k-th sample of (speed, torque) so that at most POINTS_KEPT are kept, and the
+    samples of the peak |speed| and the peak |torque| (a long motion's arrays stay on the
+    worker; the peaks are in the checks, exactly)."""
+    step = max(1, -(-speed.shape[0] // POINTS_KEPT))
+    peaks = [int(np.argmax(np.abs(a)) // a.shape[1]) for a in (speed, torque)]
+    rows = np.union1d(np.arange(0, speed.shape[0], step), peaks)
+    return speed[rows], torque[rows]
 
 
 def _peak_check(quantity: str, values: np.ndarray, t: np.ndarray, limit: float,

@@ -191,3 +191,58 @@ def test_bad_motion_inputs_are_one_line_and_exit_2(tmp_path, capsys):
         assert status == 2, err
         assert err.count("\n") == 1 and words in err, err
     assert not (tmp_path / "out").exists()
+
+
+def test_on_a_running_scheduler_the_ranking_is_the_in_process_one(tmp_path, capsys):
+    """`--scheduler` runs the catalogue on a running cluster's workers; the ranking is that of
+    evaluate_drive called in this process, drive by drive."""
+    from distributed import LocalCluster
+
+    from stewart_fmu.scene import read_scene_dict
+    from stewart_sim.scene_load import load
+    from stewart_sim.sizing.catalogue import read_catalogue
+    from stewart_sim.sizing.motions import read_motions
+    from stewart_sim.sizing.study import evaluate_drive, ranking
+
+    motion = MOTIONS[1]
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                      dashboard_address=":0") as cluster:
+        status = cli.main(["size", str(SIM), "--motions", str(motion), "--catalogue",
+                           str(CATALOGUE), "--out", str(tmp_path / "out"), "--scheduler",
+                           cluster.scheduler_address])
+    captured = capsys.readouterr()
+    assert status == 0, captured.err
+    assert f"({cluster.scheduler_address}, dashboard http" in captured.out
+    motions = read_motions(load(SIM), [str(motion)])
+    data = read_scene_dict(SIM)
+    expected = ranking([evaluate_drive(data, str(SIM), d, motions)
+                        for d in read_catalogue(CATALOGUE)], MARGIN)
+    rows = _rows(tmp_path / "out" / "candidates.csv")
+    assert [r["name"] for r in rows] == [r.drive.name for r in expected]
+    assert [float(r["worst_ratio"]) for r in rows] == [r.worst_ratio for r in expected]
+
+
+def test_without_a_price_the_drives_rank_by_mass(tmp_path):
+    from stewart_sim.sizing.catalogue import read_catalogue
+    from stewart_sim.sizing.study import CandidateMotion, CandidateResult, ranking
+    from stewart_sim.cueing.feasibility import Margin
+
+    path = tmp_path / "drives.csv"
+    path.write_text("mass,name,gear_ratio,pinion_radius,rotor_inertia,peak_torque,"
+                    "continuous_torque,max_speed\n"
+                    "30,heavy,10,0.04,0.002,40,15,400\n\n"
+                    "12,light,10,0.04,0.002,40,15,400\n"
+                    "5,weak,10,0.04,0.002,40,15,400\n")
+    drives = read_catalogue(path)
+    assert [(d.name, d.price, d.mass) for d in drives] == [("heavy", None, 30.0),
+                                                           ("light", None, 12.0),
+                                                           ("weak", None, 5.0)]
+
+    def result(drive, ratio):
+        check = Margin("torque_peak", ratio, ratio, 1.0, "N m", 0.0, 0, 1)
+        return CandidateResult(drive, (CandidateMotion("m", (check,), {}),), ())
+
+    ranked = ranking([result(drives[0], 0.5), result(drives[1], 0.8), result(drives[2], 0.9)],
+                     MARGIN)
+    # light and heavy keep the margin (0.8 x 1.2 <= 1), lightest first; weak does not (0.9)
+    assert [r.drive.name for r in ranked] == ["light", "heavy", "weak"]
