@@ -48,6 +48,7 @@ def add_parser(sub, help_text: str) -> None:
 
 def run(args: argparse.Namespace) -> None:
     """Run the sizing and write its report; StewartError subclasses for bad input."""
+    from stewart_fmu.errors import StewartError
     from stewart_sim.progress import Progress
     from stewart_sim.scene_load import load
     from stewart_sim.sizing.catalogue import read_catalogue
@@ -55,6 +56,8 @@ def run(args: argparse.Namespace) -> None:
     from stewart_sim.sizing.report import write_size_report
     from stewart_sim.sizing.study import ranking, size_scene, sweep_catalogue
 
+    if not args.catalogue and (args.scheduler or args.workers):
+        raise StewartError("--scheduler and --workers run the catalogue sweep: give --catalogue")
     scene = load(args.scene)
     model = scene.model
     motions = read_motions(scene, args.motions)

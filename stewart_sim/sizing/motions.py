@@ -80,6 +80,8 @@ def read_one(scene: Scene, path: Path, name: str) -> Motion:
     kind = motion_kind(path)
     if kind == "platform":
         t, q, qd, qdd = read_trajectory(path)
+        if t.size < 2:      # a peak has a time, an RMS a duration
+            raise MotionFileError(f"{path}: need two or more samples, got {t.size}")
         return Motion(name, kind, t, q, qd, qdd)
     vehicle = read_motion(path)
     model = scene.model

@@ -29,7 +29,7 @@ import numpy as np
 
 from controller.config import ControllerConfig
 from controller.drive import AxisModel, axis_model
-from stewart_fmu.errors import StewartError, SweepError
+from stewart_fmu.errors import KinematicsError, StewartError, SweepError
 from stewart_fmu.model import Model
 from stewart_fmu.scene import read_scene_dict, scene_from_dict
 from stewart_sim.cueing.feasibility import Margin
@@ -79,7 +79,12 @@ class SceneSizing:
 def size_scene(model: Model, controller: ControllerConfig | None,
                motions: Sequence[Motion]) -> SceneSizing:
     """The demand of every motion on the scene's drive and its checks."""
-    demands = tuple(leg_demand(model, m, controller) for m in motions)
+    demands = []
+    for m in motions:
+        try:
+            demands.append(leg_demand(model, m, controller))
+        except KinematicsError as exc:     # a pose the dynamics refuse: name the motion
+            raise type(exc)(f"{m.name}: {exc}") from None
     axis = None
     if controller is not None and model.drive is not None:
         axis = axis_model(model, controller.motor, controller.load_mass)
@@ -89,7 +94,7 @@ def size_scene(model: Model, controller: ControllerConfig | None,
         if axis is not None:
             found.append(_peak_check("speed", d.values["speed"], d.t, axis.no_load_speed, "m/s"))
         checks.append(tuple(found))
-    return SceneSizing(demands, tuple(checks), axis, demands[0].feasibility.drive_note)
+    return SceneSizing(tuple(demands), tuple(checks), axis, demands[0].feasibility.drive_note)
 
 
 @dataclass(frozen=True)

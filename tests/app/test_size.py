@@ -179,7 +179,10 @@ def test_bad_motion_inputs_are_one_line_and_exit_2(tmp_path, capsys):
                                np.zeros((2, 6)), np.zeros((2, 6)))
     io.write_csv(platform, rows)
     platform.write_text(platform.read_text().replace("2.3", "x", 1))
+    single = tmp_path / "single.csv"
+    io.write_csv(single, rows[:1])
     cases = [([str(unknown)], f"{unknown}: header t,sigma1,sigma2 is neither a platform"),
+             ([str(single)], f"{single}: need two or more samples, got 1"),
              ([str(vehicle)], f"{vehicle}: line 3, column 'fz': non-finite"),
              ([str(platform)], f"{platform}: line 2, column 'z'"),
              ([str(tmp_path / "missing.csv")], "missing.csv"),
@@ -191,6 +194,13 @@ def test_bad_motion_inputs_are_one_line_and_exit_2(tmp_path, capsys):
         assert status == 2, err
         assert err.count("\n") == 1 and words in err, err
     assert not (tmp_path / "out").exists()
+
+
+def test_a_cluster_without_a_catalogue_is_refused(tmp_path, capsys):
+    status = cli.main(["size", str(SIM), "--motions", str(MOTIONS[0]), "--out",
+                       str(tmp_path / "out"), "--workers", "2"])
+    err = capsys.readouterr().err
+    assert status == 2 and err.count("\n") == 1 and "give --catalogue" in err, err
 
 
 def test_on_a_running_scheduler_the_ranking_is_the_in_process_one(tmp_path, capsys):
@@ -246,3 +256,17 @@ def test_without_a_price_the_drives_rank_by_mass(tmp_path):
                      MARGIN)
     # light and heavy keep the margin (0.8 x 1.2 <= 1), lightest first; weak does not (0.9)
     assert [r.drive.name for r in ranked] == ["light", "heavy", "weak"]
+
+
+def test_a_motion_past_the_stroke_is_reported_not_refused(tmp_path):
+    """Sizing shows what the whole motion would take: a pose past leg_max is a check past its
+    limit (exit 0), its forces computed there as `cue`'s feasibility does."""
+    path = tmp_path / "high.csv"
+    t = np.array([0.0, 0.5, 1.0])
+    io.write_csv(path, io.trajectory_table(t, np.tile([0, 0, 3.8, 0, 0, 0.0], (3, 1)),
+                                           np.zeros((3, 6)), np.zeros((3, 6))))
+    assert cli.main(["size", str(SIM), "--motions", str(path), "--out", str(tmp_path / "out")]) == 0
+    checks = {r["check"]: r for r in _rows(tmp_path / "out" / "scene_checks.csv")}
+    assert checks["stroke_max"]["verdict"] == "past the limit"
+    assert float(checks["stroke_max"]["value"]) > 3.3 and float(checks["stroke_max"]["ratio"]) > 1
+    assert checks["force"]["verdict"] == "meets"
