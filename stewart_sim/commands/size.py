@@ -83,5 +83,6 @@ def run(args: argparse.Namespace) -> None:
     print(f"peak rack force {peak.magnitude:.6g} N (leg {peak.leg}, t = {peak.t:g} s, {motion})")
     if drives is not None:
         good = [r for r in ranked if r.qualifies(args.margin)]
+        first = f"; first: {good[0].drive.name}" if good else ""
         print(f"{len(good)} of {len(drives)} drives meet every motion with a "
-              f"{100 * args.margin:g} % margin" + (f"; first: {good[0].drive.name}" if good else ""))
+              f"{100 * args.margin:g} % margin{first}")

@@ -75,14 +75,14 @@ def read_catalogue(path: str | Path) -> tuple[Drive, ...]:
     """Every row of the catalogue, checked (CatalogueError: file, line, column, reason)."""
     path = Path(path)
     try:
-        text = read_input(path, CATALOGUE_BYTES).decode("utf-8")
+        text = read_input(path, CATALOGUE_BYTES).decode("utf-8-sig")   # a spreadsheet's BOM
     except UnicodeDecodeError as exc:
         raise CatalogueError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
     rows = _rows(path, text)
     if not rows:
         raise CatalogueError(f"{path}: empty, need a header row ({','.join(COLUMNS)})")
     header = [c.strip() for c in rows[0][1]]
-    _check_header(path, header)
+    _check_header(path, rows[0][0], header)
     if len(rows) < 2:
         raise CatalogueError(f"{path}: no drives, only the header")
     if len(rows) - 1 > MAX_DRIVES:
@@ -98,19 +98,21 @@ def read_catalogue(path: str | Path) -> tuple[Drive, ...]:
     return tuple(drives)
 
 
-def _check_header(path: Path, header: list[str]) -> None:
+def _check_header(path: Path, line: int, header: list[str]) -> None:
     for column in header:
         if column not in COLUMNS:
-            raise CatalogueError(f"{path}: line 1: unknown column {column!r} (columns: "
+            raise CatalogueError(f"{path}: line {line}: unknown column {column!r} (columns: "
                                  f"{', '.join(COLUMNS)})")
         if header.count(column) > 1:
-            raise CatalogueError(f"{path}: line 1: column {column!r} given twice")
+            raise CatalogueError(f"{path}: line {line}: column {column!r} given twice")
     missing = [c for c in REQUIRED if c not in header]
     if missing:
-        raise CatalogueError(f"{path}: line 1: missing column{'s' if len(missing) > 1 else ''} "
+        plural = "s" if len(missing) > 1 else ""
+        raise CatalogueError(f"{path}: line {line}: missing column{plural} "
                              f"{', '.join(missing)}")
     if not any(c in header for c in COST_KEYS):
-        raise CatalogueError(f"{path}: line 1: need a price or a mass column to rank the drives")
+        raise CatalogueError(f"{path}: line {line}: need a price or a mass column to rank the "
+                             "drives")
 
 
 def _rows(path: Path, text: str) -> list[tuple[int, list[str]]]:

@@ -55,8 +55,9 @@ def motion_kind(path: Path) -> str:
         return "vehicle"
     shown = ",".join(header[:8]) + (",..." if len(header) > 8 else "") if header else "(empty)"
     raise MotionFileError(
-        f"{path}: header {shown} is neither a platform trajectory ({','.join(TRAJECTORY_COLUMNS[:4])},"
-        f"...) nor a vehicle motion ({','.join(MOTION_COLUMNS)})")
+        f"{path}: header {shown} is neither a platform trajectory "
+        f"({','.join(TRAJECTORY_COLUMNS[:4])},...) nor a vehicle motion "
+        f"({','.join(MOTION_COLUMNS)})")
 
 
 def read_motions(scene: Scene, paths: Sequence[str]) -> tuple[Motion, ...]:

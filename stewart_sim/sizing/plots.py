@@ -62,10 +62,10 @@ def demand_figure(scene: SceneSizing, leg_min: float | None, leg_max: float | No
 def torque_speed_figure(scene: SceneSizing, ranked: Sequence[CandidateResult],
                         motions: Sequence[str], title: str) -> Figure | None:
     """One panel per drive: motor speed (x) against motor torque (y), every leg at the samples
-    of study.operating_points, a colour per motion; the drive's limits as boxes (peak torque and speed: solid;
-    continuous torque: dashed). The scene's drive first (its motor's Kt I_max and no-load
-    speed), then the catalogue drives in ranked order. None when no drive has a torque (a
-    scene without [drive] and no catalogue)."""
+    of study.operating_points, a colour per motion; the drive's limits as boxes (peak torque
+    and speed: solid; continuous torque: dashed). The scene's drive first (its motor's
+    Kt I_max and no-load speed), then the catalogue drives in ranked order. None when no
+    drive has a torque (a scene without [drive] and no catalogue)."""
     panels: list[tuple[str, list, float | None, float | None, float | None]] = []
     if all(d.values["torque"] is not None for d in scene.demands):
         panels.append(("scene's drive", [operating_points(d.values["motor_speed"],

@@ -83,7 +83,8 @@ def candidate_rows(ranked: Sequence[CandidateResult], margin: float
             "reflected_mass_kg": d.gear_ratio**2 * d.rotor_inertia / d.pinion_radius**2,
             "peak_torque_Nm": d.peak_torque, "continuous_torque_Nm": d.continuous_torque,
             "max_speed_rad_s": d.max_speed,
-            "price": "" if d.price is None else d.price, "mass_kg": "" if d.mass is None else d.mass,
+            "price": "" if d.price is None else d.price,
+            "mass_kg": "" if d.mass is None else d.mass,
             "worst_ratio": r.worst_ratio if r.error is None else ""}
         for check in CANDIDATE_CHECKS:
             worst = r.worst(check)
@@ -154,8 +155,9 @@ def report_markdown(model: Model, motions: Sequence[Motion], scene: SceneSizing,
     """report.md: the motions, the demand's peaks, the scene's checks, the ranking."""
     lines = [f"# Actuator sizing: {title}", ""]
     lines += ["## Motions", "", "| motion | kind | duration (s) | samples |", "|---|---|---|---|"]
-    lines += [f"| {m.name} | {'platform trajectory' if m.kind == 'platform' else 'vehicle motion, cued ([cueing] classical washout)'} "
-              f"| {m.duration:.4g} | {m.t.size} |" for m in motions]
+    kinds = {"platform": "platform trajectory",
+             "vehicle": "vehicle motion, cued ([cueing] classical washout)"}
+    lines += [f"| {m.name} | {kinds[m.kind]} | {m.duration:.4g} | {m.t.size} |" for m in motions]
     lines += ["", *_demand_section(model, scene), "", *_scene_section(scene, margin)]
     if sweep is not None:
         lines += ["", *_catalogue_section(sweep, ranked, margin)]
@@ -168,7 +170,8 @@ def _demand_section(model: Model, scene: SceneSizing) -> list[str]:
     head = ["## What the motions ask of each leg (the scene's drive)", ""]
     if drive is not None:
         head += [f"Drive: gear ratio ζ = {drive.gear_ratio:g}, pinion radius r = "
-                 f"{drive.pinion_radius:g} m, rotor inertia I = {float(per_leg(drive.rotor_inertia).max()):g} kg m² "
+                 f"{drive.pinion_radius:g} m, rotor inertia I = "
+                 f"{float(per_leg(drive.rotor_inertia).max()):g} kg m² "
                  f"(reflected mass m_d = {drive.reflected_mass:.4g} kg per leg). Rack force σ "
                  "includes m_d l̈ (the contract's total force); torque = σ r / ζ, motor "
                  "speed = l̇ ζ / r, power = σ l̇.", ""]
@@ -212,10 +215,11 @@ def _scene_section(scene: SceneSizing, margin: float) -> list[str]:
                 worst[c.quantity] = (c, d.motion)
     for q, (c, motion) in worst.items():
         lines.append(f"| {q} ({c.unit}) | {c.ratio:.3f} | {c.value:.4g} | {c.limit:.4g} | "
-                     f"{motion} | {_g(c.t)} | {c.leg or '—'} | {verdict(c.ratio, margin, c.quantity)} |")
+                     f"{motion} | {_g(c.t)} | {c.leg or '—'} | "
+                     f"{verdict(c.ratio, margin, c.quantity)} |")
     lines += ["", "Ratio: demand / limit (limit / demand for stroke_min); a drive's check meets "
-              f"the margin when ratio × {1 + margin:g} ≤ 1, the stroke and cond(J) when ratio ≤ 1. "
-              "Per motion: scene_checks.csv."]
+              f"the margin when ratio × {1 + margin:g} ≤ 1, the stroke and cond(J) when "
+              "ratio ≤ 1. Per motion: scene_checks.csv."]
     return lines
 
 
@@ -234,7 +238,7 @@ def _catalogue_section(sweep: CatalogueSweep, ranked: Sequence[CandidateResult],
     else:
         lines += ["**No drive of the catalogue meets every motion with the margin.**", ""]
     lines += ["| rank | drive | ζ | r (m) | I (kg m²) | " + cost + " | peak torque | RMS torque "
-              "| speed | worst motion | qualifies |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+              "| speed | worst motion | qualifies |", "|---" * 11 + "|"]
     for rank, r in enumerate(ranked, start=1):
         d = r.drive
         if r.error is not None:

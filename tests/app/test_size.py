@@ -21,7 +21,8 @@ from tests.app.console import EXE, WAIT, console_env
 
 ROOT = Path(__file__).resolve().parents[2]
 SIM = ROOT / "scenes" / "motion_simulator.toml"
-MOTIONS = [ROOT / "scenes" / "motions" / f"{n}.csv" for n in ("braking_car", "lane_change", "takeoff")]
+MOTIONS = [ROOT / "scenes" / "motions" / f"{n}.csv"
+           for n in ("braking_car", "lane_change", "takeoff")]
 CATALOGUE = ROOT / "scenes" / "catalogues" / "drives.csv"
 MARGIN = 0.2                 # size's default (stewart_sim.sizing.study.DEFAULT_MARGIN)
 SAME = 1e-12                 # the same float64 computation on the same numbers, relative
@@ -141,7 +142,8 @@ GOOD = "A,10,0.04,0.002,40,15,400,1000"
     (f"{HEADER}\nA,ten,0.04,0.002,40,15,400,1000\n", "line 2, column 'gear_ratio': not a number"),
     (f"{HEADER}\nA,-10,0.04,0.002,40,15,400,1000\n", "line 2, column 'gear_ratio': must be > 0"),
     (f"{HEADER}\nA,10,0.04,0.002,40,15,400,nan\n", "line 2, column 'price': not finite"),
-    (f"{HEADER}\nA,10,0,0.002,40,15,400,1000\n", "line 2, column 'pinion_radius': must be >= 1e-06"),
+    (f"{HEADER}\nA,10,0,0.002,40,15,400,1000\n",
+     "line 2, column 'pinion_radius': must be >= 1e-06"),
     (f"{HEADER}\nA,10,0.04,0,40,15,400,1000\n", "line 2, column 'rotor_inertia': must be > 0"),
     (f"{HEADER}\nA,10,0.04,0.002,40,15,1e9,1000\n", "line 2, column 'max_speed': must be <= 20000"),
     (f"{HEADER}\n{GOOD}\nB,10,0.04,0.002,10,15,400,1000\n",
