@@ -60,7 +60,7 @@ def demand_figure(scene: SceneSizing, leg_min: float | None, leg_max: float | No
 
 
 def torque_speed_figure(scene: SceneSizing, ranked: Sequence[CandidateResult],
-                        motions: Sequence[str], title: str) -> Figure | None:
+                        motions: Sequence[str], margin: float, title: str) -> Figure | None:
     """One panel per drive: motor speed (x) against motor torque (y), every leg at the samples
     of study.operating_points, a colour per motion; the drive's limits as boxes (peak torque
     and speed: solid; continuous torque: dashed). The scene's drive first (its motor's
@@ -74,7 +74,8 @@ def torque_speed_figure(scene: SceneSizing, ranked: Sequence[CandidateResult],
                        scene.peak_torque, None, scene.no_load_speed))
     for r in ranked[:MAX_PANELS - len(panels)]:
         if r.error is None:
-            panels.append((r.drive.name, list(r.points), r.drive.peak_torque,
+            verdict = "qualifies" if r.qualifies(margin) else "does not qualify"
+            panels.append((f"{r.drive.name}: {verdict}", list(r.points), r.drive.peak_torque,
                            r.drive.continuous_torque, r.drive.max_speed))
     if not panels:
         return None
@@ -100,7 +101,8 @@ def torque_speed_figure(scene: SceneSizing, ranked: Sequence[CandidateResult],
     for ax in axes[len(panels):]:
         ax.set_visible(False)
     axes[0].legend(fontsize=7, markerscale=6)
-    fig.suptitle(f"{title}: operating points in the torque-speed plane")
+    fig.suptitle(f"{title}: operating points in the torque-speed plane (solid box: peak torque "
+                 "and max speed; dashed: continuous torque)")
     return fig
 
 

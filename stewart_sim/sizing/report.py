@@ -134,7 +134,7 @@ def write_size_report(out: Path, model: Model, motions: Sequence[Motion], scene:
         table("scene_checks.csv", check_rows(scene, margin))
         figure("demand.png", demand_figure(scene, model.leg_min, model.leg_max, title))
         figure("torque_speed.png", torque_speed_figure(scene, ranked, [m.name for m in motions],
-                                                       title))
+                                                       margin, title))
         if sweep is not None:
             table("candidates.csv", candidate_rows(ranked, margin))
             table("candidate_motions.csv", candidate_motion_rows(ranked))
