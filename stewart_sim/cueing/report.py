@@ -240,13 +240,16 @@ def _tracking_section(study: CueStudy) -> list[str]:
 
 def cue_view(study: CueStudy, title: str, controller: ControllerConfig | None):
     """The 3D view: the closed loop with the cue as its ghost when it ran, else the cue with
-    the rack forces of its inverse dynamics (`controller`: the scene's parsed [controller])."""
+    the rack forces of its inverse dynamics and the vehicle's and the delivered specific force
+    at the head as arrows (`controller`: the scene's parsed [controller]). The closed loop's
+    view has no arrows: its samples are the controller's, not the motion's."""
     if study.tracking is not None:
         return run_table_view(study.model, study.tracking.table, controller=controller,
                               title=f"{title}, closed loop", source="tracking.csv")
     run = study.runs[0]
     return view_data(study.model, run.cue.t, run.cue.q, run.feasibility.sigma,
-                     controller=controller, force_label=RACK, title=title, source="trajectory.csv")
+                     controller=controller, force_label=RACK, title=title, source="trajectory.csv",
+                     f_vehicle=run.perception.vehicle_f, f_delivered=run.perception.delivered_f)
 
 
 def verdict(study: CueStudy) -> str:
