@@ -3,11 +3,14 @@ a rotation at a constant rate about the origin gives the centripetal term; an in
 computation (the head point's position differenced twice along a smooth pose trajectory, R^T
 applied, gravity taken off) matches the delivered specific force; the angular velocity is the
 origin's; a head at the origin is bit for bit the origin's result, through the washout study
-and the MPC's linearisation; the MPC perceives at the head to first order; the key's bounds;
-the report says where perception is taken; delivered_at is delivered_motion of one sample."""
+and the MPC's linearisation; the MPC perceives at the head to first order; the key's bounds
+(the `cue` command refuses a head out of reach in one line); scene-info and the report say where
+perception is taken; delivered_at is delivered_motion of one sample."""
 from __future__ import annotations
 
 import dataclasses
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -21,6 +24,7 @@ from stewart_sim.cueing.optimal import OptimalOptions, known_inputs, optimal_cue
 from stewart_sim.cueing.report import perception_table, summary_markdown
 from stewart_sim.cueing.study import cue_study
 from stewart_sim.cueing.vestibular import delivered_at, delivered_motion, perception
+from stewart_sim.scene_info import describe
 from stewart_sim.scene_load import scene_of
 from tests.helpers import ROOT, scene_dict, smooth_step
 from tests.helpers import vehicle_motion as motion
@@ -155,6 +159,12 @@ def test_the_scene_key_is_read_and_bounded():
         assert err.value.key == "cueing.head"
 
 
+def test_scene_info_says_where_perception_is_taken():
+    line = next(x for x in describe(scene_of(scene_from_dict(with_head([0.1, 0, 0.9]))))
+                .splitlines() if x.startswith("cueing:"))
+    assert line.endswith("; perceived at the head [0.1, 0, 0.9] m (platform frame)")
+
+
 def test_the_study_perceives_at_the_scenes_head_and_the_report_says_where():
     model0 = scene_from_dict(scene_dict("sim"))
     model1 = scene_from_dict(with_head(HEAD.tolist()))
@@ -231,3 +241,18 @@ def test_the_mpc_that_knows_the_head_is_perceived_better_there():
         c = result.cue
         rms[name] = perception(vehicle, t, c.q, c.qd, c.qdd, GRAVITY, head).rms_f[0]
     assert rms["head"] < rms["origin"], rms
+
+
+def test_the_cue_command_refuses_a_head_out_of_reach_in_one_line(tmp_path):
+    text = (ROOT / "scenes" / "motion_simulator.toml").read_text()
+    assert text.count("\n[cueing]\n") == 1
+    scene = tmp_path / "sim.toml"
+    scene.write_text(text.replace("\n[cueing]\n", "\n[cueing]\nhead = [0.0, 0.0, 90.0]\n"))
+    out = tmp_path / "cue"
+    done = subprocess.run([sys.executable, "-m", "stewart_sim", "cue", str(scene), "--motion",
+                           str(BRAKING), "--out", str(out)], capture_output=True, text=True,
+                          cwd=ROOT, timeout=300)
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "cueing.head" in lines[0] and "90.0" in lines[0], done.stderr
+    assert "Traceback" not in done.stderr and not out.exists()
