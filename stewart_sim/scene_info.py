@@ -117,7 +117,8 @@ def _describe_cueing(model: Model, c: CueingConfig) -> str:
             f"limit {format_vector(c.rotational_limit)} rad/s, high-pass order "
             f"{c.rotational_order} at {format_vector(c.rotational_frequency)} rad/s"
             + (f", damping {format_vector(c.rotational_damping)}" if c.rotational_order == 2
-               else ""))
+               else "")
+            + f"; perceived at the head {format_vector(c.head)} m (platform frame)")
 
 
 def _describe_optimal(o: OptimalOptions) -> str:
