@@ -26,8 +26,10 @@ piecewise-constant accelerations at the sample rate: l + ldot^2 / (2a) is what t
 stop takes, ldot dt / 2 bounds what stopping on the sample grid adds).
 
 Otherwise the envelope flies its own state (q, qd) one step with a constant pose acceleration:
-the tracking acceleration towards the cue, a_des = qdd_cue + k_d (qd_cue - qd + phi(q_cue - q)),
-phi(e) = sign(e) min(k_p |e|, sqrt(2 a_p |e|)) per coordinate: near the cue a linear loop,
+the tracking acceleration towards the cue, a_des = qdd_cue + k_d (qd_ref - qd + phi(q_ref - q)),
+(q_ref, qd_ref) the cue carried back one sample at its acceleration to the state's time (a state
+on it lands on the cue), phi(e) = sign(e) min(k_p |e|, sqrt(2 a_p |e|)) per coordinate: near
+the cue a linear loop,
 critically damped (k_d = 1 / TRACK_TIME, k_p = k_d / 4: the error decays as exp(-2 k_p t)),
 far from it an approach rate the platform can brake from at a_p (half the acceleration limit;
 divided by the model's characteristic length for the angles), so that a step is flown at the
@@ -245,10 +247,13 @@ class Envelope:
             a_des = self._kd * self._kp * (self._hold - last.q) - last.qd / self.dt
         else:
             self._hold = None
-            e = q - last.q
+            # the cue carried back one sample (at its own acceleration) to the state's time:
+            # a state on it flies onto the cue exactly with the cue's acceleration
+            dt = self.dt
+            e = q - qd * dt + qdd * (dt * dt / 2.0) - last.q
             approach = np.sign(e) * np.minimum(self._kp * np.abs(e),
                                                np.sqrt(2.0 * self._a_pose * np.abs(e)))
-            a_des = qdd + self._kd * (qd - last.qd + approach)
+            a_des = qdd + self._kd * (qd - qdd * dt - last.qd + approach)
         return self._record(self._limited_step(a_des, reasons))
 
     def brake(self) -> EnvelopeStep:

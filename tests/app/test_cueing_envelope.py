@@ -369,3 +369,27 @@ def test_the_emulated_device_accepts_every_setpoint_and_stays_in_its_stroke(mode
     lengths = np.array(lengths)
     assert lengths.min() > model.leg_min and lengths.max() < model.leg_max
     assert env.interventions.per_limit["stroke"] > 0
+
+
+def test_the_washout_of_a_shipped_motion_passes_but_for_short_catch_ups():
+    """The classical washout's cue of the shipped lane change on the motion simulator at 1 kHz
+    (the live pipeline's input): inside the limits but for a few rate steps of the washout's
+    tilt-rate limiter, which the envelope takes at its acceleration limit and catches up from
+    within a quarter of a second each; everywhere else the cue goes through bit for bit."""
+    from stewart_sim.cueing.motion import read_motion
+    from stewart_sim.cueing.study import make_cue, resample
+
+    model = load_scene(SCENE.parent / "motion_simulator.toml")
+    scene = scene_of(model)
+    limits = envelope_limits(model, scene.controller)
+    motion = resample(read_motion(SCENE.parent / "motions" / "lane_change.csv"), 1 / DT)
+    cue, _ = make_cue("classical", scene, scene.cueing, motion)
+    env = Envelope(model, limits, DT)
+    steps = _run(env, (cue.q, cue.qd, cue.qdd))
+    _within_limits(steps, limits, model)
+    passed = np.array([s.passed for s in steps])
+    assert passed.mean() > 0.9
+    assert np.array_equal(_stack(steps, "q")[passed], cue.q[passed])
+    edges = np.diff(np.r_[0, (~passed).astype(np.int8), 0])
+    runs = np.flatnonzero(edges == -1) - np.flatnonzero(edges == 1)
+    assert 0 < runs.size and runs.max() <= 250
