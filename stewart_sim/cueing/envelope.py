@@ -121,7 +121,12 @@ class EnvelopeLimits:
 def envelope_limits(model: Model, controller: ControllerConfig | None,
                     margins: Margins = Margins()) -> EnvelopeLimits:
     """The limits of `model`'s legs and drives (the scene's [drive] and [controller] tables),
-    each less its margin. SceneError when the scene has no drive or no motor."""
+    each less its margin. SceneError when the scene has no drive or no motor; ValueError
+    naming the margin when one is not in [0, 1)."""
+    for name in ("stroke", "speed", "acceleration", "force", "cond"):
+        x = getattr(margins, name)
+        if not 0.0 <= x < 1.0:
+            raise ValueError(f"envelope margin '{name}' must be in [0, 1), got {x!r}")
     lim = mechanism_limits(model, controller, None)
     if lim.axis is None or lim.force is None:
         raise SceneError("controller", "the live envelope needs the drives' limits: the scene's "

@@ -336,6 +336,21 @@ def test_blend_ramps_the_cue_in_from_rest(model):
     np.testing.assert_allclose(b.apply(mid, *const)[1], num, rtol=1e-6, atol=1e-9)
 
 
+@pytest.mark.parametrize("name, value", [("speed", 1.0), ("force", -0.1), ("stroke", np.nan)])
+def test_a_margin_outside_its_range_is_refused(model, name, value):
+    with pytest.raises(ValueError, match=f"margin '{name}' must be in"):
+        envelope_limits(model, scene_of(model).controller, Margins(**{name: value}))
+
+
+def test_a_scene_without_drives_is_refused():
+    from stewart_fmu.errors import SceneError
+    from tests.helpers import level_model
+
+    model = level_model("sim", "full")
+    with pytest.raises(SceneError, match="drives' limits"):
+        envelope_limits(model, None)
+
+
 def test_start_outside_the_stroke_is_refused(model, limits):
     with pytest.raises(ValueError, match="start pose"):
         Envelope(model, limits, DT, start=_home(model) + [0, 0, 0.2, 0, 0, 0])
