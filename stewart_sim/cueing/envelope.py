@@ -318,17 +318,32 @@ class Envelope:
         adt = a * dt
         lo, hi, by_lo, by_hi, s_lo, s_hi = [], [], [], [], [], []
         for l, v, _ in legs:
+            # the next leg rate's bounds: the stroke's (vl, vh) first
             up, dn = top - l - v * dt / 2.0, l - bottom + v * dt / 2.0
             vh = -adt + math.sqrt(adt * adt + 2 * a * up) if up >= 0 else 2 * (top - l) / dt - v
             vl = adt - math.sqrt(adt * adt + 2 * a * dn) if dn >= 0 else 2 * (bottom - l) / dt - v
-            vl = min(vl, vh)
+            if vl > vh:
+                vl = vh
             s_lo.append((vl - v) / dt)
             s_hi.append((vh - v) / dt)
-            ups, downs = (vh, vmax, v + adt), (vl, -vmax, v - adt)
-            by_hi.append(ups.index(min(ups)))
-            by_lo.append(downs.index(max(downs)))
+            # which bound is tightest at each end (BOX_LIMITS order, the first of equals)
+            kh, th = 0, vh
+            if vmax < th:
+                kh, th = 1, vmax
+            if v + adt < th:
+                kh = 2
+            kl, tl = 0, vl
+            if -vmax > tl:
+                kl, tl = 1, -vmax
+            if v - adt > tl:
+                kl = 2
+            by_hi.append(kh)
+            by_lo.append(kl)
+            # within the speed, then the acceleration; the nearest point where none is left
             for lo2, hi2 in ((-vmax, vmax), (v - adt, v + adt)):
-                vl, vh = min(max(vl, lo2), vh), max(min(vh, hi2), vl)
+                nl = lo2 if lo2 > vl else vl
+                nh = hi2 if hi2 < vh else vh
+                vl, vh = (nl if nl < vh else vh), (nh if nh > vl else vl)
             lo.append((vl - v) / dt)
             hi.append((vh - v) / dt)
         return lo, hi, by_lo, by_hi, s_lo, s_hi

@@ -408,3 +408,26 @@ def test_the_washout_of_a_shipped_motion_passes_but_for_short_catch_ups():
     edges = np.diff(np.r_[0, (~passed).astype(np.int8), 0])
     runs = np.flatnonzero(edges == -1) - np.flatnonzero(edges == 1)
     assert 0 < runs.size and runs.max() <= 250
+
+
+def test_a_resume_mid_fade_ramps_the_cue_in_within_the_limits(model, limits):
+    """Telemetry back halfway through a fade (FADING -> RUNNING): the cue, a sine about home,
+    is ramped in from the pose sent then (still moving); the envelope takes the rate step,
+    everything stays within the limits, and after the ramp the cue goes through unchanged."""
+    start = _home(model) + [0.01, 0, 0.015, 0, 0.03, 0]
+    env = Envelope(model, limits, DT, start=start)
+    fade = fade_to_home(model, limits, start, t0=0.0)
+    half = int(fade.duration / DT / 2)
+    steps = [env.step(*fade.sample(k * DT)) for k in range(half)]
+    t0 = half * DT
+    blend = Blend(steps[-1].q, t0)
+    w, amp = 2 * np.pi * 0.7, np.array([0.004, 0, 0.006, 0.02, 0, 0])
+    n = int((BLEND_TIME + 1.0) / DT)
+    for k in range(n):
+        t = t0 + k * DT
+        tau = t - t0
+        cue = (_home(model) + amp * np.sin(w * tau), amp * w * np.cos(w * tau),
+               -amp * w * w * np.sin(w * tau))
+        steps.append(env.step(*(cue if blend.done(t) else blend.apply(t, *cue))))
+    _within_limits(steps, limits, model)
+    assert all(s.passed for s in steps[-int(0.5 / DT):])
