@@ -130,13 +130,14 @@ def envelope_limits(model: Model, controller: ControllerConfig | None,
     lim = mechanism_limits(model, controller, None)
     if lim.axis is None or lim.force is None:
         raise SceneError("controller", "the live envelope needs the drives' limits: the scene's "
-                         "[drive] and [controller.motor] tables")
+                         "[drive] and [controller.motor] tables", model.source)
     axis = lim.axis
     free = replace(model, leg_min=None, leg_max=None)
     home = np.asarray(model.home, dtype=float)
     held, status = core.inverse_dynamics(free.native, home, np.zeros(6), np.zeros(6))
     if status:
-        raise SceneError("geometry.home", "the inverse dynamics refuse the home pose")
+        raise SceneError("geometry.home", "the inverse dynamics refuse the home pose",
+                         model.source)
     room = overshoot_room(axis, float(np.max(np.abs(held))))
     leg_min = model.leg_min if model.leg_min is not None else 0.0
     leg_max = model.leg_max if model.leg_max is not None else math.inf
@@ -145,7 +146,7 @@ def envelope_limits(model: Model, controller: ControllerConfig | None,
     if not lo < hi:
         raise SceneError("geometry", f"the stroke [{leg_min:g}, {leg_max:g}] m leaves no room "
                          f"once the servo's overshoot room ({room:.3g} m) and the envelope's "
-                         f"margin ({keep:.3g} m) are kept at each end")
+                         f"margin ({keep:.3g} m) are kept at each end", model.source)
     return EnvelopeLimits(lo, hi, (1 - margins.speed) * axis.no_load_speed,
                           (1 - margins.acceleration) * axis.peak_acceleration,
                           (1 - margins.force) * lim.force, (1 - margins.cond) * COND_LIMIT)
