@@ -373,7 +373,7 @@ def _envelope(data: Mapping[str, Any], fail) -> EnvelopeSettings:
 
 def _adaptive(data: Mapping[str, Any], fail) -> AdaptiveSettings:
     """The [adaptive] table's form; whether the target is a result of the evaluation is
-    adaptive.check_target's (the results are evaluate.py's, which imports this module)."""
+    adaptive.check_adaptive's (the results are evaluate.py's, which imports this module)."""
     t = _table(data, "adaptive", {"target", "threshold"}, fail)
     target = t.get("target", FEASIBLE)
     if not isinstance(target, str):

@@ -8,7 +8,8 @@ chunks that pass their checks (the sweep's fingerprint, their checksum, known po
 plausible results); a chunk refused is set aside and its points are computed again. The table
 is written from these rows only, checked before anything is merged. A worker that dies takes its
 running tasks with it; the scheduler runs them again elsewhere, and a task's rows are written
-once, when its future completes.
+once, when its future completes. With `adaptive` N, the rounds of refinement (their points
+picked from the rows: stewart_sim/sweep/adaptive.py) run on the same cluster after the grid.
 """
 from __future__ import annotations
 
@@ -151,8 +152,8 @@ def run_sweep(scene: Path, grid: GridSpec, out: Path, scheduler: str | None = No
 
 
 class _Runner:
-    """Evaluates points on the cluster (run_batches), started for the first points to compute
-    and closed with `stack`; `start` is then (cluster start-up excluded)."""
+    """Evaluates points on the cluster, started for the first points to compute and closed
+    with `stack`; `start`: when it was up (the wall time excludes the start-up)."""
 
     def __init__(self, scheduler: str | None, workers: int | None, spec: EvalSpec, batch: int,
                  total: int, progress: Progress | None, timeout: float | None):
