@@ -13,6 +13,14 @@ from stewart_sim.sweep.grid import FEASIBLE, GridSpec
 from stewart_sim.sweep.plots import axis_label
 
 REFINEMENT_PLOT = "refinement.png"
+# Units of the result columns (stewart_sim/sweep/evaluate.py RESULTS; the PID gains are
+# controller/design.py PidGains'), for a map whose vertical axis is the target.
+RESULT_UNITS = {**dict.fromkeys((*(f"sigma{i}_max" for i in range(1, 7)), "sigma_max"), "N"),
+                "torque_max": "N m", "power_max": "W", "cond_max": "-", "reachable": "-",
+                "kp": "V/m", "ki": "V/(m s)", "kd": "V s/m", "phase_margin": "deg",
+                "crossover_hz": "Hz", "leg_err_rms": "m", "leg_err_max": "m",
+                "pose_err_max_linear": "m", "pose_err_max_angular": "rad", "current_max": "A",
+                "voltage_rms": "V", "saturated_time": "s"}
 
 
 def refinement_figure(table: Mapping[str, np.ndarray], grid: GridSpec, title: str) -> Figure:
@@ -36,9 +44,9 @@ def refinement_figure(table: Mapping[str, np.ndarray], grid: GridSpec, title: st
     if len(keys) >= 2:
         y, ylabel = table[keys[1]], axis_label(keys[1])
     elif target == FEASIBLE:
-        y, ylabel = ok.astype(float), "feasible (1) or failed (0)"
+        y, ylabel = ok.astype(float), "outcome (1: feasible, 0: failed)"
     else:
-        y, ylabel = table[target], target
+        y, ylabel = table[target], f"{target} ({RESULT_UNITS[target]})"
         ax.axhline(threshold, color="0.3", lw=0.8, ls="--", label=f"threshold {threshold:g}")
     for label, mask, colour in classes:
         for sel, marker, size, edge, kind in ((mask & ~added, "o", 22, "none", "grid"),

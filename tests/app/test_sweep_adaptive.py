@@ -21,10 +21,14 @@ from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.scene import apply_overrides, load_scene, read_scene_dict, scene_from_dict
 from stewart_sim.cli import main
 from stewart_sim.sweep.adaptive import REFINEMENT, ROUNDS
+from stewart_sim.sweep.adaptive_plots import RESULT_UNITS, refinement_figure
+from stewart_sim.sweep.evaluate import RESULTS
 from stewart_sim.sweep.evaluate import columns, evaluate_batch
+from stewart_sim.sweep.plots import results_figure
 from stewart_sim.sweep.grid import grid_from_dict, load_grid
 from stewart_sim.sweep.run import eval_spec, run_sweep
 from stewart_sim.sweep.table import CHUNKS, MANIFEST, csv_text, read_table
+from tests.app.test_plot_labels import check_figure
 
 distributed = pytest.importorskip("distributed")
 
@@ -137,6 +141,7 @@ def test_added_points_bracket_the_stroke_limits_16_times_closer_than_the_grid(st
     added = rounds > 0
     gap = np.minimum(np.abs(t["geometry.leg_min"] - lo), np.abs(t["geometry.leg_max"] - hi))
     assert np.all(gap[added] <= H / 2)
+    check_refinement_plots(t, load_grid(stroke["grid"]), ADDED)
     step = H / 2 ** ROUNDS_RUN
     along_max = brackets(t, "geometry.leg_max", "geometry.leg_min", feasible)
     along_min = brackets(t, "geometry.leg_min", "geometry.leg_max", feasible)
@@ -170,6 +175,26 @@ def test_added_points_bracket_a_peak_force_threshold(tmp_path, cluster):
     (a, b), = brackets(t, "platform.mass", "status", t["sigma_max"] >= threshold).values()
     assert a < root < b and b - a == pytest.approx(0.75 / 2 ** 5, rel=1e-9)
     assert np.all(np.abs(t["platform.mass"][6:] - root) <= 0.75 / 2)
+    check_refinement_plots(t, load_grid(grid), 5)
+
+
+def check_refinement_plots(table, grid, added: int) -> None:
+    """The map marks the added points apart (triangles), the main figure circles them; axes
+    with units."""
+    fig = refinement_figure(table, grid, "sweep")
+    check_figure(fig)
+    ax = fig.axes[0]
+    marked = sum(len(c.get_offsets()) for c in ax.collections if "added" in c.get_label())
+    assert marked == added and f"{added} points added" in ax.get_title()
+    main_fig = results_figure(table, grid, "sweep")
+    check_figure(main_fig)
+    labels = [c.get_label() for c in main_fig.axes[0].collections]
+    ok_added = int(np.sum((table[REFINEMENT] > 0) & (table["status"] == "ok")))
+    assert f"{ok_added} added by refinement" in labels
+
+
+def test_every_result_has_a_unit_for_the_map():
+    assert {r for rs in RESULTS.values() for r in rs} == set(RESULT_UNITS)
 
 
 def test_adaptive_0_is_the_plain_sweep_and_the_grid_rows_are_kept(tmp_path, cluster, stroke):
