@@ -7,12 +7,14 @@ from typing import Mapping
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.ticker import FixedLocator, FuncFormatter, NullLocator
 
 from stewart_sim.sweep.adaptive import REFINEMENT, refinable_axes
 from stewart_sim.sweep.grid import FEASIBLE, GridSpec
 from stewart_sim.sweep.plots import axis_label
 
 REFINEMENT_PLOT = "refinement.png"
+GRID_TICKS = 12   # an axis of at most this many grid values has its ticks there
 # Units of the result columns (stewart_sim/sweep/evaluate.py RESULTS; the PID gains are
 # controller/design.py PidGains'), for a map whose vertical axis is the target.
 RESULT_UNITS = {**dict.fromkeys((*(f"sigma{i}_max" for i in range(1, 7)), "sigma_max"), "N"),
@@ -56,8 +58,16 @@ def refinement_figure(table: Mapping[str, np.ndarray], grid: GridSpec, title: st
                            edgecolors=edge, linewidths=0.5,
                            label=f"{label}: {int(sel.sum())} {kind}")
     for j, name in zip(refinable_axes(grid)[:2], ("x", "y")):
-        if grid.axes[j].log and (name == "x" or len(keys) >= 2):
+        if name == "y" and len(keys) < 2:
+            break
+        axis = getattr(ax, f"{name}axis")
+        if grid.axes[j].log:
             getattr(ax, f"set_{name}scale")("log")
+        values = sorted(set(grid.axes[j].grid_values()))
+        if len(values) <= GRID_TICKS:   # the grid's lines, labelled (3 digits)
+            axis.set_major_locator(FixedLocator(values))
+            axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:.3g}"))
+            axis.set_minor_locator(NullLocator())
     ax.set(xlabel=axis_label(x), ylabel=ylabel)
     ax.grid(True, alpha=0.3, which="both")
     ax.legend(fontsize=8, loc="best")

@@ -20,7 +20,7 @@ from stewart_fmu.io import trajectory_table, write_csv
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.scene import apply_overrides, load_scene, read_scene_dict, scene_from_dict
 from stewart_sim.cli import main
-from stewart_sim.sweep.adaptive import REFINEMENT, ROUNDS
+from stewart_sim.sweep.adaptive import REFINEMENT, ROUNDS, check_adaptive
 from stewart_sim.sweep.adaptive_plots import RESULT_UNITS, refinement_figure
 from stewart_sim.sweep.evaluate import RESULTS
 from stewart_sim.sweep.evaluate import columns, evaluate_batch
@@ -279,6 +279,14 @@ def test_bad_adaptive_inputs_exit_2_in_one_line(tmp_path, capsys, extra, grid_te
     assert words in err[-1] and err[-1].startswith("stewart-sim")
     assert err[-1].startswith("stewart-sim sweep: error: argument") or len(err) == 1
     assert not out.exists()
+
+
+def test_the_shipped_grids_pass_the_adaptive_checks():
+    for path in sorted((SCENE.parent / "sweeps").glob("*.toml")):
+        check_adaptive(load_grid(path), 0, drive=True)   # micro_manipulator.toml has a [drive]
+    g = load_grid(SCENE.parent / "sweeps" / "torque_adaptive.toml")
+    check_adaptive(g, 56, drive=True)
+    assert (g.adaptive.target, g.adaptive.threshold) == ("torque_max", 0.008)
 
 
 def test_the_adaptive_table_is_part_of_the_grid_format():
