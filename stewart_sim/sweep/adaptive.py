@@ -20,6 +20,11 @@ and its chunk files are DIR/adaptive/round-KKK/chunks/part-*.csv, the grid's for
 (stewart_sim/sweep/chunks.py) under a fingerprint of their own (the sweep's and the round's), so
 a chunk of the grid or another round is refused there. The table gains the column `refinement`:
 0 for the grid's points, k for round k's.
+
+Why not python-adaptive's learners: they pick each point from the results in the order they
+arrive (a resumed sweep would not pick the same points, nor fit the checked chunk files), they
+learn a scalar over a continuous box (not a grid's lines with value lists and string axes, nor a
+point's failure), and they would add a dependency for the few lines of bisection here.
 """
 from __future__ import annotations
 

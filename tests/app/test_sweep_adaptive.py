@@ -281,6 +281,19 @@ def test_bad_adaptive_inputs_exit_2_in_one_line(tmp_path, capsys, extra, grid_te
     assert not out.exists()
 
 
+def test_the_command_adds_the_points_and_writes_the_map(tmp_path, cluster, capsys):
+    grid = sweep_dir(tmp_path, MASS.format(threshold=peak_force(MASS_STAR)))
+    out = tmp_path / "out"
+    assert main(["sweep", str(SCENE), "--grid", str(grid), "--out", str(out), "--scheduler",
+                 cluster.scheduler_address, "--adaptive", "3"]) == 0
+    printed = capsys.readouterr().out
+    assert "sweep: 9 points (3 added by refinement), 0 already done, 9 computed" in printed
+    for name in ("sweep.csv", "refinement.png", "peak_force.png"):
+        assert f"wrote {out / name}" in printed
+    assert (out / "refinement.png").stat().st_size > 10_000
+    assert list(read_table(out / "sweep.csv")[REFINEMENT]) == [0] * 6 + [1, 2, 3]
+
+
 def test_the_shipped_grids_pass_the_adaptive_checks():
     for path in sorted((SCENE.parent / "sweeps").glob("*.toml")):
         check_adaptive(load_grid(path), 0, drive=True)   # micro_manipulator.toml has a [drive]
