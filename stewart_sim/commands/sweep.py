@@ -1,5 +1,6 @@
 """`stewart-sim sweep SCENE --grid GRID.toml --out DIR [--scheduler tcp://HOST:PORT |
---workers N] [--no-plots]`: a design sweep on Dask (stewart_sim.sweep.files), resumable."""
+--workers N] [--adaptive N] [--no-plots]`: a design sweep on Dask (stewart_sim.sweep.files),
+resumable."""
 from __future__ import annotations
 
 import argparse
@@ -9,6 +10,8 @@ from pathlib import Path
 from stewart_sim.argtypes import number
 
 _workers = number(int, "an integer", lambda v: 1 <= v <= 1024, "1 to 1024")
+# the bound is stewart_sim.sweep.adaptive.MAX_ADDED (not imported: --help stays fast)
+_adaptive = number(int, "an integer", lambda v: 0 <= v <= 1_000_000, "an integer from 0 to 1000000")
 
 
 def add_parser(sub, help_text: str) -> None:
@@ -29,6 +32,10 @@ def add_parser(sub, help_text: str) -> None:
                        help="run on this Dask distributed scheduler's workers")
     where.add_argument("--workers", type=_workers, metavar="N",
                        help="local worker processes (default: one per core)")
+    p.add_argument("--adaptive", type=_adaptive, default=0, metavar="N",
+                   help="then N more points where the outcome changes: the grid's [adaptive] "
+                        "target (default: feasibility) crossing its threshold; the table's "
+                        "column `refinement` gives each point's round (0: the grid)")
     p.add_argument("--no-plots", action="store_true", help="write the table only")
     p.set_defaults(run=run)
 
@@ -45,11 +52,13 @@ def run(args: argparse.Namespace) -> None:
     summary, written = run_sweep_files(Path(args.scene), Path(args.grid), Path(args.out),
                                        args.scheduler, args.workers, not args.no_plots,
                                        lambda line: print(f"stewart-sim: {line}",
-                                                          file=sys.stderr))
+                                                          file=sys.stderr), args.adaptive)
     where = args.scheduler or "local cluster"
     refused = (f", {summary.refused} chunk files refused and their points computed again"
                if summary.refused else "")
-    print(f"sweep: {summary.points} points, {summary.resumed} already done, {summary.computed} "
+    added = f" ({summary.added} added by refinement)" if args.adaptive else ""
+    print(f"sweep: {summary.points} points{added}, {summary.resumed} already done, "
+          f"{summary.computed} "
           f"computed on {summary.workers} workers ({where}) in {summary.wall:.3g} s "
           f"({summary.rate:.4g} points/s); {summary.failed} failed{refused}")
     for path in written:

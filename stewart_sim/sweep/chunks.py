@@ -49,17 +49,20 @@ class ChunkRules:
 
     fingerprint: str
     columns: tuple[str, ...]
-    axes: Sequence[tuple[str, ...]]   # by point id: the point's axis values as cells
+    axes: Sequence[tuple[str, ...]]   # by point id - first: the point's axis values as cells
     max_rows: int                     # rows in one chunk (the grid's batch)
     drive: bool                       # the scene has a [drive] table (evaluate.has_drive)
+    first: int = 0                    # the first point id (a refinement round's: adaptive.py)
 
 
 def chunk_rules(fingerprint: str, columns: Sequence[str],
                 points: Sequence[tuple[int, Mapping[str, Any]]], batch: int,
                 drive: bool) -> ChunkRules:
-    """The rules for the chunks of a sweep of `points` (ids 0..n-1 in order)."""
+    """The rules for the chunks of a sweep of `points` (ids first..first+n-1 in order: the
+    grid's from 0)."""
     axes = [tuple(cell(v) for v in values.values()) for _, values in points]
-    return ChunkRules(fingerprint, tuple(columns), axes, min(batch, len(points)), drive)
+    first = points[0][0] if points else 0
+    return ChunkRules(fingerprint, tuple(columns), axes, min(batch, len(points)), drive, first)
 
 
 def write_chunk(out: Path, rules: ChunkRules, rows: Sequence[Mapping[str, Any]]
@@ -204,12 +207,15 @@ def _check_row(row: list[str], rules: ChunkRules) -> int:
     cols = rules.columns
     if len(row) != len(cols):
         raise _Refused(f"a row of {len(row)} cells, not {len(cols)}")
-    if not _ID.fullmatch(row[0]) or int(row[0]) >= len(rules.axes):
-        raise _Refused(f"a row for point {_short(row[0])}, not a point of the sweep (0 to "
-                       f"{len(rules.axes) - 1})")
-    pid, n_axes = int(row[0]), len(rules.axes[int(row[0])])
+    last = rules.first + len(rules.axes) - 1
+    if not _ID.fullmatch(row[0]) or not rules.first <= int(row[0]) <= last:
+        raise _Refused(f"a row for point {_short(row[0])}, not a point of the sweep "
+                       f"({rules.first} to {last})")
+    pid = int(row[0])
+    axes = rules.axes[pid - rules.first]
+    n_axes = len(axes)
     status, error = row[1 + n_axes], row[2 + n_axes]
-    if tuple(row[1:1 + n_axes]) != rules.axes[pid]:
+    if tuple(row[1:1 + n_axes]) != axes:
         raise _Refused(f"point {pid}: its axis values are not the grid's")
     results = zip(cols[3 + n_axes:], row[3 + n_axes:])
     if status == "error":

@@ -15,6 +15,9 @@ a full grid or a seeded Latin hypercube over dotted scene, controller and trajec
     x = [-0.02, 0.02]                 # any of x, y, z, thx, thy, thz; the others stay at home
     points = 5                        # per listed coordinate
     accelerations = [[0, 0, 0, 0, 0, 0]]   # load cases qdd (default: static only)
+    [adaptive]                        # where `sweep --adaptive N` adds its N points
+    target = "sigma_max"              # "feasible" (default): status ok/error; or a result column
+    threshold = 1500.0                # a result column: the value whose crossing is sought
     [axes]
     "platform.mass" = [0.5, 1.0, 2.0]                     # values
     "drive.gear_ratio" = {min = 5, max = 40, points = 8, log = true}   # a range
@@ -47,7 +50,9 @@ BATCH = {"inverse": 250, "envelope": 20, "closed_loop": 2}   # default points pe
 TRAJECTORY_KINDS = ("demo", "run", "file")
 MAX_POINTS = 10_000_000
 POINT_BYTES = 150   # a point of GridSpec.points, per axis and one more: its dict, tuple, floats
-_TOP = {"evaluation", "method", "samples", "seed", "batch", "trajectory", "envelope", "axes"}
+_TOP = {"evaluation", "method", "samples", "seed", "batch", "trajectory", "envelope", "adaptive",
+        "axes"}
+FEASIBLE = "feasible"   # the adaptive target "a point's status flips between ok and error"
 _RANGE = {"min", "max", "points", "log"}
 # What an axis may vary: numbers, plus the string-valued keys with their allowed values (None:
 # any string).
@@ -112,6 +117,15 @@ class EnvelopeSettings:
 
 
 @dataclass(frozen=True)
+class AdaptiveSettings:
+    """What `sweep --adaptive N` refines (stewart_sim/sweep/adaptive.py): where a point's
+    feasibility flips (target FEASIBLE), or where a result column crosses `threshold`."""
+
+    target: str = FEASIBLE
+    threshold: float = math.nan
+
+
+@dataclass(frozen=True)
 class GridSpec:
     """A parsed, checked GRID.toml."""
 
@@ -125,6 +139,7 @@ class GridSpec:
     envelope: EnvelopeSettings
     raw: Mapping[str, Any]   # the TOML as read (the sweep's fingerprint)
     source: str | None = None
+    adaptive: AdaptiveSettings = AdaptiveSettings()
 
     @property
     def keys(self) -> tuple[str, ...]:
@@ -193,7 +208,8 @@ def grid_from_dict(data: Mapping[str, Any], source: str | None = None) -> GridSp
     seed = _integer(data, "seed", 0, 2**63 - 1, 0, fail)
     batch = _integer(data, "batch", 1, 100_000, BATCH[evaluation], fail)
     spec = GridSpec(evaluation, method, axes, samples, seed, batch, _trajectory(data, fail),
-                    _envelope(data, fail), dict(data), source)
+                    _envelope(data, fail), dict(data), source,
+                    _adaptive(data, fail))
     if spec.size() > MAX_POINTS:
         fail("axes", f"{spec.size():,} points: more than {MAX_POINTS:,}")
     try:    # GridSpec.points holds every point (its index and its values) at once
@@ -353,3 +369,17 @@ def _envelope(data: Mapping[str, Any], fail) -> EnvelopeSettings:
     if arr.ndim != 2 or arr.shape[1] != 6 or not arr.size or not np.all(np.isfinite(arr)):
         fail("envelope.accelerations", f"must be a list of 6-vectors qdd, got {acc!r}")
     return EnvelopeSettings(tuple(ranges), points, tuple(tuple(map(float, a)) for a in arr))
+
+
+def _adaptive(data: Mapping[str, Any], fail) -> AdaptiveSettings:
+    """The [adaptive] table's form; whether the target is a result of the evaluation is
+    adaptive.check_adaptive's (the results are evaluate.py's, which imports this module)."""
+    t = _table(data, "adaptive", {"target", "threshold"}, fail)
+    target = t.get("target", FEASIBLE)
+    if not isinstance(target, str):
+        fail("adaptive.target", f"must be \"{FEASIBLE}\" or a result column's name, got {target!r}")
+    if target == FEASIBLE:
+        if "threshold" in t:
+            fail("adaptive.threshold", f"only for a result column as target, not \"{FEASIBLE}\"")
+        return AdaptiveSettings()
+    return AdaptiveSettings(target, _number(t, "threshold", "adaptive.threshold", fail))

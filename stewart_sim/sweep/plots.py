@@ -15,6 +15,7 @@ from stewart_fmu.dynamics import inverse_dynamics
 from stewart_fmu.fmu.variables import SCENE_KEYS
 from stewart_fmu.io import POSE
 from stewart_fmu.model import Model
+from stewart_sim.sweep.adaptive import REFINEMENT
 from stewart_sim.sweep.evaluate import reachable
 from stewart_sim.sweep.grid import EnvelopeSettings, GridSpec
 
@@ -73,6 +74,12 @@ def results_figure(table: Mapping[str, np.ndarray], grid: GridSpec, title: str) 
     xs = table[x][ok] if x else np.flatnonzero(ok).astype(float)
     kw = {"c": table[c][ok], "cmap": "viridis"} if c else {}
     sc = ax.scatter(xs, table[metric][ok], s=12, **kw)
+    if REFINEMENT in table:     # the points `sweep --adaptive` added: circled
+        added = table[REFINEMENT][ok] > 0
+        ax.scatter(xs[added], table[metric][ok][added], s=45, facecolors="none",
+                   edgecolors="red", linewidths=0.8,
+                   label=f"{int(added.sum())} added by refinement")
+        ax.legend(fontsize=8, loc="best")
     if c:
         cbar = fig.colorbar(sc, ax=ax, label=axis_label(c))
         values = np.asarray(table[c][ok], float)

@@ -8,7 +8,8 @@ chunks that pass their checks (the sweep's fingerprint, their checksum, known po
 plausible results); a chunk refused is set aside and its points are computed again. The table
 is written from these rows only, checked before anything is merged. A worker that dies takes its
 running tasks with it; the scheduler runs them again elsewhere, and a task's rows are written
-once, when its future completes.
+once, when its future completes. With `adaptive` N, the rounds of refinement (their points
+picked from the rows: stewart_sim/sweep/adaptive.py) run on the same cluster after the grid.
 """
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ from stewart_fmu.errors import SceneError, SceneKeyError, SweepError
 from stewart_fmu.io import read_trajectory
 from stewart_fmu.scene import read_scene_dict, scene_from_dict
 from stewart_sim.progress import Progress
+from stewart_sim.sweep.adaptive import REFINEMENT, Refinement, check_adaptive
 from stewart_sim.sweep.chunks import ChunkRules, chunk_rules, resume_rows, write_chunk
 from stewart_sim.sweep.cluster import dask_client
 from stewart_sim.sweep.evaluate import (EvalSpec, columns, evaluate_batch, has_drive, point_label,
@@ -43,6 +45,7 @@ class SweepSummary:
     workers: int
     wall: float          # s, this run's evaluation (cluster start-up excluded)
     refused: int = 0     # chunk files set aside on resume (their points computed again)
+    added: int = 0       # points added by refinement (sweep --adaptive), in `points`
 
     @property
     def rate(self) -> float:
@@ -97,11 +100,14 @@ def fingerprint(spec: EvalSpec, grid: GridSpec) -> str:
 
 def run_sweep(scene: Path, grid: GridSpec, out: Path, scheduler: str | None = None,
               workers: int | None = None, progress: Progress | None = None,
-              timeout: float | None = None, notice: Callable[[str], None] | None = None
-              ) -> SweepSummary:
+              timeout: float | None = None, notice: Callable[[str], None] | None = None,
+              adaptive: int = 0) -> SweepSummary:
     """Run (or resume) the sweep into `out` and merge its table; see the module doc.
-    `notice` gets one line for each chunk file refused on resume."""
+    `notice` gets one line for each chunk file refused on resume. `adaptive` N: then N more
+    points where the outcome changes (stewart_sim/sweep/adaptive.py), the table with the
+    column `refinement`."""
     spec = eval_spec(scene, grid)
+    check_adaptive(grid, adaptive, has_drive(spec.scene))
     points = grid.points()
     check_first_point(spec, points[0][1], grid)
     cols = columns(grid.evaluation, grid.keys)
@@ -117,26 +123,53 @@ def run_sweep(scene: Path, grid: GridSpec, out: Path, scheduler: str | None = No
 
     rows = resume_rows(out, rules, refuse)
     resumed = len(rows)
-    todo = [p for p in points if p[0] not in rows]
-    batches = [todo[i:i + grid.batch] for i in range(0, len(todo), grid.batch)]
-    computed, start, n_workers = 0, time.monotonic(), 0
+    refine = Refinement(grid, fp, cols, has_drive(spec.scene), adaptive) if adaptive else None
+    runner = _Runner(scheduler, workers, spec, grid.batch, len(points) + adaptive, progress,
+                     timeout)
     try:
-        if batches:
-            with ExitStack() as stack:
-                client = stack.enter_context(dask_client(scheduler, workers))
-                n_workers = len(client.scheduler_info()["workers"])
-                start = time.monotonic()
-                computed = _run_batches(client, spec, batches, out, rules, rows,
-                                        len(points), progress, timeout)
+        with runner.stack:
+            computed = runner([p for p in points if p[0] not in rows], out, rules, rows)
+            if refine is not None:
+                refine.run(rows, out, runner, refuse)
     finally:
-        wall = time.monotonic() - start
-        merge(out, cols, rows)
+        wall = time.monotonic() - runner.start
+        if refine is None:
+            merge(out, cols, rows)
+        else:
+            merge(out, (*cols, REFINEMENT), refine.table_rows(rows))
     table = out / "sweep.csv"
     failed = sum(1 for r in rows.values() if r[cols.index("status")] != "ok")
-    if len(rows) != len(points):
-        raise SweepError(None, f"{table}: {len(rows)} rows for {len(points)} points")
-    return SweepSummary(table, len(points), resumed, computed, failed, n_workers, wall,
-                        len(refused))
+    added = len(refine.rounds) if refine is not None else 0
+    if len(rows) != len(points) + added:
+        raise SweepError(None, f"{table}: {len(rows)} rows for {len(points) + added} points")
+    if refine is not None:
+        resumed, computed = resumed + refine.resumed, computed + refine.computed
+    return SweepSummary(table, len(points) + added, resumed, computed, failed, runner.workers,
+                        wall, len(refused), added)
+
+
+class _Runner:
+    """Evaluates points on the cluster, started for the first points to compute and closed
+    with `stack`; `start`: when it was up (the wall time excludes the start-up)."""
+
+    def __init__(self, scheduler: str | None, workers: int | None, spec: EvalSpec, batch: int,
+                 total: int, progress: Progress | None, timeout: float | None):
+        self.scheduler, self.n, self.spec, self.batch = scheduler, workers, spec, batch
+        self.total, self.progress, self.timeout = total, progress, timeout
+        self.stack, self.client, self.workers, self.start = ExitStack(), None, 0, time.monotonic()
+
+    def __call__(self, todo: Sequence[tuple[int, Mapping[str, Any]]], out: Path,
+                 rules: ChunkRules, rows: dict[int, list[str]]) -> int:
+        """Evaluate `todo` into chunk files under `out` and `rows`; returns the points done."""
+        if not todo:
+            return 0
+        if self.client is None:
+            self.client = self.stack.enter_context(dask_client(self.scheduler, self.n))
+            self.workers = len(self.client.scheduler_info()["workers"])
+            self.start = time.monotonic()
+        batches = [todo[i:i + self.batch] for i in range(0, len(todo), self.batch)]
+        return _run_batches(self.client, self.spec, batches, out, rules, rows, self.total,
+                            self.progress, self.timeout)
 
 
 def _run_batches(client, spec: EvalSpec, batches: Sequence[list], out: Path,
