@@ -16,6 +16,22 @@ Every part is causal at a fixed period h:
 - the tilt-rate limiter (rate_limit_step) and the Euler-angle kinematics (heun_step) are
   per-sample by nature.
 
+Position limiter (the scene's [cueing] position_limit, per axis): the translational channel's
+position p goes through a smooth saturation with a linear zone, Schwarz's nonlinear scaling
+(C. W. Schwarz, "Two mitigation strategies for motion system limits in driving and flight
+simulators", IEEE Trans. Systems, Man, and Cybernetics A 37(4), 2007: a soft limiter whose
+corner at the limit is smoothed) applied to the position: untouched up to the knee
+POSITION_KNEE * limit, beyond it knee + (limit - knee) tanh((|p| - knee) / (limit - knee)),
+which never reaches the limit. Its slope is 1 and its curvature 0 on both sides of the knee
+(tanh'(0) = 1, tanh''(0) = 0), so the velocity f'(p) v and the acceleration f'(p) a +
+f''(p) v^2 (the chain rule) stay continuous; the filters themselves are not touched, so the
+position comes back out of the limit as the washout returns it. (A cubic Hermite corner, as in
+Schwarz, has a jump in f'' and so in the acceleration.) The price is the braking as the
+position bends: |f''| <= 4 / (3 sqrt(3)) / room = 0.770 / room (room = limit - knee), so the
+delivered acceleration is at most |a| + 0.770 v^2 / room: a limit far inside the washout's own
+excursion, entered fast, brakes hard (a 0.05 m limit on the shipped braking's 0.35 m, entered
+at 0.62 m/s: 12 m/s^2).
+
 The first step is the motion's first sample: the vehicle is at rest before it and every filter
 starts at zero state (the offline convention).
 """
@@ -33,6 +49,9 @@ from .config import CueingConfig
 from .filters import FilterBank, high_pass_denominator
 
 Vector3 = tuple[float, float, float]
+# fraction of position_limit up to which the position limiter leaves the position untouched:
+# half the room is cued as it is, the other half bends the excursion towards the limit
+POSITION_KNEE = 0.5
 
 
 @dataclass(frozen=True)
@@ -80,6 +99,7 @@ class WashoutStepper:
         self._rot_lead = [tuple(d[:0:-1].tolist()) for d in rot_dens]
         order = config.translational_order
         self._t_order = order
+        self._p_limit = config.position_limit
         # stage 2: the translational high-pass, driven by a = R(angles) f_s + g
         self._second = FilterBank([high_pass_denominator(
             config.translational_frequency[i], config.translational_damping[i], order,
@@ -174,6 +194,9 @@ class WashoutStepper:
         order = self._t_order
         pos = [x2[o + order - 2] for o in self._second.offsets]
         vel = [x2[o + order - 1] for o in self._second.offsets]
+        if self._p_limit is not None:
+            for i, limit in enumerate(self._p_limit):
+                pos[i], vel[i], acc[i] = soft_limit(pos[i], vel[i], acc[i], limit)
         self._k += 1
         return pos + ang, vel + ang_d, acc + ang_dd, tilt
 
@@ -192,7 +215,8 @@ class WashoutStepper:
             rc = min(max(r, -s_max), s_max)
             root = math.sqrt(1.0 - rc * rc)
             cmd = math.asin(rc)
-            # d/dt asin(r) = r' / sqrt(1 - r^2); d2/dt2 = r'' / sqrt(1 - r^2) + r r'^2 / (1 - r^2)^1.5
+            # d/dt asin(r) = r' / sqrt(1 - r^2);
+            # d2/dt2 = r'' / sqrt(1 - r^2) + r r'^2 / (1 - r^2)^1.5
             if abs(r) < s_max:
                 cmd_d, cmd_dd = rd / root, rdd / root + rc * rd * rd / root ** 3
             else:
@@ -202,6 +226,22 @@ class WashoutStepper:
                 self._lag[j], prev, cmd, cmd_d, cmd_dd, limit, limit * self._h)
             self._cmd_prev[j] = cmd
         return out, out_d, out_dd
+
+
+def soft_limit(p: float, v: float, a: float, limit: float) -> Vector3:
+    """The position limiter (module doc) on one axis: the position p, its velocity v and
+    acceleration a mapped through f(p) = p up to the knee, then a tanh towards +-limit;
+    velocity f'(p) v, acceleration f'(p) a + f''(p) v^2."""
+    knee = POSITION_KNEE * limit
+    s = abs(p)
+    if s <= knee:
+        return p, v, a
+    room = limit - knee
+    x = (s - knee) / room
+    th = math.tanh(x)
+    sech2 = 1.0 / math.cosh(x) ** 2 if x < 350.0 else 0.0     # cosh overflows past ~710
+    sign = math.copysign(1.0, p)
+    return sign * (knee + room * th), sech2 * v, sech2 * a - sign * 2.0 * th * sech2 / room * v * v
 
 
 def rate_limit_step(lag: float | None, previous: float, command: float, command_d: float,
