@@ -146,12 +146,13 @@ class WashoutStepper:
         first = self._k == 0
         # --- stage 1: tilt low-pass and rotational high-pass
         u1 = ([f_s[1], -f_s[0]] if self._tilt_on else []) + list(w_s)
+        # the state is written back only at the end: a step that raises leaves it as it was
         out1 = self._first.start(u1) if first else self._first.advance(self._x1, self._u1, u1)
         n1 = self._first.size
-        self._x1, self._u1 = out1[:n1], u1
+        x1_state = out1[:n1]
         out1 = out1.tolist()
         x1, top1 = out1[:n1], out1[n1:]
-        tilt, tilt_d, tilt_dd = self._tilt(x1, top1)
+        tilt, tilt_d, tilt_dd, lag = self._tilt(x1, top1)
         if first:           # the input's slope from the samples so far (module doc)
             slope = [0.0, 0.0, 0.0]
         elif self._k == 1:
@@ -159,8 +160,6 @@ class WashoutStepper:
         else:
             slope = [(3.0 * w_s[i] - 4.0 * self._w_prev[i] + self._w_prev2[i]) / (2.0 * self._h)
                      for i in range(3)]
-        self._w_prev2 = self._w_prev
-        self._w_prev = w_s
         w_hp, w_hp_d = [0.0] * 3, [0.0] * 3
         nt, m = self._n_tilt, self._rot_order
         for i in range(3):
@@ -174,13 +173,12 @@ class WashoutStepper:
         # --- Euler-angle kinematics of the high-passed rate, the tilt added
         time = self._start + self._k * self._h
         if first:
-            self._beta = (0.0, 0.0, 0.0)
-            self._rate = euler_rates(tilt[0], tilt[1], w_hp[0], w_hp[1], w_hp[2], time)
+            beta = (0.0, 0.0, 0.0)
+            rate = euler_rates(tilt[0], tilt[1], w_hp[0], w_hp[1], w_hp[2], time)
         else:
-            self._beta, self._rate = heun_step(self._beta, self._rate, tilt, w_hp, self._h,
-                                               time)
-        ang = [self._beta[0] + tilt[0], self._beta[1] + tilt[1], self._beta[2]]
-        ang_d = [self._rate[0] + tilt_d[0], self._rate[1] + tilt_d[1], self._rate[2]]
+            beta, rate = heun_step(self._beta, self._rate, tilt, w_hp, self._h, time)
+        ang = [beta[0] + tilt[0], beta[1] + tilt[1], beta[2]]
+        ang_d = [rate[0] + tilt_d[0], rate[1] + tilt_d[1], rate[2]]
         ang_dd = euler_acceleration(ang, ang_d, w_hp, w_hp_d)
         ang_dd[0] += tilt_dd[0]
         ang_dd[1] += tilt_dd[1]
@@ -188,7 +186,7 @@ class WashoutStepper:
         a = _specific_force_to_acceleration(ang, f_s, self._gravity)
         out2 = self._second.start(a) if first else self._second.advance(self._x2, self._u2, a)
         n2 = self._second.size
-        self._x2, self._u2 = out2[:n2], a
+        x2_state = out2[:n2]
         out2 = out2.tolist()
         x2, acc = out2[:n2], out2[n2:]
         order = self._t_order
@@ -197,17 +195,23 @@ class WashoutStepper:
         if self._p_limit is not None:
             for i, limit in enumerate(self._p_limit):
                 pos[i], vel[i], acc[i] = soft_limit(pos[i], vel[i], acc[i], limit)
+        self._x1, self._u1, self._x2, self._u2 = x1_state, u1, x2_state, a
+        self._w_prev2, self._w_prev = self._w_prev, w_s
+        self._lag, self._cmd_prev = lag[0], lag[1]
+        self._beta, self._rate = beta, rate
         self._k += 1
         return pos + ang, vel + ang_d, acc + ang_dd, tilt
 
     def _tilt(self, x1: list[float], top1: list[float]) -> tuple[list[float], list[float],
-                                                                  list[float]]:
+                                                                  list[float], tuple[list, list]]:
         """(roll, pitch) tilt, rate and acceleration: asin of the low-passed f / g (clipped to
-        the tilt limit), rate-limited."""
+        the tilt limit), rate-limited; and the limiter's next (lag, command) state."""
         if not self._tilt_on:
-            return [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]
+            return [0.0, 0.0], [0.0, 0.0], [0.0, 0.0], (self._lag, self._cmd_prev)
         g, w2, s_max, limit = self._g, self._tilt_w2, self._tilt_s_max, self._rate_limit
         out, out_d, out_dd = [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]
+        lag: list[float | None] = [None, None]
+        cmds = [0.0, 0.0]
         for j in range(2):
             r = w2 * x1[2 * j] / g                    # low-passed f / g
             rd = w2 * x1[2 * j + 1] / g
@@ -222,10 +226,10 @@ class WashoutStepper:
             else:
                 cmd_d = cmd_dd = 0.0
             prev = cmd if self._k == 0 else self._cmd_prev[j]
-            out[j], out_d[j], out_dd[j], self._lag[j] = rate_limit_step(
+            out[j], out_d[j], out_dd[j], lag[j] = rate_limit_step(
                 self._lag[j], prev, cmd, cmd_d, cmd_dd, limit, limit * self._h)
-            self._cmd_prev[j] = cmd
-        return out, out_d, out_dd
+            cmds[j] = cmd
+        return out, out_d, out_dd, (lag, cmds)
 
 
 def soft_limit(p: float, v: float, a: float, limit: float) -> Vector3:
