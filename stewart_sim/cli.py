@@ -44,6 +44,7 @@ COMMANDS = {
     "calibrate": "kinematic calibration: joints and leg offsets from measured poses",
     "identify": "identify inertial and friction parameters from measured runs",
     "excite": "excitation trajectory for identification (optimised regressor condition)",
+    "telemetry-replay": "stream a recorded vehicle motion as UDP telemetry in real time",
 }
 KEPT = "nothing new written (an earlier output is left as it was)"  # on Ctrl-C
 # the arguments that name what a command writes (the output rule checks them before any work)
