@@ -1,0 +1,148 @@
+"""Telemetry samples -> the cue on a fixed grid -> a pose reference at any tick.
+
+The washout is stepped on the nominal telemetry grid t_0 + j h (t_0: the first sample's time
+after a start or a reset; h = 1 / the nominal rate), one step per grid point. A sample at a grid
+point is stepped with its own values; grid points between two accepted samples take the input
+interpolated linearly between them, as the washout's filters take their input (and as
+cueing.study.resample does offline). So:
+- a sender at the nominal rate on the grid gives one step per sample, the offline `cue` of the
+  same samples exactly;
+- a gap (lost or superseded samples) is bridged by interpolated steps, at most MAX_STEPS per
+  sample (a longer gap is a telemetry loss: the live loop fades to neutral and resets);
+- a sender at another rate is resampled onto the grid (faster: a sample between grid points
+  only moves the interpolation's end; slower: several steps per sample).
+A sample within GRID_TOLERANCE h of a grid point counts as on it (decimal times in a file are
+not the float sums t_0 + j h).
+
+Between cue samples (the device ticks faster than the telemetry) the reference is causal and
+C2: each cue sample j (produced at clock time t_j) is extrapolated with constant acceleration,
+E_j(s) = (q + qd s + qdd s^2 / 2, qd + qdd s, qdd) at s after t_j, and over the period after a
+new sample the reference blends from the previous sample's extrapolation to the new one's along
+the minimum-jerk weight w (controller.trajectory.minimum_jerk, 0 to 1 over h):
+ref = E_(j-1) + w (E_j - E_(j-1)), its derivatives by the product rule. So no new sample makes
+the pose, its rate or its acceleration jump (the safety envelope passes a smooth cue unchanged,
+and a jump would be an intervention), and nothing waits for a later sample (no added latency).
+Its error against the cue at the samples is the extrapolation's, of order jerk h^3; right after
+a step of the vehicle's input, of order the step of qdd times h^2. A late sample is extrapolated
+over at most EXTRAPOLATION periods; beyond that the reference holds that end state.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from controller.trajectory import minimum_jerk
+from stewart_sim.cueing.telemetry import TelemetrySample
+
+GRID_TOLERANCE = 1e-6   # of h: a sample this close to a grid point is on it
+MAX_STEPS = 1000        # washout steps one sample may take (a longer gap is a loss)
+EXTRAPOLATION = 5       # periods h a cue sample is extrapolated over at most
+
+
+class Stepper(Protocol):
+    """A causal washout at a fixed period: one step per vehicle sample (the classical
+    cueing.washout_step.WashoutStepper)."""
+
+    def step(self, specific_force, angular_velocity): ...
+
+    def reset(self) -> None: ...
+
+
+@dataclass(frozen=True)
+class Reference:
+    """A pose reference (the contract's pose coordinates) and its two derivatives."""
+
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+
+
+class CueStream:
+    """The washout on the telemetry grid (see the module doc)."""
+
+    def __init__(self, stepper: Stepper, h: float, home: np.ndarray) -> None:
+        self.stepper = stepper
+        self.h = float(h)
+        self.home = np.asarray(home, float)
+        self.steps = 0                 # washout steps since the start (all resets)
+        self.interpolated = 0          # of them on input interpolated over a gap or resampled
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to rest at home; the next sample starts a new grid."""
+        self.stepper.reset()
+        self._last: TelemetrySample | None = None
+        self._j = 0                    # the grid index of the newest step
+        self._t0 = math.nan
+        self.cue: Reference | None = None
+        self.cue_time = math.nan       # the clock time the newest cue sample was produced
+        self.previous: Reference | None = None     # the sample before it, and its time
+        self.previous_time = math.nan
+
+    @property
+    def started(self) -> bool:
+        return self._last is not None
+
+    def push(self, s: TelemetrySample, now: float) -> int:
+        """Step the washout over the grid points up to the sample `s` (accepted at clock time
+        `now`); returns the steps taken (0: the sample lies before the next grid point)."""
+        # the blend of `reference` starts from the sample that was newest before this one
+        kept = self.previous, self.previous_time
+        self.previous, self.previous_time = self.cue, self.cue_time
+        if self._last is None:
+            self._t0, self._j = s.t, 0
+            self._step(s.specific_force, s.angular_velocity, now)
+            self._last = s
+            return 1
+        a, taken = self._last, 0
+        tol = GRID_TOLERANCE * self.h
+        while taken < MAX_STEPS:
+            tg = self._t0 + (self._j + 1) * self.h
+            if tg > s.t + tol:
+                break
+            if abs(tg - s.t) <= tol:
+                f, w = s.specific_force, s.angular_velocity
+            else:
+                x = (tg - a.t) / (s.t - a.t)
+                f = tuple(p + x * (r - p) for p, r in zip(a.specific_force, s.specific_force))
+                w = tuple(p + x * (r - p) for p, r in zip(a.angular_velocity,
+                                                         s.angular_velocity))
+                self.interpolated += 1
+            self._step(f, w, now)
+            self._j += 1
+            taken += 1
+        self._last = s
+        if taken == 0:      # nothing new: the blend under way goes on
+            self.previous, self.previous_time = kept
+        return taken
+
+    def _step(self, f, w, now: float) -> None:
+        c = self.stepper.step(f, w)
+        self.cue = Reference(np.asarray(c.q, float), np.asarray(c.qd, float),
+                             np.asarray(c.qdd, float))
+        self.cue_time = now
+        self.steps += 1
+
+    def extrapolated(self, c: Reference, since: float) -> Reference:
+        """E(s): the cue sample c carried on with constant acceleration for `since` s (at most
+        EXTRAPOLATION periods)."""
+        dt = min(max(since, 0.0), EXTRAPOLATION * self.h)
+        return Reference(c.q + c.qd * dt + 0.5 * c.qdd * dt * dt, c.qd + c.qdd * dt, c.qdd)
+
+    def reference(self, now: float) -> Reference:
+        """The pose reference at clock time `now` (home at rest before the first sample)."""
+        c = self.cue
+        if c is None:
+            return Reference(self.home.copy(), np.zeros(6), np.zeros(6))
+        s = now - self.cue_time
+        new = self.extrapolated(c, s)
+        if self.previous is None or s >= self.h:
+            return new
+        old = self.extrapolated(self.previous, now - self.previous_time)
+        w, wd, wdd = minimum_jerk(max(s, 0.0) / self.h, self.h)
+        d = [n - o for n, o in zip((new.q, new.qd, new.qdd), (old.q, old.qd, old.qdd))]
+        return Reference(old.q + w * d[0], old.qd + w * d[1] + wd * d[0],
+                         old.qdd + w * d[2] + 2.0 * wd * d[1] + wdd * d[0])
