@@ -129,9 +129,13 @@ class Plan:
         """(dq, qd, qdd) at times t: q = q_k + qd_k tau + qdd_k tau^2 / 2 on each step."""
         dt = self.t[1] - self.t[0] if self.t.size > 1 else 1.0
         k = np.clip(np.floor((t - self.t[0]) / dt + 1e-9).astype(int), 0, self.t.size - 1)
-        tau = (t - self.t[k])[:, None]
-        a = self.qdd[k]
-        return self.dq[k] + self.qd[k] * tau + 0.5 * a * tau**2, self.qd[k] + a * tau, a
+        return held_move(self.dq[k], self.qd[k], self.qdd[k], (t - self.t[k])[:, None])
+
+
+def held_move(dq: np.ndarray, qd: np.ndarray, qdd: np.ndarray, tau
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(dq, qd, qdd) a time tau into a step that starts at (dq, qd) with qdd held."""
+    return dq + qd * tau + 0.5 * qdd * tau**2, qd + qdd * tau, qdd
 
 
 @dataclass(frozen=True)
@@ -382,9 +386,9 @@ def optimal_cueing(model: Model, config: CueingConfig, motion: VehicleMotion, ho
                    controller: ControllerConfig | None,
                    options: OptimalOptions = OptimalOptions(),
                    progress: Callable[[int, int], None] | None = None) -> OptimalResult:
-    """The receding-horizon cue for a vehicle motion, with the plan and the solver's record.
-    `controller`: the scene's [controller] table (the drives' force and voltage limits; None:
-    not imposed).
+    """The receding-horizon cue for a vehicle motion, with the plan and the solver's record:
+    OptimalStepper stepped over the motion's MPC grid. `controller`: the scene's [controller]
+    table (the drives' force and voltage limits; None: not imposed).
 
     The platform starts at rest at `home` with the perceived error's states at zero (both the
     vehicle and the platform perceive from rest). Each MPC step applies the first move of the
@@ -393,87 +397,172 @@ def optimal_cueing(model: Model, config: CueingConfig, motion: VehicleMotion, ho
     split them into a tilt and a rotational channel. `progress(steps_done, steps)` is called
     after each MPC step."""
     clock = time.perf_counter()
-    if not (options.rate > 0 and options.horizon > 0):
-        raise StewartError(f"MPC rate and horizon must be > 0, got {options.rate}, {options.horizon}")
-    home, g = np.asarray(home, dtype=float), np.asarray(gravity, dtype=float)
-    dt = 1.0 / options.rate
-    N = max(1, round(options.horizon * options.rate))
+    stepper = OptimalStepper(model, config, home, gravity, controller=controller, options=options)
+    dt, N = stepper.dt, stepper.steps
     t = np.asarray(motion.t, dtype=float)
     M = max(1, int(np.ceil((t[-1] - t[0]) / dt - 1e-9)))
-    tilt_rate = options.tilt_rate_limit if options.tilt_rate_limit is not None \
-        else config.tilt_rate_limit
-    lim = mechanism_limits(model, controller, tilt_rate)
-    lin = linearise(home, g)
-    thresholds = np.r_[OTOLITH_THRESHOLD, CANAL_THRESHOLD]
-    pm = prediction_model(lin, VESTIBULAR_CHANNELS, dt)
-    weights = np.asarray(options.perception_weight, dtype=float) / thresholds**2
-    state_weights = np.r_[options.position_weight, 0.0, 0.0, options.yaw_weight,
-                          options.velocity_weight, options.rate_weight]
-    input_weights = np.r_[options.acceleration_weight, options.angular_acceleration_weight]
-    margins = {"stroke": options.stroke_margin,
-               "force": 0.0 if lim.force is None else options.force_margin * lim.force,
-               "voltage": 0.0 if lim.voltage is None else options.voltage_margin * lim.voltage}
-    n = pm.n
-    X = np.zeros((N + 1, n))          # the prediction the rows are linearised on
-    U = np.zeros((N, NU))
-    qp = _Qp(pm, lim, leg_rows(model, lim, home, X[:, :NP], U)[1], N, weights, state_weights,
-             input_weights, options.slack_weight, margins, options.tolerance, options.max_iter,
-             options.terminal_weight)
     edges = t[0] + dt * np.arange(M + N + 1)
     # Means of the deviation from rest, then rest added back: a vehicle at rest stays exactly
     # at rest through the sums (zero motion gives the neutral pose exactly).
-    rest = np.r_[0.0, 0.0, np.linalg.norm(g), 0.0, 0.0, 0.0]   # as perception() takes it
     sampled = np.hstack([np.asarray(motion.specific_force, float),
-                         np.asarray(motion.angular_velocity, float)]) - rest
+                         np.asarray(motion.angular_velocity, float)]) - stepper.rest
     vehicle = interval_means(t, sampled, edges)
-    x = np.zeros(n)
     record = {"dq": np.empty((M, 6)), "qd": np.empty((M, 6)), "qdd": np.empty((M, 6)),
               "it": np.zeros(M, int), "time": np.zeros(M), "slack": np.zeros(M),
               "error": np.empty((M, 6)), "polished": np.zeros(M, bool)}
     status = []
     for j in range(M):
         window = vehicle[j:j + N + 1] if options.preview else np.repeat(vehicle[j:j + 1], N + 1, 0)
-        X[0] = x
+        solution = stepper.solve(window)
+        move = stepper.apply(solution, window[0])
+        status.append(solution.status)
+        record["it"][j], record["time"][j] = solution.iterations, solution.solve_time
+        record["polished"][j], record["slack"][j] = solution.polished, solution.slack
+        record["error"][j] = move.error
+        if progress is not None:
+            progress(j + 1, M)
+        record["dq"][j], record["qd"][j], record["qdd"][j] = move.dq, move.qd, move.qdd
+    plan = Plan(t[0] + dt * np.arange(M), record["dq"], record["qd"], record["qdd"])
+    dq, qd, qdd = plan.sample(t)
+    q = stepper.home + dq
+    cue = Cue(t=t, q=q, qd=qd, qdd=qdd, tilt=dq[:, 3:5].copy())
+    diag = Diagnostics(plan.t, record["it"], record["time"], tuple(status), record["polished"],
+                       record["slack"], record["error"], stepper.limit_names,
+                       time.perf_counter() - clock, stepper.variables, stepper.constraints)
+    return OptimalResult(cue, plan, diag)
+
+
+@dataclass(frozen=True)
+class Solution:
+    """One MPC step's QP, solved (OSQP's record) from the stepper's state at the time."""
+
+    status: str              # OSQP's status
+    iterations: int
+    solve_time: float        # s, OSQP's own (refinement included)
+    polished: bool           # solved exactly on its active set
+    states: np.ndarray | None   # (N+1, n) the predicted states; None: not usable
+    inputs: np.ndarray | None   # (N, 6) the planned accelerations; None: not usable
+    slack: float             # stroke slack of the first step, m (0: not usable or kept)
+    wall_time: float         # s, the whole step: linearisation, vectors and solve
+
+
+@dataclass(frozen=True)
+class Move:
+    """The applied step: state at its start (dq, qd) and the acceleration held over it."""
+
+    dq: np.ndarray      # (6,) pose minus home
+    qd: np.ndarray      # (6,)
+    qdd: np.ndarray     # (6,)
+    error: np.ndarray   # (6,) perceived error predicted by the model over the step
+
+
+@dataclass
+class StepperState:
+    """What one MPC step starts from: the state x (dq, qd, vestibular error states) and the
+    prediction the leg rows are linearised on (the previous plan shifted by one step)."""
+
+    x: np.ndarray    # (n,)
+    X: np.ndarray    # (N+1, n)
+    U: np.ndarray    # (N, 6)
+
+
+class OptimalStepper:
+    """The receding-horizon MPC one step at a time: the QP (built once, see the module doc) and
+    the state. `step(window)` is one MPC step given the vehicle window; `solve` and `apply` are
+    its two halves, apart so that a solve can run elsewhere (another process) and a late one
+    be replaced by the previous plan (`apply(None, ...)`).
+
+    A window is (steps + 1, 6): the vehicle's specific force and angular velocity minus rest
+    (`rest`), zero-order-hold means over the MPC steps from now on."""
+
+    def __init__(self, model: Model, config: CueingConfig, home, gravity, *,
+                 controller: ControllerConfig | None,
+                 options: OptimalOptions = OptimalOptions()):
+        if not (options.rate > 0 and options.horizon > 0):
+            raise StewartError(f"MPC rate and horizon must be > 0, got {options.rate}, "
+                               f"{options.horizon}")
+        self.model, self.options = model, options
+        self.home = np.asarray(home, dtype=float)
+        g = np.asarray(gravity, dtype=float)
+        self.dt = 1.0 / options.rate
+        self.steps = N = max(1, round(options.horizon * options.rate))
+        tilt_rate = options.tilt_rate_limit if options.tilt_rate_limit is not None \
+            else config.tilt_rate_limit
+        self.limits = lim = mechanism_limits(model, controller, tilt_rate)
+        self.lin = linearise(self.home, g)
+        thresholds = np.r_[OTOLITH_THRESHOLD, CANAL_THRESHOLD]
+        self.pm = pm = prediction_model(self.lin, VESTIBULAR_CHANNELS, self.dt)
+        weights = np.asarray(options.perception_weight, dtype=float) / thresholds**2
+        state_weights = np.r_[options.position_weight, 0.0, 0.0, options.yaw_weight,
+                              options.velocity_weight, options.rate_weight]
+        input_weights = np.r_[options.acceleration_weight, options.angular_acceleration_weight]
+        margins = {"stroke": options.stroke_margin,
+                   "force": 0.0 if lim.force is None else options.force_margin * lim.force,
+                   "voltage": 0.0 if lim.voltage is None else options.voltage_margin * lim.voltage}
+        n = pm.n
+        X = np.zeros((N + 1, n))          # the prediction the rows are linearised on
+        U = np.zeros((N, NU))
+        self._qp = _Qp(pm, lim, leg_rows(model, lim, self.home, X[:, :NP], U)[1], N, weights,
+                       state_weights, input_weights, options.slack_weight, margins,
+                       options.tolerance, options.max_iter, options.terminal_weight)
+        self.state = StepperState(np.zeros(n), X, U)
+        # the vehicle at rest as perception() takes it
+        self.rest = np.r_[0.0, 0.0, np.linalg.norm(g), 0.0, 0.0, 0.0]
+        self.limit_names = tuple(name for name, on in (
+            ("stroke", lim.leg_min is not None or lim.leg_max is not None),
+            ("force", lim.force is not None), ("voltage", lim.voltage is not None),
+            ("tilt_rate", lim.tilt_rate is not None)) if on)
+        self.variables, self.constraints = self._qp.nz, self._qp.m
+
+    def solve(self, window: np.ndarray) -> Solution:
+        """The QP of the horizon from the current state, for the vehicle window; the state is
+        not advanced (apply does that)."""
+        clock = time.perf_counter()
+        N, n, qp, lin, home = self.steps, self.pm.n, self._qp, self.lin, self.home
+        window = np.asarray(window, dtype=float)
+        if window.shape != (N + 1, 6):
+            raise StewartError(f"MPC window must have shape ({N + 1}, 6), got {window.shape}")
+        s = self.state
+        X, U = s.X, s.U
+        X[0] = s.x
         nonlinear = known_inputs(lin, home, X[:, :NP], U)
-        w = np.vstack([nonlinear, nonlinear[-1:]]) - rest - window
-        start, end = leg_rows(model, lim, home, X[:, :NP], U)
-        res = qp.solve(x, w, X[:, :NP], U, start, end,
+        w = np.vstack([nonlinear, nonlinear[-1:]]) - self.rest - window
+        start, end = leg_rows(self.model, self.limits, home, X[:, :NP], U)
+        res = qp.solve(s.x, w, X[:, :NP], U, start, end,
                        0.5 * (window[:-1, 3:5] + window[1:, 3:5]))
-        status.append(res.info.status)
-        record["it"][j], record["time"][j] = res.info.iter, res.info.solve_time
-        record["polished"][j] = res.info.status_polish == 1
         z = res.x
         usable = res.info.status.startswith("solved") and np.all(np.isfinite(z))
-        if usable:
-            Z = z[:qp.nx].reshape(N + 1, n)
-            Uz = z[qp.nu0:qp.ns0].reshape(N, NU)
-            record["slack"][j] = z[qp.ns0] * qp.span
+        states = z[:qp.nx].reshape(N + 1, n) if usable else None
+        inputs = z[qp.nu0:qp.ns0].reshape(N, NU) if usable else None
+        return Solution(res.info.status, res.info.iter, res.info.solve_time,
+                        res.info.status_polish == 1, states, inputs,
+                        z[qp.ns0] * qp.span if usable else 0.0, time.perf_counter() - clock)
+
+    def apply(self, solution: Solution | None, vehicle: np.ndarray) -> Move:
+        """Apply the first move of `solution` (solved from the current state), or, when it is
+        None or not usable, the previous plan's next move; advance the state over the step with
+        the vehicle's motion minus rest over it, `vehicle` (6,)."""
+        pm, lin, home, s = self.pm, self.lin, self.home, self.state
+        x = s.x
+        if solution is not None and solution.states is not None:
+            Z, Uz = solution.states, solution.inputs
         else:   # keep flying the previous plan
-            Z, Uz = X, U
+            Z, Uz = s.X, s.U
         u0 = Uz[0]
         # the applied step, with its corrections taken on itself
         x_lin = pm.A @ x + pm.B @ u0
         step = np.vstack([x[:NP], x_lin[:NP]])
-        w0 = known_inputs(lin, home, step, u0[None])[0] - rest - vehicle[j]
-        record["error"][j] = pm.C @ x + pm.D @ u0 + pm.G @ w0
-        if progress is not None:
-            progress(j + 1, M)
-        record["dq"][j], record["qd"][j], record["qdd"][j] = x[:6], x[6:NP], u0
-        x = x_lin + pm.E @ w0
+        w0 = known_inputs(lin, home, step, u0[None])[0] - self.rest - vehicle
+        move = Move(x[:6].copy(), x[6:NP].copy(), u0.copy(), pm.C @ x + pm.D @ u0 + pm.G @ w0)
         # shift: the next step linearises on the rest of this plan
-        X = np.vstack([Z[1:], Z[-1:]])
-        U = np.vstack([Uz[1:], np.zeros((1, NU))])
-    plan = Plan(t[0] + dt * np.arange(M), record["dq"], record["qd"], record["qdd"])
-    dq, qd, qdd = plan.sample(t)
-    q = home + dq
-    cue = Cue(t=t, q=q, qd=qd, qdd=qdd, tilt=dq[:, 3:5].copy())
-    limits = tuple(name for name, on in (
-        ("stroke", lim.leg_min is not None or lim.leg_max is not None),
-        ("force", lim.force is not None), ("voltage", lim.voltage is not None),
-        ("tilt_rate", lim.tilt_rate is not None)) if on)
-    diag = Diagnostics(plan.t, record["it"], record["time"], tuple(status), record["polished"],
-                       record["slack"], record["error"], limits, time.perf_counter() - clock, qp.nz, qp.m)
-    return OptimalResult(cue, plan, diag)
+        self.state = StepperState(x_lin + pm.E @ w0, np.vstack([Z[1:], Z[-1:]]),
+                                  np.vstack([Uz[1:], np.zeros((1, NU))]))
+        return move
+
+    def step(self, window: np.ndarray) -> tuple[Move, Solution]:
+        """One MPC step: solve for the window, apply, advance."""
+        solution = self.solve(window)
+        return self.apply(solution, window[0]), solution
 
 
 def known_inputs(lin: Linearisation, home: np.ndarray, xp: np.ndarray, u: np.ndarray
