@@ -14,12 +14,24 @@ the augmented system [x; u; delta_u] (the same formula as scipy.signal.lsim with
 
 The samples are those of the continuous filter driven by the interpolated input, so the
 outputs at the samples are consistent with each other to rounding; the only approximation is
-the interpolation of the input itself (second order in h for a smooth input).
+the interpolation of the input itself (second order in h for a smooth input). The recursion
+needs u_{k+1} only to reach x_{k+1}: it is causal, so the washout steps it sample by sample
+(washout_step.py), offline as live.
 """
 from __future__ import annotations
 
 import numpy as np
 from scipy.linalg import expm
+
+
+def high_pass_denominator(frequency: float, damping: float, order: int,
+                          first_order: float = 0.0) -> np.ndarray:
+    """d(s) of the washout's high-pass s^order / d(s): order 1: s + w; order 2:
+    s^2 + 2 zeta w s + w^2; order 3: (s^2 + 2 zeta w s + w^2)(s + w_b)."""
+    if order == 1:
+        return np.array([1.0, frequency])
+    second = np.array([1.0, 2.0 * damping * frequency, frequency ** 2])
+    return second if order == 2 else np.convolve(second, [1.0, first_order])
 
 
 def companion(den: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -35,21 +47,11 @@ def companion(den: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return A, B
 
 
-def top_derivative(den: np.ndarray, states: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """z^{(n)} = u - a . (z, ..., z^{(n-1)}) for states (N, n) and input (N,)."""
-    den = np.asarray(den, dtype=float)
-    return u - states @ den[:0:-1]
-
-
-def foh_states(dens: list[np.ndarray], u: np.ndarray, h: float) -> list[np.ndarray]:
-    """States (N, n_j) of the filters 1 / d_j(s), each driven by its column of u (N, m),
-    started at rest (zero state) and propagated exactly for the piecewise-linear input."""
-    return [foh_state(d, u[:, j], h) for j, d in enumerate(dens)]
-
-
-def foh_state(den: np.ndarray, u: np.ndarray, h: float) -> np.ndarray:
-    """States (N, n) of 1 / d(s) driven by u (N,), from rest, exact for the piecewise-linear
-    input: expm of h [[A, B, 0], [0, 0, 1], [0, 0, 0]] gives Ad and the input's two weights."""
+def foh_matrices(den: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(Ad, g0, g1) of 1 / d(s) for the period h, exact for the piecewise-linear input:
+    x_{k+1} = Ad x_k + g0 u_k + g1 u_{k+1}. expm of h [[A, B, 0], [0, 0, 1/h], [0, 0, 0]]
+    (the input and its increment over the period appended to the state) gives Ad and the
+    input's two weights."""
     A, B = companion(den)
     n = A.shape[0]
     M = np.zeros((n + 2, n + 2))
@@ -58,43 +60,40 @@ def foh_state(den: np.ndarray, u: np.ndarray, h: float) -> np.ndarray:
     M[n, n + 1] = 1.0
     E = expm(M)
     Ad, g1 = E[:n, :n], E[:n, n + 1]
-    g0 = E[:n, n] - g1
-    X = np.zeros((u.shape[0], n))
-    X[1:] = linear_recurrence(Ad, np.outer(u[:-1], g0) + np.outer(u[1:], g1))
-    return X
+    return Ad, E[:n, n] - g1, g1
 
 
-def linear_recurrence(Ad: np.ndarray, drive: np.ndarray, block: int = 32) -> np.ndarray:
-    """x_1..x_K of x_{k+1} = Ad x_k + drive_k from x_0 = 0 (drive (K, n)), in blocks: within a
-    block the response from a zero start is one product with the block-Toeplitz matrix of
-    the powers Ad^(i-j); the block starts are carried sequentially (K / block steps). The
-    same sums as the plain recursion, in another order (rounding differs in the last bits)."""
-    K, n = drive.shape
-    nb = -(-K // block)
-    W = np.zeros((nb * block, n))
-    W[:K] = drive
-    P = np.empty((block + 1, n, n))
-    P[0] = np.eye(n)
-    for i in range(block):
-        P[i + 1] = Ad @ P[i]
-    i, j = np.indices((block, block))
-    T = np.where((i >= j)[:, :, None, None], P[np.clip(i - j, 0, block)], 0.0)
-    T = T.transpose(0, 2, 1, 3).reshape(block * n, block * n)
-    Y = (W.reshape(nb, block * n) @ T.T).reshape(nb, block, n)
-    starts = np.zeros((nb, n))
-    carryT = P[block].T
-    for b in range(nb - 1):
-        starts[b + 1] = starts[b] @ carryT + Y[b, -1]
-    Y += np.einsum("inm,bm->bin", P[1:], starts)
-    return Y.reshape(nb * block, n)[:K]
+class FilterBank:
+    """Filters 1 / d_j(s) side by side, filter j driven by input j, stepped one sample at a
+    time. The state is the filters' states end to end, each (z, ..., z^(n_j - 1)) of its own
+    z = u_j / d_j(s); each step gives it with every z_j^(n_j) = u_j - a_j . state_j (the
+    filters' top derivatives) appended, from one matrix product (block-diagonal)."""
 
+    def __init__(self, dens: list[np.ndarray], h: float) -> None:
+        dens = [np.asarray(d, dtype=float) for d in dens]
+        sizes = [d.size - 1 for d in dens]
+        n, m = sum(sizes), len(dens)
+        self.offsets = tuple(int(o) for o in np.cumsum([0] + sizes[:-1]))
+        self.size = n
+        # x_{k+1} = [Ad | G0 | G1] (x_k, u_k, u_{k+1}); top_{k+1} = u_{k+1} - C x_{k+1}
+        step = np.zeros((n, n + 2 * m))
+        C = np.zeros((m, n))
+        for j, (den, o, k) in enumerate(zip(dens, self.offsets, sizes)):
+            Ad, g0, g1 = foh_matrices(den, h)
+            step[o:o + k, o:o + k] = Ad
+            step[o:o + k, n + j] = g0
+            step[o:o + k, n + m + j] = g1
+            C[j, o:o + k] = den[:0:-1]
+        top = -C @ step
+        top[:, n + m:] += np.eye(m)
+        self._matrix = np.vstack([step, top])
+        self._m = m
 
-def input_slope(u: np.ndarray, h: float) -> np.ndarray:
-    """du/dt of the piecewise-linear input at its samples: the mean of the slopes either side
-    (the central difference), one-sided at the ends. At a sample the interpolated input has a
-    kink; the mean of its two one-sided slopes is its second-order estimate of the smooth input."""
-    s = np.empty_like(u)
-    s[1:-1] = (u[2:] - u[:-2]) / (2.0 * h)
-    s[0] = (u[1] - u[0]) / h
-    s[-1] = (u[-1] - u[-2]) / h
-    return s
+    def advance(self, x: np.ndarray, u_prev: list[float], u: list[float]) -> np.ndarray:
+        """(x_{k+1}, top_{k+1}) from the state x_k, the input going linearly from u_prev to u
+        over the period."""
+        return self._matrix @ np.concatenate((x, u_prev, u))
+
+    def start(self, u: list[float]) -> np.ndarray:
+        """(x_0, top_0) at rest (zero state) with the input u: (0, u)."""
+        return np.concatenate((np.zeros(self.size), u))
