@@ -63,6 +63,8 @@ class Reference:
 class CueStream:
     """The washout on the telemetry grid (see the module doc)."""
 
+    mode = "classical"
+
     def __init__(self, stepper: Stepper, h: float, home: np.ndarray) -> None:
         self.stepper = stepper
         self.h = float(h)
@@ -146,3 +148,47 @@ class CueStream:
         d = [n - o for n, o in zip((new.q, new.qd, new.qdd), (old.q, old.qd, old.qdd))]
         return Reference(old.q + w * d[0], old.qd + w * d[1] + wd * d[0],
                          old.qdd + w * d[2] + 2.0 * wd * d[1] + wdd * d[0])
+
+    def describe(self) -> str:
+        return (f"washout: {self.steps} steps ({self.interpolated} on input interpolated over "
+                "gaps or another rate)")
+
+    def close(self) -> None:
+        pass
+
+
+class OptimalStream:
+    """The optimal mode's face for the live loop: cueing.optimal_live.LiveOptimal (the MPC
+    without preview, stepped at its own rate, solving off the loop's thread) pushed every
+    accepted sample and sampled every tick, both at the loop's clock time (never decreasing).
+    `reset` does nothing: the MPC keeps its own state through a fade (its window holds the last
+    sample) and the live loop blends its plan in again on resume (cueing.fade.Blend)."""
+
+    mode = "optimal"
+
+    def __init__(self, mpc) -> None:
+        self.mpc = mpc
+        self.steps = 0
+        self.interpolated = 0
+
+    def reset(self) -> None:
+        pass
+
+    def push(self, s: TelemetrySample, now: float) -> int:
+        self.mpc.push(now, s.specific_force, s.angular_velocity)
+        self.steps += 1
+        return 1
+
+    def reference(self, now: float) -> Reference:
+        q, qd, qdd = self.mpc.sample(now)
+        return Reference(np.asarray(q, float), np.asarray(qd, float), np.asarray(qdd, float))
+
+    def describe(self) -> str:
+        st = self.mpc.stats()
+        return (f"MPC: {st.steps} steps at {st.rate:g} Hz, {st.solves} solves, wall p50 "
+                f"{st.wall_p50 * 1e3:.3g} ms, p99 {st.wall_p99 * 1e3:.3g} ms, p99.9 "
+                f"{st.wall_p999 * 1e3:.3g} ms, max {st.wall_max * 1e3:.3g} ms; "
+                f"{st.over_deadline} over 1/rate, {st.late} late, lead up to {st.lead_max}")
+
+    def close(self) -> None:
+        self.mpc.close()
