@@ -97,19 +97,19 @@ def run(args: argparse.Namespace) -> None:
         session = make_session(scene, receiver, device, args.telemetry_rate, control,
                                args.loss_timeout, record, args.mode, mpc_rate=args.mpc_rate)
         device.start(controller.rate)
-        print(f"cue-live: {scene.model.name}, {args.mode}, telemetry udp://{source.address[0]}:"
-              f"{source.address[1]} ({args.format}, {args.telemetry_rate:g} Hz), device "
-              f"{args.device} at {controller.rate:g} Hz"
-              + (f", control udp://{control.address[0]}:{control.address[1]}"
-                 if control.address else "")
-              + "; park, resume, estop, quit", flush=True)
+        banner = (f"cue-live: {scene.model.name}, {args.mode}, telemetry udp://"
+                  f"{source.address[0]}:{source.address[1]} ({args.format}, "
+                  f"{args.telemetry_rate:g} Hz), device {args.device} at {controller.rate:g} Hz"
+                  + (f", control udp://{control.address[0]}:{control.address[1]}"
+                     if control.address else "")
+                  + "; park, resume, estop, quit")
         interrupted = False
-        late = None
         try:
-            late = run_realtime(session, args.duration or math.inf)
+            run_realtime(session, args.duration or math.inf,
+                                ready=lambda: print(banner, flush=True))
         except KeyboardInterrupt:
             interrupted = True
-        for line in summary_lines(session, late):
+        for line in summary_lines(session):
             print(line)
         if record is not None:
             sio.write_csv(args.record, sio.named_array(
@@ -123,6 +123,7 @@ def run(args: argparse.Namespace) -> None:
         if session is not None:
             session.cue.close()
         if device is not None:
+            device.hold()        # disarmed whatever happened: the drives hold the legs
             device.close()
         control.close()
         source.close()

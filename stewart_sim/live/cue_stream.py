@@ -15,16 +15,20 @@ A sample within GRID_TOLERANCE h of a grid point counts as on it (decimal times 
 not the float sums t_0 + j h).
 
 Between cue samples (the device ticks faster than the telemetry) the reference is causal and
-C2: each cue sample j (produced at clock time t_j) is extrapolated with constant acceleration,
-E_j(s) = (q + qd s + qdd s^2 / 2, qd + qdd s, qdd) at s after t_j, and over the period after a
-new sample the reference blends from the previous sample's extrapolation to the new one's along
-the minimum-jerk weight w (controller.trajectory.minimum_jerk, 0 to 1 over h):
+C2, on the telemetry's own time: a clock time `now` is telemetry time now - offset, the offset
+the smallest lag (arrival clock time less telemetry time) seen, allowed to grow by DRIFT s per s
+(a sender whose clock runs slow), so the jitter of arrivals never enters the reference. Each
+cue sample j (grid time t_j) is extrapolated with constant acceleration, E_j(s) = (q + qd s +
+qdd s^2 / 2, qd + qdd s, qdd) at s = (now - offset) - t_j, and over the period after a new
+sample arrives the reference blends from the previous sample's extrapolation to the new one's
+along the minimum-jerk weight w (controller.trajectory.minimum_jerk, 0 to 1 over h):
 ref = E_(j-1) + w (E_j - E_(j-1)), its derivatives by the product rule. So no new sample makes
 the pose, its rate or its acceleration jump (the safety envelope passes a smooth cue unchanged,
 and a jump would be an intervention), and nothing waits for a later sample (no added latency).
 Its error against the cue at the samples is the extrapolation's, of order jerk h^3; right after
 a step of the vehicle's input, of order the step of qdd times h^2. A late sample is extrapolated
-over at most EXTRAPOLATION periods; beyond that the reference holds that end state.
+over at most max(EXTRAPOLATION h, EXTRAPOLATION_MIN); beyond that the reference holds that end
+state (the loss timeout fades the platform home soon after).
 """
 from __future__ import annotations
 
@@ -39,7 +43,9 @@ from stewart_sim.cueing.telemetry import TelemetrySample
 
 GRID_TOLERANCE = 1e-6   # of h: a sample this close to a grid point is on it
 MAX_STEPS = 1000        # washout steps one sample may take (a longer gap is a loss)
-EXTRAPOLATION = 5       # periods h a cue sample is extrapolated over at most
+EXTRAPOLATION = 5       # periods h a cue sample is extrapolated over at most ...
+EXTRAPOLATION_MIN = 0.02   # ... or this many s, whichever is longer
+DRIFT = 1e-3            # s per s the telemetry clock may fall behind ours (1000 ppm)
 
 
 class Stepper(Protocol):
@@ -80,9 +86,12 @@ class CueStream:
         self._j = 0                    # the grid index of the newest step
         self._t0 = math.nan
         self.cue: Reference | None = None
-        self.cue_time = math.nan       # the clock time the newest cue sample was produced
+        self.cue_time = math.nan       # the newest cue sample's grid time (telemetry time)
         self.previous: Reference | None = None     # the sample before it, and its time
         self.previous_time = math.nan
+        self.arrived = math.nan        # the clock time the newest sample arrived
+        self.offset = math.nan         # clock time less telemetry time (see the module doc)
+        self._offset_at = math.nan
 
     @property
     def started(self) -> bool:
@@ -94,10 +103,16 @@ class CueStream:
         # the blend of `reference` starts from the sample that was newest before this one
         kept = self.previous, self.previous_time
         self.previous, self.previous_time = self.cue, self.cue_time
+        lag = now - s.t
+        if self._last is None or not lag >= self.offset:
+            self.offset = lag
+        else:
+            self.offset = min(self.offset + DRIFT * (now - self._offset_at), lag)
+        self._offset_at = now
         if self._last is None:
             self._t0, self._j = s.t, 0
-            self._step(s.specific_force, s.angular_velocity, now)
-            self._last = s
+            self._step(s.specific_force, s.angular_velocity, s.t)
+            self._last, self.arrived = s, now
             return 1
         a, taken = self._last, 0
         tol = GRID_TOLERANCE * self.h
@@ -113,25 +128,27 @@ class CueStream:
                 w = tuple(p + x * (r - p) for p, r in zip(a.angular_velocity,
                                                          s.angular_velocity))
                 self.interpolated += 1
-            self._step(f, w, now)
+            self._step(f, w, tg)
             self._j += 1
             taken += 1
         self._last = s
         if taken == 0:      # nothing new: the blend under way goes on
             self.previous, self.previous_time = kept
+        else:
+            self.arrived = now
         return taken
 
-    def _step(self, f, w, now: float) -> None:
+    def _step(self, f, w, t: float) -> None:
         c = self.stepper.step(f, w)
         self.cue = Reference(np.asarray(c.q, float), np.asarray(c.qd, float),
                              np.asarray(c.qdd, float))
-        self.cue_time = now
+        self.cue_time = t
         self.steps += 1
 
     def extrapolated(self, c: Reference, since: float) -> Reference:
         """E(s): the cue sample c carried on with constant acceleration for `since` s (at most
-        EXTRAPOLATION periods)."""
-        dt = min(max(since, 0.0), EXTRAPOLATION * self.h)
+        max(EXTRAPOLATION h, EXTRAPOLATION_MIN))."""
+        dt = min(max(since, 0.0), max(EXTRAPOLATION * self.h, EXTRAPOLATION_MIN))
         return Reference(c.q + c.qd * dt + 0.5 * c.qdd * dt * dt, c.qd + c.qdd * dt, c.qdd)
 
     def reference(self, now: float) -> Reference:
@@ -139,12 +156,13 @@ class CueStream:
         c = self.cue
         if c is None:
             return Reference(self.home.copy(), np.zeros(6), np.zeros(6))
-        s = now - self.cue_time
-        new = self.extrapolated(c, s)
-        if self.previous is None or s >= self.h:
+        t = now - self.offset
+        new = self.extrapolated(c, t - self.cue_time)
+        since = now - self.arrived
+        if self.previous is None or since >= self.h:
             return new
-        old = self.extrapolated(self.previous, now - self.previous_time)
-        w, wd, wdd = minimum_jerk(max(s, 0.0) / self.h, self.h)
+        old = self.extrapolated(self.previous, t - self.previous_time)
+        w, wd, wdd = minimum_jerk(max(since, 0.0) / self.h, self.h)
         d = [n - o for n, o in zip((new.q, new.qd, new.qdd), (old.q, old.qd, old.qdd))]
         return Reference(old.q + w * d[0], old.qd + w * d[1] + wd * d[0],
                          old.qdd + w * d[2] + 2.0 * wd * d[1] + wdd * d[0])

@@ -25,6 +25,10 @@ from hil.errors import LinkError
 from stewart_sim.live.address import DeviceAddress
 
 
+HOLD_WAIT = 0.2     # s for the DISARM's acknowledgement, per try
+HOLD_TRIES = 5
+
+
 @dataclass
 class DeviceCounts:
     setpoints: int = 0
@@ -103,9 +107,11 @@ class DeviceOut:
         return out
 
     def hold(self) -> bool:
-        """DISARM: the drives hold where the legs are (True when acknowledged)."""
+        """DISARM: the drives hold where the legs are (True when acknowledged; bounded:
+        HOLD_TRIES tries of HOLD_WAIT s, a device that is gone does not hold the exit up)."""
         try:
-            return self.client.disarm()
+            return self.client.command(ms.MAV_CMD_COMPONENT_ARM_DISARM, 0, timeout=HOLD_WAIT,
+                                       retries=HOLD_TRIES - 1) == ms.MAV_RESULT_ACCEPTED
         except LinkError:
             return False
 

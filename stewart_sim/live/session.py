@@ -117,8 +117,8 @@ class LiveSession:
         self.t_telemetry = math.nan         # the newest sample's time the cue has used
         self._pending: float | None = None  # when the drain of a sample no setpoint used began
         self._force = None
-        self.ended = False
         self.stopped_by: str | None = None
+        self.lateness: Lateness | None = None   # the real-time run's tick lateness
 
     # --- the mode ---------------------------------------------------------------------------
 
@@ -210,43 +210,47 @@ class LiveSession:
 
 def run_realtime(session: LiveSession, duration: float = math.inf,
                  park_timeout: float = PARK_TIMEOUT,
-                 clock: Callable[[], float] = time.monotonic) -> Lateness:
+                 clock: Callable[[], float] = time.monotonic,
+                 ready: Callable[[], None] | None = None) -> Lateness:
     """Tick `session` at its rate on the monotonic clock until `duration` s of ticks (then it
-    parks), `quit` (parks) or an emergency stop (brakes); Ctrl-C (KeyboardInterrupt) parks
-    first, then is raised again. The device is disarmed at the end (its drives hold). The
-    session runs on its own time, tick k at k / rate; the clock only says when each tick goes
-    (hil.timing.wait_until: sleep, then spin). A tick more than MAX_LAG late moves the schedule
-    on (counted in SessionCounts.overruns) rather than sending the missed ticks in a burst.
-    Returns how late the ticks started (hil.timing.Lateness)."""
-    late = Lateness(session.period)
+    parks), `quit` (parks) or an emergency stop (brakes); Ctrl-C (KeyboardInterrupt) from the
+    moment this is called parks first, then is raised again. The device is disarmed at the end
+    (its drives hold). The session runs on its own time, tick k at k / rate; the clock only
+    says when each tick goes (hil.timing.wait_until: sleep, then spin). A tick more than
+    MAX_LAG late moves the schedule on (counted in SessionCounts.overruns) rather than sending
+    the missed ticks in a burst. `ready` is called once, just before the first tick. Returns
+    how late the ticks started (hil.timing.Lateness)."""
+    late = session.lateness = Lateness(session.period)
+    start = clock()
+
+    def next_time() -> float:
+        nonlocal start
+        due = start + session.k * session.period
+        wait_until(due, clock, lambda left: time.sleep(max(left, 0.0)))
+        lag = clock() - due
+        late.add(lag)
+        if lag > MAX_LAG:
+            start += lag
+            session.counts.overruns += 1
+        return session.k * session.period
+
     try:
         with gc_frozen():
             start = clock()
-
-            def next_time() -> float:
-                nonlocal start
-                due = start + session.k * session.period
-                wait_until(due, clock, lambda left: time.sleep(max(left, 0.0)))
-                lag = clock() - due
-                late.add(lag)
-                if lag > MAX_LAG:
-                    start += lag
-                    session.counts.overruns += 1
-                return session.k * session.period
-
-            try:
-                while session.k * session.period < duration:
-                    if session.mode is Mode.STOPPED:
-                        brake(session, next_time, park_timeout)
-                        break
-                    if session.stopped_by == "quit" and session.parked:
-                        break
-                    session.tick(next_time())
-            except KeyboardInterrupt:
-                park(session, next_time, park_timeout)
-                raise
+            if ready is not None:
+                ready()
+            while session.k * session.period < duration:
+                if session.mode is Mode.STOPPED:
+                    brake(session, next_time, park_timeout)
+                    break
+                if session.stopped_by == "quit" and session.parked:
+                    break
+                session.tick(next_time())
             if session.mode is not Mode.STOPPED:
                 park(session, next_time, park_timeout)
+    except KeyboardInterrupt:
+        park(session, next_time, park_timeout)
+        raise
     finally:
         session.device.hold()
     return late
@@ -306,9 +310,10 @@ def make_session(scene: Scene, receiver: TelemetryReceiver, device: DeviceOut,
                        loss_timeout, record)
 
 
-def summary_lines(session: LiveSession, late: Lateness | None = None) -> list[str]:
+def summary_lines(session: LiveSession) -> list[str]:
     """The session's summary: ticks, modes, telemetry received and refused by kind, the
-    envelope's interventions, the device's refusals, latency."""
+    envelope's interventions, the device's refusals, latency, the ticks' lateness."""
+    late = session.lateness
     rx = session.receiver.counts
     refused = ", ".join(f"{k} {v}" for k, v in rx.refused.items() if v) or "none"
     lines = [f"cue-live ({session.cue.mode}): {session.counts.ticks} ticks at {session.rate:g} Hz "

@@ -458,3 +458,39 @@ def test_optimal_mode_at_rest_sends_home_exactly(scene):
             np.testing.assert_array_equal(ldot, np.zeros(6))
     finally:
         session.cue.close()
+
+
+def test_ctrl_c_parks_then_exits_130(tmp_path):
+    """The command in real time against the device in its own process: SIGINT parks the
+    platform (the summary says parked), writes the record, then exits 130 with one line."""
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    from hil.spawn import device_process, parse_udp
+
+    record = tmp_path / "rec.csv"
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    with device_process(SIM, "udp") as first:
+        host, port = parse_udp(first)
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "stewart_sim", "cue-live", str(SIM), "--telemetry",
+             "udp://127.0.0.1:0", "--device", f"udp:{host}:{port}", "--record", str(record)],
+            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+            text=True, env=env)
+        try:
+            ready, _, _ = select.select([proc.stdout], [], [], 120.0)
+            assert ready and proc.stdout.readline().startswith("cue-live:")
+            proc.send_signal(signal.SIGINT)
+            out, err = proc.communicate(timeout=120.0)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    assert proc.returncode == 130, err
+    assert "mode at the end parked" in out
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "interrupted" in lines[0] and "parked" in lines[0]
+    header = record.read_text().splitlines()[0].split(",")
+    assert header[:4] == ["t", "seq", "mode", "t_telemetry"]
