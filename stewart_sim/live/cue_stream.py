@@ -16,19 +16,21 @@ not the float sums t_0 + j h).
 
 Between cue samples (the device ticks faster than the telemetry) the reference is causal and
 C2, on the telemetry's own time: a clock time `now` is telemetry time now - offset, the offset
-the smallest lag (arrival clock time less telemetry time) seen, allowed to grow by DRIFT s per s
-(a sender whose clock runs slow), so the jitter of arrivals never enters the reference. Each
-cue sample j (grid time t_j) is extrapolated with constant acceleration, E_j(s) = (q + qd s +
-qdd s^2 / 2, qd + qdd s, qdd) at s = (now - offset) - t_j, and over the period after a new
-sample arrives the reference blends from the previous sample's extrapolation to the new one's
-along the minimum-jerk weight w (controller.trajectory.minimum_jerk, 0 to 1 over h):
+the lag (arrival clock time less telemetry time) averaged over the samples (each moves it by
+OFFSET_GAIN of its difference; the first sets it), so the jitter of arrivals does not enter the
+reference and a drifting sender's clock is followed smoothly. Each cue sample j (grid time t_j)
+is extrapolated with constant acceleration, forwards or (a sample that came early) backwards,
+E_j(s) = (q + qd s + qdd s^2 / 2, qd + qdd s, qdd) at s = (now - offset) - t_j, and over the
+period after a new sample arrives the reference blends from the previous sample's
+extrapolation to the new one's along the minimum-jerk weight w
+(controller.trajectory.minimum_jerk, 0 to 1 over h):
 ref = E_(j-1) + w (E_j - E_(j-1)), its derivatives by the product rule. So no new sample makes
 the pose, its rate or its acceleration jump (the safety envelope passes a smooth cue unchanged,
 and a jump would be an intervention), and nothing waits for a later sample (no added latency).
 Its error against the cue at the samples is the extrapolation's, of order jerk h^3; right after
-a step of the vehicle's input, of order the step of qdd times h^2. A late sample is extrapolated
-over at most max(EXTRAPOLATION h, EXTRAPOLATION_MIN); beyond that the reference holds that end
-state (the loss timeout fades the platform home soon after).
+a step of the vehicle's input, of order the step of qdd times h^2. A sample is extrapolated over
+at most max(EXTRAPOLATION h, EXTRAPOLATION_MIN) either way; beyond that the reference holds that
+end state (a late sender: the loss timeout fades the platform home soon after).
 """
 from __future__ import annotations
 
@@ -45,7 +47,7 @@ GRID_TOLERANCE = 1e-6   # of h: a sample this close to a grid point is on it
 MAX_STEPS = 1000        # washout steps one sample may take (a longer gap is a loss)
 EXTRAPOLATION = 5       # periods h a cue sample is extrapolated over at most ...
 EXTRAPOLATION_MIN = 0.02   # ... or this many s, whichever is longer
-DRIFT = 1e-3            # s per s the telemetry clock may fall behind ours (1000 ppm)
+OFFSET_GAIN = 0.01      # of a sample's lag difference that moves the clock offset
 
 
 class Stepper(Protocol):
@@ -91,7 +93,6 @@ class CueStream:
         self.previous_time = math.nan
         self.arrived = math.nan        # the clock time the newest sample arrived
         self.offset = math.nan         # clock time less telemetry time (see the module doc)
-        self._offset_at = math.nan
 
     @property
     def started(self) -> bool:
@@ -104,11 +105,7 @@ class CueStream:
         kept = self.previous, self.previous_time
         self.previous, self.previous_time = self.cue, self.cue_time
         lag = now - s.t
-        if self._last is None or not lag >= self.offset:
-            self.offset = lag
-        else:
-            self.offset = min(self.offset + DRIFT * (now - self._offset_at), lag)
-        self._offset_at = now
+        self.offset = lag if self._last is None else self.offset + OFFSET_GAIN * (lag - self.offset)
         if self._last is None:
             self._t0, self._j = s.t, 0
             self._step(s.specific_force, s.angular_velocity, s.t)
@@ -146,9 +143,10 @@ class CueStream:
         self.steps += 1
 
     def extrapolated(self, c: Reference, since: float) -> Reference:
-        """E(s): the cue sample c carried on with constant acceleration for `since` s (at most
-        max(EXTRAPOLATION h, EXTRAPOLATION_MIN))."""
-        dt = min(max(since, 0.0), max(EXTRAPOLATION * self.h, EXTRAPOLATION_MIN))
+        """E(s): the cue sample c carried on with constant acceleration for `since` s (either
+        way, at most max(EXTRAPOLATION h, EXTRAPOLATION_MIN))."""
+        most = max(EXTRAPOLATION * self.h, EXTRAPOLATION_MIN)
+        dt = min(max(since, -most), most)
         return Reference(c.q + c.qd * dt + 0.5 * c.qdd * dt * dt, c.qd + c.qdd * dt, c.qdd)
 
     def reference(self, now: float) -> Reference:

@@ -47,7 +47,7 @@ from stewart_sim.live.receiver import TelemetryReceiver
 from stewart_sim.scene_load import Scene
 
 LOSS_TIMEOUT = 0.1      # s without an accepted telemetry sample: a loss, the platform fades
-MAX_LAG = 0.05          # s a tick may start late before the schedule moves on
+MAX_LAG = 0.01          # s a tick may start late before the ticks it missed are skipped
 PARK_TIMEOUT = 30.0     # s of ticks a park (or a brake) may take at most
 RECORD_CHUNK = 65536    # rows of the record allocated at a time
 RECORD_COLUMNS = ("t", "seq", "mode", "t_telemetry", *(f"l_set{i}" for i in range(1, 7)),
@@ -60,7 +60,7 @@ OPERATOR_EVENTS = {"park": Event.PARK, "quit": Event.PARK, "estop": Event.ESTOP,
 @dataclass
 class SessionCounts:
     ticks: int = 0
-    overruns: int = 0       # ticks more than MAX_LAG late (the schedule moved on)
+    overruns: int = 0       # ticks more than MAX_LAG late (the missed ticks skipped)
     cue_steps: int = 0
     fades: int = 0
     commands: dict[str, int] = field(default_factory=dict)
@@ -217,20 +217,19 @@ def run_realtime(session: LiveSession, duration: float = math.inf,
     moment this is called parks first, then is raised again. The device is disarmed at the end
     (its drives hold). The session runs on its own time, tick k at k / rate; the clock only
     says when each tick goes (hil.timing.wait_until: sleep, then spin). A tick more than
-    MAX_LAG late moves the schedule on (counted in SessionCounts.overruns) rather than sending
-    the missed ticks in a burst. `ready` is called once, just before the first tick. Returns
-    how late the ticks started (hil.timing.Lateness)."""
+    MAX_LAG late skips the ticks it missed (counted in SessionCounts.overruns: session time
+    stays on the clock, no burst of stale setpoints). `ready` is called once, just before the
+    first tick. Returns how late the ticks started (hil.timing.Lateness)."""
     late = session.lateness = Lateness(session.period)
     start = clock()
 
     def next_time() -> float:
-        nonlocal start
         due = start + session.k * session.period
         wait_until(due, clock, lambda left: time.sleep(max(left, 0.0)))
         lag = clock() - due
         late.add(lag)
         if lag > MAX_LAG:
-            start += lag
+            session.k += int(lag * session.rate)
             session.counts.overruns += 1
         return session.k * session.period
 
@@ -317,7 +316,7 @@ def summary_lines(session: LiveSession) -> list[str]:
     rx = session.receiver.counts
     refused = ", ".join(f"{k} {v}" for k, v in rx.refused.items() if v) or "none"
     lines = [f"cue-live ({session.cue.mode}): {session.counts.ticks} ticks at {session.rate:g} Hz "
-             f"({session.counts.ticks * session.period:.3f} s), mode at the end "
+             f"over {session.k * session.period:.3f} s, mode at the end "
              f"{session.mode.value}, {session.counts.fades} fades to neutral"
              + (f", stopped by {session.stopped_by}" if session.stopped_by else ""),
              f"telemetry: {rx.received} datagrams, {rx.accepted} accepted, "

@@ -184,3 +184,26 @@ def test_bad_listen_address_is_one_line():
             UdpSource(*src.address)
     finally:
         src.close()
+
+
+def test_telemetry_replay_command(capsys):
+    """The command streams the motion's samples due within --duration (a count fixed by the
+    schedule, whatever the machine's speed), in the format asked for."""
+    from stewart_sim import cli
+
+    src = UdpSource("127.0.0.1", 0)
+    try:
+        assert cli.main(["telemetry-replay", str(BRAKING), "--to",
+                         f"udp://127.0.0.1:{src.address[1]}", "--format", "outsim",
+                         "--rate", "1000", "--duration", "0.05"]) == 0
+        got = []
+        for _ in range(1000):                   # bounded: all were sent before main returned
+            data = src.recv()
+            if data is None:
+                break
+            got.append(decode_outsim(data).t)
+    finally:
+        src.close()
+    assert got == pytest.approx([k / 1000 for k in range(51)])
+    assert "51 datagrams sent" in capsys.readouterr().out
+    assert cli.main(["telemetry-replay", str(BRAKING), "--to", "udp://127.0.0.1:0"]) == 2
