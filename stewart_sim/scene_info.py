@@ -117,7 +117,9 @@ def _describe_cueing(model: Model, c: CueingConfig) -> str:
             f"limit {format_vector(c.rotational_limit)} rad/s, high-pass order "
             f"{c.rotational_order} at {format_vector(c.rotational_frequency)} rad/s"
             + (f", damping {format_vector(c.rotational_damping)}" if c.rotational_order == 2
-               else ""))
+               else "")
+            + (f"; position limit {format_vector(c.position_limit)} m"
+               if c.position_limit is not None else ""))
 
 
 def _describe_optimal(o: OptimalOptions) -> str:

@@ -9,6 +9,7 @@
     translational_frequency = [2.5, 2.5, 4.0]    # rad/s, the second-order break
     translational_damping = [1.0, 1.0, 1.0]      # of the second-order factor
     translational_first_order = [0.5, 0.5, 0.5]  # rad/s, the third order's first-order break
+    # position_limit = [0.3, 0.3, 0.2]           # m, per axis; absent: no limit
     # tilt coordination (low-passed specific force x, y -> pitch, roll)
     tilt_frequency = 4.0                         # rad/s, second-order low-pass
     tilt_damping = 1.0
@@ -90,6 +91,9 @@ class CueingConfig:
     rotational_order: int = 2
     rotational_frequency: tuple[float, float, float] = (1.0, 1.0, 1.0)
     rotational_damping: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    # m per axis (x, y, z): the translational position's soft limit (washout_step.soft_limit);
+    # None: no limit (the filters' position as it is)
+    position_limit: tuple[float, float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -142,6 +146,7 @@ _RULES: dict[str, tuple[str, float, bool]] = {
     "rotational_limit": ("vector", 0.0, False),
     "rotational_frequency": ("vector", 0.0, False),
     "rotational_damping": ("vector", 0.0, False),
+    "position_limit": ("vector", 0.0, False),
 }
 _ORDERS = {"translational_order": (2, 3), "rotational_order": (1, 2)}
 _KEYS = {f.name for f in fields(CueingConfig)}

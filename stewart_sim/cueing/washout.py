@@ -30,13 +30,14 @@ Discrete time: every linear filter is propagated exactly for the input interpola
 between samples (filters.py); position, velocity and acceleration, angular velocity and its
 derivative are the filters' own states. The angular velocity's derivative takes the input's
 slope from the samples up to t_k (a second-order backward difference), so that the whole
-washout is causal (washout_step.py says why). The Euler-angle kinematics thetadot = T(theta) w is nonlinear and
-integrated with Heun's method (the trapezoidal rule with an Euler predictor, second order); the
-stored rates are re-evaluated at the corrected angles, so q is the trapezoidal integral of qd.
-The tilt follows its command exactly while the command's rate is within the limit; otherwise
-it moves at the limit rate (rate +-limit, acceleration 0). The computation is
-washout_step.WashoutStepper's, one sample at a time: the offline cue is its loop, so a live
-loop stepping it gives the same cue.
+washout is causal (washout_step.py says why). The Euler-angle kinematics thetadot = T(theta) w
+is nonlinear and integrated with Heun's method (the trapezoidal rule with an Euler predictor,
+second order); the stored rates are re-evaluated at the corrected angles, so q is the
+trapezoidal integral of qd. The tilt follows its command exactly while the command's rate is
+within the limit; otherwise it moves at the limit rate (rate +-limit, acceleration 0). With
+[cueing] position_limit the translational position goes through a smooth saturation
+(washout_step.soft_limit). The computation is washout_step.WashoutStepper's, one sample at a
+time: the offline cue is its loop, so a live loop stepping it gives the same cue.
 
 The vehicle is taken to be at rest before t[0] (all filters start at zero state); the vehicle
 frame is aligned with the platform at its neutral pose (home). The cue's angles are added to

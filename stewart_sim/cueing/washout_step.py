@@ -16,6 +16,22 @@ Every part is causal at a fixed period h:
 - the tilt-rate limiter (rate_limit_step) and the Euler-angle kinematics (heun_step) are
   per-sample by nature.
 
+Position limiter (the scene's [cueing] position_limit, per axis): the translational channel's
+position p goes through a smooth saturation with a linear zone, Schwarz's nonlinear scaling
+(C. W. Schwarz, "Two mitigation strategies for motion system limits in driving and flight
+simulators", IEEE Trans. Systems, Man, and Cybernetics A 37(4), 2007: a soft limiter whose
+corner at the limit is smoothed) applied to the position: untouched up to the knee
+POSITION_KNEE * limit, beyond it knee + (limit - knee) tanh((|p| - knee) / (limit - knee)),
+which never reaches the limit. Its slope is 1 and its curvature 0 on both sides of the knee
+(tanh'(0) = 1, tanh''(0) = 0), so the velocity f'(p) v and the acceleration f'(p) a +
+f''(p) v^2 (the chain rule) stay continuous; the filters themselves are not touched, so the
+position comes back out of the limit as the washout returns it. (A cubic Hermite corner, as in
+Schwarz, has a jump in f'' and so in the acceleration.) The price is the braking as the
+position bends: |f''| <= 4 / (3 sqrt(3)) / room = 0.770 / room (room = limit - knee), so the
+delivered acceleration is at most |a| + 0.770 v^2 / room: a limit far inside the washout's own
+excursion, entered fast, brakes hard (a 0.05 m limit on the shipped braking's 0.35 m, entered
+at 0.62 m/s: 12 m/s^2).
+
 The first step is the motion's first sample: the vehicle is at rest before it and every filter
 starts at zero state (the offline convention).
 """
@@ -33,6 +49,9 @@ from .config import CueingConfig
 from .filters import FilterBank, high_pass_denominator
 
 Vector3 = tuple[float, float, float]
+# fraction of position_limit up to which the position limiter leaves the position untouched:
+# half the room is cued as it is, the other half bends the excursion towards the limit
+POSITION_KNEE = 0.5
 
 
 @dataclass(frozen=True)
@@ -80,6 +99,7 @@ class WashoutStepper:
         self._rot_lead = [tuple(d[:0:-1].tolist()) for d in rot_dens]
         order = config.translational_order
         self._t_order = order
+        self._p_limit = config.position_limit
         # stage 2: the translational high-pass, driven by a = R(angles) f_s + g
         self._second = FilterBank([high_pass_denominator(
             config.translational_frequency[i], config.translational_damping[i], order,
@@ -126,12 +146,13 @@ class WashoutStepper:
         first = self._k == 0
         # --- stage 1: tilt low-pass and rotational high-pass
         u1 = ([f_s[1], -f_s[0]] if self._tilt_on else []) + list(w_s)
+        # the state is written back only at the end: a step that raises leaves it as it was
         out1 = self._first.start(u1) if first else self._first.advance(self._x1, self._u1, u1)
         n1 = self._first.size
-        self._x1, self._u1 = out1[:n1], u1
+        x1_state = out1[:n1]
         out1 = out1.tolist()
         x1, top1 = out1[:n1], out1[n1:]
-        tilt, tilt_d, tilt_dd = self._tilt(x1, top1)
+        tilt, tilt_d, tilt_dd, lag = self._tilt(x1, top1)
         if first:           # the input's slope from the samples so far (module doc)
             slope = [0.0, 0.0, 0.0]
         elif self._k == 1:
@@ -139,8 +160,6 @@ class WashoutStepper:
         else:
             slope = [(3.0 * w_s[i] - 4.0 * self._w_prev[i] + self._w_prev2[i]) / (2.0 * self._h)
                      for i in range(3)]
-        self._w_prev2 = self._w_prev
-        self._w_prev = w_s
         w_hp, w_hp_d = [0.0] * 3, [0.0] * 3
         nt, m = self._n_tilt, self._rot_order
         for i in range(3):
@@ -154,13 +173,12 @@ class WashoutStepper:
         # --- Euler-angle kinematics of the high-passed rate, the tilt added
         time = self._start + self._k * self._h
         if first:
-            self._beta = (0.0, 0.0, 0.0)
-            self._rate = euler_rates(tilt[0], tilt[1], w_hp[0], w_hp[1], w_hp[2], time)
+            beta = (0.0, 0.0, 0.0)
+            rate = euler_rates(tilt[0], tilt[1], w_hp[0], w_hp[1], w_hp[2], time)
         else:
-            self._beta, self._rate = heun_step(self._beta, self._rate, tilt, w_hp, self._h,
-                                               time)
-        ang = [self._beta[0] + tilt[0], self._beta[1] + tilt[1], self._beta[2]]
-        ang_d = [self._rate[0] + tilt_d[0], self._rate[1] + tilt_d[1], self._rate[2]]
+            beta, rate = heun_step(self._beta, self._rate, tilt, w_hp, self._h, time)
+        ang = [beta[0] + tilt[0], beta[1] + tilt[1], beta[2]]
+        ang_d = [rate[0] + tilt_d[0], rate[1] + tilt_d[1], rate[2]]
         ang_dd = euler_acceleration(ang, ang_d, w_hp, w_hp_d)
         ang_dd[0] += tilt_dd[0]
         ang_dd[1] += tilt_dd[1]
@@ -168,23 +186,32 @@ class WashoutStepper:
         a = _specific_force_to_acceleration(ang, f_s, self._gravity)
         out2 = self._second.start(a) if first else self._second.advance(self._x2, self._u2, a)
         n2 = self._second.size
-        self._x2, self._u2 = out2[:n2], a
+        x2_state = out2[:n2]
         out2 = out2.tolist()
         x2, acc = out2[:n2], out2[n2:]
         order = self._t_order
         pos = [x2[o + order - 2] for o in self._second.offsets]
         vel = [x2[o + order - 1] for o in self._second.offsets]
+        if self._p_limit is not None:
+            for i, limit in enumerate(self._p_limit):
+                pos[i], vel[i], acc[i] = soft_limit(pos[i], vel[i], acc[i], limit)
+        self._x1, self._u1, self._x2, self._u2 = x1_state, u1, x2_state, a
+        self._w_prev2, self._w_prev = self._w_prev, w_s
+        self._lag, self._cmd_prev = lag[0], lag[1]
+        self._beta, self._rate = beta, rate
         self._k += 1
         return pos + ang, vel + ang_d, acc + ang_dd, tilt
 
     def _tilt(self, x1: list[float], top1: list[float]) -> tuple[list[float], list[float],
-                                                                  list[float]]:
+                                                                  list[float], tuple[list, list]]:
         """(roll, pitch) tilt, rate and acceleration: asin of the low-passed f / g (clipped to
-        the tilt limit), rate-limited."""
+        the tilt limit), rate-limited; and the limiter's next (lag, command) state."""
         if not self._tilt_on:
-            return [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]
+            return [0.0, 0.0], [0.0, 0.0], [0.0, 0.0], (self._lag, self._cmd_prev)
         g, w2, s_max, limit = self._g, self._tilt_w2, self._tilt_s_max, self._rate_limit
         out, out_d, out_dd = [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]
+        lag: list[float | None] = [None, None]
+        cmds = [0.0, 0.0]
         for j in range(2):
             r = w2 * x1[2 * j] / g                    # low-passed f / g
             rd = w2 * x1[2 * j + 1] / g
@@ -192,16 +219,33 @@ class WashoutStepper:
             rc = min(max(r, -s_max), s_max)
             root = math.sqrt(1.0 - rc * rc)
             cmd = math.asin(rc)
-            # d/dt asin(r) = r' / sqrt(1 - r^2); d2/dt2 = r'' / sqrt(1 - r^2) + r r'^2 / (1 - r^2)^1.5
+            # d/dt asin(r) = r' / sqrt(1 - r^2);
+            # d2/dt2 = r'' / sqrt(1 - r^2) + r r'^2 / (1 - r^2)^1.5
             if abs(r) < s_max:
                 cmd_d, cmd_dd = rd / root, rdd / root + rc * rd * rd / root ** 3
             else:
                 cmd_d = cmd_dd = 0.0
             prev = cmd if self._k == 0 else self._cmd_prev[j]
-            out[j], out_d[j], out_dd[j], self._lag[j] = rate_limit_step(
+            out[j], out_d[j], out_dd[j], lag[j] = rate_limit_step(
                 self._lag[j], prev, cmd, cmd_d, cmd_dd, limit, limit * self._h)
-            self._cmd_prev[j] = cmd
-        return out, out_d, out_dd
+            cmds[j] = cmd
+        return out, out_d, out_dd, (lag, cmds)
+
+
+def soft_limit(p: float, v: float, a: float, limit: float) -> Vector3:
+    """The position limiter (module doc) on one axis: the position p, its velocity v and
+    acceleration a mapped through f(p) = p up to the knee, then a tanh towards +-limit;
+    velocity f'(p) v, acceleration f'(p) a + f''(p) v^2."""
+    knee = POSITION_KNEE * limit
+    s = abs(p)
+    if s <= knee:
+        return p, v, a
+    room = limit - knee
+    x = (s - knee) / room
+    th = math.tanh(x)
+    sech2 = 1.0 / math.cosh(x) ** 2 if x < 350.0 else 0.0     # cosh overflows past ~710
+    sign = math.copysign(1.0, p)
+    return sign * (knee + room * th), sech2 * v, sech2 * a - sign * 2.0 * th * sech2 / room * v * v
 
 
 def rate_limit_step(lag: float | None, previous: float, command: float, command_d: float,
