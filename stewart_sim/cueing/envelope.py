@@ -26,9 +26,14 @@ piecewise-constant accelerations at the sample rate: l + ldot^2 / (2a) is what t
 stop takes, ldot dt / 2 bounds what stopping on the sample grid adds).
 
 Otherwise the envelope flies its own state (q, qd) one step with a constant pose acceleration:
-the tracking acceleration towards the cue, a_des = qdd_cue + w^2 (q_cue - q) + 2 w (qd_cue -
-qd) (critically damped; w = a / v in 1/s, so that at the speed limit braking starts at four
-times the distance the acceleration limit needs), brought into each leg's box for this step:
+the tracking acceleration towards the cue, a_des = qdd_cue + k_d (qd_ref - qd + phi(q_ref - q)),
+(q_ref, qd_ref) the cue carried back one sample at its acceleration to the state's time (a state
+on it lands on the cue), phi(e) = sign(e) min(k_p |e|, sqrt(2 a_p |e|)) per coordinate: near
+the cue a linear loop,
+critically damped (k_d = 1 / TRACK_TIME, k_p = k_d / 4: the error decays as exp(-2 k_p t)),
+far from it an approach rate the platform can brake from at a_p (half the acceleration limit;
+divided by the model's characteristic length for the angles), so that a step is flown at the
+limits and stops at the cue without overshoot. It is brought into each leg's box for this step:
 the leg accelerations are affine in the pose acceleration (lddot = A qdd + c at the step's
 start state, A by the C core's leg kinematics), so
 
@@ -48,10 +53,10 @@ start state, A by the C core's leg kinematics), so
 
 A cue pose above the cond limit (or one that is not finite, or that the core refuses) is
 refused until the cue is good again: the target acceleration becomes -qd / dt (stop within
-one sample, as `brake()`) plus w^2 (q_good - q), which, once stopped, brings the platform back
-to the last good pose sent (a time constant of 1 / (w^2 dt)); the stop itself runs within the
-limits, so a platform moving into the singular direction passes the cond limit by its braking
-distance (the cond margin below the device's SP_COND_MAX is there for that).
+one sample, as `brake()`) plus k_d k_p (q_good - q), which, once stopped, brings the platform
+back to the last good pose sent (a time constant of 1 / (k_d k_p dt)); the stop itself runs
+within the limits, so a platform moving into the singular direction passes the cond limit by
+its braking distance (the cond margin below the device's SP_COND_MAX is there for that).
 
 `brake()` is the emergency stop: the same step with the target acceleration -qd / dt (stop
 within one sample), scaled into the boxes, so the platform stops as fast as the limits allow
@@ -86,6 +91,7 @@ BOX_LIMITS = LIMITS[:3]     # the per-leg limits of a step's leg accelerations, 
 # that, and this fraction of the length a step at the acceleration limit moves (a dt^2) at each
 # end of the stroke.
 TIGHTEN = 1e-2
+TRACK_TIME = 0.01   # s, the time constant of the tracking law's rate loop (at least 5 samples)
 
 
 @dataclass(frozen=True)
@@ -115,17 +121,23 @@ class EnvelopeLimits:
 def envelope_limits(model: Model, controller: ControllerConfig | None,
                     margins: Margins = Margins()) -> EnvelopeLimits:
     """The limits of `model`'s legs and drives (the scene's [drive] and [controller] tables),
-    each less its margin. SceneError when the scene has no drive or no motor."""
+    each less its margin. SceneError when the scene has no drive or no motor; ValueError
+    naming the margin when one is not in [0, 1)."""
+    for name in ("stroke", "speed", "acceleration", "force", "cond"):
+        x = getattr(margins, name)
+        if not 0.0 <= x < 1.0:
+            raise ValueError(f"envelope margin '{name}' must be in [0, 1), got {x!r}")
     lim = mechanism_limits(model, controller, None)
     if lim.axis is None or lim.force is None:
         raise SceneError("controller", "the live envelope needs the drives' limits: the scene's "
-                         "[drive] and [controller.motor] tables")
+                         "[drive] and [controller.motor] tables", model.source)
     axis = lim.axis
     free = replace(model, leg_min=None, leg_max=None)
     home = np.asarray(model.home, dtype=float)
     held, status = core.inverse_dynamics(free.native, home, np.zeros(6), np.zeros(6))
     if status:
-        raise SceneError("geometry.home", "the inverse dynamics refuse the home pose")
+        raise SceneError("geometry.home", "the inverse dynamics refuse the home pose",
+                         model.source)
     room = overshoot_room(axis, float(np.max(np.abs(held))))
     leg_min = model.leg_min if model.leg_min is not None else 0.0
     leg_max = model.leg_max if model.leg_max is not None else math.inf
@@ -134,7 +146,7 @@ def envelope_limits(model: Model, controller: ControllerConfig | None,
     if not lo < hi:
         raise SceneError("geometry", f"the stroke [{leg_min:g}, {leg_max:g}] m leaves no room "
                          f"once the servo's overshoot room ({room:.3g} m) and the envelope's "
-                         f"margin ({keep:.3g} m) are kept at each end")
+                         f"margin ({keep:.3g} m) are kept at each end", model.source)
     return EnvelopeLimits(lo, hi, (1 - margins.speed) * axis.no_load_speed,
                           (1 - margins.acceleration) * axis.peak_acceleration,
                           (1 - margins.force) * lim.force, (1 - margins.cond) * COND_LIMIT)
@@ -169,10 +181,20 @@ class Interventions:
     per_limit: dict[str, int]
     per_leg: dict[str, np.ndarray]
 
+    def as_dict(self) -> dict:
+        """Plain numbers (for a JSON summary): per_leg as lists of six ints."""
+        return {"samples": self.samples, "limited": self.limited,
+                "per_limit": dict(self.per_limit),
+                "per_leg": {k: [int(x) for x in v] for k, v in self.per_leg.items()}}
+
 
 class Envelope:
     """The causal per-sample envelope (see the module doc) of `model`, at `dt` s a sample,
-    starting at rest at `start` (default: home), which must lie inside the stroke."""
+    starting at rest at `start` (default: home), which must lie inside the stroke.
+
+    The per-leg arithmetic runs on Python floats, six legs at a time: for six numbers that is
+    several times faster than numpy's per-call overhead, and the work per sample is what the
+    live loop's 1 ms must hold."""
 
     def __init__(self, model: Model, limits: EnvelopeLimits, dt: float, start=None) -> None:
         if not dt > 0:
@@ -180,7 +202,10 @@ class Envelope:
         # the stroke is the envelope's own check: the core must not refuse a cue outside it
         self._p = replace(model, leg_min=None, leg_max=None).native
         self.limits, self.dt = limits, float(dt)
-        self.omega = limits.acceleration / limits.speed
+        self._kd = 1.0 / max(TRACK_TIME, 5.0 * self.dt)
+        self._kp = self._kd / 4.0
+        a_half = limits.acceleration / 2.0
+        self._a_pose = np.r_[np.full(3, a_half), np.full(3, a_half / model.characteristic_length)]
         q0 = np.array(model.home if start is None else start, dtype=float)
         z = np.zeros(6)
         legs, status = self._legs(q0, z, z)
@@ -191,6 +216,7 @@ class Envelope:
         forces, _ = core.inverse_dynamics(self._p, q0, z, z)
         self.last = EnvelopeStep(legs[:, 0].copy(), legs[:, 1].copy(), forces, q0, z.copy(),
                                  z.copy(), True)
+        self._lp, self._vp = self.last.lengths.tolist(), self.last.rates.tolist()
         self._hold: np.ndarray | None = None     # the pose held while the cue is refused
         self._samples = self._limited = 0
         self._per_limit = dict.fromkeys(LIMITS, 0)
@@ -202,20 +228,19 @@ class Envelope:
         """The sample to send for the cue sample (q, qd, qdd) (pose, Euler-angle rates and
         their derivatives)."""
         q, qd, qdd = (np.array(a, dtype=float).reshape(6) for a in (q, qd, qdd))
-        reasons: dict[str, np.ndarray] = {}
-        ok = bool(np.all(np.isfinite(q)) and np.all(np.isfinite(qd))
-                  and np.all(np.isfinite(qdd)))
+        reasons: dict[str, list[bool]] = {}
         legs = forces = None
+        ok = all(map(math.isfinite, q.tolist() + qd.tolist() + qdd.tolist()))
         if ok:
             legs, status = self._legs(q, qd, qdd)
             ok = not status
         if not ok:
-            reasons["invalid"] = np.zeros(6, dtype=bool)
+            reasons["invalid"] = [False] * 6
         elif not self._cond(q) <= self.limits.cond:
-            reasons["cond"] = np.zeros(6, dtype=bool)
+            reasons["cond"] = [False] * 6
         else:
             forces, _ = core.inverse_dynamics(self._p, q, qd, qdd)
-            reasons = self._check(legs, forces)
+            reasons = self._check(legs.tolist(), forces.tolist())
         if not reasons:
             self._hold = None
             out = EnvelopeStep(legs[:, 0].copy(), legs[:, 1].copy(), forces, q, qd, qdd, True)
@@ -225,10 +250,16 @@ class Envelope:
             # stop at once (as brake()), then creep back to the last good pose
             if self._hold is None:
                 self._hold = last.q
-            a_des = self.omega**2 * (self._hold - last.q) - last.qd / self.dt
+            a_des = self._kd * self._kp * (self._hold - last.q) - last.qd / self.dt
         else:
             self._hold = None
-            a_des = qdd + self.omega**2 * (q - last.q) + 2.0 * self.omega * (qd - last.qd)
+            # the cue carried back one sample (at its own acceleration) to the state's time:
+            # a state on it flies onto the cue exactly with the cue's acceleration
+            dt = self.dt
+            e = q - qd * dt + qdd * (dt * dt / 2.0) - last.q
+            approach = np.sign(e) * np.minimum(self._kp * np.abs(e),
+                                               np.sqrt(2.0 * self._a_pose * np.abs(e)))
+            a_des = qdd + self._kd * (qd - qdd * dt - last.qd + approach)
         return self._record(self._limited_step(a_des, reasons))
 
     def brake(self) -> EnvelopeStep:
@@ -252,100 +283,124 @@ class Envelope:
         cond, status = core.condition_number(self._p, q)
         return cond if not status else math.inf
 
-    def _check(self, legs: np.ndarray, forces: np.ndarray) -> dict[str, np.ndarray]:
-        """The limits a cue sample (its leg rows and forces) breaks, per leg, as a step from
-        the last sample sent."""
+    def _check(self, legs: list, forces: list) -> dict[str, list[bool]]:
+        """The limits a cue sample (its leg rows [l, ldot, lddot] and forces) breaks, per
+        leg, as a step from the last sample sent."""
         lim, dt = self.limits, self.dt
-        a, vmax = lim.acceleration, lim.speed
-        l, v, u = legs[:, 0], legs[:, 1], legs[:, 2]
-        lp, vp = self.last.lengths, self.last.rates
-        stop = l + v * np.abs(v) / (2.0 * a) + v * dt / 2.0
-        checks = {
-            "stroke": (l < lim.leg_min) | (l > lim.leg_max) | (stop < lim.leg_min)
-            | (stop > lim.leg_max),
-            "speed": np.abs(v) > vmax,
-            "acceleration": (np.abs(u) > a) | (np.abs(v - vp) > a * dt)
-            | (np.abs(l - lp - (vp + v) * dt / 2.0) > a * dt * dt / 2.0),
-            "force": np.abs(forces) > lim.force,
-        }
-        return {k: m for k, m in checks.items() if m.any()}
+        a, vmax, fmax, lo, hi = lim.acceleration, lim.speed, lim.force, lim.leg_min, lim.leg_max
+        half, adt, jump = dt / 2.0, a * dt, a * dt * dt / 2.0
+        # the braking condition as the box has it (TIGHTEN): a state passed can always stop
+        a_stop = (1.0 - TIGHTEN) * a
+        brake, inset = 1.0 / (2.0 * a_stop), TIGHTEN * a_stop * dt * dt
+        bottom, top = lo + inset, hi - inset
+        out: dict[str, list[bool]] = {}
+        for i, (l, v, u) in enumerate(legs):
+            lp, vp = self._lp[i], self._vp[i]
+            stop = l + v * abs(v) * brake + v * half
+            broken = (("stroke", not (lo <= l <= hi and bottom <= stop <= top)),
+                      ("speed", not abs(v) <= vmax),
+                      ("acceleration", not (abs(u) <= a and abs(v - vp) <= adt
+                                            and abs(l - lp - (vp + v) * half) <= jump)),
+                      ("force", not abs(forces[i]) <= fmax))
+            for name, bad in broken:
+                if bad:
+                    out.setdefault(name, [False] * 6)[i] = True
+        return out
 
-    def _box(self, l: np.ndarray, v: np.ndarray):
-        """The leg accelerations (lo, hi) allowed over the next sample from leg state (l, v):
-        the stroke's braking condition first, then the speed, then the acceleration; where
-        two leave nothing in common, the nearest point of the earlier one. Also which of
-        BOX_LIMITS bounds each leg's (lo, hi) (index arrays), and the stroke's bounds alone."""
+    def _box(self, legs: list):
+        """Per leg, from its state [l, ldot, ...]: the accelerations (lo, hi) allowed over the
+        next sample (the stroke's braking condition first, then the speed, then the
+        acceleration; where two leave nothing in common, the nearest point of the earlier
+        one), which of BOX_LIMITS bounds each end, and the stroke's bounds alone."""
         lim, dt = self.limits, self.dt
         a, vmax = (1.0 - TIGHTEN) * lim.acceleration, (1.0 - TIGHTEN) * lim.speed
         inset = TIGHTEN * a * dt * dt
         top, bottom = lim.leg_max - inset, lim.leg_min + inset
-        up = top - l - v * dt / 2.0
-        dn = l - bottom + v * dt / 2.0
-        with np.errstate(invalid="ignore"):
-            vh = np.where(up >= 0, -a * dt + np.sqrt(a * a * dt * dt + 2 * a * np.maximum(up, 0)),
-                          2 * (top - l) / dt - v)
-            vl = np.where(dn >= 0, a * dt - np.sqrt(a * a * dt * dt + 2 * a * np.maximum(dn, 0)),
-                          2 * (bottom - l) / dt - v)
-        vl = np.minimum(vl, vh)
-        stroke = ((vl - v) / dt, (vh - v) / dt)
-        by_hi = np.argmin(np.stack([vh, np.full(6, vmax), v + a * dt]), axis=0)
-        by_lo = np.argmax(np.stack([vl, np.full(6, -vmax), v - a * dt]), axis=0)
-        vl, vh = _intersect(vl, vh, -vmax, vmax)
-        vl, vh = _intersect(vl, vh, v - a * dt, v + a * dt)
-        return (vl - v) / dt, (vh - v) / dt, by_lo, by_hi, stroke
+        adt = a * dt
+        lo, hi, by_lo, by_hi, s_lo, s_hi = [], [], [], [], [], []
+        for l, v, _ in legs:
+            # the next leg rate's bounds: the stroke's (vl, vh) first
+            up, dn = top - l - v * dt / 2.0, l - bottom + v * dt / 2.0
+            vh = -adt + math.sqrt(adt * adt + 2 * a * up) if up >= 0 else 2 * (top - l) / dt - v
+            vl = adt - math.sqrt(adt * adt + 2 * a * dn) if dn >= 0 else 2 * (bottom - l) / dt - v
+            if vl > vh:
+                vl = vh
+            s_lo.append((vl - v) / dt)
+            s_hi.append((vh - v) / dt)
+            # which bound is tightest at each end (BOX_LIMITS order, the first of equals)
+            kh, th = 0, vh
+            if vmax < th:
+                kh, th = 1, vmax
+            if v + adt < th:
+                kh = 2
+            kl, tl = 0, vl
+            if -vmax > tl:
+                kl, tl = 1, -vmax
+            if v - adt > tl:
+                kl = 2
+            by_hi.append(kh)
+            by_lo.append(kl)
+            # within the speed, then the acceleration; the nearest point where none is left
+            for lo2, hi2 in ((-vmax, vmax), (v - adt, v + adt)):
+                nl = lo2 if lo2 > vl else vl
+                nh = hi2 if hi2 < vh else vh
+                vl, vh = (nl if nl < vh else vh), (nh if nh > vl else vl)
+            lo.append((vl - v) / dt)
+            hi.append((vh - v) / dt)
+        return lo, hi, by_lo, by_hi, s_lo, s_hi
 
     # ------------------------------------------------------------------ the limited step
 
-    def _limited_step(self, a_des: np.ndarray, reasons: dict[str, np.ndarray]) -> EnvelopeStep:
-        """One step of the envelope's own state with the pose acceleration a_des scaled into
+    def _limited_step(self, a_des: np.ndarray, reasons: dict[str, list[bool]]) -> EnvelopeStep:
+        """One step of the envelope's own state with the pose acceleration a_des brought into
         the legs' boxes and the force limit (see the module doc)."""
         last, dt, p = self.last, self.dt, self._p
         q0, qd0 = last.q, last.qd
         z = np.zeros(6)
-        coast, _ = self._legs(q0, qd0, z)
-        c = coast[:, 2]
-        lo, hi, by_lo, by_hi, (s_lo, s_hi) = self._box(coast[:, 0], coast[:, 1])
-        a_des = np.where(np.isfinite(a_des), a_des, 0.0)
-        d = self._legs(q0, qd0, a_des)[0][:, 2]
-        b = np.minimum(np.maximum(c, lo), hi)
-        d_in = np.minimum(np.maximum(d, s_lo), s_hi)
-        A = None
+        coast = self._legs(q0, qd0, z)[0].tolist()
+        c = [row[2] for row in coast]
+        lo, hi, by_lo, by_hi, s_lo, s_hi = self._box(coast)
+        if not all(map(math.isfinite, a_des.tolist())):
+            a_des = z
+        d = self._legs(q0, qd0, a_des)[0][:, 2].tolist()
+        b = [min(max(x, l_), h) for x, l_, h in zip(c, lo, hi)]
+        d_in = [min(max(x, l_), h) for x, l_, h in zip(d, s_lo, s_hi)]
         a_b = z
-        if np.any(b != c) or np.any(d_in != d):
-            A = self._leg_jacobian(q0, qd0, c)
-            a_b = _solve(A, b - c)
-        if np.any(d_in != d):
-            # a leg at its stroke's end goes no further; the others keep their accelerations
-            reasons["stroke"] = reasons.get("stroke", np.zeros(6, dtype=bool)) | (d_in != d)
-            a_des = a_des + _solve(A, d_in - d)
-            d = d_in
+        if b != c or d_in != d:
+            A = self._leg_jacobian(q0, qd0, np.array(c))
+            a_b = _solve(A, np.subtract(b, c))
+            if d_in != d:
+                # a leg at its stroke's end goes no further; the others keep their accelerations
+                _mark(reasons, "stroke", [x != y for x, y in zip(d_in, d)])
+                a_des = a_des + _solve(A, np.subtract(d_in, d))
+                d = d_in
         s = _largest_step(b, d, lo, hi)
         if s < 1.0:
             for k, name in enumerate(BOX_LIMITS):
-                mask = ((d > hi) & (by_hi == k)) | ((d < lo) & (by_lo == k))
-                if mask.any():
-                    reasons[name] = reasons.get(name, np.zeros(6, dtype=bool)) | mask
-        f_b, _ = core.inverse_dynamics(p, q0, qd0, a_b)
-        f_d, _ = core.inverse_dynamics(p, q0, qd0, a_des)
-        f_lim = self.limits.force
-        s_f = _largest_step(f_b, f_d, np.full(6, -f_lim), np.full(6, f_lim))
-        over = (np.abs(f_b + s * (f_d - f_b)) > f_lim)
-        if s_f < s or np.any(np.abs(f_b) > f_lim):
-            reasons["force"] = reasons.get("force", np.zeros(6, dtype=bool)) | over \
-                | (np.abs(f_b) > f_lim)
+                _mark(reasons, name, [(x > h and bh == k) or (x < l_ and bl == k) for
+                                      x, l_, h, bl, bh in zip(d, lo, hi, by_lo, by_hi)])
+        f_b = core.inverse_dynamics(p, q0, qd0, a_b)[0].tolist()
+        f_d = core.inverse_dynamics(p, q0, qd0, a_des)[0].tolist()
+        fmax = self.limits.force
+        s_f = _largest_step(f_b, f_d, [-fmax] * 6, [fmax] * 6)
+        held = [abs(x) > fmax for x in f_b]
+        if s_f < s or any(held):
+            # the legs whose force lowered s, and those over the limit even at s = 0
+            _mark(reasons, "force", [h or (s_f < s and abs(y) > fmax)
+                                     for h, y in zip(held, f_d)])
             s = min(s, s_f)
         acc = a_b + s * (a_des - a_b)
         q = q0 + qd0 * dt + acc * (dt * dt / 2.0)
         qd = qd0 + acc * dt
         legs, _ = self._legs(q, qd, acc)
         forces, _ = core.inverse_dynamics(p, q, qd, acc)
-        mask = np.zeros(6, dtype=bool)
-        for name, m in reasons.items():
-            mask |= m
+        mask = [False] * 6
+        for m in reasons.values():
+            mask = [x or y for x, y in zip(mask, m)]
         return EnvelopeStep(legs[:, 0].copy(), legs[:, 1].copy(), forces, q, qd, acc, False,
-                            tuple(n for n in LIMITS if n in reasons), mask)
+                            tuple(n for n in LIMITS if n in reasons), np.array(mask))
 
-    def _leg_jacobian(self, q, qd, c) -> np.ndarray:
+    def _leg_jacobian(self, q, qd, c: np.ndarray) -> np.ndarray:
         """d lddot / d qdd at (q, qd) (6, 6): the leg accelerations are affine in the pose
         acceleration, so one core call per column is exact."""
         A = np.empty((6, 6))
@@ -359,16 +414,20 @@ class Envelope:
         self._samples += 1
         if not out.passed:
             self._limited += 1
-        for name in out.limits:
-            self._per_limit[name] += 1
-            self._per_leg[name] += out.legs if name not in ("cond", "invalid") else 0
+            for name in out.limits:
+                self._per_limit[name] += 1
+                if name not in ("cond", "invalid"):
+                    self._per_leg[name] += out.legs
         self.last = out
+        self._lp, self._vp = out.lengths.tolist(), out.rates.tolist()
         return out
 
 
-def _intersect(lo, hi, lo2, hi2) -> tuple[np.ndarray, np.ndarray]:
-    """[lo, hi] within [lo2, hi2]; where they share nothing, the point of [lo, hi] nearest."""
-    return (np.minimum(np.maximum(lo, lo2), hi), np.maximum(np.minimum(hi, hi2), lo))
+def _mark(reasons: dict[str, list[bool]], name: str, legs: list[bool]) -> None:
+    """Add the legs (bool per leg) a limit intervened on, when any."""
+    if any(legs):
+        old = reasons.get(name, [False] * 6)
+        reasons[name] = [x or y for x, y in zip(old, legs)]
 
 
 def _solve(A: np.ndarray, r: np.ndarray) -> np.ndarray:
@@ -379,11 +438,12 @@ def _solve(A: np.ndarray, r: np.ndarray) -> np.ndarray:
         return np.linalg.lstsq(A, r, rcond=None)[0]
 
 
-def _largest_step(b: np.ndarray, d: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> float:
+def _largest_step(b: list, d: list, lo: list, hi: list) -> float:
     """The largest s in [0, 1] with b + s (d - b) within [lo, hi] on every row, b inside."""
     s = 1.0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        up = np.where(d > hi, (hi - b) / (d - b), 1.0)
-        down = np.where(d < lo, (lo - b) / (d - b), 1.0)
-    s = min(s, float(np.min(up)), float(np.min(down)))
+    for x, y, l_, h in zip(b, d, lo, hi):
+        if y > h and y != x:
+            s = min(s, (h - x) / (y - x))
+        elif y < l_ and y != x:
+            s = min(s, (l_ - x) / (y - x))
     return max(0.0, s) if math.isfinite(s) else 0.0

@@ -13,7 +13,13 @@ moves starts with a jump of the rate; the envelope's limited step absorbs it.
 
 Blend: on resume the washout restarts at rest and its cue is ramped in from the pose the
 platform holds: sent = start + w (cue - start) with the quintic weight w from 0 to 1 over
-BLEND_TIME, the rates and accelerations by the product rule.
+BLEND_TIME, the rates and accelerations by the product rule; once done, the cue itself is
+sent. A resume during a fade (FADING, cueing.live_modes) starts the ramp from the pose sent
+then, still moving: the blend starts at rest, so its first sample steps the rate, and the
+envelope takes that step within its limits.
+
+Park is the same fade; once it is done the pipeline sends home at rest (Fade.sample after the
+end), which the envelope passes unchanged.
 """
 from __future__ import annotations
 
