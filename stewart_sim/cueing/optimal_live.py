@@ -264,8 +264,8 @@ class LiveOptimal:
             self._ready = (tag, solution)
 
     def _received_mean(self, tk: float) -> np.ndarray:
-        """The mean deviation from rest received over [tk - dt, tk]; rest when none; the samples before the last one at or before tk
-        are dropped."""
+        """The mean deviation from rest received over [tk - dt, tk]; rest when none; the
+        samples before the last one at or before tk are dropped."""
         if not self._times:
             return np.zeros(6)
         t, y = np.array(self._times), np.array(self._values)
