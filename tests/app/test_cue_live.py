@@ -494,3 +494,50 @@ def test_ctrl_c_parks_then_exits_130(tmp_path):
     assert len(lines) == 1 and "interrupted" in lines[0] and "parked" in lines[0]
     header = record.read_text().splitlines()[0].split(",")
     assert header[:4] == ["t", "seq", "mode", "t_telemetry"]
+
+
+@pytest.mark.parametrize("every", [1, 2, 3])
+def test_a_slower_sender_is_resampled_onto_the_grid(scene, every):
+    """A sender at the nominal rate, at half and at a third of it: the washout steps on the
+    nominal grid, the input between samples interpolated linearly, so its cue is the offline
+    `cue` of the sent motion resampled to the nominal rate (cueing.study.resample), to 1e-12."""
+    from stewart_sim.cueing.study import resample
+    from stewart_sim.cueing.washout_step import WashoutStepper
+
+    motion = read_motion(BRAKING)
+    sent = VehicleMotion(motion.t[::every], motion.specific_force[::every],
+                         motion.angular_velocity[::every])
+    h = 1.0 / TELEMETRY_RATE
+    model = scene.model
+    stream = CueStream(WashoutStepper(scene.cueing, model.home, model.gravity, h), h,
+                       model.home)
+    q = []
+    for i, t in enumerate(sent.t):
+        n = stream.push(TelemetrySample(float(t), tuple(sent.specific_force[i]),
+                                        tuple(sent.angular_velocity[i])), float(t))
+        assert n == (1 if i == 0 else every)
+        q.append(stream.cue.q)
+    offline = classical_washout(scene.cueing, resample(sent, TELEMETRY_RATE), model.home,
+                                model.gravity)
+    np.testing.assert_allclose(np.array(q), offline.q[::every], rtol=0, atol=1e-12)
+    assert stream.interpolated == (len(sent.t) - 1) * (every - 1)
+
+
+def test_outsim_telemetry_drives_the_same_cue(scene):
+    """The same motion as OutSim packets (float32, whole milliseconds) and as native datagrams:
+    the setpoints agree to what float32 keeps."""
+    motion = read_motion(BRAKING)
+    rate = scene.controller.rate
+    out = {}
+    for fmt in ("native", "outsim"):
+        q = Queue()
+        session, dev, clock = offline_session(scene, q, fmt)
+        replay = Replay(motion, fmt)
+        for k in range(int(4.0 * rate)):
+            clock.t = k / rate
+            q.q.extend(replay.due(clock.t))
+            session.tick(clock.t)
+        assert session.receiver.counts.accepted == 400
+        out[fmt] = np.array([s[2] for s in dev.setpoints])
+    assert np.ptp(out["native"]) > 0.05
+    np.testing.assert_allclose(out["outsim"], out["native"], rtol=0, atol=1e-5)
