@@ -27,6 +27,11 @@ class Snapshot:
     forces: tuple[float, ...]           # actuator (rack) forces, N
     cond: float                         # cond(J) at q (stewart_fmu.kinematics); inf: q not finite
     armed: bool
+    # specific forces at the pilot's head, m/s^2, in the platform frame, when a cueing loop
+    # publishes them (None: not known, e.g. the device alone): the vehicle's (the cue asked
+    # for) and the one the platform delivers at its pose and motion
+    f_vehicle: tuple[float, float, float] | None = None
+    f_delivered: tuple[float, float, float] | None = None
 
 
 class Latest:

@@ -119,7 +119,8 @@ def _describe_cueing(model: Model, c: CueingConfig) -> str:
             + (f", damping {format_vector(c.rotational_damping)}" if c.rotational_order == 2
                else "")
             + (f"; position limit {format_vector(c.position_limit)} m"
-               if c.position_limit is not None else ""))
+               if c.position_limit is not None else "")
+            + f"; perceived at the head {format_vector(c.head)} m (platform frame)")
 
 
 def _describe_optimal(o: OptimalOptions) -> str:

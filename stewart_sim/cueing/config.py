@@ -21,6 +21,8 @@
     rotational_order = 2                         # 1 or 2 (2: the angle returns to zero)
     rotational_frequency = [1.0, 1.0, 1.0]       # rad/s
     rotational_damping = [1.0, 1.0, 1.0]         # second order only
+    # where the person's head is (m, platform frame, from its origin): perception is taken there
+    head = [0.0, 0.0, 0.0]                       # each |component| <= 5 m
 
     [cueing.optimal]
     rate = 20.0                        # Hz, MPC steps; horizon * rate: 2 to 200 steps
@@ -94,6 +96,10 @@ class CueingConfig:
     # m per axis (x, y, z): the translational position's soft limit (washout_step.soft_limit);
     # None: no limit (the filters' position as it is)
     position_limit: tuple[float, float, float] | None = None
+    # The pilot's head in the platform frame C (m, from C's origin): perception (vestibular.py)
+    # is taken there, where a rotation adds its tangential and centripetal accelerations. The
+    # washout above does not use it: it moves the platform's origin as it always has.
+    head: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -149,6 +155,10 @@ _RULES: dict[str, tuple[str, float, bool]] = {
     "position_limit": ("vector", 0.0, False),
 }
 _ORDERS = {"translational_order": (2, 3), "rotational_order": (1, 2)}
+HEAD = "head"
+# m: how far from the platform's origin the head may be, per axis. The largest motion
+# simulators' cabins are a few metres across; a head farther out is a unit slip (cm for m).
+HEAD_REACH = 5.0
 _KEYS = {f.name for f in fields(CueingConfig)}
 TILT_LIMIT_MAX = np.pi / 2  # rad: asin(f / g) never exceeds it
 
@@ -211,6 +221,8 @@ def cueing_tables(model: Model) -> tuple[CueingConfig, OptimalOptions]:
     for key in sorted(set(table) - {OPTIMAL}):
         if key in _ORDERS:
             values[key] = _order(table[key], key, model.source)
+        elif key == HEAD:
+            values[key] = _head(table[key], model.source)
         else:
             kind, low, closed = _RULES[key]
             read = _vector if kind == "vector" else _number
@@ -284,6 +296,20 @@ def _vector(x: Any, name: str, low: float, closed: bool, source: str | None,
         what = _VECTOR_AXES.get(n, "")
         raise SceneKeyError(name, f"must be a list of {n} numbers{what}, got {x!r}", source)
     return tuple(_number(v, name, low, closed, source) for v in x)
+
+
+def _head(x: Any, source: str | None) -> tuple[float, float, float]:
+    """[cueing] head: 3 finite numbers (x, y, z), each within +-HEAD_REACH metres."""
+    name = f"{TABLE}.{HEAD}"
+    if not isinstance(x, (list, tuple)) or len(x) != 3:
+        raise SceneKeyError(name, f"must be a list of 3 numbers (x, y, z in m, platform frame), "
+                            f"got {x!r}", source)
+    for v in x:
+        if (isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v)
+                or abs(v) > HEAD_REACH):
+            raise SceneKeyError(name, f"each coordinate must be a finite number of metres "
+                                f"within +-{HEAD_REACH:g}, got {v!r}", source)
+    return (float(x[0]), float(x[1]), float(x[2]))
 
 
 def _order(x: Any, key: str, source: str | None) -> int:

@@ -16,8 +16,14 @@ vehicle does: they are linear, so perceived(platform) - perceived(vehicle) = per
 vehicle), and one set of states carries the perceived-motion error. Their input is
 
     s = [f_C - f_vehicle; omega_C - omega_vehicle]
-    f_C     = R^T (a - g)   ~  f_0 + F_q dq + F_u u      (gravity tilt, linearised at home)
+    f_C     = R^T (a - g) + (R^T alpha) x h + w x (w x h)
+            ~  f_0 + F_q dq + F_u u                      (gravity tilt, linearised at home)
     omega_C = R^T E thd     ~  F_v qd
+
+f_C is felt at the head h (the scene's [cueing] head, in C; vestibular.delivered_motion). At
+rest the rotation's terms vanish to first order except the tangential one, (R^T E thdd) x h,
+which is linear in the Euler accelerations: F_u carries it exactly, and the centripetal
+w x (w x h) (second order in the rates) enters with the rest of the non-linear remainder below.
 
 With R = Rz Ry Rx at home = identity and g = (0, 0, -G): R^T w ~ w - theta x w, so
 f_C ~ a - g + theta x g = (a_x - G thy, a_y + G thx, a_z + G): a positive pitch (nose down about
@@ -48,7 +54,7 @@ from stewart_fmu.dynamics import inverse_dynamics
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.model import Model
 
-from .vestibular import delivered_motion
+from .vestibular import delivered_motion, head_offset
 
 NP = 12          # platform states: dq (6), qd (6)
 NU = 6           # inputs: qdd
@@ -66,13 +72,15 @@ class Linearisation:
     force_q: np.ndarray       # (3, 6) df_C / dq (gravity tilt)
     force_qdd: np.ndarray     # (3, 6) df_C / dqdd
     rate_qd: np.ndarray       # (3, 6) domega_C / dqd
+    head: np.ndarray | None = None   # (3,) m in C where f_C is felt; None: C's origin
 
 
-def delivered(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, gravity: np.ndarray
-              ) -> tuple[np.ndarray, np.ndarray]:
-    """vestibular.delivered_motion (R^T (a - g), R^T E thd in C) of pose rows (N, 6)."""
+def delivered(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, gravity: np.ndarray,
+              head: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """vestibular.delivered_motion (specific force and angular velocity in C, felt at `head`)
+    of pose rows (N, 6)."""
     Q = np.atleast_2d(np.asarray(q, dtype=float))
-    return delivered_motion(np.zeros(Q.shape[0]), Q, qd, qdd, gravity)
+    return delivered_motion(np.zeros(Q.shape[0]), Q, qd, qdd, gravity, head)
 
 
 def _jacobian(fun, x0: np.ndarray) -> np.ndarray:
@@ -85,16 +93,18 @@ def _jacobian(fun, x0: np.ndarray) -> np.ndarray:
     return np.stack(cols, axis=1)
 
 
-def linearise(home: np.ndarray, gravity: np.ndarray) -> Linearisation:
-    """The delivered specific force and angular velocity linearised at `home`, at rest."""
+def linearise(home: np.ndarray, gravity: np.ndarray, head=None) -> Linearisation:
+    """The delivered specific force (felt at `head`, m in C; None: C's origin) and angular
+    velocity linearised at `home`, at rest."""
     home = np.asarray(home, dtype=float)
     g = np.asarray(gravity, dtype=float)
+    h = head_offset(head)
     z = np.zeros(6)
     return Linearisation(
-        home=home, gravity=g, force_neutral=delivered(home, z, z, g)[0][0],
-        force_q=_jacobian(lambda q: delivered(q, z, z, g)[0][0], home),
-        force_qdd=_jacobian(lambda a: delivered(home, z, a, g)[0][0], z),
-        rate_qd=_jacobian(lambda qd: delivered(home, qd, z, g)[1][0], z))
+        home=home, gravity=g, force_neutral=delivered(home, z, z, g, h)[0][0],
+        force_q=_jacobian(lambda q: delivered(q, z, z, g, h)[0][0], home),
+        force_qdd=_jacobian(lambda a: delivered(home, z, a, g, h)[0][0], z),
+        rate_qd=_jacobian(lambda qd: delivered(home, qd, z, g, h)[1][0], z), head=h)
 
 
 @dataclass(frozen=True)

@@ -28,9 +28,11 @@ constraints", Vehicle System Dynamics 51: 1151-1172), with the limits taken from
   (value and Jacobians, mpc_model.leg_linearisation) at every point of the previous solution's
   prediction, shifted by one step; the QP's pattern is built once and OSQP gets new values
   (a refactorisation) and vectors. The delivered specific force and angular velocity are
-  linearised at home in the cost, their remainder (the tilt's sine) evaluated on the same
-  prediction as a known input: at a steady state the prediction is the state, so a sustained
-  specific force f ends as the tilt asin(f / g), not its small-angle f / g.
+  felt at the scene's [cueing] head (mpc_model.py), linearised at home in the cost (the head's
+  tangential term, linear in the accelerations, is in it exactly at home), their remainder (the
+  tilt's sine, the centripetal term) evaluated on the same prediction as a known input: at a
+  steady state the prediction is the state, so a sustained specific force f ends as the tilt
+  asin(f / g), not its small-angle f / g.
 * The stroke is soft (a slack with a linear and a quadratic penalty, exact when the hard
   problem is feasible), so a prediction that cannot stop in time still has a solution; the
   slack used is reported. Force, voltage and tilt rate are hard; a step OSQP does not solve
@@ -489,7 +491,7 @@ class OptimalStepper:
         tilt_rate = options.tilt_rate_limit if options.tilt_rate_limit is not None \
             else config.tilt_rate_limit
         self.limits = lim = mechanism_limits(model, controller, tilt_rate)
-        self.lin = linearise(self.home, g)
+        self.lin = linearise(self.home, g, config.head)
         thresholds = np.r_[OTOLITH_THRESHOLD, CANAL_THRESHOLD]
         self.pm = pm = prediction_model(self.lin, VESTIBULAR_CHANNELS, self.dt)
         weights = np.asarray(options.perception_weight, dtype=float) / thresholds**2
@@ -576,7 +578,7 @@ def known_inputs(lin: Linearisation, home: np.ndarray, xp: np.ndarray, u: np.nda
     K = u.shape[0]
     w = np.zeros((K, 6))
     for sl in (slice(0, K), slice(1, K + 1)):
-        f, om = delivered(home + dq[sl], qd[sl], u, lin.gravity)
+        f, om = delivered(home + dq[sl], qd[sl], u, lin.gravity, lin.head)
         w[:, :3] += 0.5 * (f - dq[sl] @ lin.force_q.T - u @ lin.force_qdd.T)
         w[:, 3:] += 0.5 * (om - qd[sl] @ lin.rate_qd.T)
     return w

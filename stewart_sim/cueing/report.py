@@ -7,7 +7,9 @@ and the figures, written all or nothing.
     forces.csv              t, sigma1..6 (rack force incl. the drive term, N), cond,
                             current1..6 (A), voltage1..6 (V) when the scene has its drives
     perception.csv          t, per axis: vehicle, delivered, perceived vehicle, perceived
-                            delivered, false cue (0/1); f in m/s^2, w in rad/s
+                            delivered, false cue (0/1); f in m/s^2, w in rad/s; then
+                            head_x, head_y, head_z: where the delivered motion is felt (m,
+                            platform frame, the scene's [cueing] head; the same every row)
     tracking.csv            the closed loop's table (as `run` writes it), with --track
     summary.md              the figures (see summary_markdown)
     cue_*.png               the figures (cueing/figures.py)
@@ -82,7 +84,8 @@ def forces_table(f: Feasibility) -> np.ndarray:
 
 def perception_table(p: Perception) -> np.ndarray:
     """t, then for f (x, y, z) and w (roll, pitch, yaw): vehicle, delivered, the two perceived
-    signals and the false-cue flag."""
+    signals and the false-cue flag; then the head (m, platform frame) the delivered motion is
+    felt at, in every row (a CSV has no other place for it)."""
     cols = {"t": p.t}
     for prefix, axes, sig in (("f", AXES, "f"), ("w", ROTATION_AXES, "w")):
         for k, axis in enumerate(axes):
@@ -92,6 +95,8 @@ def perception_table(p: Perception) -> np.ndarray:
             cols[f"{base}_perceived_vehicle"] = getattr(p, f"perceived_vehicle_{sig}")[:, k]
             cols[f"{base}_perceived_delivered"] = getattr(p, f"perceived_delivered_{sig}")[:, k]
             cols[f"{base}_false_cue"] = getattr(p, f"false_cue_{sig}")[:, k].astype(float)
+    for k, axis in enumerate(AXES):
+        cols[f"head_{axis}"] = np.full(p.t.size, p.head[k])
     return io.named_array(cols)
 
 
@@ -137,7 +142,7 @@ def _perception_section(runs: tuple[CueRun, ...]) -> list[str]:
     head = ("| mode | " + " | ".join(f"f{a} (m/s²)" for a in AXES) + " | "
             + " | ".join(f"ω {a} (deg/s)" for a in ROTATION_AXES) + " |")
     lines = ["## Perceived-motion error (RMS of perceived delivered - perceived vehicle)", "",
-             head, "|" + "---|" * 7]
+             _where_line(p0), "", head, "|" + "---|" * 7]
     for r in runs:
         p = r.perception
         lines.append(f"| {r.mode} | " + " | ".join(f"{v:.3f}" for v in p.rms_f) + " | "
@@ -154,6 +159,16 @@ def _perception_section(runs: tuple[CueRun, ...]) -> list[str]:
         lines.append(f"| {r.mode} | " + " | ".join(f"{v:.2f}" for v in p.false_cue_time_f)
                      + " | " + " | ".join(f"{v:.2f}" for v in p.false_cue_time_w) + " |")
     return lines + [""]
+
+
+def _where_line(p: Perception) -> str:
+    """Where the delivered motion is felt: the platform's origin or the head."""
+    if not np.any(p.head):
+        return ("Perceived at the platform's origin ([cueing] head = [0, 0, 0]): the delivered "
+                "specific force is that of the platform frame's origin.")
+    return ("Perceived at the head, [" + ", ".join(f"{v:g}" for v in p.head) + "] m from the "
+            "platform's origin in the platform frame ([cueing] head): the delivered specific "
+            "force includes the rotation's tangential and centripetal accelerations there.")
 
 
 def _workspace_section(runs: tuple[CueRun, ...]) -> list[str]:
@@ -225,13 +240,16 @@ def _tracking_section(study: CueStudy) -> list[str]:
 
 def cue_view(study: CueStudy, title: str, controller: ControllerConfig | None):
     """The 3D view: the closed loop with the cue as its ghost when it ran, else the cue with
-    the rack forces of its inverse dynamics (`controller`: the scene's parsed [controller])."""
+    the rack forces of its inverse dynamics and the vehicle's and the delivered specific force
+    at the head as arrows (`controller`: the scene's parsed [controller]). The closed loop's
+    view has no arrows: its samples are the controller's, not the motion's."""
     if study.tracking is not None:
         return run_table_view(study.model, study.tracking.table, controller=controller,
                               title=f"{title}, closed loop", source="tracking.csv")
     run = study.runs[0]
     return view_data(study.model, run.cue.t, run.cue.q, run.feasibility.sigma,
-                     controller=controller, force_label=RACK, title=title, source="trajectory.csv")
+                     controller=controller, force_label=RACK, title=title, source="trajectory.csv",
+                     f_vehicle=run.perception.vehicle_f, f_delivered=run.perception.delivered_f)
 
 
 def verdict(study: CueStudy) -> str:

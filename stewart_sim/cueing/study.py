@@ -85,7 +85,7 @@ def cue_study(scene: Scene, motion: VehicleMotion, modes: tuple[str, ...] = ("cl
         if progress:
             progress(f"perception and feasibility ({mode})", 0, 1)
         runs.append(CueRun(mode, cue, perception(motion, cue.t, cue.q, cue.qd, cue.qdd,
-                                                 model.gravity),
+                                                 model.gravity, config.head),
                            feasibility(model, cue.t, cue.q, cue.qd, cue.qdd, scene.controller),
                            seconds, solver))
     tracking, note = None, None

@@ -1,5 +1,5 @@
 """The vestibular models: what a person perceives of a specific force and an angular velocity,
-and the motion a platform delivers at its origin.
+and the motion a platform delivers at the person's head.
 
 Otolith (specific force, per axis; Young & Meiry 1968, in the form Reid & Nahon 1985 and
 Telban & Cardullo 2005 use):
@@ -97,26 +97,71 @@ def semicircular_canals(t, angular_velocity) -> np.ndarray:
     return _perceive(t, angular_velocity, [canal_num_den(k) for k in range(3)], "angular_velocity")
 
 
-def delivered_motion(t, q, qd, qdd, gravity) -> tuple[np.ndarray, np.ndarray]:
-    """Specific force (N, 3) and angular velocity (N, 3) felt at the platform's origin, in the
-    platform frame C, for poses q and their Euler-rate derivatives qd, qdd (N, 6) in N:
+def delivered_motion(t, q, qd, qdd, gravity, head=None) -> tuple[np.ndarray, np.ndarray]:
+    """Specific force (N, 3) and angular velocity (N, 3) felt at the head, a point fixed in the
+    platform frame C at `head` (m, from C's origin; None or zeros: the origin itself), in C,
+    for poses q and their Euler-rate derivatives qd, qdd (N, 6) in N:
 
-        f = R^T (a - g)          a = the acceleration of C's origin in N, g the gravity vector
-        w = R^T E(theta) thetadot
+        f = R^T (a + alpha x r + omega x (omega x r) - g)      r = R head
+          = R^T (a - g) + (R^T alpha) x head + w x (w x head)
+        w = R^T omega = R^T E(theta) thetadot
 
-    A platform at rest feels R^T (-g): its tilt turns part of gravity into a horizontal specific
-    force (tilt coordination). C's axes are taken as the vehicle's (x forward, y left, z up)."""
+    a: the acceleration of C's origin, omega and alpha: the platform's angular velocity and
+    acceleration, all in N; g the gravity vector. The second form is the first with R^T taken
+    inside the cross products (R^T (u x v) = R^T u x R^T v for a rotation R). The angular
+    velocity is the same at every point of a rigid body. A platform at rest feels R^T (-g)
+    anywhere on it: its tilt turns part of gravity into a horizontal specific force (tilt
+    coordination). C's axes are taken as the vehicle's (x forward, y left, z up)."""
     q, qd, qdd = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, qd, qdd))
     n = q.shape[0]
     if np.shape(t) != (n,) or any(a.shape != (n, 6) for a in (q, qd, qdd)):
         raise MotionError(f"platform motion: t must have shape (N,) and q, qd, qdd (N, 6); got "
                           f"{np.shape(t)}, {q.shape}, {qd.shape}, {qdd.shape}")
-    g = np.asarray(gravity, dtype=float)
+    return _delivered(q, qd, qdd, np.asarray(gravity, dtype=float), head_offset(head))
+
+
+def delivered_at(q, qd, qdd, gravity, head=None) -> tuple[np.ndarray, np.ndarray]:
+    """delivered_motion of one sample (pose q, Euler rates qd, qdd, each (6,)): the specific
+    force (3,) and angular velocity (3,) at the head, in C. For a live loop: no time axis, no
+    shape checks beyond numpy's own (benchmarks/bench_delivered_at.py measures its cost)."""
+    f, w = _delivered(np.reshape(np.asarray(q, dtype=float), (1, 6)),
+                      np.reshape(np.asarray(qd, dtype=float), (1, 6)),
+                      np.reshape(np.asarray(qdd, dtype=float), (1, 6)),
+                      np.asarray(gravity, dtype=float), head_offset(head))
+    return f[0], w[0]
+
+
+def head_offset(head) -> np.ndarray | None:
+    """The head as a (3,) float array, or None when it is the platform's origin (no offset to
+    add: the origin's result stays bit for bit what it is without one)."""
+    if head is None:
+        return None
+    h = np.asarray(head, dtype=float)
+    if h.shape != (3,):
+        raise MotionError(f"head: must be 3 numbers (x, y, z in m), got shape {h.shape}")
+    return h if np.any(h != 0.0) else None
+
+
+def _delivered(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, g: np.ndarray,
+               head: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """delivered_motion's formula on checked (N, 6) rows; head None: at the origin."""
+    n = q.shape[0]
     R, omega, alpha = np.empty((n, 3, 3)), np.empty((n, 3)), np.empty((n, 3))
     euler_motion(q, qd, qdd, R, omega, alpha)
     f = np.einsum("nji,nj->ni", R, qdd[:, :3] - g)
     w = np.einsum("nji,nj->ni", R, omega)
+    if head is not None:
+        alpha_c = np.einsum("nji,nj->ni", R, alpha)
+        f = f + _cross(alpha_c, head) + _cross(w, _cross(w, head))
     return f, w
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise a x b of (N, 3) rows and a (3,) or (N, 3) b: np.cross's arithmetic without its
+    axis handling, which costs more than the products on the few rows of a live sample."""
+    a0, a1, a2 = a[:, 0], a[:, 1], a[:, 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack((a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0), axis=1)
 
 
 @dataclass(frozen=True)
@@ -124,7 +169,9 @@ class Perception:
     """What a person perceives of the vehicle's motion and of the platform's, sample by sample.
 
     f: specific force (m/s^2), w: angular velocity (rad/s), per axis x, y, z (roll, pitch, yaw),
-    vehicle frame = platform frame. error = perceived delivered - perceived vehicle.
+    vehicle frame = platform frame. error = perceived delivered - perceived vehicle. The
+    delivered motion is taken at the head (`head`, m in C; zeros: the platform's origin); the
+    vehicle's is as recorded (where its sensor or model put the driver).
 
     False cue (per axis, per sample): the delivered motion is perceived above the perception
     threshold and with the opposite sign to what the vehicle's motion is perceived as:
@@ -138,7 +185,7 @@ class Perception:
     t: np.ndarray                       # (N,) s
     vehicle_f: np.ndarray               # (N, 3) m/s^2
     vehicle_w: np.ndarray               # (N, 3) rad/s
-    delivered_f: np.ndarray             # (N, 3) m/s^2, at the platform's origin, frame C
+    delivered_f: np.ndarray             # (N, 3) m/s^2, at the head, frame C
     delivered_w: np.ndarray             # (N, 3) rad/s, frame C
     perceived_vehicle_f: np.ndarray     # (N, 3) m/s^2
     perceived_vehicle_w: np.ndarray     # (N, 3) rad/s
@@ -157,19 +204,21 @@ class Perception:
     workspace_min: np.ndarray           # (6,) min of each pose coordinate q (m, rad)
     workspace_max: np.ndarray           # (6,)
     workspace_range: np.ndarray         # (6,) max - min
+    head: np.ndarray                    # (3,) m, in C: where the delivered motion is felt
 
 
-def perception(vehicle: VehicleMotion, t, q, qd, qdd, gravity) -> Perception:
+def perception(vehicle: VehicleMotion, t, q, qd, qdd, gravity, head=None) -> Perception:
     """Perceived vehicle motion against the perceived platform motion (poses q and their
-    Euler-rate derivatives qd, qdd, (N, 6), at the vehicle's sample times t), their error, its
-    RMS, the false cues (see Perception) and the workspace the poses use."""
+    Euler-rate derivatives qd, qdd, (N, 6), at the vehicle's sample times t) felt at `head`
+    (m, in C; None: the platform's origin), their error, its RMS, the false cues (see
+    Perception) and the workspace the poses use."""
     t = np.asarray(t, dtype=float)
     if t.shape != vehicle.t.shape or not np.allclose(t, vehicle.t, rtol=0.0,
                                                      atol=1e-9 * max(vehicle.dt, 1.0)):
         raise MotionError(f"platform motion: its times must be the vehicle's ({vehicle.t.size} "
                           f"samples from {vehicle.t[0]!r} s, step {vehicle.dt!r} s)")
     q = np.asarray(q, dtype=float)
-    f_del, w_del = delivered_motion(t, q, qd, qdd, gravity)
+    f_del, w_del = delivered_motion(t, q, qd, qdd, gravity, head)
     pv_f = otolith(t, vehicle.specific_force)
     pv_w = semicircular_canals(t, vehicle.angular_velocity)
     pd_f, pd_w = otolith(t, f_del), semicircular_canals(t, w_del)
@@ -181,7 +230,8 @@ def perception(vehicle: VehicleMotion, t, q, qd, qdd, gravity) -> Perception:
         t, vehicle.specific_force, vehicle.angular_velocity, f_del, w_del, pv_f, pv_w, pd_f, pd_w,
         pd_f - pv_f, pd_w - pv_w, _rms(pd_f - pv_f), _rms(pd_w - pv_w), false_f, false_w,
         false_f.sum(axis=0) * vehicle.dt, false_w.sum(axis=0) * vehicle.dt,
-        OTOLITH_THRESHOLD.copy(), CANAL_THRESHOLD.copy(), lo, hi, hi - lo)
+        OTOLITH_THRESHOLD.copy(), CANAL_THRESHOLD.copy(), lo, hi, hi - lo,
+        np.zeros(3) if head is None else np.array(head, dtype=float))
 
 
 def _false_cues(delivered: np.ndarray, vehicle: np.ndarray, threshold: np.ndarray) -> np.ndarray:

@@ -42,6 +42,10 @@ class ViewData:
     source_samples: int
     fps: float               # the frame rate asked for (frames per second of simulated time)
     speed: float = 1.0       # the page's initial playback speed (simulated s per second)
+    # specific forces at the pilot's head (m/s^2, in C; geometry.CUES), drawn as arrows: the
+    # vehicle's and the delivered one of a cueing run, or None
+    f_vehicle: np.ndarray | None = None     # (F, 3)
+    f_delivered: np.ndarray | None = None   # (F, 3)
 
     @property
     def frames(self) -> int:
@@ -77,12 +81,15 @@ def view_data(model: Model, t, q, forces, q_ref=None, *, controller: ControllerC
               fps: float = DEFAULT_FPS,
               force_label: str = "actuator force sigma", title: str | None = None,
               source: str = "", source_samples: int | None = None,
-              force_peak: float | None = None, speed: float = 1.0) -> ViewData:
+              force_peak: float | None = None, speed: float = 1.0,
+              f_vehicle=None, f_delivered=None) -> ViewData:
     """The view of samples t (N,), poses q (N, 6), forces (N, 6) and, for closed-loop runs, the
     reference poses q_ref (N, 6), decimated to `fps`. Samples already decimated (at the same
     fps) are kept as they are: give the count they came from (`source_samples`) and the peak
     force over all of them (`force_peak`; default: over the samples given). `controller`: the
-    scene's [controller] (None: it has none), for the drives' peak force (view_geometry)."""
+    scene's [controller] (None: it has none), for the drives' peak force (view_geometry).
+    f_vehicle, f_delivered (N, 3): specific forces at the head (m/s^2, platform frame) drawn as
+    arrows, when given."""
     t = np.asarray(t, dtype=float)
     q = np.asarray(q, dtype=float)
     forces = np.asarray(forces, dtype=float)
@@ -90,6 +97,10 @@ def view_data(model: Model, t, q, forces, q_ref=None, *, controller: ControllerC
     for name, arr in (("q", q), ("forces", forces)) + (() if q_ref is None else (("q_ref", q_ref),)):
         if np.shape(arr) != (n, 6):
             raise StewartError(f"view: {name} must be ({n}, 6), got {np.shape(arr)}")
+    cues = {"f_vehicle": f_vehicle, "f_delivered": f_delivered}
+    for name, arr in cues.items():
+        if arr is not None and np.shape(arr) != (n, 3):
+            raise StewartError(f"view: {name} must be ({n}, 3), got {np.shape(arr)}")
     if n > 1 and np.any(np.diff(t) <= 0):
         raise StewartError(f"view: {source or 'the samples'}: times must increase")
     idx = frame_indices(t, fps)
@@ -105,4 +116,6 @@ def view_data(model: Model, t, q, forces, q_ref=None, *, controller: ControllerC
                     else float(np.max(np.abs(finite))) if finite.size else 0.0),
         title=title or model.name, source=source,
         source_samples=n if source_samples is None else int(source_samples), fps=float(fps),
-        speed=float(speed))
+        speed=float(speed),
+        **{name: None if arr is None else np.asarray(arr, dtype=float)[idx]
+           for name, arr in cues.items()})

@@ -12,8 +12,13 @@ stroke `leg_max - leg_min` long, so the two parts just meet at full extension an
 lower end shows how much stroke is used. A scene without stroke limits gets 0.75 and 1.25 times
 its home leg lengths as the limits for this purpose.
 
+Specific-force arrows (a cueing run's, or a live cueing loop's): the vehicle's and the one the
+platform delivers, each a vector in the platform frame felt at the pilot's head (the scene's
+[cueing] head), drawn from the head point x + R head along R f, `arrow_scale` metres per m/s^2:
+a shaft (a cylinder of unit length, stretched) and a cone of `arrow_tip` at its end.
+
 The page (stewart_sim/view/page.js) computes the same transforms per frame; `object_transforms`
-is the reference the browser tests hold it to. Every matrix is 4x4, homogeneous, in N (metres),
+and `arrow_transforms` are the references the browser tests hold it to. Every matrix is 4x4, homogeneous, in N (metres),
 for meshcat's objects, whose cylinders have their axis along their local y (three.js).
 """
 from __future__ import annotations
@@ -26,12 +31,18 @@ from controller.config import ControllerConfig
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.model import Model
 from stewart_fmu.rotations import euler_motion
+from stewart_sim.cueing.config import cueing_config
+from stewart_sim.view.colours import nice_ceiling
 
 # cond(J) (scaled, stewart_fmu.kinematics) above which a pose is marked near-singular: the
 # emulated device's default SP_COND_MAX (hil.params.COND_MAX; a test holds them equal).
 COND_WARN = 100.0
 # A leg within this fraction of its stroke of leg_min or leg_max is marked at its limit.
 STROKE_MARGIN = 0.01
+# m/s^2: the arrows' scale is chosen so that a specific force of this size (about 1 g, what a
+# person at rest feels) is drawn about half the platform's radius long, in a round number.
+ARROW_REFERENCE = 9.81
+CUES = ("f_vehicle", "f_delivered")   # the arrows' names: the snapshot's and the state's keys
 
 
 @dataclass(frozen=True, eq=False)
@@ -54,6 +65,10 @@ class ViewGeometry:
     platform_radius: float
     plate_thickness: float
     force_scale: float | None     # the drive's peak force (N), for the live colour bar, or None
+    head: np.ndarray              # (3,) the pilot's head in C (m): where the arrows start
+    arrow_scale: float            # m of arrow per m/s^2 of specific force
+    arrow_radius: float           # m, the shaft's
+    arrow_tip: float              # m, the cone's length (its base radius: 2.2 x the shaft's)
     cond_warn: float = COND_WARN
     stroke_margin: float = STROKE_MARGIN
 
@@ -81,14 +96,18 @@ def view_geometry(model: Model, *, controller: ControllerConfig | None) -> ViewG
     plat_r = float(np.max(np.linalg.norm(model.platform_joints[:, :2], axis=1)))
     # Radii in proportion to the platform's size: legs read as legs, not as rods or pillars.
     cyl_r = 0.07 * plat_r
+    radius = 1.15 * plat_r
     return ViewGeometry(
         name=model.name, base_joints=np.array(model.base_joints),
         platform_joints=np.array(model.platform_joints), home=np.array(model.home),
         leg_min=float(lo), leg_max=float(hi), stroke_limits=declared,
         cylinder_length=float(lo), piston_length=float(hi - lo),
         cylinder_radius=cyl_r, piston_radius=0.55 * cyl_r, joint_radius=1.25 * cyl_r,
-        base_radius=1.15 * base_r, platform_radius=1.15 * plat_r,
-        plate_thickness=0.12 * plat_r, force_scale=drive_peak_force(model, controller))
+        base_radius=1.15 * base_r, platform_radius=radius,
+        plate_thickness=0.12 * plat_r, force_scale=drive_peak_force(model, controller),
+        head=np.array(cueing_config(model).head, dtype=float),
+        arrow_scale=nice_ceiling(0.5 * radius / ARROW_REFERENCE), arrow_radius=0.4 * cyl_r,
+        arrow_tip=0.12 * radius)
 
 
 def drive_peak_force(model: Model, controller: ControllerConfig | None) -> float | None:
@@ -159,6 +178,29 @@ def object_transforms(geometry: ViewGeometry, q) -> dict[str, np.ndarray]:
         out[f"joints/base/{i + 1}"] = homogeneous(np.eye(3), a)
         out[f"joints/platform/{i + 1}"] = homogeneous(np.eye(3), p)
     return out
+
+
+def arrow_transforms(geometry: ViewGeometry, q, f) -> dict[str, np.ndarray] | None:
+    """The arrow of specific force f (m/s^2, in C) at pose q: "shaft" (the unit cylinder
+    stretched along local y to its length) and "tip" (the cone, shortened with an arrow shorter
+    than it), from the head point x + R head along R f, geometry.arrow_scale m per m/s^2; None
+    when f is zero (nothing to draw)."""
+    q = np.asarray(q, dtype=float)
+    R = rotation(q)
+    g = geometry
+    d = R @ np.asarray(f, dtype=float)
+    size = float(np.linalg.norm(d))
+    if not size > 0:
+        return None
+    u = d / size
+    length = size * g.arrow_scale
+    tip = min(g.arrow_tip, length)
+    start = q[:3] + R @ g.head
+    turn = axis_to(u)
+    stretch = np.diag([1.0, length - tip, 1.0])
+    return {"shaft": homogeneous(turn @ stretch, start + u * (length - tip) / 2),
+            "tip": homogeneous(turn @ np.diag([1.0, tip / g.arrow_tip, 1.0]),
+                               start + u * (length - tip / 2))}
 
 
 def part_ends(transform: np.ndarray, length: float) -> tuple[np.ndarray, np.ndarray]:

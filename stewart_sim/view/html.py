@@ -22,7 +22,8 @@ from stewart_fmu.io import write_text
 from stewart_sim.view.colours import colour_table, nice_ceiling
 from stewart_sim.view.data import ViewData
 from stewart_sim.view.geometry import ViewGeometry
-from stewart_sim.view.scene import PLATE, rgb, scene_commands
+from stewart_sim.view.geometry import CUES
+from stewart_sim.view.scene import CUE_COLOURS, PLATE, rgb, scene_commands
 
 _HERE = Path(__file__).resolve().parent
 LIVE_PERIOD_MS = 50     # the live page asks for a state every 50 ms (20 Hz)
@@ -46,12 +47,14 @@ def _b64(a: np.ndarray, dtype) -> str:
 
 
 def _page(title: str, subtitle: str, force_label: str, status: str, geometry: ViewGeometry,
-          ghost: bool, force_scale: float | None, source: dict) -> str:
+          ghost: bool, force_scale: float | None, source: dict, cues: bool = False) -> str:
     """page.html filled in (one pass, so no inserted text is read as a placeholder); its data:
-    the scene's commands, the colour map and the frame source (frames, or the live URL)."""
-    data = {"geometry": geometry.to_json(), "scene": scene_commands(geometry, ghost),
+    the scene's commands, the colour map and the frame source (frames, or the live URL);
+    `cues`: the frames may carry the specific-force arrows (geometry.CUES)."""
+    data = {"geometry": geometry.to_json(), "scene": scene_commands(geometry, ghost, cues),
             "ghost": ghost, "lut": colour_table().tolist(), "force_scale": force_scale,
-            "plate_rgb": rgb(PLATE), "live": None, **source}
+            "plate_rgb": rgb(PLATE), "live": None, "cues": cues,
+            "cue_rgb": {name: rgb(CUE_COLOURS[name]) for name in CUES}, **source}
     text = json.dumps(data, separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
     parts = {
         "TITLE": html.escape(title), "SUBTITLE": html.escape(subtitle),
@@ -78,13 +81,15 @@ def _finite(a: np.ndarray | None, name: str) -> None:
 def static_view_html(view: ViewData) -> str:
     """The page of a run, its frames embedded (file size ~ 100 bytes per frame + 0.9 MB)."""
     g = view.geometry
-    for name in ("t", "q", "q_ref", "lengths", "forces", "cond"):
+    for name in ("t", "q", "q_ref", "lengths", "forces", "cond", *CUES):
         _finite(getattr(view, name), name)
     scale = nice_ceiling(view.force_peak) if view.force_peak > 0 else (g.force_scale or 1.0)
     frames = {"count": view.frames, "t": _b64(view.t, "<f4"), "q": _b64(view.q, "<f4"),
               "q_ref": None if view.q_ref is None else _b64(view.q_ref, "<f4"),
               "lengths": _b64(view.lengths, "<f4"), "forces": _b64(view.forces, "<f4"),
-              "cond": _b64(view.cond, "<f4"), "at_limit": _b64(view.at_limit, "u1")}
+              "cond": _b64(view.cond, "<f4"), "at_limit": _b64(view.at_limit, "u1"),
+              **{name: None if getattr(view, name) is None else _b64(getattr(view, name), "<f4")
+                 for name in CUES}}
     meta = {"fps": view.fps, "frames": view.frames, "speed": view.speed,
             "source_samples": view.source_samples, "source": view.source}
     span = float(view.t[-1] - view.t[0])
@@ -92,18 +97,20 @@ def static_view_html(view: ViewData) -> str:
                 f"from {view.source_samples} samples"
                 + (f" of {view.source}" if view.source else ""))
     status = "drag: orbit, right-drag: pan, wheel: zoom"
+    cues = any(getattr(view, name) is not None for name in CUES)
     return _page(view.title, subtitle, view.force_label, status, g, view.q_ref is not None,
-                 scale, {"frames": frames, "meta": meta})
+                 scale, {"frames": frames, "meta": meta}, cues)
 
 
 def live_view_html(geometry: ViewGeometry, state_url: str = "/state") -> str:
     """The page of a live device: it polls `state_url` (fetch, every LIVE_PERIOD_MS) for one
     frame as JSON {"t": s, "q": [6], "q_ref": [6] or null, "lengths": [6], "forces": [6],
-    "cond": float} and shows it with the static page's code. The colour bar spans the drives'
-    peak force (geometry.force_scale), or grows with the largest force seen."""
+    "cond": float, "f_vehicle": [3] or null, "f_delivered": [3] or null} and shows it with the
+    static page's code (the specific-force arrows when the state has them). The colour bar
+    spans the drives' peak force (geometry.force_scale), or grows with the largest force seen."""
     return _page(f"{geometry.name}: live", f"polling {state_url} every {LIVE_PERIOD_MS} ms",
                  "actuator force", "live: connecting", geometry, True, geometry.force_scale,
-                 {"live": {"state_url": state_url, "period_ms": LIVE_PERIOD_MS}})
+                 {"live": {"state_url": state_url, "period_ms": LIVE_PERIOD_MS}}, cues=True)
 
 
 def write_view(path: str | Path, view: ViewData) -> int:

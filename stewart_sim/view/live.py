@@ -6,8 +6,10 @@ address: the device and its picture stay on this machine), serves two things:
 * ``/``: the page, the same 3D picture as the static view (stewart_sim.view.html
   `live_view_html` over the scene's `view_geometry`), which polls ``/state``;
 * ``/state``: the device's newest snapshot (hil.observe.Snapshot) as JSON
-  ``{"t", "q", "q_ref", "lengths", "forces", "cond", "armed", "tick"}`` in the contract's
-  units (s, m, rad, N; q_ref is null while the device holds, a non-finite number is null).
+  ``{"t", "q", "q_ref", "lengths", "forces", "cond", "armed", "tick", "f_vehicle",
+  "f_delivered"}`` in the contract's units (s, m, rad, N, m/s^2; q_ref is null while the device
+  holds, f_vehicle and f_delivered (specific forces at the pilot's head, platform frame) are
+  null unless a cueing loop publishes them, a non-finite number is null).
 
 The device publishes snapshots from its real-time loop (`hil.device.Device.observe`); this
 server only reads the newest one, so however often a browser polls, the loop does not wait for
@@ -47,16 +49,24 @@ def state_document(snapshot: Snapshot | None) -> dict:
     """The JSON object of `snapshot` (see the module doc); before the first one: t null."""
     if snapshot is None:
         return {"t": None, "q": None, "q_ref": None, "lengths": None, "forces": None,
-                "cond": None, "armed": False, "tick": None}
+                "cond": None, "armed": False, "tick": None, "f_vehicle": None,
+                "f_delivered": None}
     return {"t": snapshot.t, "q": _finite(snapshot.q),
             "q_ref": None if snapshot.q_ref is None else _finite(snapshot.q_ref),
             "lengths": _finite(snapshot.lengths), "forces": _finite(snapshot.forces),
-            "cond": _finite((snapshot.cond,))[0], "armed": snapshot.armed, "tick": snapshot.tick}
+            "cond": _finite((snapshot.cond,))[0], "armed": snapshot.armed, "tick": snapshot.tick,
+            "f_vehicle": _optional(snapshot.f_vehicle),
+            "f_delivered": _optional(snapshot.f_delivered)}
 
 
 def _finite(values: tuple[float, ...]) -> list[float | None]:
     """JSON has no inf or nan: such a value becomes null."""
     return [v if math.isfinite(v) else None for v in values]
+
+
+def _optional(values: tuple[float, ...] | None) -> list[float | None] | None:
+    """An optional vector: null when absent, else as `_finite`."""
+    return None if values is None else _finite(values)
 
 
 def live_page(model: Model, controller: ControllerConfig) -> str:

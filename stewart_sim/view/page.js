@@ -1,7 +1,7 @@
 // The view's page over meshcat's three.js viewer (window.MeshCat, from main.min.js). Every change
 // to the scene goes through the viewer's public commands (handle_command: set_object,
 // set_transform, set_property); this file only computes them per frame and draws the overlay.
-// The transforms mirror stewart_sim/view/geometry.py (object_transforms), the colours
+// The transforms mirror stewart_sim/view/geometry.py (object_transforms, arrow_transforms), the colours
 // stewart_sim/view/colours.py (force_colours): the browser tests hold them to each other.
 (function () {
   "use strict";
@@ -74,6 +74,24 @@
     return out;
   }
 
+  // the specific-force arrows at the head (geometry.py arrow_transforms): null for a zero force
+  const CUES = ["f_vehicle", "f_delivered"];
+  function arrowTransforms(q, f) {
+    const R = rotation(q);
+    const d = apply(R, f);
+    const size = Math.hypot(d[0], d[1], d[2]);
+    if (!(size > 0)) return null;
+    const u = d.map(v => v / size);
+    const length = size * G.arrow_scale;
+    const tip = Math.min(G.arrow_tip, length);
+    const h = apply(R, G.head);
+    const at = (s) => [0, 1, 2].map(i => q[i] + h[i] + u[i] * s);
+    const turn = axisTo(u);
+    const stretch = (s) => mul(turn, [[1, 0, 0], [0, s, 0], [0, 0, 1]]);
+    return {shaft: matrix(stretch(length - tip), at((length - tip) / 2)),
+            tip: matrix(stretch(tip / G.arrow_tip), at(length - tip / 2))};
+  }
+
   // --- colours (colours.py) ---------------------------------------------------------------
   function forceColour(f, scale) {
     const s = (Math.min(1, Math.max(-1, f / scale)) + 1) / 2;
@@ -144,9 +162,35 @@
     }
     const singular = f.cond > G.cond_warn;
     setP("/stewart/platform", "color", singular ? ALARM : PLATE);
+    const arrows = DATA.cues ? showCues(f) : null;
     shown = {t: f.t, q: f.q, q_ref: f.q_ref, lengths: f.lengths, forces: f.forces, cond: f.cond,
-             at_limit: limits.map(Boolean), singular: singular, transforms: T};
+             at_limit: limits.map(Boolean), singular: singular, transforms: T, arrows: arrows,
+             f_vehicle: three(f.f_vehicle) ? f.f_vehicle : null,
+             f_delivered: three(f.f_delivered) ? f.f_delivered : null};
     writeText(f, limits, singular);
+  }
+
+  const three = (a) => Array.isArray(a) && a.length === 3 && a.every(finite);
+  function showCues(f) {         // the arrows of the frame's specific forces; hidden when null
+    const out = {};
+    let any = false;
+    for (const name of CUES) {
+      const A = three(f[name]) ? arrowTransforms(f.q, f[name]) : null;
+      setP(`/cues/${name}`, "visible", A !== null);
+      if (A !== null) {
+        setT(`/cues/${name}/shaft`, A.shaft);
+        setT(`/cues/${name}/tip`, A.tip);
+        any = true;
+      }
+      out[name] = A;
+    }
+    setP("/cues/head", "visible", any);
+    if (any) {
+      const h = apply(rotation(f.q), G.head);
+      setT("/cues/head", matrix(I3, [0, 1, 2].map(i => f.q[i] + h[i])));
+    }
+    el("cue-legend").style.display = any ? "block" : "none";
+    return out;
   }
 
   const finite = (v) => typeof v === "number" && Number.isFinite(v);
@@ -166,6 +210,12 @@
     lines.push("force [N]    " + f.forces.map(v => v.toFixed(3).padStart(9)).join(""));
     const cond = finite(f.cond) ? f.cond.toPrecision(4) : "not finite";
     lines.push("", `cond(J) = ${cond}  (marked above ${G.cond_warn})`);
+    if (DATA.cues && (three(f.f_vehicle) || three(f.f_delivered))) {
+      const acc = (v) => three(v) ? v.map(x => x.toFixed(3).padStart(9)).join("") : "        -".repeat(3);
+      lines.push("", "specific force at the head [m/s^2]      x        y        z");
+      lines.push(`vehicle                          ${acc(f.f_vehicle)}`);
+      lines.push(`delivered                        ${acc(f.f_delivered)}`);
+    }
     el("info").textContent = lines.join("\n");
     const warn = [];
     const legs = limits.map((b, i) => b ? i + 1 : 0).filter(i => i);
@@ -183,11 +233,19 @@
     for (let i = 0; i < bin.length; i++) bytes[i] = bin.charCodeAt(i);
     return new Float32Array(bytes.buffer);
   }
-  const api = {ready: false, show: null, shown: () => shown, objectTransforms, forceColour,
-               forceScale: () => forceScale, viewer};
+  const api = {ready: false, show: null, shown: () => shown, objectTransforms, arrowTransforms,
+               forceColour, forceScale: () => forceScale, viewer};
   window.stewartView = api;
   function ready() {        // after the viewer has rendered the first frame
     requestAnimationFrame(() => requestAnimationFrame(() => { api.ready = true; }));
+  }
+
+  if (DATA.cues) {        // the arrows' legend: their colours and scale
+    for (const name of CUES)
+      el(`cue-dot-${name}`).style.background =
+        `rgb(${DATA.cue_rgb[name].map(v => Math.round(255 * v)).join(",")})`;
+    el("cue-scale").textContent = `arrows: 1 m/s\u00b2 = ${(1000 * G.arrow_scale).toPrecision(3)} mm` +
+                                  ` (1 g = ${(9.81 * G.arrow_scale).toPrecision(3)} m)`;
   }
 
   function drawable(s) {
@@ -230,11 +288,14 @@
     const n = F.count;
     const t = f32(F.t), q = f32(F.q), ln = f32(F.lengths), fo = f32(F.forces), co = f32(F.cond);
     const qr = F.q_ref ? f32(F.q_ref) : null;
+    const fv = F.f_vehicle ? f32(F.f_vehicle) : null, fd = F.f_delivered ? f32(F.f_delivered) : null;
+    const vec = (a, k) => a ? Array.from(a.subarray(3 * k, 3 * k + 3)) : null;
     const lim = Uint8Array.from(atob(F.at_limit), c => c.charCodeAt(0));
     const six = (a, k) => Array.from(a.subarray(6 * k, 6 * k + 6));
     const frame = (k) => ({t: t[k], q: six(q, k), q_ref: qr ? six(qr, k) : null,
                            lengths: six(ln, k), forces: six(fo, k), cond: co[k],
-                           at_limit: Array.from(lim.subarray(6 * k, 6 * k + 6))});
+                           at_limit: Array.from(lim.subarray(6 * k, 6 * k + 6)),
+                           f_vehicle: vec(fv, k), f_delivered: vec(fd, k)});
     if (DATA.meta.speed) el("speed").value = String(DATA.meta.speed);
     const slider = el("slider");
     slider.max = n - 1;

@@ -6,13 +6,16 @@ Built here as plain dicts rather than through meshcat-python's classes: importin
 with meshcat's server side (zmq, tornado, IPython), which a file writer has no use for.
 
 Paths: "/stewart/<key>" for the actual mechanism and "/ghost/<key>" for the reference pose,
-with the keys of geometry.object_transforms; "/stewart/limits/<i>" marks a leg at a stroke limit.
+with the keys of geometry.object_transforms; "/stewart/limits/<i>" marks a leg at a stroke limit;
+"/cues/<name>/shaft" and "/cues/<name>/tip" are the specific-force arrows (geometry.CUES, with
+geometry.arrow_transforms) and "/cues/head" the head they start from, hidden until a frame
+has them.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from stewart_sim.view.geometry import ViewGeometry
+from stewart_sim.view.geometry import CUES, ViewGeometry
 
 PLATE = 0x8fa3b8      # brushed aluminium, a little blue
 BASE = 0x5b6470
@@ -21,6 +24,14 @@ JOINT = 0x2b2f36
 LIMIT = 0xff8c00      # the stroke-limit mark
 GHOST = 0xffffff
 GHOST_OPACITY = 0.28
+# the arrows: green for the vehicle's specific force, purple for the delivered one (neither is
+# on the legs' blue-grey-red force map, nor the stroke-limit orange, nor the alarm red)
+CUE_COLOURS = {"f_vehicle": 0x2e9e44, "f_delivered": 0x8e24aa}
+# the vehicle's arrow is a wider translucent sleeve around the delivered one, so both show
+# where they agree (a platform at rest for a vehicle at rest: both 1 g up)
+CUE_WIDTH = {"f_vehicle": 1.8, "f_delivered": 1.0}
+CUE_OPACITY = {"f_vehicle": 0.45, "f_delivered": 1.0}
+HEAD = 0x202020
 
 def rgb(colour: int) -> list[float]:
     """0xRRGGBB as [r, g, b] in [0, 1] (meshcat's set_property "color" takes these, and alpha)."""
@@ -49,6 +60,12 @@ def cylinder(height: float, radius: float) -> dict:
 def sphere(radius: float) -> dict:
     return {"type": "SphereGeometry", "radius": radius, "widthSegments": 24,
             "heightSegments": 16}
+
+
+def cone(height: float, radius: float) -> dict:
+    """A cone along local y, centred, its point at +height/2 (three.js CylinderGeometry)."""
+    return {"type": "CylinderGeometry", "radiusTop": 0.0, "radiusBottom": radius,
+            "height": height, "radialSegments": 32}
 
 
 def set_object(path: str, geometry: dict, colour: int, opacity: float = 1.0) -> dict:
@@ -87,7 +104,19 @@ def mechanism(prefix: str, g: ViewGeometry, ghost: bool) -> list[dict]:
     return cmds
 
 
-def scene_commands(g: ViewGeometry, with_ghost: bool) -> list[dict]:
+def cue_arrows(g: ViewGeometry) -> list[dict]:
+    """set_object commands of the two arrows and the head marker, hidden."""
+    cmds = [set_object("/cues/head", sphere(1.6 * g.arrow_radius), HEAD),
+            set_property("/cues/head", "visible", False)]
+    for name in CUES:
+        colour, op, r = CUE_COLOURS[name], CUE_OPACITY[name], CUE_WIDTH[name] * g.arrow_radius
+        cmds += [set_object(f"/cues/{name}/shaft", cylinder(1.0, r), colour, op),
+                 set_object(f"/cues/{name}/tip", cone(g.arrow_tip, 2.2 * r), colour, op),
+                 set_property(f"/cues/{name}", "visible", False)]
+    return cmds
+
+
+def scene_commands(g: ViewGeometry, with_ghost: bool, with_cues: bool = False) -> list[dict]:
     """Every command that builds the scene, in order."""
     size = g.size
     z_mid = 0.55 * float(g.home[2])
@@ -108,6 +137,8 @@ def scene_commands(g: ViewGeometry, with_ghost: bool) -> list[dict]:
     cmds += mechanism("/stewart", g, ghost=False)
     if with_ghost:
         cmds += mechanism("/ghost", g, ghost=True)
+    if with_cues:
+        cmds += cue_arrows(g)
     return cmds
 
 

@@ -20,12 +20,12 @@ pytest.importorskip("pymavlink")
 
 from hil import mavlink_stewart as ms  # noqa: E402
 from hil.device import Device  # noqa: E402
-from hil.observe import Latest  # noqa: E402
+from hil.observe import Latest, Snapshot  # noqa: E402
 from stewart_fmu.kinematics import condition_number, inverse_kinematics  # noqa: E402
 from stewart_fmu.scene import load_scene  # noqa: E402
 from stewart_sim.cli import main  # noqa: E402
 from stewart_sim.scene_load import scene_of  # noqa: E402
-from stewart_sim.view.live import LiveView, ViewError, live_page  # noqa: E402
+from stewart_sim.view.live import LiveView, ViewError, live_page, state_document  # noqa: E402
 from tests.helpers import ROOT  # noqa: E402
 from tests.hil.test_device import SCENE, arm, setpoint  # noqa: E402
 
@@ -148,6 +148,31 @@ def test_state_follows_the_device_as_setpoints_arrive(model):
         assert np.allclose(s2["lengths"], inverse_kinematics(model, q).lengths, rtol=0, atol=1e-12)
         assert s2["cond"] == pytest.approx(condition_number(model, q), rel=1e-12)
         assert len(s2["forces"]) == 6 and all(np.isfinite(s2["forces"]))
+
+
+def test_state_carries_the_specific_forces_at_the_head_when_published(model):
+    """f_vehicle and f_delivered: null before the first snapshot and when a snapshot has none
+    (the device alone), the published vectors as they are otherwise, a non-finite one null;
+    /state serves them."""
+    assert state_document(None)["f_vehicle"] is None
+    assert state_document(None)["f_delivered"] is None
+    home = tuple(float(v) for v in model.home)
+    plain = Snapshot(tick=1, t=0.001, q=home, q_ref=None, lengths=(0.1,) * 6,
+                     forces=(0.0,) * 6, cond=2.0, armed=True)
+    doc = state_document(plain)
+    assert doc["f_vehicle"] is None and doc["f_delivered"] is None
+    cued = Snapshot(tick=2, t=0.002, q=home, q_ref=None, lengths=(0.1,) * 6, forces=(0.0,) * 6,
+                    cond=2.0, armed=True, f_vehicle=(1.5, -0.25, 9.81),
+                    f_delivered=(0.75, float("nan"), 9.5))
+    doc = state_document(cued)
+    assert doc["f_vehicle"] == [1.5, -0.25, 9.81]
+    assert doc["f_delivered"] == [0.75, None, 9.5]
+    latest = Latest()
+    latest.publish(cued)
+    with LiveView(live_page(model, scene_of(model).controller), latest, 0) as view:
+        view.start()
+        served = state(view.address[1])
+    assert served["f_vehicle"] == [1.5, -0.25, 9.81] and served["f_delivered"] == [0.75, None, 9.5]
 
 
 def test_a_taken_port_is_one_line_and_status_2(model, capsys):
