@@ -1,6 +1,6 @@
 """`stewart-sim cue-live SCENE --telemetry udp://127.0.0.1:PORT --device udp:HOST:PORT|serial:DEV
 [--mode classical|optimal] [--mpc-rate HZ] [--format native|outsim] [--telemetry-rate HZ]
-[--duration S] [--record FILE]
+[--view [PORT]] [--duration S] [--record FILE]
 [--control udp://127.0.0.1:PORT] [--loss-timeout S] [--remote]`: the live motion simulator
 (stewart_sim.live.session): vehicle telemetry in, the washout, the safety envelope, leg
 setpoints out to the device at its rate until --duration, `quit`, `estop` or Ctrl-C (which
@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import argparse
 
-from stewart_sim.argtypes import positive_rate, positive_seconds
+from stewart_sim.argtypes import port, positive_rate, positive_seconds
 from stewart_sim.commands.constants import literals
 
 
@@ -56,6 +56,11 @@ def add_parser(sub, help_text: str) -> None:
     p.add_argument("--loss-timeout", type=positive_seconds, default=loss, metavar="S",
                    help=f"telemetry loss after this long without a valid sample: fade to "
                         f"neutral (default {loss:g} s)")
+    p.add_argument("--view", nargs="?", const=0, type=port, metavar="PORT",
+                   help="serve a live 3D view in the browser on 127.0.0.1:PORT (no PORT or 0: "
+                        "any free port): the pose sent, the cue's, and the vehicle's and the "
+                        "delivered specific force at the pilot's head; its address is printed "
+                        "after the first line")
     p.add_argument("--remote", action="store_true",
                    help="allow non-loopback addresses in --telemetry and --control")
     p.set_defaults(run=run)
@@ -86,7 +91,7 @@ def run(args: argparse.Namespace) -> None:
     where = device_address(args.device)
     source = UdpSource(*listen)
     control = Control.for_terminal(control_at)
-    device = session = None
+    device = session = view = None
     try:
         receiver = TelemetryReceiver(source, args.format, time.monotonic)
         device = DeviceOut.open(where)
@@ -94,8 +99,18 @@ def run(args: argparse.Namespace) -> None:
         rows = (math.ceil((args.duration + PARK_TIMEOUT) * controller.rate)
                 if args.duration else MAX_SAMPLES)
         record = Record(min(MAX_SAMPLES, rows)) if args.record else None
+        latest = None
+        if args.view is not None:
+            from hil.observe import Latest
+            from stewart_sim.view.live import LiveView, live_page
+
+            latest = Latest()
+            # bound now (a taken port fails before the device is armed), served from the start
+            view = LiveView(live_page(scene.model, controller), latest, args.view)
+        # the optimal mode forks its solver's worker here: before any thread starts
         session = make_session(scene, receiver, device, args.telemetry_rate, control,
-                               args.loss_timeout, record, args.mode, mpc_rate=args.mpc_rate)
+                               args.loss_timeout, record, args.mode, mpc_rate=args.mpc_rate,
+                               observer=latest)
         device.start(controller.rate)
         banner = (f"cue-live: {scene.model.name}, {args.mode}, telemetry udp://"
                   f"{source.address[0]}:{source.address[1]} ({args.format}, "
@@ -104,9 +119,15 @@ def run(args: argparse.Namespace) -> None:
                      if control.address else "")
                   + "; park, resume, estop, quit")
         interrupted = False
+
+        def ready() -> None:
+            print(banner, flush=True)
+            if view is not None:
+                view.start()
+                print(f"view: {view.url}", flush=True)
+
         try:
-            run_realtime(session, args.duration or math.inf,
-                                ready=lambda: print(banner, flush=True))
+            run_realtime(session, args.duration or math.inf, ready=ready)
         except KeyboardInterrupt:
             interrupted = True
         for line in summary_lines(session):
@@ -120,6 +141,8 @@ def run(args: argparse.Namespace) -> None:
         if interrupted:
             raise outputs.Interrupted(f"parked ({session.mode.value}); summary above")
     finally:
+        if view is not None:
+            view.close()
         if session is not None:
             session.cue.close()
         if device is not None:

@@ -12,7 +12,13 @@ Each tick k (session time t_k = k / rate, the device's time; due at start + t_k 
 4. the safety envelope (cueing.envelope.Envelope: stroke, leg speed and acceleration, rack
    force, cond(J); an emergency stop is its `brake`) -> leg lengths, rates and feed-forward
    forces; the force rate is the backward difference of the forces sent;
-5. LEG_SETPOINT k to the device (stewart_sim.live.device_out), and the row of the record.
+5. LEG_SETPOINT k to the device (stewart_sim.live.device_out), and the row of the record;
+6. with an observer (`cue-live --view`), every rate / OBSERVE_HZ ticks a hil.observe.Snapshot
+   for the live view: the pose sent (the host does not know the measured pose; the device's
+   own view has it), the cue's reference pose, the lengths the device last measured, the
+   feed-forward rack forces, cond(J), and the specific forces at the pilot's head ([cueing]
+   head, platform frame): the vehicle's (the newest telemetry sample: the vehicle frame is the
+   platform's at neutral) and the one the pose sent delivers (cueing.vestibular.delivered_at).
 
 The clock is any function of seconds: the monotonic wall clock in `run_realtime`, a simulated
 one in tests (`LiveSession.tick(now)` takes the time), so the whole chain runs deterministic
@@ -32,13 +38,16 @@ from typing import Callable
 
 import numpy as np
 
+from hil.observe import OBSERVE_HZ, Latest, Snapshot
 from hil.timing import Lateness, gc_frozen, wait_until
 from stewart_fmu.model import Model
+from stewart_fmu.kinematics import condition_number
 from stewart_sim.cueing.envelope import Envelope, envelope_limits
 from stewart_sim.cueing.fade import Blend, Fade, fade_to_home
 from stewart_sim.cueing.live_modes import Event, Mode, fading, transition
 from stewart_sim.cueing.optimal_live import LIVE_RATE_MIN, LiveOptimal
 from stewart_sim.cueing.study import CueError
+from stewart_sim.cueing.vestibular import delivered_at
 from stewart_sim.cueing.washout_step import WashoutStepper
 from stewart_sim.live.control import Control
 from stewart_sim.live.cue_stream import CueStream, OptimalStream, Reference
@@ -98,7 +107,8 @@ class LiveSession:
     def __init__(self, model: Model, receiver: TelemetryReceiver, cue: CueStream,
                  envelope: Envelope, device: DeviceOut, rate: float,
                  control: Control | None = None, loss_timeout: float = LOSS_TIMEOUT,
-                 record: Record | None = None) -> None:
+                 record: Record | None = None, observer: Latest | None = None,
+                 head=None) -> None:
         self.model = model
         self.receiver, self.cue, self.envelope, self.device = receiver, cue, envelope, device
         self.control = control
@@ -119,6 +129,11 @@ class LiveSession:
         self._force = None
         self.stopped_by: str | None = None
         self.lateness: Lateness | None = None   # the real-time run's tick lateness
+        self.observer = observer
+        self.head = head
+        self._observe_every = max(1, round(rate / OBSERVE_HZ))
+        self._f_vehicle: tuple[float, float, float] | None = None
+        self._measured = np.asarray(model.home, float) * math.nan
 
     # --- the mode ---------------------------------------------------------------------------
 
@@ -173,6 +188,7 @@ class LiveSession:
         s = self.receiver.poll()
         if s is not None:
             self.last_accept = now
+            self._f_vehicle = s.specific_force
             if self.event(Event.TELEMETRY, now):
                 self.counts.cue_steps += self.cue.push(s, now)
                 self.t_telemetry = s.t
@@ -181,6 +197,7 @@ class LiveSession:
             self.event(Event.LOSS, now)
         if fading(self.mode) and self.fade.done(now):
             self.event(Event.FADE_DONE, now)
+        ref = None
         if self.mode is Mode.STOPPED:
             step = self.envelope.brake()
         else:
@@ -195,12 +212,28 @@ class LiveSession:
         if self._pending is not None and self.mode is Mode.RUNNING:
             self.latency.add(self.device.send_time - self._pending)
             self._pending = None
+        if states:
+            self._measured = np.asarray(states[-1].length, float)
+        if self.observer is not None and self.k % self._observe_every == 0:
+            self._publish(step, ref)
         if self.record is not None:
             measured = list(states[-1].length) if states else [math.nan] * 6
             self.record.add([self.k * self.period, self.k, MODE_CODES[self.mode],
                              self.t_telemetry, *step.lengths, *measured])
         self.k += 1
         self.counts.ticks += 1
+
+    def _publish(self, step, ref: Reference | None) -> None:
+        """A snapshot for the live view (see the module doc, item 6)."""
+        f, _ = delivered_at(step.q, step.qd, step.qdd, self.model.gravity, self.head)
+        lengths = self._measured if np.all(np.isfinite(self._measured)) else step.lengths
+        self.observer.publish(Snapshot(
+            tick=self.k, t=self.k * self.period, q=tuple(step.q.tolist()),
+            q_ref=None if ref is None else tuple(ref.q.tolist()),
+            lengths=tuple(np.asarray(lengths, float).tolist()),
+            forces=tuple(step.forces.tolist()), cond=condition_number(self.model, step.q),
+            armed=True, f_vehicle=self._f_vehicle,
+            f_delivered=(float(f[0]), float(f[1]), float(f[2]))))
 
     @property
     def parked(self) -> bool:
@@ -285,7 +318,8 @@ def make_session(scene: Scene, receiver: TelemetryReceiver, device: DeviceOut,
                  telemetry_rate: float, control: Control | None = None,
                  loss_timeout: float = LOSS_TIMEOUT, record: Record | None = None,
                  mode: str = "classical", synchronous: bool = False,
-                 mpc_rate: float | None = None) -> LiveSession:
+                 mpc_rate: float | None = None, observer: Latest | None = None
+                 ) -> LiveSession:
     """The live loop of a scene: its [cueing] washout stepped at `telemetry_rate`
     (cueing.washout_step.WashoutStepper; mode "optimal": the MPC without preview,
     cueing.optimal_live.LiveOptimal, `synchronous` on a simulated clock), its envelope at the
@@ -306,7 +340,7 @@ def make_session(scene: Scene, receiver: TelemetryReceiver, device: DeviceOut,
         raise CueError(f"cue-live: mode {mode!r} unknown: classical or optimal")
     envelope = Envelope(model, envelope_limits(model, controller), 1.0 / controller.rate)
     return LiveSession(model, receiver, cue, envelope, device, controller.rate, control,
-                       loss_timeout, record)
+                       loss_timeout, record, observer, scene.cueing.head)
 
 
 def summary_lines(session: LiveSession) -> list[str]:

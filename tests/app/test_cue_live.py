@@ -541,3 +541,38 @@ def test_outsim_telemetry_drives_the_same_cue(scene):
         out[fmt] = np.array([s[2] for s in dev.setpoints])
     assert np.ptp(out["native"]) > 0.05
     np.testing.assert_allclose(out["outsim"], out["native"], rtol=0, atol=1e-5)
+
+
+def test_the_live_view_gets_the_vehicle_and_the_delivered_specific_force(scene):
+    """--view's snapshots: at rest both specific forces are gravity's (0, 0, g) at the head;
+    under a sustained forward push the vehicle's is the telemetry's and the delivered one has
+    the tilt's share of it."""
+    from hil.observe import OBSERVE_HZ, Latest
+
+    latest = Latest()
+    q = Queue()
+    clock = SimClock()
+    session = make_session(scene, TelemetryReceiver(q, "native", clock), FakeDevice(),
+                           TELEMETRY_RATE, observer=latest)
+    rate = scene.controller.rate
+    g = float(np.linalg.norm(scene.model.gravity))
+    for k in range(500):
+        clock.t = k / rate
+        if k % 10 == 0:
+            q.q.append(encode(TelemetrySample(clock.t, (0.0, 0.0, g), (0.0, 0.0, 0.0))))
+        session.tick(clock.t)
+    snap = latest.latest()
+    assert latest.published == math.ceil(500 / round(rate / OBSERVE_HZ))
+    np.testing.assert_allclose(snap.f_vehicle, (0.0, 0.0, g), atol=1e-12)
+    np.testing.assert_allclose(snap.f_delivered, (0.0, 0.0, g), atol=1e-9)
+    np.testing.assert_allclose(snap.q, scene.model.home, atol=1e-12)
+    for k in range(500, 5500):                    # 5 s of 2 m/s^2 forward
+        clock.t = k / rate
+        if k % 10 == 0:
+            q.q.append(encode(TelemetrySample(clock.t, (2.0, 0.0, g), (0.0, 0.0, 0.0))))
+        session.tick(clock.t)
+    snap = latest.latest()
+    assert snap.f_vehicle == (2.0, 0.0, g)
+    # the tilt coordination delivers the sustained push as gravity's share: f_x > 0, by then
+    # most of the scaled 0.5 x 2 m/s^2
+    assert 0.5 < snap.f_delivered[0] < 1.2
