@@ -19,6 +19,8 @@ import socket
 import sys
 from typing import IO
 
+from stewart_sim.live.address import AddressError
+
 COMMANDS = ("park", "resume", "estop", "quit")
 MAX_COMMANDS = 8
 READ_SIZE = 64
@@ -36,12 +38,10 @@ class Control:
                 self.sock.bind(udp)
             except OSError as exc:
                 self.sock.close()
-                from stewart_sim.live.address import AddressError
                 raise AddressError(f"control udp://{udp[0]}:{udp[1]}: cannot listen: "
                                    f"{exc.strerror or exc}") from None
             self.sock.setblocking(False)
         self.unknown = 0
-        self.taken: list[str] = []
 
     @classmethod
     def for_terminal(cls, udp: tuple[str, int] | None = None) -> "Control":
@@ -76,7 +76,6 @@ class Control:
                 out.append(w)
             else:
                 self.unknown += 1
-        self.taken += out
         return out
 
     def close(self) -> None:

@@ -207,3 +207,27 @@ def test_telemetry_replay_command(capsys):
     assert got == pytest.approx([k / 1000 for k in range(51)])
     assert "51 datagrams sent" in capsys.readouterr().out
     assert cli.main(["telemetry-replay", str(BRAKING), "--to", "udp://127.0.0.1:0"]) == 2
+
+
+def test_operator_words_from_a_terminal_line_and_a_datagram():
+    import os
+
+    from stewart_sim.live.control import Control
+
+    r, w = os.pipe()
+    reader = os.fdopen(r, "r")
+    control = Control(stdin=reader, udp=("127.0.0.1", 0))
+    sink = UdpSink(*control.address)
+    try:
+        assert control.poll() == []
+        os.write(w, b"park\nbogus\n")
+        sink.send(b"ESTOP\n")
+        select.select([control.sock], [], [], 2.0)
+        assert control.poll() == ["park", "estop"]
+        assert control.unknown == 1
+        os.close(w)                  # end of input: the terminal is no longer read
+        assert control.poll() == [] and control.stdin is None
+    finally:
+        sink.close()
+        control.close()
+        reader.close()
