@@ -12,7 +12,7 @@ Motions: scenes/motions/braking_car.csv (shipped) and a held-out step (at rest f
 one MPC step, 1 / rate, which in real time would be late). With --real-time the 1 kHz loop
 runs on the wall clock with the solves in the worker process: "late" is then the solves not
 back in time, "lead" the most steps ahead a solve had to be started, "tick" the loop's own
-work at an MPC step.
+work at an MPC step; "stopped" the steps flown past a plan's end (no new plan in time).
 
 For the held-out step the delivered specific force (stewart_sim.cueing.vestibular.
 delivered_motion of the flown q, qd, qdd) is printed: its largest error while the vehicle is
@@ -84,7 +84,7 @@ def row(name: str, s: SolveStats) -> str:
             f"{s.osqp_p50 * ms:.1f} / {s.osqp_p99 * ms:.1f} / {s.osqp_p999 * ms:.1f} / "
             f"{s.osqp_max * ms:.1f} | {s.iterations_p50:.0f} / {s.iterations_max} | "
             f"{s.over_deadline} | {s.late} | {s.lead_max} | {s.tick_p99 * ms:.2f} / "
-            f"{s.tick_max * ms:.2f} | {statuses} |")
+            f"{s.tick_max * ms:.2f} | {s.stopped} | {statuses} |")
 
 
 def main(argv=None) -> int:
@@ -101,8 +101,8 @@ def main(argv=None) -> int:
     print(f"{SCENE.name}, horizon {args.horizon:g} s, no preview, 1 kHz loop, {clock}")
     print("| motion | Hz | steps | solves | solve wall p50 / p99 / p99.9 / max, ms | "
           "OSQP p50 / p99 / p99.9 / max, ms | iterations p50 / max | over 1/rate | late | "
-          "lead | tick p99 / max, ms | statuses |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "lead | tick p99 / max, ms | stopped | statuses |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     notes = []
     for name, motion in motions.items():
         for rate in args.rates:

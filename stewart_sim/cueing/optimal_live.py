@@ -34,10 +34,13 @@ values (the refactorisation each step needs) holds it throughout, as do the line
 numpy calls; measured with a 1 ms sleep loop beside a thread doing the shipped simulator's
 50 Hz, 1 s horizon step on a loaded 2-core machine, the loop's longest gap was 29 ms beside
 the update alone, 5.6 ms beside the solve alone. The loop's own work at an MPC step is the
-mean, the state update over the lead and sending the state (SolveStats.tick_p99, tick_max).
+mean, one state update and sending the state (SolveStats.tick_p99, tick_max); the prediction
+over the lead is the worker's.
 A result not back by the step it was made for is late (SolveStats.late): the steps until a
 new plan fly the current plan's moves (as optimal_cueing does for an unsolved step), the late
 result is dropped when it comes, the lead grows to what it took, and the next solve starts.
+Unlike optimal_cueing, a plan flown to its end is not coasted past it at its last rates: the
+next step stops the rates (the platform stays where the plan left it; SolveStats.stopped).
 With synchronous=True (a simulated clock, tests) each solve runs inline when started and its
 result waits for its step, never late, so a run is deterministic; real time flies the same
 moves while no solve is late and the lead is the same.
@@ -50,6 +53,8 @@ from __future__ import annotations
 
 import multiprocessing
 import time
+from collections import Counter, deque
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -59,6 +64,7 @@ from stewart_fmu.errors import StewartError
 from stewart_fmu.model import Model
 
 from .config import CueingConfig, OptimalOptions
+from .mpc_model import NP
 from .optimal import (
     Move,
     OptimalStepper,
@@ -73,6 +79,7 @@ WORKER_START_TIMEOUT = 30.0    # s: the forked worker's first word
 WORKER_STOP_TIMEOUT = 5.0      # s, then it is terminated
 BUFFER_MAX = 100_000       # telemetry samples kept when sample() is not called
 LEAD_WINDOW = 20           # solves whose return times set the lead
+STATS_WINDOW = 360_000     # solves and steps the percentiles keep: an hour at 100 Hz
 
 
 class LiveOptimalError(StewartError, ValueError):
@@ -82,7 +89,9 @@ class LiveOptimalError(StewartError, ValueError):
 @dataclass(frozen=True)
 class SolveStats:
     """The live MPC's solve-time histogram and its record. Times in s; a solve's wall time is
-    the whole MPC step (linearisation, vectors and OSQP), `osqp_*` OSQP's own part."""
+    the whole MPC step (linearisation, vectors and OSQP), `osqp_*` OSQP's own part. The
+    percentiles, maxima and `over_deadline` are over the last STATS_WINDOW solves and steps,
+    the counts over the whole run."""
 
     rate: float                  # Hz, MPC steps
     steps: int                   # MPC steps flown
@@ -104,27 +113,26 @@ class SolveStats:
     tick_max: float              # synchronous)
     refused: int                 # telemetry samples refused (not finite, out of order)
     lead_max: int                # the most steps ahead a solve was started
+    stopped: int                 # steps flown past a plan's end (no new plan): rates stopped
 
 
-def solve_stats(rate: float, steps: int, solutions: list[Solution], ticks: list[float],
-                late: int, refused: int, lead_max: int) -> SolveStats:
-    """SolveStats of the returned solutions and the per-step tick times."""
-    wall = np.array([s.wall_time for s in solutions]) if solutions else np.zeros(1)
-    osqp_t = np.array([s.solve_time for s in solutions]) if solutions else np.zeros(1)
-    its = np.array([s.iterations for s in solutions]) if solutions else np.zeros(1, int)
+def solve_stats(rate: float, steps: int, solves: Sequence[tuple[float, float, int]],
+                statuses: Mapping[str, int], ticks: Sequence[float], late: int, refused: int,
+                lead_max: int, stopped: int) -> SolveStats:
+    """SolveStats of the solves' (wall time, OSQP time, iterations), their status counts and
+    the per-step tick times."""
+    record = np.array(solves, dtype=float).reshape(-1, 3) if solves else np.zeros((1, 3))
     tick = np.array(ticks) if ticks else np.zeros(1)
-    names, counts = np.unique(np.array([s.status for s in solutions], dtype=str),
-                              return_counts=True)
+    wall, osqp_t, its = record.T
 
     def pct(a, p):
         return float(np.percentile(a, p))
 
-    return SolveStats(rate, steps, len(solutions), pct(wall, 50), pct(wall, 99),
+    return SolveStats(rate, steps, sum(statuses.values()), pct(wall, 50), pct(wall, 99),
                       pct(wall, 99.9), float(wall.max()), pct(osqp_t, 50), pct(osqp_t, 99),
                       pct(osqp_t, 99.9), float(osqp_t.max()), pct(its, 50), int(its.max()),
-                      int(np.sum(wall > 1.0 / rate)) if solutions else 0, late,
-                      {str(n): int(c) for n, c in zip(names, counts)}, pct(tick, 99),
-                      float(tick.max()), refused, lead_max)
+                      int(np.sum(wall > 1.0 / rate)) if solves else 0, late, dict(statuses),
+                      pct(tick, 99), float(tick.max()), refused, lead_max, stopped)
 
 
 class LiveOptimal:
@@ -140,7 +148,8 @@ class LiveOptimal:
                                        options=options)
         self.dt, self.home = self._stepper.dt, self._stepper.home
         top = max(1, self._stepper.steps - 1)
-        if lead_steps is not None and not (isinstance(lead_steps, int) and 1 <= lead_steps <= top):
+        if lead_steps is not None and not (isinstance(lead_steps, int)
+                                           and 1 <= lead_steps <= top):
             raise LiveOptimalError(f"live MPC: lead_steps must be an integer in 1..{top}, got "
                                    f"{lead_steps!r}")
         self._sync, self._fixed_lead, self._top = synchronous, lead_steps, top
@@ -153,9 +162,12 @@ class LiveOptimal:
         self._ready: tuple[int, Solution] | None = None   # a solution waiting for its step
         self._inflight: tuple[int, int] | None = None     # (step made for, step started at)
         self._took: list[int] = []       # steps each recent solve took to come back
-        self._solutions: list[Solution] = []
-        self._ticks: list[float] = []
-        self._late = self._refused = self._lead_max = 0
+        self._solves: deque[tuple[float, float, int]] = deque(maxlen=STATS_WINDOW)
+        self._statuses: Counter[str] = Counter()
+        self._ticks: deque[float] = deque(maxlen=STATS_WINDOW)
+        self._late = self._refused = self._lead_max = self._stopped = 0
+        self._age = self._stepper.steps   # moves flown from the current plan (none yet)
+        self._planned = False             # a plan has been flown
         self._worker = self._conn = None
         if not synchronous:
             self._start_worker()
@@ -222,30 +234,28 @@ class LiveOptimal:
             solution, self._ready = self._ready[1], None
         elif self._inflight is not None and self._inflight[0] == k:
             self._late += 1
-        self._move = (tk, self._stepper.apply(solution, vehicle))
+        fresh = solution is not None and solution.states is not None
+        if self._age >= self._stepper.steps and self._planned and not fresh:
+            self._stopped += 1
+        self._planned = self._planned or fresh
+        move, self._age = _fly(self._stepper, solution, vehicle, self._age)
+        self._move = (tk, move)
         self._k = k + 1
         if self._inflight is None and self._ready is None:
             self._start(k, vehicle)
 
     def _start(self, k: int, vehicle: np.ndarray) -> None:
-        """Start the solve for step k + lead from the state predicted there on the current
-        plan (the moves of the steps in between are fixed now), the received mean `vehicle` held
-        over the horizon."""
+        """Start the solve for step k + lead (see _solve_ahead), in the worker or inline."""
         lead = self._lead
-        now = self._stepper.state
-        for _ in range(lead - 1):
-            self._stepper.apply(None, vehicle)
-        ahead, self._stepper.state = self._stepper.state, now
-        window = np.repeat(vehicle[None], self._stepper.steps + 1, axis=0)
         self._lead_max = max(self._lead_max, lead)
         if self._sync:
-            saved, self._stepper.state = self._stepper.state, ahead
-            solution = self._stepper.solve(window)
-            self._stepper.state = saved
-            self._solutions.append(solution)
+            now = self._stepper.state
+            solution = _solve_ahead(self._stepper, now, self._age, lead, vehicle)
+            self._stepper.state = now
+            self._record(solution)
             self._ready = (k + lead, solution)
         else:
-            self._conn.send((k + lead, ahead, window))
+            self._conn.send((k + lead, self._stepper.state, self._age, lead, vehicle))
             self._inflight = (k + lead, k)
 
     def _collect(self, k: int) -> None:
@@ -256,7 +266,7 @@ class LiveOptimal:
         tag, solution = self._recv()
         took = k - self._inflight[1]
         self._inflight = None
-        self._solutions.append(solution)
+        self._record(solution)
         self._took = (self._took + [took])[-LEAD_WINDOW:]
         if self._fixed_lead is None:
             self._lead = min(max(self._took), self._top)
@@ -276,8 +286,13 @@ class LiveOptimal:
 
     def stats(self) -> SolveStats:
         """The solve-time histogram and the record so far."""
-        return solve_stats(float(1.0 / self.dt), self._k, self._solutions, self._ticks,
-                           self._late, self._refused, self._lead_max)
+        return solve_stats(float(1.0 / self.dt), self._k, self._solves, self._statuses,
+                           self._ticks, self._late, self._refused, self._lead_max,
+                           self._stopped)
+
+    def _record(self, solution: Solution) -> None:
+        self._solves.append((solution.wall_time, solution.solve_time, solution.iterations))
+        self._statuses[solution.status] += 1
 
     def close(self) -> None:
         """Stop the worker (nothing in synchronous mode)."""
@@ -301,9 +316,37 @@ class LiveOptimal:
         self.close()
 
 
+def _fly(stepper: OptimalStepper, solution: Solution | None, vehicle: np.ndarray, age: int
+         ) -> tuple[Move, int]:
+    """OptimalStepper.apply, and the age of the plan flown (moves flown from it). A plan flown
+    past its end (age >= steps) is not coasted at its last rates, as its zero padding would:
+    the step's acceleration stops the rates over the step, so the platform stays where the
+    plan left it until a new plan comes."""
+    if solution is not None and solution.states is not None:
+        return stepper.apply(solution, vehicle), 1
+    if age >= stepper.steps:
+        s = stepper.state
+        U = s.U.copy()
+        U[0] = 0.0 - s.x[6:NP] / stepper.dt
+        stepper.state = StepperState(s.x, s.X, U)
+    return stepper.apply(None, vehicle), age + 1
+
+
+def _solve_ahead(stepper: OptimalStepper, state: StepperState, age: int, lead: int,
+                 vehicle: np.ndarray) -> Solution:
+    """The solve for the step `lead` steps after `state`'s, from the state predicted there on
+    the current plan, of age `age` (the moves in between are fixed: they are the plan's, or
+    _fly's stop), the received mean `vehicle` held over the horizon. Leaves the stepper at
+    that predicted state."""
+    stepper.state = state
+    for _ in range(lead - 1):
+        age = _fly(stepper, None, vehicle, age)[1]
+    return stepper.solve(np.repeat(vehicle[None], stepper.steps + 1, axis=0))
+
+
 def _serve(conn, stepper: OptimalStepper) -> None:
-    """The worker: its copy of the stepper (QP and warm start); each request (k, state, window)
-    is solved from that state and answered (k, Solution); None stops it."""
+    """The worker: its copy of the stepper (QP and warm start); each request (k, state, age,
+    lead, vehicle) is answered (k, _solve_ahead's Solution); None stops it."""
     conn.send("ready")
     while True:   # ends on None or when the parent goes
         try:
@@ -312,6 +355,5 @@ def _serve(conn, stepper: OptimalStepper) -> None:
             return
         if request is None:
             return
-        k, state, window = request
-        stepper.state = state
-        conn.send((k, stepper.solve(window)))
+        k, state, age, lead, vehicle = request
+        conn.send((k, _solve_ahead(stepper, state, age, lead, vehicle)))
