@@ -126,7 +126,8 @@ class LiveSession:
         self.last_accept = -math.inf
         self.t_telemetry = math.nan         # the newest sample's time the cue has used
         self._pending: float | None = None  # when the drain of a sample no setpoint used began
-        self._force = None
+        self._force: np.ndarray | None = None
+        self._force_t = -math.inf
         self.stopped_by: str | None = None
         self.lateness: Lateness | None = None   # the real-time run's tick lateness
         self.observer = observer
@@ -203,10 +204,11 @@ class LiveSession:
         else:
             ref = self.reference(now)
             step = self.envelope.step(ref.q, ref.qd, ref.qdd)
+        # the force rate over the time since the last tick (more than a period after a stall)
         force = step.forces
-        force_rate = (np.zeros(6) if self._force is None
-                      else (force - self._force) / self.period)
-        self._force = force
+        force_rate = (np.zeros(6) if self._force is None or now <= self._force_t
+                      else (force - self._force) / (now - self._force_t))
+        self._force, self._force_t = force, now
         states = self.device.send(self.k, self.k * self.period, step.lengths, step.rates, force,
                                   force_rate)
         if self._pending is not None and self.mode is Mode.RUNNING:
