@@ -46,6 +46,10 @@ scene's [cueing.optimal] table, read by config.optimal_options.
 
 The applied accelerations are integrated exactly (piecewise constant), so the returned q, qd,
 qdd are consistent at any sample rate; the cue is resampled at the motion's own times.
+
+OptimalStepper holds the QP and the state and takes one MPC step given the vehicle window;
+optimal_cueing is the loop over it on a recorded motion, optimal_live.LiveOptimal steps it
+live on telemetry.
 """
 from __future__ import annotations
 
