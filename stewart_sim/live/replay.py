@@ -113,6 +113,6 @@ def stream(replay: Replay, sink: UdpSink, clock: Callable[[], float] = time.mono
         if due - start > duration:
             break
         wait_until(due, clock, lambda left: time.sleep(max(left, 0.0)))
-        for data in replay.due(clock() - start):
+        for data in replay.due(min(clock() - start, duration)):   # never past the end
             sink.send(data)
     return ReplayStats(replay.sent, sink.dropped, clock() - start)
