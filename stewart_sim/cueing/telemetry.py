@@ -76,8 +76,19 @@ _OUTSIM = struct.Struct("<I3f3f3f3f3i")
 OUTSIM_SIZES = (_OUTSIM.size, _OUTSIM.size + 4)  # 64, 68 with the ID
 
 
+# what a refused datagram was (TelemetryError.kind), the keys of the live receiver's counts
+REFUSAL_KINDS = ("malformed", "truncated", "non_finite", "absurd")
+
+
 class TelemetryError(StewartError, ValueError):
-    """A telemetry datagram is malformed or its values are not a vehicle's motion."""
+    """A telemetry datagram is malformed or its values are not a vehicle's motion; `kind` is one
+    of REFUSAL_KINDS: malformed (wrong type, size, magic or version), truncated (shorter than
+    the format's smallest datagram), non_finite (a NaN or infinity), absurd (beyond the bounds
+    of a vehicle's motion)."""
+
+    def __init__(self, message: str, kind: str = "malformed") -> None:
+        super().__init__(message)
+        self.kind = kind
 
 
 @dataclass(frozen=True)
@@ -104,13 +115,14 @@ class TelemetrySample:
                                      f"got {len(as_floats)}")
             bad = [v for v in as_floats if not math.isfinite(v)]
             if bad:
-                raise TelemetryError(f"telemetry: {name}: non-finite value {bad[0]!r}")
+                raise TelemetryError(f"telemetry: {name}: non-finite value {bad[0]!r}",
+                                     "non_finite")
             if name in ("specific force", "angular velocity"):
                 key, unit = ("f", "m/s^2") if name == "specific force" else ("w", "rad/s")
                 big = [v for v in as_floats if abs(v) > VALUE_BOUNDS[key]]
                 if big:
                     raise TelemetryError(f"telemetry: {name}: {big[0]!r} beyond the bound "
-                                         f"{VALUE_BOUNDS[key]:g} {unit}")
+                                         f"{VALUE_BOUNDS[key]:g} {unit}", "absurd")
             attribute = {"t": "t", "specific force": "specific_force",
                          "angular velocity": "angular_velocity", "attitude": "attitude"}[name]
             object.__setattr__(self, attribute, as_floats[0] if name == "t" else as_floats)
@@ -136,7 +148,8 @@ def decode_native(data: bytes) -> TelemetrySample:
     raw = _as_bytes(data, "native telemetry")
     if len(raw) not in NATIVE_SIZES:
         raise TelemetryError(f"native telemetry: {len(raw)} bytes, expected "
-                             f"{NATIVE_SIZES[0]} or {NATIVE_SIZES[1]}")
+                             f"{NATIVE_SIZES[0]} or {NATIVE_SIZES[1]}",
+                             "truncated" if len(raw) < NATIVE_SIZES[0] else "malformed")
     magic, version = _NATIVE_HEADER.unpack_from(raw, 0)
     if magic != NATIVE_MAGIC:
         raise TelemetryError(f"native telemetry: magic {magic!r}, expected {NATIVE_MAGIC!r}")
@@ -165,7 +178,8 @@ def decode_outsim(data: bytes) -> TelemetrySample:
     raw = _as_bytes(data, "OutSim telemetry")
     if len(raw) not in OUTSIM_SIZES:
         raise TelemetryError(f"OutSim telemetry: {len(raw)} bytes, expected "
-                             f"{OUTSIM_SIZES[0]} or {OUTSIM_SIZES[1]}")
+                             f"{OUTSIM_SIZES[0]} or {OUTSIM_SIZES[1]}",
+                             "truncated" if len(raw) < OUTSIM_SIZES[0] else "malformed")
     fields = _OUTSIM.unpack_from(raw, 0)
     time_ms, ang_vel, (heading, pitch, roll), accel = (fields[0], fields[1:4], fields[4:7],
                                                          fields[7:10])
@@ -173,7 +187,8 @@ def decode_outsim(data: bytes) -> TelemetrySample:
                          ("Accel", accel)):
         bad = [v for v in values if not math.isfinite(v)]
         if bad:
-            raise TelemetryError(f"OutSim telemetry: {name}: non-finite value {bad[0]!r}")
+            raise TelemetryError(f"OutSim telemetry: {name}: non-finite value {bad[0]!r}",
+                                 "non_finite")
     to_car = _car_to_world(heading, pitch, roll).T
     gravity = np.array(DEFAULT_GRAVITY, dtype=float)
     f_car = to_car @ (np.array(accel, dtype=float) - gravity)
@@ -185,3 +200,24 @@ def decode_outsim(data: bytes) -> TelemetrySample:
 
     return TelemetrySample(time_ms / 1000.0, ours(f_car), ours(w_car),
                            (float(roll), float(-pitch), float(heading)))
+
+
+def encode_outsim(sample: TelemetrySample) -> bytes:
+    """The OutSim packet (64 bytes, no ID) of a sample: decode_outsim's mapping inverted, the
+    attitude (0 when the sample has none) as Heading, Pitch, Roll, the values as float32 and
+    the time in whole milliseconds (so a round trip keeps about 7 digits and 1 ms)."""
+    roll, pitch, yaw = sample.attitude if sample.attitude is not None else (0.0, 0.0, 0.0)
+    heading, lfs_pitch = yaw, -pitch
+    to_world = _car_to_world(heading, lfs_pitch, roll)
+
+    def car(v: tuple[float, float, float]) -> np.ndarray:
+        # vehicle (forward, left, up) -> car (right, forward, up)
+        return np.array([-v[1], v[0], v[2]], dtype=float)
+
+    accel = to_world @ car(sample.specific_force) + np.array(DEFAULT_GRAVITY, dtype=float)
+    ang_vel = to_world @ car(sample.angular_velocity)
+    time_ms = round(sample.t * 1000.0)
+    if not 0 <= time_ms < 1 << 32:
+        raise TelemetryError(f"OutSim telemetry: time {sample.t!r} s is not 0 .. 2^32 ms")
+    return _OUTSIM.pack(time_ms, *ang_vel, heading, lfs_pitch, roll, *accel, 0.0, 0.0, 0.0,
+                        0, 0, 0)
