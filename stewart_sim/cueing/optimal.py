@@ -39,6 +39,11 @@ constraints", Vehicle System Dynamics 51: 1151-1172), with the limits taken from
   (a recorded motion, as in Garrett and Best's offline case); with False the current vehicle
   motion is held over the horizon (the real-time case of Dagdelen et al.).
 
+* Move blocking (`blocking` r > 1, the live mode's lever): the QP predicts on a grid of r MPC
+  steps with each acceleration held over its block, a QP about r times smaller; the state is
+  still advanced and the QP re-solved every MPC step, the blocks refined to the steps
+  (refine_plan). r = 1 (default) is the formulation above unchanged.
+
 The rate, horizon, margins, weights and solver settings are OptimalOptions (config.py): the
 scene's [cueing.optimal] table, read by config.optimal_options.
 
