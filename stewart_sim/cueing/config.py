@@ -134,6 +134,10 @@ class OptimalOptions:
     terminal_weight: float = 100.0
     tolerance: float = 1e-3            # OSQP eps_abs = eps_rel (then polished: active set exact)
     max_iter: int = 20000
+    # MPC steps per prediction step: the QP's grid is blocking / rate s, its inputs held over
+    # each (move blocking); the state is still advanced and re-solved every MPC step. 1: the
+    # grid is the MPC step. A QP about `blocking` times smaller: the live mode's lever
+    blocking: int = 1
 
 
 DEFAULTS = CueingConfig()
@@ -189,6 +193,7 @@ _OPTIMAL_RULES: dict[str, tuple[str, float, bool]] = {
     "terminal_weight": ("number", 0.0, True),
     "tolerance": ("number", 0.0, False),
     "max_iter": ("count", 1.0, True),
+    "blocking": ("count", 1.0, True),
 }
 _VECTOR_AXES = {
     2: " (linear, quadratic)",

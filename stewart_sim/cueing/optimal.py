@@ -41,6 +41,11 @@ constraints", Vehicle System Dynamics 51: 1151-1172), with the limits taken from
   (a recorded motion, as in Garrett and Best's offline case); with False the current vehicle
   motion is held over the horizon (the real-time case of Dagdelen et al.).
 
+* Move blocking (`blocking` r > 1, the live mode's lever): the QP predicts on a grid of r MPC
+  steps with each acceleration held over its block, a QP about r times smaller; the state is
+  still advanced and the QP re-solved every MPC step, the blocks refined to the steps
+  (refine_plan). r = 1 (default) is the formulation above unchanged.
+
 The rate, horizon, margins, weights and solver settings are OptimalOptions (config.py): the
 scene's [cueing.optimal] table, read by config.optimal_options.
 
@@ -491,13 +496,19 @@ class OptimalStepper:
         self.home = np.asarray(home, dtype=float)
         g = np.asarray(gravity, dtype=float)
         self.dt = 1.0 / options.rate
-        self.steps = N = max(1, round(options.horizon * options.rate))
+        # the QP's grid: `blocking` MPC steps per prediction step, the horizon in whole blocks
+        self.blocking = r = options.blocking
+        if not (isinstance(r, int) and r >= 1):
+            raise StewartError(f"MPC blocking must be an integer >= 1, got {r!r}")
+        blocks = max(1, round(options.horizon * options.rate / r))
+        self.steps = N = blocks * r
         tilt_rate = options.tilt_rate_limit if options.tilt_rate_limit is not None \
             else config.tilt_rate_limit
         self.limits = lim = mechanism_limits(model, controller, tilt_rate)
         self.lin = linearise(self.home, g, config.head)
         thresholds = np.r_[OTOLITH_THRESHOLD, CANAL_THRESHOLD]
         self.pm = pm = prediction_model(self.lin, VESTIBULAR_CHANNELS, self.dt)
+        grid = pm if r == 1 else prediction_model(self.lin, VESTIBULAR_CHANNELS, r * self.dt)
         weights = np.asarray(options.perception_weight, dtype=float) / thresholds**2
         state_weights = np.r_[options.position_weight, 0.0, 0.0, options.yaw_weight,
                               options.velocity_weight, options.rate_weight]
@@ -508,7 +519,8 @@ class OptimalStepper:
         n = pm.n
         X = np.zeros((N + 1, n))          # the prediction the rows are linearised on
         U = np.zeros((N, NU))
-        self._qp = _Qp(pm, lim, leg_rows(model, lim, self.home, X[:, :NP], U)[1], N, weights,
+        self._qp = _Qp(grid, lim, leg_rows(model, lim, self.home, X[::r, :NP], U[::r])[1], blocks,
+                       weights,
                        state_weights, input_weights, options.slack_weight, margins,
                        options.tolerance, options.max_iter, options.terminal_weight)
         self.state = StepperState(np.zeros(n), X, U)
@@ -528,9 +540,12 @@ class OptimalStepper:
         window = np.asarray(window, dtype=float)
         if window.shape != (N + 1, 6):
             raise StewartError(f"MPC window must have shape ({N + 1}, 6), got {window.shape}")
-        s = self.state
-        X, U = s.X, s.U
-        X[0] = s.x
+        s, r = self.state, self.blocking
+        s.X[0] = s.x
+        # the QP's grid: every r-th point of the prediction, the window's means over each block
+        X, U = s.X[::r], s.U[::r]
+        if r > 1:
+            window = np.vstack([window[:-1].reshape(qp.N, r, 6).mean(axis=1), window[-1:]])
         nonlinear = known_inputs(lin, home, X[:, :NP], U)
         w = np.vstack([nonlinear, nonlinear[-1:]]) - self.rest - window
         start, end = leg_rows(self.model, self.limits, home, X[:, :NP], U)
@@ -538,8 +553,12 @@ class OptimalStepper:
                        0.5 * (window[:-1, 3:5] + window[1:, 3:5]))
         z = res.x
         usable = res.info.status.startswith("solved") and np.all(np.isfinite(z))
-        states = z[:qp.nx].reshape(N + 1, n) if usable else None
-        inputs = z[qp.nu0:qp.ns0].reshape(N, NU) if usable else None
+        states = inputs = None
+        if usable:
+            states = z[:qp.nx].reshape(qp.N + 1, n)
+            inputs = z[qp.nu0:qp.ns0].reshape(qp.N, NU)
+            if r > 1:
+                states, inputs = refine_plan(states, inputs, r, self.dt)
         return Solution(res.info.status, res.info.iter, res.info.solve_time,
                         res.info.status_polish == 1, states, inputs,
                         z[qp.ns0] * qp.span if usable else 0.0, time.perf_counter() - clock)
@@ -569,6 +588,20 @@ class OptimalStepper:
         """One MPC step: solve for the window, apply, advance."""
         solution = self.solve(window)
         return self.apply(solution, window[0]), solution
+
+
+def refine_plan(states: np.ndarray, inputs: np.ndarray, r: int, dt: float
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """A plan on a grid of r MPC steps (states (B+1, n), inputs (B, 6)) on the MPC steps dt:
+    each input held over its r steps, the pose and its rates integrated exactly within the
+    block (held_move); the vestibular states, only ever a linearisation point, interpolated."""
+    B = inputs.shape[0]
+    fine_u = np.repeat(inputs, r, axis=0)
+    frac = np.tile(np.arange(r) / r, B)[:, None]
+    start = np.repeat(states[:-1], r, axis=0)
+    fine = start + frac * (np.repeat(states[1:], r, axis=0) - start)
+    fine[:, :6], fine[:, 6:NP], _ = held_move(start[:, :6], start[:, 6:NP], fine_u, frac * r * dt)
+    return np.vstack([fine, states[-1:]]), fine_u
 
 
 def known_inputs(lin: Linearisation, home: np.ndarray, xp: np.ndarray, u: np.ndarray

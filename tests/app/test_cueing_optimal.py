@@ -23,6 +23,7 @@ from stewart_sim.cueing.optimal import (
     OptimalOptions,
     optimal_cue,
     optimal_cueing,
+    refine_plan,
 )
 from stewart_sim.cueing.vestibular import delivered_motion, perception
 from stewart_sim.cueing.washout import Cue, classical_washout
@@ -205,3 +206,25 @@ def test_optimal_cue_is_the_cue_of_optimal_cueing(sim):
     b = optimal_cueing(sim, DEFAULTS, vehicle, sim.home, GRAVITY,
                        controller=scene_of(sim).controller, options=FAST).cue
     assert np.array_equal(a.q, b.q) and np.array_equal(a.qdd, b.qdd)
+
+
+def test_refine_plan_integrates_the_held_blocks_exactly():
+    """A plan on blocks of r MPC steps, refined to the steps: each block's acceleration held
+    over its r steps, the pose and its rates those of an independent step-by-step double
+    integration (at dt), ending on the block's end."""
+    rng = np.random.default_rng(3)
+    r, dt, B, n = 4, 0.02, 5, 15
+    u = rng.normal(size=(B, 6))
+    fine_u = np.repeat(u, r, axis=0)
+    dq, qd = np.zeros((B * r + 1, 6)), np.zeros((B * r + 1, 6))
+    dq[0], qd[0] = rng.normal(size=6), rng.normal(size=6)
+    for k in range(B * r):   # one step at a time, the held acceleration exact
+        dq[k + 1] = dq[k] + qd[k] * dt + 0.5 * fine_u[k] * dt**2
+        qd[k + 1] = qd[k] + fine_u[k] * dt
+    states = rng.normal(size=(B + 1, n))
+    states[:, :6], states[:, 6:12] = dq[::r], qd[::r]
+    fine, inputs = refine_plan(states, u, r, dt)
+    assert np.array_equal(inputs, fine_u)
+    assert fine.shape == (B * r + 1, n)
+    assert np.allclose(fine[:, :6], dq, atol=1e-13) and np.allclose(fine[:, 6:12], qd, atol=1e-13)
+    assert np.array_equal(fine[::r, 12:], states[:, 12:])

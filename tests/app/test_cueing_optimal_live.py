@@ -28,9 +28,9 @@ def scene():
     return load(ROOT / "scenes" / "motion_simulator.toml")
 
 
-def live(scene, **kw) -> LiveOptimal:
+def live(scene, blocking: int = 1, horizon: float = HORIZON, **kw) -> LiveOptimal:
     model = scene.model
-    options = dataclasses.replace(scene.optimal, rate=RATE, horizon=HORIZON)
+    options = dataclasses.replace(scene.optimal, rate=RATE, horizon=horizon, blocking=blocking)
     return LiveOptimal(model, cueing_config(model), model.home, model.gravity, scene.controller,
                        options, **kw)
 
@@ -85,6 +85,21 @@ def test_held_out_step_no_cue_before_it_and_the_right_sign_after(scene):
     # after the step: a forward specific force is cued forward (the one step's delay passed)
     after = t >= 1.1
     assert np.mean(delivered_f[after, 0]) > 0.2
+    assert_one_trajectory(t, q, qd)
+    assert mpc.stats().status_counts == {"solved": mpc.stats().solves}
+
+
+def test_blocking_keeps_rest_exact_and_cues_the_step(scene):
+    """Move blocking (5 MPC steps per prediction step, 1 s horizon: the live setting): no cue
+    before the step, exactly; the step cued forward; one trajectory (the blocks refined to the
+    MPC steps exactly); every QP solved."""
+    mpc = live(scene, blocking=5, horizon=1.0, synchronous=True)
+    t, f, q, qd, qdd = fly(mpc, scene, 2.0, step_at=1.0)
+    delivered_f, _ = delivered_motion(t, q, qd, qdd, scene.model.gravity)
+    before = t < 1.0
+    assert np.array_equal(delivered_f[before] - f[before], np.zeros((before.sum(), 3)))
+    assert np.array_equal(q[before], np.tile(scene.model.home, (before.sum(), 1)))
+    assert np.mean(delivered_f[t >= 1.1, 0]) > 0.2
     assert_one_trajectory(t, q, qd)
     assert mpc.stats().status_counts == {"solved": mpc.stats().solves}
 
