@@ -109,9 +109,10 @@ def stream(replay: Replay, sink: UdpSink, clock: Callable[[], float] = time.mono
     s have passed (a looping replay ends with `duration` or Ctrl-C)."""
     start = clock()
     while not replay.done:
-        due = start + replay.next_due()
-        if due - start > duration:
+        # compared on the stream's own time: (start + t) - start may round past `duration`
+        if replay.next_due() > duration:
             break
+        due = start + replay.next_due()
         wait_until(due, clock, lambda left: time.sleep(max(left, 0.0)))
         for data in replay.due(min(clock() - start, duration)):   # never past the end
             sink.send(data)
