@@ -19,16 +19,19 @@ MAPS = ("force_envelope.png", "singularity_map.png")
 
 def run_sweep_files(scene: Path, grid_path: Path, out: Path, scheduler: str | None = None,
                     workers: int | None = None, plots: bool = True,
-                    notice: Callable[[str], None] | None = None
+                    notice: Callable[[str], None] | None = None,
+                    dashboard: Callable[[str], None] | None = None
                     ) -> tuple[SweepSummary, list[Path]]:
     """Run or resume the sweep into `out`, then plot it; returns the summary and the files.
-    `notice` gets a line for each chunk file refused on resume (run_sweep)."""
+    `notice` gets a line for each chunk file refused on resume, `dashboard` the Dask
+    dashboard's address (run_sweep)."""
     grid = load_grid(grid_path)
     model = load_scene(scene)
     progress = Progress()
     try:
         with writing(out):
-            summary = run_sweep(scene, grid, out, scheduler, workers, progress, notice=notice)
+            summary = run_sweep(scene, grid, out, scheduler, workers, progress, notice=notice,
+                                dashboard=dashboard)
     finally:
         progress.close()
     written = [summary.table]

@@ -1,14 +1,16 @@
 """Running a design sweep on Dask: all cores of this machine (a LocalCluster of worker
 processes, one thread each) or a Dask distributed cluster (`scheduler` = "tcp://HOST:PORT").
 
-Points go out in tasks of `batch` points (sweep_eval.evaluate_batch); each finished task's rows
-are written to a chunk file at once (stewart_sim/sweep/chunks.py), so an interruption keeps every
-finished row and a rerun computes only the points not yet in the directory: the rows of the
-chunks that pass their checks (the sweep's fingerprint, their checksum, known points once each,
-plausible results); a chunk refused is set aside and its points are computed again. The table
-is written from these rows only, checked before anything is merged. A worker that dies takes its
-running tasks with it; the scheduler runs them again elsewhere, and a task's rows are written
-once, when its future completes.
+Points go out in tasks (evaluate_task) sized to a target duration from the measured cost of a
+point (stewart_sim/sweep/batching.py), a few tasks per worker at a time; each finished task's
+rows are written to a chunk file at once (stewart_sim/sweep/chunks.py), so an interruption keeps
+every finished row and a rerun computes only the points not yet in the directory: the rows of
+the chunks that pass their checks (the sweep's fingerprint, their checksum, known points once
+each, plausible results); a chunk refused is set aside and its points are computed again. The
+table is merged from the chunk files, read again and checked again, in point order; no more
+than a task's points and rows are held at once, whatever the sweep's size. A worker that dies
+takes its running tasks with it; the scheduler runs them again elsewhere, and a task's rows are
+written once, when its future completes.
 """
 from __future__ import annotations
 
@@ -17,21 +19,25 @@ import os
 import time
 from contextlib import ExitStack
 from dataclasses import dataclass
+from itertools import islice
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Callable, Iterator, Mapping, Sequence
 
 from controller.config import controller_config
 from stewart_fmu.errors import SceneError, SceneKeyError, SweepError
 from stewart_fmu.io import read_trajectory
 from stewart_fmu.scene import read_scene_dict, scene_from_dict
 from stewart_sim.progress import Progress
-from stewart_sim.sweep.chunks import ChunkRules, chunk_rules, resume_rows, write_chunk
+from stewart_sim.sweep.batching import BatchSizer, TaskCosts
+from stewart_sim.sweep.chunks import (ChunkRules, Ledger, chunk_path, chunk_rules, merge_chunks,
+                                      resume_ledger, write_chunk)
 from stewart_sim.sweep.evaluate import (EvalSpec, columns, evaluate_batch, has_drive, point_label,
                                         point_model)
 from stewart_sim.sweep.grid import GridSpec
-from stewart_sim.sweep.table import merge, open_sweep
+from stewart_sim.sweep.table import open_sweep
 
 CONNECT_TIMEOUT = 30.0   # s to reach a scheduler or start the local cluster
+WORKERS_POLL = 2.0       # s between two looks at the cluster's workers (they may come and go)
 
 
 @dataclass(frozen=True)
@@ -100,12 +106,13 @@ def fingerprint(spec: EvalSpec, grid: GridSpec) -> str:
 
 def run_sweep(scene: Path, grid: GridSpec, out: Path, scheduler: str | None = None,
               workers: int | None = None, progress: Progress | None = None,
-              timeout: float | None = None, notice: Callable[[str], None] | None = None
-              ) -> SweepSummary:
+              timeout: float | None = None, notice: Callable[[str], None] | None = None,
+              dashboard: Callable[[str], None] | None = None) -> SweepSummary:
     """Run (or resume) the sweep into `out` and merge its table; see the module doc.
-    `notice` gets one line for each chunk file refused on resume."""
+    `notice` gets one line for each chunk file refused on resume; `dashboard` the address of
+    the scheduler's dashboard once the cluster is up (when it serves one)."""
     spec = eval_spec(scene, grid)
-    points = grid.points()
+    points = grid.point_sequence()
     check_first_point(spec, points[0][1], grid)
     cols = columns(grid.evaluation, grid.keys)
     fp = fingerprint(spec, grid)
@@ -118,28 +125,44 @@ def run_sweep(scene: Path, grid: GridSpec, out: Path, scheduler: str | None = No
         if notice is not None:
             notice(line)
 
-    rows = resume_rows(out, rules, refuse)
-    resumed = len(rows)
-    todo = [p for p in points if p[0] not in rows]
-    batches = [todo[i:i + grid.batch] for i in range(0, len(todo), grid.batch)]
+    ledger = resume_ledger(out, rules, refuse)
+    resumed = ledger.count
     computed, start, n_workers = 0, time.monotonic(), 0
     try:
-        if batches:
+        if resumed < len(points):
             with ExitStack() as stack:
                 client = stack.enter_context(_client(scheduler, workers))
                 n_workers = len(client.scheduler_info()["workers"])
+                link = _dashboard_link(client)
+                if dashboard is not None and link is not None:
+                    dashboard(link)
                 start = time.monotonic()
-                computed = _run_batches(client, spec, batches, out, rules, rows,
-                                        len(points), progress, timeout)
+                sizer = BatchSizer(grid.batch, fixed=not grid.sized)
+                computed = _run_tasks(client, spec, points, out, rules, ledger, sizer,
+                                      progress, timeout)
     finally:
         wall = time.monotonic() - start
-        merge(out, cols, rows)
+        merged, failed = merge_chunks(out, rules, ledger)
     table = out / "sweep.csv"
-    failed = sum(1 for r in rows.values() if r[cols.index("status")] != "ok")
-    if len(rows) != len(points):
-        raise SweepError(None, f"{table}: {len(rows)} rows for {len(points)} points")
+    if merged != len(points):
+        raise SweepError(None, f"{table}: {merged} rows for {len(points)} points")
     return SweepSummary(table, len(points), resumed, computed, failed, n_workers, wall,
                         len(refused))
+
+
+def evaluate_task(spec: EvalSpec, points: Sequence[tuple[int, Mapping[str, Any]]]
+                  ) -> tuple[list[dict[str, Any]], float]:
+    """One task on a worker: the rows of its points, and the seconds they took there."""
+    begin = time.perf_counter()
+    rows = evaluate_batch(spec, points)
+    return rows, time.perf_counter() - begin
+
+
+def _dashboard_link(client) -> str | None:
+    """The scheduler's dashboard (/status), None when it serves none."""
+    if "dashboard" not in client.scheduler_info().get("services", {}):
+        return None
+    return client.dashboard_link
 
 
 def _client(scheduler: str | None, workers: int | None):
@@ -171,30 +194,59 @@ class _OwnedClient:
         self.cluster.close()
 
 
-def _run_batches(client, spec: EvalSpec, batches: Sequence[list], out: Path,
-                 rules: ChunkRules, rows: dict[int, list[str]], total: int,
-                 progress: Progress | None, timeout: float | None) -> int:
-    """Submit every batch, write each task's rows as it completes (into a chunk file and
-    `rows`); returns the points done."""
+def _run_tasks(client, spec: EvalSpec, points: Sequence[tuple[int, Mapping[str, Any]]],
+               out: Path, rules: ChunkRules, ledger: Ledger, sizer: BatchSizer,
+               progress: Progress | None, timeout: float | None) -> int:
+    """Send the points not in the ledger in sized tasks, a few per worker at a time; write each
+    task's rows as it completes (a chunk file, recorded in the ledger); returns the points
+    done."""
     from distributed import as_completed
     from distributed.client import FutureCancelledError
     from distributed.scheduler import KilledWorker
 
-    futures = [client.submit(evaluate_batch, spec, b, pure=False) for b in batches]
-    pending, resumed = set(futures), len(rows)
+    todo: Iterator[int] = (i for i in range(len(points)) if not ledger.done[i])
+    left, total, resumed = len(points) - ledger.count, len(points), ledger.count
+    costs, pending = TaskCosts(), set()
+    finished = as_completed(timeout=timeout)
+    workers, looked = _workers(client), time.monotonic()
+
+    def submit() -> int:
+        ids = list(islice(todo, sizer.size(costs.per_point, left, workers)))
+        if ids:
+            fut = client.submit(evaluate_task, spec, [points[i] for i in ids], pure=False)
+            pending.add(fut)
+            finished.add(fut)
+        return len(ids)
+
+    def record(fut) -> None:
+        rows, seconds = fut.result()
+        cells = write_chunk(out, rules, rows)
+        ledger.add(chunk_path(out, min(cells)), cells.keys())
+        costs.add(len(rows), seconds)
+
     try:
-        for fut in as_completed(futures, timeout=timeout):
-            rows.update(write_chunk(out, rules, fut.result()))
+        for _ in range(sizer.in_flight(workers)):
+            left -= submit()
+        for fut in finished:
             pending.discard(fut)
+            record(fut)
+            if time.monotonic() - looked > WORKERS_POLL:
+                workers, looked = _workers(client), time.monotonic()
+            while left and len(pending) < sizer.in_flight(workers):
+                left -= submit()
             if progress is not None:
-                progress.update("sweep", len(rows), total, unit="points")
+                progress.update("sweep", ledger.count, total, unit="points", rate=True)
     except (KilledWorker, FutureCancelledError) as exc:
         raise SweepError(None, f"a task was lost on the cluster: {exc}") from None
     except TimeoutError:
         raise SweepError(None, f"the sweep took longer than {timeout} s") from None
     finally:
         for fut in [f for f in pending if f.status == "finished"]:  # finished meanwhile: keep
-            rows.update(write_chunk(out, rules, fut.result()))
+            record(fut)
         client.cancel(list(pending))
-    return len(rows) - resumed
+    return ledger.count - resumed
 
+
+def _workers(client) -> int:
+    """The cluster's workers now (at least 1: tasks wait for one to join)."""
+    return max(1, len(client.scheduler_info()["workers"]))
