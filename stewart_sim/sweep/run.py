@@ -133,6 +133,7 @@ def run_sweep(scene: Path, grid: GridSpec, out: Path, scheduler: str | None = No
             with ExitStack() as stack:
                 client = stack.enter_context(_client(scheduler, workers))
                 n_workers = len(client.scheduler_info()["workers"])
+                client.run(_ready)   # the workers import the evaluation now, not in a task
                 link = _dashboard_link(client)
                 if dashboard is not None and link is not None:
                     dashboard(link)
@@ -156,6 +157,11 @@ def evaluate_task(spec: EvalSpec, points: Sequence[tuple[int, Mapping[str, Any]]
     begin = time.perf_counter()
     rows = evaluate_batch(spec, points)
     return rows, time.perf_counter() - begin
+
+
+def _ready() -> None:
+    """Run on every worker at start-up: unpickling it imports this module, and with it the
+    evaluation's (controller design, closed loop), so that no task's time includes imports."""
 
 
 def _dashboard_link(client) -> str | None:
