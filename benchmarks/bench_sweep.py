@@ -11,8 +11,8 @@ Printed per grid: the per-point overhead ratio (one worker's points/s over the i
 loop's: what tasks, scheduling and chunk files cost) and each worker count's speed-up over one
 worker. Cluster start-up is excluded (the rate is over the evaluation); each configuration
 writes into a fresh directory. `--memory` runs a sweep of each size in a fresh process (the
-cheapest evaluation: inverse dynamics along a 10 ms move, 2 workers) and prints the peak RSS of
-the sweep's process and of its largest worker. Compare rows of one run: the machine's speed
+cheapest evaluation: inverse dynamics along a 10 ms move, a full grid of payload x gear ratio,
+2 workers) and prints the peak RSS of the sweep's process and of its largest worker. Compare rows of one run: the machine's speed
 drifts, and others share it (the load average is printed before and after).
 """
 from __future__ import annotations
@@ -79,9 +79,10 @@ class LoopbackCluster:
     def __enter__(self) -> "LoopbackCluster":
         from distributed import Client
 
-        self.procs.append(subprocess.Popen(
+        self.procs.append(subprocess.Popen(   # as the README advises for a sweep's scheduler
             [str(BIN / "dask"), "scheduler", "--host", "127.0.0.1", "--port", str(self.port),
-             "--dashboard-address", ":0"], stderr=subprocess.DEVNULL))
+             "--dashboard-address", ":0"], stderr=subprocess.DEVNULL,
+            env={**os.environ, "DASK_DISTRIBUTED__SCHEDULER__WORKER_SATURATION": "inf"}))
         for _ in range(self.workers):
             self.procs.append(subprocess.Popen(
                 [str(BIN / "dask"), "worker", self.address, "--nthreads", "1", "--nworkers", "1",
@@ -147,10 +148,16 @@ def throughput(name: str, text: str, workers: list[int]) -> None:
 
 
 def memory_child(points: int) -> None:
-    """One sweep of `points` cheap points (2 workers); prints its figures as JSON."""
-    text = inverse_grid(points, duration=0.01).replace(
-        '"legs.upper_mass" = {min = 0.02, max = 0.2}\n"legs.lower_mass" = {min = 0.02, max = 0.2}\n',
-        "")
+    """One sweep of `points` cheap points (2 workers); prints its figures as JSON. A full
+    grid (points decoded from their ids): a Latin hypercube would add its unit sample."""
+    side = 10 ** (len(str(points)) // 2)
+    text = f"""evaluation = "inverse"
+[trajectory]
+duration = 0.01
+[axes]
+"platform.mass" = {{min = 0.2, max = 4.0, points = {side}}}
+"drive.gear_ratio" = {{min = 5.0, max = 50.0, points = {points // side}, log = true}}
+"""
     out = Path(tempfile.mkdtemp(prefix="bench_sweep_mem_"))
     try:
         s = run_sweep(SCENE, grid_from_dict(tomllib.loads(text)), out, workers=2,
@@ -160,7 +167,7 @@ def memory_child(points: int) -> None:
         shutil.rmtree(out, ignore_errors=True)
     kib = 1024 if sys.platform != "darwin" else 1   # ru_maxrss: KiB on Linux, bytes on macOS
     print(json.dumps({
-        "points": points, "wall": s.wall, "rate": s.rate, "table_mb": size / 1e6,
+        "points": s.points, "wall": s.wall, "rate": s.rate, "table_mb": size / 1e6,
         "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * kib / 1e6,
         "worker_rss_mb": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * kib / 1e6}))
 
@@ -173,7 +180,7 @@ def memory(sizes: list[int]) -> None:
         got = subprocess.run([sys.executable, __file__, "--memory-child", str(n)], check=True,
                              capture_output=True, text=True, env={**os.environ})
         r = json.loads(got.stdout.strip().splitlines()[-1])
-        print(f"| {n:,} | {r['wall']:.0f} | {r['rate']:.0f} | {r['table_mb']:.0f} | "
+        print(f"| {r['points']:,} | {r['wall']:.0f} | {r['rate']:.0f} | {r['table_mb']:.0f} | "
               f"{r['rss_mb']:.0f} | {r['worker_rss_mb']:.0f} |", flush=True)
 
 

@@ -4,8 +4,8 @@ small share however cheap a point is, and the last tasks shrink so that every wo
 about the same time.
 
 The first tasks take PROBE points (the cost is not known yet); each later one
-floor(TARGET_SECONDS / cost) points, cost being the mean seconds a point took in the last
-RECENT tasks finished (measured on the workers: scheduling and transfer excluded); with more
+floor(TARGET_SECONDS / cost) points, cost being the mean seconds a point took in the tasks
+finished so far (TaskCosts; measured on the workers: scheduling and transfer excluded); with more
 than one worker, no more than 1/TAIL_SHARES of the remaining points per worker, unless that is
 fewer than a task of MIN_SECONDS takes;
 always 1 to `most` points (the grid's batch bound) and no more than remain. A grid that gives
@@ -14,7 +14,6 @@ always 1 to `most` points (the grid's batch bound) and no more than remain. A gr
 from __future__ import annotations
 
 import math
-from collections import deque
 from dataclasses import dataclass
 
 TARGET_SECONDS = 0.3   # a task: scheduler cost under 1 %, and short enough to balance
@@ -22,7 +21,6 @@ MIN_SECONDS = 0.02     # the shortest task the tail may take (its share of overh
 PROBE = 2              # points of each task sent before a cost is measured
 TAIL_SHARES = 4        # the remaining points per worker are cut into at least this many tasks
 TASKS_PER_WORKER = 2   # tasks kept submitted per worker: the next one waits while one runs
-RECENT = 4             # finished tasks the cost of a point is estimated from
 
 
 @dataclass(frozen=True)
@@ -57,16 +55,18 @@ class BatchSizer:
 
 
 class TaskCosts:
-    """The mean seconds a point took over the last RECENT tasks finished: a worker's first
-    task (imports, caches) drops out of the estimate soon, and a cost that drifts is followed."""
+    """The mean seconds a point took over the tasks finished so far, each worker's first task
+    of the sweep left out once others are in (it computes the trajectories the later ones
+    reuse): an estimate dominated by the large tasks, not moved much by the small last ones."""
 
     def __init__(self) -> None:
-        self.recent: deque[tuple[int, float]] = deque(maxlen=RECENT)
+        self.points, self.seconds = [0, 0], [0.0, 0.0]   # [later tasks, first tasks]
 
-    def add(self, points: int, seconds: float) -> None:
-        self.recent.append((points, seconds))
+    def add(self, points: int, seconds: float, first: bool = False) -> None:
+        self.points[first] += points
+        self.seconds[first] += seconds
 
     @property
     def per_point(self) -> float | None:
-        points = sum(p for p, _ in self.recent)
-        return sum(s for _, s in self.recent) / points if points else None
+        k = 0 if self.points[0] else 1
+        return self.seconds[k] / self.points[k] if self.points[k] else None

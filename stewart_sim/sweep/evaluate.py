@@ -27,6 +27,7 @@ results break what they are (`result_problem`: not finite, a magnitude below zer
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
 from dataclasses import dataclass, field, replace
 from typing import Any, Mapping, Sequence
 
@@ -62,6 +63,7 @@ _AT_LEAST = {**dict.fromkeys((*LEGS, "sigma_max", "torque_max", "power_max", "cr
                               "saturated_time", "reachable"), 0.0), "cond_max": 1.0}
 _AT_MOST = {"reachable": 1.0}
 ERROR_CHARS = 4000   # an error row's text is cut to this (a chunk's rows have a size bound)
+MAX_TRAJECTORIES = 16   # geometries whose trajectory and regressor a task or worker keeps
 # Failures that make a point a row with its error: the package's typed errors, and numerical
 # failures inside third-party code (python-control's design, LAPACK).
 POINT_ERRORS = (StewartError, ArithmeticError, ValueError, np.linalg.LinAlgError)
@@ -84,12 +86,26 @@ def columns(evaluation: str, keys: Sequence[str]) -> tuple[str, ...]:
     return ("point", *keys, "status", "error", *RESULTS[evaluation])
 
 
-def evaluate_batch(spec: EvalSpec, points: Sequence[tuple[int, Mapping[str, Any]]]
-                   ) -> list[dict[str, Any]]:
+def evaluate_batch(spec: EvalSpec, points: Sequence[tuple[int, Mapping[str, Any]]],
+                   cache: "TrajectoryCache | None" = None) -> list[dict[str, Any]]:
     """Rows of several points (a task); trajectories shared by points of one geometry are
-    computed once."""
-    cache: dict[str, Any] = {}
+    computed once (in `cache`, which may outlive the task: a worker's, for one sweep)."""
+    cache = TrajectoryCache() if cache is None else cache
     return [evaluate_point(spec, pid, values, cache) for pid, values in points]
+
+
+class TrajectoryCache(OrderedDict):
+    """The trajectories (with kinematics and regressor, a few MB each) of the geometries seen
+    last: at most MAX_TRAJECTORIES, the least recently used dropped."""
+
+    def __getitem__(self, key: str) -> Any:
+        self.move_to_end(key)
+        return super().__getitem__(key)
+
+    def __setitem__(self, key: str, value: Any) -> None:
+        super().__setitem__(key, value)
+        while len(self) > MAX_TRAJECTORIES:
+            self.popitem(last=False)
 
 
 def evaluate_point(spec: EvalSpec, pid: int, values: Mapping[str, Any],

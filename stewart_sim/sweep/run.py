@@ -15,6 +15,7 @@ written once, when its future completes.
 from __future__ import annotations
 
 import logging
+import math
 import os
 import time
 from contextlib import ExitStack
@@ -31,8 +32,8 @@ from stewart_sim.progress import Progress
 from stewart_sim.sweep.batching import BatchSizer, TaskCosts
 from stewart_sim.sweep.chunks import (ChunkRules, Ledger, chunk_path, chunk_rules, merge_chunks,
                                       resume_ledger, write_chunk)
-from stewart_sim.sweep.evaluate import (EvalSpec, columns, evaluate_batch, has_drive, point_label,
-                                        point_model)
+from stewart_sim.sweep.evaluate import (EvalSpec, TrajectoryCache, columns, evaluate_batch,
+                                        has_drive, point_label, point_model)
 from stewart_sim.sweep.grid import GridSpec
 from stewart_sim.sweep.table import open_sweep
 
@@ -151,12 +152,21 @@ def run_sweep(scene: Path, grid: GridSpec, out: Path, scheduler: str | None = No
                         len(refused))
 
 
-def evaluate_task(spec: EvalSpec, points: Sequence[tuple[int, Mapping[str, Any]]]
-                  ) -> tuple[list[dict[str, Any]], float]:
-    """One task on a worker: the rows of its points, and the seconds they took there."""
+def evaluate_task(spec: EvalSpec, points: Sequence[tuple[int, Mapping[str, Any]]],
+                  sweep: str = "") -> tuple[list[dict[str, Any]], float, bool]:
+    """One task on a worker: the rows of its points, the seconds they took there, and whether
+    it was this worker's first task of the sweep `sweep` (a fingerprint: the worker keeps the
+    trajectories of that sweep's geometries from task to task, and drops them for another)."""
+    global _WORKER_CACHE
     begin = time.perf_counter()
-    rows = evaluate_batch(spec, points)
-    return rows, time.perf_counter() - begin
+    first = _WORKER_CACHE[0] != sweep or not sweep
+    if first:
+        _WORKER_CACHE = (sweep, TrajectoryCache())
+    rows = evaluate_batch(spec, points, _WORKER_CACHE[1])
+    return rows, time.perf_counter() - begin, first
+
+
+_WORKER_CACHE: tuple[str, TrajectoryCache] = ("", TrajectoryCache())   # see evaluate_task
 
 
 def _ready() -> None:
@@ -180,9 +190,15 @@ def _client(scheduler: str | None, workers: int | None):
             return Client(scheduler, timeout=CONNECT_TIMEOUT)
         except (OSError, TimeoutError) as exc:
             raise SweepError(None, f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+    import dask
+
     n = workers or os.cpu_count() or 1
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                           dashboard_address=":0", silence_logs=logging.ERROR)
+    # the sweep keeps a few tasks per worker in flight itself: the scheduler sends them on at
+    # once (no queue of its own, whose round trip would leave a worker idle between tasks)
+    with dask.config.set({"distributed.scheduler.worker-saturation": math.inf}):
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                               host="127.0.0.1", dashboard_address=":0",
+                               silence_logs=logging.ERROR)
     return _OwnedClient(Client(cluster, timeout=CONNECT_TIMEOUT), cluster)
 
 
@@ -219,16 +235,17 @@ def _run_tasks(client, spec: EvalSpec, points: Sequence[tuple[int, Mapping[str, 
     def submit() -> int:
         ids = list(islice(todo, sizer.size(costs.per_point, left, workers)))
         if ids:
-            fut = client.submit(evaluate_task, spec, [points[i] for i in ids], pure=False)
+            fut = client.submit(evaluate_task, spec, [points[i] for i in ids], rules.fingerprint,
+                                pure=False)
             pending.add(fut)
             finished.add(fut)
         return len(ids)
 
     def record(fut) -> None:
-        rows, seconds = fut.result()
+        rows, seconds, first = fut.result()
         cells = write_chunk(out, rules, rows)
         ledger.add(chunk_path(out, min(cells)), cells.keys())
-        costs.add(len(rows), seconds)
+        costs.add(len(rows), seconds, first)
 
     try:
         for _ in range(sizer.in_flight(workers)):

@@ -14,7 +14,7 @@ import pytest
 from stewart_fmu.dynamics import inverse_dynamics
 from stewart_sim.cli import main
 from stewart_sim.progress import rate_text
-from stewart_sim.sweep.batching import (MIN_SECONDS, PROBE, RECENT, TARGET_SECONDS, BatchSizer,
+from stewart_sim.sweep.batching import (MIN_SECONDS, PROBE, TARGET_SECONDS, BatchSizer,
                                         TaskCosts)
 from stewart_sim.sweep.chunks import chunk_rules, merge_chunks, resume_ledger, write_chunk
 from stewart_sim.sweep.evaluate import (LEGS, columns, evaluate_batch, has_drive, point_model,
@@ -90,14 +90,16 @@ def test_a_grid_that_gives_batch_gets_tasks_of_that_size():
     assert given.batch == 4 and not given.sized
 
 
-def test_the_cost_of_a_point_follows_the_recent_tasks():
+def test_the_cost_of_a_point_leaves_out_each_workers_first_task():
     costs = TaskCosts()
     assert costs.per_point is None
-    costs.add(2, 0.8)                                 # a worker's first task: imports, caches
-    assert costs.per_point == pytest.approx(0.4)
-    for _ in range(RECENT):
-        costs.add(100, 0.1)
-    assert costs.per_point == pytest.approx(0.001)    # the first task has dropped out
+    costs.add(2, 0.8, first=True)                     # a worker's first task: trajectories
+    assert costs.per_point == pytest.approx(0.4)      # the only measure yet
+    costs.add(100, 0.1)
+    costs.add(300, 0.3)
+    assert costs.per_point == pytest.approx(0.001)    # the first task left out
+    costs.add(1, 0.2)                                 # a small last task, preempted
+    assert costs.per_point == pytest.approx(0.6 / 401)
 
 
 def test_the_progress_line_gives_a_rate_and_the_time_left():
