@@ -24,6 +24,8 @@ from itertools import islice
 from pathlib import Path
 from typing import Any, Callable, Iterator, Mapping, Sequence
 
+import numpy as np
+
 from controller.config import controller_config
 from stewart_fmu.errors import SceneError, SceneKeyError, SweepError
 from stewart_fmu.io import read_trajectory
@@ -152,8 +154,8 @@ def run_sweep(scene: Path, grid: GridSpec, out: Path, scheduler: str | None = No
                         len(refused))
 
 
-def evaluate_task(spec: EvalSpec, points: Sequence[tuple[int, Mapping[str, Any]]],
-                  sweep: str = "") -> tuple[list[dict[str, Any]], float, bool]:
+def evaluate_task(spec: EvalSpec, block: "PointBlock", sweep: str = ""
+                  ) -> tuple[list[dict[str, Any]], float, bool]:
     """One task on a worker: the rows of its points, the seconds they took there, and whether
     it was this worker's first task of the sweep `sweep` (a fingerprint: the worker keeps the
     trajectories of that sweep's geometries from task to task, and drops them for another)."""
@@ -162,8 +164,35 @@ def evaluate_task(spec: EvalSpec, points: Sequence[tuple[int, Mapping[str, Any]]
     first = _WORKER_CACHE[0] != sweep or not sweep
     if first:
         _WORKER_CACHE = (sweep, TrajectoryCache())
-    rows = evaluate_batch(spec, points, _WORKER_CACHE[1])
+    rows = evaluate_batch(spec, block.points(), _WORKER_CACHE[1])
     return rows, time.perf_counter() - begin, first
+
+
+@dataclass(frozen=True)
+class PointBlock:
+    """A task's points, packed: their ids and one column per axis (numbers as a float64 array,
+    strings as a tuple), a few objects whatever the points (what the scheduler and its
+    history hold of a task stays small)."""
+
+    ids: np.ndarray
+    keys: tuple[str, ...]
+    columns: tuple[Any, ...]
+
+    @classmethod
+    def of(cls, points: Sequence[tuple[int, Mapping[str, Any]]]) -> "PointBlock":
+        keys = tuple(points[0][1])
+        cols = []
+        for k in keys:
+            col = [v[k] for _, v in points]
+            cols.append(np.array(col, dtype=float) if all(type(x) is float for x in col)
+                        else tuple(col))
+        return cls(np.array([pid for pid, _ in points], dtype=np.int64), keys, tuple(cols))
+
+    def points(self) -> list[tuple[int, dict[str, Any]]]:
+        """The points as GridSpec.points gives them (Python floats: the same values)."""
+        cols = [c.tolist() if isinstance(c, np.ndarray) else list(c) for c in self.columns]
+        return [(pid, dict(zip(self.keys, row)))
+                for pid, row in zip(self.ids.tolist(), zip(*cols))]
 
 
 _WORKER_CACHE: tuple[str, TrajectoryCache] = ("", TrajectoryCache())   # see evaluate_task
@@ -235,8 +264,8 @@ def _run_tasks(client, spec: EvalSpec, points: Sequence[tuple[int, Mapping[str, 
     def submit() -> int:
         ids = list(islice(todo, sizer.size(costs.per_point, left, workers)))
         if ids:
-            fut = client.submit(evaluate_task, spec, [points[i] for i in ids], rules.fingerprint,
-                                pure=False)
+            fut = client.submit(evaluate_task, spec, PointBlock.of([points[i] for i in ids]),
+                                rules.fingerprint, pure=False)
             pending.add(fut)
             finished.add(fut)
         return len(ids)

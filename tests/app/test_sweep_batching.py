@@ -218,3 +218,15 @@ def test_a_resumed_sized_sweep_equals_the_uninterrupted_one(tmp_path, cluster, c
     s = run_sweep(SCENE, grid, full, scheduler=cluster.scheduler_address, timeout=WAIT)
     assert s.computed == lost_points and s.resumed == 24 - lost_points and s.failed == 8
     assert (full / "sweep.csv").read_text() == serial
+
+
+def test_a_packed_block_of_points_is_the_points():
+    from stewart_sim.sweep.run import PointBlock
+
+    for text in (INVERSE, 'evaluation = "closed_loop"\n[axes]\n"controller.feedforward" = '
+                          '["none", "kane"]\n"drive.gear_ratio" = [10.0, 20.0]\n'):
+        points = _grid(text).points()[1:]
+        assert PointBlock.of(points).points() == points
+        assert all(type(v) is type(w) for (_, a), (_, b) in zip(PointBlock.of(points).points(),
+                                                                 points)
+                   for v, w in zip(a.values(), b.values()))
