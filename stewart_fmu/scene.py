@@ -214,6 +214,8 @@ def _check_values(v: "_Validator", data: Mapping[str, Any]) -> None:
         key, value, depth = stack.pop()
         if depth > MAX_DEPTH:
             v.fail_key(key, f"nested more than {MAX_DEPTH} arrays or tables deep")
+        if type(value) is float or type(value) is str:  # most values; nothing to look into
+            continue
         if isinstance(value, Mapping):
             stack += [(f"{key}.{k}" if key else str(k), x, depth + 1) for k, x in value.items()]
         elif isinstance(value, (list, tuple)):

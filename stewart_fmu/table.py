@@ -127,11 +127,15 @@ def bound_reason(group: VariableGroup, values) -> str | None:
     """Why values (a number or an array) break their group's bounds, None when they do not: the
     words of the FMU's validation (fmi/model.c validate), e.g. "must be > 0, got -0.5" or
     "must be <= 1e+06 kg, got 1e+308"."""
-    arr = np.asarray(values, dtype=float)
-    unit = unit_text(group.unit)
     if group.bound == BOUND_ANY:
         return None
     open_ = group.bound == BOUND_OPEN
+    arr = np.asarray(values, dtype=float)
+    if arr.ndim == 0:   # one number: compared as a float (NaN fails both, as below)
+        x = float(arr)
+        if (x > group.min if open_ else x >= group.min) and x <= group.max:
+            return None
+    unit = unit_text(group.unit)
     low = ~(arr > group.min) if open_ else ~(arr >= group.min)
     got = arr.tolist()
     if np.any(low):

@@ -23,10 +23,15 @@ class Progress:
         self.last = -math.inf
         self.shown = False
         self.width = 0
+        self.first: dict[str, tuple[int, float]] = {}   # by stage: (done, time) at its first update
 
-    def update(self, stage: str, done: int, total: int | None = None, unit: str = "samples") -> None:
-        """Report `done` of `total` units (total None: unknown) of the current stage."""
+    def update(self, stage: str, done: int, total: int | None = None, unit: str = "samples",
+               rate: bool = False) -> None:
+        """Report `done` of `total` units (total None: unknown) of the current stage; with
+        `rate`, also units per second since the stage's first update and (total known) an
+        estimate of the time left."""
         now = time.monotonic()
+        first = self.first.setdefault(stage, (done, now))
         finished = total is not None and done >= total
         if not self.shown:
             big = (total if total is not None else done) > PROGRESS_SAMPLES
@@ -37,7 +42,9 @@ class Progress:
             return
         self.last = now
         count = f"{done:,}" if total is None else f"{done:,}/{total:,} ({100 * done / total:.0f}%)"
-        self._write(f"{stage}: {count} {unit}, {now - self.start:.1f} s")
+        speed = rate_text(done - first[0], now - first[1], None if total is None else total - done,
+                          unit) if rate else ""
+        self._write(f"{stage}: {count} {unit}, {now - self.start:.1f} s{speed}")
 
     def close(self) -> None:
         """End the status line so that later output starts on a fresh line."""
@@ -55,3 +62,18 @@ class Progress:
         else:
             self.stream.write(text + "\n")
         self.stream.flush()
+
+
+def rate_text(done: int, seconds: float, left: int | None, unit: str) -> str:
+    """", 410 points/s, about 12 s left" (empty before anything is measured; no estimate for
+    an unknown total)."""
+    if done <= 0 or seconds <= 0:
+        return ""
+    speed = done / seconds
+    text = f", {speed:.3g} {unit}/s"
+    if left is not None and left > 0:
+        eta = left / speed
+        text += (f", about {eta:.0f} s left" if eta < 120 else
+                 f", about {eta / 60:.0f} min left" if eta < 7200 else
+                 f", about {eta / 3600:.1f} h left")
+    return text

@@ -52,7 +52,9 @@ def run(args: argparse.Namespace) -> None:
     summary, written = run_sweep_files(Path(args.scene), Path(args.grid), Path(args.out),
                                        args.scheduler, args.workers, not args.no_plots,
                                        lambda line: print(f"stewart-sim: {line}",
-                                                          file=sys.stderr), args.adaptive)
+                                                          file=sys.stderr), args.adaptive,
+                                       lambda link: print(f"sweep: Dask dashboard at {link}",
+                                                          flush=True))
     where = args.scheduler or "local cluster"
     refused = (f", {summary.refused} chunk files refused and their points computed again"
                if summary.refused else "")

@@ -32,12 +32,12 @@ import hashlib
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
 from stewart_fmu.errors import SweepError
-from stewart_sim.sweep.chunks import ChunkRules, chunk_rules, resume_rows
+from stewart_sim.sweep.chunks import ChunkRules, Ledger, chunk_rules, ledger_rows, resume_ledger
 from stewart_sim.sweep.evaluate import RESULTS
 from stewart_sim.sweep.grid import FEASIBLE, NUMBER_AXES, GridSpec
 from stewart_sim.sweep.table import CHUNKS
@@ -47,9 +47,9 @@ REFINEMENT = "refinement"    # the table's column: 0 for a grid point, k for rou
 MAX_ADDED = 1_000_000        # the most points --adaptive may add
 
 Point = tuple[int, dict[str, Any]]
-# Evaluate the points not yet in `rows` into chunk files under a directory with the given rules,
-# adding their rows (cell texts by point id); returns the points computed (run.py's runner).
-Evaluate = Callable[[Sequence[Point], Path, ChunkRules, dict[int, list[str]]], int]
+# Evaluate the points not yet in the ledger into chunk files under a directory with the given
+# rules, recording them in the ledger; returns the points computed (run.py's runner).
+Evaluate = Callable[[Sequence[Point], Path, ChunkRules, Ledger], int]
 
 
 def check_adaptive(grid: GridSpec, n: int, drive: bool) -> None:
@@ -101,14 +101,19 @@ class Edge:
 
 class Refinement:
     """The rounds of `--adaptive n` after the grid (see the module doc); `rounds` maps each
-    added point's id to its round as soon as the point is picked."""
+    added point's id to its round as soon as the point is picked; `parts` holds each round's
+    chunk rules and ledger (its rows stay in its chunk files: the table is merged from them).
+    Of the rows, only the outcome of each point is held."""
 
     def __init__(self, grid: GridSpec, fingerprint: str, columns: Sequence[str], drive: bool,
                  n: int):
         self.grid, self.fingerprint, self.columns, self.drive, self.n = (
             grid, fingerprint, tuple(columns), drive, n)
         self.rounds: dict[int, int] = {}
+        self.parts: list[tuple[ChunkRules, Ledger]] = []
         self.resumed = self.computed = 0
+        self._grid_outcome = np.empty(0)
+        self._added: dict[int, float] = {}      # the outcome of each added point computed
         self._status = self.columns.index("status")
         self._target = (None if grid.adaptive.target == FEASIBLE
                         else self.columns.index(grid.adaptive.target))
@@ -120,11 +125,12 @@ class Refinement:
             return 1.0 if ok else 0.0
         return float(cells[self._target]) if ok else math.nan
 
-    def run(self, rows: dict[int, list[str]], out: Path, evaluate: Evaluate,
-            refuse: Callable[[str], None]) -> None:
-        """Add up to n points round by round into `rows` (which holds every grid point's row);
-        stops early when no edge straddles the boundary any more."""
-        frontier = self.grid_edges(rows)
+    def run(self, grid_rows: Iterable[tuple[int, Sequence[str]]], out: Path,
+            evaluate: Evaluate, refuse: Callable[[str], None]) -> None:
+        """Add up to n points round by round, given every grid point's row (by point id, e.g.
+        read back from the grid's chunk files: chunks.ledger_rows); stops early when no edge
+        straddles the boundary any more."""
+        frontier = self.grid_edges(grid_rows)
         next_id, left = self.grid.size(), self.n
         for k in range(1, self.n + 1):   # each round adds one point at least
             if not frontier or not left:
@@ -135,11 +141,11 @@ class Refinement:
             self.rounds.update((pid, k) for pid, _ in points)
             next_id += len(points)
             left -= len(points)
-            self._evaluate(k, points, rows, out, evaluate, refuse)
+            self._evaluate(k, points, out, evaluate, refuse)
             for e, (pid, values) in zip(picked, points):
                 mid = tuple(values.values())
                 for lo, hi, ids in ((e.lo, mid, (e.ids[0], pid)), (mid, e.hi, (pid, e.ids[1]))):
-                    a, b = (self.outcome(rows[i]) for i in ids)
+                    a, b = (self._outcome_of(i) for i in ids)
                     half = Edge(e.axis, lo, hi, ids, e.level + 1, abs(b - a))
                     if self.straddles(a, b) and can_bisect(self.grid, half):
                         frontier.append(half)
@@ -148,23 +154,38 @@ class Refinement:
         """Whether the outcome changes between two points."""
         return bool(self._straddle_mask(np.array(a), np.array(b)))
 
-    def _evaluate(self, k: int, points: list[Point], rows: dict[int, list[str]], out: Path,
-                  evaluate: Evaluate, refuse: Callable[[str], None]) -> None:
-        """Round k's points: taken back from its chunk files, the rest computed."""
+    def _evaluate(self, k: int, points: list[Point], out: Path, evaluate: Evaluate,
+                  refuse: Callable[[str], None]) -> None:
+        """Round k's points: taken back from its chunk files, the rest computed; then their
+        outcomes read from the round's chunk files."""
         where = out / ROUNDS / f"round-{k:03d}"
         (where / CHUNKS).mkdir(parents=True, exist_ok=True)
         fp = hashlib.sha256(f"{self.fingerprint} adaptive round {k}".encode()).hexdigest()
         rules = chunk_rules(fp, self.columns, points, self.grid.batch, self.drive)
-        got = resume_rows(where, rules, refuse)
-        rows.update(got)
-        self.resumed += len(got)
-        self.computed += evaluate([p for p in points if p[0] not in got], where, rules, rows)
+        ledger = resume_ledger(where, rules, refuse)
+        self.parts.append((rules, ledger))   # before computing: an interrupted round is merged
+        self.resumed += ledger.count
+        self.computed += evaluate(points, where, rules, ledger)
+        for pid, cells in ledger_rows(ledger, rules):
+            self._added[pid] = self.outcome(cells)
 
-    def grid_edges(self, rows: Mapping[int, list[str]]) -> list[Edge]:
-        """Every straddling edge between neighbours of the grid (rows: every grid point's)."""
+    def _outcome_of(self, pid: int) -> float:
+        """The outcome of a grid point or of an added point already computed."""
+        return float(self._grid_outcome[pid]) if pid < self.grid.size() else self._added[pid]
+
+    def grid_edges(self, rows: Iterable[tuple[int, Sequence[str]]]) -> list[Edge]:
+        """Every straddling edge between neighbours of the grid (rows: every grid point's, by
+        id); keeps the grid's outcomes (one float per point), not its rows."""
         axes = [a.grid_values() for a in self.grid.axes]
         shape = tuple(len(v) for v in axes)
-        outcome = np.array([self.outcome(rows[i]) for i in range(self.grid.size())])
+        outcome = np.full(self.grid.size(), np.nan)
+        seen = np.zeros(self.grid.size(), dtype=bool)
+        for pid, cells in rows:
+            outcome[pid], seen[pid] = self.outcome(cells), True
+        if not seen.all():
+            raise SweepError(None, f"refinement needs every grid point's row: "
+                                   f"{int((~seen).sum())} missing")
+        self._grid_outcome = outcome
         outcome = outcome.reshape(shape)   # ids in C order: the last axis fastest
         edges = []
         for j in refinable_axes(self.grid):
@@ -190,10 +211,6 @@ class Refinement:
         t = self.grid.adaptive.threshold
         with np.errstate(invalid="ignore"):
             return np.isfinite(a) & np.isfinite(b) & ((a >= t) != (b >= t))
-
-    def table_rows(self, rows: Mapping[int, Sequence[str]]) -> dict[int, list[str]]:
-        """The table's rows by id, each with its `refinement` cell last."""
-        return {pid: [*r, str(self.rounds.get(pid, 0))] for pid, r in rows.items()}
 
 
 def pick(frontier: list[Edge], most: int) -> tuple[list[Edge], list[Edge]]:

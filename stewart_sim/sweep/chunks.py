@@ -17,23 +17,29 @@ evaluate.result_problem. A refused chunk is moved to DIR/refused/ with one line 
 the reason, and its points are computed again: a sweep resumed after a crash finishes, and no
 row of a damaged or foreign file reaches sweep.csv. The checksum detects damage (a torn copy, an
 edit), not forgery: a file edited and given a new checksum is still held to the rows' rules.
+
+A sweep of millions of points keeps no rows in memory: `resume_ledger` and a run's finished
+tasks record which points the accepted chunks hold (a Ledger: one byte per point), and
+`merge_chunks` writes sweep.csv from the chunk files, read again (and checked again) in point
+order, a few at a time.
 """
 from __future__ import annotations
 
 import csv
 import hashlib
+import heapq
 import io as textio
 import os
 import re
 import stat
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Callable, Iterator, Mapping, Sequence
 
 from stewart_fmu.errors import SweepError
 from stewart_fmu.io import OutputError, atomic_write
 from stewart_sim.sweep.evaluate import result_problem
-from stewart_sim.sweep.table import CHUNKS, cell, csv_text
+from stewart_sim.sweep.table import CHUNKS, cell, csv_text, write_table
 
 MAGIC = "#stewart-sim sweep chunk 1"
 REFUSED = "refused"      # DIR/refused/: chunks set aside on resume
@@ -55,14 +61,56 @@ class ChunkRules:
     first: int = 0                    # the first point id (a refinement round's: adaptive.py)
 
 
+class AxisCells(Sequence):
+    """The points' axis values as cells, by position (point id - the first's), made when asked
+    for (no list of them)."""
+
+    def __init__(self, points: Sequence[tuple[int, Mapping[str, Any]]]) -> None:
+        self.points = points
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+    def __getitem__(self, i: int) -> tuple[str, ...]:   # type: ignore[override]
+        return tuple(cell(v) for v in self.points[i][1].values())
+
+
 def chunk_rules(fingerprint: str, columns: Sequence[str],
                 points: Sequence[tuple[int, Mapping[str, Any]]], batch: int,
                 drive: bool) -> ChunkRules:
     """The rules for the chunks of a sweep of `points` (ids first..first+n-1 in order: the
-    grid's from 0)."""
-    axes = [tuple(cell(v) for v in values.values()) for _, values in points]
-    first = points[0][0] if points else 0
-    return ChunkRules(fingerprint, tuple(columns), axes, min(batch, len(points)), drive, first)
+    grid's from 0; a list, or a grid.PointSequence)."""
+    first = points[0][0] if len(points) else 0
+    return ChunkRules(fingerprint, tuple(columns), AxisCells(points), min(batch, len(points)),
+                      drive, first)
+
+
+def chunk_path(out: Path, first: int) -> Path:
+    """The chunk file of the task whose first point is `first`."""
+    return out / CHUNKS / f"part-{first:09d}.csv"
+
+
+class Ledger:
+    """Which points the accepted chunk files of a sweep hold, without their rows: a flag per
+    point (`done`, by point id - `first`), and each file with its first and last point and its
+    rows."""
+
+    def __init__(self, points: int, first: int = 0) -> None:
+        self.done = bytearray(points)
+        self.first = first
+        self.files: list[tuple[int, int, int, Path]] = []   # first, last, rows, path
+        self.count = 0
+
+    def add(self, path: Path, ids: Iterator[int] | Sequence[int]) -> None:
+        """Record a chunk file that holds the points `ids` (none of them recorded before)."""
+        ids = sorted(ids)
+        for pid in ids:
+            self.done[pid - self.first] = 1
+        self.files.append((ids[0], ids[-1], len(ids), path))
+        self.count += len(ids)
+
+    def has(self, pid: int) -> bool:
+        return bool(self.done[pid - self.first])
 
 
 def write_chunk(out: Path, rules: ChunkRules, rows: Sequence[Mapping[str, Any]]
@@ -84,7 +132,7 @@ def write_chunk(out: Path, rules: ChunkRules, rows: Sequence[Mapping[str, Any]]
         fh.flush()
         os.fsync(fh.fileno())
 
-    path = atomic_write(out / CHUNKS / f"part-{min(cells):09d}.csv", write, binary=True)
+    path = atomic_write(chunk_path(out, min(cells)), write, binary=True)
     fd = os.open(path.parent, os.O_RDONLY)
     try:
         os.fsync(fd)  # the rename itself survives a crash
@@ -98,10 +146,27 @@ def resume_rows(out: Path, rules: ChunkRules, notice: Callable[[str], None]
     """The rows of every chunk in `out` that passes the rules, by point id (cell texts); each
     chunk refused is moved to DIR/refused/ and `notice` gets one line naming it and why."""
     rows: dict[int, list[str]] = {}
+    for _, got in _accepted(out, rules, notice, rows.__contains__):
+        rows.update(got)
+    return rows
+
+
+def resume_ledger(out: Path, rules: ChunkRules, notice: Callable[[str], None]) -> Ledger:
+    """resume_rows without the rows: which points the accepted chunks hold."""
+    ledger = Ledger(len(rules.axes), rules.first)
+    for path, got in _accepted(out, rules, notice, ledger.has):
+        ledger.add(path, got.keys())
+    return ledger
+
+
+def _accepted(out: Path, rules: ChunkRules, notice: Callable[[str], None],
+              seen: Callable[[int], bool]) -> Iterator[tuple[Path, dict[int, list[str]]]]:
+    """Each chunk in `out` that passes the rules with its rows, in name order; `seen` tells a
+    point an earlier chunk holds (the caller records each chunk before the next is read)."""
     for path in sorted((out / CHUNKS).glob("part-*.csv")):
         try:
             got = _read(path, rules)
-            again = sorted(got.keys() & rows.keys())
+            again = sorted(pid for pid in got if seen(pid))
             if again:
                 raise _Refused(f"point {again[0]} is in an earlier chunk too")
         except _Refused as exc:
@@ -109,8 +174,70 @@ def resume_rows(out: Path, rules: ChunkRules, notice: Callable[[str], None]
             notice(f"{_printable(str(path))}: refused ({exc}); moved to "
                    f"{_printable(str(where))}, its points are computed again")
             continue
-        rows.update(got)
-    return rows
+        yield path, got
+
+
+def merge_chunks(out: Path, rules: ChunkRules, ledger: Ledger,
+                 more: Sequence[tuple[ChunkRules, Ledger]] = (), part: str | None = None
+                 ) -> tuple[int, int]:
+    """Write DIR/sweep.csv, all or nothing, from the ledger's chunk files: each read again and
+    held to the rules again (a file changed since it was recorded stops the merge), rows in
+    point order; returns (rows, rows with status "error"). `more`: further parts of the sweep,
+    each with its rules and ledger, whose ids follow the part before (a refinement round's:
+    stewart_sim/sweep/adaptive.py), their rows after; `part`: the name of a last column whose
+    cell is the index of the row's part (0 for `ledger`'s)."""
+    status = rules.columns.index("status")
+    parts = [(rules, ledger), *more]
+    counts = [0, 0]
+
+    def rows() -> Iterator[list[str]]:
+        last = -1
+        for k, (r, book) in enumerate(parts):
+            for pid, row in ledger_rows(book, r):
+                if pid <= last:
+                    raise SweepError(None, f"point {pid} twice in the chunk files of {out}")
+                last = pid
+                counts[0] += 1
+                counts[1] += row[status] != "ok"
+                yield row if part is None else [*row, str(k)]
+
+    cols = rules.columns if part is None else (*rules.columns, part)
+    write_table(out, cols, rows())
+    held = sum(book.count for _, book in parts)
+    if counts[0] != held:
+        raise SweepError(None, f"{out}: {counts[0]} rows merged from chunk files that held "
+                               f"{held}")
+    return counts[0], counts[1]
+
+
+def ledger_rows(ledger: Ledger, rules: ChunkRules) -> Iterator[tuple[int, list[str]]]:
+    """The rows of the ledger's files by point id (cell texts), each file read again and held to
+    the rules again: a file is read when the reader reaches its first point, and dropped after
+    its last (chunks of a run hold runs of ids: few at once)."""
+    files = sorted(ledger.files, key=lambda f: f[0])
+    heap: list[tuple[int, int, int, list[tuple[int, list[str]]]]] = []  # pid, file, at, rows
+    nxt = 0
+    while heap or nxt < len(files):
+        while nxt < len(files) and (not heap or files[nxt][0] <= heap[0][0]):
+            first, last, count, path = files[nxt]
+            got = sorted(_reread(path, rules).items())
+            if (got[0][0], got[-1][0], len(got)) != (first, last, count):
+                raise SweepError(None, f"{path}: changed during the sweep (other points)")
+            heapq.heappush(heap, (first, nxt, 0, got))
+            nxt += 1
+        pid, k, at, got = heapq.heappop(heap)
+        yield pid, got[at][1]
+        if at + 1 < len(got):
+            heapq.heappush(heap, (got[at + 1][0], k, at + 1, got))
+
+
+def _reread(path: Path, rules: ChunkRules) -> dict[int, list[str]]:
+    """A recorded chunk's rows, held to the rules again."""
+    try:
+        return _read(path, rules)
+    except _Refused as exc:
+        raise SweepError(None, f"{_printable(str(path))}: changed during the sweep ({exc})"
+                         ) from None
 
 
 class _Refused(Exception):

@@ -5,6 +5,7 @@ Shared by the design sweep (stewart_sim/sweep/run.py) and the actuator sizing's 
 from __future__ import annotations
 
 import logging
+import math
 import os
 
 from stewart_fmu.errors import SweepError
@@ -23,9 +24,16 @@ def dask_client(scheduler: str | None, workers: int | None):
             return Client(scheduler, timeout=CONNECT_TIMEOUT)
         except (OSError, TimeoutError) as exc:
             raise SweepError(None, f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+    import dask
+
     n = workers or os.cpu_count() or 1
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                           dashboard_address=":0", silence_logs=logging.ERROR)
+    # a study keeps a few tasks per worker in flight itself (the sweep's sized tasks): the
+    # scheduler sends them on at once (no queue of its own, whose round trip would leave a
+    # worker idle between tasks)
+    with dask.config.set({"distributed.scheduler.worker-saturation": math.inf}):
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                               host="127.0.0.1", dashboard_address=":0",
+                               silence_logs=logging.ERROR)
     return OwnedClient(Client(cluster, timeout=CONNECT_TIMEOUT), cluster)
 
 

@@ -5,7 +5,11 @@ and one of:
 
   inverse      the inverse dynamics along the point's trajectory: peak |sigma_i| per leg and
                overall (rack force, drive included), peak motor torque sigma r / zeta, peak leg
-               power |sigma_i ldot_i|, worst cond(J);
+               power |sigma_i ldot_i|, worst cond(J). Points of one geometry (and gravity)
+               share their trajectory, its kinematics and its regressor Y (the inverse
+               dynamics is linear in the inertial, drive and friction parameters pi:
+               stewart_fmu.dynamics.regressor): one regressor call per trajectory in a task,
+               then sigma = Y pi per point (rack_forces), equal to inverse_dynamics to rounding;
   closed_loop  the PID design at the point (controller.design.design_axis) and the closed loop
                tracking the trajectory (stewart_sim.compare.study.run_mode): gains, margins,
                tracking errors, effort;
@@ -23,6 +27,7 @@ results break what they are (`result_problem`: not finite, a magnitude below zer
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
 from dataclasses import dataclass, field, replace
 from typing import Any, Mapping, Sequence
 
@@ -32,11 +37,12 @@ from controller.config import ControllerConfig, controller_config
 from controller.design import design_axis
 from controller.moves import demo_trajectory, run_reference
 from controller.trajectory import Trajectory
-from stewart_fmu.dynamics import inverse_dynamics
+from stewart_fmu.dynamics import inverse_dynamics, regressor
 from stewart_fmu.errors import SceneError, StewartError
 from stewart_fmu.kinematics import COND_LIMIT, check_poses, inverse_kinematics
 from stewart_fmu.model import Model
 from stewart_fmu.scene import apply_overrides, scene_from_dict
+from stewart_fmu.standard import N_STANDARD, standard_parameters
 from stewart_sim.compare.study import run_mode
 from stewart_sim.sweep.grid import EnvelopeSettings, TrajectorySettings
 
@@ -57,6 +63,7 @@ _AT_LEAST = {**dict.fromkeys((*LEGS, "sigma_max", "torque_max", "power_max", "cr
                               "saturated_time", "reachable"), 0.0), "cond_max": 1.0}
 _AT_MOST = {"reachable": 1.0}
 ERROR_CHARS = 4000   # an error row's text is cut to this (a chunk's rows have a size bound)
+MAX_TRAJECTORIES = 16   # geometries whose trajectory and regressor a task or worker keeps
 # Failures that make a point a row with its error: the package's typed errors, and numerical
 # failures inside third-party code (python-control's design, LAPACK).
 POINT_ERRORS = (StewartError, ArithmeticError, ValueError, np.linalg.LinAlgError)
@@ -79,12 +86,26 @@ def columns(evaluation: str, keys: Sequence[str]) -> tuple[str, ...]:
     return ("point", *keys, "status", "error", *RESULTS[evaluation])
 
 
-def evaluate_batch(spec: EvalSpec, points: Sequence[tuple[int, Mapping[str, Any]]]
-                   ) -> list[dict[str, Any]]:
+def evaluate_batch(spec: EvalSpec, points: Sequence[tuple[int, Mapping[str, Any]]],
+                   cache: "TrajectoryCache | None" = None) -> list[dict[str, Any]]:
     """Rows of several points (a task); trajectories shared by points of one geometry are
-    computed once."""
-    cache: dict[str, Any] = {}
+    computed once (in `cache`, which may outlive the task: a worker's, for one sweep)."""
+    cache = TrajectoryCache() if cache is None else cache
     return [evaluate_point(spec, pid, values, cache) for pid, values in points]
+
+
+class TrajectoryCache(OrderedDict):
+    """The trajectories (with kinematics and regressor, a few MB each) of the geometries seen
+    last: at most MAX_TRAJECTORIES, the least recently used dropped."""
+
+    def __getitem__(self, key: str) -> Any:
+        self.move_to_end(key)
+        return super().__getitem__(key)
+
+    def __setitem__(self, key: str, value: Any) -> None:
+        super().__setitem__(key, value)
+        while len(self) > MAX_TRAJECTORIES:
+            self.popitem(last=False)
 
 
 def evaluate_point(spec: EvalSpec, pid: int, values: Mapping[str, Any],
@@ -179,15 +200,24 @@ def _inverse(spec: EvalSpec, values: Mapping[str, Any], cache: dict[str, Any]) -
     settings = point_trajectory(spec, values)
     config = controller_config(model) if settings.kind == "run" else None
     rate = settings.rate if config is None else config.rate
-    key = repr((sorted(data["geometry"].items()), settings, rate))
-    if key not in cache:  # the trajectory and its kinematics depend on the geometry only
+    # the trajectory and its kinematics depend on the geometry only; Y on it and gravity
+    key = repr((sorted(data["geometry"].items()), data.get("gravity"), model.effects,
+                settings, rate))
+    if key not in cache:
         traj = trajectory(spec, model, settings, rate, config)
         kin = check_poses(model, traj.q, traj.t, traj.qd, traj.qdd)
-        cache[key] = (traj, kin.rates, float(kin.cond.max()))
-    traj, rates, cond = cache[key]
-    sigma = inverse_dynamics(model, traj.q, traj.qd, traj.qdd)
+        y = regressor(model, traj.q, traj.qd, traj.qdd).reshape(-1, N_STANDARD)
+        cache[key] = (traj, kin.rates, float(kin.cond.max()), y)
+    traj, rates, cond, y = cache[key]
+    sigma = rack_forces(model, traj.q, y)
     return {**_peaks(model, sigma), "power_max": float(np.max(np.abs(sigma * rates))),
             "cond_max": cond}
+
+
+def rack_forces(model: Model, q: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """sigma (N, 6) of the model along poses q (N, 6) whose regressor rows are y (6N,
+    N_STANDARD): Y pi, the inverse dynamics of any model of that geometry and gravity."""
+    return (y @ standard_parameters(model)).reshape(np.shape(q))
 
 
 def _peaks(model: Model, sigma: np.ndarray) -> dict[str, float]:

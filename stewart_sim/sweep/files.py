@@ -20,18 +20,20 @@ MAPS = ("force_envelope.png", "singularity_map.png")
 
 def run_sweep_files(scene: Path, grid_path: Path, out: Path, scheduler: str | None = None,
                     workers: int | None = None, plots: bool = True,
-                    notice: Callable[[str], None] | None = None, adaptive: int = 0
+                    notice: Callable[[str], None] | None = None, adaptive: int = 0,
+                    dashboard: Callable[[str], None] | None = None
                     ) -> tuple[SweepSummary, list[Path]]:
     """Run or resume the sweep into `out`, then plot it; returns the summary and the files.
-    `notice` gets a line for each chunk file refused on resume (run_sweep); `adaptive` N
-    points added where the outcome changes, and their map (refinement_figure)."""
+    `notice` gets a line for each chunk file refused on resume, `dashboard` the Dask
+    dashboard's address (run_sweep); `adaptive` N points added where the outcome changes, and
+    their map (refinement_figure)."""
     grid = load_grid(grid_path)
     model = load_scene(scene)
     progress = Progress()
     try:
         with writing(out):
             summary = run_sweep(scene, grid, out, scheduler, workers, progress, notice=notice,
-                                adaptive=adaptive)
+                                adaptive=adaptive, dashboard=dashboard)
     finally:
         progress.close()
     written = [summary.table]

@@ -5,7 +5,8 @@ a full grid or a seeded Latin hypercube over dotted scene, controller and trajec
     method = "grid"                   # "grid": every combination | "lhs": Latin hypercube
     samples = 1000                    # lhs: number of points
     seed = 1                          # lhs: the sample is reproducible from it
-    batch = 250                       # points per task (default per evaluation: BATCH)
+    batch = 250                       # points per task (default: tasks sized to a target
+                                      # duration, up to MAX_BATCH points: sweep/batching.py)
     [trajectory]                      # inverse and closed_loop
     kind = "demo"                     # "demo" | "run" | "file" (see sweep_eval)
     duration = 1.0                    # s (demo, run)
@@ -31,7 +32,7 @@ import math
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 from scipy.stats import qmc
@@ -46,7 +47,7 @@ from stewart_fmu.scene import NUMBER_KEYS as SCENE_NUMBERS
 
 EVALUATIONS = ("inverse", "closed_loop", "envelope")
 METHODS = ("grid", "lhs")
-BATCH = {"inverse": 250, "envelope": 20, "closed_loop": 2}   # default points per task
+MAX_BATCH = 10_000   # the most points a sized task takes (a chunk file's bound without `batch`)
 TRAJECTORY_KINDS = ("demo", "run", "file")
 MAX_POINTS = 10_000_000
 POINT_BYTES = 150   # a point of GridSpec.points, per axis and one more: its dict, tuple, floats
@@ -140,6 +141,7 @@ class GridSpec:
     raw: Mapping[str, Any]   # the TOML as read (the sweep's fingerprint)
     source: str | None = None
     adaptive: AdaptiveSettings = AdaptiveSettings()
+    sized: bool = False      # no `batch` given: tasks sized to a target duration, up to `batch`
 
     @property
     def keys(self) -> tuple[str, ...]:
@@ -154,17 +156,46 @@ class GridSpec:
     def points(self) -> list[tuple[int, dict[str, Any]]]:
         """(point id, {key: value}) for every point, ids 0..size-1 in a fixed order (grid: the
         last axis fastest; lhs: the sample's rows)."""
-        if self.method == "grid":
-            combos = itertools.product(*(a.grid_values() for a in self.axes))
-        else:
-            u = qmc.LatinHypercube(d=len(self.axes), seed=self.seed).random(self.samples)
-            combos = ([a.from_unit(float(x)) for a, x in zip(self.axes, row)] for row in u)
-        return [(i, dict(zip(self.keys, c))) for i, c in enumerate(combos)]
+        return list(self.point_sequence())
+
+    def point_sequence(self) -> "PointSequence":
+        """The points as `points` gives them, each made when asked for (a sweep of millions of
+        points holds none of them at once)."""
+        return PointSequence(self)
 
     def fingerprint(self, scene: Mapping[str, Any]) -> str:
         """A hash of the grid and the scene: a directory holds the rows of one sweep only."""
         text = json.dumps({"grid": self.raw, "scene": scene}, sort_keys=True, default=repr)
         return hashlib.sha256(text.encode()).hexdigest()
+
+
+class PointSequence(Sequence):
+    """GridSpec.points without the list: point i decoded from its id (grid: mixed radix, the
+    last axis fastest, as itertools.product orders them), or read from the Latin hypercube's
+    unit sample (lhs: 8 bytes per axis and point)."""
+
+    def __init__(self, spec: GridSpec) -> None:
+        self.axes, self.keys, self.n = spec.axes, spec.keys, spec.size()
+        self.values = [a.grid_values() for a in spec.axes] if spec.method == "grid" else None
+        self.unit = (None if self.values is not None else
+                     qmc.LatinHypercube(d=len(spec.axes), seed=spec.seed).random(spec.samples))
+
+    def __len__(self) -> int:
+        return self.n
+
+    def __getitem__(self, i: int) -> tuple[int, dict[str, Any]]:   # type: ignore[override]
+        if not isinstance(i, (int, np.integer)) or not 0 <= i < self.n:
+            raise IndexError(f"point {i!r}: not 0 to {self.n - 1}")
+        i = int(i)
+        if self.values is None:
+            combo: Sequence[Any] = [a.from_unit(float(x)) for a, x in zip(self.axes, self.unit[i])]
+        else:
+            rest, picked = i, []
+            for vals in reversed(self.values):
+                rest, k = divmod(rest, len(vals))
+                picked.append(vals[k])
+            combo = picked[::-1]
+        return i, dict(zip(self.keys, combo))
 
 
 def load_grid(path: str | Path) -> GridSpec:
@@ -206,10 +237,10 @@ def grid_from_dict(data: Mapping[str, Any], source: str | None = None) -> GridSp
     if method == "grid" and "samples" in data:
         fail("samples", "only for method = \"lhs\"")
     seed = _integer(data, "seed", 0, 2**63 - 1, 0, fail)
-    batch = _integer(data, "batch", 1, 100_000, BATCH[evaluation], fail)
+    batch = _integer(data, "batch", 1, 100_000, MAX_BATCH, fail)
     spec = GridSpec(evaluation, method, axes, samples, seed, batch, _trajectory(data, fail),
-                    _envelope(data, fail), dict(data), source,
-                    _adaptive(data, fail))
+                    _envelope(data, fail), dict(data), source, _adaptive(data, fail),
+                    sized="batch" not in data)
     if spec.size() > MAX_POINTS:
         fail("axes", f"{spec.size():,} points: more than {MAX_POINTS:,}")
     try:    # GridSpec.points holds every point (its index and its values) at once

@@ -1,23 +1,30 @@
 """Running a design sweep on Dask: all cores of this machine (a LocalCluster of worker
 processes, one thread each) or a Dask distributed cluster (`scheduler` = "tcp://HOST:PORT").
 
-Points go out in tasks of `batch` points (sweep_eval.evaluate_batch); each finished task's rows
-are written to a chunk file at once (stewart_sim/sweep/chunks.py), so an interruption keeps every
-finished row and a rerun computes only the points not yet in the directory: the rows of the
-chunks that pass their checks (the sweep's fingerprint, their checksum, known points once each,
-plausible results); a chunk refused is set aside and its points are computed again. The table
-is written from these rows only, checked before anything is merged. A worker that dies takes its
-running tasks with it; the scheduler runs them again elsewhere, and a task's rows are written
-once, when its future completes. With `adaptive` N, the rounds of refinement (their points
-picked from the rows: stewart_sim/sweep/adaptive.py) run on the same cluster after the grid.
+Points go out in tasks (evaluate_task) sized to a target duration from the measured cost of a
+point (stewart_sim/sweep/batching.py), a few tasks per worker at a time; each finished task's
+rows are written to a chunk file at once (stewart_sim/sweep/chunks.py), so an interruption keeps
+every finished row and a rerun computes only the points not yet in the directory: the rows of
+the chunks that pass their checks (the sweep's fingerprint, their checksum, known points once
+each, plausible results); a chunk refused is set aside and its points are computed again. The
+table is merged from the chunk files, read again and checked again, in point order; no more
+than a task's points and rows are held at once, whatever the sweep's size. A worker that dies
+takes its running tasks with it; the scheduler runs them again elsewhere, and a task's rows are
+written once, when its future completes. With `adaptive` N, the rounds of refinement (their
+points picked from the grid's rows, read back from its chunk files:
+stewart_sim/sweep/adaptive.py) run in the same sized tasks on the same cluster after the grid,
+and the table merges the grid's and the rounds' chunk files with the column `refinement`.
 """
 from __future__ import annotations
 
 import time
 from contextlib import ExitStack
 from dataclasses import dataclass
+from itertools import islice
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Callable, Iterator, Mapping, Sequence
+
+import numpy as np
 
 from controller.config import controller_config
 from stewart_fmu.errors import SceneError, SceneKeyError, SweepError
@@ -25,12 +32,16 @@ from stewart_fmu.io import read_trajectory
 from stewart_fmu.scene import read_scene_dict, scene_from_dict
 from stewart_sim.progress import Progress
 from stewart_sim.sweep.adaptive import REFINEMENT, Refinement, check_adaptive
-from stewart_sim.sweep.chunks import ChunkRules, chunk_rules, resume_rows, write_chunk
+from stewart_sim.sweep.batching import BatchSizer, TaskCosts
+from stewart_sim.sweep.chunks import (ChunkRules, Ledger, chunk_path, chunk_rules, ledger_rows,
+                                      merge_chunks, resume_ledger, write_chunk)
 from stewart_sim.sweep.cluster import dask_client
-from stewart_sim.sweep.evaluate import (EvalSpec, columns, evaluate_batch, has_drive, point_label,
-                                        point_model)
+from stewart_sim.sweep.evaluate import (EvalSpec, TrajectoryCache, columns, evaluate_batch,
+                                        has_drive, point_label, point_model)
 from stewart_sim.sweep.grid import GridSpec
-from stewart_sim.sweep.table import merge, open_sweep
+from stewart_sim.sweep.table import open_sweep
+
+WORKERS_POLL = 2.0       # s between two looks at the cluster's workers (they may come and go)
 
 
 @dataclass(frozen=True)
@@ -101,14 +112,16 @@ def fingerprint(spec: EvalSpec, grid: GridSpec) -> str:
 def run_sweep(scene: Path, grid: GridSpec, out: Path, scheduler: str | None = None,
               workers: int | None = None, progress: Progress | None = None,
               timeout: float | None = None, notice: Callable[[str], None] | None = None,
-              adaptive: int = 0) -> SweepSummary:
+              dashboard: Callable[[str], None] | None = None, adaptive: int = 0
+              ) -> SweepSummary:
     """Run (or resume) the sweep into `out` and merge its table; see the module doc.
-    `notice` gets one line for each chunk file refused on resume. `adaptive` N: then N more
-    points where the outcome changes (stewart_sim/sweep/adaptive.py), the table with the
+    `notice` gets one line for each chunk file refused on resume; `dashboard` the address of
+    the scheduler's dashboard once the cluster is up (when it serves one). `adaptive` N: then
+    N more points where the outcome changes (stewart_sim/sweep/adaptive.py), the table with the
     column `refinement`."""
     spec = eval_spec(scene, grid)
     check_adaptive(grid, adaptive, has_drive(spec.scene))
-    points = grid.points()
+    points = grid.point_sequence()
     check_first_point(spec, points[0][1], grid)
     cols = columns(grid.evaluation, grid.keys)
     fp = fingerprint(spec, grid)
@@ -121,27 +134,26 @@ def run_sweep(scene: Path, grid: GridSpec, out: Path, scheduler: str | None = No
         if notice is not None:
             notice(line)
 
-    rows = resume_rows(out, rules, refuse)
-    resumed = len(rows)
+    ledger = resume_ledger(out, rules, refuse)
+    resumed = ledger.count
     refine = Refinement(grid, fp, cols, has_drive(spec.scene), adaptive) if adaptive else None
-    runner = _Runner(scheduler, workers, spec, grid.batch, len(points) + adaptive, progress,
-                     timeout)
+    runner = _Runner(scheduler, workers, spec, grid, fp, len(points) + adaptive, progress,
+                     timeout, dashboard)
     try:
         with runner.stack:
-            computed = runner([p for p in points if p[0] not in rows], out, rules, rows)
-            if refine is not None:
-                refine.run(rows, out, runner, refuse)
+            computed = runner(points, out, rules, ledger)
+            if refine is not None:   # the grid's rows read back: cheap at refinement's sizes
+                refine.run(ledger_rows(ledger, rules), out, runner, refuse)
     finally:
         wall = time.monotonic() - runner.start
         if refine is None:
-            merge(out, cols, rows)
+            merged, failed = merge_chunks(out, rules, ledger)
         else:
-            merge(out, (*cols, REFINEMENT), refine.table_rows(rows))
+            merged, failed = merge_chunks(out, rules, ledger, refine.parts, REFINEMENT)
     table = out / "sweep.csv"
-    failed = sum(1 for r in rows.values() if r[cols.index("status")] != "ok")
     added = len(refine.rounds) if refine is not None else 0
-    if len(rows) != len(points) + added:
-        raise SweepError(None, f"{table}: {len(rows)} rows for {len(points) + added} points")
+    if merged != len(points) + added:
+        raise SweepError(None, f"{table}: {merged} rows for {len(points) + added} points")
     if refine is not None:
         resumed, computed = resumed + refine.resumed, computed + refine.computed
     return SweepSummary(table, len(points) + added, resumed, computed, failed, runner.workers,
@@ -149,53 +161,152 @@ def run_sweep(scene: Path, grid: GridSpec, out: Path, scheduler: str | None = No
 
 
 class _Runner:
-    """Evaluates points on the cluster, started for the first points to compute and closed
-    with `stack`; `start`: when it was up (the wall time excludes the start-up)."""
+    """Evaluates points on the cluster in sized tasks (_run_tasks), the cluster started for the
+    first points to compute and closed with `stack`; the grid and the refinement rounds share
+    it, its task sizer and the measured cost of a point. `start`: when the cluster was up (the
+    wall time excludes the start-up)."""
 
-    def __init__(self, scheduler: str | None, workers: int | None, spec: EvalSpec, batch: int,
-                 total: int, progress: Progress | None, timeout: float | None):
-        self.scheduler, self.n, self.spec, self.batch = scheduler, workers, spec, batch
-        self.total, self.progress, self.timeout = total, progress, timeout
+    def __init__(self, scheduler: str | None, workers: int | None, spec: EvalSpec,
+                 grid: GridSpec, sweep: str, total: int, progress: Progress | None,
+                 timeout: float | None, dashboard: Callable[[str], None] | None):
+        self.scheduler, self.n, self.spec, self.sweep = scheduler, workers, spec, sweep
+        self.total, self.progress, self.timeout, self.dashboard = (total, progress, timeout,
+                                                                   dashboard)
+        self.sizer, self.costs = BatchSizer(grid.batch, fixed=not grid.sized), TaskCosts()
         self.stack, self.client, self.workers, self.start = ExitStack(), None, 0, time.monotonic()
+        self.before = 0          # points of the earlier parts (grid, rounds): the progress
 
-    def __call__(self, todo: Sequence[tuple[int, Mapping[str, Any]]], out: Path,
-                 rules: ChunkRules, rows: dict[int, list[str]]) -> int:
-        """Evaluate `todo` into chunk files under `out` and `rows`; returns the points done."""
-        if not todo:
-            return 0
-        if self.client is None:
-            self.client = self.stack.enter_context(dask_client(self.scheduler, self.n))
-            self.workers = len(self.client.scheduler_info()["workers"])
-            self.start = time.monotonic()
-        batches = [todo[i:i + self.batch] for i in range(0, len(todo), self.batch)]
-        return _run_batches(self.client, self.spec, batches, out, rules, rows, self.total,
-                            self.progress, self.timeout)
+    def __call__(self, points: Sequence[tuple[int, Mapping[str, Any]]], out: Path,
+                 rules: ChunkRules, ledger: Ledger) -> int:
+        """Evaluate the points not in `ledger` into chunk files under `out`, recorded in the
+        ledger; returns the points done."""
+        try:
+            if ledger.count >= len(points):
+                return 0
+            if self.client is None:
+                self.client = self.stack.enter_context(dask_client(self.scheduler, self.n))
+                self.workers = len(self.client.scheduler_info()["workers"])
+                self.client.run(_ready)   # the workers import the evaluation now, not in a task
+                link = _dashboard_link(self.client)
+                if self.dashboard is not None and link is not None:
+                    self.dashboard(link)
+                self.start = time.monotonic()
+            return _run_tasks(self.client, self.spec, points, out, rules, ledger, self)
+        finally:
+            self.before += ledger.count
 
 
-def _run_batches(client, spec: EvalSpec, batches: Sequence[list], out: Path,
-                 rules: ChunkRules, rows: dict[int, list[str]], total: int,
-                 progress: Progress | None, timeout: float | None) -> int:
-    """Submit every batch, write each task's rows as it completes (into a chunk file and
-    `rows`); returns the points done."""
+def evaluate_task(spec: EvalSpec, block: "PointBlock", sweep: str = ""
+                  ) -> tuple[list[dict[str, Any]], float, bool]:
+    """One task on a worker: the rows of its points, the seconds they took there, and whether
+    it was this worker's first task of the sweep `sweep` (a fingerprint: the worker keeps the
+    trajectories of that sweep's geometries from task to task, and drops them for another)."""
+    global _WORKER_CACHE
+    begin = time.perf_counter()
+    first = _WORKER_CACHE[0] != sweep or not sweep
+    if first:
+        _WORKER_CACHE = (sweep, TrajectoryCache())
+    rows = evaluate_batch(spec, block.points(), _WORKER_CACHE[1])
+    return rows, time.perf_counter() - begin, first
+
+
+@dataclass(frozen=True)
+class PointBlock:
+    """A task's points, packed: their ids and one column per axis (numbers as a float64 array,
+    strings as a tuple), a few objects whatever the points (what the scheduler and its
+    history hold of a task stays small)."""
+
+    ids: np.ndarray
+    keys: tuple[str, ...]
+    columns: tuple[Any, ...]
+
+    @classmethod
+    def of(cls, points: Sequence[tuple[int, Mapping[str, Any]]]) -> "PointBlock":
+        keys = tuple(points[0][1])
+        cols = []
+        for k in keys:
+            col = [v[k] for _, v in points]
+            cols.append(np.array(col, dtype=float) if all(type(x) is float for x in col)
+                        else tuple(col))
+        return cls(np.array([pid for pid, _ in points], dtype=np.int64), keys, tuple(cols))
+
+    def points(self) -> list[tuple[int, dict[str, Any]]]:
+        """The points as GridSpec.points gives them (Python floats: the same values)."""
+        cols = [c.tolist() if isinstance(c, np.ndarray) else list(c) for c in self.columns]
+        return [(pid, dict(zip(self.keys, row)))
+                for pid, row in zip(self.ids.tolist(), zip(*cols))]
+
+
+_WORKER_CACHE: tuple[str, TrajectoryCache] = ("", TrajectoryCache())   # see evaluate_task
+
+
+def _ready() -> None:
+    """Run on every worker at start-up: unpickling it imports this module, and with it the
+    evaluation's (controller design, closed loop), so that no task's time includes imports."""
+
+
+def _dashboard_link(client) -> str | None:
+    """The scheduler's dashboard (/status), None when it serves none."""
+    if "dashboard" not in client.scheduler_info().get("services", {}):
+        return None
+    return client.dashboard_link
+
+
+def _run_tasks(client, spec: EvalSpec, points: Sequence[tuple[int, Mapping[str, Any]]],
+               out: Path, rules: ChunkRules, ledger: Ledger, runner: _Runner) -> int:
+    """Send the points not in the ledger in tasks sized by the runner's sizer, a few per worker
+    at a time; write each task's rows as it completes (a chunk file, recorded in the ledger);
+    returns the points done."""
     from distributed import as_completed
     from distributed.client import FutureCancelledError
     from distributed.scheduler import KilledWorker
 
-    futures = [client.submit(evaluate_batch, spec, b, pure=False) for b in batches]
-    pending, resumed = set(futures), len(rows)
+    sizer, costs, progress, timeout = runner.sizer, runner.costs, runner.progress, runner.timeout
+    todo: Iterator[int] = (i for i in range(len(points)) if not ledger.done[i])
+    left, resumed = len(points) - ledger.count, ledger.count
+    pending: set = set()
+    finished = as_completed(timeout=timeout)
+    workers, looked = _workers(client), time.monotonic()
+
+    def submit() -> int:
+        ids = list(islice(todo, sizer.size(costs.per_point, left, workers)))
+        if ids:
+            fut = client.submit(evaluate_task, spec, PointBlock.of([points[i] for i in ids]),
+                                runner.sweep, pure=False)
+            pending.add(fut)
+            finished.add(fut)
+        return len(ids)
+
+    def record(fut) -> None:
+        rows, seconds, first = fut.result()
+        cells = write_chunk(out, rules, rows)
+        ledger.add(chunk_path(out, min(cells)), cells.keys())
+        costs.add(len(rows), seconds, first)
+
     try:
-        for fut in as_completed(futures, timeout=timeout):
-            rows.update(write_chunk(out, rules, fut.result()))
+        for _ in range(sizer.in_flight(workers)):
+            left -= submit()
+        for fut in finished:
             pending.discard(fut)
+            record(fut)
+            if time.monotonic() - looked > WORKERS_POLL:
+                workers, looked = _workers(client), time.monotonic()
+            while left and len(pending) < sizer.in_flight(workers):
+                left -= submit()
             if progress is not None:
-                progress.update("sweep", len(rows), total, unit="points")
+                progress.update("sweep", runner.before + ledger.count, runner.total,
+                                unit="points", rate=True)
     except (KilledWorker, FutureCancelledError) as exc:
         raise SweepError(None, f"a task was lost on the cluster: {exc}") from None
     except TimeoutError:
         raise SweepError(None, f"the sweep took longer than {timeout} s") from None
     finally:
         for fut in [f for f in pending if f.status == "finished"]:  # finished meanwhile: keep
-            rows.update(write_chunk(out, rules, fut.result()))
+            record(fut)
         client.cancel(list(pending))
-    return len(rows) - resumed
+    return ledger.count - resumed
 
+
+def _workers(client) -> int:
+    """The cluster's workers now (at least 1: tasks wait for one to join)."""
+    return max(1, len(client.scheduler_info()["workers"]))

@@ -20,7 +20,7 @@ import numpy as np
 
 from stewart_fmu.budget import InputFileError, read_input
 from stewart_fmu.errors import SweepError
-from stewart_fmu.io import write_text
+from stewart_fmu.io import atomic_write, write_text
 
 TABLE = "sweep.csv"
 MANIFEST = "sweep.json"
@@ -68,8 +68,19 @@ def open_sweep(out: Path, fingerprint: str, columns: Sequence[str], total: int) 
 def merge(out: Path, columns: Sequence[str], rows: Mapping[int, Sequence[str]]) -> int:
     """Write DIR/sweep.csv, all or nothing, from `rows` (cell texts by point id, checked by
     the caller), one row per point sorted by id; returns the rows."""
-    write_text(out / TABLE, csv_text(columns, (rows[k] for k in sorted(rows))))
+    write_table(out, columns, (rows[k] for k in sorted(rows)))
     return len(rows)
+
+
+def write_table(out: Path, columns: Sequence[str], rows: Iterable[Sequence[str]]) -> Path:
+    """Write DIR/sweep.csv, all or nothing, from rows of cell texts as they come (in order,
+    checked by the caller): the table is never held in memory whole."""
+    def write(fh) -> None:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(columns)
+        w.writerows(rows)
+
+    return atomic_write(out / TABLE, write)
 
 
 def read_table(path: Path) -> dict[str, np.ndarray]:

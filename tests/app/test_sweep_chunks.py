@@ -192,7 +192,7 @@ REPROS = [
     (_unknown_point, "a row for point '8', not a point of the sweep (0 to 7)"),
     (_row_added, "its first line declares '5' rows: 1 to 4 (the grid's batch) expected"),
     (_unknown_point_unforged, "its rows do not match its checksum"),
-    (_two_million_duplicates, "400,001,080 bytes: more than 4 rows can take"),
+    (_two_million_duplicates, "410,001,084 bytes: more than 4 rows can take"),
     (_two_million_declared, "its first line declares '2000000' rows: 1 to 4"),
     (_other_sweep, "written for another sweep"),
     (_not_utf8, "not UTF-8 text at byte 326"),
@@ -267,7 +267,7 @@ def test_a_result_that_is_not_finite_is_an_error_row(sweep, monkeypatch):
 
     grid = load_grid(sweep["grid"])
     spec = eval_spec(SCENE, grid)
-    monkeypatch.setattr(ev, "inverse_dynamics", lambda model, q, *a: np.full(np.shape(q), np.inf))
+    monkeypatch.setattr(ev, "rack_forces", lambda model, q, *a: np.full(np.shape(q), np.inf))
     with np.errstate(invalid="ignore"):       # inf times a zero rate: NaN, as meant
         row = evaluate_point(spec, 0, grid.points()[0][1])
     assert row["status"] == "error" and row["error"] == "result sigma1_max = inf: not finite"
@@ -284,7 +284,7 @@ def test_an_error_row_is_one_a_chunk_takes(sweep, tmp_path, monkeypatch, message
         raise ValueError(message)
 
     grid = load_grid(sweep["grid"])
-    monkeypatch.setattr(ev, "inverse_dynamics", fail)
+    monkeypatch.setattr(ev, "rack_forces", fail)
     row = evaluate_point(eval_spec(SCENE, grid), 0, grid.points()[0][1])
     assert row["status"] == "error" and 0 < len(row["error"]) <= ev.ERROR_CHARS
     written = write_chunk(tmp_path, sweep["rules"], [row])
