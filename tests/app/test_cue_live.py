@@ -9,7 +9,6 @@ import math
 import select
 import struct
 import time
-from collections import deque
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +34,7 @@ from stewart_sim.live.cue_stream import CueStream, Reference
 from stewart_sim.live.replay import Replay, UdpSink
 from stewart_sim.live.session import Record, make_session
 from stewart_sim.scene_load import load
+from tests.app.datagrams import Queue
 
 ROOT = Path(__file__).resolve().parents[2]
 SIM = ROOT / "scenes" / "motion_simulator.toml"
@@ -55,19 +55,6 @@ class SimClock:
 
     def __call__(self) -> float:
         return self.t
-
-
-class Queue:
-    """A DatagramSource over a deque (in-process, for exact counts)."""
-
-    def __init__(self) -> None:
-        self.q: deque[bytes] = deque()
-
-    def recv(self) -> bytes | None:
-        return self.q.popleft() if self.q else None
-
-    def close(self) -> None:
-        pass
 
 
 class FakeDevice:

@@ -6,7 +6,6 @@ from __future__ import annotations
 import math
 import select
 import struct
-from collections import deque
 from pathlib import Path
 
 import numpy as np
@@ -18,22 +17,10 @@ from stewart_sim.cueing.telemetry import (TelemetryError, TelemetrySample, decod
 from stewart_sim.live.address import AddressError, device_address, telemetry_address
 from stewart_sim.live.receiver import TelemetryReceiver, UdpSource
 from stewart_sim.live.replay import Replay, UdpSink
+from tests.app.datagrams import Queue
 
 ROOT = Path(__file__).resolve().parents[2]
 BRAKING = ROOT / "scenes" / "motions" / "braking_car.csv"
-
-
-class Queue:
-    """A DatagramSource over a deque (in-process, for exact counts)."""
-
-    def __init__(self) -> None:
-        self.q: deque[bytes] = deque()
-
-    def recv(self) -> bytes | None:
-        return self.q.popleft() if self.q else None
-
-    def close(self) -> None:
-        pass
 
 
 class Ticking:
