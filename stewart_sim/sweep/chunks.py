@@ -29,12 +29,15 @@ import csv
 import hashlib
 import heapq
 import io as textio
+import math
 import os
 import re
 import stat
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterator, Mapping, Sequence
+from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
+
+import numpy as np
 
 from stewart_fmu.errors import SweepError
 from stewart_fmu.io import OutputError, atomic_write
@@ -59,6 +62,11 @@ class ChunkRules:
     max_rows: int                     # rows in one chunk (the grid's batch)
     drive: bool                       # the scene has a [drive] table (evaluate.has_drive)
     first: int = 0                    # the first point id (a refinement round's: adaptive.py)
+
+    @property
+    def results_from(self) -> int:
+        """The first result column's index: point, axes, status and error come before."""
+        return self.columns.index("status") + 2
 
 
 class AxisCells(Sequence):
@@ -116,14 +124,14 @@ class Ledger:
 def write_chunk(out: Path, rules: ChunkRules, rows: Sequence[Mapping[str, Any]]
                 ) -> dict[int, list[str]]:
     """Write the rows of one finished task as a chunk file, atomically and durably; returns
-    them as cell texts by point id (what a resume reads back)."""
-    cells = {int(r["point"]): [cell(r[c]) for c in rules.columns] for r in rows}
-    for row in cells.values():  # the rules a resume applies, before the rows go anywhere
-        try:
-            _check_row(row, rules)
-        except _Refused as exc:
-            raise SweepError(None, f"a task returned a row the sweep cannot take ({exc}): do "
-                                   "the workers run this version of stewart-sim?") from None
+    them as cell texts by point id (what a resume reads back). The rows are held to the rules a
+    resume applies before anything is written (_row_cells); a task's rows that break them come
+    from other code on the workers."""
+    try:
+        cells = dict(_row_cells(r, rules) for r in rows)
+    except _Refused as exc:
+        raise SweepError(None, f"a task returned a row the sweep cannot take ({exc}): do "
+                               "the workers run this version of stewart-sim?") from None
     body = csv_text(rules.columns, cells.values()).encode()
     head = f"{MAGIC} {rules.fingerprint} {len(cells)} {hashlib.sha256(body).hexdigest()}\n"
 
@@ -330,29 +338,23 @@ def _header(head: bytes, rules: ChunkRules) -> tuple[int, str]:
 
 
 def _check_row(row: list[str], rules: ChunkRules) -> int:
-    """The point id of a row that passes the rules; _Refused names the row's fault."""
+    """The point id of a row of cell texts (a chunk file's) that passes the rules
+    (_check_values); _Refused names the row's fault."""
     cols = rules.columns
     if len(row) != len(cols):
         raise _Refused(f"a row of {len(row)} cells, not {len(cols)}")
-    last = rules.first + len(rules.axes) - 1
-    if not _ID.fullmatch(row[0]) or not rules.first <= int(row[0]) <= last:
-        raise _Refused(f"a row for point {_short(row[0])}, not a point of the sweep "
-                       f"({rules.first} to {last})")
-    pid = int(row[0])
-    axes = rules.axes[pid - rules.first]
-    n_axes = len(axes)
-    status, error = row[1 + n_axes], row[2 + n_axes]
-    if tuple(row[1:1 + n_axes]) != axes:
-        raise _Refused(f"point {pid}: its axis values are not the grid's")
-    results = zip(cols[3 + n_axes:], row[3 + n_axes:])
-    if status == "error":
-        if not error or any(v != "nan" for _, v in results):
-            raise _Refused(f"point {pid}: an error row needs its text and NaN results")
-        return pid
-    if status != "ok" or error:
-        raise _Refused(f"point {pid}: status {_short(status)} (ok or error, the text only "
-                       "with error)")
-    for name, text in results:
+    if not _ID.fullmatch(row[0]):
+        raise _Refused(_not_a_point(row[0], rules))
+    pid, k = int(row[0]), rules.results_from
+    _check_values(rules, pid, tuple(row[1:k - 2]), row[k - 2], row[k - 1],
+                  _numbers(pid, cols[k:], row[k:]))
+    return pid
+
+
+def _numbers(pid: int, names: Sequence[str], texts: Sequence[str]) -> Iterator[float]:
+    """A row's result texts as numbers, each written as repr writes it (the text is the
+    value), read as they are asked for."""
+    for name, text in zip(names, texts):
         try:
             value = float(text)
         except ValueError:
@@ -360,10 +362,57 @@ def _check_row(row: list[str], rules: ChunkRules) -> int:
         if repr(value) != text:
             raise _Refused(f"point {pid}: {name} = {_short(text)} is not written as the sweep "
                            "writes numbers")
+        yield value
+
+
+def _row_cells(row: Mapping[str, Any], rules: ChunkRules) -> tuple[int, list[str]]:
+    """A task's row (a dict by column: evaluate.evaluate_point) as its point id and cell
+    texts, held to the rules first (_check_values); its results must be floats (each then
+    written as repr writes it, what _check_row takes back)."""
+    cols, k = rules.columns, rules.results_from
+    pid, status, error = row["point"], row["status"], row["error"]
+    if (not isinstance(pid, (int, np.integer)) or isinstance(pid, bool)
+            or not isinstance(status, str) or not isinstance(error, str)):
+        raise _Refused(f"a row whose point, status or error is not of the sweep's types "
+                       f"({_short(repr(pid))})")
+    pid = int(pid)
+    values = [row[c] for c in cols[k:]]
+    for name, v in zip(cols[k:], values):
+        if not isinstance(v, (float, np.floating)):
+            raise _Refused(f"point {pid}: {name} = {_short(repr(v))} is not a number")
+    axes = tuple(cell(row[c]) for c in cols[1:k - 2])
+    _check_values(rules, pid, axes, status, error, values)
+    return pid, [str(pid), *axes, status, error, *map(repr, map(float, values))]
+
+
+def _check_values(rules: ChunkRules, pid: int, axes: tuple[str, ...], status: str,
+                  error: str, results: Iterable[float]) -> None:
+    """The rules of a row past its form (one set, for the texts a resume reads and the values
+    a task returns), in this order: a point of the sweep, the grid's axis values (as cells),
+    status "ok" with plausible results (evaluate.result_problem) and no error text, or "error"
+    with its text and NaN results."""
+    last = rules.first + len(rules.axes) - 1
+    if not rules.first <= pid <= last:
+        raise _Refused(_not_a_point(str(pid), rules))
+    if axes != rules.axes[pid - rules.first]:
+        raise _Refused(f"point {pid}: its axis values are not the grid's")
+    names = rules.columns[rules.results_from:]
+    if status == "error":
+        if not error or not all(math.isnan(v) for v in results):
+            raise _Refused(f"point {pid}: an error row needs its text and NaN results")
+        return
+    if status != "ok" or error:
+        raise _Refused(f"point {pid}: status {_short(status)} (ok or error, the text only "
+                       "with error)")
+    for name, value in zip(names, results):
         problem = result_problem(name, value, rules.drive)
         if problem is not None:
-            raise _Refused(f"point {pid}: {name} = {_short(text)}: {problem}")
-    return pid
+            raise _Refused(f"point {pid}: {name} = {_short(repr(value))}: {problem}")
+
+
+def _not_a_point(text: str, rules: ChunkRules) -> str:
+    return (f"a row for point {_short(text)}, not a point of the sweep ({rules.first} to "
+            f"{rules.first + len(rules.axes) - 1})")
 
 
 def _printable(text: str) -> str:

@@ -17,6 +17,7 @@ from stewart_sim.progress import rate_text
 from stewart_sim.sweep.batching import (MIN_SECONDS, PROBE, TARGET_SECONDS, BatchSizer,
                                         TaskCosts)
 from stewart_sim.sweep.chunks import chunk_rules, merge_chunks, resume_ledger, write_chunk
+from stewart_sim.sweep.cluster import LOCAL_CLUSTER, dask_client
 from stewart_sim.sweep.evaluate import (LEGS, columns, evaluate_batch, has_drive, point_model,
                                         point_trajectory, trajectory)
 from stewart_sim.sweep.grid import MAX_BATCH, grid_from_dict, load_grid
@@ -230,3 +231,19 @@ def test_a_packed_block_of_points_is_the_points():
         assert all(type(v) is type(w) for (_, a), (_, b) in zip(PointBlock.of(points).points(),
                                                                  points)
                    for v, w in zip(a.values(), b.values()))
+
+
+def _worker_settings() -> dict:
+    import dask
+
+    return {k: dask.config.get(k) for k in LOCAL_CLUSTER}
+
+
+def test_the_local_clusters_workers_run_with_its_settings():
+    """The sweep's own local cluster: its workers' Dask settings are LOCAL_CLUSTER's (no
+    profiler, slower monitors), whatever this process's are."""
+    with dask_client(None, 1) as client:
+        got = client.run(_worker_settings)
+    assert len(got) == 1
+    assert list(got.values())[0] == LOCAL_CLUSTER
+    assert LOCAL_CLUSTER["distributed.worker.profile.enabled"] is False

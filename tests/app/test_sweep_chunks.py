@@ -302,14 +302,30 @@ def test_the_rules_of_results(sweep):
     assert result_problem("phase_margin", math.inf, True) == "not finite"
 
 
-def test_a_task_row_the_rules_refuse_is_not_written(sweep, tmp_path):
-    """A worker running other code returns a row with a NaN result and status ok: the sweep
-    stops (exit 2) before writing it."""
+@pytest.mark.parametrize("change, reason", [
+    ({"sigma_max": math.nan}, "point 0: sigma_max = 'nan': not finite"),
+    ({"sigma_max": "1.5"}, "point 0: sigma_max = \"'1.5'\" is not a number"),
+    ({"point": 8}, "a row for point '8', not a point of the sweep (0 to 7)"),
+    ({"point": "0"}, "not of the sweep's types"),
+    ({"platform.mass": 123.0}, "point 0: its axis values are not the grid's"),
+    ({"status": "error"}, "point 0: an error row needs its text and NaN results"),
+])
+def test_a_task_row_the_rules_refuse_is_not_written(sweep, tmp_path, change, reason):
+    """A worker running other code returns a row the rules refuse (a NaN result with status
+    ok, a result that is not a number, a point not in the sweep, other axis values, an error
+    row with results): the sweep stops (exit 2) before writing it, naming the fault. The same
+    row unchanged is written and read back."""
     rules = sweep["rules"]
-    row = dict(zip(rules.columns, next(iter(resume_rows(sweep["dir"], rules, pytest.fail).values()))))
-    row.update(point=0, sigma_max=math.nan)
-    with pytest.raises(SweepError, match="a task returned a row the sweep cannot take"):
-        write_chunk(tmp_path, rules, [row])
+    grid = load_grid(sweep["grid"])
+    row = evaluate_point(eval_spec(SCENE, grid), 0, grid.points()[0][1])
+    assert row["status"] == "ok"
+    good = tmp_path / "good"
+    (good / CHUNKS).mkdir(parents=True)
+    written = write_chunk(good, rules, [row])
+    assert resume_rows(good, rules, pytest.fail) == written
+    with pytest.raises(SweepError, match="a task returned a row the sweep cannot take") as exc:
+        write_chunk(tmp_path, rules, [{**row, **change}])
+    assert reason in str(exc.value)
     assert not (tmp_path / CHUNKS).exists()
 
 
