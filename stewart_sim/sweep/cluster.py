@@ -28,6 +28,14 @@ LOCAL_CLUSTER = {
 }
 
 
+
+def dask_environment() -> dict[str, str]:
+    """LOCAL_CLUSTER as DASK_* environment variables, for a scheduler and workers started by
+    hand (`dask scheduler`, `dask worker`): the same settings on a cluster of one's own."""
+    return {"DASK_" + key.upper().replace(".", "__").replace("-", "_"): str(value)
+            for key, value in LOCAL_CLUSTER.items()}
+
+
 def dask_client(scheduler: str | None, workers: int | None):
     """A dask.distributed Client on the scheduler, or on a new local cluster of `workers`
     processes (default: one per core); use it as a context manager (`with dask_client(...) as

@@ -57,6 +57,8 @@ class SweepSummary:
     wall: float          # s, this run's evaluation (the cluster's start and close excluded)
     refused: int = 0     # chunk files set aside on resume (their points computed again)
     added: int = 0       # points added by refinement (sweep --adaptive), in `points`
+    cpu: float = 0.0     # s of this process's CPU over `wall`: the client's share (sending
+                         # tasks, checking and writing rows), and a local cluster's scheduler
 
     @property
     def rate(self) -> float:
@@ -146,6 +148,7 @@ def run_sweep(scene: Path, grid: GridSpec, out: Path, scheduler: str | None = No
                 refine.run(ledger_rows(ledger, rules), out, runner, refuse)
     finally:
         wall = (runner.end or time.monotonic()) - runner.start
+        cpu = (runner.end_cpu or time.process_time()) - runner.start_cpu
         if refine is None:
             merged, failed = merge_chunks(out, rules, ledger)
         else:
@@ -157,7 +160,7 @@ def run_sweep(scene: Path, grid: GridSpec, out: Path, scheduler: str | None = No
     if refine is not None:
         resumed, computed = resumed + refine.resumed, computed + refine.computed
     return SweepSummary(table, len(points) + added, resumed, computed, failed, runner.workers,
-                        wall, len(refused), added)
+                        wall, len(refused), added, cpu)
 
 
 class _Runner:
@@ -165,7 +168,8 @@ class _Runner:
     first points to compute and closed with `stack`; the grid and the refinement rounds share
     it, its task sizer and the measured cost of a point. `start`: when the cluster was up;
     `end`: when the last part's tasks were done (the wall time excludes the cluster's start and
-    its close, which take about 0.4 s each on a local cluster)."""
+    its close, which take about 0.4 s each on a local cluster); `start_cpu`, `end_cpu`: this
+    process's CPU time then."""
 
     def __init__(self, scheduler: str | None, workers: int | None, spec: EvalSpec,
                  grid: GridSpec, sweep: str, total: int, progress: Progress | None,
@@ -175,8 +179,10 @@ class _Runner:
                                                                    dashboard)
         self.sizer, self.costs = BatchSizer(grid.batch, fixed=not grid.sized), TaskCosts()
         self.stack, self.client, self.workers, self.start = ExitStack(), None, 0, time.monotonic()
+        self.start_cpu = time.process_time()
         self.before = 0          # points of the earlier parts (grid, rounds): the progress
         self.end: float | None = None
+        self.end_cpu: float | None = None
 
     def __call__(self, points: Sequence[tuple[int, Mapping[str, Any]]], out: Path,
                  rules: ChunkRules, ledger: Ledger) -> int:
@@ -188,15 +194,19 @@ class _Runner:
             if self.client is None:
                 self.client = self.stack.enter_context(dask_client(self.scheduler, self.n))
                 self.workers = len(self.client.scheduler_info()["workers"])
-                self.client.run(_ready)   # the workers import the evaluation now, not in a task
+                # the workers import the evaluation now, not in a task, and so does the
+                # scheduler (it unpickles each task's points: a PointBlock), which takes a
+                # second and more in a `dask scheduler` process of its own
+                self.client.run(_ready)
+                self.client.run_on_scheduler(_ready)
                 link = _dashboard_link(self.client)
                 if self.dashboard is not None and link is not None:
                     self.dashboard(link)
-                self.start = time.monotonic()
+                self.start, self.start_cpu = time.monotonic(), time.process_time()
             return _run_tasks(self.client, self.spec, points, out, rules, ledger, self)
         finally:
             self.before += ledger.count
-            self.end = time.monotonic()
+            self.end, self.end_cpu = time.monotonic(), time.process_time()
 
 
 def evaluate_task(spec: EvalSpec, block: "PointBlock", sweep: str = ""
@@ -244,8 +254,9 @@ _WORKER_CACHE: tuple[str, TrajectoryCache] = ("", TrajectoryCache())   # see eva
 
 
 def _ready() -> None:
-    """Run on every worker at start-up: unpickling it imports this module, and with it the
-    evaluation's (controller design, closed loop), so that no task's time includes imports."""
+    """Run on every worker and the scheduler at start-up: unpickling it imports this module,
+    and with it the evaluation's (controller design, closed loop), so that no task's time
+    includes imports."""
 
 
 def _dashboard_link(client) -> str | None:

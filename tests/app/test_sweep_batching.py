@@ -17,7 +17,7 @@ from stewart_sim.progress import rate_text
 from stewart_sim.sweep.batching import (MIN_SECONDS, PROBE, TARGET_SECONDS, BatchSizer,
                                         TaskCosts)
 from stewart_sim.sweep.chunks import chunk_rules, merge_chunks, resume_ledger, write_chunk
-from stewart_sim.sweep.cluster import LOCAL_CLUSTER, dask_client
+from stewart_sim.sweep.cluster import LOCAL_CLUSTER, dask_client, dask_environment
 from stewart_sim.sweep.evaluate import (LEGS, columns, evaluate_batch, has_drive, point_model,
                                         point_trajectory, trajectory)
 from stewart_sim.sweep.grid import MAX_BATCH, grid_from_dict, load_grid
@@ -247,3 +247,14 @@ def test_the_local_clusters_workers_run_with_its_settings():
     assert len(got) == 1
     assert list(got.values())[0] == LOCAL_CLUSTER
     assert LOCAL_CLUSTER["distributed.worker.profile.enabled"] is False
+
+
+def test_the_settings_as_environment_variables_are_the_local_clusters():
+    """dask_environment gives a hand-started scheduler and workers LOCAL_CLUSTER's settings:
+    Dask reads them back as they are (infinity as "inf", which its scheduler takes)."""
+    import dask
+
+    got = dask.config.collect(paths=[], env=dict(dask_environment()))
+    for key, value in LOCAL_CLUSTER.items():
+        read = dask.config.get(key, config=got)
+        assert read == value or (value == math.inf and read == "inf"), key
