@@ -18,6 +18,11 @@ the reason, and its points are computed again: a sweep resumed after a crash fin
 row of a damaged or foreign file reaches sweep.csv. The checksum detects damage (a torn copy, an
 edit), not forgery: a file edited and given a new checksum is still held to the rows' rules.
 
+A task's rows are held to the same rules and made into a chunk's text on the worker that
+evaluated them (checked_cells, chunk_text); the client that runs the sweep writes that text
+(write_chunk_text), so its share of a point stays small however many workers there are. Every
+chunk is read and checked again when sweep.csv is merged (merge_chunks).
+
 A sweep of millions of points keeps no rows in memory: `resume_ledger` and a run's finished
 tasks record which points the accepted chunks hold (a Ledger: one byte per point), and
 `merge_chunks` writes sweep.csv from the chunk files, read again (and checked again) in point
@@ -34,6 +39,7 @@ import os
 import re
 import stat
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
 
@@ -41,7 +47,7 @@ import numpy as np
 
 from stewart_fmu.errors import SweepError
 from stewart_fmu.io import OutputError, atomic_write
-from stewart_sim.sweep.evaluate import result_problem
+from stewart_sim.sweep.evaluate import result_bounds, result_problem
 from stewart_sim.sweep.table import CHUNKS, cell, csv_text, write_table
 
 MAGIC = "#stewart-sim sweep chunk 1"
@@ -63,10 +69,15 @@ class ChunkRules:
     drive: bool                       # the scene has a [drive] table (evaluate.has_drive)
     first: int = 0                    # the first point id (a refinement round's: adaptive.py)
 
-    @property
+    @cached_property
     def results_from(self) -> int:
         """The first result column's index: point, axes, status and error come before."""
         return self.columns.index("status") + 2
+
+    @cached_property
+    def bounds(self) -> tuple[tuple[float, float], ...]:
+        """Each result column's evaluate.result_bounds, in order."""
+        return tuple(result_bounds(name) for name in self.columns[self.results_from:])
 
 
 class AxisCells(Sequence):
@@ -123,30 +134,48 @@ class Ledger:
 
 def write_chunk(out: Path, rules: ChunkRules, rows: Sequence[Mapping[str, Any]]
                 ) -> dict[int, list[str]]:
-    """Write the rows of one finished task as a chunk file, atomically and durably; returns
-    them as cell texts by point id (what a resume reads back). The rows are held to the rules a
-    resume applies before anything is written (_row_cells); a task's rows that break them come
-    from other code on the workers."""
+    """Write the rows of one finished task as a chunk file (checked_cells, then
+    write_chunk_text); returns them as cell texts by point id (what a resume reads back)."""
+    cells = checked_cells(rules, rows)
+    write_chunk_text(out, rules, list(cells), chunk_text(rules, cells))
+    return cells
+
+
+def checked_cells(rules: ChunkRules, rows: Sequence[Mapping[str, Any]]
+                  ) -> dict[int, list[str]]:
+    """A task's rows (dicts by column: evaluate.evaluate_point) as cell texts by point id,
+    held to the rules a resume applies (_row_cells) before they go anywhere: a task's row that
+    breaks them comes from other code on the workers (SweepError)."""
     try:
-        cells = dict(_row_cells(r, rules) for r in rows)
+        return dict(_row_cells(r, rules) for r in rows)
     except _Refused as exc:
         raise SweepError(None, f"a task returned a row the sweep cannot take ({exc}): do "
                                "the workers run this version of stewart-sim?") from None
-    body = csv_text(rules.columns, cells.values()).encode()
-    head = f"{MAGIC} {rules.fingerprint} {len(cells)} {hashlib.sha256(body).hexdigest()}\n"
+
+
+def chunk_text(rules: ChunkRules, cells: Mapping[int, Sequence[str]]) -> bytes:
+    """The bytes of a chunk file after its first line: the header and the rows."""
+    return csv_text(rules.columns, cells.values()).encode()
+
+
+def write_chunk_text(out: Path, rules: ChunkRules, ids: Sequence[int], body: bytes) -> Path:
+    """Write a chunk file of the rows `body` (chunk_text) of the points `ids`, atomically and
+    durably: its first line (the sweep's fingerprint, the rows, the body's SHA-256), then the
+    body. Returns its path."""
+    head = f"{MAGIC} {rules.fingerprint} {len(ids)} {hashlib.sha256(body).hexdigest()}\n"
 
     def write(fh) -> None:
         fh.write(head.encode() + body)
         fh.flush()
         os.fsync(fh.fileno())
 
-    path = atomic_write(chunk_path(out, min(cells)), write, binary=True)
+    path = atomic_write(chunk_path(out, min(ids)), write, binary=True)
     fd = os.open(path.parent, os.O_RDONLY)
     try:
         os.fsync(fd)  # the rename itself survives a crash
     finally:
         os.close(fd)
-    return cells
+    return path
 
 
 def resume_rows(out: Path, rules: ChunkRules, notice: Callable[[str], None]
@@ -377,12 +406,14 @@ def _row_cells(row: Mapping[str, Any], rules: ChunkRules) -> tuple[int, list[str
                        f"({_short(repr(pid))})")
     pid = int(pid)
     values = [row[c] for c in cols[k:]]
-    for name, v in zip(cols[k:], values):
-        if not isinstance(v, (float, np.floating)):
-            raise _Refused(f"point {pid}: {name} = {_short(repr(v))} is not a number")
+    if not all(type(v) is float for v in values):   # the usual case, checked at once
+        for name, v in zip(cols[k:], values):
+            if not isinstance(v, (float, np.floating)):
+                raise _Refused(f"point {pid}: {name} = {_short(repr(v))} is not a number")
+        values = [float(v) for v in values]
     axes = tuple(cell(row[c]) for c in cols[1:k - 2])
     _check_values(rules, pid, axes, status, error, values)
-    return pid, [str(pid), *axes, status, error, *map(repr, map(float, values))]
+    return pid, [str(pid), *axes, status, error, *map(repr, values)]
 
 
 def _check_values(rules: ChunkRules, pid: int, axes: tuple[str, ...], status: str,
@@ -404,7 +435,9 @@ def _check_values(rules: ChunkRules, pid: int, axes: tuple[str, ...], status: st
     if status != "ok" or error:
         raise _Refused(f"point {pid}: status {_short(status)} (ok or error, the text only "
                        "with error)")
-    for name, value in zip(names, results):
+    for name, value, (low, high) in zip(names, results, rules.bounds):
+        if low <= value <= high and math.isfinite(value):
+            continue      # plausible whatever the result (result_problem's doc)
         problem = result_problem(name, value, rules.drive)
         if problem is not None:
             raise _Refused(f"point {pid}: {name} = {_short(repr(value))}: {problem}")

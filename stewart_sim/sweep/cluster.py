@@ -16,15 +16,18 @@ CONNECT_TIMEOUT = 30.0   # s to reach a scheduler or start the local cluster
 # sweep's sized tasks): the scheduler sends them on at once (no queue of its own, whose round
 # trip would leave a worker idle between tasks). The rest is Dask's own periodic work, which
 # takes cores from the workers on a small machine (an idle 2-worker cluster took 15 % of a core
-# with Dask's defaults, 6 % with these, measured): each worker's statistical profiler (a look
-# at its threads' stacks every 10 ms; the dashboard's profile page stays empty), and the system
-# and memory monitors every 2 s and 1 s instead of 0.5 s and 0.1 s (a worker past its memory
-# limit is still stopped, up to 1 s later).
+# with Dask's defaults, 6 % with the first three below, measured): each worker's statistical
+# profiler (a look at its threads' stacks every 10 ms; the dashboard's profile page stays
+# empty), and the system and memory monitors every 2 s and 1 s instead of 0.5 s and 0.1 s (a
+# worker past its memory limit is still stopped, up to 1 s later). Each event loop's watchdog
+# ticks every second instead of every 20 ms: a worker's tick takes the GIL from the task it
+# runs (evaluation 2-3 % slower at 20 ms, measured), and a blocked loop is still reported.
 LOCAL_CLUSTER = {
     "distributed.scheduler.worker-saturation": math.inf,
     "distributed.worker.profile.enabled": False,
     "distributed.admin.system-monitor.interval": "2s",
     "distributed.worker.memory.monitor-interval": "1s",
+    "distributed.admin.tick.interval": "1s",
 }
 
 
@@ -54,7 +57,7 @@ def dask_client(scheduler: str | None, workers: int | None):
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                                host="127.0.0.1", dashboard_address=":0",
                                silence_logs=logging.ERROR)
-    return OwnedClient(Client(cluster, timeout=CONNECT_TIMEOUT), cluster)
+        return OwnedClient(Client(cluster, timeout=CONNECT_TIMEOUT), cluster)
 
 
 class OwnedClient:

@@ -146,16 +146,23 @@ def has_drive(scene: Mapping[str, Any]) -> bool:
 
 def result_problem(name: str, value: float, drive: bool) -> str | None:
     """Why `value` cannot be the result `name` of a point evaluated without error (None: it
-    can); `drive`: the scene has a [drive] table (has_drive)."""
+    can); `drive`: the scene has a [drive] table (has_drive). A finite value within
+    result_bounds(name) always can."""
     if math.isnan(value) and name == "torque_max" and not drive:
         return None
     if not math.isfinite(value):
         return "not finite"
-    if value < _AT_LEAST.get(name, -math.inf):
-        return f"below {_AT_LEAST[name]:g}"
-    if value > _AT_MOST.get(name, math.inf):
-        return f"above {_AT_MOST[name]:g}"
+    low, high = result_bounds(name)
+    if value < low:
+        return f"below {low:g}"
+    if value > high:
+        return f"above {high:g}"
     return None
+
+
+def result_bounds(name: str) -> tuple[float, float]:
+    """The least and the most a result may be (-inf, inf: any finite value)."""
+    return _AT_LEAST.get(name, -math.inf), _AT_MOST.get(name, math.inf)
 
 
 def point_label(pid: int | None, values: Mapping[str, Any]) -> str:

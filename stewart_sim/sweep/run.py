@@ -2,13 +2,17 @@
 processes, one thread each) or a Dask distributed cluster (`scheduler` = "tcp://HOST:PORT").
 
 Points go out in tasks (evaluate_task) sized to a target duration from the measured cost of a
-point (stewart_sim/sweep/batching.py), a few tasks per worker at a time; each finished task's
-rows are written to a chunk file at once (stewart_sim/sweep/chunks.py), so an interruption keeps
-every finished row and a rerun computes only the points not yet in the directory: the rows of
-the chunks that pass their checks (the sweep's fingerprint, their checksum, known points once
-each, plausible results); a chunk refused is set aside and its points are computed again. The
-table is merged from the chunk files, read again and checked again, in point order; no more
-than a task's points and rows are held at once, whatever the sweep's size. A worker that dies
+point (stewart_sim/sweep/batching.py), a few tasks per worker at a time. A task is the ids of its
+points: the points themselves, the evaluation's settings and the chunks' rules go to every
+worker once (a TaskContext, scattered), and a worker returns its rows as a chunk file's text,
+checked against the rules (stewart_sim/sweep/chunks.py); each finished task's text is written to
+a chunk file at once, so an interruption keeps every finished row and a rerun computes only
+the points not yet in the directory: the rows of the chunks that pass their checks (the sweep's
+fingerprint, their checksum, known points once each, plausible results); a chunk refused is set
+aside and its points are computed again. The table is merged from the chunk files, read again
+and checked again, in point order; no more than a task's rows are held at once, whatever the
+sweep's size (the points are the grid's: a Latin hypercube's unit sample, 8 bytes per axis and
+point, is what a worker holds of them). A worker that dies
 takes its running tasks with it; the scheduler runs them again elsewhere, and a task's rows are
 written once, when its future completes. With `adaptive` N, the rounds of refinement (their
 points picked from the grid's rows, read back from its chunk files:
@@ -33,8 +37,9 @@ from stewart_fmu.scene import read_scene_dict, scene_from_dict
 from stewart_sim.progress import Progress
 from stewart_sim.sweep.adaptive import REFINEMENT, Refinement, check_adaptive
 from stewart_sim.sweep.batching import BatchSizer, TaskCosts
-from stewart_sim.sweep.chunks import (ChunkRules, Ledger, chunk_path, chunk_rules, ledger_rows,
-                                      merge_chunks, resume_ledger, write_chunk)
+from stewart_sim.sweep.chunks import (ChunkRules, Ledger, checked_cells, chunk_rules, chunk_text,
+                                      ledger_rows, merge_chunks, resume_ledger,
+                                      write_chunk_text)
 from stewart_sim.sweep.cluster import dask_client
 from stewart_sim.sweep.evaluate import (EvalSpec, TrajectoryCache, columns, evaluate_batch,
                                         has_drive, point_label, point_model)
@@ -195,8 +200,8 @@ class _Runner:
                 self.client = self.stack.enter_context(dask_client(self.scheduler, self.n))
                 self.workers = len(self.client.scheduler_info()["workers"])
                 # the workers import the evaluation now, not in a task, and so does the
-                # scheduler (it unpickles each task's points: a PointBlock), which takes a
-                # second and more in a `dask scheduler` process of its own
+                # scheduler (it unpickles each task, whose function is this module's), which
+                # takes a second and more in a `dask scheduler` process of its own
                 self.client.run(_ready)
                 self.client.run_on_scheduler(_ready)
                 link = _dashboard_link(self.client)
@@ -209,45 +214,35 @@ class _Runner:
             self.end, self.end_cpu = time.monotonic(), time.process_time()
 
 
-def evaluate_task(spec: EvalSpec, block: "PointBlock", sweep: str = ""
-                  ) -> tuple[list[dict[str, Any]], float, bool]:
-    """One task on a worker: the rows of its points, the seconds they took there, and whether
-    it was this worker's first task of the sweep `sweep` (a fingerprint: the worker keeps the
-    trajectories of that sweep's geometries from task to task, and drops them for another)."""
+@dataclass(frozen=True)
+class TaskContext:
+    """What every task of one part of a sweep (the grid, a refinement round) shares, sent to
+    each worker once: the evaluation's settings, the points (by id - rules.first) and the rules
+    of their chunks."""
+
+    spec: EvalSpec
+    points: Sequence[tuple[int, Mapping[str, Any]]]
+    rules: ChunkRules
+
+
+def evaluate_task(context: TaskContext, ids: np.ndarray, sweep: str = ""
+                  ) -> tuple[list[int], bytes, float, bool]:
+    """One task on a worker: the points `ids` evaluated, their rows checked and made into a
+    chunk file's text (chunks.checked_cells, chunk_text); returns the ids, the text, the seconds
+    the evaluation took there, and whether it was this worker's first task of the sweep `sweep`
+    (a fingerprint: the worker keeps the trajectories of that sweep's geometries from task to
+    task, and drops them for another)."""
     global _WORKER_CACHE
     begin = time.perf_counter()
     first = _WORKER_CACHE[0] != sweep or not sweep
     if first:
         _WORKER_CACHE = (sweep, TrajectoryCache())
-    rows = evaluate_batch(spec, block.points(), _WORKER_CACHE[1])
-    return rows, time.perf_counter() - begin, first
-
-
-@dataclass(frozen=True)
-class PointBlock:
-    """A task's points, packed: their ids and one column per axis (numbers as a float64 array,
-    strings as a tuple), a few objects whatever the points (what the scheduler and its
-    history hold of a task stays small)."""
-
-    ids: np.ndarray
-    keys: tuple[str, ...]
-    columns: tuple[Any, ...]
-
-    @classmethod
-    def of(cls, points: Sequence[tuple[int, Mapping[str, Any]]]) -> "PointBlock":
-        keys = tuple(points[0][1])
-        cols = []
-        for k in keys:
-            col = [v[k] for _, v in points]
-            cols.append(np.array(col, dtype=float) if all(type(x) is float for x in col)
-                        else tuple(col))
-        return cls(np.array([pid for pid, _ in points], dtype=np.int64), keys, tuple(cols))
-
-    def points(self) -> list[tuple[int, dict[str, Any]]]:
-        """The points as GridSpec.points gives them (Python floats: the same values)."""
-        cols = [c.tolist() if isinstance(c, np.ndarray) else list(c) for c in self.columns]
-        return [(pid, dict(zip(self.keys, row)))
-                for pid, row in zip(self.ids.tolist(), zip(*cols))]
+    base = context.rules.first
+    points = [context.points[pid - base] for pid in ids.tolist()]
+    rows = evaluate_batch(context.spec, points, _WORKER_CACHE[1])
+    seconds = time.perf_counter() - begin
+    cells = checked_cells(context.rules, rows)
+    return list(cells), chunk_text(context.rules, cells), seconds, first
 
 
 _WORKER_CACHE: tuple[str, TrajectoryCache] = ("", TrajectoryCache())   # see evaluate_task
@@ -269,8 +264,8 @@ def _dashboard_link(client) -> str | None:
 def _run_tasks(client, spec: EvalSpec, points: Sequence[tuple[int, Mapping[str, Any]]],
                out: Path, rules: ChunkRules, ledger: Ledger, runner: _Runner) -> int:
     """Send the points not in the ledger in tasks sized by the runner's sizer, a few per worker
-    at a time; write each task's rows as it completes (a chunk file, recorded in the ledger);
-    returns the points done."""
+    at a time (their TaskContext scattered to every worker first); write each task's rows as it
+    completes (a chunk file, recorded in the ledger); returns the points done."""
     from distributed import as_completed
     from distributed.client import FutureCancelledError
     from distributed.scheduler import KilledWorker
@@ -278,30 +273,32 @@ def _run_tasks(client, spec: EvalSpec, points: Sequence[tuple[int, Mapping[str, 
     sizer, costs, progress, timeout = runner.sizer, runner.costs, runner.progress, runner.timeout
     todo: Iterator[int] = (i for i in range(len(points)) if not ledger.done[i])
     left, resumed = len(points) - ledger.count, ledger.count
-    pending: set = set()
+    context = client.scatter(TaskContext(spec, points, rules), broadcast=True, hash=False)
+    pending: dict = {}     # future: the ids it was sent
     finished = as_completed(timeout=timeout)
     workers, looked = _workers(client), time.monotonic()
 
     def submit() -> int:
-        ids = list(islice(todo, sizer.size(costs.per_point, left, workers)))
-        if ids:
-            fut = client.submit(evaluate_task, spec, PointBlock.of([points[i] for i in ids]),
-                                runner.sweep, pure=False)
-            pending.add(fut)
+        ids = np.fromiter(islice(todo, sizer.size(costs.per_point, left, workers)),
+                          dtype=np.int64) + rules.first
+        if len(ids):
+            fut = client.submit(evaluate_task, context, ids, runner.sweep, pure=False)
+            pending[fut] = ids
             finished.add(fut)
         return len(ids)
 
     def record(fut) -> None:
-        rows, seconds, first = fut.result()
-        cells = write_chunk(out, rules, rows)
-        ledger.add(chunk_path(out, min(cells)), cells.keys())
-        costs.add(len(rows), seconds, first)
+        got, text, seconds, first = fut.result()
+        if got != pending.pop(fut).tolist():
+            raise SweepError(None, "a task returned the rows of other points: do the workers "
+                                   "run this version of stewart-sim?")
+        ledger.add(write_chunk_text(out, rules, got, text), got)
+        costs.add(len(got), seconds, first)
 
     try:
         for _ in range(sizer.in_flight(workers)):
             left -= submit()
         for fut in finished:
-            pending.discard(fut)
             record(fut)
             if time.monotonic() - looked > WORKERS_POLL:
                 workers, looked = _workers(client), time.monotonic()
@@ -318,6 +315,7 @@ def _run_tasks(client, spec: EvalSpec, points: Sequence[tuple[int, Mapping[str, 
         for fut in [f for f in pending if f.status == "finished"]:  # finished meanwhile: keep
             record(fut)
         client.cancel(list(pending))
+        client.cancel([context])
     return ledger.count - resumed
 
 

@@ -5,6 +5,7 @@ sized sweep resumed after losing some of its chunks equal to the uninterrupted o
 from __future__ import annotations
 
 import math
+import pickle
 import tomllib
 from pathlib import Path
 
@@ -16,12 +17,13 @@ from stewart_sim.cli import main
 from stewart_sim.progress import rate_text
 from stewart_sim.sweep.batching import (MIN_SECONDS, PROBE, TARGET_SECONDS, BatchSizer,
                                         TaskCosts)
-from stewart_sim.sweep.chunks import chunk_rules, merge_chunks, resume_ledger, write_chunk
+from stewart_sim.sweep.chunks import (checked_cells, chunk_rules, chunk_text, merge_chunks,
+                                      resume_ledger, write_chunk)
 from stewart_sim.sweep.cluster import LOCAL_CLUSTER, dask_client, dask_environment
 from stewart_sim.sweep.evaluate import (LEGS, columns, evaluate_batch, has_drive, point_model,
                                         point_trajectory, trajectory)
 from stewart_sim.sweep.grid import MAX_BATCH, grid_from_dict, load_grid
-from stewart_sim.sweep.run import eval_spec, fingerprint, run_sweep
+from stewart_sim.sweep.run import TaskContext, eval_spec, evaluate_task, fingerprint, run_sweep
 from stewart_sim.sweep.table import CHUNKS, csv_text, open_sweep
 
 distributed = pytest.importorskip("distributed")
@@ -221,16 +223,27 @@ def test_a_resumed_sized_sweep_equals_the_uninterrupted_one(tmp_path, cluster, c
     assert (full / "sweep.csv").read_text() == serial
 
 
-def test_a_packed_block_of_points_is_the_points():
-    from stewart_sim.sweep.run import PointBlock
-
+def test_a_task_is_the_ids_of_its_points():
+    """A worker gets the points, settings and rules once (a TaskContext, pickled as Dask sends
+    it) and a task's ids: its points are the grid's, values and types, and it returns the
+    chunk text of their rows as the serial evaluation gives it, with the ids."""
     for text in (INVERSE, 'evaluation = "closed_loop"\n[axes]\n"controller.feedforward" = '
                           '["none", "kane"]\n"drive.gear_ratio" = [10.0, 20.0]\n'):
-        points = _grid(text).points()[1:]
-        assert PointBlock.of(points).points() == points
-        assert all(type(v) is type(w) for (_, a), (_, b) in zip(PointBlock.of(points).points(),
-                                                                 points)
-                   for v, w in zip(a.values(), b.values()))
+        grid = _grid(text)
+        spec, points = eval_spec(SCENE, grid), grid.point_sequence()
+        cols = columns(grid.evaluation, grid.keys)
+        fp = fingerprint(spec, grid)
+        rules = chunk_rules(fp, cols, points, 24, has_drive(spec.scene))
+        context = pickle.loads(pickle.dumps(TaskContext(spec, points, rules)))
+        assert [context.points[i] for i in range(len(points))] == grid.points()
+        assert all(type(v) is type(w) for i in range(len(points))
+                   for v, w in zip(context.points[i][1].values(), points[i][1].values()))
+        ids = np.array([1, 2, len(points) - 1], dtype=np.int64)
+        got, body, seconds, first = evaluate_task(context, ids, fp)
+        assert got == ids.tolist() and seconds > 0 and first
+        rows = evaluate_batch(spec, [points[i] for i in ids.tolist()])
+        assert body == chunk_text(rules, checked_cells(rules, rows))
+        assert body.decode() == csv_text(cols, rows)
 
 
 def _worker_settings() -> dict:
