@@ -23,13 +23,13 @@ for input. The loop ends when `stop` is set (checked at least every `poll` secon
 """
 from __future__ import annotations
 
-import ipaddress
 import math
 import threading
 import time
 from dataclasses import dataclass
 from typing import Callable
 
+from hil.address import host_port
 from hil.device import Device, DeviceError
 from hil.errors import LinkError
 from hil.peer import PeerGuard
@@ -175,24 +175,6 @@ def serve_in_thread(device: Device, transport, realtime: bool | None = None, **k
 # ---------------------------------------------------------------- UDP server end
 
 def loopback_address(text: str) -> tuple[str, int]:
-    """Parse "HOST:PORT" where HOST is a loopback IPv4 address (or "localhost"); LinkError else."""
-    host, sep, port_text = text.rpartition(":")
-    if not sep or not host:
-        raise LinkError(f"--udp: expected HOST:PORT, got {text!r}")
-    if host == "localhost":
-        host = "127.0.0.1"
-    try:
-        addr = ipaddress.IPv4Address(host)
-    except ValueError:
-        raise LinkError(f"--udp: {host!r} is not an IPv4 address; the device listens on "
-                        "loopback only (127.0.0.1)") from None
-    if not addr.is_loopback:
-        raise LinkError(f"--udp: {host} is not a loopback address; the device listens on "
-                        "loopback only (127.0.0.1)")
-    try:
-        port = int(port_text)
-    except ValueError:
-        raise LinkError(f"--udp: port must be an integer, got {port_text!r}") from None
-    if not 0 <= port <= 65535:
-        raise LinkError(f"--udp: port must be 0..65535 (0: any free port), got {port}")
-    return str(addr), port
+    """Parse "HOST:PORT" where HOST is a loopback IPv4 address (or "localhost"), port 0 for
+    any free one; hil.address.AddressError (a LinkError) else."""
+    return host_port(text, "--udp", loopback_only="the device listens on loopback only")

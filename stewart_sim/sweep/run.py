@@ -217,8 +217,8 @@ class _Runner:
 @dataclass(frozen=True)
 class TaskContext:
     """What every task of one part of a sweep (the grid, a refinement round) shares, sent to
-    each worker once: the evaluation's settings, the points (by id - rules.first) and the rules
-    of their chunks."""
+    each worker once: the evaluation's settings, the points (point k at k - the rules' first
+    id) and the rules of their chunks."""
 
     spec: EvalSpec
     points: Sequence[tuple[int, Mapping[str, Any]]]

@@ -5,6 +5,7 @@ sized sweep resumed after losing some of its chunks equal to the uninterrupted o
 from __future__ import annotations
 
 import math
+import os
 import pickle
 import tomllib
 from pathlib import Path
@@ -246,20 +247,28 @@ def test_a_task_is_the_ids_of_its_points():
         assert body.decode() == csv_text(cols, rows)
 
 
-def _worker_settings() -> dict:
+def _worker_settings() -> tuple[dict, dict]:
+    import os
+
     import dask
 
-    return {k: dask.config.get(k) for k in LOCAL_CLUSTER}
+    return ({k: dask.config.get(k) for k in LOCAL_CLUSTER},
+            {k: os.environ.get(k) for k in ("MALLOC_TRIM_THRESHOLD_", "OMP_NUM_THREADS")})
 
 
 def test_the_local_clusters_workers_run_with_its_settings():
     """The sweep's own local cluster: its workers' Dask settings are LOCAL_CLUSTER's (no
-    profiler, slower monitors), whatever this process's are."""
+    profiler, slower monitors and ticks), whatever this process's are, and their environment
+    has one BLAS thread and no MALLOC_TRIM_THRESHOLD_ (unless this process has one: a worker
+    inherits it)."""
     with dask_client(None, 1) as client:
         got = client.run(_worker_settings)
     assert len(got) == 1
-    assert list(got.values())[0] == LOCAL_CLUSTER
+    settings, environ = list(got.values())[0]
+    assert settings == LOCAL_CLUSTER
     assert LOCAL_CLUSTER["distributed.worker.profile.enabled"] is False
+    assert environ["OMP_NUM_THREADS"] == "1"
+    assert environ["MALLOC_TRIM_THRESHOLD_"] == os.environ.get("MALLOC_TRIM_THRESHOLD_")
 
 
 def test_the_settings_as_environment_variables_are_the_local_clusters():
