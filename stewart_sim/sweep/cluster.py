@@ -41,8 +41,16 @@ LOCAL_CLUSTER = {
 def dask_environment() -> dict[str, str]:
     """LOCAL_CLUSTER as DASK_* environment variables, for a scheduler and workers started by
     hand (`dask scheduler`, `dask worker`): the same settings on a cluster of one's own."""
-    return {"DASK_" + key.upper().replace(".", "__").replace("-", "_"): str(value)
+    return {"DASK_" + key.upper().replace(".", "__").replace("-", "_"): _env_text(value)
             for key, value in LOCAL_CLUSTER.items()}
+
+
+def _env_text(value) -> str:
+    """A setting as Dask reads it from a variable (a Python literal; a table with its keys in
+    double quotes, which a shell's single quotes keep as they are)."""
+    if isinstance(value, dict):
+        return "{" + ", ".join(f'"{k}": {v!r}' for k, v in value.items()) + "}"
+    return str(value)
 
 
 def dask_client(scheduler: str | None, workers: int | None):
@@ -78,3 +86,16 @@ class OwnedClient:
     def __exit__(self, *exc) -> None:
         self.client.close()
         self.cluster.close()
+
+
+def main() -> None:
+    """`python -m stewart_sim.sweep.cluster`: dask_environment as shell `export` lines, for
+    `eval "$(...)"` before starting `dask scheduler` and `dask worker` by hand."""
+    import shlex
+
+    for name, value in dask_environment().items():
+        print(f"export {name}={shlex.quote(value)}")
+
+
+if __name__ == "__main__":
+    main()

@@ -280,3 +280,21 @@ def test_the_settings_as_environment_variables_are_the_local_clusters():
     for key, value in LOCAL_CLUSTER.items():
         read = dask.config.get(key, config=got)
         assert read == value or (value == math.inf and read == "inf"), key
+
+
+def test_the_settings_print_as_shell_exports():
+    """`python -m stewart_sim.sweep.cluster` prints dask_environment as `export` lines a shell
+    takes back as they are."""
+    import shlex
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-m", "stewart_sim.sweep.cluster"], check=True,
+                         capture_output=True, text=True).stdout
+    got = {}
+    for line in out.splitlines():
+        word, assignment = shlex.split(line)
+        assert word == "export"
+        name, _, value = assignment.partition("=")
+        got[name] = value
+    assert got == dask_environment()
