@@ -19,7 +19,8 @@ row of a damaged or foreign file reaches sweep.csv. The checksum detects damage 
 edit), not forgery: a file edited and given a new checksum is still held to the rows' rules.
 
 A task's rows are held to the same rules and made into a chunk's text on the worker that
-evaluated them (checked_cells, chunk_text); the client that runs the sweep writes that text
+evaluated them (checked_cells, chunk_text); the client that runs the sweep checks only its
+form (check_task_text: the points it sent, the sweep's columns) and writes it
 (write_chunk_text), so its share of a point stays small however many workers there are. Every
 chunk is read and checked again when sweep.csv is merged (merge_chunks).
 
@@ -156,6 +157,33 @@ def checked_cells(rules: ChunkRules, rows: Sequence[Mapping[str, Any]]
 def chunk_text(rules: ChunkRules, cells: Mapping[int, Sequence[str]]) -> bytes:
     """The bytes of a chunk file after its first line: the header and the rows."""
     return csv_text(rules.columns, cells.values()).encode()
+
+
+def check_task_text(rules: ChunkRules, sent: Sequence[int], got: Sequence[int],
+                    body: bytes) -> None:
+    """A worker's chunk text (evaluate_task's) as far as its form shows, before it is written:
+    the ids it names are those sent, in order, and the text is CSV with the sweep's columns and
+    a row for each of them, in that order. What the rows say was checked on the worker, and
+    is checked again when the chunk is read back (merge_chunks). SweepError else: the workers
+    run other code."""
+    problem = None
+    if list(got) != list(sent):
+        problem = "the rows of other points"
+    else:
+        try:
+            records = csv.reader(textio.StringIO(body.decode("utf-8"), newline=""))
+            head = next(records, None)
+            first = [r[0] if r else "" for r in records]
+        except (UnicodeDecodeError, csv.Error) as exc:
+            problem = f"text that is not UTF-8 CSV ({exc})"
+        else:
+            if head is None or tuple(head) != rules.columns:
+                problem = "rows with other columns than the sweep's"
+            elif first != [str(pid) for pid in sent]:
+                problem = f"{len(first)} rows that are not those of its {len(sent)} points"
+    if problem is not None:
+        raise SweepError(None, f"a task returned {problem}: do the workers run this version of "
+                               "stewart-sim?")
 
 
 def write_chunk_text(out: Path, rules: ChunkRules, ids: Sequence[int], body: bytes) -> Path:

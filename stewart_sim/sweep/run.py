@@ -37,9 +37,9 @@ from stewart_fmu.scene import read_scene_dict, scene_from_dict
 from stewart_sim.progress import Progress
 from stewart_sim.sweep.adaptive import REFINEMENT, Refinement, check_adaptive
 from stewart_sim.sweep.batching import BatchSizer, TaskCosts
-from stewart_sim.sweep.chunks import (ChunkRules, Ledger, checked_cells, chunk_rules, chunk_text,
-                                      ledger_rows, merge_chunks, resume_ledger,
-                                      write_chunk_text)
+from stewart_sim.sweep.chunks import (ChunkRules, Ledger, check_task_text, checked_cells,
+                                      chunk_rules, chunk_text, ledger_rows, merge_chunks,
+                                      resume_ledger, write_chunk_text)
 from stewart_sim.sweep.cluster import dask_client
 from stewart_sim.sweep.evaluate import (EvalSpec, TrajectoryCache, columns, evaluate_batch,
                                         has_drive, point_label, point_model)
@@ -289,9 +289,7 @@ def _run_tasks(client, spec: EvalSpec, points: Sequence[tuple[int, Mapping[str, 
 
     def record(fut) -> None:
         got, text, seconds, first = fut.result()
-        if got != pending.pop(fut).tolist():
-            raise SweepError(None, "a task returned the rows of other points: do the workers "
-                                   "run this version of stewart-sim?")
+        check_task_text(rules, pending.pop(fut).tolist(), got, text)
         ledger.add(write_chunk_text(out, rules, got, text), got)
         costs.add(len(got), seconds, first)
 

@@ -14,12 +14,13 @@ import numpy as np
 import pytest
 
 from stewart_fmu.dynamics import inverse_dynamics
+from stewart_fmu.errors import SweepError
 from stewart_sim.cli import main
 from stewart_sim.progress import rate_text
 from stewart_sim.sweep.batching import (MIN_SECONDS, PROBE, TARGET_SECONDS, BatchSizer,
                                         TaskCosts)
-from stewart_sim.sweep.chunks import (checked_cells, chunk_rules, chunk_text, merge_chunks,
-                                      resume_ledger, write_chunk)
+from stewart_sim.sweep.chunks import (check_task_text, checked_cells, chunk_rules, chunk_text,
+                                      merge_chunks, resume_ledger, write_chunk)
 from stewart_sim.sweep.cluster import LOCAL_CLUSTER, dask_client, dask_environment
 from stewart_sim.sweep.evaluate import (LEGS, columns, evaluate_batch, has_drive, point_model,
                                         point_trajectory, trajectory)
@@ -298,3 +299,34 @@ def test_the_settings_print_as_shell_exports():
         name, _, value = assignment.partition("=")
         got[name] = value
     assert got == dask_environment()
+
+
+def test_the_client_checks_the_form_of_a_tasks_text():
+    """check_task_text takes a worker's chunk text for the points sent (an error text over two
+    lines included) and refuses, naming the fault, the rows of other points, another column
+    set, a row missing and bytes that are not UTF-8."""
+    grid = _grid(INVERSE)
+    spec, points = eval_spec(SCENE, grid), grid.point_sequence()
+    cols = columns(grid.evaluation, grid.keys)
+    rules = chunk_rules(fingerprint(spec, grid), cols, points, 24, has_drive(spec.scene))
+    ids = [6, 7, 8, 9]
+    rows = evaluate_batch(spec, [points[i] for i in ids])
+    assert {r["status"] for r in rows} == {"ok", "error"}
+    rows = [{**r, "error": "first line\nsecond line"} if r["status"] == "error" else r
+            for r in rows]
+    cells = checked_cells(rules, rows)
+    body = chunk_text(rules, cells)
+    check_task_text(rules, ids, ids, body)
+    lines = body.decode().split("\n")
+    bad = {
+        "the rows of other points": (ids[:3] + [10], body),
+        "rows with other columns than the sweep's": (ids, body.replace(b"status", b"state", 1)),
+        "3 rows that are not those of its 4 points": (ids, chunk_text(rules, {
+            k: v for k, v in cells.items() if k != 7})),
+        "text that is not UTF-8 CSV": (ids, body + b"\xff\n"),
+    }
+    assert len(lines) > len(ids) + 2     # the error text's line break is in the text
+    for reason, (got, text) in bad.items():
+        with pytest.raises(SweepError, match="do the workers run this version") as exc:
+            check_task_text(rules, ids, got, text)
+        assert reason in str(exc.value)
