@@ -31,6 +31,7 @@ import numpy as np
 
 from stewart_fmu.fmu.export import (NATIVE, build_binaries, core_sources, find_compiler, pack,
                                     platform_folder)
+from stewart_fmu.fmu.model_description import fmi_root
 from stewart_fmu.model import Model
 
 from .config import ControllerConfig
@@ -178,23 +179,8 @@ def model_description(name: str, table: list[Variable], fmi_version: int,
              "anti-windup and their DC motor currents: leg references and measured leg lengths "
              "in, motor torques out", "generationTool": GENERATION_TOOL,
              "generationDateAndTime": stamp, "variableNamingConvention": "structured"}
-    tok = token(table, fmi_version, move)
-    if fmi_version == 2:
-        root = Element("fmiModelDescription", {"fmiVersion": "2.0", "guid": tok, **attrs,
-                                               "numberOfEventIndicators": "0"})
-        cs = SubElement(root, "CoSimulation", {
-            "modelIdentifier": MODEL_IDENTIFIER, "canHandleVariableCommunicationStepSize": "true",
-            "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "false",
-            "canNotUseMemoryManagementFunctions": "true", "canInterpolateInputs": "false"})
-        files = SubElement(cs, "SourceFiles")
-        for f in sources:
-            SubElement(files, "File", {"name": f})
-    else:
-        root = Element("fmiModelDescription", {"fmiVersion": "3.0", **attrs, "instantiationToken": tok})
-        SubElement(root, "CoSimulation", {
-            "modelIdentifier": MODEL_IDENTIFIER, "canHandleVariableCommunicationStepSize": "true",
-            "canGetAndSetFMUState": "true", "canSerializeFMUState": "false", "hasEventMode": "false",
-            "providesIntermediateUpdate": "false", "canReturnEarlyAfterIntermediateUpdate": "false"})
+    root = fmi_root(fmi_version, attrs, token(table, fmi_version, move), MODEL_IDENTIFIER,
+                    sources, serializes=False)
     units = SubElement(root, "UnitDefinitions")
     for unit in sorted({x.unit for x in table if x.unit}):
         SubElement(units, "Unit", {"name": unit})

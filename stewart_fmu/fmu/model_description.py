@@ -32,6 +32,37 @@ def _log_categories(root: Element) -> None:
         SubElement(cats, "Category", {"name": name, "description": what})
 
 
+def fmi_root(fmi_version: int, attrs: dict[str, str], token: str, model_identifier: str,
+             sources: list[str], serializes: bool) -> Element:
+    """The <fmiModelDescription> element of a co-simulation FMU (FMI 2.0 or 3.0, this
+    package's plant and controller alike) with its <CoSimulation> capabilities: variable
+    communication steps, get and set state, serialized state when `serializes`, no event mode;
+    FMI 2.0 lists the shipped `sources`. `attrs`: modelName, description and the like."""
+    if fmi_version == 2:
+        root = Element("fmiModelDescription", {"fmiVersion": "2.0", "guid": token, **attrs,
+                                               "numberOfEventIndicators": "0"})
+        cs = SubElement(root, "CoSimulation", {
+            "modelIdentifier": model_identifier, "canHandleVariableCommunicationStepSize": "true",
+            "canGetAndSetFMUstate": "true", "canSerializeFMUstate": _flag(serializes),
+            "canNotUseMemoryManagementFunctions": "true", "canInterpolateInputs": "false"})
+        files = SubElement(cs, "SourceFiles")
+        for name in sources:
+            SubElement(files, "File", {"name": name})
+    else:
+        root = Element("fmiModelDescription", {"fmiVersion": "3.0", **attrs,
+                                               "instantiationToken": token})
+        SubElement(root, "CoSimulation", {
+            "modelIdentifier": model_identifier, "canHandleVariableCommunicationStepSize": "true",
+            "canGetAndSetFMUState": "true", "canSerializeFMUState": _flag(serializes),
+            "hasEventMode": "false", "providesIntermediateUpdate": "false",
+            "canReturnEarlyAfterIntermediateUpdate": "false"})
+    return root
+
+
+def _flag(value: bool) -> str:
+    return "true" if value else "false"
+
+
 def build(model: Model, table: list[V.Variable], fmi_version: int, model_identifier: str,
           sources: list[str]) -> bytes:
     """The model description of a scene's Model with its variables (V.variables(model,
@@ -42,25 +73,9 @@ def build(model: Model, table: list[V.Variable], fmi_version: int, model_identif
     attrs = {"modelName": model.name, "description": DESCRIPTION,
              "generationTool": GENERATION_TOOL, "generationDateAndTime": stamp,
              "variableNamingConvention": "structured"}
-    token = V.token(table, fmi_version)
     rtol = next(x.start for x in table if x.vr == V.VR_RTOL and x.causality == "parameter")
-    if fmi_version == 2:
-        root = Element("fmiModelDescription", {"fmiVersion": "2.0", "guid": token, **attrs,
-                                               "numberOfEventIndicators": "0"})
-        cs = SubElement(root, "CoSimulation", {
-            "modelIdentifier": model_identifier, "canHandleVariableCommunicationStepSize": "true",
-            "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true",
-            "canNotUseMemoryManagementFunctions": "true", "canInterpolateInputs": "false"})
-        files = SubElement(cs, "SourceFiles")
-        for name in sources:
-            SubElement(files, "File", {"name": name})
-    else:
-        root = Element("fmiModelDescription", {"fmiVersion": "3.0", **attrs,
-                                               "instantiationToken": token})
-        SubElement(root, "CoSimulation", {
-            "modelIdentifier": model_identifier, "canHandleVariableCommunicationStepSize": "true",
-            "canGetAndSetFMUState": "true", "canSerializeFMUState": "true", "hasEventMode": "false",
-            "providesIntermediateUpdate": "false", "canReturnEarlyAfterIntermediateUpdate": "false"})
+    root = fmi_root(fmi_version, attrs, V.token(table, fmi_version), model_identifier, sources,
+                    serializes=True)
     _units(root, [x.unit for x in table if x.unit])
     _log_categories(root)
     SubElement(root, "DefaultExperiment", {
