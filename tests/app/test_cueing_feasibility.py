@@ -15,6 +15,7 @@ from stewart_sim.scene_load import scene_of
 from tests.helpers import level_model, scene_dict
 
 DT = 0.01
+COND_BAND = 1e-9   # relative: two roundings of one cond(J) differ by far less
 
 
 def _model():
@@ -172,6 +173,7 @@ def test_a_fast_motion_past_the_voltage_limit_is_caught():
     assert all(v.unit == "V" and v.limit == 300.0 for v in r.violations if v.quantity == "voltage")
 
 
+@pytest.mark.numerics
 def test_cond_past_its_limit_is_caught_for_the_pose():
     model = _model()
     t, q, qd, qdd = _sine(model, 3, 0.3, 0.25)   # roll
@@ -179,7 +181,14 @@ def test_cond_past_its_limit_is_caught_for_the_pose():
     limit = float(np.percentile(cond, 60))
     r = feasibility(model, t, q, qd, qdd, scene_of(model).controller, cond_limit=limit)
     got = [(v.sample, round(v.duration / DT)) for v in r.violations if v.quantity == "cond"]
-    assert got == _runs(cond > limit) and len(got) >= 2
+    # the limit is a sample's own cond (and the roll's symmetry gives it twins): a sample within
+    # a relative COND_BAND of the limit may fall on either side of it, every other one may not
+    flagged = np.zeros(cond.size, dtype=bool)
+    for first, length in got:
+        flagged[first:first + length] = True
+    near = np.abs(cond - limit) <= COND_BAND * limit
+    assert np.array_equal(flagged[~near], (cond > limit)[~near]) and near.sum() < 8
+    assert len(got) >= 2 and got == _runs(flagged)
     assert all(v.leg is None and v.limit == limit for v in r.violations if v.quantity == "cond")
 
 
