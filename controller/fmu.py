@@ -65,8 +65,8 @@ class Variable:
     unit: str
     description: str
     start: float | None
-    min: float | None = None   # the declared range (inputs: input_ranges())
-    max: float | None = None
+    min: float | None = None   # the declared range (inputs: input_ranges(); parameters:
+    max: float | None = None   # parameter_ranges(), None where it has no upper bound)
 
 
 def input_ranges() -> dict[str, tuple[float, float]]:
@@ -76,6 +76,43 @@ def input_ranges() -> dict[str, tuple[float, float]]:
     if len(rows) != body.group(1).count("X("):   # a row this reading would miss
         raise RuntimeError(f"{TABLE}: a row of AXIS_FMU_INPUT_RANGES is not on one line")
     return {name: (float(lo), float(hi)) for name, lo, hi in rows}
+
+
+# axis_table.h's AXIS_BOUND_*: MIN <= x <= MAX (closed), MIN < x <= MAX (open).
+BOUND_CLOSED, BOUND_OPEN = "AXIS_BOUND_CLOSED", "AXIS_BOUND_OPEN"
+
+
+@dataclass(frozen=True)
+class Bound:
+    """A parameter group's bounds (axis_table.h's AXIS_FMU_PARAMETER_RANGES): min < x (open) or
+    min <= x (closed), x <= max (inf: no upper bound)."""
+
+    open: bool
+    min: float
+    max: float
+
+    def reason(self, x: float) -> str | None:
+        """Why x breaks the bounds, in the FMU's words ("must be a finite number > 0, got -1.0"),
+        None when it does not."""
+        low = "" if np.isinf(self.min) else f" {'>' if self.open else '>='} {self.min:g}"
+        if not np.isfinite(x) or not (x > self.min if self.open else x >= self.min):
+            return f"must be a finite number{low}, got {x!r}"
+        if not x <= self.max:
+            return f"must be <= {self.max:g}, got {x!r}"
+        return None
+
+
+def parameter_ranges() -> dict[str, Bound]:
+    """axis_table.h's AXIS_FMU_PARAMETER_RANGES: the bounds per parameter group ID (HUGE_VAL:
+    no upper bound, inf here)."""
+    body = re.search(r"#define AXIS_FMU_PARAMETER_RANGES\(X\)(.*?)\n\n", TABLE.read_text() + "\n\n", re.S)
+    number = r"([-+.\deE]+|HUGE_VAL)"
+    rows = re.findall(rf"X\((\w+), (AXIS_BOUND_OPEN|AXIS_BOUND_CLOSED), {number}, {number}\)", body.group(1))
+    if len(rows) != body.group(1).count("X("):   # a row this reading would miss
+        raise RuntimeError(f"{TABLE}: a row of AXIS_FMU_PARAMETER_RANGES is not on one line")
+    value = {"HUGE_VAL": float("inf")}
+    return {name: Bound(kind == BOUND_OPEN, float(value.get(lo, lo)), float(value.get(hi, hi)))
+            for name, kind, lo, hi in rows}
 
 
 def table_rows() -> dict[str, list[tuple[str, str, int, str, str]]]:
@@ -123,7 +160,7 @@ def start_values(model: Model, config: ControllerConfig) -> dict[str, np.ndarray
 def variables(values: dict[str, np.ndarray] | None = None) -> list[Variable]:
     """Every scalar of the table in value-reference order, with start values from `values`
     (start_values; outputs have none)."""
-    out, bases, ranges = [], _bases(), input_ranges()
+    out, bases, ranges, bounds = [], _bases(), input_ranges(), parameter_ranges()
     for section, rows in table_rows().items():
         vr = bases[section]
         for ident, name, count, unit, what in rows:
@@ -132,6 +169,13 @@ def variables(values: dict[str, np.ndarray] | None = None) -> list[Variable]:
             if start is not None and lo is not None and not np.all((start >= lo) & (start <= hi)):
                 raise ValueError(f"the start of input {name} ({', '.join(f'{x:g}' for x in start)}) lies "
                                  f"outside its declared range [{lo:g}, {hi:g}]")
+            if section == "PARAMETERS" and ident in bounds:
+                bound = bounds[ident]
+                lo, hi = bound.min, (None if np.isinf(bound.max) else bound.max)
+                for x in (() if start is None else start):
+                    why = bound.reason(float(x))
+                    if why:
+                        raise ValueError(f"the start of parameter {name}: {why}")
             for i in range(count):
                 out.append(Variable(name if count == 1 else f"{name}[{i + 1}]", vr + i,
                                     SECTIONS[section], unit, what,
@@ -200,8 +244,10 @@ def model_description(name: str, table: list[Variable], fmi_version: int,
             common["initial"] = "exact"
         index[x.vr] = k + 1 + (fmi_version == 3)
         real = {"unit": x.unit} if x.unit else {}
-        if x.min is not None:
-            real.update(min=repr(x.min), max=repr(x.max))
+        if x.min is not None:   # a parameter without an upper bound declares min alone
+            real["min"] = repr(x.min)
+        if x.max is not None:
+            real["max"] = repr(x.max)
         if x.start is not None:
             real["start"] = repr(x.start)
         if fmi_version == 2:

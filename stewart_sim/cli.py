@@ -35,6 +35,7 @@ COMMANDS = {
     "scene-info": "print the model a scene builds",
     "export-fmu": "export the plant (or --controller) as an FMI co-simulation FMU",
     "export-ssp": "export the closed loop (plant and controller FMUs) as an SSP",
+    "check-ssp": "check an SSP's parameter values against their declared ranges",
     "device": "run the emulated micro-manipulator behind a MAVLink link",
     "simulate": "open-loop forward dynamics from rack forces",
     "trajectory": "write a smooth reference trajectory (the `inverse` input format)",

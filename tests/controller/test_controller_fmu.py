@@ -30,7 +30,8 @@ from controller.config import controller_config
 from controller.cosim import run_closed_loop
 from controller.drive import axis_model
 from controller.feedforward import equilibrium, feedforward_voltage
-from controller.fmu import export_controller, input_ranges, start_values, table_rows, variables
+from controller.fmu import (export_controller, input_ranges, parameter_ranges, start_values, table_rows,
+                            variables)
 from controller.moves import run_reference
 from controller.plants import FmuPlant
 from controller.design import tune_pid
@@ -187,6 +188,45 @@ def test_variables_follow_the_table(micro):
         slave.setReal([vr["tau[1]"]], [0.0])
     slave.terminate()
     slave.freeInstance()
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_parameters_declare_the_bounds_the_fmu_enforces(micro, version, capsys):
+    """Each bounded parameter declares its bounds (axis_table.h's AXIS_FMU_PARAMETER_RANGES, read
+    by model.c and controller/fmu.py) as min and max (max only where it has one); the others
+    none; the start values lie inside. exitInitializationMode refuses a value just outside
+    (an open bound's min itself, a closed one's next double down, past max), naming it."""
+    path = micro[3][version, 0]
+    bounds = parameter_ranges()
+    by_name = {name: ident for ident, name, *_ in table_rows()["PARAMETERS"]}
+    md, _, vr = _slave(path, "probe")
+    declared = 0
+    for v in md.modelVariables:
+        if v.causality != "parameter":
+            continue
+        b = bounds.get(by_name[v.name.split("[")[0]])
+        if b is None:
+            assert v.min is None and v.max is None, v.name
+            continue
+        declared += 1
+        assert float(v.min) == b.min and (v.max is None if np.isinf(b.max) else float(v.max) == b.max), v.name
+        assert b.reason(float(v.start)) is None and b.min <= float(v.start) <= b.max, v.name
+    assert declared == len(bounds) == 13
+    for ident, b in bounds.items():
+        name = next(n for n, i in by_name.items() if i == ident)
+        bad = b.min if b.open else np.nextafter(b.min, -np.inf)
+        for value in (bad, *(() if np.isinf(b.max) else (np.nextafter(b.max, np.inf),))):
+            _, slave, _ = _slave(path, "probe")
+            slave.instantiate()
+            if version == 2:
+                slave.setupExperiment(startTime=0.0)
+            slave.enterInitializationMode()
+            (slave.setReal if version == 2 else slave.setFloat64)([vr[name]], [float(value)])
+            with pytest.raises(FMICallException):
+                slave.exitInitializationMode()
+            slave.freeInstance()
+            said = capsys.readouterr().out
+            assert f"exitInitializationMode: parameter {name} must be" in said, said
 
 
 def test_command(tmp_path, capsys):

@@ -20,14 +20,19 @@ import contextlib
 import dataclasses
 import io
 import json
+import re
 import shutil
+import signal
 import subprocess
 import sys
 import sysconfig
+import zipfile
 from pathlib import Path
+from xml.etree import ElementTree
 
 import numpy as np
 import pytest
+from fmpy import read_model_description
 
 from controller.axis import AxisControllers, MotorCurrents, servo_step
 from controller.config import controller_config
@@ -35,14 +40,29 @@ from controller.cosim import run_closed_loop
 from controller.design import tune_pid
 from controller.drive import axis_model
 from controller.feedforward import equilibrium, feedforward_voltage
+from controller.fmu import Bound, parameter_ranges, table_rows
 from controller.moves import run_reference
 from controller.plants import InProcessPlant
+from controller.ssp import LEGS, RANGE, RANGE_TYPE, SSC, SSV, ParameterRangeError, export_ssp, range_of
+from controller.ssp_check import SspError, check_ssp
 from controller.trajectory import leg_references
-from stewart_fmu import load_scene
+from stewart_fmu import load_scene, table
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENE = ROOT / "scenes" / "micro_manipulator.toml"
 DURATION = 0.3
+
+# libcosim on an archive whose parameter an FMU refuses: the child says "ran" only if it returns
+LIBCOSIM_CHILD = r"""
+import sys
+sys.path.append(sys.argv[1])
+from libcosimpy.CosimExecution import CosimExecution
+from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+log_output_level(CosimLogLevel.ERROR)
+execution = CosimExecution.from_ssp_file(sys.argv[2])
+print("loaded", flush=True)
+print("ran", execution.step(1), flush=True)
+"""
 
 CHILD = r"""
 import importlib.util, json, sys
@@ -76,14 +96,13 @@ def loop(tmp_path_factory):
     work = tmp / "clean"
     work.mkdir()
     shutil.copy(Path(__file__).with_name("ssp_child.py"), work / "ssp_child.py")
-    env = {k: v for k, v in __import__("os").environ.items() if not k.startswith("PYTHON")}
     proc = subprocess.run([sys.executable, "-I", "-S", "-c", CHILD, sysconfig.get_paths()["purelib"],
                            str(ssp), str(steps), repr(config.dt)],
-                          cwd=work, env=env, capture_output=True, text=True, timeout=600)
+                          cwd=work, env=_child_env(), capture_output=True, text=True, timeout=600)
     lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")]
     assert proc.returncode == 0 and lines, proc.stdout[-2000:] + proc.stderr[-4000:]
     got = {k: np.array(v) for k, v in json.loads(lines[-1][7:]).items()}
-    return model, config, traj, got
+    return model, config, traj, got, ssp
 
 
 def _lengths(table: np.ndarray) -> np.ndarray:
@@ -95,7 +114,7 @@ def _lengths(table: np.ndarray) -> np.ndarray:
 def delayed_run(loop):
     """`run`'s closed loop of the scene with [controller] delay = 1: the C loop's table, after
     checking the Python loop's (around InProcessPlant) equals it bit for bit, every column."""
-    model, config, traj, _ = loop
+    model, config, traj, _, _ = loop
     compiled = run_closed_loop(model, config, traj).table
     python = run_closed_loop(model, config, traj, plant=InProcessPlant(model)).table
     for name in compiled.dtype.names:
@@ -136,7 +155,7 @@ def test_run_with_delay_is_the_delayed_loop(loop, delayed_run):
     """`run` with [controller] delay = 1 (the C loop and the Python loop, equal: delayed_run) is
     the in-process loop of an SSP importer at `run`'s sample times, bit for bit; and the delay
     is a real one: the lengths differ from delay 0's."""
-    model, config, traj, _ = loop
+    model, config, traj, _, _ = loop
     want = delayed_loop(model, config, traj, list(traj.t), list(np.diff(traj.t)), fmpy_start=False)
     assert np.array_equal(_lengths(delayed_run), want)
     prompt = run_closed_loop(model, dataclasses.replace(config, delay=0), traj).table
@@ -147,7 +166,7 @@ def test_libcosim_runs_the_loop(loop, delayed_run):
     """libcosim: communication points at integer nanoseconds, t = ns / 1e9 and h = t1 - t0; the
     plant's lengths equal the in-process loop's bit for bit, and so `run`'s with delay 1: its
     points are `run`'s sample times (k / rate, the same doubles), so the figure is 0."""
-    model, config, traj, got = loop
+    model, config, traj, got, _ = loop
     step_ns = round(config.dt * 1e9)
     times = [k * step_ns / 1e9 for k in range(len(traj.t))]
     sizes = [t1 - t0 for t0, t1 in zip(times, times[1:])]
@@ -164,7 +183,7 @@ def test_libcosim_runs_the_loop(loop, delayed_run):
 def test_fmpy_runs_the_loop(loop):
     """FMPy's simulate_ssp: the step size as given, time advanced by adding it; the same bit for
     bit, with its zero start."""
-    model, config, traj, got = loop
+    model, config, traj, got, _ = loop
     times = [0.0]
     for _ in range(len(traj.t) - 1):
         times.append(times[-1] + config.dt)
@@ -180,7 +199,7 @@ def test_against_run(loop, delayed_run):
     a sample) both differ by the SSP exchange's period of delay, not an error of either FMU
     (those equal `run` bit for bit under a master that passes the torque within the sample:
     test_controller_fmu.py)."""
-    model, config, traj, got = loop
+    model, config, traj, got, _ = loop
     prompt = run_closed_loop(model, dataclasses.replace(config, delay=0), traj).table
     for delay, table in ((1, delayed_run), (0, prompt)):
         run_err = np.max(np.abs(np.column_stack([table[f"e{i}"] for i in range(1, 7)])))
@@ -189,3 +208,141 @@ def test_against_run(loop, delayed_run):
             print(f"{name}: max |l - run's l (delay {delay})| = {np.max(diff):.3g} m, at the end "
                   f"{np.max(diff[-1]):.3g} m (run's own tracking error up to {run_err:.3g} m)")
             assert np.all(np.isfinite(lengths))
+
+
+def _child_env() -> dict[str, str]:
+    return {k: v for k, v in __import__("os").environ.items() if not k.startswith("PYTHON")}
+
+
+def _edited(ssp: Path, out: Path, ssv: str, name: str, value: str, add: bool = False) -> Path:
+    """A copy of the archive with one value of resources/<ssv>.ssv changed (or, with add, a
+    parameter added without a declared range)."""
+    with zipfile.ZipFile(ssp) as z, zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as o:
+        for info in z.infolist():
+            data = z.read(info.filename)
+            if info.filename == f"resources/{ssv}.ssv":
+                if add:
+                    new = (f'<ssv:Parameter name="{name}"><ssv:Real value="{value}" /></ssv:Parameter>'
+                           f'</ssv:Parameters>')
+                    data, n = data.replace(b"</ssv:Parameters>", new.encode()), 1
+                else:
+                    pattern = rf'(<ssv:Parameter name="{re.escape(name)}">\s*<ssv:Real value=")[^"]*"'
+                    data, n = re.subn(pattern.encode(), rb"\g<1>" + value.encode() + b'"', data)
+                assert n == 1, name
+            o.writestr(info, data)
+    return out
+
+
+def _ranges(ssv: bytes) -> dict[str, tuple[float, Bound | None]]:
+    """A parameter set's values and declared ranges (None: no annotation), by name."""
+    out = {}
+    for p in ElementTree.fromstring(ssv).iter(f"{{{SSV}}}Parameter"):
+        value = float(p.find(f"{{{SSV}}}Real").get("value"))
+        notes = [n for n in p.iter(f"{{{SSC}}}Annotation") if n.get("type") == RANGE_TYPE]
+        assert len(notes) <= 1
+        out[p.get("name")] = (value, range_of(notes[0].find(f"{{{RANGE}}}Range")) if notes else None)
+    return out
+
+
+def test_parameter_sets_declare_the_tables_ranges(loop, tmp_path):
+    """Each parameter set is valid SSP 1.0 (FMPy's schema) and carries, per parameter, the range
+    of the tables (stewart_table.h's bounds, an open one's min excluded, sigma's input range;
+    axis_table.h's AXIS_FMU_PARAMETER_RANGES, none for integral0 and current0), equal to the
+    min and max its FMU declares; the plant's set holds every Real parameter of the plant FMU;
+    both FMUs pass FMPy's validation."""
+    from fmpy.ssp.ssd import read_ssv
+    from fmpy.validation import validate_fmu
+
+    ssp = loop[4]
+    groups = {g.name: g for g in table.VARIABLES}
+    ident = {name: i for i, name, *_ in table_rows()["PARAMETERS"]}
+    bounds = parameter_ranges()
+    with zipfile.ZipFile(ssp) as z:
+        z.extractall(tmp_path)
+    for component in ("plant", "controller"):
+        path = tmp_path / "resources" / f"{component}.ssv"
+        assert len(read_ssv(str(path)).parameters) > 0   # validates against the SSP 1.0 schema
+        assert validate_fmu(str(tmp_path / "resources" / f"{component}.fmu")) == []
+        md = {v.name: v for v in read_model_description(str(tmp_path / "resources" / f"{component}.fmu"))
+              .modelVariables}
+        declared = _ranges(path.read_bytes())
+        if component == "plant":
+            real = {n for n, v in md.items() if v.causality == "parameter" and v.type == "Real"}
+            assert real <= set(declared) and set(declared) - real == {f"sigma[{i}]" for i in LEGS}
+        for name, (value, got) in declared.items():
+            v = md[name]
+            if component == "plant":
+                g = groups[name.partition("[")[0]]
+                lo, hi = table.INPUT_RANGES[g.id] if g.causality == "input" else (g.min, g.max)
+                want = Bound(g.bound == table.BOUND_OPEN, lo, hi)
+            else:
+                want = bounds.get(ident[name.partition("[")[0]])
+            assert got == want, name
+            if want is None:
+                assert v.min is None and v.max is None, name
+                continue
+            assert float(v.min) == want.min, name
+            assert v.max is None if np.isinf(want.max) else float(v.max) == want.max, name
+            assert want.reason(value) is None, name
+
+
+def test_the_check_refuses_what_the_fmu_would(loop, tmp_path, capsys):
+    """check_ssp (`check-ssp`) passes the exported archive and refuses, in one line naming the
+    parameter and the bound and before any FMU is instantiated, a value the FMU refuses at
+    initialisation: platform.mass = -1 (below the FMU's min), 0 (the min itself, which the
+    annotation excludes as the FMU does: the model description's inclusive min alone would
+    pass it), a gain below 0, NaN, a name the FMU does not have."""
+    from stewart_sim import cli
+
+    ssp = loop[4]
+    result = check_ssp(ssp)
+    assert result.components == ("plant", "controller") and result.parameters > 100
+    cases = [("plant", "platform.mass", "-1", "must be a finite number >= 0, got -1.0"),
+             ("plant", "platform.mass", "0", "must be a finite number > 0, got 0.0"),
+             ("plant", "q0[3]", "1e4", "must be <= 1000, got 10000.0"),
+             ("controller", "kp", "-2", "must be a finite number >= 0, got -2.0"),
+             ("controller", "current0[2]", "NaN", "must be a finite number, got nan")]
+    for k, (ssv, name, value, reason) in enumerate(cases):
+        words = f"resources/{ssv}.ssv: parameter {ssv}.{name} {reason}"
+        bad = _edited(ssp, tmp_path / f"bad{k}.ssp", ssv, name, value)
+        with pytest.raises(ParameterRangeError) as err:
+            check_ssp(bad)
+        assert words in str(err.value) and "\n" not in str(err.value), str(err.value)
+        assert cli.main(["check-ssp", str(bad)]) == 2
+        said = capsys.readouterr()
+        assert said.out == "" and said.err.count("\n") == 1 and words in said.err, said
+    unknown = _edited(ssp, tmp_path / "unknown.ssp", "plant", "platform.masss", "1", add=True)
+    with pytest.raises(SspError, match=r"plant.platform.masss is no Real parameter or input"):
+        check_ssp(unknown)
+    assert cli.main(["check-ssp", str(ssp)]) == 0
+    assert "within their declared ranges" in capsys.readouterr().out
+
+
+def test_libcosim_aborts_on_an_fmu_error_at_initialisation(loop, tmp_path):
+    """What README says libcosim does with platform.mass = -1 in the archive (run in a child
+    process, whose abort cannot take pytest down): the plant FMU answers fmi2Error in
+    initialisation mode and libcosim throws cosim::error on a worker thread: std::terminate,
+    SIGABRT (exit 134 from a shell, -6 here), the step never returns. check_ssp refuses the
+    archive first (test_the_check_refuses_what_the_fmu_would)."""
+    bad = _edited(loop[4], tmp_path / "mass.ssp", "plant", "platform.mass", "-1")
+    proc = subprocess.run([sys.executable, "-I", "-S", "-c", LIBCOSIM_CHILD,
+                           sysconfig.get_paths()["purelib"], str(bad)],
+                          cwd=tmp_path, env=_child_env(), capture_output=True, text=True, timeout=300)
+    last = proc.stderr.strip().splitlines()[-1]
+    print(f"libcosim on platform.mass = -1: exit {proc.returncode}; {last}")
+    assert proc.returncode == -signal.SIGABRT and "loaded" in proc.stdout and "ran" not in proc.stdout
+    assert "cosim::error" in proc.stderr and "parameters set so far are not valid" in proc.stderr
+
+
+def test_export_refuses_a_value_out_of_range(loop, tmp_path):
+    """export_ssp refuses a parameter set whose value breaks its declared range in one line
+    naming it, before any work: an existing file at the path is kept as it was."""
+    model, config, traj, _, _ = loop
+    far = traj.q.copy()
+    far[0, 2] = 2e3   # q0[3] beyond the pose's 1 km bound
+    out = tmp_path / "far.ssp"
+    out.write_bytes(b"kept")
+    with pytest.raises(ParameterRangeError) as err:
+        export_ssp(model, SCENE.read_bytes(), config, dataclasses.replace(traj, q=far), out)
+    assert str(err.value) == "export-ssp: parameter plant.q0[3] must be <= 1000, got 2000.0"
+    assert out.read_bytes() == b"kept"

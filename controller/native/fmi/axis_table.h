@@ -2,7 +2,8 @@
  * (model.c) and by controller/fmu.py (the model description, the start values): the one
  * spelling of their names, sizes, units and value references.
  *
- * X(ID, NAME, COUNT, UNIT, DESCRIPTION), one row per line (the inputs' ranges: AXIS_FMU_INPUT_RANGES). Value references: a group's first is its section's
+ * X(ID, NAME, COUNT, UNIT, DESCRIPTION), one row per line (the parameters' bounds:
+ * AXIS_FMU_PARAMETER_RANGES; the inputs' ranges: AXIS_FMU_INPUT_RANGES). Value references: a group's first is its section's
  * base plus the values before it in the section (COUNT per row, in this order); FMI 3.0's
  * independent variable `time` is 0. Per-leg groups (COUNT 6) are NAME[1] .. NAME[6]. */
 #ifndef AXIS_TABLE_H
@@ -29,6 +30,31 @@
     X(CURRENT0, "current0", 6, "A", "motor current at the start (the drives holding)")      \
     X(REFERENCE, "reference", 1, "", "1: l_ref, ldot_ref, v_ff from the carried move; 0: inputs") \
     X(DELAY, "delay", 1, "", "outputs: 0 the sample at this point, 1 the last step's (a period late)")
+
+/* The parameters' bounds (the model description's min and max; exitInitializationMode refuses
+   a value outside them, or a non-finite one, naming the parameter): X(ID, BOUND, MIN, MAX), one
+   row per line. BOUND AXIS_BOUND_OPEN: MIN < x <= MAX (a rate, a resistance, a limit of 0 makes
+   no loop: the model description declares MIN, which the FMU refuses), AXIS_BOUND_CLOSED:
+   MIN <= x <= MAX. MAX HUGE_VAL: no upper bound (none declared): the design's gains and the
+   drive's constants have no physical ceiling the controller's arithmetic needs (an output
+   that overflows is caught as non-finite). reference and delay are moreover 0 or 1 (model.c).
+   integral0 and current0 have no row: any finite number. */
+#define AXIS_BOUND_CLOSED 1
+#define AXIS_BOUND_OPEN 2
+#define AXIS_FMU_PARAMETER_RANGES(X)                                                             \
+    X(RATE, AXIS_BOUND_OPEN, 0.0, HUGE_VAL)                                                      \
+    X(KP, AXIS_BOUND_CLOSED, 0.0, HUGE_VAL)                                                      \
+    X(KI, AXIS_BOUND_CLOSED, 0.0, HUGE_VAL)                                                      \
+    X(KD, AXIS_BOUND_CLOSED, 0.0, HUGE_VAL)                                                      \
+    X(VOLTAGE_LIMIT, AXIS_BOUND_OPEN, 0.0, HUGE_VAL)                                             \
+    X(CURRENT_LIMIT, AXIS_BOUND_OPEN, 0.0, HUGE_VAL)                                             \
+    X(RESISTANCE, AXIS_BOUND_OPEN, 0.0, HUGE_VAL)                                                \
+    X(INDUCTANCE, AXIS_BOUND_OPEN, 0.0, HUGE_VAL)                                                \
+    X(TORQUE_CONSTANT, AXIS_BOUND_OPEN, 0.0, HUGE_VAL)                                           \
+    X(EMF_CONSTANT, AXIS_BOUND_CLOSED, 0.0, HUGE_VAL)                                            \
+    X(FORCE_PER_TORQUE, AXIS_BOUND_OPEN, 0.0, HUGE_VAL)                                          \
+    X(REFERENCE, AXIS_BOUND_CLOSED, 0.0, 1.0)                                                    \
+    X(DELAY, AXIS_BOUND_CLOSED, 0.0, 1.0)
 
 /* Inputs (Real, continuous), held over a step. */
 #define AXIS_FMU_INPUTS(X)                                                                       \

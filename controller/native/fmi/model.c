@@ -80,28 +80,43 @@ int model_enter_init(Instance *c) {
     return stewart_component_enter_init(&c->d.s) == STEWART_OK ? M_OK : M_ERROR;
 }
 
-/* The parameters' rules (those of controller/config.py and drive.py: the motor's values and
- * the rate > 0, the gains >= 0), then axis_step's constants as controller/axis.py derives them
- * (MotorCurrents: the current's decay over a period and its mean). */
-static int loop_of(Instance *c, const char *call, axis_loop *loop) {
-    static const unsigned positive[] = {VR_RATE, VR_VOLTAGE_LIMIT, VR_CURRENT_LIMIT, VR_RESISTANCE,
-                                        VR_INDUCTANCE, VR_TORQUE_CONSTANT, VR_FORCE_PER_TORQUE};
-    static const unsigned nonneg[] = {VR_KP, VR_KI, VR_KD, VR_EMF_CONSTANT};
+/* The parameters' bounds (AXIS_FMU_PARAMETER_RANGES, the model description's min and max). */
+#define PARAM_ROW(ID, BOUND, MIN, MAX) \
+    {VR_##ID, (unsigned)(sizeof(((axis_fmu_parameters *)0)->ID) / sizeof(double)), BOUND, MIN, MAX},
+static const struct { unsigned vr, count; int bound; double min, max; } PARAM_RANGES[] = {
+    AXIS_FMU_PARAMETER_RANGES(PARAM_ROW)};
+
+/* 0 when every bounded parameter is finite and within its bounds; else logs the first that is
+ * not, naming it and the bound, and returns M_ERROR. */
+static int check_bounds(Instance *c, const char *call) {
     char name[64];
     size_t k;
+    unsigned i;
+    for (k = 0; k < sizeof PARAM_RANGES / sizeof PARAM_RANGES[0]; k++)
+        for (i = 0; i < PARAM_RANGES[k].count; i++) {
+            const unsigned vr = PARAM_RANGES[k].vr + i;
+            const double x = c->d.par[vr - AXIS_VR_PARAMETERS], lo = PARAM_RANGES[k].min;
+            const int open = PARAM_RANGES[k].bound == AXIS_BOUND_OPEN;
+            if (!isfinite(x) || !(open ? x > lo : x >= lo)) {
+                model_log(c, M_ERROR, "%s: parameter %s must be a finite number %s %g, got %g", call,
+                          vr_name(vr, name), open ? ">" : ">=", lo, x);
+                return M_ERROR;
+            }
+            if (!(x <= PARAM_RANGES[k].max)) {
+                model_log(c, M_ERROR, "%s: parameter %s must be <= %g, got %g", call,
+                          vr_name(vr, name), PARAM_RANGES[k].max, x);
+                return M_ERROR;
+            }
+        }
+    return M_OK;
+}
+
+/* The parameters' rules (their bounds; delay and reference 0 or 1), then axis_step's constants
+ * as controller/axis.py derives them (MotorCurrents: the current's decay over a period and its
+ * mean). */
+static int loop_of(Instance *c, const char *call, axis_loop *loop) {
     double dt, R, L;
-    for (k = 0; k < sizeof positive / sizeof positive[0]; k++)
-        if (!(c->d.par[positive[k] - AXIS_VR_PARAMETERS] > 0) || !isfinite(c->d.par[positive[k] - AXIS_VR_PARAMETERS])) {
-            model_log(c, M_ERROR, "%s: parameter %s must be a finite number > 0, got %g", call,
-                      vr_name(positive[k], name), c->d.par[positive[k] - AXIS_VR_PARAMETERS]);
-            return M_ERROR;
-        }
-    for (k = 0; k < sizeof nonneg / sizeof nonneg[0]; k++)
-        if (!(c->d.par[nonneg[k] - AXIS_VR_PARAMETERS] >= 0) || !isfinite(c->d.par[nonneg[k] - AXIS_VR_PARAMETERS])) {
-            model_log(c, M_ERROR, "%s: parameter %s must be a finite number >= 0, got %g", call,
-                      vr_name(nonneg[k], name), c->d.par[nonneg[k] - AXIS_VR_PARAMETERS]);
-            return M_ERROR;
-        }
+    if (check_bounds(c, call)) return M_ERROR;
     if (!(PAR(DELAY) == 0.0 || PAR(DELAY) == 1.0)) {
         model_log(c, M_ERROR, "%s: parameter delay must be 0 (the sample at the current point) or 1 "
                   "(the last step's), got %g", call, PAR(DELAY));
