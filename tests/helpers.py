@@ -216,3 +216,33 @@ def vehicle_motion(t: np.ndarray, f_dev=None, w=None, g: float = 9.81):
     f = np.zeros((t.size, 3)) if f_dev is None else np.array(f_dev, dtype=float)
     f[:, 2] += g
     return VehicleMotion(t, f, np.zeros((t.size, 3)) if w is None else np.asarray(w, float))
+
+
+# Relative: two independent roundings of one quantity (the C core's and numpy's) differ by far
+# less, so a sample this close to a limit may fall on either side of it on another machine.
+ROUNDING_BAND = 1e-9
+
+
+def runs_mask(runs, n: int) -> np.ndarray:
+    """The samples (n,) covered by (first sample, length) runs."""
+    mask = np.zeros(n, dtype=bool)
+    for first, length in runs:
+        mask[first:first + length] = True
+    return mask
+
+
+def agrees_at_limit(flagged: np.ndarray, values: np.ndarray, limit: float,
+                    above: bool = True) -> bool:
+    """Whether `flagged` (the samples the code under test found past `limit`) is exactly the
+    samples whose `values` (the test's own computation) lie past it, above or below, on every
+    sample farther than ROUNDING_BAND from the limit; those within it may go either way."""
+    past = values > limit if above else values < limit
+    far = np.abs(values - limit) > ROUNDING_BAND * abs(limit)
+    return bool(np.array_equal(flagged[far], past[far]))
+
+
+def near_peak(values: np.ndarray) -> set[tuple[int, ...]]:
+    """The indices of |values| within ROUNDING_BAND of its largest: a symmetric motion has
+    twins there, and either may be the peak after another rounding."""
+    a = np.abs(values)
+    return {tuple(int(i) for i in k) for k in np.argwhere(a >= a.max() * (1 - ROUNDING_BAND))}
