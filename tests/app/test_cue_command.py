@@ -124,6 +124,7 @@ def test_the_cue_at_the_controller_rate_agrees_with_the_sampled_one(model):
         np.testing.assert_allclose(fine.q[k], coarse.q, rtol=0, atol=RATE_AGREEMENT)
 
 
+@pytest.mark.numerics
 def test_compare_writes_both_cues_and_both_fly_inside_the_limits(model, tmp_path):
     """--compare: the optimal cue beside the classical one; both inside every limit, the
     optimal one's QP record in the summary, its trajectory in the inverse format."""
