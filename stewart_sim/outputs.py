@@ -12,7 +12,10 @@ the same files afterwards (DIR's own mode is kept too; its owner, ACLs and exten
 are those of a directory the user creates). One that cannot be linked (another file system
 mounted inside DIR, a file of another user under fs.protected_hardlinks) is refused in one line
 before anything changes. DIR a symbolic link to a directory: the set is written through it (the
-directory it names is swapped, the link stays); a link to nothing is refused.
+directory it names is swapped, the link stays); a link to nothing is refused, and so is a DIR
+that holds the working directory (`--out .`: the command's shell would be left in the earlier,
+removed, directory; another shell inside DIR is, and sees the new set after `cd DIR`). DIR
+cannot be a mount point (the swap renames it: EBUSY, one line, exit 1).
 SIGINT (and SIGTERM, SIGHUP) while the set is built removes the temporary directory and leaves
 DIR as it was; the swap itself runs with them held back.
 The temporary carries the writer's process id (stewart_fmu.io.partial_prefix): one left by a
@@ -80,14 +83,20 @@ def result_set(out: str | Path, known: Iterable[str] = ()) -> Iterator[Path]:
 
 
 def _through_link(out: Path) -> Path:
-    """`out`, or the directory a symbolic link `out` names (the set is written through the
-    link, which stays); a link to nothing is refused."""
-    if not out.is_symlink():
-        return out
-    place = Path(os.path.realpath(out))
-    if not place.exists():
-        raise OutputError(f"cannot write {out}: a symbolic link to {os.readlink(out)}, which "
-                          "does not exist")
+    """The directory the set replaces: `out`, or the one a symbolic link `out` names (the set
+    is written through the link, which stays). Refused: a link to nothing, and a directory
+    that holds this process's working directory (the swap would leave the shell that ran the
+    command in the earlier, removed, directory)."""
+    place = out
+    if out.is_symlink():
+        place = Path(os.path.realpath(out))
+        if not place.exists():
+            raise OutputError(f"cannot write {out}: a symbolic link to {os.readlink(out)}, "
+                              "which does not exist")
+    real, cwd = os.path.realpath(place), os.getcwd()
+    if cwd == real or cwd.startswith(real.rstrip(os.sep) + os.sep):
+        raise OutputError(f"cannot write {out}: it holds the working directory, and a result "
+                          "set replaces its directory whole; give a directory beneath it")
     return place
 
 

@@ -200,3 +200,21 @@ def test_the_trash_of_a_set_swapped_file_by_file_goes(tmp_path) -> None:
         for name, text in NEW_SET.items():
             (stage / name).write_text(text)
     assert _listing(out) == WHOLE["new"]
+
+
+@pytest.mark.parametrize("given", [".", "..", "out"])
+def test_out_holding_the_working_directory_is_refused(given, tmp_path, monkeypatch) -> None:
+    """--out . (or a directory above the working one): swapping it would leave the shell
+    that ran the command in a removed directory; one line, nothing changed."""
+    out = tmp_path / "out"
+    _earlier_set(out)
+    monkeypatch.chdir(out / "mine" if given == ".." else out)
+    target = Path(given) if given != "out" else out
+    with pytest.raises(outputs.OutputError) as info:
+        with outputs.result_set(target, known=NEW_SET):
+            pass
+    assert str(info.value) == (f"cannot write {target}: it holds the working directory, and a "
+                               "result set replaces its directory whole; give a directory "
+                               "beneath it")
+    assert _listing(out) == WHOLE["earlier"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
