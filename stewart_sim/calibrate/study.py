@@ -330,8 +330,8 @@ def calibrate(model: Model, data: PoseSet, select: int | None = None) -> Calibra
             observable[leg] &= np.abs(v) < 1e-3
         s2 = float(fit.fun @ fit.fun) / (n - PER_LEG)
         # cov = s^2 (J^T J)^-1 through the scaled SVD: J = U S Vt D^-1 -> (J^T J)^-1 = D V S^-2 Vt D
-        with np.errstate(divide="ignore"):
-            inv = np.where(small, 0.0, 1.0 / sv**2)
+        inv = np.zeros_like(sv)     # unobservable directions out; the rest >= 1e-8 (sv[0] >= 1)
+        inv[~small] = 1.0 / sv[~small] ** 2
         cov = (Vt.T * inv) @ Vt / np.outer(scale, scale) * s2
         std[leg] = np.where(observable[leg], np.sqrt(np.diag(cov)), math.inf)
     residuals = lengths - predicted_lengths(poses, estimate)
