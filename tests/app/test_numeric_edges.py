@@ -195,6 +195,7 @@ def _fuzzed_poses(rng: np.random.Generator, data: study.PoseSet) -> study.PoseSe
     return study.PoseSet(values[:, :6], values[:, 6:])
 
 
+@pytest.mark.numerics       # Levenberg-Marquardt's outcome on hostile poses
 def test_fuzz_calibrate(tmp_path):
     """120 seeded hostile pose sets through what the command does before writing (bounds,
     calibration, finiteness): a one-line StewartError, or a result finite where documented,
