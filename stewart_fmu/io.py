@@ -165,7 +165,7 @@ def remove_stale_partials(path: str | Path) -> list[Path]:
     _SWEPT.add(directory)
     for entry in entries:
         match = _PARTIAL_NAME.match(entry.name)
-        if match is None or _alive(int(match.group(1))):
+        if match is None or process_alive(int(match.group(1))):
             continue
         target = Path(entry.path)
         if entry.is_dir(follow_symlinks=False):
@@ -183,7 +183,7 @@ _SWEPT: set[str] = set()    # directories whose stale temporaries this process r
 _PARTIAL_NAME = re.compile(r"^\..+" + re.escape(PARTIAL) + r"(\d{1,10})-[^/]*$")
 
 
-def _alive(pid: int) -> bool:
+def process_alive(pid: int) -> bool:
     """Whether a process `pid` exists (one of another user's counts)."""
     if pid == os.getpid():
         return True

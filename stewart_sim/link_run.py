@@ -37,6 +37,7 @@ from stewart_fmu.budget import check_count
 from stewart_fmu.errors import TrajectoryError
 from stewart_fmu.model import Model
 from stewart_sim.link_figures import run_figure
+from stewart_sim.markdown import md_code, md_text
 from stewart_sim.view.files import VIEW_FILE, write_beside
 from stewart_sim.view.sources import run_table_view
 
@@ -46,10 +47,10 @@ def link_summary_text(model: Model, run: LinkRun, ref: LinkReference, link: str,
     """summary.md of a run over the link (`truth`: the device's hidden true scene)."""
     s = run.summary
     t = ref.refs.t
-    lines = [f"# Closed-loop run over the link: {model.name}", "",
-             f"- scene: `{model.source}`; device: `stewart-sim device` (its own process) over "
-             f"{link}, mode {s.mode}"
-             + (f"; its plant and sensors from the truth scene `{truth}`" if truth else ""),
+    lines = [f"# Closed-loop run over the link: {md_text(model.name)}", "",
+             f"- scene: {md_code(model.source)}; device: `stewart-sim device` (its own process) over "
+             f"{md_text(link)}, mode {s.mode}"
+             + (f"; its plant and sensors from the truth scene {md_code(truth)}" if truth else ""),
              f"- reference: {t[-1] - t[0]:.6g} s, {len(t)} samples at "
              f"{1 / (t[1] - t[0]):.6g} Hz; feedforward {ref.feedforward}",
              "", "## Tracking (measured leg length vs reference at the state's time)", "",

@@ -1,16 +1,30 @@
 """Result sets written all or nothing, and Ctrl-C that always ends the command.
 
 A command that writes several files into --out DIR builds them in a temporary directory beside
-DIR (same file system: `.DIR.partial-PID-XXXX`) and moves them into place at the end
-(`result_set`). The files of the set are listed in DIR/.stewart-sim-set; the next set written
-into DIR removes every file of the earlier one, so that DIR never mixes two runs. Files in DIR
-that belong to no set are left alone. SIGINT (and SIGTERM, SIGHUP) while the set is built
-removes the temporary directory and leaves DIR as it was; the moves themselves run with them
-held back.
+DIR (same file system: `.DIR.partial-PID-XXXX`) and puts that directory in the place of DIR at
+the end (`result_set`) by one rename (stewart_sim/dirswap.py: renameat2 RENAME_EXCHANGE, or
+where the system lacks it, DIR aside then the new one in). A reader, or a process killed at any
+instant, SIGKILL included, finds the earlier set whole or the new one whole, never a mix. The
+files of the set are listed in DIR/.stewart-sim-set; the next set written into DIR replaces
+every file of the earlier one. Files in DIR that belong to no set are kept: hard links to them
+(a directory: the same tree of links) are made in the temporary before the swap, so they are
+the same files afterwards (DIR's own mode is kept too; its owner, ACLs and extended attributes
+are those of a directory the user creates). One that cannot be linked (another file system
+mounted inside DIR, a file of another user under fs.protected_hardlinks) is refused in one line
+before anything changes. DIR a symbolic link to a directory: the set is written through it (the
+directory it names is swapped, the link stays); a link to nothing is refused, and so is a DIR
+that holds the working directory (`--out .`: the command's shell would be left in the earlier,
+removed, directory; another shell inside DIR is, and sees the new set after `cd DIR`). DIR
+cannot be a mount point (the swap renames it: EBUSY, one line, exit 1).
+SIGINT (and SIGTERM, SIGHUP) while the set is built removes the temporary directory and leaves
+DIR as it was; the swap itself runs with them held back.
 The temporary carries the writer's process id (stewart_fmu.io.partial_prefix): one left by a
-process that is gone (killed outright) is removed by the next set written beside it. A command
-that writes a few named files instead (`inverse`: FORCES.csv and FORCES.html) stages them the
-same way (`file_set`: `.FORCES.csv.partial-PID-XXXX` beside them) and moves them in together.
+process that is gone (killed outright, before or after its swap) is removed by the next set
+written beside it, and an earlier DIR left aside by the fallback is put back or removed
+(dirswap.recover). A command that writes a few named files instead (`inverse`: FORCES.csv and
+FORCES.html) stages them the same way (`file_set`: `.FORCES.csv.partial-PID-XXXX` beside them)
+and moves them in together, one rename a file (an error or Ctrl-C puts the earlier ones back;
+SIGKILL between the renames can leave one new and one earlier file).
 
 SIGINT is handled by `sigint_handler` (stewart_sim/interrupt.py, installed by cli.main): it
 records the signal and raises KeyboardInterrupt (inside an import: when the import returns). A KeyboardInterrupt raised where Python cannot propagate it (a
@@ -20,6 +34,7 @@ stops the set before it is moved into place, and the command still exits 130.
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import signal
 import tempfile
@@ -30,9 +45,12 @@ from typing import Callable, Iterable, Iterator
 
 from stewart_fmu.io import (WRITE_ERRNOS, OutputError, check_output, partial_prefix,
                             remove_stale_partials, write_text)
+from stewart_sim import dirswap
 from stewart_sim.interrupt import STOP_SIGNALS, check_interrupted, note_signal
 
 MANIFEST = ".stewart-sim-set"   # names of the files of the set in DIR, one a line
+# the trash folder a set swapped file by file left in DIR when killed mid-swap: part of no set
+_FILEWISE_TRASH = re.compile(r"^\.old-[a-z0-9_]{8}$")
 
 class Interrupted(KeyboardInterrupt):
     """Ctrl-C, with the line saying what was kept (cli.main prints it and exits 130)."""
@@ -49,14 +67,37 @@ def result_set(out: str | Path, known: Iterable[str] = ()) -> Iterator[Path]:
     or Ctrl-C the temporary directory goes and `out` stays as it was (Interrupted says so)."""
     out = Path(out)
     check_output(out)
-    existed = out.exists()
-    if existed and not out.is_dir():
+    place = _through_link(out)
+    existed = place.exists()
+    if existed and not place.is_dir():
         raise OutputError(f"cannot write {out}: exists and is not a directory")
     kept = f"{out} " + ("left as it was (the earlier set untouched)" if existed else "not created")
-    with _staged(out, out, kept, lambda stage: _commit(stage, out, set(known)),
+    try:
+        dirswap.recover(place)
+    except OSError as exc:
+        raise OutputError(f"cannot write {out}: {exc.strerror or exc}") from None
+    with _staged(place, out, kept, lambda stage: _commit(stage, place, set(known)),
                  f"{out} holds the complete new set (Ctrl-C came while it was moved into "
                  "place)") as stage:
         yield stage
+
+
+def _through_link(out: Path) -> Path:
+    """The directory the set replaces: `out`, or the one a symbolic link `out` names (the set
+    is written through the link, which stays). Refused: a link to nothing, and a directory
+    that holds this process's working directory (the swap would leave the shell that ran the
+    command in the earlier, removed, directory)."""
+    place = out
+    if out.is_symlink():
+        place = Path(os.path.realpath(out))
+        if not place.exists():
+            raise OutputError(f"cannot write {out}: a symbolic link to {os.readlink(out)}, "
+                              "which does not exist")
+    real, cwd = os.path.realpath(place), os.getcwd()
+    if cwd == real or cwd.startswith(real.rstrip(os.sep) + os.sep):
+        raise OutputError(f"cannot write {out}: it holds the working directory, and a result "
+                          "set replaces its directory whole; give a directory beneath it")
+    return place
 
 
 def written_in(stage: Path, out: Path, paths: Iterable[str | Path]) -> list[Path]:
@@ -127,21 +168,44 @@ def _staged(beside: Path, target: Path, kept: str, commit: Callable[[Path], None
 
 
 def _commit(stage: Path, out: Path, known: set[str]) -> None:
-    """Move the staged set into `out`: the earlier set's files aside, the new ones in, the
-    earlier ones deleted; on an OSError undo what was done."""
+    """Put the staged set in the place of `out` by one rename (dirswap.swap_in), the files of
+    `out` that belong to no set linked into it first; the earlier set ends at `stage` (removed
+    by the caller) or is gone. On an OSError `out` is as it was."""
     new = sorted(p.name for p in stage.iterdir())
     write_text(stage / MANIFEST, "".join(f"{n}\n" for n in new))
     if not out.exists():
         os.rename(stage, out)
         stage.mkdir()          # for the caller's rmtree
         return
-    old = known | _manifest(out)
-    trash = Path(tempfile.mkdtemp(dir=out, prefix=".old-"))
-    try:
-        _swap(stage, out, [*new, MANIFEST],
-              sorted((old | set(new) | {MANIFEST}) - {trash.name}), trash)
-    finally:
-        shutil.rmtree(trash, ignore_errors=True)
+    ours = known | _manifest(out) | set(new) | {MANIFEST}
+    for entry in sorted(os.scandir(out), key=lambda e: e.name):
+        if entry.name in ours or (_FILEWISE_TRASH.match(entry.name)
+                                  and entry.is_dir(follow_symlinks=False)):
+            continue
+        try:
+            _link_tree(Path(entry.path), stage / entry.name)
+        except OSError as exc:
+            raise OutputError(f"cannot write {out}: {entry.path} (no file of a set) cannot be "
+                              f"kept across the swap: {exc.strerror or exc}; move it out of "
+                              f"{out}") from None
+    shutil.copymode(out, stage)
+    dirswap.swap_in(stage, out)
+
+
+def _link_tree(source: Path, target: Path) -> None:
+    """Hard links at `target` to `source` and, for a directory, to everything below it (the
+    same files, in directories of the same modes and times)."""
+    pending, directories = [(source, target)], []
+    while pending:
+        src, dst = pending.pop()
+        if src.is_dir() and not src.is_symlink():
+            os.mkdir(dst)
+            directories.append((src, dst))
+            pending.extend((Path(e.path), dst / e.name) for e in os.scandir(src))
+        else:
+            os.link(src, dst, follow_symlinks=False)
+    for src, dst in reversed(directories):    # after their entries: keep their times
+        shutil.copystat(src, dst, follow_symlinks=False)
 
 
 def _swap(stage: Path, out: Path, new: Iterable[str], aside: Iterable[str], trash: Path) -> None:

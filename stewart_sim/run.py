@@ -22,6 +22,7 @@ from stewart_fmu.model import Model
 from stewart_fmu.scene import scene_from_dict
 from stewart_sim.compare.report import write_comparison_report
 from stewart_sim.compare.study import N_POINTS, compare_drive_inertia, regime
+from stewart_sim.markdown import md_code, md_text
 from stewart_sim.plots import drive_figure, leg_errors_figure, save_figure, tracking_figure
 from stewart_sim.progress import Progress
 from stewart_sim.scene_info import format_vector
@@ -147,9 +148,9 @@ def run_summary(model: Model, result, traj, where: str) -> str:
     duration = float(traj.t[-1] - traj.t[0])
     units = ("m", "m", "m", "rad", "rad", "rad")
     lines = [
-        f"# Closed-loop run: {model.name}",
+        f"# Closed-loop run: {md_text(model.name)}",
         "",
-        f"- scene: `{model.source}`; plant: {where}",
+        f"- scene: {md_code(model.source)}; plant: {md_text(where)}",
         f"- reference: quintic six-axis move out ({RUN_MOVE * duration:.6g} s), hold "
         f"({RUN_HOLD * duration:.6g} s), move back, hold; {duration:.6g} s, "
         f"{len(traj.t)} samples at {cfg.rate:.6g} Hz; goal pose "

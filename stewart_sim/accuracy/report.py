@@ -21,6 +21,7 @@ from stewart_sim.accuracy.study import (
     cheapest,
     closed_loop_order,
 )
+from stewart_sim.markdown import md_text
 from stewart_sim.plots import save_figure
 
 ACCURACY_FILES = ("open_loop.csv", "closed_loop.csv", "work_precision.png", "summary.md")
@@ -99,7 +100,7 @@ def summary_text(res: AccuracyResults) -> str:
     pose_agree, force_agree = ref.agreement
     resolved = max(pose_agree, force_agree) <= REFERENCE_TOLERANCE
     lines = [
-        f"# Accuracy against run time: {res.scene}", "",
+        f"# Accuracy against run time: {md_text(res.scene)}", "",
         "## Open loop: the integrators",
         "",
         f"From rest at home, {case.times[-1]:g} s of motion under the rack forces of the "

@@ -24,6 +24,7 @@ from stewart_fmu.errors import StewartError
 from stewart_fmu.io import atomic_write, write_text
 from stewart_fmu.scene import parse_scene_bytes, scene_from_dict
 from stewart_sim.calibrate.study import OBSERVABLE_RTOL, Calibration, CalibrationError
+from stewart_sim.markdown import md_text
 from stewart_sim.outputs import result_set, written_in
 from stewart_sim.plots import LEG_COLOURS, save_figure
 from stewart_sim.scene_load import scene_of
@@ -122,8 +123,8 @@ def residuals_figure(cal: Calibration, poses_name: str) -> Figure:
 def report_text(cal: Calibration, scene_path: Path, poses_path: str | Path) -> str:
     """report.md."""
     sv = cal.singular_values
-    lines = [f"# Kinematic calibration of {scene_path.name}", "",
-             f"Poses: {poses_path}, {len(cal.used)} used"
+    lines = [f"# Kinematic calibration of {md_text(scene_path.name)}", "",
+             f"Poses: {md_text(poses_path)}, {len(cal.used)} used"
              + (" (chosen by greedy D-optimal selection from the candidates)" if cal.selected
                 else "") + ".",
              "Model: l_i = |x + R p_i - a_i| + delta_i (delta_i: the leg-length offset, what "

@@ -51,6 +51,10 @@ MIN_POSES = PER_LEG + 1              # 7 parameters per leg and one degree of fr
 OBSERVABLE_RTOL = 1e-8               # scaled singular value / largest below this: not observable
 RIDGE = 1e-6                         # start of the greedy selection: RIDGE * I (scaled units)
 AXES = ("x", "y", "z")
+ANGLE_BOUND = 2 * math.pi            # rad: a tracker's Euler angle, in either wrap convention
+# bytes a candidate pose costs while calibrating and selecting (its rotation, six legs' vectors
+# and Jacobians, the scaled copy of select_poses, the residuals; a few copies each)
+POSE_BYTES = 4096
 
 
 class CalibrationError(StewartError, ValueError):
@@ -167,6 +171,52 @@ def enough(n: int, where: str) -> None:
             "delta_i, and one more for the noise level)")
 
 
+def machine_size(model: Model) -> float:
+    """max |a_i| + max |p_i| + |home position| (m): no leg of the scene is longer at home
+    (triangle inequality), the scale of the physical bounds of check_bounds."""
+    return float(np.linalg.norm(model.base_joints, axis=1).max()
+                 + np.linalg.norm(model.platform_joints, axis=1).max()
+                 + np.linalg.norm(np.asarray(model.home, dtype=float)[:3]))
+
+
+def check_bounds(model: Model, data: PoseSet, where: str) -> None:
+    """Refuse (CalibrationError naming the line and column of `where`) a measurement no pose
+    of this machine can give: a coordinate farther than machine_size from home's, an angle
+    beyond ANGLE_BOUND, a leg length not above 0 or above 3 machine_size (the longest a pose within those
+    bounds has: |x + R p - a| <= |x| + |p| + |a| <= (1 + sqrt 3) machine_size)."""
+    size = machine_size(model)
+    home = np.asarray(model.home, dtype=float)[:3]
+    values = np.column_stack([data.poses, data.lengths])
+    bad = np.column_stack([np.abs(data.poses[:, :3] - home) > size,
+                           np.abs(data.poses[:, 3:]) > ANGLE_BOUND,
+                           (data.lengths <= 0) | (data.lengths > 3 * size)])
+    if not bad.any():
+        return
+    r, c = (int(k) for k in np.argwhere(bad)[0])
+    why = (f"is more than the machine's size {size:.4g} m from home's {home[c]:g} m" if c < 3
+           else "is beyond +-2 pi rad" if c < 6
+           else "is not a leg length: must be > 0" if values[r, c] <= 0
+           else f"is above {3 * size:.4g} m (3 times the machine's size: no pose within reach "
+                "has a longer leg)")
+    raise CalibrationError(f"{where}: line {r + 2}, column '{POSE_COLUMNS[c]}': "
+                           f"{float(values[r, c])!r} {why}")
+
+
+def check_finite(cal: "Calibration", where: str) -> None:
+    """Refuse (CalibrationError naming `where`) a calibration whose numbers are not all finite
+    (a standard deviation is inf only where its parameter is not observable, as documented):
+    numerical trouble is reported, never written."""
+    numbers = {"estimate": cal.estimate, "standard deviation": cal.std[cal.observable],
+               "residual": cal.residuals, "nominal residual": cal.nominal_rms,
+               "singular value": cal.singular_values,
+               "held-out residual": cal.held_out_rms if cal.held_out_rms is not None else ()}
+    for what, values in numbers.items():
+        values = np.asarray(values, dtype=float)
+        if not np.all(np.isfinite(values)):
+            raise CalibrationError(f"{where}: the calibration's {what}s are not finite "
+                                   "(numerical trouble: check the poses' units and the scene)")
+
+
 def rotations(poses: np.ndarray) -> np.ndarray:
     """R (N, 3, 3) of pose rows (N, 6)."""
     q = np.atleast_2d(np.asarray(poses, dtype=float))
@@ -246,7 +296,7 @@ def calibrate(model: Model, data: PoseSet, select: int | None = None) -> Calibra
     """Estimate the 42 parameters from the poses (all, or the `select` most informative)."""
     enough(len(data.poses), "poses")
     nominal = nominal_parameters(model)
-    count = len(data.poses)
+    count = check_count("poses", len(data.poses), POSE_BYTES, "calibrate on fewer poses")
     used = (select_poses(data.poses, nominal, select) if select is not None
             else np.arange(count))
     poses, lengths = data.poses[used], data.lengths[used]
@@ -280,8 +330,8 @@ def calibrate(model: Model, data: PoseSet, select: int | None = None) -> Calibra
             observable[leg] &= np.abs(v) < 1e-3
         s2 = float(fit.fun @ fit.fun) / (n - PER_LEG)
         # cov = s^2 (J^T J)^-1 through the scaled SVD: J = U S Vt D^-1 -> (J^T J)^-1 = D V S^-2 Vt D
-        with np.errstate(divide="ignore"):
-            inv = np.where(small, 0.0, 1.0 / sv**2)
+        inv = np.zeros_like(sv)     # unobservable directions out; the rest >= 1e-8 (sv[0] >= 1)
+        inv[~small] = 1.0 / sv[~small] ** 2
         cov = (Vt.T * inv) @ Vt / np.outer(scale, scale) * s2
         std[leg] = np.where(observable[leg], np.sqrt(np.diag(cov)), math.inf)
     residuals = lengths - predicted_lengths(poses, estimate)

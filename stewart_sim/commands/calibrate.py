@@ -44,12 +44,14 @@ def add_parser(sub, help_text: str) -> None:
 def run(args: argparse.Namespace) -> None:
     """Run `calibrate`; StewartError subclasses for bad input."""
     from stewart_sim.calibrate.report import write_calibration
-    from stewart_sim.calibrate.study import calibrate, read_poses
+    from stewart_sim.calibrate.study import calibrate, check_bounds, check_finite, read_poses
     from stewart_sim.scene_load import load
 
     scene = load(args.scene)
     data = read_poses(args.poses)
+    check_bounds(scene.model, data, args.poses)
     cal = calibrate(scene.model, data, args.select)
+    check_finite(cal, args.poses)       # before the first file is written
     for path in write_calibration(cal, args.scene, args.poses, args.out):
         print(f"wrote {path}")
     worst = max(range(6), key=lambda i: cal.rms[i])

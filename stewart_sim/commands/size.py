@@ -54,7 +54,8 @@ def run(args: argparse.Namespace) -> None:
     from stewart_sim.sizing.catalogue import read_catalogue
     from stewart_sim.sizing.motions import read_motions
     from stewart_sim.sizing.report import write_size_report
-    from stewart_sim.sizing.study import ranking, size_scene, sweep_catalogue
+    from stewart_sim.sizing.study import (check_budget, check_finite, ranking, size_scene,
+                                          sweep_catalogue)
 
     if not args.catalogue and (args.scheduler or args.workers):
         raise StewartError("--scheduler and --workers run the catalogue sweep: give --catalogue")
@@ -62,6 +63,8 @@ def run(args: argparse.Namespace) -> None:
     model = scene.model
     motions = read_motions(scene, args.motions)
     drives = read_catalogue(args.catalogue) if args.catalogue else None   # before any work
+    if drives is not None:
+        check_budget(drives, motions, args.catalogue)
     sizing = size_scene(model, scene.controller, motions)
     sweep, ranked = None, []
     if drives is not None:
@@ -75,6 +78,7 @@ def run(args: argparse.Namespace) -> None:
         where = args.scheduler or "local cluster"
         print(f"catalogue: {len(drives)} drives on {sweep.workers} workers ({where}"
               + (f", dashboard {sweep.dashboard}" if sweep.dashboard else "") + ")")
+    check_finite(sizing, sweep.results if sweep else (), args.catalogue)   # before any file
     for path in write_size_report(Path(args.out), model, motions, sizing, sweep, ranked,
                                   args.margin, model.name):
         print(f"wrote {path}")

@@ -24,6 +24,7 @@ from stewart_sim.compare.study import (
     regime,
     saturates,
 )
+from stewart_sim.markdown import md_code, md_text
 from stewart_sim.plots import save_figure
 
 MODE_STYLE = {"none": ("tab:red", "per-axis feedback only"),
@@ -188,7 +189,7 @@ def _scene_section(c: Comparison) -> list[str]:
     cfg, m = c.config, c.config.motor
     nom = c.nominal()
     lines = [
-        f"## {c.scene}" + (f" (`{c.source}`)" if c.source else ""),
+        f"## {md_text(c.scene)}" + (f" ({md_code(c.source)})" if c.source else ""),
         "",
         f"- Controller: {cfg.rate:g} Hz, crossover {cfg.bandwidth:g} Hz, phase margin "
         f"{cfg.phase_margin:g}°. Motor: R {m.resistance:g} Ω, L {m.inductance:g} H, "
@@ -259,7 +260,7 @@ def threshold_ratio(c: Comparison) -> float:
 
 def _scene_findings(c: Comparison) -> list[str]:
     ok = [p for p in c.points if p.status == "ok"]
-    out = [f"Findings for {c.scene}:", ""]
+    out = [f"Findings for {md_text(c.scene)}:", ""]
     bad = [p for p in c.points if p.status != "ok" or regime(p) == "failed"]
     if bad:
         out.append("- Not run to the end: " + "; ".join(
@@ -378,7 +379,7 @@ def _conclusion(comparisons: Sequence[Comparison]) -> list[str]:
         if nom is None:
             continue
         verdict = _verdict(nom)
-        text = (f"- **{c.scene}**, as built (m_d / m_load = {nom.mass_ratio:.3g}): the claim "
+        text = (f"- **{md_text(c.scene)}**, as built (m_d / m_load = {nom.mass_ratio:.3g}): the claim "
                 f"{verdict}. The true leg-space inertia along the move has eigenvalues "
                 f"{c.mass_eigen_range[0] / c.load_mass:.2g} to "
                 f"{c.mass_eigen_range[1] / c.load_mass:.2g} × m_load; coupling ≤ {HOLDS:g} needs "

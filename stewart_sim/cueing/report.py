@@ -26,6 +26,7 @@ import numpy as np
 
 from controller.config import ControllerConfig
 from stewart_fmu import io
+from stewart_sim.markdown import md_text
 from stewart_sim.outputs import result_set
 from stewart_sim.view.data import view_data
 from stewart_sim.view.sources import run_table_view
@@ -106,7 +107,7 @@ def summary_markdown(study: CueStudy, title: str) -> str:
     """Perception error per axis and mode, false-cue time, workspace, limit margins, every
     violation with its time and leg, the closed loop's tracking if run."""
     m = study.motion
-    lines = [f"# {title}", "",
+    lines = [f"# {md_text(title)}", "",
              f"Vehicle motion: {m.t.size} samples over {m.t[-1] - m.t[0]:g} s "
              f"({(m.t.size - 1) / (m.t[-1] - m.t[0]):g} Hz). Cue modes: "
              + ", ".join(f"{r.mode} ({r.seconds:.3f} s to compute)" for r in study.runs)

@@ -22,6 +22,7 @@ from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.model import Model
 from stewart_sim.excite.bounds import Limits, Peaks
 from stewart_sim.excite.design import GRID_PER_HARMONIC, Excitation
+from stewart_sim.markdown import md_code, md_text
 from stewart_sim.outputs import file_set
 from stewart_sim.plots import LEG_COLOURS, plot_line, save_figure
 
@@ -102,8 +103,8 @@ def report_text(e: Excitation, scene: str, out: Path) -> str:
     d, s = e.design, e.design.series
     q0, a, b = s.coefficients(e.shrunk * d.x)
     duration = e.trajectory.t[-1] - e.trajectory.t[0]
-    lines = [f"# Excitation trajectory {out.name}", "",
-             f"Scene `{scene}`. A finite Fourier series per pose axis (Swevers' form), "
+    lines = [f"# Excitation trajectory {md_text(out.name)}", "",
+             f"Scene {md_code(scene)}. A finite Fourier series per pose axis (Swevers' form), "
              f"{s.harmonics} harmonics of f_f = {1 / s.period:g} Hz (period {s.period:g} s, "
              f"up to {s.harmonics / s.period:g} Hz), at rest at home at both ends; "
              f"{e.periods} periods = {duration:g} s at {e.rate:g} Hz "

@@ -25,6 +25,7 @@ import numpy as np
 
 from stewart_fmu.io import atomic_write, write_text
 from stewart_fmu.standard import NAMES, UNITS
+from stewart_sim.markdown import md_code, md_text
 from stewart_sim.outputs import result_set, written_in
 from stewart_sim.plots import save_figure
 
@@ -113,10 +114,10 @@ def report_text(ident: Identification, scene_path: Path, validation: list[Predic
     """report.md (module docstring)."""
     e, b, f = ident.estimate, ident.base, ident.prepared[0].filter
     rel = e.std / np.maximum(np.abs(e.beta), 1e-300)
-    lines = [f"# Identification of {ident.model.name}", "",
-             f"Prior scene: `{scene_path}`. Runs: "
-             + ", ".join(f"`{p.run.path.name}` ({len(p.run.t)} samples, forces from "
-                         f"{p.run.source})" for p in ident.prepared) + ".", "",
+    lines = [f"# Identification of {md_text(ident.model.name)}", "",
+             f"Prior scene: {md_code(scene_path)}. Runs: "
+             + ", ".join(f"{md_code(p.run.path.name)} ({len(p.run.t)} samples, forces from "
+                         f"{md_text(p.run.source)})" for p in ident.prepared) + ".", "",
              "## Data", "",
              f"- Filter: zero-phase low-pass at {f.cutoff:.4g} Hz on the pose (its derivatives "
              f"taken with it), the same on the regressor's columns and the measured forces "
@@ -169,7 +170,7 @@ def report_text(ident: Identification, scene_path: Path, validation: list[Predic
 
 def _validation_lines(v: Prediction) -> list[str]:
     peak = v.force_peak
-    out = [f"### `{v.run.path.name}` (force peak {peak:.4g} N)", "",
+    out = [f"### {md_code(v.run.path.name)} (force peak {peak:.4g} N)", "",
            "| leg | RMS identified (N) | RMS prior (N) | peak identified (N) | peak prior (N) "
            "| noise floor (N) | RMS / floor |", "|---|---|---|---|---|---|---|"]
     ri, rp, pi, pp = v.rms("identified"), v.rms("prior"), v.peak("identified"), v.peak("prior")

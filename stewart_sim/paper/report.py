@@ -11,6 +11,7 @@ from matplotlib.ticker import LogFormatter
 from stewart_fmu.dynamics import present_parts
 from stewart_fmu.io import named_array, write_csv, write_text
 from stewart_fmu.model import Model, is_per_leg
+from stewart_sim.markdown import md_code, md_text
 from stewart_sim.scene_info import per_leg_text
 from stewart_sim.paper.study import (
     FAR_LARGER,
@@ -169,8 +170,8 @@ def _setup(r: PaperResults) -> str:
     cond = ", ".join(f"{n} {tr.cond.min():.3g}-{tr.cond.max():.3g}"
                      for n, tr in r.trajectories.items())
     return "\n".join([
-        f"# Paper rerun (Section 3): {r.scene}", "",
-        f"Scene `{m.source or r.scene}`; gravity {_vec(m.gravity)} m/s².", "",
+        f"# Paper rerun (Section 3): {md_text(r.scene)}", "",
+        f"Scene {md_code(m.source or r.scene)}; gravity {_vec(m.gravity)} m/s².", "",
         joints, "",
         f"- home pose {_vec(m.home)} (m, rad); stroke [{m.leg_min}, {m.leg_max}] m",
         f"- platform: mass {m.platform_mass:g} kg, principal inertia {_vec(m.platform_inertia)} kg m²",

@@ -33,11 +33,16 @@ MAX_DRIVES = 10_000          # rows: each is one task of the catalogue sweep
 DRIVE_KEYS = ("gear_ratio", "pinion_radius", "rotor_inertia")
 COST_KEYS = ("price", "mass")
 # column -> (lowest, open at the low end, highest, unit): the physical bounds of the ratings
-LIMITS = {"peak_torque": (0.0, True, 1e5, "N m"),
-          "continuous_torque": (0.0, True, 1e5, "N m"),
-          "max_speed": (0.0, True, 2e4, "rad/s"),      # 2e4 rad/s: about 190,000 rpm
+# (the lowest: a thousandth of the smallest such motor's, 1 mN m and 1 rad/s) and of a catalogue
+# drive's gearbox beyond the scene's [drive] bound (gear_ratio > 0): a gearbox speeding the
+# pinion up more than 100 times drives no rack (the torque it would ask is the rack force
+# times the pinion radius over the ratio)
+LIMITS = {"peak_torque": (1e-6, False, 1e5, "N m"),
+          "continuous_torque": (1e-6, False, 1e5, "N m"),
+          "max_speed": (1e-3, False, 2e4, "rad/s"),      # 2e4 rad/s: about 190,000 rpm
           "price": (0.0, False, 1e12, ""),
-          "mass": (0.0, True, 1e5, "kg")}
+          "mass": (0.0, True, 1e5, "kg"),
+          "gear_ratio": (1e-2, False, 1e5, "")}
 REQUIRED = ("name", *DRIVE_KEYS, "peak_torque", "continuous_torque", "max_speed")
 COLUMNS = (*REQUIRED, *COST_KEYS)
 
@@ -156,12 +161,12 @@ def _number(path: Path, line: int, column: str, text: str) -> float:
         raise CatalogueError(f"{where}: not a number: {text!r}") from None
     if not math.isfinite(value):
         raise CatalogueError(f"{where}: not finite: {text!r}")
+    reason = None
     if column in DRIVE_KEYS:
         reason = bound_reason(scene_groups()[f"drive.{column}"], value)
-    else:
+    if reason is None and column in LIMITS:
         low, open_low, high, unit = LIMITS[column]
         unit = f" {unit}" if unit else ""
-        reason = None
         if value < low or (open_low and value == low):
             reason = f"must be {'>' if open_low else '>='} {low:g}, got {value!r}"
         elif value > high:

@@ -25,6 +25,7 @@ from typing import Any, Sequence
 from stewart_fmu import io
 from stewart_fmu.model import Model, per_leg
 from stewart_sim.cueing.feasibility import Margin
+from stewart_sim.markdown import md_text
 from stewart_sim.outputs import result_set
 from stewart_sim.sweep.table import csv_text
 
@@ -153,11 +154,12 @@ def report_markdown(model: Model, motions: Sequence[Motion], scene: SceneSizing,
                     sweep: CatalogueSweep | None, ranked: Sequence[CandidateResult],
                     margin: float, title: str, files: Sequence[str]) -> str:
     """report.md: the motions, the demand's peaks, the scene's checks, the ranking."""
-    lines = [f"# Actuator sizing: {title}", ""]
+    lines = [f"# Actuator sizing: {md_text(title)}", ""]
     lines += ["## Motions", "", "| motion | kind | duration (s) | samples |", "|---|---|---|---|"]
     kinds = {"platform": "platform trajectory",
              "vehicle": "vehicle motion, cued ([cueing] classical washout)"}
-    lines += [f"| {m.name} | {kinds[m.kind]} | {m.duration:.4g} | {m.t.size} |" for m in motions]
+    lines += [f"| {md_text(m.name)} | {kinds[m.kind]} | {m.duration:.4g} | {m.t.size} |"
+              for m in motions]
     lines += ["", *_demand_section(model, scene), "", *_scene_section(scene, margin)]
     if sweep is not None:
         lines += ["", *_catalogue_section(sweep, ranked, margin)]
@@ -182,7 +184,7 @@ def _demand_section(model: Model, scene: SceneSizing) -> list[str]:
     used = [(float(d.stroke_used.max()), d.motion, int(d.stroke_used.argmax()) + 1)
             for d in scene.demands]
     v, motion, leg = max(used)
-    rows.append(f"| stroke used (m) | {v:.4g} | {motion} | — | {leg} | — | — |")
+    rows.append(f"| stroke used (m) | {v:.4g} | {md_text(motion)} | — | {leg} | — | — |")
     for q in QUANTITIES:
         found = [(d.statistics()[q], d.motion) for d in scene.demands
                  if d.values[q] is not None]
@@ -191,8 +193,8 @@ def _demand_section(model: Model, scene: SceneSizing) -> list[str]:
         peak, pm = max(found, key=lambda s: s[0].peak.magnitude)
         rms, rm = max(found, key=lambda s: s[0].rms)
         unit = UNITS[q][0]
-        rows.append(f"| {q.replace('_', ' ')} ({unit}) | {peak.peak.value:.4g} | {pm} | "
-                    f"{peak.peak.t:.4g} | {peak.peak.leg} | {rms.rms:.4g} | {rm} |")
+        rows.append(f"| {q.replace('_', ' ')} ({unit}) | {peak.peak.value:.4g} | {md_text(pm)} | "
+                    f"{peak.peak.t:.4g} | {peak.peak.leg} | {rms.rms:.4g} | {md_text(rm)} |")
     return head + rows
 
 
@@ -205,7 +207,7 @@ def _scene_section(scene: SceneSizing, margin: float) -> list[str]:
                   f"{a.motor.voltage_limit:g} V, no-load speed {a.no_load_speed:.4g} m/s "
                   f"(motor {scene.no_load_speed:.4g} rad/s).", ""]
     elif scene.note:
-        lines += [f"The motor is not checked: {scene.note}.", ""]
+        lines += [f"The motor is not checked: {md_text(scene.note)}.", ""]
     lines += ["| check | worst ratio | value | limit | motion | t (s) | leg | verdict |",
               "|---|---|---|---|---|---|---|---|"]
     worst: dict[str, tuple[Margin, str]] = {}
@@ -215,7 +217,7 @@ def _scene_section(scene: SceneSizing, margin: float) -> list[str]:
                 worst[c.quantity] = (c, d.motion)
     for q, (c, motion) in worst.items():
         lines.append(f"| {q} ({c.unit}) | {c.ratio:.3f} | {c.value:.4g} | {c.limit:.4g} | "
-                     f"{motion} | {_g(c.t)} | {c.leg or '—'} | "
+                     f"{md_text(motion)} | {_g(c.t)} | {c.leg or '—'} | "
                      f"{verdict(c.ratio, margin, c.quantity)} |")
     lines += ["", "Ratio: demand / limit (limit / demand for stroke_min); a drive's check meets "
               f"the margin when ratio × {1 + margin:g} ≤ 1, the stroke and cond(J) when "
@@ -234,7 +236,7 @@ def _catalogue_section(sweep: CatalogueSweep, ranked: Sequence[CandidateResult],
              "replaces the scene's [drive] (its rotor inertia changes the rack force). Ranked "
              f"by {cost}: the qualifying drives first.", ""]
     if good:
-        lines += [f"**Choice: {good[0].drive.name}** ({cost} {good[0].drive.cost:g}).", ""]
+        lines += [f"**Choice: {md_text(good[0].drive.name)}** ({cost} {good[0].drive.cost:g}).", ""]
     else:
         lines += ["**No drive of the catalogue meets every motion with the margin.**", ""]
     lines += ["| rank | drive | ζ | r (m) | I (kg m²) | " + cost + " | peak torque | RMS torque "
@@ -245,12 +247,12 @@ def _catalogue_section(sweep: CatalogueSweep, ranked: Sequence[CandidateResult],
             continue
         ratios = [r.worst(c) for c in CANDIDATE_CHECKS]
         worst = max(ratios, key=lambda cm: cm[0].ratio)
-        lines.append(f"| {rank} | {d.name} | {d.gear_ratio:g} | {d.pinion_radius:g} | "
+        lines.append(f"| {rank} | {md_text(d.name)} | {d.gear_ratio:g} | {d.pinion_radius:g} | "
                      f"{d.rotor_inertia:g} | {d.cost:g} | "
                      + " | ".join(f"{c.ratio:.3f}" for c, _ in ratios)
-                     + f" | {worst[1]} | {'yes' if r.qualifies(margin) else 'no'} |")
+                     + f" | {md_text(worst[1])} | {'yes' if r.qualifies(margin) else 'no'} |")
     lines += ["", "Ratios (worst motion): peak |torque| / peak_torque, the worst leg's RMS "
               "torque / continuous_torque, peak |motor speed| / max_speed."]
     for r in failed:
-        lines.append(f"- {r.drive.name}: not evaluated: {r.error}")
+        lines.append(f"- {md_text(r.drive.name)}: not evaluated: {md_text(r.error)}")
     return lines

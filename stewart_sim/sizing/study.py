@@ -29,6 +29,7 @@ import numpy as np
 
 from controller.config import ControllerConfig
 from controller.drive import AxisModel, axis_model
+from stewart_fmu.budget import check_count
 from stewart_fmu.errors import KinematicsError, StewartError, SweepError
 from stewart_fmu.model import Model
 from stewart_fmu.scene import read_scene_dict, scene_from_dict
@@ -43,6 +44,9 @@ DEFAULT_MARGIN = 0.2     # 20 % of every rating kept free: a common reserve in d
 CANDIDATE_CHECKS = ("torque_peak", "torque_rms", "motor_speed")
 ERROR_CHARS = 2000       # a failed drive's error text is cut to this
 POINTS_KEPT = 3000       # operating points a task sends back per motion, for the figure only
+# bytes one drive's result on one motion holds in the command: its operating points (speed and
+# torque, POINTS_KEPT + 2 samples of 6 legs) and its checks and statistics
+RESULT_BYTES = (POINTS_KEPT + 2) * 6 * 2 * 8 + 4096
 
 
 GEOMETRY_CHECKS = ("stroke_min", "stroke_max", "cond")   # judged against the limit alone
@@ -176,6 +180,10 @@ def _peak_check(quantity: str, values: np.ndarray, t: np.ndarray, limit: float,
                   int(col) + 1)
 
 
+class SizingError(StewartError, ValueError):
+    """A sizing whose numbers are not finite (the message names the drive or the motion)."""
+
+
 @dataclass(frozen=True)
 class CatalogueSweep:
     """Every catalogue drive's result, in catalogue order, and where they ran."""
@@ -213,6 +221,42 @@ def sweep_catalogue(scene: Path, drives: Sequence[Drive], motions: Sequence[Moti
         count = len(client.scheduler_info()["workers"])
         dashboard = client.dashboard_link
     return CatalogueSweep(tuple(results), count, dashboard)
+
+
+def check_budget(drives: Sequence[Drive], motions: Sequence[Motion], where: str) -> None:
+    """Refuse (BudgetError naming `where`) a catalogue whose results on the motions would not
+    fit the memory budget: checked before the sweep starts."""
+    check_count(f"{where}: {len(drives)} drives x {len(motions)} motions: results",
+                len(drives) * len(motions), RESULT_BYTES, "give fewer drives or motions")
+
+
+def check_finite(sizing: SceneSizing, results: Sequence[CandidateResult], where: str) -> None:
+    """Refuse (SizingError naming the drive of `where`, or the motion) a demand, check or
+    statistic that is not finite, before anything is written: numerical trouble is reported,
+    never ranked. (A torque_rms check has no time: its t is NaN by design.)"""
+    for demand, checks in zip(sizing.demands, sizing.checks):
+        bad = _not_finite(checks, demand.statistics())
+        if bad:
+            raise SizingError(f"{demand.motion}: the scene's drive: {bad} is not finite "
+                              "(numerical trouble)")
+    for result in results:
+        for motion in result.motions:
+            bad = _not_finite(motion.checks, motion.stats)
+            if bad:
+                raise SizingError(f"{where}: drive {result.drive.name!r} on {motion.motion}: "
+                                  f"{bad} is not finite (numerical trouble: check its ratings "
+                                  "and gearbox)")
+
+
+def _not_finite(checks: Sequence[Margin], stats: Mapping[str, Statistic]) -> str | None:
+    """The first quantity of the checks or statistics with a non-finite number, or None."""
+    for c in checks:
+        if not all(math.isfinite(v) for v in (c.ratio, c.value, c.limit)):
+            return f"{c.quantity} ({c.value!r} {c.unit} against {c.limit!r})"
+    for name, s in stats.items():
+        if not all(math.isfinite(v) for v in (s.peak.value, s.rms)):
+            return f"{name} (peak {s.peak.value!r}, RMS {s.rms!r})"
+    return None
 
 
 def ranking(results: Sequence[CandidateResult], margin: float) -> list[CandidateResult]:
