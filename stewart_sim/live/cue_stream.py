@@ -8,7 +8,14 @@ cueing.study.resample does offline). So:
 - a sender at the nominal rate on the grid gives one step per sample, the offline `cue` of the
   same samples exactly;
 - a gap (lost or superseded samples) is bridged by interpolated steps, at most MAX_STEPS per
-  sample (a longer gap is a telemetry loss: the live loop fades to neutral and resets);
+  sample: the work one sample makes is bounded by design. A sample more than MAX_STEPS grid
+  points past the last re-anchors the washout instead: the grid restarts at the sample (t_0 =
+  its time) and the washout takes one step on its values, its filters' state carried on (the
+  gap is not integrated), counted in `reanchored`. The receiver's time line
+  (stewart_sim.live.receiver) keeps a sample's lead over the last one within the clock time
+  since it (at most the loss timeout while cueing) and a few AHEAD, so with the default
+  settings (0.1 s, 100 Hz) a stream hardly re-anchors; a longer --loss-timeout or a faster
+  --telemetry-rate can;
 - a sender at another rate is resampled onto the grid (faster: a sample between grid points
   only moves the interpolation's end; slower: several steps per sample).
 A sample within GRID_TOLERANCE h of a grid point counts as on it (decimal times in a file are
@@ -44,7 +51,7 @@ from controller.trajectory import minimum_jerk
 from stewart_sim.cueing.telemetry import TelemetrySample
 
 GRID_TOLERANCE = 1e-6   # of h: a sample this close to a grid point is on it
-MAX_STEPS = 1000        # washout steps one sample may take (a longer gap is a loss)
+MAX_STEPS = 16          # washout steps one sample may take (a longer gap re-anchors)
 EXTRAPOLATION = 5       # periods h a cue sample is extrapolated over at most ...
 EXTRAPOLATION_MIN = 0.02   # ... or this many s, whichever is longer
 OFFSET_GAIN = 0.01      # of a sample's lag difference that moves the clock offset
@@ -79,6 +86,7 @@ class CueStream:
         self.home = np.asarray(home, float)
         self.steps = 0                 # washout steps since the start (all resets)
         self.interpolated = 0          # of them on input interpolated over a gap or resampled
+        self.reanchored = 0            # samples past MAX_STEPS grid points: the grid restarted
         self.reset()
 
     def reset(self) -> None:
@@ -113,6 +121,9 @@ class CueStream:
             return 1
         a, taken = self._last, 0
         tol = GRID_TOLERANCE * self.h
+        if (s.t + tol - self._t0) / self.h - self._j >= MAX_STEPS + 1:
+            self._t0, self._j = s.t, -1           # re-anchored: the next grid point is s.t
+            self.reanchored += 1
         while taken < MAX_STEPS:
             tg = self._t0 + (self._j + 1) * self.h
             if tg > s.t + tol:
@@ -167,7 +178,8 @@ class CueStream:
 
     def describe(self) -> str:
         return (f"washout: {self.steps} steps ({self.interpolated} on input interpolated over "
-                "gaps or another rate)")
+                f"gaps or another rate), {self.reanchored} re-anchored past a gap of over "
+                f"{MAX_STEPS} steps")
 
     def close(self) -> None:
         pass

@@ -186,7 +186,7 @@ class LiveSession:
         """Tick k at clock time `now` (see the module doc)."""
         self._commands(now)
         drained = time.monotonic()
-        s = self.receiver.poll()
+        s = self.receiver.poll(now)
         if s is not None:
             self.last_accept = now
             self._f_vehicle = s.specific_force

@@ -252,8 +252,9 @@ def test_each_bad_kind_counted_and_the_platform_not_moved(scene):
 
 
 def test_bad_datagrams_while_cueing_change_nothing(scene):
-    """The same motion with and without bad datagrams (every kind, and out-of-order and
-    duplicated samples) between its samples: the setpoints are identical."""
+    """The same motion with and without bad datagrams (every kind, samples 1e6 s ahead of the
+    stream's clock, out-of-order and duplicated samples) between its samples: the setpoints
+    are identical, the washout took the same steps."""
     motion = read_motion(BRAKING)
     rate = scene.controller.rate
 
@@ -268,6 +269,8 @@ def test_bad_datagrams_while_cueing_change_nothing(scene):
             q.q.extend(now)
             if bad and k % 7 == 3:
                 q.q.extend(bad_datagrams(clock.t).values())
+                q.q.append(encode(TelemetrySample(clock.t + 1e6, (3.0, 0.0, 9.81),
+                                                  (0.0, 0.0, 0.0))))   # far ahead of the clock
                 if previous is not None:
                     q.q.extend([previous, previous])          # duplicated, then out of order
             if now:
@@ -279,7 +282,9 @@ def test_bad_datagrams_while_cueing_change_nothing(scene):
     dirty, dev_dirty = run(True)
     assert dirty.receiver.counts.refused_total > 4 * 500
     assert all(dirty.receiver.counts.refused[k] > 0 for k in
-               ("truncated", "malformed", "non_finite", "absurd", "duplicate", "out_of_order"))
+               ("truncated", "malformed", "non_finite", "absurd", "duplicate", "out_of_order",
+                "ahead"))
+    assert dirty.cue.steps == clean.cue.steps == 400
     assert dirty.receiver.counts.accepted == clean.receiver.counts.accepted == 400
     assert len(dev_clean.setpoints) == len(dev_dirty.setpoints)
     for a, b in zip(dev_clean.setpoints, dev_dirty.setpoints):
@@ -563,3 +568,64 @@ def test_the_live_view_gets_the_vehicle_and_the_delivered_specific_force(scene):
     # the tilt coordination delivers the sustained push as gravity's share: f_x > 0, by then
     # most of the scaled 0.5 x 2 m/s^2
     assert 0.5 < snap.f_delivered[0] < 1.2
+
+
+# --- hostile timing: the work per tick is bounded ------------------------------------------------
+
+
+def test_a_far_future_stream_costs_no_washout_step(scene):
+    """The attack of a datagram 1e6 s past the newest sample on every tick, over a clean 100 Hz
+    stream: every one refused as ahead of the stream's clock, the clean stream taken as if alone
+    (one washout step per clean sample, at most one a tick), the setpoints those of the clean
+    stream bit for bit."""
+    rate = scene.controller.rate
+
+    def run(hostile: bool):
+        q = Queue()
+        session, dev, clock = offline_session(scene, q)
+        steps = []
+        for k in range(int(2.0 * rate)):
+            clock.t = k / rate
+            if k % 10 == 0:
+                q.q.append(encode(TelemetrySample(clock.t, (2.0, 0.5, 9.81), (0.1, 0.0, 0.0))))
+            if hostile and k > 0:                # once the stream has its time line
+                newest = session.receiver.last_t
+                q.q.append(encode(TelemetrySample(newest + 1e6, (5.0, 0.0, 9.81),
+                                                  (0.0, 0.0, 0.0))))
+            before = session.cue.steps
+            session.tick(clock.t)
+            steps.append(session.cue.steps - before)
+        return session, dev, steps
+
+    clean, dev_clean, _ = run(False)
+    hostile, dev_hostile, steps = run(True)
+    assert hostile.receiver.counts.refused["ahead"] == int(2.0 * rate) - 1
+    assert hostile.receiver.counts.accepted == 200 and max(steps) == 1
+    assert hostile.cue.reanchored == 0 and hostile.mode is Mode.RUNNING
+    for a, b in zip(dev_clean.setpoints, dev_hostile.setpoints):
+        for x, y in zip(a, b):
+            np.testing.assert_array_equal(x, y)
+
+
+def test_a_gap_past_max_steps_re_anchors_the_washout(scene):
+    """A gap of MAX_STEPS grid points is bridged by MAX_STEPS interpolated steps; one sample
+    further re-anchors: one step on the sample, the grid restarted at its time (the next
+    sample one period later takes one step)."""
+    from stewart_sim.live.cue_stream import MAX_STEPS
+    from stewart_sim.cueing.washout_step import WashoutStepper
+
+    h = 1.0 / TELEMETRY_RATE
+    model = scene.model
+    stream = CueStream(WashoutStepper(scene.cueing, model.home, model.gravity, h), h,
+                       model.home)
+    f, w = (1.0, 0.0, 9.81), (0.0, 0.0, 0.0)
+    assert stream.push(TelemetrySample(0.0, f, w), 0.0) == 1
+    assert stream.push(TelemetrySample(MAX_STEPS * h, f, w), 1.0) == MAX_STEPS
+    assert stream.reanchored == 0
+    t = MAX_STEPS * h + (MAX_STEPS + 1) * h + 0.37 * h       # off the grid, too far
+    assert stream.push(TelemetrySample(t, f, w), 2.0) == 1
+    assert stream.reanchored == 1 and stream.cue_time == t
+    for far in (t + 1e6, t + 2e6, 4e9):
+        assert stream.push(TelemetrySample(far, f, w), 3.0) == 1
+    assert stream.push(TelemetrySample(4e9 + h, f, w), 4.0) == 1
+    assert stream.reanchored == 4 and np.all(np.isfinite(stream.cue.q))
