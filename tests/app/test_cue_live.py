@@ -10,6 +10,7 @@ import select
 import struct
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -58,19 +59,27 @@ class SimClock:
 
 
 class FakeDevice:
-    """The device end for the unit tests: records every setpoint."""
+    """The device end for the unit tests: records every setpoint and answers each with a
+    LEG_STATE of the lengths sent, until `silent_after` setpoints (then it answers nothing: a
+    device that is gone)."""
 
-    def __init__(self) -> None:
+    watchdog = 0.2          # s: the emulated device's default WDG_TIMEOUT
+
+    def __init__(self, silent_after: float = math.inf) -> None:
         self.setpoints: list[tuple] = []
         self.counts = DeviceCounts()
         self.send_time = 0.0
         self.held = False
+        self.silent_after = silent_after
 
     def send(self, k, t, l, ldot, force, force_rate):
         self.setpoints.append((k, t, np.array(l), np.array(ldot), np.array(force)))
         self.send_time = time.monotonic()
         self.counts.setpoints += 1
-        return []
+        if self.counts.setpoints > self.silent_after:
+            return []
+        self.counts.states += 1
+        return [SimpleNamespace(length=tuple(np.asarray(l, float)))]
 
     def hold(self) -> bool:
         self.held = True
@@ -629,3 +638,100 @@ def test_a_gap_past_max_steps_re_anchors_the_washout(scene):
         assert stream.push(TelemetrySample(far, f, w), 3.0) == 1
     assert stream.push(TelemetrySample(4e9 + h, f, w), 4.0) == 1
     assert stream.reanchored == 4 and np.all(np.isfinite(stream.cue.q))
+
+
+# --- the loss of the device --------------------------------------------------------------------
+
+
+def test_a_device_that_stops_answering_is_lost_once_and_the_session_ends(scene):
+    """On a simulated clock: the device answers the first 100 setpoints, then nothing. The
+    tick whose time is more than the device's watchdog (0.2 s) past the last LEG_STATE finds it
+    lost: one line, at once, counted, the summary says so; run_realtime ends there (no park:
+    no setpoint after that tick) and disarms."""
+    from stewart_sim.live.session import run_realtime, summary_lines
+
+    class Clock:                      # moves 0.25 ms a read: run_realtime's waits end at once
+        t = 0.0
+
+        def __call__(self) -> float:
+            self.t += 2.5e-4
+            return self.t
+
+    q = Queue()
+    dev = FakeDevice(silent_after=100)
+    said: list[str] = []
+    session = make_session(scene, TelemetryReceiver(q, "native", SimClock()), dev,
+                           TELEMETRY_RATE, warn=said.append)
+    assert session.device_timeout == FakeDevice.watchdog
+    for k in range(int(0.05 * scene.controller.rate)):     # telemetry for a while: cueing
+        if k % 10 == 0:
+            q.q.append(encode(TelemetrySample(k / 1000, (2.0, 0.0, 9.81), (0.0, 0.0, 0.0))))
+    run_realtime(session, duration=30.0, clock=Clock())
+    # the last LEG_STATE came with setpoint 99 (t = 0.099 s): lost at the first tick past
+    # 0.099 + 0.2 s, tick 300
+    assert session.device_lost and session.device_lost_at == pytest.approx(0.300)
+    assert len(dev.setpoints) == 301 and dev.held
+    assert session.counts.device_losses == 1 and session.stopped_by == "the device's loss"
+    assert len(said) == 1 and "device lost at 0.300 s" in said[0]
+    text = "\n".join(summary_lines(session))
+    assert "lost 1 (at 0.300 s" in text and "stopped by the device's loss" in text
+
+
+def test_a_device_that_answers_late_is_not_lost(scene):
+    """A device whose states come in bunches (the host stalled: they waited in the socket) is
+    not lost as long as each gap is within its watchdog."""
+    class Bunching(FakeDevice):
+        def send(self, k, t, l, ldot, force, force_rate):
+            states = super().send(k, t, l, ldot, force, force_rate)
+            return states * 190 if k % 190 == 0 else []     # a bunch every 0.19 s
+
+    dev = Bunching()
+    said: list[str] = []
+    session = make_session(scene, TelemetryReceiver(Queue(), "native", SimClock()), dev,
+                           TELEMETRY_RATE, warn=said.append)
+    for k in range(2000):
+        session.tick(k / scene.controller.rate)
+    assert not session.device_lost and said == [] and session.counts.device_losses == 0
+
+
+def test_killing_the_device_mid_session_ends_cue_live_at_once(tmp_path):
+    """The command in real time against the device in its own process, which is then killed:
+    one line on stderr saying the device is lost, the summary counts it, exit 2 (no park, no
+    Ctrl-C needed), the record written."""
+    import os
+    import subprocess
+    import sys
+
+    from hil.spawn import device_command, parse_udp
+
+    record = tmp_path / "rec.csv"
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    device = subprocess.Popen(device_command(SIM, "udp", False), stdout=subprocess.PIPE,
+                              stderr=subprocess.DEVNULL, text=True)
+    proc = None
+    try:
+        ready, _, _ = select.select([device.stdout], [], [], 120.0)
+        assert ready
+        host, port = parse_udp(device.stdout.readline().strip())
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "stewart_sim", "cue-live", str(SIM), "--telemetry",
+             "udp://127.0.0.1:0", "--device", f"udp:{host}:{port}", "--record", str(record),
+             "--duration", "600"],
+            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+            text=True, env=env)
+        ready, _, _ = select.select([proc.stdout], [], [], 120.0)
+        assert ready and proc.stdout.readline().startswith("cue-live:")
+        device.kill()
+        device.wait()
+        out, err = proc.communicate(timeout=120.0)
+    finally:
+        for p in (device, proc):
+            if p is not None and p.poll() is None:
+                p.kill()
+                p.wait()
+    assert proc.returncode == 2, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 2 and "device lost at" in lines[0] and "watchdog" in lines[0]
+    assert "the device was lost" in lines[1] and "Traceback" not in err
+    assert "lost 1 (at" in out and "stopped by the device's loss" in out
+    assert record.read_text().splitlines()[0].startswith("t,seq,mode,t_telemetry")
