@@ -252,3 +252,24 @@ def test_operator_words_from_a_terminal_line_and_a_datagram():
         sink.close()
         control.close()
         reader.close()
+
+
+@pytest.mark.parametrize("rate, reason", [("1e-9", "fewer than 2 samples"),
+                                          ("0.05", "fewer than 2 samples"),
+                                          ("1e9", "memory budget")])
+def test_telemetry_replay_refuses_a_rate_naming_it(rate, reason, capsys):
+    """--rate that resamples the motion to fewer than two samples, or to more than the memory
+    budget holds: one line naming --rate and the reason, exit 2, nothing sent."""
+    from stewart_sim import cli
+
+    src = UdpSource("127.0.0.1", 0)
+    try:
+        assert cli.main(["telemetry-replay", str(BRAKING), "--to",
+                         f"udp://127.0.0.1:{src.address[1]}", "--rate", rate]) == 2
+        assert src.recv() is None
+    finally:
+        src.close()
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert len(err) == 1 and "--rate" in err[0] and reason in err[0]
+    assert "Traceback" not in captured.err and captured.out == ""
