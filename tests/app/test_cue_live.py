@@ -735,3 +735,74 @@ def test_killing_the_device_mid_session_ends_cue_live_at_once(tmp_path):
     assert "the device was lost" in lines[1] and "Traceback" not in err
     assert "lost 1 (at" in out and "stopped by the device's loss" in out
     assert record.read_text().splitlines()[0].startswith("t,seq,mode,t_telemetry")
+
+
+# --- fuzzed telemetry timing ---------------------------------------------------------------------
+
+
+def hostile_tick(rng, t: float, newest: float | None, last: bytes | None) -> list[bytes]:
+    """One tick's datagrams, a seeded draw of the timing attacks: on time, far future,
+    backwards, bursts, duplicates, random times, absurd times, silence; values anywhere within
+    the decoder's bounds (+-999 m/s^2 alternating as often as not)."""
+    from stewart_sim.cueing.motion import VALUE_BOUNDS
+
+    def sample(when: float) -> bytes:
+        f = rng.uniform(-1, 1, 3) * (0.98 * VALUE_BOUNDS["f"] if rng.random() < 0.3 else 5.0)
+        w = rng.uniform(-1, 1, 3) * (VALUE_BOUNDS["w"] if rng.random() < 0.3 else 0.5)
+        return encode(TelemetrySample(when, tuple(f + (0.0, 0.0, 9.81)), tuple(w)))
+
+    base = newest if newest is not None else t
+    kind = rng.integers(9)
+    if kind == 0:                                           # on time
+        return [sample(t)]
+    if kind == 1:                                           # far future
+        return [sample(base + 10.0 ** rng.uniform(-3, 9))]
+    if kind == 2:                                           # backwards
+        return [sample(base - 10.0 ** rng.uniform(-4, 9))]
+    if kind == 3:                                           # a burst around now
+        return [sample(t + d) for d in rng.uniform(-0.2, 0.2, int(rng.integers(1, 300)))]
+    if kind == 4 and last is not None:                      # duplicates
+        return [last] * int(rng.integers(1, 50))
+    if kind == 5:                                           # any time at all
+        return [sample(float(rng.uniform(-4e9, 4e9)))]
+    if kind == 6:                                           # beyond any clock: refused
+        return [b"STW\x01" + struct.pack("<7d", float(rng.choice([1e300, -1e300, 5e9])),
+                                         0.0, 0.0, 9.81, 0.0, 0.0, 0.0)]
+    return []                                               # silence
+
+
+@pytest.mark.parametrize("seed, loss_timeout", [(0, 0.1), (1, 0.1), (2, 1.0), (3, 1.0)])
+def test_fuzzed_telemetry_timing(scene, seed, loss_timeout):
+    """Seeded hostile timing (hostile_tick) over 3 s of ticks, with the default loss timeout
+    and a long one (where gaps re-anchor the washout): never an exception, every datagram
+    accounted for, no tick takes more than MAX_STEPS washout steps, every setpoint finite and
+    inside the legs' stroke."""
+    from stewart_sim.live.cue_stream import MAX_STEPS
+
+    rng = np.random.default_rng(seed)
+    q = Queue()
+    clock = SimClock()
+    dev = FakeDevice()
+    session = make_session(scene, TelemetryReceiver(q, "native", clock), dev, TELEMETRY_RATE,
+                           loss_timeout=loss_timeout)
+    rate = scene.controller.rate
+    last = None
+    most = 0
+    for k in range(int(3.0 * rate)):
+        clock.t = k / rate
+        sent = hostile_tick(rng, clock.t, session.receiver.last_t, last)
+        q.q.extend(sent)
+        last = sent[-1] if sent else last
+        before = session.cue.steps
+        session.tick(clock.t)
+        most = max(most, session.cue.steps - before)
+    c = session.receiver.counts
+    assert c.received == c.accepted + c.superseded + c.refused_total + len(q.q)
+    assert c.accepted > 20 and c.refused["ahead"] > 10 and c.refused["out_of_order"] > 10
+    assert 1 <= most <= MAX_STEPS
+    lengths = np.array([s[2] for s in dev.setpoints])
+    model = scene.model
+    assert np.all(np.isfinite(lengths))
+    assert np.all(lengths >= model.leg_min) and np.all(lengths <= model.leg_max)
+    print(f"\nseed {seed}: {c.accepted} accepted, refused {c.refused}, most steps a tick "
+          f"{most}, re-anchored {session.cue.reanchored}, fades {session.counts.fades}")
