@@ -39,8 +39,8 @@ pitch = -Pitch (LFS's positive pitch raises the nose), yaw = Heading. Vel and Po
 (a sample needs neither) and are not checked.
 
 Bad input (wrong size, magic or version, a non-finite value, a specific force or angular
-velocity beyond motion.py's VALUE_BOUNDS, a time beyond +-TIME_BOUND) raises TelemetryError with a one-line reason; no
-other exception leaves a decoder, whatever the bytes.
+velocity beyond motion.py's VALUE_BOUNDS, a time beyond +-TIME_BOUND) raises TelemetryError with
+a one-line reason; no other exception leaves a decoder, whatever the bytes.
 """
 from __future__ import annotations
 

@@ -14,18 +14,18 @@ ones it replaced are counted as superseded. A refused datagram never reaches the
 platform moves only on an accepted sample.
 
 The stream's clock: the first sample accepted (after a start or `forget_order`) anchors a time
-line, its telemetry time at the time of its drain (the live loop's tick time); the line advances at (1 + DRIFT) times
-our clock (a sender's clock may run that much faster). A sample whose time is more than AHEAD
-past the line is refused as ahead: a datagram 1e6 s in the future never reaches the washout,
-and no sender can make the stream's time run faster than (1 + DRIFT) times ours, so the washout
-steps one sample asks for are bounded by the clock time since the last accepted sample (at most
-the loss timeout while cueing) and the line's lead (stewart_sim.live.cue_stream.MAX_STEPS caps
-them whatever the settings). An accepted sample behind the line by more than AHEAD pulls the
-line PULL of the way towards AHEAD above it: a slower sender's line follows it within a few
-samples, one late datagram hardly moves it (the on-time ones after it stay within AHEAD).
-`forget_order()` lets the next sample start a new time line (after a telemetry loss: a
-restarted sender, or a line anchored by an absurd first sample, cannot lock the stream out for
-longer than the loss timeout).
+line, its telemetry time at the time of its drain (the live loop's tick time); the line advances
+at (1 + DRIFT) times our clock (a sender's clock may run that much faster). A sample whose time
+is more than AHEAD past the line is refused as ahead: a datagram 1e6 s in the future never
+reaches the washout, and no sender can make the stream's time run faster than (1 + DRIFT) times
+ours, so the washout steps one sample asks for are bounded by the clock time since the last
+accepted sample (at most the loss timeout while cueing) and the line's lead
+(stewart_sim.live.cue_stream.MAX_STEPS caps them whatever the settings). An accepted sample
+behind the line by more than AHEAD pulls the line PULL of the way towards AHEAD above it: a
+slower sender's line follows it within a few samples, one late datagram hardly moves it (the
+punctual ones after it stay within AHEAD). `forget_order()` lets the next sample start a new
+time line (after a telemetry loss: a restarted sender, or a line anchored by an absurd first
+sample, cannot lock the stream out for longer than the loss timeout).
 """
 from __future__ import annotations
 

@@ -134,9 +134,10 @@ def test_newest_wins_within_a_drain():
 def test_the_stream_clock_refuses_samples_ahead_and_keeps_a_real_sender():
     """The receiver's time line (stewart_sim.live.receiver): a sender on time, one whose first
     sample came late by less than AHEAD, one that stutters (one datagram 0.08 s late, then on
-    time again, the datagrams meanwhile lost) and one whose clock runs slow are all taken whole; a sender at twice our
-    clock's speed is refused as ahead once its lead passes AHEAD, so the stream's time never
-    runs ahead of the clock by more than AHEAD plus DRIFT of the time elapsed."""
+    time again, the datagrams meanwhile lost) and one whose clock runs slow are all taken whole;
+    a sender at twice our clock's speed is refused as ahead once its lead passes AHEAD, so the
+    stream's time never runs ahead of the clock by more than AHEAD plus DRIFT of the time
+    elapsed."""
     from stewart_sim.live.receiver import AHEAD, DRIFT
 
     def feed(times, arrivals):
