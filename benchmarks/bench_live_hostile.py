@@ -30,7 +30,7 @@ Patterns (a clean 100 Hz stream underneath unless said):
   worst             the designed worst tick: 256 garbage datagrams every tick, a sample every
                     0.099 s as far ahead as the line allows (the most steps the default loss
                     timeout lets one sample take) before them
-  gap 12 steps      --loss-timeout 1: a sample every 0.12 s, each MAX_STEPS (12) washout steps
+  gap 10 steps      --loss-timeout 1: a sample every 0.1 s, each MAX_STEPS (10) washout steps
   random            seeded mix of all the above, per tick
 The first tick of each run (its lazy set-up) is left out of the statistics.
 """
@@ -95,8 +95,8 @@ def pattern(name: str, k: int, rate: float, session, rng) -> list[bytes]:
     if name == "worst":
         line = session.receiver.line(t)
         return ([datagram(line + AHEAD * 0.999)] if k % 99 == 0 else []) + [b"\x00garbage"] * 256
-    if name == "gap 12 steps":
-        return [datagram(t)] if k % 120 == 0 else []
+    if name == "gap 10 steps":
+        return [datagram(t)] if k % 100 == 0 else []
     if name == "random":
         pick = ("clean", "future stream", "creeping ahead", "backwards", "duplicates",
                 "bursts", "flood", "worst")[int(rng.integers(8))]
@@ -128,7 +128,7 @@ def run(scene, name: str, seconds: float, seed: int) -> dict:
     device = DeviceOut(Client(connect_udp(*sink.getsockname())))
     q = Queue()
     session = make_session(scene, TelemetryReceiver(q, "native", time.perf_counter), device,
-                           TELEMETRY_RATE, loss_timeout=1.0 if name == "gap 12 steps"
+                           TELEMETRY_RATE, loss_timeout=1.0 if name == "gap 10 steps"
                            else LOSS_TIMEOUT, device_timeout=float("inf"))
     try:
         costs, walls, steps = ticks(session, q, name, seconds, seed)
@@ -156,7 +156,7 @@ def main() -> None:
     seconds = min(max(args.seconds, 1.5), 600.0)
     scene = load(SCENE)
     names = ("clean", "future once", "future stream", "creeping ahead", "backwards",
-             "duplicates", "bursts", "flood", "gap 0.099 s", "worst", "gap 12 steps", "random")
+             "duplicates", "bursts", "flood", "gap 0.099 s", "worst", "gap 10 steps", "random")
     print(f"{seconds:g} s of 1 kHz ticks per pattern; a tick's CPU time (and wall max) in ms")
     print(f"{'pattern':<16} {'p50':>7} {'p99':>7} {'max':>7} {'wall max':>8} {'steps/tick':>10} "
           f"{'its p50':>7} {'its max':>7} "

@@ -51,7 +51,7 @@ from controller.trajectory import minimum_jerk
 from stewart_sim.cueing.telemetry import TelemetrySample
 
 GRID_TOLERANCE = 1e-6   # of h: a sample this close to a grid point is on it
-MAX_STEPS = 12          # washout steps one sample may take (a longer gap re-anchors)
+MAX_STEPS = 10          # washout steps a sample may take (the default loss timeout at 100 Hz)
 EXTRAPOLATION = 5       # periods h a cue sample is extrapolated over at most ...
 EXTRAPOLATION_MIN = 0.02   # ... or this many s, whichever is longer
 OFFSET_GAIN = 0.01      # of a sample's lag difference that moves the clock offset
