@@ -4,7 +4,8 @@ Each tick k (session time t_k = k / rate, the device's time; due at start + t_k 
 1. the operator's commands (stewart_sim.live.control) and the newest valid telemetry sample
    (stewart_sim.live.receiver: a bounded drain, refusals counted by kind);
 2. the mode (cueing.live_modes: its one transition table): an accepted sample while cueing
-   steps the washout (stewart_sim.live.cue_stream); no sample for `loss_timeout` s is a
+   steps the washout (stewart_sim.live.cue_stream; at most MAX_STEPS steps a tick, a backlog
+   taken by the next ticks); no sample for `loss_timeout` s is a
    telemetry loss: the platform fades to neutral and the washout restarts at rest when
    telemetry is back (after the fade has reached neutral);
 3. the pose reference: the cue extrapolated to t_k, or the neutral pose at rest while fading,
@@ -220,6 +221,8 @@ class LiveSession:
                 self._pending = drained
         elif self.mode is Mode.RUNNING and now - self.last_accept > self.loss_timeout:
             self.event(Event.LOSS, now)
+        elif self.mode is Mode.RUNNING:         # a backlog of grid points (cue_stream)
+            self.counts.cue_steps += self.cue.advance(now)
         if fading(self.mode) and self.fade.done(now):
             self.event(Event.FADE_DONE, now)
         ref = None

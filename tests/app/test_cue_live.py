@@ -616,10 +616,52 @@ def test_a_far_future_stream_costs_no_washout_step(scene):
             np.testing.assert_array_equal(x, y)
 
 
-def test_a_gap_past_max_steps_re_anchors_the_washout(scene):
-    """A gap of MAX_STEPS grid points is bridged by MAX_STEPS interpolated steps; one sample
-    further re-anchors: one step on the sample, the grid restarted at its time (the next
-    sample one period later takes one step)."""
+def test_a_long_gap_is_caught_up_max_steps_a_tick_and_a_huge_one_re_anchors(scene):
+    """A gap of 3 MAX_STEPS + 4 grid points: the sample's tick takes MAX_STEPS washout steps,
+    the next ticks (advance) MAX_STEPS each and then the last 4, the cue exactly that of the
+    washout stepped on the input interpolated over the whole gap; a sample more than
+    MAX_BACKLOG grid points past the last step re-anchors: one step on the sample, the grid
+    restarted at its time (the next sample one period later takes one step)."""
+    from stewart_sim.live.cue_stream import MAX_BACKLOG, MAX_STEPS
+    from stewart_sim.cueing.washout_step import WashoutStepper
+
+    h = 1.0 / TELEMETRY_RATE
+    model = scene.model
+
+    def stepper():
+        return WashoutStepper(scene.cueing, model.home, model.gravity, h)
+
+    stream = CueStream(stepper(), h, model.home)
+    a = TelemetrySample(0.0, (1.0, 0.0, 9.81), (0.0, 0.1, 0.0))
+    n = 3 * MAX_STEPS + 4
+    b = TelemetrySample(n * h + 0.37 * h, (-2.0, 1.0, 9.0), (0.2, 0.0, -0.1))   # off the grid
+    assert stream.push(a, 0.0) == 1
+    assert stream.push(b, 1.0) == MAX_STEPS and stream.behind
+    assert [stream.advance(1.0 + k * 1e-3) for k in range(1, 5)] == [MAX_STEPS, MAX_STEPS, 4, 0]
+    assert not stream.behind and stream.steps == n + 1 and stream.reanchored == 0
+    alone = stepper()
+    alone.step(a.specific_force, a.angular_velocity)
+    for j in range(1, n + 1):
+        x = (j * h - a.t) / (b.t - a.t)
+        c = alone.step(tuple(p + x * (r - p) for p, r in zip(a.specific_force, b.specific_force)),
+                       tuple(p + x * (r - p) for p, r in zip(a.angular_velocity,
+                                                             b.angular_velocity)))
+    np.testing.assert_allclose(stream.cue.q, c.q, rtol=0, atol=1e-12)
+    assert stream.cue_time == pytest.approx(n * h)
+    t = b.t + (MAX_BACKLOG + 1) * h                      # too far: re-anchored
+    assert stream.push(TelemetrySample(t, a.specific_force, a.angular_velocity), 2.0) == 1
+    assert stream.reanchored == 1 and stream.cue_time == t and not stream.behind
+    assert stream.push(TelemetrySample(t + h, a.specific_force, a.angular_velocity), 2.1) == 1
+    for far in (t + 1e6, t + 2e6, 4e9):
+        assert stream.push(TelemetrySample(far, a.specific_force, a.angular_velocity), 3.0) == 1
+    assert stream.push(TelemetrySample(4e9 + h, a.specific_force, a.angular_velocity), 4.0) == 1
+    assert stream.reanchored == 4 and np.all(np.isfinite(stream.cue.q))
+
+
+def test_a_sample_during_a_backlog_continues_from_the_newest_step(scene):
+    """A sample that comes while grid points before the last one remain: the segment goes on
+    from the newest step's input to the new sample, so its grid points are taken in time
+    order, each once, and every step is finite."""
     from stewart_sim.live.cue_stream import MAX_STEPS
     from stewart_sim.cueing.washout_step import WashoutStepper
 
@@ -628,16 +670,16 @@ def test_a_gap_past_max_steps_re_anchors_the_washout(scene):
     stream = CueStream(WashoutStepper(scene.cueing, model.home, model.gravity, h), h,
                        model.home)
     f, w = (1.0, 0.0, 9.81), (0.0, 0.0, 0.0)
-    assert stream.push(TelemetrySample(0.0, f, w), 0.0) == 1
-    assert stream.push(TelemetrySample(MAX_STEPS * h, f, w), 1.0) == MAX_STEPS
-    assert stream.reanchored == 0
-    t = MAX_STEPS * h + (MAX_STEPS + 1) * h + 0.37 * h       # off the grid, too far
-    assert stream.push(TelemetrySample(t, f, w), 2.0) == 1
-    assert stream.reanchored == 1 and stream.cue_time == t
-    for far in (t + 1e6, t + 2e6, 4e9):
-        assert stream.push(TelemetrySample(far, f, w), 3.0) == 1
-    assert stream.push(TelemetrySample(4e9 + h, f, w), 4.0) == 1
-    assert stream.reanchored == 4 and np.all(np.isfinite(stream.cue.q))
+    stream.push(TelemetrySample(0.0, f, w), 0.0)
+    assert stream.push(TelemetrySample(25 * h, f, w), 0.25) == MAX_STEPS
+    times = [stream.cue_time]
+    assert stream.push(TelemetrySample(30 * h, (3.0, 0.0, 9.81), w), 0.3) == MAX_STEPS
+    times.append(stream.cue_time)
+    while stream.behind:
+        stream.advance(0.31)
+        times.append(stream.cue_time)
+    assert times == pytest.approx([MAX_STEPS * h, 2 * MAX_STEPS * h, 30 * h])
+    assert stream.steps == 31 and np.all(np.isfinite(stream.cue.q))
 
 
 # --- the loss of the device --------------------------------------------------------------------
