@@ -20,11 +20,11 @@ is more than AHEAD past the line is refused as ahead: a datagram 1e6 s in the fu
 reaches the washout, and no sender can make the stream's time run faster than (1 + DRIFT) times
 ours, so the washout steps one sample asks for are bounded by the clock time since the last
 accepted sample (at most the loss timeout while cueing) and the line's lead
-(stewart_sim.live.cue_stream.MAX_STEPS caps them whatever the settings). An accepted sample
-behind the line by more than AHEAD pulls the line PULL of the way towards AHEAD above it: a
-slower sender's line follows it within a few samples, one late datagram hardly moves it (the
-punctual ones after it stay within AHEAD). `forget_order()` lets the next sample start a new
-time line (after a telemetry loss: a restarted sender, or a line anchored by an absurd first
+(stewart_sim.live.cue_stream takes at most MAX_STEPS of them a tick, whatever the settings). An
+accepted sample behind the line by more than AHEAD pulls the line PULL of the way towards AHEAD
+above it: a slower sender's line follows it within a few samples, one late datagram hardly moves
+it (the punctual ones after it stay within AHEAD). `forget_order()` lets the next sample start a
+new time line (after a telemetry loss: a restarted sender, or a line anchored by an absurd first
 sample, cannot lock the stream out for longer than the loss timeout).
 """
 from __future__ import annotations
@@ -40,7 +40,9 @@ from stewart_sim.cueing.telemetry import (REFUSAL_KINDS, TelemetryError, Telemet
 MAX_READ = 256          # datagrams read at most per tick
 DRAIN_BUDGET = 2e-4     # s of clock a tick's drain may take before it stops reading
 READ_SIZE = 512         # bytes read of a datagram: larger ones arrive cut, and are malformed
-AHEAD = 0.025           # s a sample may lead the stream's clock (a late first sample, jitter)
+# s a sample may lead the stream's clock: a late first sample, jitter, and the live loop's time
+# trailing the clock by up to stewart_sim.live.session.MAX_LAG (0.01 s) before it skips ticks
+AHEAD = 0.025
 DRIFT = 1e-3            # how much faster than ours a sender's clock may run (10x a crystal's)
 PULL = 0.1              # of its lead over a sample behind it that the line gives up
 ORDER_KINDS = ("out_of_order", "duplicate", "ahead")
