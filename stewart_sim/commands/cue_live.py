@@ -3,8 +3,9 @@
 [--view [PORT]] [--duration S] [--record FILE]
 [--control udp://127.0.0.1:PORT] [--loss-timeout S] [--remote]`: the live motion simulator
 (stewart_sim.live.session): vehicle telemetry in, the washout, the safety envelope, leg
-setpoints out to the device at its rate until --duration, `quit`, `estop` or Ctrl-C (which
-parks first, then exits 130). A summary of the session at the end."""
+setpoints out to the device at its rate until --duration, `quit`, `estop`, Ctrl-C (which
+parks first, then exits 130) or the loss of the device (no LEG_STATE back for the device's
+watchdog time: said at once, the session ends, exit 2). A summary of the session at the end."""
 from __future__ import annotations
 
 import argparse
@@ -27,7 +28,9 @@ def add_parser(sub, help_text: str) -> None:
                     "controller rate. No telemetry for --loss-timeout fades the platform to "
                     "neutral. Operator commands, one word per line on a terminal's standard "
                     "input or per datagram on --control: park, resume, estop, quit. Ctrl-C "
-                    "parks, then exits 130.")
+                    "parks, then exits 130. A device that sends no state back for its "
+                    "watchdog time (WDG_TIMEOUT) is lost: said at once, no more setpoints, "
+                    "the session ends with exit status 2.")
     p.add_argument("scene", metavar="SCENE", help="scene file (TOML) with [controller] and "
                                                    "[drive] tables ([cueing]: the washout)")
     p.add_argument("--telemetry", required=True, metavar="udp://127.0.0.1:PORT",
@@ -72,6 +75,7 @@ def run(args: argparse.Namespace) -> None:
     import sys
     import time
 
+    from hil.errors import LinkError
     from stewart_fmu import io as sio
     from stewart_sim import outputs
     from stewart_sim.limits import MAX_SAMPLES
@@ -140,12 +144,15 @@ def run(args: argparse.Namespace) -> None:
         sys.stdout.flush()
         if interrupted:
             raise outputs.Interrupted(f"parked ({session.mode.value}); summary above")
+        if session.device_lost:
+            raise LinkError(f"cue-live: the device was lost at {session.device_lost_at:.3f} s "
+                            "(no LEG_STATE back): session ended, summary above")
     finally:
         if view is not None:
             view.close()
         if session is not None:
             session.cue.close()
-        if device is not None:
+        if device is not None and not (session is not None and session.device_lost):
             device.hold()        # disarmed whatever happened: the drives hold the legs
             device.close()
         control.close()

@@ -38,12 +38,20 @@ def run(args: argparse.Namespace) -> None:
     import math
     from pathlib import Path
 
+    from stewart_fmu.budget import BudgetError
     from stewart_sim.cueing.motion import read_motion
+    from stewart_sim.cueing.study import CueError
     from stewart_sim.live.address import telemetry_address
     from stewart_sim.live.replay import Replay, UdpSink, stream
 
     host, port = telemetry_address(args.to, remote=args.remote, listen=False)
-    replay = Replay(read_motion(Path(args.motion)), args.format, args.rate, args.loop)
+    motion = read_motion(Path(args.motion))
+    try:
+        replay = Replay(motion, args.format, args.rate, args.loop)
+    except (CueError, BudgetError) as exc:     # the motion resampled at --rate: too few, too many
+        if args.rate is None:
+            raise
+        raise CueError(f"--rate {args.rate:g} Hz: {exc}") from None
     sink = UdpSink(host, port)
     print(f"telemetry-replay: {args.motion} to udp://{host}:{port}, {args.format}, "
           f"{1 / replay.period:g} Hz" + (", looping" if args.loop else ""), flush=True)

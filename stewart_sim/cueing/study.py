@@ -144,9 +144,12 @@ def track_cue(scene: Scene, config: CueingConfig, motion: VehicleMotion, run: Cu
 def resample(motion: VehicleMotion, rate: float) -> VehicleMotion:
     """The motion interpolated linearly at `rate` (Hz) from its first to its last sample (the
     washout's filters take their input as linear between samples, so both rates see the same
-    input)."""
+    input). CueError when the rate gives fewer than two samples."""
     t0, t1 = float(motion.t[0]), float(motion.t[-1])
     steps = (t1 - t0) * rate + 1e-9
+    if not steps >= 1.0:
+        raise CueError(f"vehicle motion of {t1 - t0:g} s at {rate:g} Hz: fewer than 2 samples "
+                       f"(at least {1.0 / (t1 - t0):.4g} Hz)")
     # t, the specific force and the angular velocity, and the cue built from them (19 columns)
     check_count(f"vehicle motion of {t1 - t0:g} s at {rate:g} Hz: samples", steps + 1,
                 2 * 26 * 8, "a shorter motion")

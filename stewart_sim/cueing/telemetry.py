@@ -39,8 +39,8 @@ pitch = -Pitch (LFS's positive pitch raises the nose), yaw = Heading. Vel and Po
 (a sample needs neither) and are not checked.
 
 Bad input (wrong size, magic or version, a non-finite value, a specific force or angular
-velocity beyond motion.py's VALUE_BOUNDS) raises TelemetryError with a one-line reason; no
-other exception leaves a decoder, whatever the bytes.
+velocity beyond motion.py's VALUE_BOUNDS, a time beyond +-TIME_BOUND) raises TelemetryError with
+a one-line reason; no other exception leaves a decoder, whatever the bytes.
 """
 from __future__ import annotations
 
@@ -75,6 +75,10 @@ NATIVE_SIZES = (_NATIVE_HEADER.size + _NATIVE_BODY.size,
 _OUTSIM = struct.Struct("<I3f3f3f3f3i")
 OUTSIM_SIZES = (_OUTSIM.size, _OUTSIM.size + 4)  # 64, 68 with the ID
 
+
+# s: a telemetry time's bound (OutSim's whole range, and Unix time to 2106); float64 resolves
+# 1 us there, so a grid of a 1 kHz telemetry rate stays distinct (and steps always advance)
+TIME_BOUND = float(2 ** 32)
 
 # what a refused datagram was (TelemetryError.kind), the keys of the live receiver's counts
 REFUSAL_KINDS = ("malformed", "truncated", "non_finite", "absurd")
@@ -117,6 +121,9 @@ class TelemetrySample:
             if bad:
                 raise TelemetryError(f"telemetry: {name}: non-finite value {bad[0]!r}",
                                      "non_finite")
+            if name == "t" and abs(as_floats[0]) > TIME_BOUND:
+                raise TelemetryError(f"telemetry: t: {as_floats[0]!r} s beyond the bound "
+                                     f"{TIME_BOUND:g} s", "absurd")
             if name in ("specific force", "angular velocity"):
                 key, unit = ("f", "m/s^2") if name == "specific force" else ("w", "rad/s")
                 big = [v for v in as_floats if abs(v) > VALUE_BOUNDS[key]]

@@ -7,8 +7,19 @@ interpolated linearly between them, as the washout's filters take their input (a
 cueing.study.resample does offline). So:
 - a sender at the nominal rate on the grid gives one step per sample, the offline `cue` of the
   same samples exactly;
-- a gap (lost or superseded samples) is bridged by interpolated steps, at most MAX_STEPS per
-  sample (a longer gap is a telemetry loss: the live loop fades to neutral and resets);
+- a gap (lost or superseded samples) is bridged by interpolated steps. The work is bounded by
+  design: a tick takes at most MAX_STEPS steps (`push` with a sample, `advance` without); the
+  grid points a longer gap leaves are taken by the next ticks (a backlog caught up at MAX_STEPS
+  a tick, the reference extrapolating the newest step meanwhile). A sample that comes while a
+  backlog remains ends the segment being interpolated: the grid points still before it take
+  the input interpolated from the last step's input to it. A sample more than MAX_BACKLOG grid
+  points past the last step re-anchors the washout instead: the grid restarts at the sample
+  (t_0 = its time) and the washout takes one step on its values, its filters' state carried on
+  (the gap is not integrated), counted in `reanchored`. The receiver's time line
+  (stewart_sim.live.receiver) keeps a sample's lead over the last one within the clock time
+  since it (at most the loss timeout while cueing) and a few AHEAD, so with the default
+  settings (0.1 s, 100 Hz) a backlog is rare and a re-anchoring rarer; a longer --loss-timeout
+  or a faster --telemetry-rate makes both likelier;
 - a sender at another rate is resampled onto the grid (faster: a sample between grid points
   only moves the interpolation's end; slower: several steps per sample).
 A sample within GRID_TOLERANCE h of a grid point counts as on it (decimal times in a file are
@@ -44,7 +55,8 @@ from controller.trajectory import minimum_jerk
 from stewart_sim.cueing.telemetry import TelemetrySample
 
 GRID_TOLERANCE = 1e-6   # of h: a sample this close to a grid point is on it
-MAX_STEPS = 1000        # washout steps one sample may take (a longer gap is a loss)
+MAX_STEPS = 10          # washout steps a tick may take (the default loss timeout at 100 Hz)
+MAX_BACKLOG = 100       # grid points a sample may lie past the last step (further: re-anchor)
 EXTRAPOLATION = 5       # periods h a cue sample is extrapolated over at most ...
 EXTRAPOLATION_MIN = 0.02   # ... or this many s, whichever is longer
 OFFSET_GAIN = 0.01      # of a sample's lag difference that moves the clock offset
@@ -79,12 +91,15 @@ class CueStream:
         self.home = np.asarray(home, float)
         self.steps = 0                 # washout steps since the start (all resets)
         self.interpolated = 0          # of them on input interpolated over a gap or resampled
+        self.reanchored = 0            # samples past MAX_BACKLOG grid points: the grid restarted
         self.reset()
 
     def reset(self) -> None:
         """Back to rest at home; the next sample starts a new grid."""
         self.stepper.reset()
         self._last: TelemetrySample | None = None
+        self._from: tuple = ()         # (t, f, w): where the segment to _last starts
+        self._input: tuple = ()        # (t, f, w): the newest step's grid time and input
         self._j = 0                    # the grid index of the newest step
         self._t0 = math.nan
         self.cue: Reference | None = None
@@ -100,18 +115,39 @@ class CueStream:
 
     def push(self, s: TelemetrySample, now: float) -> int:
         """Step the washout over the grid points up to the sample `s` (accepted at clock time
-        `now`); returns the steps taken (0: the sample lies before the next grid point)."""
-        # the blend of `reference` starts from the sample that was newest before this one
-        kept = self.previous, self.previous_time
-        self.previous, self.previous_time = self.cue, self.cue_time
+        `now`), at most MAX_STEPS of them (the rest: `advance`); returns the steps taken (0: the
+        sample lies before the next grid point)."""
         lag = now - s.t
         self.offset = lag if self._last is None else self.offset + OFFSET_GAIN * (lag - self.offset)
         if self._last is None:
-            self._t0, self._j = s.t, 0
-            self._step(s.specific_force, s.angular_velocity, s.t)
-            self._last, self.arrived = s, now
-            return 1
-        a, taken = self._last, 0
+            self._t0, self._j = s.t, -1
+            self._from = (s.t, s.specific_force, s.angular_velocity)
+        elif (s.t + GRID_TOLERANCE * self.h - self._t0) / self.h - self._j >= MAX_BACKLOG + 1:
+            self._t0, self._j = s.t, -1           # re-anchored: the next grid point is s.t
+            self._from = (s.t, s.specific_force, s.angular_velocity)
+            self.reanchored += 1
+        elif self.behind:                         # a backlog: on from the newest step's input
+            self._from = self._input
+        else:
+            a = self._last
+            self._from = (a.t, a.specific_force, a.angular_velocity)
+        self._last = s
+        return self.advance(now)
+
+    @property
+    def behind(self) -> bool:
+        """Whether grid points up to the newest sample are still to be stepped."""
+        return (self._last is not None
+                and self._t0 + (self._j + 1) * self.h <= self._last.t + GRID_TOLERANCE * self.h)
+
+    def advance(self, now: float) -> int:
+        """Step the washout over the grid points still before the newest sample, at most
+        MAX_STEPS (called every tick; 0 when there are none)."""
+        if not self.behind:
+            return 0
+        # the blend of `reference` starts from the newest step before these
+        self.previous, self.previous_time = self.cue, self.cue_time
+        (ta, fa, wa), s, taken = self._from, self._last, 0
         tol = GRID_TOLERANCE * self.h
         while taken < MAX_STEPS:
             tg = self._t0 + (self._j + 1) * self.h
@@ -120,19 +156,15 @@ class CueStream:
             if abs(tg - s.t) <= tol:
                 f, w = s.specific_force, s.angular_velocity
             else:
-                x = (tg - a.t) / (s.t - a.t)
-                f = tuple(p + x * (r - p) for p, r in zip(a.specific_force, s.specific_force))
-                w = tuple(p + x * (r - p) for p, r in zip(a.angular_velocity,
-                                                         s.angular_velocity))
+                x = (tg - ta) / (s.t - ta)
+                f = tuple(p + x * (r - p) for p, r in zip(fa, s.specific_force))
+                w = tuple(p + x * (r - p) for p, r in zip(wa, s.angular_velocity))
                 self.interpolated += 1
             self._step(f, w, tg)
+            self._input = (tg, f, w)
             self._j += 1
             taken += 1
-        self._last = s
-        if taken == 0:      # nothing new: the blend under way goes on
-            self.previous, self.previous_time = kept
-        else:
-            self.arrived = now
+        self.arrived = now
         return taken
 
     def _step(self, f, w, t: float) -> None:
@@ -167,7 +199,8 @@ class CueStream:
 
     def describe(self) -> str:
         return (f"washout: {self.steps} steps ({self.interpolated} on input interpolated over "
-                "gaps or another rate)")
+                f"gaps or another rate), {self.reanchored} re-anchored past a gap of over "
+                f"{MAX_BACKLOG} steps")
 
     def close(self) -> None:
         pass
@@ -194,6 +227,10 @@ class OptimalStream:
         self.mpc.push(now, s.specific_force, s.angular_velocity)
         self.steps += 1
         return 1
+
+    def advance(self, now: float) -> int:
+        """Nothing: the MPC steps at its own rate."""
+        return 0
 
     def reference(self, now: float) -> Reference:
         q, qd, qdd = self.mpc.sample(now)

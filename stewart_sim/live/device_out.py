@@ -10,9 +10,14 @@ tests) it sends LOCKSTEP(k) in the same datagram and waits (bounded: hil.client'
 resends) for LEG_STATE(step=k), as hil.client.run_lockstep does, so the device ticks once per
 setpoint and the whole chain runs on the host's simulated clock. `hold()` parks the device's
 own way: DISARM, after which its drives hold the lengths measured at that moment.
+
+`start` also reads the device's watchdog (parameter WDG_TIMEOUT: the time after which the
+device holds its legs when no setpoint comes) into `watchdog`: the live loop takes a device
+that sends no LEG_STATE back for that long as lost (stewart_sim.live.session).
 """
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -47,6 +52,7 @@ class DeviceOut:
         self.timeout, self.retries = timeout, retries
         self.counts = DeviceCounts()
         self.send_time = 0.0                # monotonic s just after the last setpoint left
+        self.watchdog = math.inf            # the device's WDG_TIMEOUT (s), read by start()
         self._states: list[Any] = []
         client.on_message = self._note
 
@@ -66,7 +72,9 @@ class DeviceOut:
             self.counts.statustexts.append(str(m.text))
 
     def start(self, rate: float) -> None:
-        """Arm, and ask for LEG_STATE at `rate` Hz (LinkError when the device refuses)."""
+        """Arm, ask for LEG_STATE at `rate` Hz and read the device's watchdog (LinkError when
+        the device refuses)."""
+        self.watchdog = self.client.get_param("WDG_TIMEOUT")
         if not self.client.arm():
             raise LinkError("the device refused to arm: "
                             + (self.counts.statustexts[-1] if self.counts.statustexts

@@ -8,14 +8,28 @@ budget and the rest waits in the socket (the kernel drops what overflows its buf
 datagram read is decoded (cueing.telemetry: the native format or OutSim); a refused one is
 counted under its TelemetryError.kind (malformed, truncated, non_finite, absurd), a sample not
 newer than the newest seen (the last accepted one, or a newer one earlier in the same drain)
-under out_of_order (older) or duplicate (the same time). Of the valid samples of one drain only
-the newest is returned; the ones it replaced are counted as superseded. A refused datagram never reaches the washout: the platform moves
-only on an accepted sample. `forget_order()` lets the next sample start a new time line (after
-a telemetry loss: a restarted sender, or one earlier sample with an absurd future time, cannot
-lock the stream out for longer than the loss timeout).
+under out_of_order (older) or duplicate (the same time), and a sample ahead of the stream's
+clock under ahead (below). Of the valid samples of one drain only the newest is returned; the
+ones it replaced are counted as superseded. A refused datagram never reaches the washout: the
+platform moves only on an accepted sample.
+
+The stream's clock: the first sample accepted (after a start or `forget_order`) anchors a time
+line, its telemetry time at the time of its drain (the live loop's tick time); the line advances
+at (1 + DRIFT) times our clock (a sender's clock may run that much faster). A sample whose time
+is more than AHEAD past the line is refused as ahead: a datagram 1e6 s in the future never
+reaches the washout, and no sender can make the stream's time run faster than (1 + DRIFT) times
+ours, so the washout steps one sample asks for are bounded by the clock time since the last
+accepted sample (at most the loss timeout while cueing) and the line's lead
+(stewart_sim.live.cue_stream takes at most MAX_STEPS of them a tick, whatever the settings). An
+accepted sample behind the line by more than AHEAD pulls the line PULL of the way towards AHEAD
+above it: a slower sender's line follows it within a few samples, one late datagram hardly moves
+it (the punctual ones after it stay within AHEAD). `forget_order()` lets the next sample start a
+new time line (after a telemetry loss: a restarted sender, or a line anchored by an absurd first
+sample, cannot lock the stream out for longer than the loss timeout).
 """
 from __future__ import annotations
 
+import math
 import socket
 from dataclasses import dataclass, field
 from typing import Callable, Protocol
@@ -26,7 +40,12 @@ from stewart_sim.cueing.telemetry import (REFUSAL_KINDS, TelemetryError, Telemet
 MAX_READ = 256          # datagrams read at most per tick
 DRAIN_BUDGET = 2e-4     # s of clock a tick's drain may take before it stops reading
 READ_SIZE = 512         # bytes read of a datagram: larger ones arrive cut, and are malformed
-ORDER_KINDS = ("out_of_order", "duplicate")
+# s a sample may lead the stream's clock: a late first sample, jitter, and the live loop's time
+# trailing the clock by up to stewart_sim.live.session.MAX_LAG (0.01 s) before it skips ticks
+AHEAD = 0.025
+DRIFT = 1e-3            # how much faster than ours a sender's clock may run (10x a crystal's)
+PULL = 0.1              # of its lead over a sample behind it that the line gives up
+ORDER_KINDS = ("out_of_order", "duplicate", "ahead")
 DECODERS: dict[str, Callable[[bytes], TelemetrySample]] = {"native": decode_native,
                                                             "outsim": decode_outsim}
 
@@ -98,15 +117,38 @@ class TelemetryReceiver:
         self.counts = ReceiverCounts()
         self.last_t: float | None = None
         self.last_error: str | None = None
+        self._line: tuple[float, float] | None = None   # (clock, telemetry time) on the line
 
     def forget_order(self) -> None:
         """The next valid sample starts a new time line, whatever its time."""
         self.last_t = None
+        self._line = None
 
-    def poll(self) -> TelemetrySample | None:
-        """The newest valid sample waiting, newer than the last accepted one; None if none."""
+    def line(self, now: float) -> float:
+        """The stream's clock at clock time `now` (see the module doc); inf before a line."""
+        if self._line is None:
+            return math.inf
+        c, t = self._line
+        return t + max(now - c, 0.0) * (1.0 + DRIFT)
+
+    def _follow(self, s: TelemetrySample, now: float) -> None:
+        """The line after accepting `s` at `now`: anchored by the first sample, pulled towards
+        AHEAD above a sample behind it by more (see the module doc)."""
+        if self._line is None:
+            self._line = (now, s.t)
+            return
+        line = self.line(now)
+        if s.t + AHEAD < line:
+            self._line = (now, line - PULL * (line - (s.t + AHEAD)))
+
+    def poll(self, now: float | None = None) -> TelemetrySample | None:
+        """The newest valid sample waiting, newer than the last accepted one and not ahead of
+        the stream's clock at `now` (the live loop's time; default: the clock's); None if
+        none."""
         c = self.counts
         until = self.clock() + self.budget
+        now = self.clock() if now is None else now
+        ahead = self.line(now) + AHEAD
         best: TelemetrySample | None = None
         for _ in range(self.max_read):
             data = self.source.recv()
@@ -120,7 +162,9 @@ class TelemetryReceiver:
                 self.last_error = str(exc)
             else:
                 newest = best.t if best is not None else self.last_t
-                if newest is None or s.t > newest:
+                if s.t > ahead:
+                    c.refused["ahead"] += 1
+                elif newest is None or s.t > newest:
                     c.superseded += best is not None
                     best = s
                 else:
@@ -130,6 +174,7 @@ class TelemetryReceiver:
         if best is not None:
             c.accepted += 1
             self.last_t = best.t
+            self._follow(best, now)
         return best
 
     def close(self) -> None:

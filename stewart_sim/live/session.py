@@ -4,7 +4,8 @@ Each tick k (session time t_k = k / rate, the device's time; due at start + t_k 
 1. the operator's commands (stewart_sim.live.control) and the newest valid telemetry sample
    (stewart_sim.live.receiver: a bounded drain, refusals counted by kind);
 2. the mode (cueing.live_modes: its one transition table): an accepted sample while cueing
-   steps the washout (stewart_sim.live.cue_stream); no sample for `loss_timeout` s is a
+   steps the washout (stewart_sim.live.cue_stream; at most MAX_STEPS steps a tick, a backlog
+   taken by the next ticks); no sample for `loss_timeout` s is a
    telemetry loss: the platform fades to neutral and the washout restarts at rest when
    telemetry is back (after the fade has reached neutral);
 3. the pose reference: the cue extrapolated to t_k, or the neutral pose at rest while fading,
@@ -12,7 +13,14 @@ Each tick k (session time t_k = k / rate, the device's time; due at start + t_k 
 4. the safety envelope (cueing.envelope.Envelope: stroke, leg speed and acceleration, rack
    force, cond(J); an emergency stop is its `brake`) -> leg lengths, rates and feed-forward
    forces; the force rate is the backward difference of the forces sent;
-5. LEG_SETPOINT k to the device (stewart_sim.live.device_out), and the row of the record;
+5. LEG_SETPOINT k to the device (stewart_sim.live.device_out), and the row of the record; no
+   LEG_STATE back for `device_timeout` s (default: the device's own watchdog, WDG_TIMEOUT,
+   0.2 s on the emulated device: as long as the device itself waits for a setpoint before it
+   holds its legs) is the loss of the device: one line on stderr at once, counted in the
+   summary, and the session ends there: no more setpoints (a device that still hears us holds
+   its legs when its watchdog trips), no park (a fade sent to a device that does not answer
+   proves nothing), the device disarmed (bounded tries: DeviceOut.hold) and `cue-live` exits
+   with status 2 after its summary;
 6. with an observer (`cue-live --view`), every rate / OBSERVE_HZ ticks a hil.observe.Snapshot
    for the live view: the pose sent (the host does not know the measured pose; the device's
    own view has it), the cue's reference pose, the lengths the device last measured, the
@@ -32,6 +40,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 import time
 from dataclasses import dataclass, field
 from typing import Callable
@@ -72,6 +81,7 @@ class SessionCounts:
     overruns: int = 0       # ticks more than MAX_LAG late (the missed ticks skipped)
     cue_steps: int = 0
     fades: int = 0
+    device_losses: int = 0  # no LEG_STATE for device_timeout s (the session ends at the first)
     commands: dict[str, int] = field(default_factory=dict)
 
 
@@ -108,7 +118,8 @@ class LiveSession:
                  envelope: Envelope, device: DeviceOut, rate: float,
                  control: Control | None = None, loss_timeout: float = LOSS_TIMEOUT,
                  record: Record | None = None, observer: Latest | None = None,
-                 head=None) -> None:
+                 head=None, device_timeout: float | None = None,
+                 warn: Callable[[str], None] | None = None) -> None:
         self.model = model
         self.receiver, self.cue, self.envelope, self.device = receiver, cue, envelope, device
         self.control = control
@@ -135,6 +146,20 @@ class LiveSession:
         self._observe_every = max(1, round(rate / OBSERVE_HZ))
         self._f_vehicle: tuple[float, float, float] | None = None
         self._measured = np.asarray(model.home, float) * math.nan
+        self._device_timeout = device_timeout
+        self.warn = warn or (lambda line: print(line, file=sys.stderr, flush=True))
+        self.device_lost_at: float | None = None   # session time the device was found lost
+        self._state_at: float | None = None        # clock time the last LEG_STATE came
+
+    @property
+    def device_timeout(self) -> float:
+        """s without a LEG_STATE back before the device is lost (see the module doc)."""
+        return (self._device_timeout if self._device_timeout is not None
+                else float(self.device.watchdog))
+
+    @property
+    def device_lost(self) -> bool:
+        return self.device_lost_at is not None
 
     # --- the mode ---------------------------------------------------------------------------
 
@@ -186,7 +211,7 @@ class LiveSession:
         """Tick k at clock time `now` (see the module doc)."""
         self._commands(now)
         drained = time.monotonic()
-        s = self.receiver.poll()
+        s = self.receiver.poll(now)
         if s is not None:
             self.last_accept = now
             self._f_vehicle = s.specific_force
@@ -196,6 +221,8 @@ class LiveSession:
                 self._pending = drained
         elif self.mode is Mode.RUNNING and now - self.last_accept > self.loss_timeout:
             self.event(Event.LOSS, now)
+        elif self.mode is Mode.RUNNING:         # a backlog of grid points (cue_stream)
+            self.counts.cue_steps += self.cue.advance(now)
         if fading(self.mode) and self.fade.done(now):
             self.event(Event.FADE_DONE, now)
         ref = None
@@ -216,6 +243,7 @@ class LiveSession:
             self._pending = None
         if states:
             self._measured = np.asarray(states[-1].length, float)
+        self._watch_device(now, bool(states))
         if self.observer is not None and self.k % self._observe_every == 0:
             self._publish(step, ref)
         if self.record is not None:
@@ -224,6 +252,20 @@ class LiveSession:
                              self.t_telemetry, *step.lengths, *measured])
         self.k += 1
         self.counts.ticks += 1
+
+    def _watch_device(self, now: float, answered: bool) -> None:
+        """The loss of the device (see the module doc, item 5): said once, at once."""
+        if answered or self._state_at is None:
+            self._state_at = now            # the first setpoint starts the device's clock
+            return
+        if self.device_lost or now - self._state_at <= self.device_timeout:
+            return
+        self.device_lost_at = self.k * self.period
+        self.counts.device_losses += 1
+        self.stopped_by = "the device's loss"
+        self.warn(f"cue-live: device lost at {self.device_lost_at:.3f} s: no LEG_STATE for "
+                  f"{now - self._state_at:.3f} s (over {self.device_timeout:g} s, the device's "
+                  "watchdog): setpoints stopped, the session ends")
 
     def _publish(self, step, ref: Reference | None) -> None:
         """A snapshot for the live view (see the module doc, item 6)."""
@@ -248,7 +290,8 @@ def run_realtime(session: LiveSession, duration: float = math.inf,
                  clock: Callable[[], float] = time.monotonic,
                  ready: Callable[[], None] | None = None) -> Lateness:
     """Tick `session` at its rate on the monotonic clock until `duration` s of ticks (then it
-    parks), `quit` (parks) or an emergency stop (brakes); Ctrl-C (KeyboardInterrupt) from the
+    parks), `quit` (parks), an emergency stop (brakes) or the loss of the device (ends at
+    once: see the module doc); Ctrl-C (KeyboardInterrupt) from the
     moment this is called parks first, then is raised again. The device is disarmed at the end
     (its drives hold). The session runs on its own time, tick k at k / rate; the clock only
     says when each tick goes (hil.timing.wait_until: sleep, then spin). A tick more than
@@ -273,14 +316,14 @@ def run_realtime(session: LiveSession, duration: float = math.inf,
             start = clock()
             if ready is not None:
                 ready()
-            while session.k * session.period < duration:
+            while session.k * session.period < duration and not session.device_lost:
                 if session.mode is Mode.STOPPED:
                     brake(session, next_time, park_timeout)
                     break
                 if session.stopped_by == "quit" and session.parked:
                     break
                 session.tick(next_time())
-            if session.mode is not Mode.STOPPED:
+            if session.mode is not Mode.STOPPED and not session.device_lost:
                 park(session, next_time, park_timeout)
     except KeyboardInterrupt:
         park(session, next_time, park_timeout)
@@ -294,7 +337,7 @@ def brake(session: LiveSession, next_time: Callable[[], float], timeout: float) 
     """The emergency stop's ticks: the envelope brakes (Envelope.brake) until the platform is
     at rest, or `timeout` s of ticks."""
     for _ in range(int(math.ceil(timeout * session.rate))):
-        if not np.any(session.envelope.last.qd):
+        if not np.any(session.envelope.last.qd) or session.device_lost:
             break
         session.tick(next_time())
 
@@ -302,11 +345,11 @@ def brake(session: LiveSession, next_time: Callable[[], float], timeout: float) 
 def park(session: LiveSession, next_time: Callable[[], float], timeout: float) -> None:
     """Fade to neutral and hold (PARK), ticking until parked (or stopped) or `timeout` s of
     ticks; a second Ctrl-C during it becomes the emergency stop."""
-    if session.parked:
+    if session.parked or session.device_lost:
         return
     session.event(Event.PARK, next_time())
     for _ in range(int(math.ceil(timeout * session.rate))):
-        if session.parked:
+        if session.parked or session.device_lost:
             break
         try:
             session.tick(next_time())
@@ -320,14 +363,16 @@ def make_session(scene: Scene, receiver: TelemetryReceiver, device: DeviceOut,
                  telemetry_rate: float, control: Control | None = None,
                  loss_timeout: float = LOSS_TIMEOUT, record: Record | None = None,
                  mode: str = "classical", synchronous: bool = False,
-                 mpc_rate: float | None = None, observer: Latest | None = None
-                 ) -> LiveSession:
+                 mpc_rate: float | None = None, observer: Latest | None = None,
+                 device_timeout: float | None = None,
+                 warn: Callable[[str], None] | None = None) -> LiveSession:
     """The live loop of a scene: its [cueing] washout stepped at `telemetry_rate`
     (cueing.washout_step.WashoutStepper; mode "optimal": the MPC without preview,
     cueing.optimal_live.LiveOptimal, `synchronous` on a simulated clock), its envelope at the
     controller rate (cueing.envelope), setpoints at the controller rate (the device's). The
     MPC steps at `mpc_rate` (default: the scene's [cueing.optimal] rate, at least
-    LIVE_RATE_MIN)."""
+    LIVE_RATE_MIN). `device_timeout` (default: the device's watchdog) and `warn` (default: a
+    line on stderr): LiveSession's."""
     model, controller = scene.model, scene.require_controller()
     if mode == "optimal":
         rate = mpc_rate if mpc_rate is not None else max(scene.optimal.rate, LIVE_RATE_MIN)
@@ -342,7 +387,7 @@ def make_session(scene: Scene, receiver: TelemetryReceiver, device: DeviceOut,
         raise CueError(f"cue-live: mode {mode!r} unknown: classical or optimal")
     envelope = Envelope(model, envelope_limits(model, controller), 1.0 / controller.rate)
     return LiveSession(model, receiver, cue, envelope, device, controller.rate, control,
-                       loss_timeout, record, observer, scene.cueing.head)
+                       loss_timeout, record, observer, scene.cueing.head, device_timeout, warn)
 
 
 def summary_lines(session: LiveSession) -> list[str]:
@@ -364,7 +409,11 @@ def summary_lines(session: LiveSession) -> list[str]:
     dc = session.device.counts
     lines.append(f"device: {dc.setpoints} setpoints, {dc.states} states back, "
                  f"{len(dc.statustexts)} STATUSTEXT"
-                 + (f" (last: {dc.statustexts[-1]!r})" if dc.statustexts else ""))
+                 + (f" (last: {dc.statustexts[-1]!r})" if dc.statustexts else "")
+                 + f", lost {session.counts.device_losses}"
+                 + (f" (at {session.device_lost_at:.3f} s: no LEG_STATE for over "
+                    f"{session.device_timeout:g} s, setpoints stopped)"
+                    if session.device_lost else ""))
     lat = session.latency.summary()
     if lat["count"]:
         lines.append(f"latency (drain -> setpoint sent, {lat['count']} samples): p50 "

@@ -10,6 +10,7 @@ import select
 import struct
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -58,19 +59,27 @@ class SimClock:
 
 
 class FakeDevice:
-    """The device end for the unit tests: records every setpoint."""
+    """The device end for the unit tests: records every setpoint and answers each with a
+    LEG_STATE of the lengths sent, until `silent_after` setpoints (then it answers nothing: a
+    device that is gone)."""
 
-    def __init__(self) -> None:
+    watchdog = 0.2          # s: the emulated device's default WDG_TIMEOUT
+
+    def __init__(self, silent_after: float = math.inf) -> None:
         self.setpoints: list[tuple] = []
         self.counts = DeviceCounts()
         self.send_time = 0.0
         self.held = False
+        self.silent_after = silent_after
 
     def send(self, k, t, l, ldot, force, force_rate):
         self.setpoints.append((k, t, np.array(l), np.array(ldot), np.array(force)))
         self.send_time = time.monotonic()
         self.counts.setpoints += 1
-        return []
+        if self.counts.setpoints > self.silent_after:
+            return []
+        self.counts.states += 1
+        return [SimpleNamespace(length=tuple(np.asarray(l, float)))]
 
     def hold(self) -> bool:
         self.held = True
@@ -252,8 +261,9 @@ def test_each_bad_kind_counted_and_the_platform_not_moved(scene):
 
 
 def test_bad_datagrams_while_cueing_change_nothing(scene):
-    """The same motion with and without bad datagrams (every kind, and out-of-order and
-    duplicated samples) between its samples: the setpoints are identical."""
+    """The same motion with and without bad datagrams (every kind, samples 1e6 s ahead of the
+    stream's clock, out-of-order and duplicated samples) between its samples: the setpoints
+    are identical, the washout took the same steps."""
     motion = read_motion(BRAKING)
     rate = scene.controller.rate
 
@@ -268,6 +278,8 @@ def test_bad_datagrams_while_cueing_change_nothing(scene):
             q.q.extend(now)
             if bad and k % 7 == 3:
                 q.q.extend(bad_datagrams(clock.t).values())
+                q.q.append(encode(TelemetrySample(clock.t + 1e6, (3.0, 0.0, 9.81),
+                                                  (0.0, 0.0, 0.0))))   # far ahead of the clock
                 if previous is not None:
                     q.q.extend([previous, previous])          # duplicated, then out of order
             if now:
@@ -279,7 +291,9 @@ def test_bad_datagrams_while_cueing_change_nothing(scene):
     dirty, dev_dirty = run(True)
     assert dirty.receiver.counts.refused_total > 4 * 500
     assert all(dirty.receiver.counts.refused[k] > 0 for k in
-               ("truncated", "malformed", "non_finite", "absurd", "duplicate", "out_of_order"))
+               ("truncated", "malformed", "non_finite", "absurd", "duplicate", "out_of_order",
+                "ahead"))
+    assert dirty.cue.steps == clean.cue.steps == 400
     assert dirty.receiver.counts.accepted == clean.receiver.counts.accepted == 400
     assert len(dev_clean.setpoints) == len(dev_dirty.setpoints)
     for a, b in zip(dev_clean.setpoints, dev_dirty.setpoints):
@@ -563,3 +577,274 @@ def test_the_live_view_gets_the_vehicle_and_the_delivered_specific_force(scene):
     # the tilt coordination delivers the sustained push as gravity's share: f_x > 0, by then
     # most of the scaled 0.5 x 2 m/s^2
     assert 0.5 < snap.f_delivered[0] < 1.2
+
+
+# --- hostile timing: the work per tick is bounded ------------------------------------------------
+
+
+def test_a_far_future_stream_costs_no_washout_step(scene):
+    """The attack of a datagram 1e6 s past the newest sample on every tick, over a clean 100 Hz
+    stream: every one refused as ahead of the stream's clock, the clean stream taken as if alone
+    (one washout step per clean sample, at most one a tick), the setpoints those of the clean
+    stream bit for bit."""
+    rate = scene.controller.rate
+
+    def run(hostile: bool):
+        q = Queue()
+        session, dev, clock = offline_session(scene, q)
+        steps = []
+        for k in range(int(2.0 * rate)):
+            clock.t = k / rate
+            if k % 10 == 0:
+                q.q.append(encode(TelemetrySample(clock.t, (2.0, 0.5, 9.81), (0.1, 0.0, 0.0))))
+            if hostile and k > 0:                # once the stream has its time line
+                newest = session.receiver.last_t
+                q.q.append(encode(TelemetrySample(newest + 1e6, (5.0, 0.0, 9.81),
+                                                  (0.0, 0.0, 0.0))))
+            before = session.cue.steps
+            session.tick(clock.t)
+            steps.append(session.cue.steps - before)
+        return session, dev, steps
+
+    clean, dev_clean, _ = run(False)
+    hostile, dev_hostile, steps = run(True)
+    assert hostile.receiver.counts.refused["ahead"] == int(2.0 * rate) - 1
+    assert hostile.receiver.counts.accepted == 200 and max(steps) == 1
+    assert hostile.cue.reanchored == 0 and hostile.mode is Mode.RUNNING
+    for a, b in zip(dev_clean.setpoints, dev_hostile.setpoints):
+        for x, y in zip(a, b):
+            np.testing.assert_array_equal(x, y)
+
+
+def test_a_long_gap_is_caught_up_max_steps_a_tick_and_a_huge_one_re_anchors(scene):
+    """A gap of 3 MAX_STEPS + 4 grid points: the sample's tick takes MAX_STEPS washout steps,
+    the next ticks (advance) MAX_STEPS each and then the last 4, the cue exactly that of the
+    washout stepped on the input interpolated over the whole gap; a sample more than
+    MAX_BACKLOG grid points past the last step re-anchors: one step on the sample, the grid
+    restarted at its time (the next sample one period later takes one step)."""
+    from stewart_sim.live.cue_stream import MAX_BACKLOG, MAX_STEPS
+    from stewart_sim.cueing.washout_step import WashoutStepper
+
+    h = 1.0 / TELEMETRY_RATE
+    model = scene.model
+
+    def stepper():
+        return WashoutStepper(scene.cueing, model.home, model.gravity, h)
+
+    stream = CueStream(stepper(), h, model.home)
+    a = TelemetrySample(0.0, (1.0, 0.0, 9.81), (0.0, 0.1, 0.0))
+    n = 3 * MAX_STEPS + 4
+    b = TelemetrySample(n * h + 0.37 * h, (-2.0, 1.0, 9.0), (0.2, 0.0, -0.1))   # off the grid
+    assert stream.push(a, 0.0) == 1
+    assert stream.push(b, 1.0) == MAX_STEPS and stream.behind
+    assert [stream.advance(1.0 + k * 1e-3) for k in range(1, 5)] == [MAX_STEPS, MAX_STEPS, 4, 0]
+    assert not stream.behind and stream.steps == n + 1 and stream.reanchored == 0
+    alone = stepper()
+    alone.step(a.specific_force, a.angular_velocity)
+    for j in range(1, n + 1):
+        x = (j * h - a.t) / (b.t - a.t)
+        c = alone.step(tuple(p + x * (r - p) for p, r in zip(a.specific_force, b.specific_force)),
+                       tuple(p + x * (r - p) for p, r in zip(a.angular_velocity,
+                                                             b.angular_velocity)))
+    np.testing.assert_allclose(stream.cue.q, c.q, rtol=0, atol=1e-12)
+    assert stream.cue_time == pytest.approx(n * h)
+    t = b.t + (MAX_BACKLOG + 1) * h                      # too far: re-anchored
+    assert stream.push(TelemetrySample(t, a.specific_force, a.angular_velocity), 2.0) == 1
+    assert stream.reanchored == 1 and stream.cue_time == t and not stream.behind
+    assert stream.push(TelemetrySample(t + h, a.specific_force, a.angular_velocity), 2.1) == 1
+    for far in (t + 1e6, t + 2e6, 4e9):
+        assert stream.push(TelemetrySample(far, a.specific_force, a.angular_velocity), 3.0) == 1
+    assert stream.push(TelemetrySample(4e9 + h, a.specific_force, a.angular_velocity), 4.0) == 1
+    assert stream.reanchored == 4 and np.all(np.isfinite(stream.cue.q))
+
+
+def test_a_sample_during_a_backlog_continues_from_the_newest_step(scene):
+    """A sample that comes while grid points before the last one remain: the segment goes on
+    from the newest step's input to the new sample, so its grid points are taken in time
+    order, each once, and every step is finite."""
+    from stewart_sim.live.cue_stream import MAX_STEPS
+    from stewart_sim.cueing.washout_step import WashoutStepper
+
+    h = 1.0 / TELEMETRY_RATE
+    model = scene.model
+    stream = CueStream(WashoutStepper(scene.cueing, model.home, model.gravity, h), h,
+                       model.home)
+    f, w = (1.0, 0.0, 9.81), (0.0, 0.0, 0.0)
+    stream.push(TelemetrySample(0.0, f, w), 0.0)
+    assert stream.push(TelemetrySample(25 * h, f, w), 0.25) == MAX_STEPS
+    times = [stream.cue_time]
+    assert stream.push(TelemetrySample(30 * h, (3.0, 0.0, 9.81), w), 0.3) == MAX_STEPS
+    times.append(stream.cue_time)
+    while stream.behind:
+        stream.advance(0.31)
+        times.append(stream.cue_time)
+    assert times == pytest.approx([MAX_STEPS * h, 2 * MAX_STEPS * h, 30 * h])
+    assert stream.steps == 31 and np.all(np.isfinite(stream.cue.q))
+
+
+# --- the loss of the device --------------------------------------------------------------------
+
+
+def test_a_device_that_stops_answering_is_lost_once_and_the_session_ends(scene):
+    """On a simulated clock: the device answers the first 100 setpoints, then nothing. The
+    tick whose time is more than the device's watchdog (0.2 s) past the last LEG_STATE finds it
+    lost: one line, at once, counted, the summary says so; run_realtime ends there (no park:
+    no setpoint after that tick) and disarms."""
+    from stewart_sim.live.session import run_realtime, summary_lines
+
+    class Clock:                      # moves 0.25 ms a read: run_realtime's waits end at once
+        t = 0.0
+
+        def __call__(self) -> float:
+            self.t += 2.5e-4
+            return self.t
+
+    q = Queue()
+    dev = FakeDevice(silent_after=100)
+    said: list[str] = []
+    session = make_session(scene, TelemetryReceiver(q, "native", SimClock()), dev,
+                           TELEMETRY_RATE, warn=said.append)
+    assert session.device_timeout == FakeDevice.watchdog
+    for k in range(int(0.05 * scene.controller.rate)):     # telemetry for a while: cueing
+        if k % 10 == 0:
+            q.q.append(encode(TelemetrySample(k / 1000, (2.0, 0.0, 9.81), (0.0, 0.0, 0.0))))
+    run_realtime(session, duration=30.0, clock=Clock())
+    # the last LEG_STATE came with setpoint 99 (t = 0.099 s): lost at the first tick past
+    # 0.099 + 0.2 s, tick 300
+    assert session.device_lost and session.device_lost_at == pytest.approx(0.300)
+    assert len(dev.setpoints) == 301 and dev.held
+    assert session.counts.device_losses == 1 and session.stopped_by == "the device's loss"
+    assert len(said) == 1 and "device lost at 0.300 s" in said[0]
+    text = "\n".join(summary_lines(session))
+    assert "lost 1 (at 0.300 s" in text and "stopped by the device's loss" in text
+
+
+def test_a_device_that_answers_late_is_not_lost(scene):
+    """A device whose states come in bunches (the host stalled: they waited in the socket) is
+    not lost as long as each gap is within its watchdog."""
+    class Bunching(FakeDevice):
+        def send(self, k, t, l, ldot, force, force_rate):
+            states = super().send(k, t, l, ldot, force, force_rate)
+            return states * 190 if k % 190 == 0 else []     # a bunch every 0.19 s
+
+    dev = Bunching()
+    said: list[str] = []
+    session = make_session(scene, TelemetryReceiver(Queue(), "native", SimClock()), dev,
+                           TELEMETRY_RATE, warn=said.append)
+    for k in range(2000):
+        session.tick(k / scene.controller.rate)
+    assert not session.device_lost and said == [] and session.counts.device_losses == 0
+
+
+def test_killing_the_device_mid_session_ends_cue_live_at_once(tmp_path):
+    """The command in real time against the device in its own process, which is then killed:
+    one line on stderr saying the device is lost, the summary counts it, exit 2 (no park, no
+    Ctrl-C needed), the record written."""
+    import os
+    import subprocess
+    import sys
+
+    from hil.spawn import device_command, parse_udp
+
+    record = tmp_path / "rec.csv"
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    device = subprocess.Popen(device_command(SIM, "udp", False), stdout=subprocess.PIPE,
+                              stderr=subprocess.DEVNULL, text=True)
+    proc = None
+    try:
+        ready, _, _ = select.select([device.stdout], [], [], 120.0)
+        assert ready
+        host, port = parse_udp(device.stdout.readline().strip())
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "stewart_sim", "cue-live", str(SIM), "--telemetry",
+             "udp://127.0.0.1:0", "--device", f"udp:{host}:{port}", "--record", str(record),
+             "--duration", "600"],
+            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+            text=True, env=env)
+        ready, _, _ = select.select([proc.stdout], [], [], 120.0)
+        assert ready and proc.stdout.readline().startswith("cue-live:")
+        device.kill()
+        device.wait()
+        out, err = proc.communicate(timeout=120.0)
+    finally:
+        for p in (device, proc):
+            if p is not None and p.poll() is None:
+                p.kill()
+                p.wait()
+    assert proc.returncode == 2, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 2 and "device lost at" in lines[0] and "watchdog" in lines[0]
+    assert "the device was lost" in lines[1] and "Traceback" not in err
+    assert "lost 1 (at" in out and "stopped by the device's loss" in out
+    assert record.read_text().splitlines()[0].startswith("t,seq,mode,t_telemetry")
+
+
+# --- fuzzed telemetry timing ---------------------------------------------------------------------
+
+
+def hostile_tick(rng, t: float, newest: float | None, last: bytes | None) -> list[bytes]:
+    """One tick's datagrams, a seeded draw of the timing attacks: on time, far future,
+    backwards, bursts, duplicates, random times, absurd times, silence; values anywhere within
+    the decoder's bounds (+-999 m/s^2 alternating as often as not)."""
+    from stewart_sim.cueing.motion import VALUE_BOUNDS
+
+    def sample(when: float) -> bytes:
+        f = rng.uniform(-1, 1, 3) * (0.98 * VALUE_BOUNDS["f"] if rng.random() < 0.3 else 5.0)
+        w = rng.uniform(-1, 1, 3) * (VALUE_BOUNDS["w"] if rng.random() < 0.3 else 0.5)
+        return encode(TelemetrySample(when, tuple(f + (0.0, 0.0, 9.81)), tuple(w)))
+
+    base = newest if newest is not None else t
+    kind = rng.integers(9)
+    if kind == 0:                                           # on time
+        return [sample(t)]
+    if kind == 1:                                           # far future
+        return [sample(base + 10.0 ** rng.uniform(-3, 9))]
+    if kind == 2:                                           # backwards
+        return [sample(base - 10.0 ** rng.uniform(-4, 9))]
+    if kind == 3:                                           # a burst around now
+        return [sample(t + d) for d in rng.uniform(-0.2, 0.2, int(rng.integers(1, 300)))]
+    if kind == 4 and last is not None:                      # duplicates
+        return [last] * int(rng.integers(1, 50))
+    if kind == 5:                                           # any time at all
+        return [sample(float(rng.uniform(-4e9, 4e9)))]
+    if kind == 6:                                           # beyond any clock: refused
+        return [b"STW\x01" + struct.pack("<7d", float(rng.choice([1e300, -1e300, 5e9])),
+                                         0.0, 0.0, 9.81, 0.0, 0.0, 0.0)]
+    return []                                               # silence
+
+
+@pytest.mark.parametrize("seed, loss_timeout", [(0, 0.1), (1, 0.1), (2, 1.0), (3, 1.0)])
+def test_fuzzed_telemetry_timing(scene, seed, loss_timeout):
+    """Seeded hostile timing (hostile_tick) over 3 s of ticks, with the default loss timeout
+    and a long one (where gaps re-anchor the washout): never an exception, every datagram
+    accounted for, no tick takes more than MAX_STEPS washout steps, every setpoint finite and
+    inside the legs' stroke."""
+    from stewart_sim.live.cue_stream import MAX_STEPS
+
+    rng = np.random.default_rng(seed)
+    q = Queue()
+    clock = SimClock()
+    dev = FakeDevice()
+    session = make_session(scene, TelemetryReceiver(q, "native", clock), dev, TELEMETRY_RATE,
+                           loss_timeout=loss_timeout)
+    rate = scene.controller.rate
+    last = None
+    most = 0
+    for k in range(int(3.0 * rate)):
+        clock.t = k / rate
+        sent = hostile_tick(rng, clock.t, session.receiver.last_t, last)
+        q.q.extend(sent)
+        last = sent[-1] if sent else last
+        before = session.cue.steps
+        session.tick(clock.t)
+        most = max(most, session.cue.steps - before)
+    c = session.receiver.counts
+    assert c.received == c.accepted + c.superseded + c.refused_total + len(q.q)
+    assert c.accepted > 20 and c.refused["ahead"] > 10 and c.refused["out_of_order"] > 10
+    assert 1 <= most <= MAX_STEPS
+    lengths = np.array([s[2] for s in dev.setpoints])
+    model = scene.model
+    assert np.all(np.isfinite(lengths))
+    assert np.all(lengths >= model.leg_min) and np.all(lengths <= model.leg_max)
+    print(f"\nseed {seed}: {c.accepted} accepted, refused {c.refused}, most steps a tick "
+          f"{most}, re-anchored {session.cue.reanchored}, fades {session.counts.fades}")

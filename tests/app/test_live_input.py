@@ -101,7 +101,9 @@ def test_each_kind_refused_and_counted():
     nan[12:20] = struct.pack("<d", math.nan)
     absurd = b"STW\x01" + struct.pack("<7d", 3.0, 1e308, 0.0, 9.81, 0.0, 0.0, 0.0)
     cases = [(b"STW\x01" + b"\0" * 10, "truncated"), (b"XYZ\x01" + good[4:], "malformed"),
-             (good + b"\0", "malformed"), (bytes(nan), "non_finite"), (absurd, "absurd")]
+             (good + b"\0", "malformed"), (bytes(nan), "non_finite"), (absurd, "absurd"),
+             (encode(sample(1e6)), "ahead"),
+             (b"STW\x01" + struct.pack("<7d", 1e300, 0.0, 0.0, 9.81, 0.0, 0.0, 0.0), "absurd")]
     q.q.append(good)
     assert rx.poll() == sample(1.0)
     for data, kind in cases:
@@ -112,9 +114,9 @@ def test_each_kind_refused_and_counted():
     assert rx.poll() is None and rx.counts.refused["duplicate"] == 1
     q.q.append(encode(sample(0.5)))
     assert rx.poll() is None and rx.counts.refused["out_of_order"] == 1
-    assert rx.counts.accepted == 1 and rx.counts.refused_total == 7
-    assert rx.counts.refused == {"malformed": 2, "truncated": 1, "non_finite": 1, "absurd": 1,
-                                 "out_of_order": 1, "duplicate": 1}
+    assert rx.counts.accepted == 1 and rx.counts.refused_total == 9
+    assert rx.counts.refused == {"malformed": 2, "truncated": 1, "non_finite": 1, "absurd": 2,
+                                 "out_of_order": 1, "duplicate": 1, "ahead": 1}
     rx.forget_order()          # after a loss: a restarted sender is taken
     q.q.append(encode(sample(0.5)))
     assert rx.poll() == sample(0.5)
@@ -127,6 +129,39 @@ def test_newest_wins_within_a_drain():
     assert rx.poll().t == 3.0
     c = rx.counts
     assert c.superseded == 1 and c.refused["out_of_order"] == 1 and c.refused["duplicate"] == 1
+
+
+def test_the_stream_clock_refuses_samples_ahead_and_keeps_a_real_sender():
+    """The receiver's time line (stewart_sim.live.receiver): a sender on time, one whose first
+    sample came late by less than AHEAD, one that stutters (one datagram 0.08 s late, then on
+    time again, the datagrams meanwhile lost) and one whose clock runs slow are all taken whole;
+    a sender at twice our clock's speed is refused as ahead once its lead passes AHEAD, so the
+    stream's time never runs ahead of the clock by more than AHEAD plus DRIFT of the time
+    elapsed."""
+    from stewart_sim.live.receiver import AHEAD, DRIFT
+
+    def feed(times, arrivals):
+        q = Queue()
+        rx = TelemetryReceiver(q, "native", Ticking())
+        got = []
+        for t, now in zip(times, arrivals):
+            q.q.append(encode(sample(t)))
+            s = rx.poll(now)
+            got.append(s is not None)
+            # the stream's accepted time against the clock (the first sample's lag as zero)
+            assert rx.last_t - times[0] <= (now - arrivals[0]) * (1 + DRIFT) + AHEAD + 1e-12
+        return rx, got
+
+    t = [j / 100 for j in range(300)]
+    late_first = [0.8 * AHEAD] + t[1:]                   # the first came late, then on time
+    kept = [tj for j, tj in enumerate(t) if not 51 <= j <= 57]      # 51-57 lost, and
+    stutter = [tj + (0.08 if tj == t[50] else 0.0) for tj in kept]  # 50 came 0.08 s late
+    slow = [tj * 1.05 for tj in t]                       # the sender's clock 5 % slow
+    for times, arrivals in ((t, t), (t, late_first), (kept, stutter), (t, slow)):
+        rx, got = feed(times, arrivals)
+        assert all(got) and rx.counts.refused["ahead"] == 0
+    rx, got = feed(t, [tj / 2 for tj in t])                          # twice our speed
+    assert rx.counts.refused["ahead"] > 250 and rx.counts.accepted < 50
 
 
 def test_drain_is_bounded_by_count_and_clock():
@@ -218,3 +253,60 @@ def test_operator_words_from_a_terminal_line_and_a_datagram():
         sink.close()
         control.close()
         reader.close()
+
+
+@pytest.mark.parametrize("rate, reason", [("1e-9", "fewer than 2 samples"),
+                                          ("0.05", "fewer than 2 samples"),
+                                          ("1e9", "memory budget")])
+def test_telemetry_replay_refuses_a_rate_naming_it(rate, reason, capsys):
+    """--rate that resamples the motion to fewer than two samples, or to more than the memory
+    budget holds: one line naming --rate and the reason, exit 2, nothing sent."""
+    from stewart_sim import cli
+
+    src = UdpSource("127.0.0.1", 0)
+    try:
+        assert cli.main(["telemetry-replay", str(BRAKING), "--to",
+                         f"udp://127.0.0.1:{src.address[1]}", "--rate", rate]) == 2
+        assert src.recv() is None
+    finally:
+        src.close()
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert len(err) == 1 and "--rate" in err[0] and reason in err[0]
+    assert "Traceback" not in captured.err and captured.out == ""
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_fuzzed_timing_never_runs_the_stream_ahead_of_the_clock(seed):
+    """Seeded hostile times (on time, far ahead, behind, bursts, duplicates, any time at all)
+    at 1 kHz polls, the time line forgotten now and then (a loss): every accepted sample is
+    newer than the last, and never more than AHEAD past the anchor carried on at (1 + DRIFT)
+    times the clock: the stream's time cannot run ahead of ours."""
+    from stewart_sim.live.receiver import AHEAD, DRIFT
+
+    rng = np.random.default_rng(seed)
+    q = Queue()
+    rx = TelemetryReceiver(q, "native", Ticking())
+    anchor = prev = None
+    for k in range(5000):
+        now = k * 1e-3
+        base = prev if prev is not None else now
+        offsets = rng.choice([0.0, 1e-3, 0.02, 0.03, 1.0, 1e6, -1e-3, -1.0, -1e6],
+                             size=int(rng.integers(0, 8)))
+        times = [base + o for o in offsets] + [float(rng.uniform(-1e9, 1e9))] * (k % 97 == 0)
+        q.q.extend(encode(sample(t)) for t in times)
+        if prev is not None and rng.random() < 0.05:
+            q.q.extend([encode(sample(prev))] * 3)                  # duplicates
+        s = rx.poll(now)
+        if s is not None:
+            if anchor is None:
+                anchor = (now, s.t)
+            assert s.t <= anchor[1] + (now - anchor[0]) * (1 + DRIFT) + AHEAD + 1e-9
+            assert prev is None or s.t > prev
+            prev = s.t
+        if rng.random() < 2e-3:
+            rx.forget_order()
+            anchor = prev = None
+    c = rx.counts
+    assert c.received == c.accepted + c.superseded + c.refused_total
+    assert c.accepted > 100 and c.refused["ahead"] > 100 and c.refused["duplicate"] > 10
