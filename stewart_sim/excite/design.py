@@ -169,7 +169,8 @@ class _Problem:
             f = _FAILED
         if not f < _FAILED:   # inf: a column of zeros, a parameter not excited at all; or NaN
             f = _FAILED
-        if f < _FAILED and np.all(g >= GRID_SLACK - ACCEPT_TOL) and (self.best is None or f < self.best[0]):
+        inside = f < _FAILED and np.all(g >= GRID_SLACK - ACCEPT_TOL)
+        if inside and (self.best is None or f < self.best[0]):
             self.best = (f, x.copy())
         return f, g
 
