@@ -13,11 +13,15 @@ def _at_least(low: int):
     return lambda v: v >= low
 
 
+def _between(low: int, high: int):
+    return lambda v: low <= v <= high
+
+
 def add_parser(sub, help_text: str) -> None:
     """Register `excite` on the command line's subparsers."""
-    period, harmonics, periods, starts, iterations = literals(
-        "stewart_sim.excite.design", "PERIOD", "HARMONICS", "PERIODS", "STARTS",
-        "MAX_ITERATIONS")
+    period, harmonics, periods, starts, most, iterations, polish = literals(
+        "stewart_sim.excite.design", "PERIOD", "HARMONICS", "PERIODS", "STARTS", "MAX_STARTS",
+        "MAX_ITERATIONS", "POLISH_ITERATIONS")
     margin, fraction = literals("stewart_sim.excite.bounds", "STROKE_MARGIN", "LIMIT_FRACTION")
     (rate,) = literals("controller.moves", "DEMO_RATE")
     p = sub.add_parser(
@@ -45,11 +49,11 @@ def add_parser(sub, help_text: str) -> None:
                                               "a whole number >= 2"),
                    default=harmonics, metavar="H",
                    help=f"harmonics per axis (default {harmonics})")
-    p.add_argument("--starts", type=number(int, "a whole number", _at_least(1),
-                                           "a whole number >= 1"),
+    p.add_argument("--starts", type=number(int, "a whole number", _between(1, most),
+                                           f"a whole number from 1 to {most}"),
                    default=starts, metavar="N",
-                   help=f"random starts of the optimiser, {iterations} iterations each "
-                        f"(default {starts})")
+                   help=f"random starts of the optimiser, {iterations} iterations each, then "
+                        f"up to {polish} from the best (default {starts})")
     p.set_defaults(run=run)
 
 
@@ -57,7 +61,7 @@ def run(args: argparse.Namespace) -> None:
     """Run `excite`; StewartError subclasses for bad input."""
     from controller.moves import DEMO_RATE
     from stewart_fmu.errors import StewartError
-    from stewart_sim.excite.design import PERIODS, design, excitation
+    from stewart_sim.excite.design import PERIODS, check_sizes, design, excitation
     from stewart_sim.excite.report import side_paths, summary, write_excitation
     from stewart_sim.limits import check_samples
     from stewart_sim.progress import Progress
@@ -73,6 +77,7 @@ def run(args: argparse.Namespace) -> None:
     scene = load(args.scene)
     rate = DEMO_RATE if scene.controller is None else scene.controller.rate
     check_samples("--duration", periods * args.period, rate)
+    check_sizes(args.harmonics, args.period, periods, rate)
     progress = Progress()
     try:
         d = design(scene.model, scene.controller, period=args.period, harmonics=args.harmonics,

@@ -31,6 +31,7 @@ from stewart_sim.cueing.feasibility import COND_LIMIT, feasibility
 STROKE_MARGIN = 0.05    # fraction of the stroke kept free at each end
 LIMIT_FRACTION = 0.8    # speed, acceleration, force, voltage and cond(J): at most this of the limit
 QUANTITIES = ("stroke_min", "stroke_max", "speed", "acceleration", "force", "voltage", "cond")
+MAX_SLACKS = 6 * (len(QUANTITIES) - 1) + 1   # entries of `slack` per sample: per leg, cond(J) one
 
 
 @dataclass(frozen=True)
@@ -97,30 +98,58 @@ def limits(model: Model, controller: ControllerConfig | None) -> Limits:
                   COND_LIMIT)
 
 
-def peaks(model: Model, controller: ControllerConfig | None, t: np.ndarray, q: np.ndarray,
-          qd: np.ndarray, qdd: np.ndarray) -> Peaks:
-    """The peaks of a trajectory (feasibility's lengths, forces, voltages and cond(J); leg
-    speeds and accelerations by inverse kinematics)."""
+@dataclass(frozen=True)
+class Samples:
+    """What a trajectory asks at each of its N samples, per leg (N, 6): length (m), |leg speed|
+    (m/s), |acceleration| (m/s^2), |rack force| (N) and |motor voltage| (V; None without a
+    motor); cond(J) (N,)."""
+
+    lengths: np.ndarray
+    speed: np.ndarray
+    acceleration: np.ndarray
+    force: np.ndarray
+    voltage: np.ndarray | None
+    cond: np.ndarray
+
+
+def samples(model: Model, controller: ControllerConfig | None, t: np.ndarray, q: np.ndarray,
+            qd: np.ndarray, qdd: np.ndarray) -> Samples:
+    """The trajectory's values at every sample (feasibility's lengths, forces, voltages and
+    cond(J); leg speeds and accelerations by inverse kinematics)."""
     f = feasibility(model, t, q, qd, qdd, controller)
     kin = inverse_kinematics(model, q, qd, qdd, with_cond=False)
-    voltage = None if f.voltage is None else np.max(np.abs(f.voltage), axis=0)
-    return Peaks(np.min(f.lengths, axis=0), np.max(f.lengths, axis=0),
-                 np.max(np.abs(kin.rates), axis=0), np.max(np.abs(kin.accelerations), axis=0),
-                 np.max(np.abs(f.sigma), axis=0), voltage, float(np.max(f.cond)))
+    return Samples(f.lengths, np.abs(kin.rates), np.abs(kin.accelerations), np.abs(f.sigma),
+                   None if f.voltage is None else np.abs(f.voltage), f.cond)
 
 
-def slack(lim: Limits, p: Peaks) -> np.ndarray:
+def peaks(model: Model, controller: ControllerConfig | None, t: np.ndarray, q: np.ndarray,
+          qd: np.ndarray, qdd: np.ndarray) -> Peaks:
+    """The peaks of a trajectory: the extremes over its `samples`."""
+    s = samples(model, controller, t, q, qd, qdd)
+    return Peaks(np.min(s.lengths, axis=0), np.max(s.lengths, axis=0),
+                 np.max(s.speed, axis=0), np.max(s.acceleration, axis=0),
+                 np.max(s.force, axis=0), None if s.voltage is None else np.max(s.voltage, axis=0),
+                 float(np.max(s.cond)))
+
+
+def slack(lim: Limits, p: Peaks | Samples) -> np.ndarray:
     """How far inside its bound each quantity is, as a fraction (>= 0: inside): the stroke's per
-    leg in units of the stroke, the others 1 - peak / bound per leg (cond(J): one number)."""
+    leg in units of the stroke, the others 1 - value / bound per leg (cond(J): one column).
+    Of Peaks: one number per quantity and leg, in the order of `slack_names`; of Samples: that
+    per sample (N, K), whose minimum over the samples is the slack of their peaks."""
     span = lim.leg_max - lim.leg_min
-    out = [(p.stroke_min - lim.bound("stroke_min")) / span,
-           (lim.bound("stroke_max") - p.stroke_max) / span]
+    if isinstance(p, Samples):
+        low = high = p.lengths
+        cond = p.cond[:, None]
+    else:
+        low, high, cond = p.stroke_min, p.stroke_max, np.atleast_1d(p.cond)
+    out = [(low - lim.bound("stroke_min")) / span, (lim.bound("stroke_max") - high) / span]
     for quantity in ("speed", "acceleration", "force", "voltage"):
         bound, value = lim.bound(quantity), getattr(p, quantity)
         if bound is not None and value is not None:
             out.append(1.0 - value / bound)
-    out.append(np.atleast_1d(1.0 - p.cond / lim.bound("cond")))
-    return np.concatenate(out)
+    out.append(1.0 - cond / lim.bound("cond"))
+    return np.concatenate(out, axis=-1)
 
 
 def slack_names(lim: Limits) -> list[str]:
@@ -135,6 +164,9 @@ def slack_names(lim: Limits) -> list[str]:
 
 
 def tightest(lim: Limits, g: np.ndarray) -> str:
-    """The entry of `slack` g with the least slack, as 'speed leg 3 slack -0.02'."""
+    """The entry of `slack` g (of Peaks, or of Samples flattened) with the least slack, as
+    'speed leg 3 slack -0.02'."""
+    g = np.ravel(g)
+    names = slack_names(lim)
     k = int(np.argmin(g))
-    return f"{slack_names(lim)[k]} slack {g[k]:.3g}"
+    return f"{names[k % len(names)]} slack {g[k]:.3g}"

@@ -16,10 +16,18 @@ the sum over the grid close to the integral over the period. A sinusoid's peak b
 grid samples is at most 1 - cos(pi / 20) = 1.2 % above the larger of them, well inside the
 limits' margins; the trajectory written is checked again at every sample of the output rate.
 
-Method: SLSQP (scipy.optimize) with every limit as inequality constraints (per leg: slack of
-bounds.slack), forward-difference gradients, MAX_ITERATIONS per start, from STARTS random starts
-(seed SEED) each scaled down until it lies well inside every limit; the best feasible point
-seen over all starts is kept.
+Method: SLSQP (scipy.optimize) with every limit at every grid sample as an inequality
+constraint (bounds.slack of bounds.Samples: each a smooth function of x, where the peak over
+the samples is not: its gradient jumps when another sample becomes the peak, and SLSQP's steps
+then depend on which sample wins by the last bit), forward-difference gradients (FD_STEP),
+from STARTS random starts (seed SEED) each scaled down until it lies well inside every limit,
+MAX_ITERATIONS each, then up to POLISH_ITERATIONS more from the best point of all starts,
+each run ending early when the objective changes by less than FTOL. The best point inside the
+limits seen over all runs is kept. The objective is taken from R of a Householder QR of W
+(backward stable; W^T W would square the condition number). The result is deterministic for a
+seed on a given machine; across BLAS builds, threads and CPU kernels the path differs in its
+last bits, and the starts and the polish bring each to a comparable optimum (README.md: the
+spread measured).
 """
 from __future__ import annotations
 
@@ -32,10 +40,13 @@ import scipy.optimize
 from controller.config import ControllerConfig
 from controller.drive import constant_load
 from controller.trajectory import Trajectory
+from stewart_fmu.budget import check_count
 from stewart_fmu.dynamics import regressor
 from stewart_fmu.errors import StewartError
 from stewart_fmu.model import Model
-from stewart_sim.excite.bounds import Limits, Peaks, limits, peaks, slack, tightest
+from stewart_fmu.standard import N_STANDARD
+from stewart_sim.excite.bounds import (MAX_SLACKS, Limits, Peaks, limits, peaks, samples, slack,
+                                       tightest)
 from stewart_sim.excite.fourier import FourierSeries
 from stewart_sim.identify.base import BaseParameters, scaled_condition, stacked, structural_base
 
@@ -44,12 +55,51 @@ HARMONICS = 5            # harmonics per axis (up to 1 Hz)
 PERIODS = 12             # default duration: 12 periods, 60 s
 GRID_PER_HARMONIC = 20   # grid samples per period of the highest harmonic (see the module doc)
 STARTS = 2               # random starts
-MAX_ITERATIONS = 50      # SLSQP iterations per start
+MAX_STARTS = 100         # --starts at most this: each start is SLSQP's work of a few seconds
+MAX_ITERATIONS = 40      # SLSQP iterations per start
+POLISH_ITERATIONS = 60   # SLSQP iterations from the best point of all starts
+FTOL = 1e-6              # a run ends when log10 cond changes by less than this
+ACCEPT_TOL = 1e-4        # a point within this below GRID_SLACK counts as inside (SLSQP's
+                         # iterates meet an active constraint to about this); every sample of
+                         # the trajectory written is checked against the bound itself
 SEED = 0
 START_SLACK = 0.05       # a start is scaled down until every limit has this much slack
 GRID_SLACK = 0.01        # slack kept on the grid: peaks between its samples (see the module doc)
 FD_STEP = 1e-6           # forward-difference step in x (x is of order 1)
 _FAILED = 10.0           # log10 cond of a point where the dynamics cannot be evaluated
+
+
+# bytes each count below takes: a constraint derivative is held by _Problem.gradients, by
+# scipy's stacked copy and by SLSQP; a basis entry by the SVD of scipy.linalg.null_space and the
+# two bases; an output sample holds its sin and cos of each harmonic (8 bytes each) and
+# OUTPUT_FLOATS more floats: q, qd, qdd, feasibility's per-leg arrays and the regressor with
+# its stacked copy and QR (3 x 6 x N_STANDARD)
+DERIVATIVE_BYTES = 3 * 8
+BASIS_BYTES = 3 * 8
+OUTPUT_FLOATS = 18 + 12 * 6 + 3 * 6 * N_STANDARD
+
+
+def check_sizes(harmonics: int, period: float, periods: int, rate: float) -> None:
+    """Refuse (BudgetError, StewartError: one line naming the argument) a design whose arrays
+    would not fit the memory budget (stewart_fmu.budget), or whose top harmonic the output rate
+    cannot represent, before anything of that size is allocated."""
+    h = float(harmonics)
+    check_count(f"excite: --harmonics {harmonics}: entries of the series' bases", h * h,
+                BASIS_BYTES, "fewer harmonics")
+    grid, size = GRID_PER_HARMONIC * h, 12.0 * (h - 1.0)
+    check_count(f"excite: --harmonics {harmonics}: the optimiser's constraint derivatives "
+                f"({grid:.0f} grid samples x {MAX_SLACKS} limits x {size:.0f} coefficients)",
+                grid * MAX_SLACKS * size, DERIVATIVE_BYTES, "fewer harmonics")
+    samples_out = periods * period * rate + 1.0
+    check_count(f"excite: --harmonics {harmonics} over {periods * period:g} s (--duration) at "
+                f"{rate:g} Hz: trajectory samples", samples_out, 8.0 * (2.0 * h + OUTPUT_FLOATS),
+                "fewer harmonics or a shorter --duration")
+    top = harmonics / period
+    if not top < 0.5 * rate:
+        raise StewartError(f"excite: --harmonics {harmonics} of a --period of {period:g} s reach "
+                           f"{top:.4g} Hz, not below half the trajectory's rate of {rate:g} Hz: "
+                           "its samples would not represent them (fewer harmonics or a longer "
+                           "period)")
 
 
 @dataclass(frozen=True)
@@ -89,30 +139,38 @@ class _Problem:
         """(log10 cond, slack) at x."""
         key = x.tobytes()
         if key not in self.cache:
-            if len(self.cache) > 4096:
+            if len(self.cache) > 64:
                 self.cache.clear()
             self.cache[key] = self._evaluate(x)
         return self.cache[key]
 
     def _evaluate(self, x: np.ndarray) -> tuple[float, np.ndarray]:
         self.count += 1
+        # far outside the limits an overflow is possible; it shows as a non-finite slack or
+        # objective, which marks the point as failed, so numpy's warning would only be noise
+        with np.errstate(all="ignore"):
+            return self._evaluate_quietly(x)
+
+    def _evaluate_quietly(self, x: np.ndarray) -> tuple[float, np.ndarray]:
         q, qd, qdd = self.series.evaluate(x, self.t)
         try:
-            g = slack(self.lim, peaks(self.free, self.controller, self.t, q, qd, qdd))
+            g = slack(self.lim, samples(self.free, self.controller, self.t, q, qd, qdd)).ravel()
         except StewartError:        # a pose the kinematics cannot take: far outside
             return _FAILED, np.full(self.constraint_count(), -1.0)
         if not np.all(np.isfinite(g)):
             return _FAILED, np.full(g.size, -1.0)
         try:
             W = stacked(regressor(self.free, q, qd, qdd)[:, :, self.columns])
-            # the Cholesky factor R of W^T W (R^T R = W^T W) has W's singular values and column
-            # norms, so the same scaled condition number, from a (P, P) SVD instead of a
-            # (6 N, P) one (a tenth of the time on a loaded machine; squaring costs eps cond^2,
-            # 1e-10 at cond 1e3)
-            f = min(float(np.log10(scaled_condition(np.linalg.cholesky(W.T @ W).T))), _FAILED)
-        except np.linalg.LinAlgError:   # W^T W singular: a parameter not excited at all
+            # R of W = QR has W's singular values and column norms (Q is orthonormal), so the
+            # same scaled condition number from a (P, P) SVD; Householder QR is backward stable,
+            # where W^T W would square the condition number
+            f = float(np.log10(scaled_condition(np.linalg.qr(W, mode="r"))))
+        except np.linalg.LinAlgError:
             f = _FAILED
-        if f < _FAILED and np.all(g >= GRID_SLACK) and (self.best is None or f < self.best[0]):
+        if not f < _FAILED:   # inf: a column of zeros, a parameter not excited at all; or NaN
+            f = _FAILED
+        inside = f < _FAILED and np.all(g >= GRID_SLACK - ACCEPT_TOL)
+        if inside and (self.best is None or f < self.best[0]):
             self.best = (f, x.copy())
         return f, g
 
@@ -120,8 +178,8 @@ class _Problem:
         if self.constraints is None:
             x0 = np.zeros(self.series.size)
             q, qd, qdd = self.series.evaluate(x0, self.t)
-            self.constraints = slack(self.lim, peaks(self.free, self.controller, self.t, q, qd,
-                                                     qdd)).size
+            self.constraints = slack(self.lim, samples(self.free, self.controller, self.t, q, qd,
+                                                       qdd)).size
         return self.constraints
 
     def gradients(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -140,7 +198,8 @@ class _Problem:
 
 def design(model: Model, controller: ControllerConfig | None, *, period: float = PERIOD,
            harmonics: int = HARMONICS, starts: int = STARTS, max_iterations: int = MAX_ITERATIONS,
-           seed: int = SEED, progress: Callable[[str, int, int], None] | None = None) -> Design:
+           seed: int = SEED, polish: int = POLISH_ITERATIONS,
+           progress: Callable[[str, int, int], None] | None = None) -> Design:
     """The excitation of lowest scaled condition number found inside the scene's limits;
     StewartError when no start lies inside them (a scene with no room to move)."""
     lim = limits(model, controller)
@@ -153,39 +212,49 @@ def design(model: Model, controller: ControllerConfig | None, *, period: float =
     reached = []
     for s in range(starts):
         x0 = _inside(problem, rng.standard_normal(series.size))
-        before = problem.best
-        problem.best = None
-        iteration = [0]
+        found = _minimise(problem, x0, max_iterations, f"start {s + 1}/{starts}", progress)
+        reached.append(np.inf if found is None else 10.0 ** found[0])
+    if problem.best is None:
+        raise StewartError("excite: no excitation found inside the limits (see the margins of "
+                           "`stewart-sim excite --help`)")
+    _minimise(problem, problem.best[1], polish, "polish", progress)
+    f, x = problem.best
+    return Design(series, x, 10.0 ** f, base, lim, tuple(reached), problem.count)
 
-        def step(_x, s=s) -> None:
-            iteration[0] += 1
-            if progress is not None:
-                best = "" if problem.best is None else f", cond {10.0 ** problem.best[0]:.4g}"
-                progress(f"excite: start {s + 1}/{starts}{best}", iteration[0], max_iterations)
 
-        memo: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+def _minimise(problem: _Problem, x0: np.ndarray, iterations: int, stage: str,
+              progress: Callable[[str, int, int], None] | None) -> tuple[float, np.ndarray] | None:
+    """SLSQP from x0 for at most `iterations` (fewer when the objective changes by less than
+    FTOL): the best point inside the limits it met (None: none), kept in problem.best when
+    better than what that held."""
+    before, problem.best = problem.best, None
+    iteration = [0]
 
-        def grads(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            key = x.tobytes()
-            if key not in memo:
-                memo.clear()
-                memo[key] = problem.gradients(x)
-            return memo[key]
+    def step(_x: np.ndarray) -> None:
+        iteration[0] += 1
+        if progress is not None:
+            best = "" if problem.best is None else f", cond {10.0 ** problem.best[0]:.4g}"
+            progress(f"excite: {stage}{best}", iteration[0], iterations)
 
+    memo: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+
+    def grads(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        key = x.tobytes()
+        if key not in memo:
+            memo.clear()
+            memo[key] = problem.gradients(x)
+        return memo[key]
+
+    if iterations > 0:
         scipy.optimize.minimize(
             lambda x: problem.values(x)[0], x0, jac=lambda x: grads(x)[0], method="SLSQP",
             constraints=[{"type": "ineq", "fun": lambda x: problem.values(x)[1] - GRID_SLACK,
                           "jac": lambda x: grads(x)[1]}],
-            options={"maxiter": max_iterations, "ftol": 1e-6}, callback=step)
-        found = problem.best
-        reached.append(np.inf if found is None else 10.0 ** found[0])
-        if before is not None and (found is None or before[0] <= found[0]):
-            problem.best = before
-    if problem.best is None:
-        raise StewartError("excite: no excitation found inside the limits (see the margins of "
-                           "`stewart-sim excite --help`)")
-    f, x = problem.best
-    return Design(series, x, 10.0 ** f, base, lim, tuple(reached), problem.count)
+            options={"maxiter": iterations, "ftol": FTOL}, callback=step)
+    found = problem.best
+    if before is not None and (found is None or before[0] <= found[0]):
+        problem.best = before
+    return found
 
 
 def _scale(model: Model, lim: Limits) -> np.ndarray:
@@ -242,4 +311,8 @@ def excitation(model: Model, controller: ControllerConfig | None, d: Design, per
     else:
         raise StewartError(f"excite: the trajectory crosses a limit ({tightest(d.limits, g)})")
     W = stacked(regressor(free, traj.q, traj.qd, traj.qdd)[:, :, d.base.independent])
-    return Excitation(d, traj, periods, rate, p, g, scaled_condition(W), factor)
+    cond = scaled_condition(W)
+    if not np.isfinite(cond):
+        raise StewartError("excite: the trajectory leaves a base parameter unexcited (scaled "
+                           "condition number not finite): no trajectory to identify from")
+    return Excitation(d, traj, periods, rate, p, g, cond, factor)

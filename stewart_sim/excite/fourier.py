@@ -23,6 +23,7 @@ the angles).
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -57,8 +58,9 @@ class FourierSeries:
         k = np.arange(1, H + 1, dtype=float)
         xa, xb = np.asarray(x, dtype=float).reshape(2, 6, H - 1)
         # position amplitudes (m, rad) -> Swevers' a, b (velocity units): times k w_f
-        a = (xa @ _null(k).T) * self.scale[:, None] * k * w
-        b = (xb @ _null(k * k).T) * self.scale[:, None] * k * w
+        na, nb = _bases(H)
+        a = (xa @ na.T) * self.scale[:, None] * k * w
+        b = (xb @ nb.T) * self.scale[:, None] * k * w
         q0 = self.home + (b / (k * w)).sum(axis=1)
         return q0, a, b
 
@@ -79,6 +81,12 @@ class FourierSeries:
         return Trajectory(t, *self.evaluate(x, t))
 
 
-def _null(row: np.ndarray) -> np.ndarray:
-    """An orthonormal basis (H, H - 1) of the vectors orthogonal to `row`."""
-    return scipy.linalg.null_space(np.atleast_2d(row))
+@functools.lru_cache(maxsize=32)
+def _bases(harmonics: int) -> tuple[np.ndarray, np.ndarray]:
+    """Na, Nb (H, H - 1): orthonormal bases of the vectors orthogonal to [1 2 .. H] and
+    [1 4 .. H^2] (read-only: shared by every call)."""
+    k = np.arange(1, harmonics + 1, dtype=float)
+    out = tuple(scipy.linalg.null_space(row[None, :]) for row in (k, k * k))
+    for basis in out:
+        basis.flags.writeable = False
+    return out

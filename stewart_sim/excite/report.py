@@ -114,7 +114,7 @@ def report_text(e: Excitation, scene: str, out: Path) -> str:
              f"not enter it) of the base regressor stacked over every sample and leg: "
              f"**{e.cond:.4g}**, over {d.base.rank} base parameters (the scene's structural "
              f"base). On the optimiser's grid ({GRID_PER_HARMONIC * s.harmonics} samples a "
-             f"period): {d.cond:.4g}. Reached from each start: "
+             f"period): {d.cond:.4g}, polished from the best of the starts, which reached "
              + ", ".join(f"{c:.4g}" for c in d.starts) + f"; {d.evaluations} regressor "
              f"evaluations." + (f" The optimum was scaled by {e.shrunk:.3g} to keep every "
                                 f"limit between the grid's samples." if e.shrunk < 1.0 else ""),
