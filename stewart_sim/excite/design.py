@@ -36,6 +36,7 @@ from typing import Callable
 
 import numpy as np
 import scipy.optimize
+from threadpoolctl import threadpool_limits
 
 from controller.config import ControllerConfig
 from controller.drive import constant_load
@@ -201,7 +202,19 @@ def design(model: Model, controller: ControllerConfig | None, *, period: float =
            seed: int = SEED, polish: int = POLISH_ITERATIONS,
            progress: Callable[[str, int, int], None] | None = None) -> Design:
     """The excitation of lowest scaled condition number found inside the scene's limits;
-    StewartError when no start lies inside them (a scene with no room to move)."""
+    StewartError when no start lies inside them (a scene with no room to move).
+
+    BLAS runs on one thread here: the regressors are a few hundred rows, too small to gain from
+    more, and the order in which several threads add would steer SLSQP along another path (the
+    condition number reached would then depend on the machine's core count)."""
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _design(model, controller, period, harmonics, starts, max_iterations, seed,
+                       polish, progress)
+
+
+def _design(model: Model, controller: ControllerConfig | None, period: float, harmonics: int,
+            starts: int, max_iterations: int, seed: int, polish: int,
+            progress: Callable[[str, int, int], None] | None) -> Design:
     lim = limits(model, controller)
     base = structural_base(model)
     series = FourierSeries(period, harmonics, np.asarray(model.home, dtype=float),
