@@ -38,6 +38,7 @@ def late_run(tmp_path_factory):
     return truth, path
 
 
+@pytest.mark.numerics
 def test_delay_and_bias_are_found(late_run):
     truth, path = late_run
     prior = load_scene(SCENE)
