@@ -234,7 +234,13 @@ def _solve(problem) -> bool:
 def consistent_point(base: BaseParameters, beta: np.ndarray, prior: np.ndarray,
                      scale: np.ndarray, length: float, free: np.ndarray) -> np.ndarray | None:
     """The physically consistent pi nearest the prior (scaled) with K pi = beta, the standard
-    parameters not `free` held at the prior, or None."""
+    parameters not `free` held at the prior, or None. When the nearest point with K pi = beta
+    (least squares, closed form) is consistent it is that point, and no semidefinite program is
+    set up (nor cvxpy imported): the constraints are then inactive and the program's optimum is
+    the same point."""
+    nearest = _nearest(base, beta, prior, scale, free)
+    if nearest is not None and meets(nearest, free, length, scale):
+        return nearest
     import cvxpy as cp
 
     x, pi = _variables(prior, scale, free)
@@ -269,6 +275,32 @@ def constrained_fit(base: BaseParameters, Rf: np.ndarray, prior: np.ndarray,
         raise IdentificationError(
             f"the physically consistent fit failed (Clarabel: {problem.status})")
     return _values(pi)
+
+
+def _nearest(base: BaseParameters, beta: np.ndarray, prior: np.ndarray, scale: np.ndarray,
+             free: np.ndarray) -> np.ndarray | None:
+    """The pi nearest the prior (in scale) with K pi = beta moving only `free` ones, or None
+    when those cannot reproduce beta (to 1e-12 of each base parameter's scale)."""
+    K = base.combination[:, free] * scale[free]
+    gap = beta - base.beta(prior)
+    d = np.linalg.lstsq(K, gap, rcond=None)[0]
+    out = prior.astype(float).copy()
+    out[free] += scale[free] * d
+    bscale = np.abs(base.combination) @ scale
+    if not np.all(np.abs(base.beta(out) - beta) <= 1e-12 * bscale):
+        return None
+    return out
+
+
+def meets(pi: np.ndarray, free: np.ndarray, length: float, scale: np.ndarray) -> bool:
+    """Whether pi meets the consistency constraints of _physical (with their margins) on the
+    bodies with a free parameter: project would return it unchanged, and no leg part's mass is
+    within its margin of zero."""
+    for part in ("LOWER", "UPPER"):
+        k_m = span(f"{part}_MASS").start
+        if free[k_m:span(f"{part}_AXIAL").stop].any() and pi[k_m] <= MARGIN * scale[k_m]:
+            return False
+    return bool(np.array_equal(project(pi, free, length, scale), pi))
 
 
 def project(pi: np.ndarray, free: np.ndarray, length: float, scale: np.ndarray) -> np.ndarray:
