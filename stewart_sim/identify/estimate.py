@@ -132,9 +132,14 @@ def estimate(W: np.ndarray, s: np.ndarray, legs: np.ndarray, base: BaseParameter
     determined = scene & np.any(base.combination != 0.0, axis=0)
     alone = np.isin(np.array(NAMES), base.alone)
     first = determined & ~(np.zeros(N_STANDARD, dtype=bool) if hold is None else hold & ~alone)
-    pi = consistent_point(base, beta, prior, scale, length, first)
-    if pi is None:
+    pi = _nearest(base, beta, prior, scale, first)
+    if pi is None or not meets(pi, first, length, scale):
+        # the programs: with all free first, as a WLS estimate that no consistent set
+        # reproduces (noise) needs no second program to tell
         pi = consistent_point(base, beta, prior, scale, length, scene)
+        held = consistent_point(base, beta, prior, scale, length, first) \
+            if pi is not None and not np.array_equal(first, scene) else None
+        pi = held if held is not None else pi
     constrained = pi is None
     if constrained:
         w = noise.min() / noise[legs]    # the weights 1 / noise to a common factor
