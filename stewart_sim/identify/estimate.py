@@ -16,6 +16,9 @@ consistent set of standard parameters behind it.
    beta then differs from WLS and the report says so). Either is a semidefinite program, solved
    by cvxpy with Clarabel (an interior-point conic solver with semidefinite cones, open source,
    maintained, shipped as a wheel; SCS, the alternative, is first-order and less accurate).
+   The nearest point is sought first with what the data do not determine held at the prior
+   (estimate), in closed form when that point meets the constraints; the solver's result is
+   projected onto the constraints (project), which it meets to its tolerance only.
 """
 from __future__ import annotations
 
