@@ -177,7 +177,8 @@ def identify(model: Model, runs: list[Run], cutoff: float | None = None, partial
     missing = _missing(structural, base)
     if missing and not partial:
         raise IdentificationError(
-            f"{', '.join(str(r.path) for r in runs)}: regressor rank {base.rank} of {structural.rank} (the scene's base parameters): "
+            f"{', '.join(str(r.path) for r in runs)}: regressor rank {base.rank} of "
+            f"{structural.rank} (the scene's base parameters): "
             f"{', '.join(missing)} not identifiable from these runs; add {_hint(missing)} "
             f"(or --partial to keep their prior values)")
     prior = standard_parameters(model)

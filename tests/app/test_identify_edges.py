@@ -50,7 +50,8 @@ def assert_one_line(status, err, names):
 
 def test_held_out_forces_all_zero_are_refused_before_any_file(good, tmp_path, capfd):
     a, b = good
-    zero = edited(b, tmp_path / "zero.csv", lambda d: d.__setitem__((slice(None), slice(7, 13)), 0.0))
+    zero = edited(b, tmp_path / "zero.csv",
+                  lambda d: d.__setitem__((slice(None), slice(7, 13)), 0.0))
     status, out, err = identify_cli(capfd, "--runs", a, "--validate", zero, "--out", tmp_path / "o")
     assert_one_line(status, err, zero)
     assert "wrote" not in out and not (tmp_path / "o").exists()
