@@ -33,8 +33,10 @@ with tempfile.TemporaryDirectory() as tmp:
     stewart_sim("identify", SCENE, "--runs", d / "run1.csv", "--validate", d / "run2.csv",
                 "--force-delay", 0.0005, "--out", d / "ident")
     found, truth, prior = (load_scene(p) for p in (d / "ident" / "identified.toml", TRUTH, SCENE))
-    for name, get in (("viscous friction (N s/m)", lambda m: m.friction.viscous_legs),
-                      ("Coulomb friction (N)", lambda m: m.friction.coulomb_legs),
-                      ("reflected drive mass (kg)", lambda m: m.drive.reflected_masses)):
-        print(f"{name}:\n  prior      {np.round(get(prior), 3)}\n  identified "
+    for name, unit, get in (("viscous friction", "N s/m", lambda m: m.friction.viscous_legs),
+                            ("Coulomb friction", "N", lambda m: m.friction.coulomb_legs),
+                            ("reflected drive mass", "kg", lambda m: m.drive.reflected_masses)):
+        print(f"{name} ({unit}):\n  prior      {np.round(get(prior), 3)}\n  identified "
               f"{np.round(get(found), 3)}\n  truth      {np.round(get(truth), 3)}")
+        print(f"{name} within {np.max(np.abs(get(found) - get(truth))):.2g} {unit} of the "
+              f"truth (the prior: {np.max(np.abs(get(prior) - get(truth))):.2g})")

@@ -63,7 +63,7 @@ def add_parser(sub, help_text: str) -> None:
 
 def run(args: argparse.Namespace) -> None:
     """Run `identify`; StewartError subclasses for bad input."""
-    from stewart_sim.identify.report import write_identification
+    from stewart_sim.identify.report import percent, write_identification
     from stewart_sim.identify.runs import read_run
     from stewart_sim.identify.study import identify, predict
     from stewart_sim.scene_load import load
@@ -95,8 +95,6 @@ def run(args: argparse.Namespace) -> None:
           f"{float(sorted(rel)[len(rel) // 2]):.2%} of the estimate"
           + ("; consistency constraints active" if e.constrained else ""))
     for v in validation:
-        peak = v.force_peak
-        rms_i = float((v.rms("identified") ** 2).mean() ** 0.5) / peak
-        rms_p = float((v.rms("prior") ** 2).mean() ** 0.5) / peak
-        print(f"{v.run.path.name}: force RMS error {rms_i:.3%} of peak (prior {rms_p:.3%}), "
+        print(f"{v.run.path.name}: force RMS error {percent(v.rms_error('identified'))} of peak "
+              f"(prior {percent(v.rms_error('prior'))}), "
               + ("at the noise floor" if v.at_noise_floor() else "above the noise floor"))

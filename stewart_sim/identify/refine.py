@@ -12,7 +12,9 @@ that the scene can hold (those acting on a standard parameter other than the pla
 moment and products of inertia, which the scene's model holds at zero), mapped to standard
 parameters by the least change from the estimate in the parameters' scale; plus the delay d
 (the force measured at t is the force applied at t - d) and the biases b_j (measured = applied +
-b_j). scipy's least_squares (trust region reflective) minimises the length residuals; the
+b_j). Every step's standard parameters are projected onto the consistency constraints
+(estimate.project), so the residual has no cliff where a scene would be invalid. scipy's
+least_squares (trust region reflective) minimises the length residuals; the
 confidence intervals are those of the Jacobian at the solution, s^2 (J^T J)^-1 with s^2 the
 residual variance.
 """
@@ -29,6 +31,7 @@ from stewart_fmu.scene import load_scene
 from stewart_fmu.standard import N_STANDARD, span
 from stewart_sim.simulate import simulate
 
+from .estimate import project
 from .runs import Run, pose_of
 from .scene_out import scene_values
 from .signal import choose_filter, derivatives
@@ -118,8 +121,13 @@ def refine(ident: Identification, runs: list[Run], *,
     base_pi = ident.pi.copy()
     base_pi[_UNHELD] = 0.0
 
+    length_c = ident.model.characteristic_length
+
     def unpack(x):
-        pi = base_pi + P @ (x[:n_th] * th_scale)
+        # projected onto the consistency constraints: a step that would leave them gives the
+        # nearest consistent body, so the residual stays continuous (no cliff of _OUTSIDE for
+        # the trust region and the finite differences to fall off on the side rounding decides)
+        pi = project(base_pi + P @ (x[:n_th] * th_scale), free, length_c, scale)
         d = x[n_th] * 1e-3 if delay else 0.0
         b = x[n_th + int(delay):] if bias else np.zeros(6)
         return pi, d, b

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from stewart_fmu.errors import StewartError
 from stewart_fmu.io import atomic_write, write_text
 from stewart_fmu.standard import NAMES, UNITS
 from stewart_sim.markdown import md_code, md_text
@@ -31,6 +32,7 @@ from stewart_sim.plots import save_figure
 
 from .plots import residual_figure, validation_figure
 from .scene_out import scene_values, write_identified
+from .estimate import IdentificationError
 from .refine import Refinement
 from .study import Identification, Prediction
 
@@ -44,13 +46,19 @@ def write_identification(ident: Identification, scene_path: str | Path,
     """Write the files (module docstring) into `out`, all or nothing; their paths. With
     `refined`, identified.toml holds the refined parameters."""
     scene_path = Path(scene_path)
+    check_results(ident, validation, refined)
     pi = refined.pi if refined is not None else ident.pi
-    values, unheld = scene_values(ident.model, pi, ident.written())
+    values, unheld = scene_values(ident.model, pi, ident.written() | ident.unheld())
     runs = ", ".join(p.run.path.name for p in ident.prepared)
     with result_set(out, FILES) as stage:
-        paths = [write_identified(scene_path, values, stage / "identified.toml",
-                                  [f"identified by stewart-sim identify from {runs}",
-                                   f"prior: {scene_path.name}"]),
+        try:
+            scene = write_identified(scene_path, values, stage / "identified.toml",
+                                     [f"identified by stewart-sim identify from {runs}",
+                                      f"prior: {scene_path.name}"])
+        except StewartError as exc:     # checked before it is written: name the runs too
+            raise StewartError(f"{', '.join(str(p.run.path) for p in ident.prepared)}: "
+                               f"{exc}") from None
+        paths = [scene,
                  _rows(stage / "base_parameters.csv",
                        ("name", "estimate", "std", "wls", "prior", "unit"), _base_rows(ident)),
                  _rows(stage / "standard_parameters.csv",
@@ -64,6 +72,37 @@ def write_identification(ident: Identification, scene_path: str | Path,
         paths.append(write_text(stage / "report.md",
                                 report_text(ident, scene_path, validation, unheld, refined)))
         return written_in(stage, Path(out), paths)
+
+
+def check_results(ident: Identification, validation: list[Prediction],
+                  refined: Refinement | None = None) -> None:
+    """Every figure the files and the summary state is finite (and each held-out run has a
+    force to compare with), or an IdentificationError naming the runs it came from; called
+    before the first file is written."""
+    with np.errstate(over="ignore", invalid="ignore"):    # refused below, in one line
+        for source, what, arrays in _figures(ident, validation, refined):
+            if not all(np.all(np.isfinite(np.asarray(a, dtype=float))) for a in arrays):
+                raise IdentificationError(f"{source}: {what} is not finite (the inputs' forces "
+                                          "or times are beyond what float64 holds): nothing "
+                                          "written")
+
+
+def _figures(ident: Identification, validation: list[Prediction], refined: Refinement | None):
+    """(input, what, arrays) of every figure written or printed (check_results)."""
+    runs = ", ".join(str(p.run.path) for p in ident.prepared)
+    e = ident.estimate
+    yield runs, "the estimate", (e.beta, e.std, e.beta_wls, e.pi, e.noise, e.residual_rms)
+    if refined is not None:
+        yield runs, "the refinement", (refined.beta, refined.pi, refined.bias,
+                                       [refined.delay, refined.rms_before, refined.rms_after])
+    for v in validation:
+        if not v.force_peak > 0.0:
+            raise IdentificationError(f"{v.run.path}: every force of the held-out run is zero "
+                                      "(after the edges are trimmed): no error relative to its "
+                                      "peak")
+        yield str(v.run.path), "the validation", (
+            v.identified, v.prior, v.noise_floor, v.rms("identified"), v.rms("prior"),
+            [v.force_peak])
 
 
 def _residuals(ident: Identification):
@@ -91,15 +130,17 @@ def _base_rows(ident: Identification):
 
 
 def status_of(ident: Identification, name: str) -> str:
-    """alone / combined / not identifiable / not excited / absent, for a standard parameter."""
+    """alone / combined / not identifiable / not excited / absent, for a standard parameter;
+    one the runs do not determine that the consistency constraints moved says so."""
+    moved = " (moved by the consistency constraints)" if name in ident.estimate.moved else ""
     if name in ident.missing:
-        return "not excited by these runs"
+        return "not excited by these runs" + moved
     if name in ident.base.alone:
         return "alone"
     if name in ident.base.combined:
         return "in combination"
     if name in ident.base.unidentifiable:
-        return "not identifiable"
+        return "not identifiable" + moved
     return "absent from the scene"
 
 
@@ -151,11 +192,11 @@ def report_text(ident: Identification, scene_path: Path, validation: list[Predic
               f"- Only in combination ({len(b.combined)}): {', '.join(b.combined) or 'none'} "
               "(identified.toml holds the consistent split nearest the prior)",
               f"- Not at all ({len(b.unidentifiable)}): {', '.join(b.unidentifiable) or 'none'} "
-              "(kept at the prior)", ""]
+              "(kept at the prior" + (", except as below" if e.moved else "") + ")", ""]
+    if e.moved:
+        lines += _moved_lines(ident)
     if unheld:
-        lines += ["Identified but not representable in a scene (the model holds the platform's "
-                  "centre of mass at C with principal axes along the platform frame): "
-                  + ", ".join(f"{k} = {v:.4g}" for k, v in unheld.items()), ""]
+        lines += _unheld_lines(ident, unheld)
     if refined is not None:
         lines += _refinement_lines(ident, refined)
     if validation:
@@ -168,6 +209,58 @@ def report_text(ident: Identification, scene_path: Path, validation: list[Predic
     return "\n".join(lines) + "\n"
 
 
+def percent(x: float) -> str:
+    """x as a percentage: three decimals, or four significant digits from 1000 % and below
+    0.001 % (a round-off figure is not shown as zero)."""
+    return f"{x:.3%}" if 1e-5 <= abs(x) < 10.0 or x == 0.0 else f"{100.0 * x:.4g}%"
+
+
+def _unheld_lines(ident: Identification, unheld: dict[str, float]) -> list[str]:
+    """The identified values the scene cannot hold, and what writing them as zero costs: the
+    largest change of the model's forces on the identification's rows."""
+    pi = np.array([unheld.get(n, 0.0) for n in NAMES])
+    W = np.vstack([p.W for p in ident.prepared])
+    s = np.concatenate([p.s for p in ident.prepared])
+    change = float(np.max(np.abs(W @ pi)))
+    peak = float(np.max(np.abs(s)))
+    return ["Identified but not representable in a scene (the scene's model holds the "
+            "platform's centre of mass at C and its principal axes along the platform frame); "
+            "identified.toml has them at zero: "
+            + ", ".join(f"{k} = {v:.4g} {UNITS[NAMES.index(k)]}" for k, v in unheld.items())
+            + f". Zeroing them changes the model's forces on the identification runs by "
+              f"{change:.3g} N at most ({percent(change / peak)} of the force peak).", ""]
+
+
+def body_of(name: str) -> str:
+    """The body a standard parameter belongs to: platform, legs.lower_, legs.upper_, or the
+    name itself (a drive or a friction, one leg's)."""
+    for prefix in ("platform.", "legs.lower_", "legs.upper_"):
+        if name.startswith(prefix):
+            return prefix
+    return name
+
+
+def _moved_lines(ident: Identification) -> list[str]:
+    """Which parameters the runs do not determine moved off the prior, and which identified
+    combinations made them (those of the same body)."""
+    b, e = ident.base, ident.estimate
+    names = b.names()
+    out = ["Moved off the prior although the runs do not determine them: no physically "
+           "consistent set of standard parameters reproduces the identified base parameters "
+           "with their prior values (the body's pseudo-inertia would not be positive "
+           "semidefinite), so they take the least change, in the prior's scale, that makes one:",
+           ""]
+    for name in e.moved:
+        k = NAMES.index(name)
+        body = body_of(name)
+        why = [names[i] for i in range(b.rank) if any(
+            b.combination[i, j] != 0.0 and body_of(NAMES[j]) == body
+            for j in range(len(NAMES)))]
+        out.append(f"- {name}: prior {ident.prior[k]:.6g}, written {e.pi[k]:.6g} "
+                   f"{UNITS[k]}; held by the identified {'; '.join(why) or 'base parameters'}")
+    return out + [""]
+
+
 def _validation_lines(v: Prediction) -> list[str]:
     peak = v.force_peak
     out = [f"### {md_code(v.run.path.name)} (force peak {peak:.4g} N)", "",
@@ -177,8 +270,8 @@ def _validation_lines(v: Prediction) -> list[str]:
     for j in range(6):
         out.append(f"| {j + 1} | {ri[j]:.4g} | {rp[j]:.4g} | {pi[j]:.4g} | {pp[j]:.4g} | "
                    f"{v.noise_floor[j]:.4g} | {ri[j] / max(v.noise_floor[j], 1e-300):.3g} |")
-    out += ["", f"RMS error over all legs: identified {np.sqrt(np.mean(ri**2)) / peak:.3%} of the "
-            f"peak, prior {np.sqrt(np.mean(rp**2)) / peak:.3%}. "
+    out += ["", f"RMS error over all legs: identified {percent(v.rms_error('identified'))} of "
+            f"the peak, prior {percent(v.rms_error('prior'))}. "
             + ("The residual is at the noise floor (within 1.2x on every leg)."
                if v.at_noise_floor() else
                "The residual is above the noise floor (more than 1.2x on some leg): the model "

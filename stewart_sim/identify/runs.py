@@ -54,6 +54,10 @@ MIN_SAMPLES = 100
 # 0.1 um, below a 1 um encoder's resolution). Timestamps written at 1 us resolution pass at
 # 1 kHz (5e-4 of the period).
 TIME_JITTER = 1e-3
+# N: the largest rack force a run may hold. The largest hydraulic actuators push about 1e7 N; a
+# force above this is a wrong unit or a corrupt file, not a machine (and well inside it, the
+# sums of squares of any record stay finite in float64).
+MAX_FORCE = 1e9
 
 
 @dataclass(frozen=True)
@@ -77,7 +81,8 @@ def read_run(path: str | Path, model: Model, motor: "Motor | None" = None) -> Ru
     """Read and check a run file (see the module doc) against the model's scene; `motor` (the
     scene's [controller.motor]) is needed only for a file with currents alone. Refusals are
     TrajectoryError naming the file and the reason: missing columns, fewer than MIN_SAMPLES
-    samples, a time not uniformly sampled (TIME_JITTER), leg lengths outside the stroke."""
+    samples, a time not uniformly sampled (TIME_JITTER), leg lengths outside the stroke, forces
+    all zero or beyond MAX_FORCE."""
     path = Path(path)
     header = set(csv_header(path, "run"))
     time = next((c for c in TIME_COLUMNS if c in header), None)
@@ -100,7 +105,9 @@ def read_run(path: str | Path, model: Model, motor: "Motor | None" = None) -> Ru
     t, lengths, raw = data[:, 0], data[:, 1:7], data[:, 7:13]
     _check_uniform(path, t)
     _check_stroke(path, model, t, lengths)
-    sigma = _forces(path, model, motor, prefix, raw)
+    with np.errstate(over="ignore"):     # a converted force beyond float64: refused below
+        sigma = _forces(path, model, motor, prefix, raw)
+    _check_forces(path, t, sigma, source)
     return Run(path, t, lengths, sigma, data[:, 13:19] if has_pose else None, source)
 
 
@@ -156,6 +163,23 @@ def _check_stroke(path: Path, model: Model, t: np.ndarray, lengths: np.ndarray) 
             f"{path}: sample {k} (t = {t[k]:.6g} s): leg(s) {legs} with lengths "
             f"{lengths[k, out[k]].tolist()} m outside the scene's stroke [{lo}, {hi}] m"
             f"{_more(rows)}", index=k, time=float(t[k]))
+
+
+def _check_forces(path: Path, t: np.ndarray, sigma: np.ndarray, source: str) -> None:
+    """The forces are those of a machine: not all zero (a moving platform is pushed by its
+    legs, and the identification's noise model and the validation's relative errors need a
+    force), none beyond MAX_FORCE in magnitude (after the conversion from `source`)."""
+    peak = np.abs(sigma)
+    if not np.any(peak > 0.0):
+        raise TrajectoryError(f"{path}: every force ({source}) is zero: a run needs the forces "
+                              "that moved the platform")
+    over = np.flatnonzero(np.any(~(peak <= MAX_FORCE), axis=1))
+    if over.size:
+        k = int(over[0])
+        raise TrajectoryError(
+            f"{path}: sample {k} (t = {t[k]:.6g} s): force ({source}) of "
+            f"{float(np.max(peak[k])):.3g} N, beyond {MAX_FORCE:g} N: a wrong unit or a "
+            f"corrupt file{_more(over)}", index=k, time=float(t[k]))
 
 
 def _forces(path: Path, model: Model, motor: "Motor | None", prefix: str,

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stewart_fmu.dynamics import regressor
+from stewart_fmu.errors import StewartError, TrajectoryError
 from stewart_fmu.model import Model
 from stewart_fmu.standard import N_STANDARD, NAMES, present, span, standard_parameters
 
@@ -72,6 +73,10 @@ class Prediction:
     def peak(self, which: str) -> np.ndarray:
         return np.max(np.abs(getattr(self, which) - self.measured), axis=0)
 
+    def rms_error(self, which: str) -> float:
+        """The RMS error over all legs of the `which` model, relative to the force peak."""
+        return float(np.sqrt(np.mean(self.rms(which) ** 2))) / self.force_peak
+
     @property
     def force_peak(self) -> float:
         return float(np.max(np.abs(self.measured)))
@@ -113,6 +118,10 @@ class Identification:
         the prior's could break consistency (a leg part's mass with another's moment)."""
         return {n for n, held in zip(NAMES, present(self.model)) if held} - set(NOT_HELD)
 
+    def unheld(self) -> set[str]:
+        """The standard parameters the runs determine that a scene cannot hold (NOT_HELD)."""
+        return self.identified() & set(NOT_HELD)
+
     def base_scale(self) -> np.ndarray:
         """A base parameter's magnitude for relative errors (|K| times the scales)."""
         return np.abs(self.base.combination) @ self.scale
@@ -129,11 +138,29 @@ def prepare(model: Model, run: Run, cutoff: float | None = None,
     of the pose shifted back by it: the forces and their noise stay as measured)."""
     q = pose_of(model, run)
     filt = choose_filter(run.t, q, cutoff, decimate)
-    qf, qd, qdd = derivatives(q, filt, -force_delay)
-    Y = regressor(model, qf, qd, qdd)
+    Y = _regressor(model, run, q, filt, force_delay)
     Yd = decimated(lowpass(Y, filt), filt)
     sd = decimated(lowpass(run.sigma, filt), filt)
     return Prepared(run, filt, decimated(run.t, filt), stacked(Yd), sd.reshape(-1))
+
+
+def _regressor(model: Model, run: Run, q: np.ndarray, filt: Filter,
+               force_delay: float) -> np.ndarray:
+    """Y of the run's filtered motion (poses q), the forces `force_delay` late. Derivatives that
+    overflow (a time step far too short for the motion: the time column in the wrong unit) and
+    the regressor's refusals are a TrajectoryError naming the run."""
+    with np.errstate(over="ignore", invalid="ignore"):   # refused below, in one line
+        qf, qd, qdd = derivatives(q, filt, -force_delay)
+    for name, x in (("rates", qd), ("accelerations", qdd)):
+        if not np.all(np.isfinite(x)):
+            raise TrajectoryError(
+                f"{run.path}: the pose's {name} overflow float64 at the run's sampling period "
+                f"of {1.0 / filt.rate:.3g} s: is the time column in seconds?")
+    try:
+        return regressor(model, qf, qd, qdd)
+    except StewartError as exc:
+        raise TrajectoryError(f"{run.path}: the filtered motion: {exc}",
+                              index=getattr(exc, "index", None)) from None
 
 
 def identify(model: Model, runs: list[Run], cutoff: float | None = None, partial: bool = False,
@@ -150,12 +177,17 @@ def identify(model: Model, runs: list[Run], cutoff: float | None = None, partial
     missing = _missing(structural, base)
     if missing and not partial:
         raise IdentificationError(
-            f"regressor rank {base.rank} of {structural.rank} (the scene's base parameters): "
+            f"{', '.join(str(r.path) for r in runs)}: regressor rank {base.rank} of "
+            f"{structural.rank} (the scene's base parameters): "
             f"{', '.join(missing)} not identifiable from these runs; add {_hint(missing)} "
             f"(or --partial to keep their prior values)")
     prior = standard_parameters(model)
     scale = scales(model, prior)
-    est = estimate(W, s, legs, base, prior, scale, model.characteristic_length)
+    try:
+        est = estimate(W, s, legs, base, prior, scale, model.characteristic_length,
+                       np.isin(np.array(NAMES), NOT_HELD))
+    except IdentificationError as exc:
+        raise IdentificationError(f"{', '.join(str(r.path) for r in runs)}: {exc}") from None
     # the decimated noise is coloured by the window: least squares' covariance is low by this
     # factor (signal.white_noise_factor; the largest of the runs' filters, to stay honest)
     factor = max(white_noise_factor(p.filter) for p in prepared)
@@ -195,8 +227,7 @@ def predict(ident: Identification, run: Run, pi: np.ndarray | None = None) -> Pr
     scaled to the full band as white noise."""
     q = pose_of(ident.model, run)
     filt = choose_filter(run.t, q, ident.prepared[0].filter.cutoff, 1)
-    qf, qd, qdd = derivatives(q, filt, -ident.force_delay)
-    Y = regressor(ident.model, qf, qd, qdd)
+    Y = _regressor(ident.model, run, q, filt, ident.force_delay)
     keep = decimated(np.arange(len(run.t)), filt)
     identified = Y @ (ident.pi if pi is None else pi)
     residual = run.sigma - identified

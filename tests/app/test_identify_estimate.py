@@ -36,6 +36,7 @@ def run_estimate(model, truth, W, legs, noise, rng):
     return base, estimate(W, s, legs, base, prior, sc, model.characteristic_length), sc
 
 
+@pytest.mark.numerics
 def test_noise_free_rows_give_the_base_parameters_to_1e_8(micro):
     rng = np.random.default_rng(0)
     truth = standard_parameters(perturbed_model(micro, rng))
@@ -51,6 +52,7 @@ def test_noise_free_rows_give_the_base_parameters_to_1e_8(micro):
     assert np.max(np.abs(W2 @ est.pi - s2)) < 1e-8 * np.max(np.abs(s2))
 
 
+@pytest.mark.numerics
 def test_the_truth_is_inside_three_sigma(micro):
     """Force noise 1 % of the peak: over 20 seeds, at least 95 % of the base parameters hold
     the truth inside the reported 3-sigma interval; the estimated noise level of each leg is the
@@ -80,6 +82,7 @@ def pseudo_inertia(pi):
     return J
 
 
+@pytest.mark.numerics
 def test_the_estimate_is_physically_consistent(micro):
     """With noise large enough to make the WLS estimate unphysical, pi is physical (pseudo-
     inertias >= 0, frictions and drive masses >= 0) and reproduces the reported beta."""
@@ -101,6 +104,7 @@ def test_the_estimate_is_physically_consistent(micro):
     assert np.allclose(base.beta(pi), est.beta, rtol=0, atol=1e-6 * (np.abs(base.combination) @ sc).max())
 
 
+@pytest.mark.numerics
 def test_rows_without_rotation_determine_less_than_the_structure(micro):
     """Translation only: the platform's inertia drops out of what the rows determine."""
     rng = np.random.default_rng(3)

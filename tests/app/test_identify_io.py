@@ -104,7 +104,7 @@ def test_force_sources_in_order_and_their_conversion(scene, tmp_path):
         run = read_run(write_run(tmp_path / f"{prefix}.csv", cols), m, motor)
         assert run.source.startswith(prefix) and run.pose is None
         np.testing.assert_allclose(run.sigma[:, 5], gain * 6 * np.arange(150.0), rtol=1e-15)
-    both = run_columns(m, t, q, "current") | {f"sigma{i}": np.zeros(150) for i in range(1, 7)}
+    both = run_columns(m, t, q, "current") | {f"sigma{i}": np.ones(150) for i in range(1, 7)}
     assert read_run(write_run(tmp_path / "both.csv", both), m, motor).source == "sigma"
 
 
