@@ -172,6 +172,9 @@ def test_tight_stroke_holds_on_the_nonlinear_legs():
     assert np.max(result.diagnostics.slack) < options.stroke_margin   # the margin absorbs it
 
 
+# long: the claim is about the shipped braking car (12 s) with the default MPC (20 Hz,
+# 2 s horizon): 240 QPs of 40 steps, ~25 s of CPU
+@pytest.mark.long
 def test_braking_car_optimal_is_perceived_better_than_classical_and_feasible(sim):
     """The shipped braking car with the default parameters: the optimal cue's perceived error,
     counted in perception thresholds as the MPC counts it (sum over the axes of
