@@ -1,11 +1,13 @@
 """Shared helpers of the tests (imported as `helpers`: tests/ is on pytest's pythonpath): the two
 scenes as TOML dicts and Models, their model levels (tables dropped from the dict), smooth random
-trajectories near home, scene-dict edits, and the record of worst residuals."""
+trajectories near home, scene-dict edits, the record of worst residuals, and FMU exports without
+their Windows binary."""
 from __future__ import annotations
 
 import copy
 import functools
 import tomllib
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -246,3 +248,18 @@ def near_peak(values: np.ndarray) -> set[tuple[int, ...]]:
     twins there, and either may be the peak after another rounding."""
     a = np.abs(values)
     return {tuple(int(i) for i in k) for k in np.argwhere(a >= a.max() * (1 - ROUNDING_BAND))}
+
+
+@contextmanager
+def host_binary_only():
+    """export_fmu builds the host's binary only, as on a machine without mingw-w64 (one line on
+    stderr says so): for the tests that import an FMU here and never look at its Windows DLL,
+    whose cross-compilation is over half of an export's CPU time. The DLL is tested in
+    tests/stewart_fmu/test_windows_fmu.py."""
+    import pytest
+
+    from stewart_fmu.fmu import windows
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(windows, "MINGW_CC", "no-mingw-in-this-test")
+        yield

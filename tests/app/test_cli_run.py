@@ -3,7 +3,9 @@ main([...]): the files they write, the summary against the ClosedLoopResult, the
 against the in-process plant, and the errors."""
 from __future__ import annotations
 
+import contextlib
 import csv
+import io
 import re
 from pathlib import Path
 
@@ -18,6 +20,7 @@ from stewart_fmu.fmu.export import export_fmu
 from stewart_fmu.io import POSE
 from stewart_sim import cli
 from stewart_sim import run as run_files
+from tests.helpers import host_binary_only
 
 ROOT = Path(__file__).resolve().parents[2]
 MICRO = ROOT / "scenes" / "micro_manipulator.toml"
@@ -48,8 +51,27 @@ def g6(x: float) -> str:
 
 @pytest.fixture(scope="module")
 def micro_fmu(tmp_path_factory) -> Path:
-    """The micro-manipulator exported as an FMU (once for the module)."""
-    return export_fmu(MICRO, tmp_path_factory.mktemp("fmu") / "plant.fmu")
+    """The micro-manipulator exported as an FMU (once for the module; run here: its host
+    binary only)."""
+    with host_binary_only():
+        return export_fmu(MICRO, tmp_path_factory.mktemp("fmu") / "plant.fmu")
+
+
+@pytest.fixture(scope="module")
+def default_run(tmp_path_factory):
+    """`run` of a scene with its defaults (run_cli), once for the module: (folder, what it
+    printed). Three tests read the micro scene's: its files, the feedforward mode's run (the
+    scene's is kane), and the in-process run the FMU's is compared with."""
+    folder, done = tmp_path_factory.mktemp("runs"), {}
+
+    def get(scene: Path) -> tuple[Path, str]:
+        if scene not in done:
+            out, printed = folder / scene.stem, io.StringIO()
+            with contextlib.redirect_stdout(printed):
+                assert run_cli(scene, out) == 0
+            done[scene] = out, printed.getvalue()
+        return done[scene]
+    return get
 
 
 def run_cli(scene: Path, out: Path, *extra: str) -> int:
@@ -60,11 +82,9 @@ def run_cli(scene: Path, out: Path, *extra: str) -> int:
 # --- run -------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("scene", [MICRO, SIM], ids=["micro", "sim"])
-def test_run_writes_files_and_summary_equals_result(scene, tmp_path, capsys) -> None:
+def test_run_writes_files_and_summary_equals_result(scene, default_run) -> None:
     """run.csv is the result's table; summary.md (printed too) has the result's numbers."""
-    out = tmp_path / "run"
-    assert run_cli(scene, out) == 0
-    printed = capsys.readouterr().out
+    out, printed = default_run(scene)
     for name in run_files.RUN_FILES:
         assert (out / name).is_file() and (out / name).stat().st_size > 0, name
         assert f"wrote {out / name}" in printed
@@ -118,12 +138,13 @@ def test_summary_states_an_actuation_delay() -> None:
             "drives the period after it)"])
 
 
-def test_run_feedforward_override(tmp_path, capsys) -> None:
+def test_run_feedforward_override(default_run, tmp_path, capsys) -> None:
     """--feedforward replaces the scene's mode (kane) and changes the run."""
-    assert run_cli(MICRO, tmp_path / "kane") == 0
+    kane_run, _ = default_run(MICRO)
+    assert "- feedforward: kane" in (kane_run / "summary.md").read_text()
     assert run_cli(MICRO, tmp_path / "none", "--feedforward", "none") == 0
     assert "- feedforward: none" in (tmp_path / "none" / "summary.md").read_text()
-    _, kane = read_csv(tmp_path / "kane" / "run.csv")
+    _, kane = read_csv(kane_run / "run.csv")
     header, none = read_csv(tmp_path / "none" / "run.csv")
     e = [header.index(f"e{i}") for i in range(1, 7)]
     assert np.max(np.abs(none[:, e])) > 10 * np.max(np.abs(kane[:, e]))
@@ -131,13 +152,14 @@ def test_run_feedforward_override(tmp_path, capsys) -> None:
     assert not np.any(none[:, v_ff])
 
 
-def test_run_fmu_equals_in_process(micro_fmu, tmp_path, capsys) -> None:
+def test_run_fmu_equals_in_process(micro_fmu, default_run, tmp_path, capsys) -> None:
     """The same run through the exported FMU (fmpy) gives the in-process run.csv to 1e-9."""
     assert run_cli(MICRO, tmp_path / "fmu", "--fmu", str(micro_fmu)) == 0
     assert "plant: FMU" in (tmp_path / "fmu" / "summary.md").read_text()
-    assert run_cli(MICRO, tmp_path / "local") == 0
+    local, _ = default_run(MICRO)
+    assert "plant: in-process plant" in (local / "summary.md").read_text()
     h_fmu, fmu = read_csv(tmp_path / "fmu" / "run.csv")
-    h_loc, loc = read_csv(tmp_path / "local" / "run.csv")
+    h_loc, loc = read_csv(local / "run.csv")
     assert h_fmu == h_loc and fmu.shape == loc.shape
     assert np.max(np.abs(fmu - loc)) <= 1e-9
 

@@ -4,8 +4,6 @@ tool (the written trajectory through `inverse` gives the written forces), a moti
 strong reported with its first sample and leg, the closed loop tracking the cue, bad input."""
 from __future__ import annotations
 
-import subprocess
-import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -19,6 +17,7 @@ from stewart_sim.cueing.motion import VehicleMotion, read_motion
 from stewart_sim.cueing.report import write_cue_report
 from stewart_sim.cueing.study import cue_study, make_cue, resample
 from stewart_sim.cueing.config import cueing_config
+from stewart_sim import cli
 from stewart_sim.scene_load import scene_of
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -124,6 +123,9 @@ def test_the_cue_at_the_controller_rate_agrees_with_the_sampled_one(model):
         np.testing.assert_allclose(fine.q[k], coarse.q, rtol=0, atol=RATE_AGREEMENT)
 
 
+# long: --compare on the shipped lane change with the default MPC (its summary's 240 MPC
+# steps are asserted): ~15 s of CPU
+@pytest.mark.long
 @pytest.mark.numerics
 def test_compare_writes_both_cues_and_both_fly_inside_the_limits(model, tmp_path):
     """--compare: the optimal cue beside the classical one; both inside every limit, the
@@ -145,27 +147,32 @@ def test_compare_writes_both_cues_and_both_fly_inside_the_limits(model, tmp_path
     assert optimal.perception.rms_f[1] < classical.perception.rms_f[1]
 
 
-def _cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "stewart_sim", *args], cwd=ROOT,
-                          capture_output=True, text=True, timeout=300)
+def _cli(capsys, *args: str) -> tuple[int, str, str]:
+    """`stewart-sim ARGS` in this process (cli.main, which the console script and
+    `python -m stewart_sim` call): the exit status, stdout and stderr."""
+    capsys.readouterr()
+    status = cli.main(list(args))
+    out, err = capsys.readouterr()
+    return status, out, err
 
 
-def test_cli_writes_the_set_and_says_the_verdict(tmp_path):
+def test_cli_writes_the_set_and_says_the_verdict(tmp_path, capsys):
     out = tmp_path / "cue"
-    done = _cli("cue", str(SIM), "--motion", str(MOTIONS[0]), "--out", str(out))
-    assert done.returncode == 0, done.stderr
-    assert "classical: inside every limit" in done.stdout
+    status, stdout, stderr = _cli(capsys, "cue", str(SIM), "--motion", str(MOTIONS[0]),
+                                  "--out", str(out))
+    assert status == 0, stderr
+    assert "classical: inside every limit" in stdout
     for name in ("trajectory.csv", "summary.md", "view.html"):
         assert (out / name).exists(), name
-    assert "view.html: " in done.stdout and " frames at 30 frames/s from 1201 samples" in done.stdout
+    assert "view.html: " in stdout and " frames at 30 frames/s from 1201 samples" in stdout
 
 
-def test_cli_bad_motion_file_is_one_line_and_exit_2(tmp_path):
+def test_cli_bad_motion_file_is_one_line_and_exit_2(tmp_path, capsys):
     bad = tmp_path / "bad.csv"
     bad.write_text("t,fx,fy,fz,wx,wy,wz\n0,0,0,9.81,0,0,0\n0.01,0,zero,9.81,0,0,0\n")
     out = tmp_path / "cue"
-    done = _cli("cue", str(SIM), "--motion", str(bad), "--out", str(out))
-    assert done.returncode == 2
-    lines = done.stderr.strip().splitlines()
-    assert len(lines) == 1 and "bad.csv" in lines[0] and "Traceback" not in done.stderr
+    status, _, stderr = _cli(capsys, "cue", str(SIM), "--motion", str(bad), "--out", str(out))
+    assert status == 2
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1 and "bad.csv" in lines[0] and "Traceback" not in stderr
     assert not out.exists()

@@ -19,6 +19,7 @@ from stewart_fmu.io import FORCE_COLUMNS, POSE, named_array, trajectory_table, w
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.plant import Plant
 from stewart_sim import cli
+from tests.helpers import host_binary_only
 
 ROOT = Path(__file__).resolve().parents[2]
 MICRO = ROOT / "scenes" / "micro_manipulator.toml"
@@ -138,17 +139,31 @@ def test_simulate_applies_each_legs_own_friction(scenes, inverse_tables, traject
     assert same < 0.02 * unbalanced
 
 
-def test_fmu_friction_outputs_leg_by_leg(scenes, tmp_path):
+@pytest.fixture(scope="module")
+def fmus(scenes, tmp_path_factory) -> dict[str, Path]:
+    """The exported FMUs (FMI 2.0) of the six-friction scene and of the frictionless one."""
+    folder = tmp_path_factory.mktemp("fmu")
+    with host_binary_only():   # imported here (fmpy, run --fmu): the Windows DLL is not used
+        return {name: export_fmu(scenes[name], folder / f"{name}.fmu") for name in ("all", "none")}
+
+
+def test_fmu_friction_outputs_leg_by_leg(scenes, fmus):
     """The exported FMU of the six-friction scene declares friction.viscous[1..6] and its
     force.friction[i] is viscous_i * ldot[i], bit for bit the Plant's; a one-number scene keeps
-    the scalar parameter friction.viscous."""
+    the scalar parameter friction.viscous. The single-leg scenes are that FMU with its six
+    parameters set to theirs (one export: each export compiles the C core), against the Plant
+    of each single-leg scene file."""
     from fmpy import extract, read_model_description
     from fmpy.fmi2 import FMU2Slave
 
     outputs = {}
-    for name in ("all", "none", *(f"leg{i}" for i in range(1, 7))):
-        path = export_fmu(scenes[name], tmp_path / f"{name}.fmu")
-        md = read_model_description(str(path))
+    cases = [("all", None), ("none", None)]
+    cases += [(f"leg{i + 1}", [v if k == i else 0.0 for k, v in enumerate(VISCOUS)])
+              for i in range(6)]
+    unzipped = {name: extract(str(path)) for name, path in fmus.items()}
+    for name, viscous_set in cases:
+        source = "none" if name == "none" else "all"
+        md = read_model_description(str(fmus[source]))
         vr = {v.name: v.valueReference for v in md.modelVariables}
         start = {v.name: v.start for v in md.modelVariables}
         if name == "all":
@@ -156,11 +171,13 @@ def test_fmu_friction_outputs_leg_by_leg(scenes, tmp_path):
             assert "friction.viscous" not in vr
         if name == "none":
             assert "friction.viscous" in vr and "friction.viscous[1]" not in vr
-        fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(path)),
+        fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipped[source],
                         modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
         model = load_scene(scenes[name])
         plant = Plant(model)
         fmu.instantiate()
+        if viscous_set is not None:
+            fmu.setReal([vr[f"friction.viscous[{i}]"] for i in range(1, 7)], viscous_set)
         fmu.setupExperiment(startTime=0.0)
         fmu.enterInitializationMode()
         fmu.exitInitializationMode()
@@ -191,17 +208,31 @@ def test_fmu_friction_outputs_leg_by_leg(scenes, tmp_path):
     assert np.max(np.abs(outputs["all"])) > 0 and np.all(outputs["none"] == 0.0)
 
 
-def test_run_feedforward_forces_differ_leg_by_leg(scenes, tmp_path):
+def test_run_feedforward_forces_differ_leg_by_leg(scenes, fmus, tmp_path):
     """`run` with the Kane feedforward: its feedforward voltages carry each leg's own friction
-    force (linear in it), and the FMU plant runs the six-friction scene as the in-process one."""
+    force (linear in it), and the FMU plant runs the six-friction scene as the in-process one.
+    The eight scenes' loops run as `run` runs them (controller.cosim.run_closed_loop on the
+    scene's controller with --feedforward kane, the demonstration reference and the scene's
+    [solver], as stewart_sim.run.run_closed_loop_files calls it) without the three plots each;
+    the command itself runs the six-friction scene, and its run.csv is that loop's table."""
+    from dataclasses import replace
+
+    from controller.cosim import run_closed_loop
+    from controller.moves import run_reference
+    from stewart_sim.scene_load import load
+
     v_ff = {}
     for name, scene in scenes.items():
-        out = tmp_path / name
-        assert cli.main(["run", str(scene), "--out", str(out), "--duration", "1.0",
-                         "--feedforward", "kane", "--no-view"]) == 0
-        v_ff[name] = legs(read_csv(out / "run.csv"), "v_ff")
+        loaded = load(scene)
+        config = replace(loaded.require_controller(), feedforward="kane")
+        traj = run_reference(loaded.model, config, 1.0)
+        result = run_closed_loop(loaded.model, config, traj, options=loaded.solver)
+        v_ff[name] = legs(result.table, "v_ff")
     check_leg_by_leg(v_ff)
-    fmu = export_fmu(scenes["all"], tmp_path / "all.fmu")
+    assert cli.main(["run", str(scenes["all"]), "--out", str(tmp_path / "all"), "--duration", "1.0",
+                     "--feedforward", "kane", "--no-view"]) == 0
+    assert np.array_equal(legs(read_csv(tmp_path / "all" / "run.csv"), "v_ff"), v_ff["all"])
+    fmu = fmus["all"]
     assert cli.main(["run", str(scenes["all"]), "--out", str(tmp_path / "fmu"), "--duration", "1.0",
                      "--feedforward", "kane", "--no-view", "--fmu", str(fmu)]) == 0
     loc, via_fmu = read_csv(tmp_path / "all" / "run.csv"), read_csv(tmp_path / "fmu" / "run.csv")

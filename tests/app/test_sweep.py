@@ -257,15 +257,15 @@ def test_interrupted_sweep_keeps_its_rows_and_resumes(tmp_path, cluster):
     assert (out / "sweep.csv").read_text() == serial_table(grid)
 
 
-def test_a_worker_killed_mid_sweep_loses_no_point(tmp_path):
+def test_a_worker_killed_mid_sweep_loses_no_point(tmp_path, cluster):
     """SIGKILL one of two worker processes once rows arrive: the scheduler reruns its tasks
-    (its nanny restarts it), and the table still has every point once, equal to the serial one."""
+    (its nanny restarts it), and the table still has every point once, equal to the serial one.
+    The module's cluster: the nanny's restart leaves it whole again (waited for at the end)."""
     grid = grid_file(tmp_path, SLOW)
     out = tmp_path / "out"
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  host="127.0.0.1", dashboard_address=":0") as c, \
-            distributed.Client(c, timeout=WAIT) as client:
-        client.run(lambda: None)  # workers up
+    c = cluster
+    with distributed.Client(c, timeout=WAIT) as client:
+        client.wait_for_workers(2, timeout=WAIT)  # workers up
         pids = client.run(os.getpid)
         result: dict = {}
         worker = threading.Thread(target=lambda: result.update(summary=run_sweep(
@@ -280,6 +280,8 @@ def test_a_worker_killed_mid_sweep_loses_no_point(tmp_path):
         worker.join(WAIT)
         assert not worker.is_alive()
         assert victim not in client.run(os.getpid).values()  # it really died (and was replaced)
+        client.wait_for_workers(2, timeout=WAIT)
+        assert victim not in client.run(os.getpid).values()
     s = result["summary"]
     assert s.computed == 120 and s.failed == 0
     assert (out / "sweep.csv").read_text() == serial_table(grid)

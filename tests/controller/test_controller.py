@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import re
+from pathlib import Path
 
 import control as ct
 import numpy as np
@@ -44,7 +45,14 @@ from stewart_fmu.errors import IntegrationError, SceneError
 from stewart_fmu.fmu.export import export_fmu
 from stewart_fmu.integrators import IntegratorOptions
 from stewart_fmu.kane_terms import mass_matrix
-from tests.helpers import SCENE_FILES, deleting, level_model, scene_dict, setting
+from tests.helpers import (
+    SCENE_FILES,
+    deleting,
+    host_binary_only,
+    level_model,
+    scene_dict,
+    setting,
+)
 
 SCENES = ("micro", "sim")
 
@@ -362,8 +370,15 @@ def test_kane_feedforward_starts_without_a_correction():
 
 # --- 5. FMU loop = in-process loop --------------------------------------------------------------
 
+@pytest.fixture(scope="module")
+def micro_fmu(tmp_path_factory) -> Path:
+    """The micro scene's FMU, once for both feedforwards (run here: its host binary only)."""
+    with host_binary_only():
+        return export_fmu(SCENE_FILES["micro"], tmp_path_factory.mktemp("fmu") / "micro.fmu")
+
+
 @pytest.mark.parametrize("feedforward", ["none", "kane"])
-def test_fmu_loop_equals_in_process_loop(tmp_path, feedforward):
+def test_fmu_loop_equals_in_process_loop(micro_fmu, feedforward):
     """The same 200-step run (a quintic of 1 cm and 0.1 rad over 0.2 s) through the default
     in-process loop (the compiled fast path) and through FmuPlant on the FMU exported from the
     scene. Both run the same plant code with the same integrator and the same controller
@@ -374,7 +389,7 @@ def test_fmu_loop_equals_in_process_loop(tmp_path, feedforward):
     traj = quintic(model.home, model.home + MOVE, rate=config.rate, duration=0.2)
     assert len(traj.t) == 201   # 200 communication steps
     reference = run_closed_loop(model, config, traj)
-    plant = FmuPlant(export_fmu(SCENE_FILES["micro"], tmp_path / "micro.fmu"))
+    plant = FmuPlant(micro_fmu)
     try:
         fmu = run_closed_loop(model, config, traj, plant=plant)
     finally:

@@ -36,7 +36,7 @@ from stewart_fmu.integrators import IntegratorOptions
 from stewart_fmu.plant import Plant
 from stewart_fmu.errors import SceneError
 from stewart_fmu.scene import apply_overrides, scene_from_dict
-from tests.helpers import record
+from tests.helpers import host_binary_only, record
 from tests.stewart_fmu.native_fmu_child import Elements
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -123,8 +123,12 @@ def _build(scene: Path, version: int, folder: Path) -> Built:
 
 @pytest.fixture(scope="module")
 def fmus(tmp_path_factory) -> dict[tuple[str, int], Built]:
+    """Each scene's FMU, FMI 2.0 and 3.0 (its host binary only: the Windows DLL is tested in
+    test_windows_fmu.py)."""
     folder = tmp_path_factory.mktemp("native_fmus")
-    return {(name, v): _build(scene, v, folder) for name, scene in SCENES.items() for v in (2, 3)}
+    with host_binary_only():
+        return {(name, v): _build(scene, v, folder) for name, scene in SCENES.items()
+                for v in (2, 3)}
 
 
 # --- driving the FMU through fmpy, and the Plant --------------------------------------------------

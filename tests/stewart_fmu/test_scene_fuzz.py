@@ -1,19 +1,18 @@
-"""A seeded, bounded fuzz of scenes: every key of every shipped scene (and every first element of
-its arrays) replaced by each hostile value (1e308, -1e308, 1e-300, 0, a negative, nan and inf as
-TOML numbers and as strings, a 31-digit integer, 1 followed by 400 zeros, an array nested 40 deep,
-wrong types, a string with escapes), written as a TOML file and loaded; the micro scene's
-mutations also through the commands scene-info and inverse, and a seeded sample of them through
-run (0.05 s). Every outcome: the scene loads, or one SceneError naming a dotted key; a command
-exits 0 or 2 with one line on stderr, never a traceback; what exit 0 writes holds only finite
-numbers. Every loop is bounded by the lists below; the whole test runs a few minutes at most
-and has no wall-clock pass/fail. The issue's repros are tests beside it (scene values:
-test_issue_repros_* below)."""
+"""A deterministic, bounded fuzz of scenes: every key of every shipped scene (and every first
+element of its arrays) replaced by each hostile value (1e308, -1e308, 1e-300, 0, a negative, nan
+and inf as TOML numbers and as strings, a 31-digit integer, 1 followed by 400 zeros, an array
+nested 40 deep, wrong types, a string with escapes), written as a TOML file and loaded; the
+micro scene's mutations also through the commands scene-info and inverse, and a chosen few of
+them through run (0.05 s: RUN_CASES). Every outcome: the scene loads, or one SceneError naming a
+dotted key; a command exits 0 or 2 with one line on stderr, never a traceback; what exit 0
+writes holds only finite numbers. Every loop is bounded by the lists below; the whole test runs
+a few minutes at most and has no wall-clock pass/fail. The issue's repros are tests beside it
+(scene values: test_issue_repros_* below)."""
 from __future__ import annotations
 
 import copy
 import csv
 import math
-import random
 from pathlib import Path
 
 import numpy as np
@@ -24,12 +23,16 @@ from stewart_fmu import SceneError, load_scene
 from stewart_sim import cli
 from tests.helpers import SCENE_FILES, SCENES_DIR
 
-SEED = 23
 SHIPPED = sorted(p for p in SCENES_DIR.rglob("*.toml") if "sweeps" not in p.parts)
 HOSTILE = [1e308, -1e308, 1e-300, 0, -1.5, math.nan, math.inf, -math.inf, "nan", "inf",
            10**30, 10**400, [[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[1.0]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]],
            True, {"a": 1.0}, [], "x\x1b[31m\n\t\\\"\u202e"]
-RUN_SAMPLE = 12          # loadable mutations of the micro scene also run closed loop (seeded)
+# The loadable mutations of the micro scene that also run closed loop: one per table of the
+# scene and each kind of hostile value that loads (a string with escapes in the name, -1.5,
+# 1e-300, 0), named as _mutations labels them (index into HOSTILE after the '=').
+RUN_CASES = ("name=16", "gravity[0]=4", "geometry.home[0]=2", "platform.mass=2",
+             "legs.lower_mass=3", "drive.gear_ratio=2", "friction.viscous=3",
+             "controller.phase_margin=2", "controller.motor.current_limit=2")
 
 
 def _keys(data, prefix: str = ""):
@@ -112,27 +115,28 @@ def test_every_key_of_every_scene_loads_or_is_refused_naming_a_key(tmp_path, sce
 
 
 def test_micro_mutations_through_scene_info_inverse_and_run(tmp_path, capsys):
-    """The micro scene's mutations through scene-info and inverse (a 21-sample trajectory), and a
-    seeded sample through run (0.05 s): exit 0 with finite outputs, or 2 with one line."""
+    """The micro scene's mutations through scene-info and inverse (a 21-sample trajectory), and
+    RUN_CASES through run (0.05 s): exit 0 with finite outputs, or 2 with one line."""
     micro = SCENE_FILES["micro"]
     traj = tmp_path / "traj.csv"
     assert _command(["trajectory", str(micro), "--move", "demo", "--duration", "0.02",
                      "--out", str(traj)], capsys) == 0
     mutations = list(_mutations(micro))
     tried = {"scene-info": 0, "inverse": 0, "run": 0}
-    loaded, ran = [], 0
+    loaded, ran = {}, 0
     for k, (label, data) in enumerate(mutations):
         scene = _write(data, tmp_path / f"m{k}.toml")
         tried["scene-info"] += 1
         if _command(["scene-info", str(scene)], capsys) == 2:
             continue   # refused at load: every command refuses it the same way
-        loaded.append(scene)
+        loaded[label.split(":", 1)[1]] = scene
         out = tmp_path / f"f{k}.csv"
         tried["inverse"] += 1
         if _command(["inverse", str(scene), "--trajectory", str(traj), "--out", str(out),
                      "--no-view"], capsys) == 0:
             _finite_csv(out)
-    for k, scene in enumerate(random.Random(SEED).sample(loaded, min(RUN_SAMPLE, len(loaded)))):
+    assert set(RUN_CASES) <= set(loaded), set(RUN_CASES) - set(loaded)   # each one loads
+    for k, scene in enumerate(loaded[case] for case in RUN_CASES):
         tried["run"] += 1
         folder = tmp_path / f"run{k}"
         if _command(["run", str(scene), "--out", str(folder), "--duration", "0.05",
@@ -141,7 +145,7 @@ def test_micro_mutations_through_scene_info_inverse_and_run(tmp_path, capsys):
             _finite_csv(folder / "run.csv")
     print(f"scene fuzz: {len(mutations)} mutations of the micro scene, commands tried {tried}, "
           f"{ran} runs completed")
-    assert tried["scene-info"] == len(mutations) and 0 < tried["run"] <= RUN_SAMPLE
+    assert tried["scene-info"] == len(mutations) and tried["run"] == len(RUN_CASES)
 
 
 # --- the issue's repros of the scene values -----------------------------------------------------
