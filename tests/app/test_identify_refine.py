@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from stewart_fmu import inverse_dynamics, load_scene
+from stewart_fmu.dynamics import regressor
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_sim.identify.refine import refine
 from stewart_sim.identify.runs import read_run
@@ -45,8 +46,17 @@ def test_delay_and_bias_are_found(late_run):
     run = read_run(path, prior)
     ident = identify(prior, [run])
     r = refine(ident, [run], every=0.5)
-    # measured on this run: 7.8 um -> 0.163 um, delay 2.114 ms, biases within 0.0656 N
+    # measured on this run: 7.8 um -> 0.163 um, delay 2.114 ms; the biases' differences between
+    # legs within 0.0032 N; the forces the refined model gives with its biases within 0.021 N of
+    # the true ones (the least-squares estimate: 0.139 N)
     assert r.rms_after < 0.1 * r.rms_before
     assert abs(r.delay - DELAY) < 0.2e-3
-    assert np.max(np.abs(r.bias - BIAS)) < 0.06
+    # a bias common to all six legs is close to a change of the platform's weight at these poses:
+    # the run fixes the biases' differences and the sum of that common part and the weight, not
+    # each alone (the converged fit moves the common part by 0.063 N, the parameters with it)
+    between = (r.bias - r.bias.mean()) - (BIAS - BIAS.mean())
+    assert np.max(np.abs(between)) < 0.01
+    t, q, qd, qdd = fourier_motion(truth, 5, period=4.0)
+    refined = regressor(ident.model, q, qd, qdd) @ r.pi + r.bias
+    assert np.max(np.abs(refined - (inverse_dynamics(truth, q, qd, qdd) + BIAS))) < 0.05
     assert np.all(np.isfinite(r.std)) and np.all(r.std > 0) and r.delay_std > 0
