@@ -136,7 +136,12 @@ def waypoints(times: np.ndarray, poses: np.ndarray, rate: float = 1000.0) -> Tra
         raise TrajectoryError("waypoints: times must increase strictly")
     t = times[0] + sample_times(times[-1] - times[0], rate)
     with np.errstate(over="ignore", invalid="ignore"):   # refused below, in one line
-        spline = CubicSpline(times, poses, bc_type="clamped")
+        try:
+            spline = CubicSpline(times, poses, bc_type="clamped")
+        except ValueError:      # the slopes between waypoints overflow: poses far too large
+            raise TrajectoryError("waypoints: the slopes between waypoints are not finite "
+                                  "(poses too large, or times too close, for a cubic spline)") \
+                from None
         q, qd, qdd = spline(t), spline(t, 1), spline(t, 2)
     for name, a in (("poses", q), ("rates", qd), ("accelerations", qdd)):
         if not np.all(np.isfinite(a)):
