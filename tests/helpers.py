@@ -263,3 +263,30 @@ def host_binary_only():
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(windows, "MINGW_CC", "no-mingw-in-this-test")
         yield
+
+
+_FMI2_LOGGERS: list = []   # every logger handed to fmpy's proxy stays alive (see below)
+
+
+def fmi2_collecting_callbacks(messages: list[str]):
+    """FMI 2.0 callbacks whose logger appends each message to `messages`. fmpy's logger proxy
+    (addLoggerProxy) keeps one Python logger in a process-global of its native library, and the
+    last one installed there receives the messages of every FMU of the process that logs after
+    it: a test that reads an FMU's messages installs its own, never relies on fmpy's printing."""
+    import ctypes
+
+    from fmpy import calloc, free
+    from fmpy.fmi2 import (fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                           fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+    from fmpy.logging import addLoggerProxy
+
+    def log(_env, _instance, _status, _category, message):
+        messages.append(message.decode())
+
+    cb = fmi2CallbackFunctions()
+    cb.logger = fmi2CallbackLoggerTYPE(log)
+    cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+    cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+    addLoggerProxy(ctypes.byref(cb))
+    _FMI2_LOGGERS.append((log, cb))
+    return cb

@@ -261,12 +261,12 @@ def test_a_scene_without_a_motor_keeps_its_stroke_and_cond(tmp_path, capsys):
     assert "| rack force | " in out.with_suffix(".md").read_text(encoding="utf-8")
 
 
-# --- counts against the memory budget, and hostile values (issue 34) -----------------------
+# --- counts against the memory budget, and hostile values -----------------------
 
 @pytest.mark.parametrize("extra, words", [
-    # the series' bases alone would take 80 GB (LAPACK's integer overflowed before)
+    # the series' bases alone would take 80 GB (past LAPACK's 32-bit integers)
     (["--harmonics", "100000"], "--harmonics 100000: entries of the series' bases"),
-    # the trajectory's sin and cos: 2 x 60,001 x 10,000 floats, 9.6 GB (asked for before)
+    # the trajectory's sin and cos: 2 x 60,001 x 10,000 floats, 9.6 GB
     (["--harmonics", "10000"], "--harmonics 10000: entries of the series' bases"),
     # the optimiser's constraint derivatives grow as the square of the harmonics
     (["--harmonics", "101"], "--harmonics 101: the optimiser's constraint derivatives"),

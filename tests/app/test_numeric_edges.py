@@ -1,4 +1,4 @@
-"""The numbers at the edges of `calibrate` and `size` (issue 34, defects 6, 7 and 9): inputs
+"""The numbers at the edges of `calibrate` and `size`: inputs
 beyond physical bounds refused in one line naming them (exit 2, nothing written), every result
 checked finite before the first file, the counts an input implies checked against the memory
 budget before allocating, a user's text escaped where it lands in Markdown; and seeded,
