@@ -46,28 +46,55 @@ def test_example_runs(example, tmp_path):
     assert proc.stdout.strip()
 
 
-def readme_printed(example: str) -> list[str]:
-    """The lines README.md says `example` printed: the `- ` items of the "It printed:" list
-    that follows the snippet of examples/<example>, each one a line of its output."""
+# A number of a printed line: not a digit of a name such as run2.csv.
+NUMBER = r"(?<![\w.])\d+(?:\.\d+)?(?:e[-+]?\d+)?(?!\w)"
+
+
+def readme_printed(example: str) -> list[tuple[str, list[tuple[float, float]]]]:
+    """The lines README.md says `example` printed, each with the range of each of its numbers
+    over the floating-point environments tried: the `- ` items of the "It printed" list that
+    follows the snippet of examples/<example>, a line of its output in backquotes, then
+    "— over the kernels tried: LO to HI, ..." (a number without a range: exactly as written)."""
     text = (ROOT / "README.md").read_text(encoding="utf-8")
     code = (ROOT / "examples" / example).read_text(encoding="utf-8")
     after = text[text.index(code) + len(code):]
     block = after[after.index("It printed"):].split("\n\n")[0]
-    return [m.strip().rstrip(";.") for m in re.findall(r"^- `(.*)`", block, flags=re.M)]
+    stated = []
+    for line, spans in re.findall(r"^- `(.*)`(?: — over the kernels tried: (.*))?$", block, flags=re.M):
+        ranges = [tuple(float(x) for x in span.split(" to ")) for span in spans.split(", ")] \
+            if spans else [(float(x), float(x)) for x in re.findall(NUMBER, line)]
+        stated.append((line, ranges))
+    return stated
+
+
+def _figures(line: str, printed: set[str]) -> list[float] | None:
+    """The numbers of the printed line that reads as `line` but for its numbers (None: none)."""
+    words = f"({NUMBER})".join(re.escape(part) for part in re.split(NUMBER, line))
+    for out in printed:
+        m = re.fullmatch(words, out)
+        if m:
+            return [float(x) for x in m.groups()]
+    return None
 
 
 @pytest.mark.numerics
 def test_the_identification_example_prints_the_readme_figures(tmp_path):
-    """Every figure README.md states for examples/identify_machine.py is a line it printed
-    (the identified frictions and drive masses against the truth, the held-out error)."""
+    """Every line README.md states for examples/identify_machine.py was printed (the identified
+    frictions and drive masses against the truth, the held-out error), each of its figures
+    within the range README states for it over the floating-point environments tried."""
     stated = readme_printed("identify_machine.py")
     assert len(stated) >= 4, stated
     proc = run_example(ROOT / "examples" / "identify_machine.py", tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     printed = {line.strip() for line in proc.stdout.splitlines()}
-    for line in stated:
-        assert line in printed, f"README says the example printed {line!r}; it printed:\n" \
+    for line, ranges in stated:
+        assert len(ranges) == len(re.findall(NUMBER, line)), (line, ranges)
+        # README's own figures lie in their ranges
+        assert all(lo <= float(x) <= hi for x, (lo, hi) in zip(re.findall(NUMBER, line), ranges))
+        got = _figures(line, printed)
+        assert got is not None, f"README says the example printed {line!r}; it printed:\n" \
                                 f"{proc.stdout}"
+        assert all(lo <= x <= hi for x, (lo, hi) in zip(got, ranges)), (line, got, ranges)
 
 
 def _env() -> dict:
