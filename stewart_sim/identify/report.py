@@ -19,6 +19,7 @@
 from __future__ import annotations
 
 import csv
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -62,7 +63,7 @@ def write_identification(ident: Identification, scene_path: str | Path,
                  _rows(stage / "base_parameters.csv",
                        ("name", "estimate", "std", "wls", "prior", "unit"), _base_rows(ident)),
                  _rows(stage / "standard_parameters.csv",
-                       ("name", "identified", "prior", "status", "unit"), _standard_rows(ident)),
+                       ("name", "identified", "prior", "status", "unit"), standard_rows(ident)),
                  save_figure(_residuals(ident), stage / "residuals.png")]
         if validation:
             paths.append(save_figure(validation_figure(
@@ -144,7 +145,9 @@ def status_of(ident: Identification, name: str) -> str:
     return "absent from the scene"
 
 
-def _standard_rows(ident: Identification):
+def standard_rows(ident: Identification) -> Iterator[tuple[str, str, str, str, str]]:
+    """standard_parameters.csv's rows: each standard parameter's name, identified and prior
+    values, status (status_of: alone, in combination, not identifiable, ...) and unit."""
     for k, name in enumerate(NAMES):
         yield (name, repr(float(ident.pi[k])), repr(float(ident.prior[k])),
                status_of(ident, name), UNITS[k])

@@ -11,7 +11,7 @@ import pytest
 from stewart_fmu import inverse_dynamics, load_scene
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.standard import NAMES, standard_parameters
-from stewart_sim.identify.report import _standard_rows
+from stewart_sim.identify.report import standard_rows
 from stewart_sim.identify.runs import read_run
 from stewart_sim.identify.study import identify, predict
 
@@ -233,4 +233,4 @@ def test_a_prior_the_constraints_must_move_is_reported(tmp_path):
     k = NAMES.index("legs.lower_mass")
     assert ident.pi[k] > ident.prior[k]
     assert "moved by the consistency constraints" in dict(
-        (r[0], r[3]) for r in _standard_rows(ident))["legs.lower_mass"]
+        (r[0], r[3]) for r in standard_rows(ident))["legs.lower_mass"]
