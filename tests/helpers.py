@@ -268,11 +268,13 @@ def host_binary_only():
 _FMI2_LOGGERS: list = []   # every logger handed to fmpy's proxy stays alive (see below)
 
 
-def fmi2_collecting_callbacks(messages: list[str]):
-    """FMI 2.0 callbacks whose logger appends each message to `messages`. fmpy's logger proxy
-    (addLoggerProxy) keeps one Python logger in a process-global of its native library, and the
-    last one installed there receives the messages of every FMU of the process that logs after
-    it: a test that reads an FMU's messages installs its own, never relies on fmpy's printing."""
+def fmi2_logging_callbacks(log):
+    """FMI 2.0 callbacks whose logger calls log(status, category, message) (str category and
+    message). fmpy's logger proxy (addLoggerProxy) keeps one Python logger in a process-global
+    of its native library, and the last one installed there receives the messages of every FMU
+    of the process that logs after it, those on fmpy's default callbacks too: a test that reads
+    an FMU's messages installs its own, and none is ever freed (a freed one crashed a later
+    FMU's first message)."""
     import ctypes
 
     from fmpy import calloc, free
@@ -280,13 +282,13 @@ def fmi2_collecting_callbacks(messages: list[str]):
                            fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
     from fmpy.logging import addLoggerProxy
 
-    def log(_env, _instance, _status, _category, message):
-        messages.append(message.decode())
+    def logger(_env, _instance, status, category, message):
+        log(status, (category or b"").decode(), message.decode())
 
     cb = fmi2CallbackFunctions()
-    cb.logger = fmi2CallbackLoggerTYPE(log)
+    cb.logger = fmi2CallbackLoggerTYPE(logger)
     cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
     cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
     addLoggerProxy(ctypes.byref(cb))
-    _FMI2_LOGGERS.append((log, cb))
+    _FMI2_LOGGERS.append((logger, cb))
     return cb

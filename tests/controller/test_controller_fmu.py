@@ -38,7 +38,7 @@ from controller.design import tune_pid
 from controller.trajectory import leg_references
 from stewart_fmu import load_scene
 from stewart_fmu.fmu.export import export_model
-from tests.helpers import fmi2_collecting_callbacks
+from tests.helpers import fmi2_logging_callbacks
 
 ROOT = Path(__file__).resolve().parents[2]
 DURATION = 0.3   # s of `run`'s reference: out, hold, back, hold
@@ -220,7 +220,7 @@ def test_parameters_declare_the_bounds_the_fmu_enforces(micro, version):
             _, slave, _ = _slave(path, "probe")
             said: list[str] = []
             if version == 2:
-                slave.instantiate(callbacks=fmi2_collecting_callbacks(said))
+                slave.instantiate(callbacks=fmi2_logging_callbacks(lambda _s, _c, m: said.append(m)))
                 slave.setupExperiment(startTime=0.0)
             else:
                 slave.instantiate(logMessage=lambda _env, _status, _cat, m: said.append(m.decode()))

@@ -17,7 +17,6 @@ the session.
 """
 from __future__ import annotations
 
-import ctypes
 import gc
 import json
 import subprocess
@@ -29,18 +28,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from fmpy import calloc, extract, free, read_model_description, simulate_fmu
+from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import (
-    FMU2Slave,
-    fmi2CallbackAllocateMemoryTYPE,
-    fmi2CallbackFreeMemoryTYPE,
-    fmi2CallbackFunctions,
-    fmi2CallbackLoggerTYPE,
-    fmi2Discard,
-    fmi2Error,
-)
-from fmpy.logging import addLoggerProxy
+from fmpy.fmi2 import FMU2Slave, fmi2Discard, fmi2Error
 from fmpy.validation import validate_fmu
 
 from stewart_fmu import Model, inverse_dynamics, inverse_kinematics, load_scene
@@ -50,7 +40,7 @@ from stewart_fmu.integrators import IntegratorOptions
 from stewart_fmu.io import POSE
 from stewart_fmu.plant import Plant, StepRejected
 from stewart_fmu.stability import default_options
-from tests.helpers import host_binary_only, record
+from tests.helpers import fmi2_logging_callbacks, host_binary_only, record
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENES = sorted((ROOT / "scenes").glob("*.toml"))
@@ -110,7 +100,6 @@ def micro(exported) -> Exported:
 
 # --- drivers: the FMU through fmpy.FMU2Slave, and the in-process Plant ------------------------
 
-_LOGGERS: list = []   # every logger handed to fmpy's proxy (see Slave.__init__)
 
 
 class Slave:
@@ -123,17 +112,7 @@ class Slave:
         self.out_vr = [self.vr[n] for n in ex.output_names]
         self.messages: list[tuple[int, str, str]] = []
 
-        def log(_env, _instance, status, category, message):
-            self.messages.append((status, (category or b"").decode(), message.decode()))
-
-        cb = fmi2CallbackFunctions()
-        cb.logger = fmi2CallbackLoggerTYPE(log)
-        cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-        cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        addLoggerProxy(ctypes.byref(cb))
-        # fmpy's logger proxy (addLoggerProxy) keeps the Python logger in a process-global of its
-        # native library, which later FMUs of the process may call: keep every one alive.
-        _LOGGERS.append((log, cb))
+        cb = fmi2_logging_callbacks(lambda *message: self.messages.append(message))
         self.fmu = FMU2Slave(guid=ex.md.guid, unzipDirectory=str(ex.unzipdir),
                              modelIdentifier=ex.md.coSimulation.modelIdentifier,
                              instanceName=name)

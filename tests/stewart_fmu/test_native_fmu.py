@@ -36,7 +36,7 @@ from stewart_fmu.integrators import IntegratorOptions
 from stewart_fmu.plant import Plant
 from stewart_fmu.errors import SceneError
 from stewart_fmu.scene import apply_overrides, scene_from_dict
-from tests.helpers import host_binary_only, record
+from tests.helpers import fmi2_logging_callbacks, host_binary_only, record
 from tests.stewart_fmu.native_fmu_child import Elements
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -49,7 +49,6 @@ H = 1e-3
 RTOL = 1e-12
 ERROR, DISCARD = 3, 2
 
-_PROXIED_LOGGERS: list = []   # the FMI 2.0 loggers Slave gives fmpy's proxy: never freed
 
 
 # --- exported FMUs ------------------------------------------------------------------------------
@@ -147,29 +146,9 @@ class Slave:
         common = dict(guid=b.token, unzipDirectory=str(b.unzipdir), modelIdentifier="StewartPlant",
                       instanceName=name)
         if b.version == 2:
-            from fmpy import calloc, free
-            from fmpy.fmi2 import (
-                FMU2Slave,
-                fmi2CallbackAllocateMemoryTYPE,
-                fmi2CallbackFreeMemoryTYPE,
-                fmi2CallbackFunctions,
-                fmi2CallbackLoggerTYPE,
-            )
-            from fmpy.logging import addLoggerProxy
+            from fmpy.fmi2 import FMU2Slave
 
-            def log(_env, _name, status, category, message):
-                self.messages.append((status, (category or b"").decode(), message.decode()))
-
-            cb = fmi2CallbackFunctions()
-            cb.logger = fmi2CallbackLoggerTYPE(log)
-            cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-            cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-            addLoggerProxy(ctypes.byref(cb))
-            # fmpy's native proxy keeps the last logger it was given in one global: every FMU
-            # instantiated later with fmpy's default callbacks logs through it. Freeing it with
-            # this object crashed such a later FMU's first log message (the controller FMU's
-            # tests after these): it lives as long as the process.
-            _PROXIED_LOGGERS.append((log, cb))
+            cb = fmi2_logging_callbacks(lambda *message: self.messages.append(message))
             self.fmu = FMU2Slave(**common)
             self.fmu.instantiate(loggingOn=True, callbacks=cb)
         else:
