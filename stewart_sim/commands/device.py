@@ -1,6 +1,6 @@
-"""`stewart-sim device SCENE (--udp 127.0.0.1:PORT | --pty) [--watchdog S] [--lockstep]
-[--signing-key HEX] [--truth TRUE.toml] [--view [PORT]]`: the emulated micro-manipulator
-(hil.spawn.serve_device) until SIGINT or SIGTERM (exit status 0)."""
+"""`stewart-sim device SCENE (--udp 127.0.0.1:PORT | --pty | --gcs 127.0.0.1:PORT) [--watchdog S]
+[--lockstep] [--signing-key HEX] [--truth TRUE.toml] [--view [PORT]]`: the emulated
+micro-manipulator (hil.spawn.serve_device) until SIGINT or SIGTERM (exit status 0)."""
 from __future__ import annotations
 
 import argparse
@@ -26,6 +26,11 @@ def add_parser(sub, help_text: str) -> None:
                             "whoever sends to it")
     where.add_argument("--pty", action="store_true",
                        help="open a pseudo-terminal and print its path on the first line")
+    where.add_argument("--gcs", metavar="127.0.0.1:PORT",
+                       help="instead of MAVLink, speak PI's GCS 2.0 over TCP on this loopback "
+                            "port (PI's is 50000; 0: any free port), so that PIPython drives "
+                            "the device as a hexapod: axes X Y Z (mm) and U V W (deg), "
+                            "referencing, moves, the data recorder (hil/gcs); real time only")
     p.add_argument("--watchdog", type=positive_seconds, default=watchdog, metavar="SECONDS",
                    help="safe stop (hold) after this long without a valid setpoint while armed "
                         f"(default {watchdog:g} s)")
@@ -60,7 +65,7 @@ def run(args: argparse.Namespace) -> None:
               "sensors": machine.sensors}
     if args.view is None:
         serve_device(model, config, args.udp, args.watchdog, args.lockstep, args.signing_key,
-                     **hidden)
+                     gcs=args.gcs, **hidden)
         return
     from hil.observe import Latest
     from stewart_sim.view.live import LiveView, live_page
@@ -71,4 +76,4 @@ def run(args: argparse.Namespace) -> None:
             view.start()
             print(f"view: {view.url}", flush=True)
         serve_device(model, config, args.udp, args.watchdog, args.lockstep, args.signing_key,
-                     observer=latest, ready=ready, **hidden)
+                     observer=latest, ready=ready, gcs=args.gcs, **hidden)
