@@ -6,7 +6,8 @@ tick, 2 actual position: the plant's pose, 3 position error: 1 - 2, in mm or deg
 "1".."6" (1 the length setpoint the drives follow, 2 the measured length, 3 their difference,
 in mm; OPTION_FORCE the rack force, N); option 8 (any source) is the device time in s; option 0
 records nothing. Recording starts on its trigger (DRT): 0 (the default) and 1 on the next
-command that moves (MOV, MVR, FRF), 2 on the next command of any kind, 4 at once; it takes one
+command that moves (MOV, MVR, FRF), 2 on the next command of any kind (once: the trigger is
+0 again after it; PIPython's own ERR? after DRT is that command), 4 at once; it takes one
 value every RTR servo ticks (RTR?, 1..RTR_MAX) until the tables are full, and restarts (empty)
 at the next trigger. The values are the device's own (hil.device.Device.snapshot and l_ref at
 the tick), so a table equals what the device publishes to its observers at the same ticks.
@@ -122,6 +123,9 @@ class Recorder:
         triggers = {t.trigger for t in self.tables}
         if 2 in triggers or (name in MOVING and triggers & {0, 1}):
             self.start(k)
+        for t in self.tables:          # "next command" fires once, then is back to the default
+            if t.trigger == 2:
+                t.trigger = 0
 
     def start(self, k: int) -> None:
         self.recording, self.count, self._k0 = True, 0, k
