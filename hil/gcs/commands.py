@@ -13,7 +13,7 @@ KLN/KLT?/KET?) as changes of the controller's `hil.gcs.axes.Frame`, the workspac
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, Iterator
 
 import numpy as np
 
@@ -28,7 +28,8 @@ VERSION = "0.1.0"
 GCS_VERSION = "2.0"
 READY, BUSY = chr(177), chr(176)   # #7's answers (PI's codes)
 
-Handler = Callable[[GcsController, Session, tuple], "str | None"]
+Answer = "str | Iterator[str] | None"     # an iterator: chunks, sent as the client reads
+Handler = Callable[[GcsController, Session, tuple], Answer]
 
 
 @dataclass(frozen=True)
@@ -310,8 +311,9 @@ COMMANDS: dict[str, Command] = {
 }
 
 
-def execute(c: GcsController, s: Session, text: str) -> str | None:
-    """Run one line (without its LF) for session `s`; the answer to send, or None."""
+def execute(c: GcsController, s: Session, text: str) -> str | Iterator[str] | None:
+    """Run one line (without its LF) for session `s`; the answer to send (a string, or chunks
+    of one: DRR?), or None."""
     try:
         line = P.parse(text)
         if line is None:

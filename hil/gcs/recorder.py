@@ -15,6 +15,7 @@ the tick), so a table equals what the device publishes to its observers at the s
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Iterator
 
 import numpy as np
 
@@ -25,6 +26,7 @@ from hil.gcs.axes import AXES, MM_PER_M
 TABLES = 8
 POINTS = 16384
 RTR_MAX = 10000
+ROWS_PER_CHUNK = 16     # DRR? lines formatted per chunk (hil.gcs.server takes one a poll)
 LEGS = ("1", "2", "3", "4", "5", "6")
 OPTION_FORCE = 100
 OPTIONS = {0: "Nothing is recorded", 1: "Commanded position of axis",
@@ -128,7 +130,9 @@ class Recorder:
                 t.trigger = 0
 
     def start(self, k: int) -> None:
-        self.recording, self.count, self._k0 = True, 0, k
+        """Restart the record at tick k (nothing to record while no table has an option)."""
+        if any(t.option for t in self.tables):
+            self.recording, self.count, self._k0 = True, 0, k
 
     # --- ticks ---------------------------------------------------------------------------
 
@@ -142,9 +146,12 @@ class Recorder:
 
     # --- answers -------------------------------------------------------------------------
 
-    def read(self, args: tuple[str, ...]) -> str:
-        """DRR? [offset n [tables...]]: PI's GCS data, a header and one line per point. Asking
-        for more points than are recorded sets error 77 and answers those there are."""
+    def read(self, args: tuple[str, ...]) -> Iterator[str]:
+        """DRR? [offset n [tables...]]: PI's GCS data, a header and one line per point, as
+        chunks of ROWS_PER_CHUNK lines formatted when the connection takes them (a full record
+        is megabytes: formatted at once it would hold the servo loop for a tenth of a second).
+        The values are copied now. Asking for more points than are recorded sets error 77 and
+        answers those there are."""
         if len(args) == 1:
             raise E.GcsError(E.PARAM_SYNTAX, "DRR? takes offset and count together")
         offset, n = (P.integer(args[0]), P.integer(args[1])) if args else (1, self.count)
@@ -160,9 +167,8 @@ class Recorder:
         head += [f"# NAME{j} = {OPTIONS[self.tables[i - 1].option]} "
                  f"{self.tables[i - 1].source}" for j, i in enumerate(ids)]
         head.append("# END_HEADER")
-        cols = [self.tables[i - 1].values[offset - 1:end] for i in ids]
-        data = [" ".join(P.fmt(c[r]) for c in cols) for r in range(rows)]
-        text = P.answer(head + data)
+        block = np.array([self.tables[i - 1].values[offset - 1:offset - 1 + rows] for i in ids])
+        text = _chunks(head, block)
         if short:
             raise _Short(text)
         return text
@@ -175,10 +181,21 @@ class Recorder:
         return [f"{i}={self.tables[i - 1].trigger} 0" for i in self.table_ids(args)]
 
 
+def _chunks(head: list[str], block: np.ndarray) -> Iterator[str]:
+    """The header, then the rows of `block` (columns: tables) ROWS_PER_CHUNK at a time; every
+    line ends " \n" but the answer's last, "\n"."""
+    rows = block.shape[1]
+    yield P.answer(head) if rows == 0 else " \n".join(head) + " \n"
+    for i in range(0, rows, ROWS_PER_CHUNK):
+        j = min(rows, i + ROWS_PER_CHUNK)
+        lines = [" ".join(P.fmt(v) for v in block[:, r]) for r in range(i, j)]
+        yield " \n".join(lines) + ("\n" if j == rows else " \n")
+
+
 class _Short(E.GcsError):
     """DRR? asked for more points than recorded: the answer (what there is) and error 77."""
 
-    def __init__(self, text: str) -> None:
+    def __init__(self, text: Iterator[str]) -> None:
         super().__init__(E.NOT_ENOUGH_RECORDED_DATA, "fewer points recorded than asked")
         self.text = text
 

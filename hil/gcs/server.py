@@ -4,8 +4,9 @@
 runs complete lines through hil.gcs.commands.execute and writes answers. Everything is bounded:
 at most `max_clients` connections (one more is accepted and closed at once, counted), a
 connection idle for `idle_timeout` s is closed, a line longer than MAX_LINE bytes is an error 3
-and is skipped up to its LF, at most LINES_PER_POLL lines run per poll (the rest waits for the
-next: a flood cannot hold the device's ticks back), at most READ_CHUNK bytes are read per
+and is skipped up to its LF, at most LINES_PER_POLL lines run per poll, and none after LINE_SHARE of
+a servo period (the rest waits for the next poll: a flood cannot hold the device's ticks back), a long answer (DRR?) is formatted one chunk
+a poll while its connection's next lines wait, at most READ_CHUNK bytes are read per
 connection per poll, and a connection whose unsent answers pass OUT_HIGH bytes, or whose unrun
 input passes IN_HIGH bytes, is not read until they drain (a client that floods, or sends
 queries and never reads, stalls only itself). A client
@@ -18,7 +19,7 @@ import selectors
 import socket
 import time
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, Iterator
 
 from hil.gcs import errors as E
 from hil.gcs.commands import execute
@@ -30,6 +31,7 @@ MAX_CLIENTS = 4
 IDLE_TIMEOUT = 600.0    # s without input before a connection is closed
 MAX_LINE = 1024         # bytes of one command line
 LINES_PER_POLL = 32
+LINE_SHARE = 0.25       # of a servo period: the time one poll may spend running lines
 READ_CHUNK = 8192
 OUT_HIGH = 1 << 20      # bytes of unsent answers above which a connection is not read
 IN_HIGH = 1 << 16       # bytes of unrun input above which a connection is not read
@@ -45,6 +47,7 @@ class ServerStats:
     lines: int = 0            # lines run (answered or refused)
     errors: int = 0           # lines that set an error
     overlong: int = 0         # lines over MAX_LINE
+    bytes_in: int = 0
 
 
 @dataclass
@@ -56,6 +59,7 @@ class _Conn:
     out: bytearray = field(default_factory=bytearray)
     skipping: bool = False    # inside an overlong line: drop up to its LF
     events: int = selectors.EVENT_READ    # what the selector watches for (0: not registered)
+    stream: Iterator[str] | None = None   # an answer still being formatted (DRR?)
 
 
 class GcsServer:
@@ -99,7 +103,8 @@ class GcsServer:
 
     def poll(self, timeout: float = 0.0) -> None:
         """Wait up to `timeout` s, then serve whatever is ready (bounded; see the module doc)."""
-        pending = any(self._has_line(c) for c in self.conns.values())
+        pending = any(self._has_line(c) or (c.stream is not None and len(c.out) < OUT_HIGH)
+                      for c in self.conns.values())
         for key, mask in self.sel.select(0.0 if pending else max(0.0, timeout)):
             if key.data is None:
                 self._accept()
@@ -111,7 +116,9 @@ class GcsServer:
                 self._read(c)
             if mask & selectors.EVENT_WRITE and key.fd in self.conns:
                 self._write(c)
-        self._run_lines()
+        until = self.clock() + LINE_SHARE * self.controller.device.dt
+        self._run_lines(until)
+        self._stream_answers(until)
         now = self.clock()
         if now - self._last_idle_check >= 1.0:
             self._last_idle_check = now
@@ -149,6 +156,7 @@ class GcsServer:
             self._drop(c)
             return
         c.last = self.clock()
+        self.stats.bytes_in += len(data)
         c.inbuf += data
         self._watch(c)
 
@@ -186,10 +194,12 @@ class GcsServer:
     # --- lines ---------------------------------------------------------------------------
 
     def _has_line(self, c: _Conn) -> bool:
-        return bool(c.inbuf) and len(c.out) < OUT_HIGH and (
+        return bool(c.inbuf) and c.stream is None and len(c.out) < OUT_HIGH and (
             c.inbuf[0] in SINGLE_BYTE or b"\n" in c.inbuf or len(c.inbuf) > MAX_LINE)
 
-    def _run_lines(self) -> None:
+    def _run_lines(self, until: float) -> None:
+        """Lines of the ready connections in turn, one each a round, within the poll's budget
+        (at least one line a poll; none after the clock reads `until`)."""
         budget = LINES_PER_POLL
         while budget > 0:
             ready = [c for c in self.conns.values() if self._has_line(c)]
@@ -203,8 +213,23 @@ class GcsServer:
                         self._write(c)
                     else:
                         self._watch(c)
-                if budget <= 0:
+                if budget <= 0 or self.clock() >= until:
                     return
+
+    def _stream_answers(self, until: float) -> None:
+        """One chunk of each answer being formatted, for connections that took the last, while
+        the poll's budget lasts (at least one chunk a poll)."""
+        first = True
+        for c in [c for c in self.conns.values() if c.stream is not None]:
+            if len(c.out) >= OUT_HIGH or (not first and self.clock() >= until):
+                continue
+            first = False
+            chunk = next(c.stream, None)
+            if chunk is None:
+                c.stream = None
+            else:
+                c.out += chunk.encode("latin-1", errors="replace")
+            self._write(c)
 
     def _one_line(self, c: _Conn) -> None:
         buf = c.inbuf
@@ -239,5 +264,7 @@ class GcsServer:
         out = execute(self.controller, c.session, text)
         if c.session.error != before or (c.session.error and out is None):
             self.stats.errors += 1
-        if out:
+        if isinstance(out, str):
             c.out += out.encode("latin-1", errors="replace")
+        elif out is not None:
+            c.stream = out

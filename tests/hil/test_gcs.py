@@ -63,7 +63,8 @@ def run(c: GcsController, ticks: int) -> None:
 
 
 def ask(c, s, line):
-    return execute(c, s, line)
+    out = execute(c, s, line)
+    return out if out is None or isinstance(out, str) else "".join(out)
 
 
 def err(c, s) -> int:
@@ -337,3 +338,100 @@ def test_server_bounds_lines_connections_and_floods(model):
         for sock in (a, b, extra):
             sock.close()
         link.close()
+
+
+def test_idle_connections_are_closed(model):
+    d = Device(model)
+    c = GcsController(d)
+    now = [0.0]
+    server = GcsServer(c, "127.0.0.1", 0, idle_timeout=5.0, clock=lambda: now[0])
+    link = GcsLink(c, server)
+    try:
+        a = socket.create_connection(server.address, timeout=5)
+        _serve(link, d, 3)
+        a.sendall(b"*IDN?\n")
+        _serve(link, d, 3)
+        now[0] = 4.0
+        _serve(link, d, 3)
+        assert server.stats.closed_idle == 0 and len(server.conns) == 1
+        now[0] = 10.0
+        _serve(link, d, 3)
+        assert server.stats.closed_idle == 1 and not server.conns
+        a.settimeout(5)
+        assert a.recv(1 << 16).startswith(b"stewart-sim") and a.recv(16) == b""
+        a.close()
+    finally:
+        link.close()
+
+
+def test_fuzz_hostile_bytes_over_tcp(model):
+    """Seeded, bounded: two clients send 64 KiB each of hostile bytes (binary, control bytes,
+    overlong lines, floods of queries and moves) in random pieces; the device ticks between
+    polls. Every line gets a PI code or an answer, the server keeps serving a third client,
+    the plant does not move (it is never referenced) and nothing faults."""
+    d = Device(model)
+    c = GcsController(d)
+    server = GcsServer(c, "127.0.0.1", 0, max_clients=3, idle_timeout=3600)
+    link = GcsLink(c, server)
+    rng = random.Random(5038)
+    q0 = np.asarray(d.snapshot().q)
+    streams = []
+    for _ in range(2):
+        data = bytearray()
+        while len(data) < 1 << 16:
+            pick = rng.random()
+            if pick < 0.3:
+                data += bytes(rng.randrange(256) for _ in range(rng.randint(1, 300)))
+            elif pick < 0.4:
+                data += b"MOV X " + b"9" * rng.randint(100, 3000) + b"\n"
+            elif pick < 0.5:
+                data += bytes([rng.choice([5, 7, 24])])
+            else:
+                data += b"\n".join(_hostile_lines(rng, 20)) + b"\n"
+        streams.append(bytes(data[:1 << 16]))
+    clients = [socket.create_connection(server.address, timeout=5) for _ in range(2)]
+    try:
+        for s in clients:
+            s.setblocking(False)
+        sent = [0, 0]
+        for _ in range(20000):
+            for i, s in enumerate(clients):
+                if sent[i] < len(streams[i]):
+                    piece = streams[i][sent[i]:sent[i] + rng.randint(1, 4096)]
+                    try:
+                        sent[i] += s.send(piece)
+                    except BlockingIOError:
+                        pass
+                try:
+                    s.recv(1 << 20)            # read and drop the answers
+                except BlockingIOError:
+                    pass
+            _serve(link, d, 1)
+            if server.stats.bytes_in == 2 << 16 and all(
+                    x.stream is None and not x.out and b"\n" not in x.inbuf
+                    for x in server.conns.values()):
+                break
+        assert sent == [1 << 16] * 2
+        probe = socket.create_connection(server.address, timeout=5)
+        probe.sendall(b"ERR?\nPOS? Z\n")
+        got = b""
+        for _ in range(1000):
+            _serve(link, d, 1)
+            probe.setblocking(False)
+            try:
+                got += probe.recv(4096)
+            except BlockingIOError:
+                pass
+            if got.count(b"\n") >= 2:
+                break
+        assert got == b"0\nZ=0.0\n"
+        probe.close()
+    finally:
+        for s in clients:
+            s.close()
+        link.close()
+    st = server.stats
+    assert st.lines > 1000 and st.errors > 500 and st.overlong > 10
+    assert c.internal_errors == 0 and not c.referenced
+    assert np.allclose(np.asarray(d.snapshot().q), q0, atol=1e-9)
+    assert d.counters.faults == 0 and d.counters.numeric_faults == 0
