@@ -7,6 +7,7 @@ the data recorder with qDRR's background read. Waits are PIPython's own, with bo
 the assertions are on values, never on how long anything took."""
 from __future__ import annotations
 
+import gc
 import time
 from pathlib import Path
 
@@ -31,8 +32,13 @@ WAIT = 60          # s: PIPython's own wait timeouts (a bound, not a measurement
 AXES = ["X", "Y", "Z", "U", "V", "W"]
 
 # PIPython closes its socket in __exit__ and again in __del__, where the second close raises
-# (EBADF) and Python reports it as unraisable: PIPython's, not the twin's.
+# (EBADF) and Python reports it as unraisable: PIPython's, not the twin's. Each test collects
+# its client (`release`) so that this happens, and is ignored, within the test.
 unraisable = pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
+
+
+def release() -> None:
+    gc.collect()
 
 
 def connect(port: int) -> GCSDevice:
@@ -121,6 +127,39 @@ def test_a_lab_script_over_the_device_command():
             assert np.allclose(np.diff(t), 0.005)
             assert np.all((leg > 75) & (leg < 185)) and np.all(np.abs(force) < 160)
             assert pi.qERR() == 0
+        del pi
+        release()
+
+
+@unraisable
+def test_hostile_lines_against_the_device_command_then_a_clean_script():
+    """Seeded hostile lines (tests/hil/test_gcs.py's generator: binary, unknown commands,
+    absurd numbers, overlong lines, control bytes) from a raw socket to `device --gcs`, then
+    PIPython: the twin still answers, unreferenced, at its home, and refuses a move with 5."""
+    import random
+    import socket
+
+    from tests.hil.test_gcs import _hostile_lines
+
+    rng = random.Random(3805)
+    lines = _hostile_lines(rng, 2000) + [b"MOV X " + b"9" * 5000, b"\x05\x07\x18"]
+    with device_process(SCENE, "gcs") as first:
+        host, port = parse_gcs(first)
+        with socket.create_connection((host, port), timeout=10) as raw:
+            raw.sendall(b"\n".join(lines) + b"\nERR?\n*IDN?\n")
+            got = b""
+            deadline = time.monotonic() + WAIT
+            while b"stewart-sim" not in got:
+                assert time.monotonic() < deadline, "the twin stopped answering"
+                got += raw.recv(1 << 16)
+        with connect(port) as pi:
+            assert pi.qERR() == 0 and not any(pi.qFRF().values())
+            assert all(abs(v) < 1e-9 for v in pi.qPOS().values())
+            with pytest.raises(GCSError) as exc:
+                pi.MOV("Z", 1.0)
+            assert exc.value.val == 5
+        del pi
+        release()
 
 
 class Keep:
@@ -150,6 +189,8 @@ def test_recorded_table_equals_the_devices_own_record():
             n = pi.qDRL(1)[1]
             pi.qDRR([1, 2, 3, 4], 1, n)
             y, leg3, force6, t = wait_data(pi)
+        del pi
+        release()
     finally:
         stop.set()
         thread.join(10)
