@@ -180,12 +180,13 @@ def test_recorded_table_equals_the_devices_own_record():
     thread, stop, _ = serve_in_thread(device, link)
     try:
         with connect(link.server.address[1]) as pi:
-            pi.FRF()
-            pitools.waitonreferencing(pi, timeout=WAIT, polldelay=0.05)
+            # PIPython's samples start a controller so: stop all, servo, reference, wait
+            pitools.startup(pi, refmodes="FRF")
+            assert all(pi.qFRF().values())
+            assert pitools.getmaxtravelrange(pi, "Y")["Y"] == pi.qPLM("Y")["Y"]
             pi.DRC([1, 2, 3, 4], ["Y", "3", "6", "Y"], [2, 2, 100, 8])
             pi.DRT(0, 1)                       # the next command that moves starts it
-            pi.MOV("Y", -1.0)
-            pitools.waitontarget(pi, timeout=WAIT, polldelay=0.05)
+            pitools.moveandwait(pi, "Y", -1.0, timeout=WAIT)
             n = pi.qDRL(1)[1]
             pi.qDRR([1, 2, 3, 4], 1, n)
             y, leg3, force6, t = wait_data(pi)
