@@ -7,7 +7,9 @@ clients, each in a process of its own, send seeded hostile bytes as fast as the 
 bytes, overlong lines, floods of unknown commands, absurd numbers, moves and servo switching
 on an unreferenced twin; tests/hil/test_gcs.py's generator). Printed: bytes and lines taken, lines per second, every error code with its
 count (the codes the lines set, as ERR? would read them), the device's ticks, overruns and tick
-lateness, the largest pose change of the plant (it must not move) and its faults.
+lateness, the CPU the device's process used (all of it, per tick: the lines' cost included; on a
+loaded machine a process that gets less CPU than it needs falls behind whatever its loop does),
+the largest pose change of the plant (it must not move) and its faults.
 Wall-clock figures: measured here, never asserted in tests.
 """
 from __future__ import annotations
@@ -120,8 +122,9 @@ def main() -> None:
     print("codes             " + ", ".join(f"{k}: {v}" for k, v in sorted(codes.items())))
     print(f"device ticks      {serve_stats.ticks} (wall {serve_stats.wall:.2f} s), overruns "
           f"{serve_stats.overruns}, {serve_stats.late.text()}")
-    print(f"device process    {cpu:.2f} CPU s in {wall:.2f} s wall ({100 * cpu / wall:.0f} %: "
-          f"below 100 % the machine, not the loop, held the ticks back)")
+    print(f"device process    {cpu:.2f} CPU s in {wall:.2f} s wall ({100 * cpu / wall:.0f} % of a "
+          f"core), {1e3 * cpu / max(serve_stats.ticks, 1):.3f} CPU ms a tick with its lines "
+          f"(under {1e3 * device.dt:g} ms: the loop keeps real time when it gets the CPU)")
     print(f"plant moved       {moved:.3g} (max |dq|, m or rad)")
     c = device.counters
     print(f"device            faults {c.faults}, numeric faults {c.numeric_faults}, armed "
