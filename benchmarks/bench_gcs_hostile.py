@@ -2,25 +2,25 @@
 
     python benchmarks/bench_gcs_hostile.py [--seconds S] [--clients N] [--seed K]
 
-The device is served in real time in this process (hil.serve over hil.gcs.link) while N
-clients, each in a process of its own, send seeded hostile bytes as fast as the server reads them (random binary, control
-bytes, overlong lines, floods of unknown commands, absurd numbers, moves and servo switching
-on an unreferenced twin; tests/hil/test_gcs.py's generator). Printed: bytes and lines taken, lines per second, every error code with its
-count (the codes the lines set, as ERR? would read them), the device's ticks, overruns and tick
-lateness, the CPU the device's process used (all of it, per tick: the lines' cost included; on a
-loaded machine a process that gets less CPU than it needs falls behind whatever its loop does),
-the largest pose change of the plant (it must not move) and its faults.
-Wall-clock figures: measured here, never asserted in tests.
+The device is served in real time in this process (hil.serve over hil.gcs.link) while N clients,
+each in a process of its own, send seeded hostile bytes as fast as the server reads them (random
+binary, control bytes, overlong lines, floods of unknown commands, absurd numbers, moves and
+servo switching on an unreferenced twin; tests/hil/test_gcs.py's generator). Printed: bytes and
+lines taken, lines per second, every error code with its count (the codes the lines set, as ERR?
+would read them), the device's ticks, overruns and tick lateness, the CPU the device's process
+used (all of it, per tick: the lines' cost included; on a loaded machine a process that gets
+less CPU than it needs falls behind whatever its loop does), the largest pose change of the
+plant (it must not move) and its faults. Wall-clock figures: measured here, never asserted in
+tests.
 """
 from __future__ import annotations
 
 import argparse
-import resource
 import multiprocessing as mp
 import random
+import resource
 import socket
 import sys
-import threading
 import time
 from collections import Counter
 from pathlib import Path

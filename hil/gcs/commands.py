@@ -13,7 +13,7 @@ KLN/KLT?/KET?) as changes of the controller's `hil.gcs.axes.Frame`, the workspac
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Iterator
+from typing import Callable, Iterator, Union
 
 import numpy as np
 
@@ -21,15 +21,16 @@ from hil.gcs import errors as E
 from hil.gcs import parser as P
 from hil.gcs.axes import AXES
 from hil.gcs.controller import VLS_MIN, GcsController, Session
-from hil.gcs.recorder import TABLES, _Short, help_text
+from hil.gcs.recorder import TABLES, ShortRecord, help_text
 
 NAME = "STEWART-SIM-TWIN"          # *IDN?'s model field (PIPython's devname)
 VERSION = "0.1.0"
 GCS_VERSION = "2.0"
 READY, BUSY = chr(177), chr(176)   # #7's answers (PI's codes)
 
-Answer = "str | Iterator[str] | None"     # an iterator: chunks, sent as the client reads
-Handler = Callable[[GcsController, Session, tuple], Answer]
+Args = tuple[str, ...]
+Answer = Union[str, Iterator[str], None]     # an iterator: chunks, sent as the client reads
+Handler = Callable[[GcsController, Session, Args], Answer]
 
 
 @dataclass(frozen=True)
@@ -52,7 +53,7 @@ def _flags(axes: list[int], values) -> str:
     return _rows(axes, ["1" if v else "0" for v in values])
 
 
-def _no_args(args: tuple) -> None:
+def _no_args(args: Args) -> None:
     if args:
         raise E.GcsError(E.PARAM_SYNTAX, "takes no arguments")
 
@@ -63,7 +64,7 @@ def _ready_to_move(c: GcsController) -> None:
                          "servo off" if not c.servo else "not referenced")
 
 
-def _targets(c: GcsController, args: tuple, relative: bool) -> np.ndarray:
+def _targets(c: GcsController, args: Args, relative: bool) -> np.ndarray:
     target = c.target.copy()
     for i, v in P.axis_values(args):
         P.finite(v, E.POS_OUT_OF_LIMITS, AXES[i])
@@ -74,18 +75,18 @@ def _targets(c: GcsController, args: tuple, relative: bool) -> np.ndarray:
 
 # --- identification and help ---------------------------------------------------------------
 
-def idn(c, s, a):
+def idn(c: GcsController, s: Session, a: Args) -> Answer:
     _no_args(a)
     name = c.device.model.name.replace(",", " ")[:40]
     return f"stewart-sim, {NAME}, {name}, {VERSION}\n"
 
 
-def csv(c, s, a):
+def csv(c: GcsController, s: Session, a: Args) -> Answer:
     _no_args(a)
     return GCS_VERSION + "\n"
 
 
-def err(c, s, a):
+def err(c: GcsController, s: Session, a: Args) -> Answer:
     _no_args(a)
     code = s.error
     if c.motion_errors > s.seen_motion_errors:
@@ -95,31 +96,31 @@ def err(c, s, a):
     return f"{code}\n"
 
 
-def hlp(c, s, a):
+def hlp(c: GcsController, s: Session, a: Args) -> Answer:
     _no_args(a)
     return P.answer(["The following commands are valid:"]
                     + [f"{cmd.syntax} {cmd.help}" for cmd in COMMANDS.values()]
                     + ["end of help"])
 
 
-def hdr(c, s, a):
+def hdr(c: GcsController, s: Session, a: Args) -> Answer:
     _no_args(a)
     return P.answer(help_text())
 
 
-def sai(c, s, a):
+def sai(c: GcsController, s: Session, a: Args) -> Answer:
     if a and (len(a) > 1 or a[0].upper() != "ALL"):
         raise E.GcsError(E.PARAM_SYNTAX, "SAI? [ALL]")
     return P.answer(list(AXES))
 
 
-def cst(c, s, a):
+def cst(c: GcsController, s: Session, a: Args) -> Answer:
     return _rows(P.axes(a), [NAME] * 6)
 
 
 # --- servo and referencing ------------------------------------------------------------------
 
-def svo(c, s, a):
+def svo(c: GcsController, s: Session, a: Args) -> Answer:
     pairs = P.axis_values(a)
     states = {v for _, v in pairs}
     if not states <= {0.0, 1.0}:
@@ -133,76 +134,76 @@ def svo(c, s, a):
     return None
 
 
-def svo_q(c, s, a):
+def svo_q(c: GcsController, s: Session, a: Args) -> Answer:
     return _flags(P.axes(a), [c.servo] * 6)
 
 
-def frf(c, s, a):
+def frf(c: GcsController, s: Session, a: Args) -> Answer:
     P.axes(a)
     if not c.reference():
         raise E.GcsError(E.MOTION_ERROR, "the device refused to home")
     return None
 
 
-def frf_q(c, s, a):
+def frf_q(c: GcsController, s: Session, a: Args) -> Answer:
     return _flags(P.axes(a), [c.referenced] * 6)
 
 
 # --- motion ----------------------------------------------------------------------------------
 
-def mov(c, s, a):
+def mov(c: GcsController, s: Session, a: Args) -> Answer:
     target = _targets(c, a, relative=False)
     _ready_to_move(c)
     c.move(target)
     return None
 
 
-def mvr(c, s, a):
+def mvr(c: GcsController, s: Session, a: Args) -> Answer:
     target = _targets(c, a, relative=True)
     _ready_to_move(c)
     c.move(target)
     return None
 
 
-def mov_q(c, s, a):
+def mov_q(c: GcsController, s: Session, a: Args) -> Answer:
     ax = P.axes(a)
     return _numbers(ax, c.target)
 
 
-def pos_q(c, s, a):
+def pos_q(c: GcsController, s: Session, a: Args) -> Answer:
     ax = P.axes(a)
     p = c.position()
     return _numbers(ax, p)
 
 
-def ont_q(c, s, a):
+def ont_q(c: GcsController, s: Session, a: Args) -> Answer:
     ax = P.axes(a)
     on = c.on_target()
     return _flags(ax, on)
 
 
-def is_moving(c, s, a):
+def is_moving(c: GcsController, s: Session, a: Args) -> Answer:
     mask = sum(1 << i for i, m in enumerate(c.moving()) if m)
     return f"{mask:X}\n"
 
 
-def is_ready(c, s, a):
+def is_ready(c: GcsController, s: Session, a: Args) -> Answer:
     return (BUSY if c.referencing else READY) + "\n"
 
 
-def stp(c, s, a):
+def stp(c: GcsController, s: Session, a: Args) -> Answer:
     _no_args(a)
     c.stop()
     raise E.GcsError(E.STOP, "stopped")
 
 
-def hlt(c, s, a):
+def hlt(c: GcsController, s: Session, a: Args) -> Answer:
     P.axes(a)
     c.stop()
     raise E.GcsError(E.STOP, "halted")
 
 
-def vls(c, s, a):
+def vls(c: GcsController, s: Session, a: Args) -> Answer:
     if len(a) != 1:
         raise E.GcsError(E.PARAM_SYNTAX, "VLS takes one number")
     v = P.number(a[0])
@@ -212,58 +213,58 @@ def vls(c, s, a):
     return None
 
 
-def vls_q(c, s, a):
+def vls_q(c: GcsController, s: Session, a: Args) -> Answer:
     _no_args(a)
     return P.fmt(c.velocity) + "\n"
 
 
-def nlm_q(c, s, a):
+def nlm_q(c: GcsController, s: Session, a: Args) -> Answer:
     ax = P.axes(a)
     return _numbers(ax, c.low)
 
 
-def plm_q(c, s, a):
+def plm_q(c: GcsController, s: Session, a: Args) -> Answer:
     ax = P.axes(a)
     return _numbers(ax, c.high)
 
 
 # --- data recorder ---------------------------------------------------------------------------
 
-def drc(c, s, a):
+def drc(c: GcsController, s: Session, a: Args) -> Answer:
     c.recorder.configure(a)
 
 
-def drc_q(c, s, a):
+def drc_q(c: GcsController, s: Session, a: Args) -> Answer:
     return P.answer(c.recorder.config_rows(a))
 
 
-def drt(c, s, a):
+def drt(c: GcsController, s: Session, a: Args) -> Answer:
     c.recorder.set_trigger(a, c.device.k)
 
 
-def drt_q(c, s, a):
+def drt_q(c: GcsController, s: Session, a: Args) -> Answer:
     return P.answer(c.recorder.trigger_rows(a))
 
 
-def rtr(c, s, a):
+def rtr(c: GcsController, s: Session, a: Args) -> Answer:
     c.recorder.set_rate(a)
 
 
-def rtr_q(c, s, a):
+def rtr_q(c: GcsController, s: Session, a: Args) -> Answer:
     _no_args(a)
     return f"{c.recorder.rtr}\n"
 
 
-def drr_q(c, s, a):
+def drr_q(c: GcsController, s: Session, a: Args) -> Answer:
     return c.recorder.read(a)
 
 
-def drl_q(c, s, a):
+def drl_q(c: GcsController, s: Session, a: Args) -> Answer:
     ids = c.recorder.table_ids(a)
     return P.answer([f"{i}={c.recorder.count}" for i in ids])
 
 
-def tnr_q(c, s, a):
+def tnr_q(c: GcsController, s: Session, a: Args) -> Answer:
     _no_args(a)
     return f"{TABLES}\n"
 
@@ -311,7 +312,7 @@ COMMANDS: dict[str, Command] = {
 }
 
 
-def execute(c: GcsController, s: Session, text: str) -> str | Iterator[str] | None:
+def execute(c: GcsController, s: Session, text: str) -> Answer:
     """Run one line (without its LF) for session `s`; the answer to send (a string, or chunks
     of one: DRR?), or None."""
     try:
@@ -322,7 +323,7 @@ def execute(c: GcsController, s: Session, text: str) -> str | Iterator[str] | No
         if cmd is None:
             raise E.GcsError(E.UNKNOWN_COMMAND, line.name[:20])
         out = cmd.handler(c, s, line.args)
-    except _Short as short:          # DRR? beyond the record: what there is, and error 77
+    except ShortRecord as short:          # DRR? beyond the record: what there is, and error 77
         s.error = short.code
         return short.text
     except E.GcsError as exc:

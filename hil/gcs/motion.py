@@ -1,19 +1,19 @@
-"""A GCS move as the device's own input: a quintic in GCS coordinates, sampled each servo tick
-into a LEG_SETPOINT (lengths and rates) that goes through `Device.receive` like any host's.
+"""A GCS move as the device's own input: a quintic in GCS coordinates, sampled each servo tick into
+a LEG_SETPOINT (lengths and rates) that goes through `Device.receive` like any host's.
 
 A move runs from the reference now (where the previous path stands; at rest after FRF or a
 finished move) to the goal along the minimum-jerk profile of controller.trajectory (every
 coordinate on one straight line in X Y Z U V W, the pivot on a straight line). Before it starts
 the whole path is checked at PATH_SAMPLES poses: every leg within the device's own setpoint
 stroke (hil.limits: the stroke less the servo's overshoot room) and cond(J) within SP_COND_MAX,
-else GcsError 7 and nothing moves. Its duration is the longest of: the translation at the
-system velocity (VLS, mm/s), the rotation at the same number in deg/s, and the legs at the
-drive's no-load speed (hil.limits: SP_RATE_MAX / RATE_MARGIN), each with the quintic's peak
-rate factor. The leg rates sent are the central difference of the leg lengths along the path (a step of
-FD_STEP in the path parameter, times the profile's rate). After the goal the last setpoint is sent again every
-quarter of the device's watchdog, so an idle twin holds its target with the device's watchdog
-armed. A setpoint the device refuses (it says why over MAVLink) ends the move: the device is
-told to HOLD and the move counts as a motion error.
+else GcsError 7 and nothing moves. Its duration is the longest of: the translation at the system
+velocity (VLS, mm/s), the rotation at the same number in deg/s, and the legs at the drive's
+no-load speed (hil.limits: SP_RATE_MAX / RATE_MARGIN), each with the quintic's peak rate factor.
+The leg rates sent are the central difference of the leg lengths along the path (a step of
+FD_STEP in the path parameter, times the profile's rate). After the goal the last setpoint is
+sent again every quarter of the device's watchdog, so an idle twin holds its target with the
+device's watchdog armed. A setpoint the device refuses (it says why over MAVLink) ends the move:
+the device is told to HOLD and the move counts as a motion error.
 """
 from __future__ import annotations
 

@@ -170,7 +170,7 @@ class Recorder:
         block = np.array([self.tables[i - 1].values[offset - 1:offset - 1 + rows] for i in ids])
         text = _chunks(head, block)
         if short:
-            raise _Short(text)
+            raise ShortRecord(text)
         return text
 
     def config_rows(self, args: tuple[str, ...]) -> list[str]:
@@ -192,7 +192,7 @@ def _chunks(head: list[str], block: np.ndarray) -> Iterator[str]:
         yield " \n".join(lines) + ("\n" if j == rows else " \n")
 
 
-class _Short(E.GcsError):
+class ShortRecord(E.GcsError):
     """DRR? asked for more points than recorded: the answer (what there is) and error 77."""
 
     def __init__(self, text: Iterator[str]) -> None:

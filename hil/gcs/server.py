@@ -4,14 +4,14 @@
 runs complete lines through hil.gcs.commands.execute and writes answers. Everything is bounded:
 at most `max_clients` connections (one more is accepted and closed at once, counted), a
 connection idle for `idle_timeout` s is closed, a line longer than MAX_LINE bytes is an error 3
-and is skipped up to its LF, at most LINES_PER_POLL lines run per poll, and none after LINE_SHARE of
-a servo period (the rest waits for the next poll: a flood cannot hold the device's ticks back), a long answer (DRR?) is formatted one chunk
-a poll while its connection's next lines wait, at most READ_CHUNK bytes are read per
-connection per poll, and a connection whose unsent answers pass OUT_HIGH bytes, or whose unrun
-input passes IN_HIGH bytes, is not read until they drain (a client that floods, or sends
-queries and never reads, stalls only itself). A client
-that resets or closes is dropped. Bytes are read as Latin-1 (PI's controllers speak ASCII;
-cp1252 agrees with Latin-1 on every byte the answers use).
+and is skipped up to its LF, at most LINES_PER_POLL lines run per poll, and none after
+LINE_SHARE of a servo period (the rest waits for the next poll: a flood cannot hold the device's
+ticks back), a long answer (DRR?) is formatted one chunk a poll while its connection's next
+lines wait, at most READ_CHUNK bytes are read per connection per poll, and a connection whose
+unsent answers pass OUT_HIGH bytes, or whose unrun input passes IN_HIGH bytes, is not read until
+they drain (a client that floods, or sends queries and never reads, stalls only itself). A
+client that resets or closes is dropped. Bytes are read as Latin-1 (PI's controllers speak
+ASCII; cp1252 agrees with Latin-1 on every byte the answers use).
 """
 from __future__ import annotations
 
