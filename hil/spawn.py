@@ -134,20 +134,21 @@ def serve_device(model: Model, config: ControllerConfig, udp: str | None,
                  observer: Latest | None = None,
                  ready: Callable[[], None] | None = None,
                  truth: Model | None = None, sensors: SensorConfig | None = None,
-                 gcs: str | None = None) -> None:
-    """Serve the emulated device for `model` (its [controller] table: `config`) on loopback UDP (`udp`, "127.0.0.1:PORT") or, with
-    udp None, a pseudo-terminal, until SIGINT or SIGTERM. The first line on stdout says where it
+                 gcs: str | None = None, pty: bool = False) -> None:
+    """Serve the emulated device for `model` (its [controller] table: `config`) on loopback UDP
+    (`udp`, "127.0.0.1:PORT") or, with udp None, a pseudo-terminal (with `gcs`: only when `pty`
+    is True), until SIGINT or SIGTERM. The first line on stdout says where it
     listens; a summary goes to stderr when it stops. With `observer` the device publishes its
     snapshots there (`Device.observe`, hil.observe); `ready` is called once that first line is
     out, just before the loop starts (the caller announces what it serves beside the device).
     `truth`: the hidden true scene of the plant (hil.truth); `sensors`: what the device reports
-    (hil.sensors; None: ideal). With `gcs` ("127.0.0.1:PORT") and no `udp` the device is
-    driven over PI's GCS 2.0 on that loopback TCP port instead (hil.gcs), in real time; the first
-    line is ``gcs 127.0.0.1:PORT``."""
+    (hil.sensors; None: ideal). With `gcs` ("127.0.0.1:PORT") the device also speaks PI's GCS
+    2.0 on that loopback TCP port (hil.gcs), in real time: beside the MAVLink link when `udp` is
+    given or `pty` is True, alone otherwise; its line ``gcs 127.0.0.1:PORT`` follows the MAVLink
+    one (or is the first, alone)."""
     key = signing_key(key_hex)
-    if gcs is not None and (udp is not None or lockstep or key is not None):
-        raise LinkError("--gcs runs the device in real time on its own: without --udp, --pty, "
-                        "--lockstep or --signing-key")
+    if gcs is not None and lockstep:
+        raise LinkError("--gcs runs the device in real time: not with --lockstep")
     gcs_at = gcs_address(gcs) if gcs is not None else None
     address = loopback_address(udp) if udp is not None else None
     device = Device(model, config, watchdog=watchdog, signing_key=key, lockstep=lockstep,
@@ -159,16 +160,23 @@ def serve_device(model: Model, config: ControllerConfig, udp: str | None,
     gc.collect()
     gc.freeze()                     # what exists now is never scanned again by the collector
     keep = None  # the pty's slave end, held open so the master never sees a hang-up
-    if gcs_at is not None:
-        from hil.gcs.link import gcs_link       # only for --gcs
-        transport = gcs_link(device, *gcs_at)
-        first = "gcs {}:{}".format(*transport.server.address)
-    elif address is not None:
+    transport = None
+    if address is not None:
         transport = udp_server(*address)
         first = f"udp {transport.address[0]}:{transport.address[1]}"
-    else:
+    elif pty or gcs_at is None:
         transport, keep = pty_pair()
         first = keep.name
+    if gcs_at is not None:
+        from hil.gcs.link import gcs_link       # only for --gcs
+        try:
+            transport = gcs_link(device, *gcs_at, inner=transport)
+        except LinkError:
+            if transport is not None:
+                transport.close()
+            raise
+        line = "gcs {}:{}".format(*transport.server.address)
+        first = line if transport.inner is None else f"{first}\n{line}"
     stop = threading.Event()
     handlers = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
@@ -198,27 +206,29 @@ def serve_device(model: Model, config: ControllerConfig, udp: str | None,
 
 
 def main(argv: list[str] | None = None) -> int:
-    """The device process: `python -m hil.spawn SCENE (--udp 127.0.0.1:PORT | --pty |
-    --gcs 127.0.0.1:PORT)
-    [--watchdog S] [--lockstep] [--signing-key HEX] [--truth TRUE.toml]` (`stewart-sim
-    device` with its help)."""
+    """The device process: `python -m hil.spawn SCENE [--udp 127.0.0.1:PORT | --pty]
+    [--gcs 127.0.0.1:PORT] [--watchdog S] [--lockstep] [--signing-key HEX] [--truth TRUE.toml]`,
+    one link at least (`stewart-sim device` with its help)."""
     parser = argparse.ArgumentParser(prog="python -m hil.spawn")
     parser.add_argument("scene")
-    where = parser.add_mutually_exclusive_group(required=True)
+    where = parser.add_mutually_exclusive_group()
     where.add_argument("--udp")
     where.add_argument("--pty", action="store_true")
-    where.add_argument("--gcs")
+    parser.add_argument("--gcs")
     parser.add_argument("--watchdog", type=float, default=WATCHDOG)
     parser.add_argument("--lockstep", action="store_true")
     parser.add_argument("--signing-key")
     parser.add_argument("--truth")
     args = parser.parse_args(argv)
+    if args.udp is None and not args.pty and args.gcs is None:
+        parser.error("one of --udp, --pty, --gcs is required")
     try:
         model = load_scene(args.scene)
         truth = load_scene(args.truth) if args.truth is not None else None   # checked by Device
         serve_device(model, controller_config(model), args.udp, args.watchdog, args.lockstep,
                      args.signing_key, truth=truth,
-                     sensors=sensor_config(truth if truth is not None else model), gcs=args.gcs)
+                     sensors=sensor_config(truth if truth is not None else model), gcs=args.gcs,
+                     pty=args.pty)
     except StewartError as exc:
         print(f"device: {exc}", file=sys.stderr)
         return 2

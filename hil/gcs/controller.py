@@ -34,6 +34,7 @@ from stewart_fmu.kinematics import inverse_kinematics
 VLS_DEFAULT = 10.0      # mm/s (and deg/s) system velocity at start
 VLS_MIN = 1e-3
 ONT_TOLERANCE = 1e-3    # mm or deg: an axis within this of its target, not moving, is on target
+OUTBOX = 64             # replies to commands kept for the next step (the newest)
 RANGE_MAX = (1000.0,) * 3 + (89.0,) * 3     # mm, deg: the travel-range search's bounds
 RANGE_SCAN = 512        # steps out to RANGE_MAX in which each end of the travel range is sought
 RANGE_STEPS = 40        # bisections of the step where it lies
@@ -66,6 +67,7 @@ class GcsController:
         self.low, self.high = self._travel_range()
         self._k = -1
         self._refused = 0
+        self._outbox: list[Any] = []     # the device's replies to commands, for the next step
 
     # --- the state as GCS reports it -----------------------------------------------------
 
@@ -90,9 +92,12 @@ class GcsController:
     # --- actions (checked by hil.gcs.commands before they are called) ---------------------
 
     def command(self, cmd: int, p1: float = 0.0) -> list[Any]:
-        """A COMMAND_LONG to the device; its replies (the first is the ack)."""
-        return self.device.receive(ms.MAVLink_command_long_message(
+        """A COMMAND_LONG to the device; its replies (the first is the ack), which the next
+        `step` also hands on (to a MAVLink peer beside GCS, hil.gcs.link)."""
+        out = self.device.receive(ms.MAVLink_command_long_message(
             self.device.mav.srcSystem, self.device.mav.srcComponent, cmd, 0, p1, 0, 0, 0, 0, 0, 0))
+        self._outbox = (self._outbox + out)[-OUTBOX:]
+        return out
 
     def servo_on(self) -> None:
         if not self.device.armed:
@@ -159,7 +164,8 @@ class GcsController:
             self.servo = self.referencing = False
             self.motion_errors += 1
             self.mover.reset(self.position())
-        out = self.mover.step(k) if self.servo and not self.referencing else []
+        out, self._outbox = self._outbox, []
+        out += self.mover.step(k) if self.servo and not self.referencing else []
         if self.mover.refused != self._refused:
             self._refused = self.mover.refused
             self.motion_errors += 1

@@ -19,7 +19,7 @@ import selectors
 import socket
 import time
 from dataclasses import dataclass, field
-from typing import Callable, Iterator
+from typing import Any, Callable, Iterator
 
 from hil.gcs import errors as E
 from hil.gcs.commands import execute
@@ -92,6 +92,11 @@ class GcsServer:
         host, port = self.listener.getsockname()[:2]
         return host, port
 
+    def wake_on(self, handle: Any) -> None:
+        """Also end a poll's wait when `handle` (a socket or a file descriptor: the MAVLink
+        transport beside this server) becomes readable; the server does not read it."""
+        self.sel.register(handle, selectors.EVENT_READ, "wake")
+
     def close(self) -> None:
         for c in list(self.conns.values()):
             self._drop(c)
@@ -108,6 +113,8 @@ class GcsServer:
         for key, mask in self.sel.select(0.0 if pending else max(0.0, timeout)):
             if key.data is None:
                 self._accept()
+                continue
+            if key.data == "wake":
                 continue
             c = self.conns.get(key.fd)
             if c is None:

@@ -438,3 +438,104 @@ def test_fuzz_hostile_bytes_over_tcp(model):
     assert c.internal_errors == 0 and not c.referenced
     assert np.allclose(np.asarray(d.snapshot().q), q0, atol=1e-9)
     assert d.counters.faults == 0 and d.counters.numeric_faults == 0
+
+
+def _gcs(sock: socket.socket, line: bytes, answer: bool = True, ticks_until=None) -> bytes:
+    """Send a GCS line; its answer (up to an LF without a space before it), read within a
+    bounded number of waits."""
+    sock.sendall(line + b"\n")
+    if not answer:
+        return b""
+    got = b""
+    for _ in range(500):
+        got += sock.recv(65536)
+        if got.endswith(b"\n") and not got.endswith(b" \n"):
+            return got
+    raise AssertionError(f"no answer to {line!r}")
+
+
+def test_gcs_beside_mavlink_drives_the_same_device(model):
+    """--gcs with --udp: a MAVLink peer sees the acks of the arm and home the GCS controller
+    sends, and its LEG_STATE lengths are those of the pose GCS moved the device to (the
+    inverse kinematics of the target, computed here)."""
+    import select
+    import time
+
+    from hil import mavlink_stewart as ms
+    from hil.gcs.link import gcs_link
+    from hil.link import udp_server
+    from hil.serve import serve_in_thread
+    from stewart_fmu.kinematics import inverse_kinematics
+
+    d = Device(model, telemetry={"LEG_STATE": 50.0})
+    link = gcs_link(d, "127.0.0.1", 0, inner=udp_server("127.0.0.1", 0))
+    thread, stop, _ = serve_in_thread(d, link)
+    mav_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    mav_sock.bind(("127.0.0.1", 0))
+    mav_sock.connect(link.inner.address)
+    host = ms.MAVLink(None, srcSystem=255, srcComponent=190)
+    host.robust_parsing = True
+    seen: dict[str, list] = {}
+
+    def listen(seconds: float) -> None:
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline:
+            if select.select([mav_sock], [], [], 0.02)[0]:
+                for m in host.parse_buffer(mav_sock.recv(65536)) or []:
+                    seen.setdefault(m.get_type(), []).append(m)
+
+    try:
+        mav_sock.send(host.heartbeat_encode(6, 8, 0, 0, 0).pack(host))   # become the peer
+        listen(0.3)
+        with socket.create_connection(link.server.address, timeout=10) as g:
+            _gcs(g, b"FRF", answer=False)
+            for _ in range(200):
+                if _gcs(g, b"FRF? X") == b"X=1\n":
+                    break
+                listen(0.05)
+            _gcs(g, b"MOV Z 2", answer=False)
+            for _ in range(400):
+                if _gcs(g, b"ONT? Z") == b"Z=1\n":
+                    break
+                listen(0.05)
+            assert _gcs(g, b"ERR?") == b"0\n"
+            seen.pop("LEG_STATE", None)
+            listen(0.3)
+    finally:
+        stop.set()
+        thread.join(10)
+        link.close()
+        mav_sock.close()
+    acks = {(a.command, a.result) for a in seen.get("COMMAND_ACK", [])}
+    assert (ms.MAV_CMD_COMPONENT_ARM_DISARM, ms.MAV_RESULT_ACCEPTED) in acks
+    assert (ms.MAV_CMD_NAV_RETURN_TO_LAUNCH, ms.MAV_RESULT_ACCEPTED) in acks
+    target = np.array(model.home, dtype=float) + [0, 0, 0.002, 0, 0, 0]
+    expected = inverse_kinematics(model, target).lengths
+    lengths = np.array(seen["LEG_STATE"][-1].length)
+    assert np.all(np.abs(lengths - expected) < 2e-6)      # m: the servo's on-target window
+
+
+def test_device_command_serves_mavlink_and_gcs_and_wants_a_link(capsys):
+    import subprocess
+    import sys
+
+    from hil.spawn import _first_line, _stop, parse_gcs, parse_udp
+    from stewart_sim import cli
+
+    assert cli.main(["device", str(SCENE)]) == 2
+    err_line = capsys.readouterr().err.strip()
+    assert err_line.startswith("stewart-sim: error:") and "--gcs 127.0.0.1:PORT" in err_line
+    assert cli.main(["device", str(SCENE), "--gcs", "127.0.0.1:0", "--lockstep"]) == 2
+    assert "not with --lockstep" in capsys.readouterr().err
+    proc = subprocess.Popen([sys.executable, "-m", "hil.spawn", str(SCENE), "--udp",
+                             "127.0.0.1:0", "--gcs", "127.0.0.1:0"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        udp = parse_udp(_first_line(proc, 60))
+        host, port = parse_gcs(_first_line(proc, 10))
+        assert udp[0] == host == "127.0.0.1" and port > 0
+        with socket.create_connection((host, port), timeout=10) as g:
+            assert _gcs(g, b"*IDN?").startswith(b"stewart-sim, STEWART-SIM-TWIN")
+    finally:
+        _stop(proc)
+    assert proc.returncode == 0
