@@ -199,7 +199,7 @@ def stp(c: GcsController, s: Session, a: Args) -> Answer:
 
 def hlt(c: GcsController, s: Session, a: Args) -> Answer:
     P.axes(a)
-    c.stop()
+    c.halt()
     raise E.GcsError(E.STOP, "halted")
 
 
@@ -290,7 +290,7 @@ COMMANDS: dict[str, Command] = {
     "#7": Command(is_ready, "#7", "Request Controller Ready Status"),
     "#24": Command(stp, "#24", "Stop All Axes"),
     "STP": Command(stp, "STP", "Stop All Axes"),
-    "HLT": Command(hlt, "HLT [{<AxisID>}]", "Halt Motion (as STP)"),
+    "HLT": Command(hlt, "HLT [{<AxisID>}]", "Halt Motion Smoothly (all axes)"),
     "VLS": Command(vls, "VLS <SystemVelocity>", "Set System Velocity (mm/s, deg/s)"),
     "VLS?": Command(vls_q, "VLS?", "Get System Velocity"),
     "NLM?": Command(nlm_q, "NLM? [{<AxisID>}]", "Get Low Position Soft Limit"),

@@ -138,6 +138,14 @@ class GcsController:
         self.mover.start(path)
         self.target = target.copy()
 
+    def halt(self) -> None:
+        """HLT: a move comes to rest smoothly along its path (hil.gcs.motion.Mover.halt), the
+        target is where it will rest; referencing is stopped as STP stops it."""
+        if self.referencing or not (self.servo and self.device.armed):
+            self.stop()
+            return
+        self.target = self.mover.halt(self.device.k)
+
     def stop(self) -> None:
         """STP/HLT/#24: the drives hold the lengths measured now; the target is that pose."""
         self.referencing = False

@@ -39,12 +39,27 @@ _RATES = ms.STEWART_SETPOINT_FLAG_RATE_VALID
 
 @dataclass(frozen=True)
 class Path:
-    """A planned move: from `start` to `goal` (GCS, mm and deg) in `n` ticks from tick `k0`."""
+    """A planned move: from `start` to `goal` (GCS, mm and deg) in `n` ticks from tick `k0`,
+    along the quintic; a halt (`halt_from`: the path parameter s0 and its rate v0, 1/s, where
+    HLT found the move) runs on along the same line from s0 and comes to rest smoothly."""
 
     start: np.ndarray
     goal: np.ndarray
     k0: int
     n: int
+    halt_from: tuple[float, float] | None = None
+
+    def at(self, k: int, rate: float) -> tuple[float, float, bool]:
+        """(s, ds/dt, done) at tick k."""
+        u = min(1.0, (k - self.k0) / self.n)
+        duration = self.n / rate
+        if self.halt_from is None:
+            s, sd, _ = minimum_jerk(u, duration)
+            return s, sd, u >= 1.0
+        s0, v0 = self.halt_from
+        # the rate falls as v0 (1 - 3u^2 + 2u^3): from v0 to rest, at rest with no acceleration
+        return (s0 + v0 * duration * (u - u**3 + 0.5 * u**4),
+                v0 * (1.0 - 3.0 * u**2 + 2.0 * u**3), u >= 1.0)
 
 
 class Mover:
@@ -95,6 +110,27 @@ class Mover:
     def start(self, path: Path) -> None:
         self.path = path
 
+    def halt(self, k: int) -> np.ndarray:
+        """HLT: the move running (if any) comes to rest along its own line, its rate falling
+        smoothly to 0 in half the move's duration or less, never past the move's goal (so
+        within the path checked when it started); the pose (GCS) where it will rest."""
+        p = self.path
+        if p is None:
+            return self.reference.copy()
+        if p.halt_from is not None:                # halting already: where that one rests
+            s_end, _, _ = p.at(p.k0 + p.n, self.device.rate)
+            return p.start + (p.goal - p.start) * s_end
+        s0, v0, done = p.at(k, self.device.rate)
+        if done or v0 <= 0.0:
+            return p.start + (p.goal - p.start) * s0
+        duration = min(0.5 * p.n / self.device.rate, 2.0 * (1.0 - s0) / v0)
+        n = max(1, math.ceil(duration * self.device.rate))
+        duration = n / self.device.rate
+        if s0 + 0.5 * v0 * duration > 1.0:       # rounding n up: keep the end on the path
+            v0 = 2.0 * (1.0 - s0) / duration
+        self.path = Path(p.start, p.goal, k, n, (s0, v0))
+        return p.start + (p.goal - p.start) * (s0 + 0.5 * v0 * duration)
+
     def hold_here(self, lengths: np.ndarray, at: np.ndarray) -> list[Any]:
         """Stop: the setpoint is `lengths` (measured now), the reference `at` (GCS)."""
         self.path = None
@@ -109,12 +145,11 @@ class Mover:
             if self.held is not None and self.device.k - self._last_sent >= due:
                 return self._send(self.held, np.zeros(6))
             return []
-        u = min(1.0, (k - p.k0) / p.n)
-        s, sd, _ = minimum_jerk(u, p.n / self.device.rate)
+        s, sd, done = p.at(k, self.device.rate)
         d = p.goal - p.start
         g = p.start + d * s
         lengths = self.lengths(g)
-        if u >= 1.0:
+        if done:
             self.path = None
             rates = np.zeros(6)
         else:

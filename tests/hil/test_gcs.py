@@ -539,3 +539,33 @@ def test_device_command_serves_mavlink_and_gcs_and_wants_a_link(capsys):
     finally:
         _stop(proc)
     assert proc.returncode == 0
+
+
+def test_halt_comes_to_rest_smoothly_where_mov_q_says(model):
+    """HLT mid-move: error 10 as PI sets it; the leg references keep a continuous rate (their
+    second difference stays within what the move itself asks, unlike STP's step to rest), the
+    platform rests on the move's own line, between where it was and the goal, at MOV?."""
+    d, c, s = referenced(model)
+    ask(c, s, "VLS 40")
+    ask(c, s, "MOV Z 20")
+    refs = []
+    for _ in range(300):
+        c.step()
+        refs.append(d.l_ref.copy())
+        d.tick()
+    z_then = c.position()[2]
+    assert ask(c, s, "HLT") is None and err(c, s) == E.STOP
+    z_rest = float(ask(c, s, "MOV? Z").split("=")[1])
+    assert z_then < z_rest < 20.0
+    for _ in range(1500):
+        c.step()
+        refs.append(d.l_ref.copy())
+        d.tick()
+        if ask(c, s, "ONT? Z") == "Z=1\n":
+            break
+    assert abs(c.position()[2] - z_rest) <= ONT_TOLERANCE
+    second = np.abs(np.diff(np.array(refs), n=2, axis=0))
+    assert second.max() < 1e-6     # m per tick^2; the move's own: 1.1e-7, STP's step: 5.1e-5
+    pos = c.position()
+    assert np.all(np.abs(pos[[0, 1, 3, 4, 5]]) <= ONT_TOLERANCE)
+    assert d.counters.setpoints_refused == 0 and d.counters.faults == 0
