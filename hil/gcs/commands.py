@@ -21,7 +21,7 @@ from hil.gcs import errors as E
 from hil.gcs import parser as P
 from hil.gcs.axes import AXES
 from hil.gcs.controller import VLS_MIN, GcsController, Session
-from hil.gcs.recorder import TABLES, ShortRecord, help_text
+from hil.gcs.recorder import POINTS, TABLES, ShortRecord, help_text
 
 NAME = "STEWART-SIM-TWIN"          # *IDN?'s model field (PIPython's devname)
 VERSION = "0.1.0"
@@ -228,6 +228,56 @@ def plm_q(c: GcsController, s: Session, a: Args) -> Answer:
     return _numbers(ax, c.high)
 
 
+# --- parameters (read-only: what PIPython's data recorder tools ask) --------------------------
+
+def _parameters(c: GcsController) -> dict[int, tuple[str, str, object]]:
+    """PI's parameter IDs the twin answers: id -> (type, description, value)."""
+    return {0x0E000200: ("FLOAT", "Servo update time /s", c.device.dt),
+            0x16000200: ("INT", "Data recorder max points", TABLES * POINTS),
+            0x16000300: ("INT", "Data recorder channel number", TABLES)}
+
+
+def _param_id(word: str) -> int:
+    try:
+        return int(word, 16) if word.lower().startswith("0x") else P.integer(word)
+    except ValueError:
+        raise E.GcsError(E.PARAM_SYNTAX, f"{word[:20]!r} is not a parameter ID") from None
+
+
+def spa_q(c: GcsController, s: Session, a: Args) -> Answer:
+    """SPA? {<ItemID> <PamID>}: item 1 (the controller) only."""
+    table = _parameters(c)
+    if not a:
+        a = tuple(w for pid in table for w in ("1", f"0x{pid:08X}"))
+    if len(a) % 2 or len(a) > 2 * len(table):
+        raise E.GcsError(E.PARAM_SYNTAX, "SPA? takes item and parameter pairs")
+    rows = []
+    for item, word in zip(a[::2], a[1::2]):
+        pid = _param_id(word)
+        if item != "1":
+            raise E.GcsError(E.INVALID_AXIS, f"item {item[:8]!r}")
+        if pid not in table:
+            raise E.GcsError(E.UNKNOWN_PARAMETER, f"0x{pid:08X}")
+        rows.append(f"{item} 0x{pid:08X}={table[pid][2]}")
+    return P.answer(rows)
+
+
+def spa(c: GcsController, s: Session, a: Args) -> Answer:
+    if not a or len(a) % 3:
+        raise E.GcsError(E.PARAM_SYNTAX, "SPA takes item, parameter and value triples")
+    pid = _param_id(a[1])
+    raise E.GcsError(E.READ_ONLY_PARAMETER if pid in _parameters(c) else E.UNKNOWN_PARAMETER,
+                     f"0x{pid:08X}")
+
+
+def hpa_q(c: GcsController, s: Session, a: Args) -> Answer:
+    _no_args(a)
+    return P.answer(["The following parameters are valid:"]
+                    + [f"0x{pid:08X}=\t0\t1\t{kind}\tTwin\t{text}"
+                       for pid, (kind, text, _) in _parameters(c).items()]
+                    + ["end of help"])
+
+
 # --- data recorder ---------------------------------------------------------------------------
 
 def drc(c: GcsController, s: Session, a: Args) -> Answer:
@@ -297,6 +347,10 @@ COMMANDS: dict[str, Command] = {
     "PLM?": Command(plm_q, "PLM? [{<AxisID>}]", "Get High Position Soft Limit"),
     "TMN?": Command(nlm_q, "TMN? [{<AxisID>}]", "Get Minimum Commandable Position"),
     "TMX?": Command(plm_q, "TMX? [{<AxisID>}]", "Get Maximum Commandable Position"),
+    "SPA?": Command(spa_q, "SPA? [{<ItemID> <PamID>}]", "Get Volatile Memory Parameters"),
+    "SPA": Command(spa, "SPA {<ItemID> <PamID> <PamValue>}",
+                   "Set Volatile Memory Parameters (all read-only here)"),
+    "HPA?": Command(hpa_q, "HPA?", "Get List Of Available Parameters"),
     "DRC": Command(drc, "DRC {<RecTableID> <Source> <RecOption>}",
                    "Set Data Recorder Configuration"),
     "DRC?": Command(drc_q, "DRC? [{<RecTableID>}]", "Get Data Recorder Configuration"),

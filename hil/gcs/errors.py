@@ -18,9 +18,11 @@ INVALID_AXIS = 15           # Invalid axis identifier
 PARAM_OUT_OF_RANGE = 17     # Parameter out of range
 DOUBLE_AXIS = 22            # Axis identifier specified more than once
 CMD_NOT_ALLOWED_FOR_STAGE = 34     # Command not allowed for selected stage(s)
+UNKNOWN_PARAMETER = 54      # Unknown parameter
 INVALID_RECORDER_CHAN = 57  # Data recorder table does not exist
 INVALID_RECORDER_SRC_OPT = 58      # Source option does not exist; number too low or too high
 INVALID_RECORDER_SRC_CHAN = 59     # Source ID (channel or axis) too low or too high
+READ_ONLY_PARAMETER = 64    # Parameter is read-only
 NOT_ENOUGH_RECORDED_DATA = 77      # Data Record Table does not hold enough recorded data
 CONTROLLER_ERROR = 555      # BasMac: unknown controller error (a defect of the twin)
 MOTION_ERROR = 1024         # Motion error: position error too large, servo is switched off
@@ -40,6 +42,8 @@ TEXTS = {
     PARAM_OUT_OF_RANGE: "Parameter out of range",
     DOUBLE_AXIS: "Axis identifier specified more than once",
     CMD_NOT_ALLOWED_FOR_STAGE: "Command not allowed for selected stage(s)",
+    UNKNOWN_PARAMETER: "Unknown parameter",
+    READ_ONLY_PARAMETER: "Parameter is read-only",
     INVALID_RECORDER_CHAN: "Data recorder table does not exist",
     INVALID_RECORDER_SRC_OPT: "Source option does not exist; number too low or too high",
     INVALID_RECORDER_SRC_CHAN: "Source ID (channel or axis) too low or too high",

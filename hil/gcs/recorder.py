@@ -7,7 +7,8 @@ tick, 2 actual position: the plant's pose, 3 position error: 1 - 2, in mm or deg
 in mm; OPTION_FORCE the rack force, N); option 8 (any source) is the device time in s; option 0
 records nothing. Recording starts on its trigger (DRT): 0 (the default) and 1 on the next
 command that moves (MOV, MVR, FRF), 2 on the next command of any kind (once: the trigger is
-0 again after it; PIPython's own ERR? after DRT is that command), 4 at once; it takes one
+0 again after it; PIPython's own ERR? after DRT is that command unless its error check is off,
+as its Datarecorder turns it off), 4 at once; it takes one
 value every RTR servo ticks (RTR?, 1..RTR_MAX) until the tables are full, and restarts (empty)
 at the next trigger. The values are the device's own (hil.device.Device.snapshot and l_ref at
 the tick), so a table equals what the device publishes to its observers at the same ticks.
@@ -206,7 +207,8 @@ def help_text() -> list[str]:
             + ["#SourceIDs", "X Y Z U V W=axes (mm, deg)", "1 2 3 4 5 6=legs (mm; option "
                f"{OPTION_FORCE}: N)", "#TriggerOptions"]
             + [f"{k}={v}" for k, v in TRIGGERS.items()]
-            + [f"#Tables={TABLES}, points per table={POINTS}, RTR 1..{RTR_MAX} servo cycles",
+            + ["#Additional information", f"{TABLES} data recorder tables",
+               f"{POINTS} datapoints per table", f"RTR 1..{RTR_MAX} servo cycles",
                "end of help"])
 
 

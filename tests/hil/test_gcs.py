@@ -141,6 +141,7 @@ def test_identification_axes_help(idle):
     listed = {line.split()[0] for line in lines[1:-1]}
     assert listed == set(COMMANDS)
     assert ask(c, s, "POS? X Z") == "X=0.0 \nZ=0.0\n"
+    assert ask(c, s, "SPA? 1 0x0E000200") == f"1 0x0E000200={d.dt}\n"
     assert err(c, s) == 0
 
 
@@ -152,7 +153,9 @@ def test_identification_axes_help(idle):
     ("SVO X 1 Y 0", E.CMD_NOT_ALLOWED_FOR_STAGE), ("SVO X 2", E.PARAM_SYNTAX),
     ("DRC 9 X 2", E.INVALID_RECORDER_CHAN), ("DRC 1 Q 2", E.INVALID_RECORDER_SRC_CHAN),
     ("DRC 1 X 55", E.INVALID_RECORDER_SRC_OPT), ("RTR 0", E.PARAM_OUT_OF_RANGE),
-    ("STP", E.STOP), ("*IDN? X", E.PARAM_SYNTAX), ("MOV\x01 X 1", E.UNKNOWN_COMMAND)])
+    ("STP", E.STOP), ("*IDN? X", E.PARAM_SYNTAX), ("MOV\x01 X 1", E.UNKNOWN_COMMAND),
+    ("SPA 1 0x0E000200 0.5", E.READ_ONLY_PARAMETER), ("SPA? 1 0x12345", E.UNKNOWN_PARAMETER),
+    ("SPA? X 0x0E000200", E.INVALID_AXIS), ("SPA? 1 zz", E.PARAM_SYNTAX)])
 def test_a_refused_line_sets_pis_error_answers_nothing_and_changes_nothing(idle, line, code):
     d, c, s = idle
     before = (c.target.copy(), c.velocity, c.servo, c.referenced, d.mode, d.counters.commands)

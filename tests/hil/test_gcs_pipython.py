@@ -16,7 +16,7 @@ import pytest
 
 pytest.importorskip("pymavlink")
 pipython = pytest.importorskip("pipython")
-from pipython import GCSDevice, GCSError, pitools  # noqa: E402
+from pipython import GCSDevice, GCSError, datarectools, pitools  # noqa: E402
 from pipython.pidevice.interfaces.pisocket import PISocket  # noqa: E402
 
 from hil.device import Device  # noqa: E402
@@ -171,7 +171,7 @@ class Keep:
 
 
 @unraisable
-def test_recorded_table_equals_the_devices_own_record():
+def test_recorded_table_equals_the_devices_own_record_and_pipythons_datarecorder_runs():
     model = load_scene(SCENE)
     device = Device(model)
     keep = Keep()
@@ -190,6 +190,23 @@ def test_recorded_table_equals_the_devices_own_record():
             n = pi.qDRL(1)[1]
             pi.qDRR([1, 2, 3, 4], 1, n)
             y, leg3, force6, t = wait_data(pi)
+            # PIPython's own Datarecorder (its samples' way): servo time and table size from
+            # SPA?/HPA? and HDR?, sample rate by RTR, armed by DRC/DRT, read by DRR?
+            drec = datarectools.Datarecorder(pi)
+            assert drec.servotime == 1.0 / device.rate and drec.maxnumvalues == 16384
+            drec.numvalues, drec.samplefreq = 400, 200
+            drec.options = (datarectools.RecordOptions.ACTUAL_POSITION_2,
+                            datarectools.RecordOptions.COMMANDED_POSITION_1)
+            drec.sources = ("Z", "Z")
+            drec.trigsources = datarectools.TriggerSources.POSITION_CHANGING_COMMAND_1
+            drec.arm()
+            pi.MOV("Z", 0.5)
+            header, (z_actual, z_commanded) = drec.getdata(timeout=WAIT)
+            assert header["NDATA"] == 400 and header["SAMPLE_TIME"] == 0.005
+            assert z_commanded[0] == pytest.approx(0.0, abs=1e-3) and z_commanded[-1] == 0.5
+            assert abs(z_actual[-1] - 0.5) <= ONT_TOLERANCE
+            assert np.all(np.diff(z_commanded) >= 0)       # the quintic only rises
+            assert pi.qERR() == 0
         del pi
         release()
     finally:
