@@ -25,71 +25,77 @@ import math
 import numpy as np
 
 AXES = ("X", "Y", "Z", "U", "V", "W")
-UNITS = ("mm", "mm", "mm", "deg", "deg", "deg")
 MM_PER_M = 1e3
-SCALE = np.array([MM_PER_M] * 3 + [180.0 / math.pi] * 3)   # contract units -> GCS units
 
 
-def rx(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+def _rotations(axis: int, angles) -> np.ndarray:
+    """(N, 3, 3) rotations about the fixed axis 0 (x), 1 (y) or 2 (z) by N angles (radians)."""
+    a = np.atleast_1d(np.asarray(angles, dtype=float))
+    c, s = np.cos(a), np.sin(a)
+    r = np.zeros((a.shape[0], 3, 3))
+    i, j = [(1, 2), (2, 0), (0, 1)][axis]       # the plane the rotation turns
+    r[:, axis, axis] = 1.0
+    r[:, i, i] = c
+    r[:, j, j] = c
+    r[:, i, j] = -s
+    r[:, j, i] = s
+    return r
 
 
-def ry(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+def contract_matrices(thx, thy, thz) -> np.ndarray:
+    """The contract's R = Rz(thz) Ry(thy) Rx(thx) (radians; numbers or (N,) arrays: (N, 3, 3))."""
+    return _rotations(2, thz) @ _rotations(1, thy) @ _rotations(0, thx)
 
 
-def rz(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+def gcs_matrices(u, v, w) -> np.ndarray:
+    """PI's R = Rx(U) Ry(V) Rz(W) (radians; numbers or (N,) arrays: (N, 3, 3))."""
+    return _rotations(0, u) @ _rotations(1, v) @ _rotations(2, w)
 
 
-def contract_matrix(thx: float, thy: float, thz: float) -> np.ndarray:
-    """The contract's R = Rz(thz) Ry(thy) Rx(thx) (radians)."""
-    return rz(thz) @ ry(thy) @ rx(thx)
+def contract_angles(r: np.ndarray) -> np.ndarray:
+    """(N, 3) (thx, thy, thz) with contract_matrices(...) = r, (N, 3, 3)."""
+    thy = np.arcsin(np.clip(-r[:, 2, 0], -1.0, 1.0))
+    return np.stack([np.arctan2(r[:, 2, 1], r[:, 2, 2]), thy,
+                     np.arctan2(r[:, 1, 0], r[:, 0, 0])], axis=1)
 
 
-def gcs_matrix(u: float, v: float, w: float) -> np.ndarray:
-    """PI's R = Rx(U) Ry(V) Rz(W) (radians)."""
-    return rx(u) @ ry(v) @ rz(w)
-
-
-def contract_angles(r: np.ndarray) -> tuple[float, float, float]:
-    """(thx, thy, thz) with contract_matrix(...) = r."""
-    thy = math.asin(max(-1.0, min(1.0, -r[2, 0])))
-    return math.atan2(r[2, 1], r[2, 2]), thy, math.atan2(r[1, 0], r[0, 0])
-
-
-def gcs_angles(r: np.ndarray) -> tuple[float, float, float]:
-    """(U, V, W) in radians with gcs_matrix(...) = r: r's first row is (cV cW, -cV sW, sV) and
-    its last column (sV, -sU cV, cU cV)."""
-    v = math.asin(max(-1.0, min(1.0, r[0, 2])))
-    return math.atan2(-r[1, 2], r[2, 2]), v, math.atan2(-r[0, 1], r[0, 0])
+def gcs_angles(r: np.ndarray) -> np.ndarray:
+    """(N, 3) (U, V, W) in radians with gcs_matrices(...) = r, (N, 3, 3): r's first row is
+    (cV cW, -cV sW, sV) and its last column (sV, -sU cV, cU cV)."""
+    v = np.arcsin(np.clip(r[:, 0, 2], -1.0, 1.0))
+    return np.stack([np.arctan2(-r[:, 1, 2], r[:, 2, 2]), v,
+                     np.arctan2(-r[:, 0, 1], r[:, 0, 0])], axis=1)
 
 
 class Frame:
     """The map between GCS coordinates (X Y Z mm, U V W deg) and the contract's pose q for a
-    scene's home pose and a pivot point (m, in C)."""
+    scene's home pose and a pivot point (m, in C). Every map takes one pose (6,) or N poses
+    (N, 6) and answers in the same shape."""
 
     def __init__(self, home: np.ndarray, pivot: np.ndarray | None = None) -> None:
         self.home = np.asarray(home, dtype=float).copy()
-        self.r0 = contract_matrix(*self.home[3:])
+        self.r0 = contract_matrices(*self.home[3:])[0]
         self.pivot = np.zeros(3) if pivot is None else np.asarray(pivot, dtype=float).copy()
         self.p0 = self.home[:3] + self.r0 @ self.pivot     # the pivot in N at the reference
 
-    def placement(self, g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(x, R): C's origin in N (m) and the platform's orientation for GCS coordinates g."""
-        r = self.r0 @ gcs_matrix(*(math.radians(a) for a in g[3:]))
-        return self.p0 + np.asarray(g[:3], dtype=float) / MM_PER_M - r @ self.pivot, r
+    def placements(self, g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(x (N, 3), R (N, 3, 3)): C's origin in N (m) and the platform's orientation for the
+        GCS coordinates g (N, 6)."""
+        g = np.atleast_2d(np.asarray(g, dtype=float))
+        r = self.r0 @ gcs_matrices(*np.radians(g[:, 3:]).T)
+        return self.p0 + g[:, :3] / MM_PER_M - r @ self.pivot, r
 
     def to_pose(self, g: np.ndarray) -> np.ndarray:
         """The contract's q (m, rad) of the GCS coordinates g (mm, deg)."""
-        x, r = self.placement(g)
-        return np.r_[x, contract_angles(r)]
+        x, r = self.placements(g)
+        q = np.concatenate([x, contract_angles(r)], axis=1)
+        return q if np.ndim(g) == 2 else q[0]
 
     def from_pose(self, q: np.ndarray) -> np.ndarray:
         """The GCS coordinates (mm, deg) of the contract's pose q (m, rad)."""
-        r = contract_matrix(*q[3:])
-        p = np.asarray(q[:3], dtype=float) + r @ self.pivot
-        return np.r_[(p - self.p0) * MM_PER_M, np.degrees(gcs_angles(self.r0.T @ r))]
+        qa = np.atleast_2d(np.asarray(q, dtype=float))
+        r = contract_matrices(*qa[:, 3:].T)
+        p = qa[:, :3] + r @ self.pivot
+        g = np.concatenate([(p - self.p0) * MM_PER_M,
+                            np.degrees(gcs_angles(self.r0.T @ r))], axis=1)
+        return g if np.ndim(q) == 2 else g[0]

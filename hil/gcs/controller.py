@@ -194,7 +194,7 @@ class GcsController:
     def _reachable(self, g: np.ndarray) -> np.ndarray:
         """Per GCS pose (rows of g): every leg within the device's setpoint stroke and cond(J)
         within SP_COND_MAX."""
-        kin = inverse_kinematics(self.device.model, np.array([self.frame.to_pose(x) for x in g]))
+        kin = inverse_kinematics(self.device.model, self.frame.to_pose(g))
         b = self.device.bounds
         return (np.all(kin.lengths >= b.leg_min, axis=1) & np.all(kin.lengths <= b.leg_max, axis=1)
                 & (kin.cond <= self.device.settings.cond_max))

@@ -91,8 +91,7 @@ class Mover:
         start = self.reference.copy()
         d = goal - start
         s = np.linspace(0.0, 1.0, PATH_SAMPLES)
-        poses = np.array([self.frame.to_pose(start + d * si) for si in s])
-        kin = inverse_kinematics(self.model, poses)
+        kin = inverse_kinematics(self.model, self.frame.to_pose(start + d * s[:, None]))
         b = self.device.bounds
         lengths = kin.lengths
         if not (np.all(np.isfinite(lengths)) and np.all(lengths >= b.leg_min)
@@ -147,22 +146,21 @@ class Mover:
             return []
         s, sd, done = p.at(k, self.device.rate)
         d = p.goal - p.start
-        g = p.start + d * s
-        lengths = self.lengths(g)
+        # the pose and its two neighbours of the rates' central difference, in one go
+        around = p.start + d * (s + np.array([0.0, FD_STEP, -FD_STEP]))[:, None]
+        lengths = self.lengths(around)
+        rates = np.zeros(6) if done else (lengths[1] - lengths[2]) * (sd / (2 * FD_STEP))
         if done:
             self.path = None
-            rates = np.zeros(6)
-        else:
-            rates = (self.lengths(p.start + d * (s + FD_STEP))
-                     - self.lengths(p.start + d * (s - FD_STEP))) * (sd / (2 * FD_STEP))
-        self.reference = g
-        return self._send(lengths, rates)
+        self.reference = around[0]
+        return self._send(lengths[0], rates)
 
     def lengths(self, g: np.ndarray) -> np.ndarray:
-        """The leg lengths (m) at GCS coordinates g: |x + R p_i - a_i|."""
-        x, r = self.frame.placement(g)
-        return np.sqrt(np.sum((x + self.model.platform_joints @ r.T - self.model.base_joints) ** 2,
-                              axis=1))
+        """The leg lengths (m, (N, 6)) at GCS coordinates g (N, 6): |x + R p_i - a_i|."""
+        x, r = self.frame.placements(g)
+        legs = x[:, None, :] + np.einsum("nij,kj->nki", r, self.model.platform_joints) \
+            - self.model.base_joints[None]
+        return np.sqrt(np.sum(legs ** 2, axis=2))
 
     def _send(self, lengths: np.ndarray, rates: np.ndarray) -> list[Any]:
         dev = self.device
