@@ -202,27 +202,28 @@ class GcsController:
     def _travel_range(self) -> tuple[np.ndarray, np.ndarray]:
         """Per axis, with the other axes at 0, how far from the reference every pose on the way
         is reachable: the first unreachable one of RANGE_SCAN steps out to RANGE_MAX, then
-        RANGE_STEPS bisections of that step; rounded inwards to 1e-6 (mm, deg)."""
+        RANGE_STEPS bisections of that step (the twelve ends at once); rounded inwards to 1e-6
+        (mm, deg). An end whose whole ray is reachable is RANGE_MAX; one whose reference is not
+        is 0."""
+        ends = [(i, sign) for i in range(6) for sign in (-1.0, 1.0)]
+        ok, bad = np.zeros(len(ends)), np.zeros(len(ends))
+        for e, (i, sign) in enumerate(ends):
+            ray = np.zeros((RANGE_SCAN + 1, 6))
+            ray[:, i] = sign * np.linspace(0.0, RANGE_MAX[i], RANGE_SCAN + 1)
+            reach = self._reachable(ray)
+            if reach.all():
+                ok[e] = bad[e] = RANGE_MAX[i]
+            elif reach[0]:
+                first_bad = int(np.argmin(reach))
+                ok[e], bad[e] = abs(ray[first_bad - 1, i]), abs(ray[first_bad, i])
+        for _ in range(RANGE_STEPS):
+            mid = 0.5 * (ok + bad)
+            g = np.zeros((len(ends), 6))
+            for e, (i, sign) in enumerate(ends):
+                g[e, i] = sign * mid[e]
+            reach = self._reachable(g)
+            ok, bad = np.where(reach, mid, ok), np.where(reach, bad, mid)
         low, high = np.zeros(6), np.zeros(6)
-        for i in range(6):
-            for sign, out in ((-1.0, low), (1.0, high)):
-                ray = np.zeros((RANGE_SCAN + 1, 6))
-                ray[:, i] = sign * np.linspace(0.0, RANGE_MAX[i], RANGE_SCAN + 1)
-                ok_ray = self._reachable(ray)
-                if not ok_ray[0]:
-                    continue
-                first_bad = int(np.argmin(ok_ray)) if not ok_ray.all() else RANGE_SCAN + 1
-                if first_bad > RANGE_SCAN:
-                    out[i] = sign * RANGE_MAX[i]
-                    continue
-                ok, bad = abs(ray[first_bad - 1, i]), abs(ray[first_bad, i])
-                for _ in range(RANGE_STEPS):
-                    mid = 0.5 * (ok + bad)
-                    g = np.zeros((1, 6))
-                    g[0, i] = sign * mid
-                    if self._reachable(g)[0]:
-                        ok = mid
-                    else:
-                        bad = mid
-                out[i] = sign * math.floor(ok * 1e6) / 1e6
+        for e, (i, sign) in enumerate(ends):
+            (low if sign < 0 else high)[i] = sign * math.floor(ok[e] * 1e6) / 1e6
         return low, high

@@ -572,3 +572,28 @@ def test_halt_comes_to_rest_smoothly_where_mov_q_says(model):
     pos = c.position()
     assert np.all(np.abs(pos[[0, 1, 3, 4, 5]]) <= ONT_TOLERANCE)
     assert d.counters.setpoints_refused == 0 and d.counters.faults == 0
+
+
+def test_travel_range_ends_where_a_leg_or_the_singularity_bound_binds(idle):
+    """NLM?/PLM?: each end, reached along its own axis, is inside the device's setpoint stroke
+    and condition bound, and 0.001 (mm or deg) beyond it is not (checked with the plant's own
+    inverse kinematics at the contract's pose)."""
+    from stewart_fmu.kinematics import inverse_kinematics
+
+    d, c, s = idle
+    b = d.bounds
+
+    def inside(g) -> bool:
+        kin = inverse_kinematics(d.model, c.frame.to_pose(g))
+        return bool(np.all(kin.lengths >= b.leg_min) and np.all(kin.lengths <= b.leg_max)
+                    and kin.cond <= d.settings.cond_max)
+
+    low = [float(x.split("=")[1]) for x in ask(c, s, "NLM?").split("\n") if x]
+    high = [float(x.split("=")[1]) for x in ask(c, s, "PLM?").split("\n") if x]
+    for i in range(6):
+        for end, out in ((low[i], -1e-3), (high[i], 1e-3)):
+            g = np.zeros(6)
+            g[i] = end
+            assert inside(g), (i, end)
+            g[i] = end + out
+            assert not inside(g), (i, end)
