@@ -535,7 +535,9 @@ def test_device_command_serves_mavlink_and_gcs_and_wants_a_link(capsys):
                             stderr=subprocess.PIPE, text=True)
     try:
         udp = parse_udp(_first_line(proc, 60))
-        host, port = parse_gcs(_first_line(proc, 10))
+        # printed with the first line, in one write: already read into the pipe's buffer
+        # (select would not see it again), or EOF if the device died
+        host, port = parse_gcs(proc.stdout.readline().strip())
         assert udp[0] == host == "127.0.0.1" and port > 0
         with socket.create_connection((host, port), timeout=10) as g:
             assert _gcs(g, b"*IDN?").startswith(b"stewart-sim, STEWART-SIM-TWIN")
