@@ -100,14 +100,17 @@ def test_a_lab_script_over_the_device_command():
             pi.VLS(20.0)
             assert pi.qVLS() == 20.0
             pi.MOV("Z", 20.0)
-            time.sleep(0.2)
+            deadline = time.monotonic() + WAIT
+            while pi.qPOS("Z")["Z"] < 2.0:
+                assert time.monotonic() < deadline, "the move never got under way"
+                time.sleep(0.01)
             with pytest.raises(GCSError) as exc:
                 pi.STP()
             assert exc.value.val == 10
             held = pi.qMOV("Z")["Z"]
-            assert 0.5 < held < 20.0
-            time.sleep(0.3)
-            assert abs(pi.qPOS("Z")["Z"] - held) < 0.05
+            assert 2.0 < held < 20.0
+            pitools.waitontarget(pi, "Z", timeout=WAIT, polldelay=0.05)
+            assert abs(pi.qPOS("Z")["Z"] - held) <= ONT_TOLERANCE
             pi.StopAll(noraise=True)
 
             # the recorder: actual X, leg 1 length, rack force 1, time; started by the MOV
