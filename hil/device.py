@@ -7,17 +7,17 @@ one controller period per `tick()`, and returns the messages it wants to send (p
 
 Its parts: the mode and its one transition table (hil.modes: DISARMED, ARMED, TRACKING, HOMING,
 TRIPPED), the plant and the six drive loops (hil.servo, whose tick is the co-simulation master's
-`controller.axis.servo_step`), the telemetry messages (hil.telemetry), the parameter table
-(hil.params), the input bounds and the STATUSTEXT token bucket (hil.limits). The device starts
+`controller.axis.servo_step`), the telemetry messages (hil.downlink), the parameter table
+(hil.params), the input bounds (hil.bounds) and the STATUSTEXT token bucket (hil.throttle). The device starts
 DISARMED at the scene's home pose with the drives holding it. Every text a user reads numbers
 the legs 1..6, as the tables and plots do.
 
 Setpoints (LEG_SETPOINT)
 ------------------------
 A setpoint is refused (STATUSTEXT, counted, never applied) when a length, rate or force is not
-finite, a rate, force or force rate is beyond the bounds of hil.limits (the text names the leg,
+finite, a rate, force or force rate is beyond the bounds of hil.bounds (the text names the leg,
 the value and the bound), a length is outside [SP_LEN_MIN, SP_LEN_MAX] (the stroke less the
-servo's overshoot room at each end, hil.limits.overshoot_room), forward kinematics finds no
+servo's overshoot room at each end, hil.bounds.overshoot_room), forward kinematics finds no
 pose for the lengths (Newton from the last accepted pose), or cond(J) at that pose exceeds the
 parameter SP_COND_MAX. A valid setpoint is the event SETPOINT: applied while armed, ignored and
 counted while disarmed (hil.modes). Rates are used with STEWART_SETPOINT_FLAG_RATE_VALID, forces
@@ -86,7 +86,7 @@ from controller.axis import AxisControllers, MotorCurrents
 from controller.config import ControllerConfig, controller_config
 from controller.design import PidGains
 from controller.plants import PlantStepError
-from hil import limits, modes, params, protocol, telemetry
+from hil import bounds, downlink, modes, params, protocol, throttle
 from hil import mavlink_stewart as ms
 from hil.framing import Receiver, pack
 from hil.modes import Event, Mode
@@ -128,7 +128,7 @@ class DeviceCounters:
     overruns: int = 0               # real-time ticks late by more than one period (serve)
     numeric_faults: int = 0         # numerical failures in the loop (safe hold, disarmed)
     handler_errors: int = 0         # messages whose handling raised (dropped, device serving)
-    statustexts_rate_limited: int = 0  # cut by the STATUSTEXT token bucket (hil.limits)
+    statustexts_rate_limited: int = 0  # cut by the STATUSTEXT token bucket (hil.throttle)
     frames_valid: int = 0           # decoded (and authenticated) frames for this system
     peer_changes: int = 0           # UDP peer switches (hil.peer)
     peer_kept: int = 0              # peer changes refused: armed, hold, a flood (hil.peer)
@@ -148,12 +148,12 @@ class Device:
         self.config = config if config is not None else controller_config(model)
         self.rate = self.config.rate
         self.dt = self.config.dt
-        lo, hi = limits.WATCHDOG_RANGE
+        lo, hi = bounds.WATCHDOG_RANGE
         if not (math.isfinite(watchdog) and lo <= watchdog <= hi):
             raise DeviceError(f"watchdog must be a finite time in [{lo:g}, {hi:g}] s, got {watchdog!r}")
         self.settings = params.Settings(float(watchdog))
         self.lockstep = bool(lockstep)
-        known = sorted(self.settings.rates)   # hil.telemetry.TELEMETRY's streams
+        known = sorted(self.settings.rates)   # hil.downlink.TELEMETRY's streams
         for name, hz in (telemetry or {}).items():
             if name not in known:
                 raise DeviceError(f"telemetry: unknown stream {name!r} (known: {known})")
@@ -169,7 +169,7 @@ class Device:
         self.rx = Receiver(ms, self.mav if self.verifier is None else SignedDecoder(
             ms.MAVLink(None, srcSystem=system_id, srcComponent=component_id), self.verifier,
             self._signing_refused))
-        self.limiter = limits.StatusLimiter(self.config.dt)
+        self.limiter = throttle.StatusLimiter(self.config.dt)
 
         self.servo = Servo(model, self.config, truth)
         self.plant = self.servo.plant
@@ -183,14 +183,14 @@ class Device:
         self.leg_min = model.leg_min if model.leg_min is not None else 0.0
         self.leg_max = model.leg_max if model.leg_max is not None else math.inf
         self.home_lengths = inverse_kinematics(model, model.home, with_cond=False).lengths.copy()
-        room = limits.overshoot_room(self.servo.ctrl.axis, float(np.max(np.abs(
+        room = bounds.overshoot_room(self.servo.ctrl.axis, float(np.max(np.abs(
             self.plant.rack_force))))
-        self.bounds = limits.bounds(self.leg_min, self.leg_max, self.servo.ctrl.axis,
+        self.bounds = bounds.device_bounds(self.leg_min, self.leg_max, self.servo.ctrl.axis,
                                     self.servo.design_gains, room)
         if not self.bounds.leg_min < self.bounds.leg_max:
             raise DeviceError(f"the stroke [{self.leg_min:g}, {self.leg_max:g}] m leaves no "
                               f"setpoint once the servo's overshoot room ({room:.3g} m at each "
-                              "end, hil.limits) is kept free")
+                              "end, hil.bounds) is kept free")
 
         self._mode = Mode.DISARMED        # moved only by _fire (hil.modes.transition)
         self.k = 0                       # ticks done; device time = k / rate
@@ -380,7 +380,7 @@ class Device:
         return self._limit_statustext(self._say_once(severity, text, key))
 
     def _limit_statustext(self, out: list[Any]) -> list[Any]:
-        """The STATUSTEXT token bucket (hil.limits.StatusLimiter) over `out`."""
+        """The STATUSTEXT token bucket (hil.throttle.StatusLimiter) over `out`."""
         n = self.limiter.suppressed
         out = self.limiter.filter(out, self.k, ms.MAV_SEVERITY_CRITICAL)
         self.counters.statustexts_rate_limited += self.limiter.suppressed - n
@@ -633,32 +633,32 @@ class Device:
     def _telemetry(self, step: int | None) -> list[Any]:
         k, rate, r = self.k, self.rate, self.settings.rates
         out = []
-        if telemetry.due(k, rate, telemetry.HEARTBEAT_HZ):
+        if downlink.due(k, rate, downlink.HEARTBEAT_HZ):
             out.append(self.heartbeat())
-        if telemetry.due(k, rate, r["SYS_STATUS"]):
+        if downlink.due(k, rate, r["SYS_STATUS"]):
             out.append(self.sys_status())
-        if telemetry.due(k, rate, r["ATTITUDE_QUATERNION"]):
+        if downlink.due(k, rate, r["ATTITUDE_QUATERNION"]):
             o = self.plant.outputs
-            out += [telemetry.attitude(self._time_ms(), o.q, o.twist),
-                    telemetry.attitude_euler(self._time_ms(), o.q, o.twist)]
-        if telemetry.due(k, rate, r["LOCAL_POSITION_NED"]):
+            out += [downlink.attitude(self._time_ms(), o.q, o.twist),
+                    downlink.attitude_euler(self._time_ms(), o.q, o.twist)]
+        if downlink.due(k, rate, r["LOCAL_POSITION_NED"]):
             out.append(self.local_position())
-        if telemetry.due(k, rate, r["DRIVE_STATUS"]):
+        if downlink.due(k, rate, r["DRIVE_STATUS"]):
             out.append(self.drive_status())
         if step is not None:
             out += [self.leg_state(step), ms.MAVLink_lockstep_message(self._usec(), step)]
-        elif telemetry.due(k, rate, r["LEG_STATE"]):
+        elif downlink.due(k, rate, r["LEG_STATE"]):
             out.append(self.leg_state(0))
         return out
 
-    # --- messages (hil.telemetry builds them) --------------------------------------------
+    # --- messages (hil.downlink builds them) --------------------------------------------
 
     def heartbeat(self) -> Any:
-        return telemetry.heartbeat(self._mode, self.lockstep)
+        return downlink.heartbeat(self._mode, self.lockstep)
 
     def sys_status(self) -> Any:
         c = self.counters
-        return telemetry.sys_status(self._mode, self.load, self.link_errors, c.setpoints_refused,
+        return downlink.sys_status(self._mode, self.load, self.link_errors, c.setpoints_refused,
                                     c.signing_rejected, c.watchdog_trips, c.faults)
 
     @property
@@ -671,24 +671,24 @@ class Device:
         """LEG_STATE: the legs as the sensors report them (hil.sensors)."""
         m = self.sensors
         if m is not None:
-            return telemetry.leg_state(self._usec(), m.lengths, m.rates, m.force, step)
+            return downlink.leg_state(self._usec(), m.lengths, m.rates, m.force, step)
         o = self.plant.outputs
-        return telemetry.leg_state(self._usec(), o.lengths, o.rates, self.plant.rack_force, step)
+        return downlink.leg_state(self._usec(), o.lengths, o.rates, self.plant.rack_force, step)
 
     def drive_status(self) -> Any:
         s = self.servo
         current = s.motors.current if self.sensors is None else self.sensors.current
-        return telemetry.drive_status(self._usec(), self._mode, s.voltage, current,
+        return downlink.drive_status(self._usec(), self._mode, s.voltage, current,
                                       s.saturated, self.counters.setpoints_refused,
                                       self.rx.stats.crc_errors + self.counters.signing_rejected)
 
     def home_position(self) -> Any:
         """HOME_POSITION: the scene's home in LOCAL_POSITION_NED's convention (hil.protocol)."""
-        return telemetry.home_position(np.asarray(self.model.home, dtype=float), self._usec())
+        return downlink.home_position(np.asarray(self.model.home, dtype=float), self._usec())
 
     def local_position(self) -> Any:
         o = self.plant.outputs
-        return telemetry.local_position(self._time_ms(), o.q, o.qd)
+        return downlink.local_position(self._time_ms(), o.q, o.qd)
 
     def _statustext(self, severity: int, text: str) -> list[Any]:
         """STATUSTEXT; longer than 50 bytes: chunks on UTF-8 character boundaries with a common
