@@ -35,6 +35,7 @@ Out-of-range values are refused: a STATUSTEXT names the value and the bound.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -114,6 +115,13 @@ def device_bounds(leg_min: float, leg_max: float, axis: Any, gains: Any,
         gain_max={k: GAIN_FACTOR * getattr(gains, k) for k in ("kp", "ki", "kd")},
         voltage_range=(LIMIT_FLOOR * m.voltage_limit, m.voltage_limit),
         current_range=(LIMIT_FLOOR * m.current_limit, m.current_limit))
+
+
+def check_rate(hz: Any) -> str | None:
+    """Why `hz` is no rate (a finite number >= 0), or None."""
+    if isinstance(hz, bool) or not isinstance(hz, (int, float)) or not math.isfinite(hz) or hz < 0:
+        return f"rate must be a finite number >= 0 Hz, got {hz!r}"
+    return None
 
 
 def in_range(lo: float, hi: float, unit: str = "", lo_open: bool = False):

@@ -52,13 +52,6 @@ class Settings:
     rates: dict[str, float] = field(default_factory=lambda: dict(TELEMETRY))
 
 
-def check_rate(hz: Any) -> str | None:
-    """Why `hz` is no rate (a finite number >= 0), or None."""
-    if isinstance(hz, bool) or not isinstance(hz, (int, float)) or not math.isfinite(hz) or hz < 0:
-        return f"rate must be a finite number >= 0 Hz, got {hz!r}"
-    return None
-
-
 def parameters(servo: Servo, settings: Settings, b: bounds.Bounds, rate: float) -> dict[str, Param]:
     """The table, in the order PARAM_REQUEST_LIST answers (the index of PARAM_VALUE)."""
 
@@ -75,7 +68,8 @@ def parameters(servo: Servo, settings: Settings, b: bounds.Bounds, rate: float) 
 
     def stream(name: str) -> Param:
         return Param(lambda: settings.rates[name], lambda x: settings.rates.__setitem__(name, x),
-                     lambda x: check_rate(x) or bounds.in_range(0.0, min(rate, b.stream_max), "Hz")(x))
+                     lambda x: bounds.check_rate(x)
+                     or bounds.in_range(0.0, min(rate, b.stream_max), "Hz")(x))
 
     params = {"CTRL_KP": gain("kp"), "CTRL_KI": gain("ki"), "CTRL_KD": gain("kd"),
               "DRV_V_LIMIT": motor("voltage_limit", b.voltage_range, "V"),

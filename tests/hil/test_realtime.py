@@ -185,14 +185,14 @@ def test_watchdog_by_the_wall_clock_not_by_caught_up_ticks(model):
     t_sp = clock.t + 0.0515     # arrives during the stall of tick 50: handled at the catch-up
     tr.inbox.append((t_sp, frame(mav, setpoint(0, l0))))
     trips = []
-    orig = dev._statustext
+    orig = dev.statustext
 
     def spy(sev, text):
         if text.startswith("watchdog"):
             trips.append(clock.t)
         return orig(sev, text)
 
-    dev._statustext = spy
+    dev.statustext = spy
     serve(dev, tr, True, max_ticks=400, clock=clock)
     assert dev.counters.watchdog_trips == 1 and len(trips) == 1
     i = [t for t, _ in dev.handled_at].index("LEG_SETPOINT")
