@@ -12,9 +12,10 @@ table), every tick to the servo, the watchdog and fault rules (hil.faults) and t
 transition table (hil.modes: DISARMED, ARMED, TRACKING, HOMING, TRIPPED), the plant and the six
 drive loops (hil.servo, whose tick is the co-simulation master's `controller.axis.servo_step`),
 the setpoint checks (hil.setpoint), the parameter table (hil.params), the input bounds
-(hil.bounds), the STATUSTEXT token bucket (hil.throttle) and signing (hil.signing). The device
-starts DISARMED at the scene's home pose with the drives holding it. Every text a user reads numbers
-the legs 1..6, as the tables and plots do.
+(hil.bounds), the STATUSTEXT rules (hil.statustext, hil.throttle) and signing (hil.signing); its
+counters and per-run state are hil.device_state's. The device starts DISARMED at the scene's home
+pose with the drives holding it. Every text a user reads numbers the legs 1..6, as the tables and
+plots do.
 
 Setpoints (LEG_SETPOINT)
 ------------------------
