@@ -12,18 +12,18 @@ table), every tick to the servo, the watchdog and fault rules (hil.faults) and t
 transition table (hil.modes: DISARMED, ARMED, TRACKING, HOMING, TRIPPED), the plant and the six
 drive loops (hil.servo, whose tick is the co-simulation master's `controller.axis.servo_step`),
 the setpoint checks (hil.setpoint), the parameter table (hil.params), the input bounds
-(hil.bounds), the STATUSTEXT rules (hil.statustext, hil.throttle) and signing (hil.signing); its
-counters and per-run state are hil.device_state's. The device starts DISARMED at the scene's home
-pose with the drives holding it. Every text a user reads numbers the legs 1..6, as the tables and
-plots do.
+(hil.input_bounds), the STATUSTEXT rules (hil.statustext, hil.throttle) and signing
+(hil.signing); its counters and per-run state are hil.device_state's. The device starts DISARMED
+at the scene's home pose with the drives holding it. Every text a user reads numbers the legs
+1..6, as the tables and plots do.
 
 Setpoints (LEG_SETPOINT)
 ------------------------
 A setpoint is refused (STATUSTEXT, counted, never applied) when a length, rate or force is not
-finite, a rate, force or force rate is beyond the bounds of hil.bounds (the text names the leg,
-the value and the bound), a length is outside [SP_LEN_MIN, SP_LEN_MAX] (the stroke less the
-servo's overshoot room at each end, hil.bounds.overshoot_room), forward kinematics finds no
-pose for the lengths (Newton from the last accepted pose), or cond(J) at that pose exceeds the
+finite, a rate, force or force rate is beyond the bounds of hil.input_bounds (the text names the
+leg, the value and the bound), a length is outside [SP_LEN_MIN, SP_LEN_MAX] (the stroke less the
+servo's overshoot room at each end, hil.input_bounds.overshoot_room), forward kinematics finds
+no pose for the lengths (Newton from the last accepted pose), or cond(J) at that pose exceeds the
 parameter SP_COND_MAX. A valid setpoint is the event SETPOINT: applied while armed, ignored and
 counted while disarmed (hil.modes). Rates are used with STEWART_SETPOINT_FLAG_RATE_VALID, forces
 with STEWART_SETPOINT_FLAG_FORCE_VALID (the feed-forward of hil.servo; di/dt from the force rate
@@ -89,7 +89,7 @@ from controller.axis import AxisControllers, MotorCurrents
 from controller.config import ControllerConfig, controller_config
 from controller.design import PidGains
 from controller.plants import PlantStepError
-from hil import bounds, faults, handlers, modes, params, streams, throttle
+from hil import faults, handlers, input_bounds, modes, params, streams, throttle
 from hil import mavlink_stewart as ms
 from hil import statustext as texts
 from hil.device_state import DeviceCounters, DeviceState
@@ -303,7 +303,7 @@ class Device:
 
 def _settings(watchdog: float, telemetry: dict[str, float] | None) -> params.Settings:
     """The watchdog and stream rates asked of the constructor, checked (DeviceError)."""
-    lo, hi = bounds.WATCHDOG_RANGE
+    lo, hi = input_bounds.WATCHDOG_RANGE
     if not (math.isfinite(watchdog) and lo <= watchdog <= hi):
         raise DeviceError(f"watchdog must be a finite time in [{lo:g}, {hi:g}] s, got {watchdog!r}")
     settings = params.Settings(float(watchdog))
@@ -311,7 +311,7 @@ def _settings(watchdog: float, telemetry: dict[str, float] | None) -> params.Set
     for name, hz in (telemetry or {}).items():
         if name not in known:
             raise DeviceError(f"telemetry: unknown stream {name!r} (known: {known})")
-        why = bounds.check_rate(hz)
+        why = input_bounds.check_rate(hz)
         if why:
             raise DeviceError(f"telemetry {name}: {why}")
         settings.rates[name] = float(hz)
@@ -329,13 +329,14 @@ def _sensors(config: SensorConfig | None, servo: Servo, rate: float,
                    plant_scene.source)
 
 
-def _bounds(leg_min: float, leg_max: float, servo: Servo) -> bounds.Bounds:
-    """The input bounds of a device of this stroke and servo (hil.bounds); DeviceError when
+def _bounds(leg_min: float, leg_max: float, servo: Servo) -> input_bounds.Bounds:
+    """The input bounds of a device of this stroke and servo (hil.input_bounds); DeviceError when
     the servo's overshoot room leaves no setpoint length."""
-    room = bounds.overshoot_room(servo.ctrl.axis, float(np.max(np.abs(servo.plant.rack_force))))
-    b = bounds.device_bounds(leg_min, leg_max, servo.ctrl.axis, servo.design_gains, room)
+    held = float(np.max(np.abs(servo.plant.rack_force)))
+    room = input_bounds.overshoot_room(servo.ctrl.axis, held)
+    b = input_bounds.device_bounds(leg_min, leg_max, servo.ctrl.axis, servo.design_gains, room)
     if not b.leg_min < b.leg_max:
         raise DeviceError(f"the stroke [{leg_min:g}, {leg_max:g}] m leaves no "
                           f"setpoint once the servo's overshoot room ({room:.3g} m at each "
-                          "end, hil.bounds) is kept free")
+                          "end, hil.input_bounds) is kept free")
     return b

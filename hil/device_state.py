@@ -16,7 +16,7 @@ import numpy as np
 from hil.modes import Event, Mode
 
 if TYPE_CHECKING:
-    from hil.bounds import Bounds
+    from hil.input_bounds import Bounds
     from hil.framing import Receiver
     from hil.params import Param, Settings
     from hil.sensors import Sensors

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 from hil.device_state import DeviceView
 from hil.errors import DeviceError
-from hil.bounds import check_rate
+from hil.input_bounds import check_rate
 from stewart_fmu.kinematics import condition_number
 
 OBSERVE_HZ = 60.0   # default snapshot rate: a screen's frame rate; the loop runs at 1 kHz

@@ -1,6 +1,6 @@
 """The emulated device's parameter table: names, what each reads and sets, its bounds.
 
-Every parameter has a range (hil.bounds): a PARAM_SET out of range, or of a type other than
+Every parameter has a range (hil.input_bounds): a PARAM_SET out of range, or of a type other than
 REAL32 and the integer types up to 32 bits in MAVLink's bytewise encoding (hil.protocol), is
 refused with the unchanged PARAM_VALUE and a STATUSTEXT. The drive-derived setpoint bounds are
 read-only parameters (SP_LEN_MIN/MAX, SP_RATE_MAX, SP_FORCE_MAX, SP_FRATE_MAX).
@@ -18,7 +18,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
-from hil import bounds, protocol
+from hil import input_bounds, protocol
 from hil import mavlink_stewart as ms
 from hil.servo import Servo
 from hil.downlink import TELEMETRY
@@ -52,34 +52,35 @@ class Settings:
     rates: dict[str, float] = field(default_factory=lambda: dict(TELEMETRY))
 
 
-def parameters(servo: Servo, settings: Settings, b: bounds.Bounds, rate: float) -> dict[str, Param]:
+def parameters(servo: Servo, settings: Settings, b: input_bounds.Bounds,
+               rate: float) -> dict[str, Param]:
     """The table, in the order PARAM_REQUEST_LIST answers (the index of PARAM_VALUE)."""
 
     def gain(name: str) -> Param:
         return Param(lambda: getattr(servo.ctrl.gains, name), lambda x: servo.set_gain(name, x),
-                     bounds.in_range(0.0, b.gain_max[name]))
+                     input_bounds.in_range(0.0, b.gain_max[name]))
 
     def motor(name: str, rng: tuple[float, float], unit: str) -> Param:
         return Param(lambda: getattr(servo.ctrl.axis.motor, name),
-                     lambda x: servo.set_motor(name, x), bounds.in_range(*rng, unit))
+                     lambda x: servo.set_motor(name, x), input_bounds.in_range(*rng, unit))
 
     def bound(value: float) -> Param:
-        return Param(lambda: value, lambda x: None, bounds.read_only)
+        return Param(lambda: value, lambda x: None, input_bounds.read_only)
 
     def stream(name: str) -> Param:
         return Param(lambda: settings.rates[name], lambda x: settings.rates.__setitem__(name, x),
-                     lambda x: bounds.check_rate(x)
-                     or bounds.in_range(0.0, min(rate, b.stream_max), "Hz")(x))
+                     lambda x: input_bounds.check_rate(x)
+                     or input_bounds.in_range(0.0, min(rate, b.stream_max), "Hz")(x))
 
     params = {"CTRL_KP": gain("kp"), "CTRL_KI": gain("ki"), "CTRL_KD": gain("kd"),
               "DRV_V_LIMIT": motor("voltage_limit", b.voltage_range, "V"),
               "DRV_I_LIMIT": motor("current_limit", b.current_range, "A"),
               "WDG_TIMEOUT": Param(lambda: settings.watchdog,
                                    lambda x: setattr(settings, "watchdog", x),
-                                   bounds.in_range(*b.watchdog_range, "s")),
+                                   input_bounds.in_range(*b.watchdog_range, "s")),
               "SP_COND_MAX": Param(lambda: settings.cond_max,
                                    lambda x: setattr(settings, "cond_max", x),
-                                   bounds.in_range(1.0, b.cond_max_limit, lo_open=True))}
+                                   input_bounds.in_range(1.0, b.cond_max_limit, lo_open=True))}
     params.update({p: stream(s) for p, s in STREAM_PARAMS.items()})
     params.update({"SP_LEN_MIN": bound(b.leg_min), "SP_LEN_MAX": bound(b.leg_max),
                    "SP_RATE_MAX": bound(b.rate_max), "SP_FORCE_MAX": bound(b.force_max),

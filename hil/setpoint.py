@@ -1,7 +1,7 @@
 """The checks a LEG_SETPOINT passes before the device follows it, and its optional fields.
 
 In order (the first failure is the reason, legs numbered 1..6): every length, and every rate,
-force and force rate its flags declare valid, finite; those within the bounds of hil.bounds;
+force and force rate its flags declare valid, finite; those within the bounds of hil.input_bounds;
 every length within [SP_LEN_MIN, SP_LEN_MAX]; a pose with these lengths (forward kinematics by
 Newton from the last accepted pose); cond(J) at that pose at most SP_COND_MAX.
 """
@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from hil import mavlink_stewart as ms
-from hil.bounds import Bounds
+from hil.input_bounds import Bounds
 from stewart_fmu.errors import StewartError
 from stewart_fmu.kinematics import condition_number, forward_kinematics
 from stewart_fmu.model import Model

@@ -1,6 +1,6 @@
 """Hostile input to the emulated device: every repro of the hardening brief is refused and the
-device keeps serving (hil.bounds, hil.throttle, hil.signing, hil.peer, the numerical safe hold); a seeded fuzz
-in process and once against the device process over UDP. Bounded and deterministic: no
+device keeps serving (hil.input_bounds, hil.throttle, hil.signing, hil.peer, the numerical safe
+hold); a seeded fuzz in process and once against the device process over UDP. Bounded and deterministic: no
 wall-clock pass/fail (wall-clock waits only bound how long a socket is read)."""
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ import pytest
 
 pytest.importorskip("pymavlink")
 
-from hil import bounds, throttle  # noqa: E402
+from hil import input_bounds, throttle  # noqa: E402
 from hil import mavlink_stewart as ms  # noqa: E402
 from hil.device import Device, DeviceError  # noqa: E402
 from hil.framing import Receiver, crc16, pack  # noqa: E402
@@ -145,7 +145,7 @@ def test_every_accepted_bound_is_reached_without_a_fault(scene):
     time only (ticks), deterministic."""
     m = load_scene(ROOT / "scenes" / f"{scene}.toml")
     dev = Device(m)
-    room = bounds.overshoot_room(dev.ctrl.axis, float(np.max(np.abs(dev.plant.rack_force))))
+    room = input_bounds.overshoot_room(dev.ctrl.axis, float(np.max(np.abs(dev.plant.rack_force))))
     b = dev.bounds
     assert room > 0 and (b.leg_min, b.leg_max) == pytest.approx((m.leg_min + room, m.leg_max - room))
     values = {p.param_id: p.param_value for p in dev.receive(ms.MAVLink_param_request_list_message(1, 1))}
@@ -216,9 +216,10 @@ def test_absurd_finite_setpoints_are_refused(model, field, value, flags):
 def test_bounds_table_follows_the_drive(model):
     dev = Device(model)
     b, ax = dev.bounds, dev.ctrl.axis
-    assert b.rate_max == pytest.approx(bounds.RATE_MARGIN * 24.0 / ax.emf_constant)  # 10 x 0.3 m/s
-    assert b.force_max == pytest.approx(bounds.FORCE_MARGIN * ax.force_constant * 2.0)
-    room = bounds.overshoot_room(ax, float(np.max(np.abs(dev.plant.rack_force))))
+    # 10 x 0.3 m/s
+    assert b.rate_max == pytest.approx(input_bounds.RATE_MARGIN * 24.0 / ax.emf_constant)
+    assert b.force_max == pytest.approx(input_bounds.FORCE_MARGIN * ax.force_constant * 2.0)
+    room = input_bounds.overshoot_room(ax, float(np.max(np.abs(dev.plant.rack_force))))
     assert (b.leg_min, b.leg_max) == (model.leg_min + room, model.leg_max - room)
     assert b.voltage_range[1] == 24.0 and b.current_range[1] == 2.0
     values = {m.param_id: m.param_value for m in dev.receive(ms.MAVLink_param_request_list_message(1, 1))}
