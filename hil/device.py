@@ -124,7 +124,7 @@ class Device:
         self.counters = DeviceCounters()
         self.mav = ms.MAVLink(None, srcSystem=system_id, srcComponent=component_id)
         self.verifier: Verifier | None = None
-        if signing_key is not None:
+        if signing_key is not None:   # the clock looked up per check: tests replace it after
             self.verifier = sign_outgoing(self.mav, signing_key, lambda: self.signing_clock(),
                                           self._signing_refused)
         self.rx = Receiver(ms, self.mav if self.verifier is None else SignedDecoder(
