@@ -28,6 +28,8 @@ myst_heading_anchors = 3
 suppress_warnings = ["misc.highlighting_failure"]  # links to a page's sections (`page.md#a-section`)
 
 html_theme = "furo"
+# text as written: `--validate` stays two hyphens (help texts, option names in prose)
+smartquotes = False
 html_title = "stewart-sim"
 html_static_path: list[str] = []
 
@@ -77,7 +79,12 @@ def _plain_paragraphs(items, markdown_help, settings=None):
 
     out = []
     for item in items:
-        out += [nodes.paragraph(text=item)] if isinstance(item, str) else list(item)
+        default = re.fullmatch(r"Default: ``(.*)``", item, re.S) if isinstance(item, str) else None
+        if default:  # the one piece sphinx-argparse writes as reST itself
+            value = default.group(1).replace(r"\`", "`")
+            out.append(nodes.paragraph("", "Default: ", nodes.literal(text=value)))
+        else:
+            out += [nodes.paragraph(text=item)] if isinstance(item, str) else list(item)
     return out
 
 
