@@ -5,15 +5,15 @@ A move runs from the reference now (where the previous path stands; at rest afte
 finished move) to the goal along the minimum-jerk profile of controller.trajectory (every
 coordinate on one straight line in X Y Z U V W, the pivot on a straight line). Before it starts
 the whole path is checked at PATH_SAMPLES poses: every leg within the device's own setpoint
-stroke (hil.limits: the stroke less the servo's overshoot room) and cond(J) within SP_COND_MAX,
-else GcsError 7 and nothing moves. Its duration is the longest of: the translation at the system
-velocity (VLS, mm/s), the rotation at the same number in deg/s, and the legs at the drive's
-no-load speed (hil.limits: SP_RATE_MAX / RATE_MARGIN), each with the quintic's peak rate factor.
-The leg rates sent are the central difference of the leg lengths along the path (a step of
-FD_STEP in the path parameter, times the profile's rate). After the goal the last setpoint is
-sent again every quarter of the device's watchdog, so an idle twin holds its target with the
-device's watchdog armed. A setpoint the device refuses (it says why over MAVLink) ends the move:
-the device is told to HOLD and the move counts as a motion error.
+stroke (hil.input_bounds: the stroke less the servo's overshoot room) and cond(J) within
+SP_COND_MAX, else GcsError 7 and nothing moves. Its duration is the longest of: the translation
+at the system velocity (VLS, mm/s), the rotation at the same number in deg/s, and the legs at
+the drive's no-load speed (hil.input_bounds: SP_RATE_MAX / RATE_MARGIN), each with the quintic's
+peak rate factor. The leg rates sent are the central difference of the leg lengths along the
+path (a step of FD_STEP in the path parameter, times the profile's rate). After the goal the
+last setpoint is sent again every quarter of the device's watchdog, so an idle twin holds its
+target with the device's watchdog armed. A setpoint the device refuses (it says why over
+MAVLink) ends the move: the device is told to HOLD and the move counts as a motion error.
 """
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from controller.trajectory import QUINTIC_PEAK_RATE, minimum_jerk
-from hil import limits
+from hil import input_bounds
 from hil import mavlink_stewart as ms
 from hil.device import Device
 from hil.gcs import errors as E
@@ -68,7 +68,7 @@ class Mover:
     def __init__(self, device: Device, frame: Frame) -> None:
         self.device, self.frame = device, frame
         self.model = device.model
-        self.speed = device.bounds.rate_max / limits.RATE_MARGIN   # the drive's no-load speed
+        self.speed = device.bounds.rate_max / input_bounds.RATE_MARGIN   # the drive's no-load speed
         self.reference = np.zeros(6)            # GCS: where the path stands now
         self.path: Path | None = None
         self.held: np.ndarray | None = None     # lengths of the last setpoint (resent)
