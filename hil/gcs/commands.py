@@ -26,7 +26,7 @@ from hil.gcs.recorder import POINTS, TABLES, ShortRecord, help_text
 NAME = "STEWART-SIM-TWIN"          # *IDN?'s model field (PIPython's devname)
 VERSION = "0.1.0"
 GCS_VERSION = "2.0"
-READY, BUSY = chr(177), chr(176)   # #7's answers (PI's codes)
+READY, BUSY = chr(177), chr(176)   # the controller-ready byte's answers (PI's codes)
 
 Args = tuple[str, ...]
 Answer = Union[str, Iterator[str], None]     # an iterator: chunks, sent as the client reads

@@ -4,8 +4,8 @@ A command line is a mnemonic (three letters, `*IDN?`, or a query ending in '?') 
 arguments, separated by spaces, ended by LF (a CR before it is dropped). Set commands with axes
 take axis-value pairs (`MOV X 1.5 Y -2`); queries take an optional list of axes (`POS? X Y`;
 none: all axes, answered in the controller's order) and answer one line per item, `X=1.5`. A
-few commands are a single control byte with no LF (PIPython sends them so): 5 (`#5`, is
-moving), 7 (`#7`, controller ready), 24 (`#24`, stop all). A multi-line answer ends every line
+few commands are a single control byte with no LF (PIPython sends them so): 5 (is moving), 7
+(controller ready), 24 (stop all); HLP? lists them as a hash sign and the byte's number. A multi-line answer ends every line
 but the last with a space before the LF (" \\n"): that is how a client knows more follows.
 
 Numbers are decimal (`-1.5`, `2e-3`); `nan`, `inf`, hex, underscores and anything longer than
