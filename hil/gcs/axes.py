@@ -20,8 +20,6 @@ the pivot p (in C; the origin of C unless a pivot is set):
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 AXES = ("X", "Y", "Z", "U", "V", "W")
