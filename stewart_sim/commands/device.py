@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-from stewart_sim.argtypes import port, positive_seconds
+from stewart_sim.shell.argtypes import port, positive_seconds
 from stewart_sim.commands.constants import literals
 
 
@@ -47,10 +47,10 @@ def add_parser(sub, help_text: str) -> None:
 
 def run(args: argparse.Namespace) -> None:
     """Serve until SIGINT or SIGTERM, then return. With --view the live view
-    (stewart_sim.view.live) listens on loopback from before the device starts (a taken port
+    (stewart_sim.view.live_server) listens on loopback from before the device starts (a taken port
     fails at once) until the device stops; its address is the line after the device's own."""
     from hil.spawn import serve_device  # pymavlink: only for this command
-    from stewart_sim.scene_load import load
+    from stewart_sim.scene.load import load
 
     scene = load(args.scene)
     model, config = scene.model, scene.require_controller()
@@ -63,7 +63,7 @@ def run(args: argparse.Namespace) -> None:
                      **hidden)
         return
     from hil.observe import Latest
-    from stewart_sim.view.live import LiveView, live_page
+    from stewart_sim.view.live_server import LiveView, live_page
 
     latest = Latest()
     with LiveView(live_page(model, config), latest, args.view) as view:

@@ -71,7 +71,7 @@ from controller.drive import AxisModel, axis_model
 from stewart_fmu.errors import StewartError
 from stewart_fmu.model import Model
 
-from .config import CueingConfig, OptimalOptions
+from stewart_sim.scene.cueing_config import CueingConfig, OptimalOptions
 from .motion import VehicleMotion
 from .mpc_model import (
     NP,

@@ -52,7 +52,7 @@ from typing import Protocol
 import numpy as np
 
 from controller.trajectory import minimum_jerk
-from stewart_sim.cueing.telemetry import TelemetrySample
+from stewart_sim.live.vehicle_datagrams import TelemetrySample
 
 GRID_TOLERANCE = 1e-6   # of h: a sample this close to a grid point is on it
 MAX_STEPS = 10          # washout steps a tick may take (the default loss timeout at 100 Hz)

@@ -34,7 +34,7 @@ import socket
 from dataclasses import dataclass, field
 from typing import Callable, Protocol
 
-from stewart_sim.cueing.telemetry import (REFUSAL_KINDS, TelemetryError, TelemetrySample,
+from stewart_sim.live.vehicle_datagrams import (REFUSAL_KINDS, TelemetryError, TelemetrySample,
                                           decode_native, decode_outsim)
 
 MAX_READ = 256          # datagrams read at most per tick

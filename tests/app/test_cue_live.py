@@ -23,10 +23,10 @@ from hil.link import pty_pair, udp_server
 from hil.serve import serve_in_thread
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_sim import cli
-from stewart_sim.cueing.live_modes import Mode
+from stewart_sim.live.pipeline_modes import Mode
 from stewart_sim.cueing.motion import VehicleMotion, read_motion
 from stewart_sim.cueing.study import cue_study
-from stewart_sim.cueing.telemetry import TelemetrySample, encode, encode_outsim
+from stewart_sim.live.vehicle_datagrams import TelemetrySample, encode, encode_outsim
 from stewart_sim.cueing.washout import classical_washout
 from stewart_sim.live.control import Control
 from stewart_sim.live.device_out import DeviceCounts, DeviceOut
@@ -34,7 +34,7 @@ from stewart_sim.live.receiver import DRAIN_BUDGET, TelemetryReceiver, UdpSource
 from stewart_sim.live.cue_stream import CueStream, Reference
 from stewart_sim.live.replay import Replay, UdpSink
 from stewart_sim.live.session import Record, make_session
-from stewart_sim.scene_load import load
+from stewart_sim.scene.load import load
 from tests.app.datagrams import Queue
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -9,7 +9,7 @@ import itertools
 
 import pytest
 
-from stewart_sim.cueing.live_modes import (
+from stewart_sim.live.pipeline_modes import (
     TABLE,
     Event,
     Mode,

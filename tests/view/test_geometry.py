@@ -16,7 +16,7 @@ from stewart_sim.view.geometry import (
     rotation,
     view_geometry,
 )
-from stewart_sim.scene_load import scene_of
+from stewart_sim.scene.load import scene_of
 from tests.helpers import random_states
 
 

@@ -17,7 +17,7 @@ from controller.cosim import run_closed_loop
 from controller.moves import DEMO_DURATION, DEMO_RATE, demo_trajectory, run_reference
 from stewart_fmu import io
 from stewart_sim.cli import main
-from stewart_sim.scene_load import scene_of
+from stewart_sim.scene.load import scene_of
 from stewart_sim.view.data import DEFAULT_FPS, frame_indices
 from stewart_sim.view.html import live_view_html, static_view_html
 from stewart_sim.view.geometry import view_geometry

@@ -1,0 +1,2 @@
+"""A scene and what is built from it alone: its tables read once (load), described
+(describe), the [cueing] and [case] tables, and the paper's six moves on its model."""
