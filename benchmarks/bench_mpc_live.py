@@ -36,10 +36,10 @@ from pathlib import Path
 import numpy as np
 
 from stewart_fmu.kinematics import inverse_kinematics
-from stewart_sim.scene.cueing_config import cueing_config
 from stewart_sim.cueing.motion import VehicleMotion, read_motion
-from stewart_sim.live.optimal_stream import LiveOptimal, SolveStats
 from stewart_sim.cueing.vestibular import delivered_motion, perception
+from stewart_sim.live.optimal_stream import LiveOptimal, SolveStats
+from stewart_sim.scene.cueing_config import cueing_config
 from stewart_sim.scene.load import load
 
 ROOT = Path(__file__).resolve().parents[1]

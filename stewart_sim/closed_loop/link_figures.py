@@ -12,7 +12,8 @@
 * `degradation`: real-time runs (setpoints at the controller rate) through the link
   emulator on the wall clock with added latency or loss; RMS / max leg tracking error.
 
-``python -m stewart_sim.closed_loop.link_figures OUT_DIR`` writes figures.md and tracking_vs_link.png.
+``python -m stewart_sim.closed_loop.link_figures OUT_DIR`` writes figures.md and
+tracking_vs_link.png.
 """
 from __future__ import annotations
 
@@ -32,8 +33,8 @@ from hil.link import Impairments, LinkEmulator, WallClock, queue_pair
 from hil.serve import serve_in_thread
 from hil.spawn import device_process
 from stewart_fmu.io import write_text
-from stewart_sim.shell.plots import plot_leg_forces, plot_line, save_figure
 from stewart_sim.scene.load import load
+from stewart_sim.shell.plots import plot_leg_forces, plot_line, save_figure
 
 # ---------------------------------------------------------------- measured
 

@@ -19,11 +19,11 @@ from stewart_fmu.integrators import IntegratorOptions
 from stewart_fmu.io import writing
 from stewart_fmu.model import Model
 from stewart_fmu.scene import scene_from_dict
+from stewart_sim.scene.describe import format_vector
+from stewart_sim.scene.load import Scene
 from stewart_sim.shell.markdown import md_code, md_text
 from stewart_sim.shell.plots import drive_figure, leg_errors_figure, save_figure, tracking_figure
 from stewart_sim.shell.progress import Progress
-from stewart_sim.scene.describe import format_vector
-from stewart_sim.scene.load import Scene
 from stewart_sim.view.files import VIEW_FILE, write_beside
 from stewart_sim.view.sources import run_table_view
 

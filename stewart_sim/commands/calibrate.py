@@ -43,9 +43,10 @@ def add_parser(sub, help_text: str) -> None:
 
 def run(args: argparse.Namespace) -> None:
     """Run `calibrate`; StewartError subclasses for bad input."""
-    from stewart_sim.studies.calibrate.report import write_calibration
-    from stewart_sim.studies.calibrate.study import calibrate, check_bounds, check_finite, read_poses
     from stewart_sim.scene.load import load
+    from stewart_sim.studies.calibrate.report import write_calibration
+    from stewart_sim.studies.calibrate.study import (calibrate, check_bounds, check_finite,
+                                                     read_poses)
 
     scene = load(args.scene)
     data = read_poses(args.poses)

@@ -24,9 +24,9 @@ def add_parser(sub, help_text: str) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the case, print the report; exit status 1 (SystemExit) on a mismatch, else 0."""
-    from stewart_sim.studies.cases.report import MISMATCH_STATUS, agrees, report
-    from stewart_sim.studies.cases.outcome import run_case
     from stewart_sim.scene.load import load
+    from stewart_sim.studies.cases.outcome import run_case
+    from stewart_sim.studies.cases.report import MISMATCH_STATUS, agrees, report
 
     scene = load(args.scene)
     model, case = scene.model, scene.require_case()

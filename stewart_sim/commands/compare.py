@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from stewart_sim.shell.argtypes import number
 from stewart_sim.commands.constants import literals
+from stewart_sim.shell.argtypes import number
 
 _points = number(int, "an integer", lambda v: 1 <= v <= 100, "1 to 100")
 
@@ -29,9 +29,9 @@ def add_parser(sub, help_text: str) -> None:
 
 def run(args: argparse.Namespace) -> None:
     """Write the comparison, print the files."""
+    from stewart_sim.scene.load import load
     from stewart_sim.shell.outputs import result_set, written_in
     from stewart_sim.studies.compare.files import run_compare
-    from stewart_sim.scene.load import load
 
     scenes = [load(s) for s in args.scenes]       # every scene checked before any work
     out = Path(args.out)

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import argparse
 
-from stewart_sim.shell.argtypes import port, positive_seconds
 from stewart_sim.commands.constants import literals
+from stewart_sim.shell.argtypes import port, positive_seconds
 
 
 def add_parser(sub, help_text: str) -> None:

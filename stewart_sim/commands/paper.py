@@ -23,9 +23,9 @@ def add_parser(sub, help_text: str) -> None:
 
 def run(args: argparse.Namespace) -> None:
     """Rerun, write the report, print the verdicts."""
+    from stewart_sim.scene.load import load
     from stewart_sim.shell.outputs import result_set
     from stewart_sim.studies.paper.files import print_verdicts, run_paper
-    from stewart_sim.scene.load import load
 
     scene = load(resolve_scene(args.scene))
     out = Path(args.out)

@@ -1,14 +1,15 @@
 """`stewart-sim run SCENE [--fmu PLANT.fmu | --link serial|udp [--mode lockstep|realtime]
 [--truth TRUE.toml] [--trajectory T.csv] [--record RUN.csv]] --out DIR [--duration S]
-[--feedforward F] [--format csv|parquet] [--no-view]`: the closed loop (stewart_sim.closed_loop.run_files, or
-stewart_sim.closed_loop.over_link over the link) into DIR, all or nothing; then the recording RUN.csv."""
+[--feedforward F] [--format csv|parquet] [--no-view]`: the closed loop
+(stewart_sim.closed_loop.run_files, or stewart_sim.closed_loop.over_link over the link) into DIR,
+all or nothing; then the recording RUN.csv."""
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
 
-from stewart_sim.shell.argtypes import positive_seconds
 from stewart_sim.commands.constants import literals
+from stewart_sim.shell.argtypes import positive_seconds
 
 
 def add_parser(sub, help_text: str) -> None:
@@ -69,9 +70,10 @@ def run(args: argparse.Namespace) -> None:
 
     scene = load(args.scene)        # a bad scene file fails before the heavy imports
     from stewart_fmu.errors import StewartError
-    from stewart_sim.shell.run_length import check_samples
+    from stewart_sim.closed_loop.run_files import (ANY_RUN_FILES, check_format,
+                                                   run_closed_loop_files, run_files)
     from stewart_sim.shell.outputs import result_set
-    from stewart_sim.closed_loop.run_files import ANY_RUN_FILES, check_format, run_closed_loop_files, run_files
+    from stewart_sim.shell.run_length import check_samples
     from stewart_sim.view.files import VIEW_FILE
 
     model, config = scene.model, scene.require_controller()
@@ -107,7 +109,8 @@ def run(args: argparse.Namespace) -> None:
     if args.link is not None:
         # hil (pymavlink, the device process): only for --link
         from stewart_fmu.io import write_csv, writing
-        from stewart_sim.closed_loop.over_link import LINK_FILES, link_trajectory, record_table, run_link_files
+        from stewart_sim.closed_loop.over_link import (LINK_FILES, link_trajectory, record_table,
+                                                       run_link_files)
 
         if args.format != "csv":
             raise StewartError("run --link: --format parquet is not supported over the link")

@@ -6,8 +6,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from stewart_sim.shell.argtypes import positive_rate, positive_seconds
 from stewart_sim.commands.constants import literals
+from stewart_sim.shell.argtypes import positive_rate, positive_seconds
 
 
 def add_parser(sub, help_text: str) -> None:
@@ -41,8 +41,9 @@ def run(args: argparse.Namespace) -> None:
     """Run `trajectory`; StewartError subclasses for bad input."""
     from controller.moves import DEMO_DURATION, DEMO_RATE
     from stewart_fmu.errors import StewartError
+    from stewart_sim.open_loop.references import (checked, move, waypoint_trajectory,
+                                                  write_trajectory)
     from stewart_sim.scene.load import load
-    from stewart_sim.open_loop.references import checked, move, waypoint_trajectory, write_trajectory
 
     scene = load(args.scene)
     model = scene.model

@@ -6,8 +6,8 @@ import argparse
 import time
 from pathlib import Path
 
-from stewart_sim.shell.argtypes import positive_rate
 from stewart_sim.commands.constants import literals
+from stewart_sim.shell.argtypes import positive_rate
 
 
 def add_parser(sub, help_text: str) -> None:

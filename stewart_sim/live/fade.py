@@ -28,8 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from controller.trajectory import minimum_jerk, quintic_duration
-from stewart_fmu.model import Model
 from stewart_fmu.kinematics import inverse_kinematics
+from stewart_fmu.model import Model
 
 from stewart_sim.live.envelope import EnvelopeLimits
 

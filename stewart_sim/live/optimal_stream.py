@@ -63,7 +63,6 @@ from controller.config import ControllerConfig
 from stewart_fmu.errors import StewartError
 from stewart_fmu.model import Model
 
-from stewart_sim.scene.cueing_config import CueingConfig, OptimalOptions
 from stewart_sim.cueing.mpc_model import NP
 from stewart_sim.cueing.optimal import (
     Move,
@@ -73,6 +72,7 @@ from stewart_sim.cueing.optimal import (
     held_move,
     interval_means,
 )
+from stewart_sim.scene.cueing_config import CueingConfig, OptimalOptions
 
 LIVE_RATE_MIN = 50.0       # Hz: the slowest MPC the live loop takes
 WORKER_START_TIMEOUT = 30.0    # s: the forked worker's first word

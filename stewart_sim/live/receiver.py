@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 from typing import Callable, Protocol
 
 from stewart_sim.live.vehicle_datagrams import (REFUSAL_KINDS, TelemetryError, TelemetrySample,
-                                          decode_native, decode_outsim)
+                                                decode_native, decode_outsim)
 
 MAX_READ = 256          # datagrams read at most per tick
 DRAIN_BUDGET = 2e-4     # s of clock a tick's drain may take before it stops reading

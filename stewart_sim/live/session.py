@@ -49,18 +49,18 @@ import numpy as np
 
 from hil.observe import OBSERVE_HZ, Latest, Snapshot
 from hil.timing import Lateness, gc_frozen, wait_until
-from stewart_fmu.model import Model
 from stewart_fmu.kinematics import condition_number
-from stewart_sim.live.envelope import Envelope, envelope_limits
-from stewart_sim.live.fade import Blend, Fade, fade_to_home
-from stewart_sim.live.pipeline_modes import Event, Mode, fading, transition
-from stewart_sim.live.optimal_stream import LIVE_RATE_MIN, LiveOptimal
+from stewart_fmu.model import Model
 from stewart_sim.cueing.study import CueError
 from stewart_sim.cueing.vestibular import delivered_at
 from stewart_sim.cueing.washout_step import WashoutStepper
 from stewart_sim.live.control import Control
 from stewart_sim.live.cue_stream import CueStream, OptimalStream, Reference
 from stewart_sim.live.device_out import DeviceOut
+from stewart_sim.live.envelope import Envelope, envelope_limits
+from stewart_sim.live.fade import Blend, Fade, fade_to_home
+from stewart_sim.live.optimal_stream import LIVE_RATE_MIN, LiveOptimal
+from stewart_sim.live.pipeline_modes import Event, Mode, fading, transition
 from stewart_sim.live.receiver import TelemetryReceiver
 from stewart_sim.scene.load import Scene
 

@@ -24,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from controller.moves import DEMO_RATE, RUN_HOLD, RUN_MOVE, demo_trajectory, move_and_hold
 from controller.config import ControllerConfig
+from controller.moves import DEMO_RATE, RUN_HOLD, RUN_MOVE, demo_trajectory, move_and_hold
 from controller.trajectory import Trajectory, leg_references, waypoints
 from stewart_fmu import io
 from stewart_fmu.budget import BudgetError

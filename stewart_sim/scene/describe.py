@@ -99,7 +99,8 @@ def _describe_case(case: "Case | None") -> str:
 def _describe_cueing(model: Model, c: CueingConfig) -> str:
     """The [cueing] table as the washout reads it."""
     if "cueing" not in model.extra:
-        return "cueing: none (motion cueing uses the defaults of stewart_sim/scene/cueing_config.py)"
+        return ("cueing: none (motion cueing uses the defaults of "
+                "stewart_sim/scene/cueing_config.py)")
     return (f"cueing: classical washout; translational gain "
             f"{format_vector(c.translational_gain)}, limit "
             f"{format_vector(c.translational_limit)} m/s^2, high-pass order "

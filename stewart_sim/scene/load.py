@@ -5,8 +5,9 @@ only lets through); here the tables above the plant are read, checked and parsed
 their owners into the objects their readers take: [controller] ->
 controller.config.ControllerConfig, [cueing] -> CueingConfig and OptimalOptions, [case] ->
 stewart_sim.scene.case_config.Case, [solver] -> the plant's IntegratorOptions, [sensors] (what
-the emulated device reports) -> hil.sensors.SensorConfig. Every command loads its scene here, so a bad key in any table fails every command at once, with one line naming the
-dotted key (SceneKeyError), before any work; the commands then pass the typed objects down.
+the emulated device reports) -> hil.sensors.SensorConfig. Every command loads its scene here, so a
+bad key in any table fails every command at once, with one line naming the dotted key
+(SceneKeyError), before any work; the commands then pass the typed objects down.
 """
 from __future__ import annotations
 

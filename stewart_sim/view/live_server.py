@@ -28,8 +28,8 @@ from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from types import TracebackType
 
-from hil.observe import Latest, Snapshot
 from controller.config import ControllerConfig
+from hil.observe import Latest, Snapshot
 from stewart_fmu.errors import StewartError
 from stewart_fmu.model import Model
 from stewart_sim.view.geometry import view_geometry

@@ -18,9 +18,9 @@ from pathlib import Path
 import numpy as np
 
 from controller.config import ControllerConfig
+from stewart_fmu.budget import CSV_BYTES, SCENE_BYTES, InputFileError, open_input, read_input
 from stewart_fmu.dynamics import inverse_dynamics
 from stewart_fmu.errors import KinematicsError, StewartError
-from stewart_fmu.budget import CSV_BYTES, SCENE_BYTES, InputFileError, open_input, read_input
 from stewart_fmu.io import (FORCE_COLUMNS, POSE, TRAJECTORY_COLUMNS, csv_header, read_samples,
                             read_trajectory)
 from stewart_fmu.kinematics import forward_kinematics

@@ -1,4 +1,5 @@
-"""Kinematic calibration (stewart_sim.studies.calibrate, `stewart-sim calibrate`): synthetic machines
+"""Kinematic calibration (stewart_sim.studies.calibrate, `stewart-sim calibrate`): synthetic
+machines
 with known joints and leg offsets, measured through the model l_i = |x + R p_i - a_i| +
 delta_i, recovered exactly without noise and to the issue's accuracy with the tracker's noise;
 honest standard deviations, unobservable directions named, D-optimal pose selection, the files

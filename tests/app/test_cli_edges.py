@@ -436,8 +436,8 @@ def test_help_defaults_are_the_librarys() -> None:
     """The commands read a few defaults from the library's source to stay light
     (stewart_sim.commands.constants); they must be the library's."""
     from controller import moves
-    from stewart_sim.studies.accuracy import study
     from stewart_sim.commands.constants import literals
+    from stewart_sim.studies.accuracy import study
 
     assert literals("controller.moves", "DEMO_DURATION", "DEMO_RATE", "RUN_MOVE", "RUN_HOLD") == (
         moves.DEMO_DURATION, moves.DEMO_RATE, moves.RUN_MOVE, moves.RUN_HOLD)

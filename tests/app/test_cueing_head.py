@@ -16,13 +16,13 @@ import pytest
 from stewart_fmu import scene_from_dict
 from stewart_fmu.errors import SceneError
 from stewart_sim import cli
-from stewart_sim.scene.cueing_config import DEFAULTS, HEAD_REACH, cueing_config
 from stewart_sim.cueing.motion import read_motion
 from stewart_sim.cueing.mpc_model import linearise
 from stewart_sim.cueing.optimal import OptimalOptions, known_inputs, optimal_cueing
 from stewart_sim.cueing.report import perception_table, summary_markdown
 from stewart_sim.cueing.study import cue_study
 from stewart_sim.cueing.vestibular import delivered_at, delivered_motion, perception
+from stewart_sim.scene.cueing_config import DEFAULTS, HEAD_REACH, cueing_config
 from stewart_sim.scene.describe import describe
 from stewart_sim.scene.load import scene_of
 from tests.helpers import ROOT, scene_dict, smooth_step

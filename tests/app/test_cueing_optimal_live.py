@@ -12,9 +12,9 @@ import multiprocessing
 import numpy as np
 import pytest
 
-from stewart_sim.scene.cueing_config import cueing_config
-from stewart_sim.live.optimal_stream import LiveOptimal, LiveOptimalError
 from stewart_sim.cueing.vestibular import delivered_motion
+from stewart_sim.live.optimal_stream import LiveOptimal, LiveOptimalError
+from stewart_sim.scene.cueing_config import cueing_config
 from stewart_sim.scene.load import load
 from tests.helpers import ROOT
 

@@ -1,4 +1,5 @@
-"""Excitation trajectories (stewart_sim.studies.excite, `stewart-sim excite`): the Fourier series at rest
+"""Excitation trajectories (stewart_sim.studies.excite, `stewart-sim excite`): the Fourier series at
+rest
 at home at both ends and periodic, its derivatives exact; the command's trajectory on the
 micro-manipulator recomputed from the file it writes: the condition number of the stacked base
 regressor at or below the issue's 100, every limit kept with the margins it reports, read back
@@ -20,12 +21,12 @@ from stewart_fmu.dynamics import inverse_dynamics, regressor
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_sim import cli
 from stewart_sim.cueing.feasibility import COND_LIMIT, feasibility
+from stewart_sim.scene.load import load
 from stewart_sim.studies.excite.bounds import LIMIT_FRACTION, STROKE_MARGIN
 from stewart_sim.studies.excite.design import PERIOD, PERIODS
 from stewart_sim.studies.excite.fourier import FourierSeries
 from stewart_sim.studies.excite.report import figure
 from stewart_sim.studies.identify.base import scaled_condition, stacked, structural_base
-from stewart_sim.scene.load import load
 from tests.app.test_plot_labels import check_figure
 
 ROOT = Path(__file__).resolve().parents[2]

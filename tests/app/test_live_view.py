@@ -25,7 +25,8 @@ from stewart_fmu.kinematics import condition_number, inverse_kinematics  # noqa:
 from stewart_fmu.scene import load_scene  # noqa: E402
 from stewart_sim.cli import main  # noqa: E402
 from stewart_sim.scene.load import scene_of  # noqa: E402
-from stewart_sim.view.live_server import LiveView, ViewError, live_page, state_document  # noqa: E402
+from stewart_sim.view.live_server import (  # noqa: E402
+    LiveView, ViewError, live_page, state_document)
 from tests.helpers import ROOT  # noqa: E402
 from tests.hil.test_device import SCENE, arm, setpoint  # noqa: E402
 

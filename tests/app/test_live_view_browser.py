@@ -1,7 +1,8 @@
 """The live view as a person sees it: headless Chromium (the session's `browser` fixture,
-tests/browser.py) loads the page of `stewart_sim.view.live_server` while the device is ticked by hand
-(device time, deterministic), and sees the platform move when a setpoint arrives: the platform's
-transform the page shows is the geometry's for the published pose (the same 4x4 as Python's
+tests/browser.py) loads the page of `stewart_sim.view.live_server` while the device is ticked by
+hand (device time, deterministic), and sees the platform move when a setpoint arrives: the
+platform's transform the page shows is the geometry's for the published pose (the same 4x4 as
+Python's
 `object_transforms`), and the pixels around the platform's projection change. Skipped, with the
 reason, where Chromium or Playwright cannot be had."""
 from __future__ import annotations

@@ -19,9 +19,9 @@ from stewart_fmu.io import POSE, TRAJECTORY_COLUMNS
 from stewart_fmu.plant import StepRejected
 from stewart_sim import cli
 from stewart_sim.open_loop import forward, references
-from stewart_sim.studies.cases import report as case_report
 from stewart_sim.open_loop.inverse_forces import run_inverse
 from stewart_sim.shell.progress import Progress
+from stewart_sim.studies.cases import report as case_report
 from tests.helpers import record
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -22,9 +22,9 @@ from stewart_fmu.errors import StewartError
 from stewart_fmu.io import named_array, write_csv
 from stewart_fmu.scene import read_scene_dict
 from stewart_sim import cli
-from stewart_sim.studies.calibrate import study
 from stewart_sim.cueing.feasibility import Margin
 from stewart_sim.shell.markdown import md_code, md_text
+from stewart_sim.studies.calibrate import study
 from stewart_sim.studies.sizing import catalogue as catalogue_module
 from stewart_sim.studies.sizing import study as sizing
 from stewart_sim.studies.sizing.motions import Motion

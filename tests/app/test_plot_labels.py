@@ -17,8 +17,9 @@ from controller.moves import demo_trajectory, run_reference
 from stewart_fmu import io
 from stewart_fmu.dynamics import present_parts
 from stewart_fmu.scene import load_scene
-from stewart_sim.open_loop.inverse_forces import run_inverse
 from stewart_sim.closed_loop.link_figures import run_link_figure, tracking_vs_link_figure
+from stewart_sim.open_loop.forward import motion_figure
+from stewart_sim.open_loop.inverse_forces import run_inverse
 from stewart_sim.shell.plots import (
     MAX_POINTS,
     decimate,
@@ -28,7 +29,6 @@ from stewart_sim.shell.plots import (
     tracking_figure,
 )
 from stewart_sim.shell.progress import Progress
-from stewart_sim.open_loop.forward import motion_figure
 from stewart_sim.studies.sweep.grid import grid_from_dict
 from stewart_sim.studies.sweep.plots import axis_label, results_figure, workspace_figures
 

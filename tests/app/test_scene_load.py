@@ -121,7 +121,8 @@ GOOD_CASE = {"kind": "stiff", "description": "", "motion": "hold", "duration": 1
      "case.motion"),
 ])
 def test_scene_rejects_bad_case_tables(mutate, key):
-    """A bad [case] table is refused at load (stewart_sim.scene.case_config.case_of) naming the key."""
+    """A bad [case] table is refused at load (stewart_sim.scene.case_config.case_of) naming the
+    key."""
     d = scene_dict("micro")
     d["transmission"] = {"stiffness": 1e6, "damping": 1.0}
     mutate(d)

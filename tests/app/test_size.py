@@ -1,4 +1,5 @@
-"""`stewart-sim size` (stewart_sim/commands/size.py, stewart_sim/studies/sizing/): the shipped motion
+"""`stewart-sim size` (stewart_sim/commands/size.py, stewart_sim/studies/sizing/): the shipped
+motion
 simulator with the three shipped vehicle motions and the shipped drive catalogue writes its
 report; its peak rack force is `inverse`'s on the same motion (through the real commands:
 `cue` writes the trajectory, `inverse` its forces); a catalogue drive's torque and speed
@@ -235,9 +236,9 @@ def test_on_a_running_scheduler_the_ranking_is_the_in_process_one(tmp_path, caps
 
 
 def test_without_a_price_the_drives_rank_by_mass(tmp_path):
+    from stewart_sim.cueing.feasibility import Margin
     from stewart_sim.studies.sizing.catalogue import read_catalogue
     from stewart_sim.studies.sizing.study import CandidateMotion, CandidateResult, ranking
-    from stewart_sim.cueing.feasibility import Margin
 
     path = tmp_path / "drives.csv"
     path.write_text("mass,name,gear_ratio,pinion_radius,rotor_inertia,peak_torque,"

@@ -22,11 +22,11 @@ from stewart_fmu.scene import apply_overrides, load_scene, read_scene_dict, scen
 from stewart_sim.cli import main
 from stewart_sim.studies.sweep.adaptive import REFINEMENT, ROUNDS, check_adaptive
 from stewart_sim.studies.sweep.adaptive_plots import RESULT_UNITS, refinement_figure
+from stewart_sim.studies.sweep.dask_run import eval_spec, run_sweep
 from stewart_sim.studies.sweep.evaluate import RESULTS
 from stewart_sim.studies.sweep.evaluate import columns, evaluate_batch
-from stewart_sim.studies.sweep.plots import results_figure
 from stewart_sim.studies.sweep.grid import grid_from_dict, load_grid
-from stewart_sim.studies.sweep.dask_run import eval_spec, run_sweep
+from stewart_sim.studies.sweep.plots import results_figure
 from stewart_sim.studies.sweep.result_table import CHUNKS, MANIFEST, csv_text, read_table
 from tests.app.test_plot_labels import check_figure
 

@@ -17,10 +17,10 @@ import pytest
 from stewart_fmu.errors import SweepError
 from stewart_sim.cli import main
 from stewart_sim.studies.sweep.chunks import MAGIC, REFUSED, chunk_rules, resume_rows, write_chunk
-from stewart_sim.studies.sweep.evaluate import (RESULTS, columns, evaluate_batch, evaluate_point,
-                                        has_drive, result_problem)
-from stewart_sim.studies.sweep.grid import load_grid
 from stewart_sim.studies.sweep.dask_run import eval_spec, fingerprint, run_sweep
+from stewart_sim.studies.sweep.evaluate import (RESULTS, columns, evaluate_batch, evaluate_point,
+                                                has_drive, result_problem)
+from stewart_sim.studies.sweep.grid import load_grid
 from stewart_sim.studies.sweep.result_table import CHUNKS, csv_text, merge, read_table
 
 distributed = pytest.importorskip("distributed")

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from stewart_sim.live.vehicle_datagrams import (NATIVE_SIZES, OUTSIM_SIZES, TelemetryError,
-                                          TelemetrySample, decode_native, decode_outsim, encode)
+                                                TelemetrySample, decode_native, decode_outsim,
+                                                encode)
 
 G = 9.81
 

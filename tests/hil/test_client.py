@@ -170,7 +170,8 @@ def test_lockstep_over_the_link_equals_the_direct_run(model, config, lockstep_re
     assert len(run.table) == len(direct.table) == n
     assert_same(run, direct)  # bit for bit: the doubles survive the encoding
     assert run.summary.lost == 0 and run.summary.sent == 2 * n
-    # every step's round trip was measured (how long it took is a figure: stewart_sim.closed_loop.link_figures)
+    # every step's round trip was measured (how long it took is a figure:
+    # stewart_sim.closed_loop.link_figures)
     assert np.all(np.isfinite(run.table["rtt"])) and np.all(run.table["rtt"] > 0)
     assert s.device.counters.setpoints_accepted == n and s.device.counters.lockstep_refused == 0
     assert np.array_equal(run.table["step"], np.arange(n))
@@ -353,7 +354,8 @@ def test_realtime_rates_fit_the_line():
 
 
 def test_link_figures_report_end_to_end(tmp_path, model, config):
-    """`python -m stewart_sim.closed_loop.link_figures` on a small grid: the rate table, measured round trips over the
+    """`python -m stewart_sim.closed_loop.link_figures` on a small grid: the rate table, measured
+    round trips over the
     pty and UDP, and tracking against latency and loss, all finite, with the plot."""
     from stewart_sim.closed_loop.link_figures import report
 

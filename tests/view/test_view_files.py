@@ -19,8 +19,8 @@ from stewart_fmu import io
 from stewart_sim.cli import main
 from stewart_sim.scene.load import scene_of
 from stewart_sim.view.data import DEFAULT_FPS, frame_indices
-from stewart_sim.view.html import live_view_html, static_view_html
 from stewart_sim.view.geometry import view_geometry
+from stewart_sim.view.html import live_view_html, static_view_html
 from stewart_sim.view.sources import run_table_view, trajectory_view
 from tests.helpers import SCENE_FILES, level_model
 

@@ -9,6 +9,8 @@ from matplotlib.figure import Figure
 
 from stewart_fmu import io
 from stewart_fmu.integrators import FIXED_STEP, INTEGRATORS
+from stewart_sim.shell.markdown import md_text
+from stewart_sim.shell.plots import save_figure
 from stewart_sim.studies.accuracy.study import (
     ATOL_RATIO,
     CLOSED_LOOP_REFERENCE,
@@ -21,8 +23,6 @@ from stewart_sim.studies.accuracy.study import (
     cheapest,
     closed_loop_order,
 )
-from stewart_sim.shell.markdown import md_text
-from stewart_sim.shell.plots import save_figure
 
 ACCURACY_FILES = ("open_loop.csv", "closed_loop.csv", "work_precision.png", "summary.md")
 TARGETS = (1e-3, 1e-6, 1e-9)        # relative pose errors the summary names the cheapest for

@@ -23,11 +23,11 @@ from matplotlib.figure import Figure
 from stewart_fmu.errors import StewartError
 from stewart_fmu.io import atomic_write, write_text
 from stewart_fmu.scene import parse_scene_bytes, scene_from_dict
-from stewart_sim.studies.calibrate.study import OBSERVABLE_RTOL, Calibration, CalibrationError
+from stewart_sim.scene.load import scene_of
 from stewart_sim.shell.markdown import md_text
 from stewart_sim.shell.outputs import result_set, written_in
 from stewart_sim.shell.plots import LEG_COLOURS, save_figure
-from stewart_sim.scene.load import scene_of
+from stewart_sim.studies.calibrate.study import OBSERVABLE_RTOL, Calibration, CalibrationError
 
 FILES = ("calibrated.toml", "offsets.csv", "calibration.csv", "residuals.png", "report.md")
 UM = 1e6   # m -> um in the report and the figure

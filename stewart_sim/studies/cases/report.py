@@ -1,5 +1,6 @@
 """What `stewart-sim case SCENE [--duration S]` reports (stewart_sim.commands.case): a shipped
-stiff or extreme scene's [case] outcome (stewart_sim.studies.cases.outcome.run_case) against the one it expects.
+stiff or extreme scene's [case] outcome (stewart_sim.studies.cases.outcome.run_case) against the one
+it expects.
 
 Exit status: 0 when the outcome is the expected one (also when the expected outcome is an
 error, e.g. StrokeLimitError: the case shows that the error is caught), 1 when it is not (a

@@ -13,7 +13,8 @@ from stewart_sim.studies.compare.study import N_POINTS, compare_drive_inertia, r
 
 
 def run_compare(scenes: Sequence[Scene], out: Path, points: int = N_POINTS) -> list[Path]:
-    """The drive-inertia comparison of each scene (stewart_sim.studies.compare.study), its files in `out`."""
+    """The drive-inertia comparison of each scene (stewart_sim.studies.compare.study), its files in
+    `out`."""
     pairs = [(s.model, s.require_controller()) for s in scenes]  # every scene checked first
     results = []
     progress = Progress()

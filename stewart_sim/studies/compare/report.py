@@ -1,4 +1,5 @@
-"""Files of the drive-inertia comparison (stewart_sim.studies.compare.study): comparison.csv (one row per
+"""Files of the drive-inertia comparison (stewart_sim.studies.compare.study): comparison.csv (one
+row per
 scene, gear ratio and feedforward mode), comparison.png (tracking error and coupling against
 m_d / m_load, log-log) and report.md (setup, tables, where the constant-load assumption holds)."""
 from __future__ import annotations
@@ -12,6 +13,8 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from stewart_fmu.io import POSE, atomic_write, write_text
+from stewart_sim.shell.markdown import md_code, md_text
+from stewart_sim.shell.plots import save_figure
 from stewart_sim.studies.compare.study import (
     HOLD_PERIODS,
     HOLDS,
@@ -24,8 +27,6 @@ from stewart_sim.studies.compare.study import (
     regime,
     saturates,
 )
-from stewart_sim.shell.markdown import md_code, md_text
-from stewart_sim.shell.plots import save_figure
 
 MODE_STYLE = {"none": ("tab:red", "per-axis feedback only"),
               "constant_load": ("tab:blue", "+ constant-load feedforward"),

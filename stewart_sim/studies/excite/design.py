@@ -46,10 +46,11 @@ from stewart_fmu.dynamics import regressor
 from stewart_fmu.errors import StewartError
 from stewart_fmu.model import Model
 from stewart_fmu.standard import N_STANDARD
-from stewart_sim.studies.excite.bounds import (MAX_SLACKS, Limits, Peaks, limits, peaks, samples, slack,
-                                       tightest)
+from stewart_sim.studies.excite.bounds import (MAX_SLACKS, Limits, Peaks, limits, peaks, samples,
+                                               slack, tightest)
 from stewart_sim.studies.excite.fourier import FourierSeries
-from stewart_sim.studies.identify.base import BaseParameters, scaled_condition, stacked, structural_base
+from stewart_sim.studies.identify.base import (BaseParameters, scaled_condition, stacked,
+                                               structural_base)
 
 PERIOD = 5.0             # s: the fundamental period (0.2 Hz)
 HARMONICS = 5            # harmonics per axis (up to 1 Hz)

@@ -20,11 +20,11 @@ from stewart_fmu import io
 from stewart_fmu.errors import StewartError
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.model import Model
-from stewart_sim.studies.excite.bounds import Limits, Peaks
-from stewart_sim.studies.excite.design import GRID_PER_HARMONIC, Excitation
 from stewart_sim.shell.markdown import md_code, md_text
 from stewart_sim.shell.outputs import file_set
 from stewart_sim.shell.plots import LEG_COLOURS, plot_line, save_figure
+from stewart_sim.studies.excite.bounds import Limits, Peaks
+from stewart_sim.studies.excite.design import GRID_PER_HARMONIC, Excitation
 
 MM = 1e3
 SIDE = (".md", ".png")      # the report and the figure beside T.csv

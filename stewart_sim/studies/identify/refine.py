@@ -5,8 +5,8 @@ modifiers of MuJoCo's sysid).
 
 A force-driven platform is a free body: a rollout over a whole run drifts with any error.
 The runs are therefore cut into short segments (multiple shooting), each started from the
-filtered measured state (pose and rates) and simulated with stewart_sim.open_loop.forward.simulate (the
-plant's own integrator; the force held over a sample interval is the measured signal at the
+filtered measured state (pose and rates) and simulated with stewart_sim.open_loop.forward.simulate
+(the plant's own integrator; the force held over a sample interval is the measured signal at the
 interval's middle, interpolated, so that a sampled continuous force is no delay). The unknowns are the base parameters
 that the scene can hold (those acting on a standard parameter other than the platform's first
 moment and products of inertia, which the scene's model holds at zero), mapped to standard

@@ -14,10 +14,10 @@ from stewart_fmu.dynamics import present_parts
 from stewart_fmu.io import writing
 from stewart_fmu.model import Model
 from stewart_sim.open_loop.inverse_forces import run_inverse
-from stewart_sim.studies.paper.files import run_paper
-from stewart_sim.studies.paper.study import PaperResults
 from stewart_sim.shell.plots import forces_figure, save_figure
 from stewart_sim.shell.progress import Progress
+from stewart_sim.studies.paper.files import run_paper
+from stewart_sim.studies.paper.study import PaperResults
 from stewart_sim.view.files import VIEW_FILE, write_beside
 from stewart_sim.view.sources import trajectory_view
 

@@ -11,8 +11,10 @@ from matplotlib.ticker import LogFormatter
 from stewart_fmu.dynamics import present_parts
 from stewart_fmu.io import named_array, write_csv, write_text
 from stewart_fmu.model import Model, is_per_leg
-from stewart_sim.shell.markdown import md_code, md_text
 from stewart_sim.scene.describe import per_leg_text
+from stewart_sim.scene.paper_moves import TRAJECTORIES, Trajectory
+from stewart_sim.shell.markdown import md_code, md_text
+from stewart_sim.shell.plots import plot_leg_forces, save_figure
 from stewart_sim.studies.paper.study import (
     FAR_LARGER,
     LEVEL_TITLES,
@@ -23,8 +25,6 @@ from stewart_sim.studies.paper.study import (
     PaperResults,
     Run,
 )
-from stewart_sim.scene.paper_moves import TRAJECTORIES, Trajectory
-from stewart_sim.shell.plots import plot_leg_forces, save_figure
 
 FIG45_TRAJECTORIES = ("x", "thz")  # the paper does not say which two moves Figs. 4-5 show
 FORCE_LABEL = "actuator force σ (N)"

@@ -17,7 +17,8 @@ shows no change there and is not refined.
 
 Round k's points take the ids after the grid's and the earlier rounds', in the order picked,
 and its chunk files are DIR/adaptive/round-KKK/chunks/part-*.csv, the grid's form and rules
-(stewart_sim/studies/sweep/chunks.py) under a fingerprint of their own (the sweep's and the round's), so
+(stewart_sim/studies/sweep/chunks.py) under a fingerprint of their own (the sweep's and the
+round's), so
 a chunk of the grid or another round is refused there. The table gains the column `refinement`:
 0 for the grid's points, k for round k's.
 
@@ -37,7 +38,8 @@ from typing import Any, Callable, Iterable, Sequence
 import numpy as np
 
 from stewart_fmu.errors import SweepError
-from stewart_sim.studies.sweep.chunks import ChunkRules, Ledger, chunk_rules, ledger_rows, resume_ledger
+from stewart_sim.studies.sweep.chunks import (ChunkRules, Ledger, chunk_rules, ledger_rows,
+                                              resume_ledger)
 from stewart_sim.studies.sweep.evaluate import RESULTS
 from stewart_sim.studies.sweep.grid import FEASIBLE, NUMBER_AXES, GridSpec
 from stewart_sim.studies.sweep.result_table import CHUNKS

@@ -249,8 +249,8 @@ def merge_chunks(out: Path, rules: ChunkRules, ledger: Ledger,
     held to the rules again (a file changed since it was recorded stops the merge), rows in
     point order; returns (rows, rows with status "error"). `more`: further parts of the sweep,
     each with its rules and ledger, whose ids follow the part before (a refinement round's:
-    stewart_sim/studies/sweep/adaptive.py), their rows after; `part`: the name of a last column whose
-    cell is the index of the row's part (0 for `ledger`'s)."""
+    stewart_sim/studies/sweep/adaptive.py), their rows after; `part`: the name of a last column
+    whose cell is the index of the row's part (0 for `ledger`'s)."""
     status = rules.columns.index("status")
     parts = [(rules, ledger), *more]
     counts = [0, 0]

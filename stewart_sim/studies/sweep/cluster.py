@@ -1,7 +1,7 @@
 """The Dask client a study runs on: a running scheduler (`scheduler` = "tcp://HOST:PORT") or a
 new LocalCluster of worker processes (one thread each) on this machine, closed with the client.
-Shared by the design sweep (stewart_sim/studies/sweep/dask_run.py) and the actuator sizing's catalogue sweep
-(stewart_sim/studies/sizing/study.py)."""
+Shared by the design sweep (stewart_sim/studies/sweep/dask_run.py) and the actuator sizing's
+catalogue sweep (stewart_sim/studies/sizing/study.py)."""
 from __future__ import annotations
 
 import logging

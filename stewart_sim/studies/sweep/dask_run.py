@@ -2,12 +2,12 @@
 processes, one thread each) or a Dask distributed cluster (`scheduler` = "tcp://HOST:PORT").
 
 Points go out in tasks (evaluate_task) sized to a target duration from the measured cost of a
-point (stewart_sim/studies/sweep/batching.py), a few tasks per worker at a time. A task is the ids of its
-points: the points themselves, the evaluation's settings and the chunks' rules go to every
+point (stewart_sim/studies/sweep/batching.py), a few tasks per worker at a time. A task is the ids
+of its points: the points themselves, the evaluation's settings and the chunks' rules go to every
 worker once (a TaskContext, scattered), and a worker returns its rows as a chunk file's text,
-checked against the rules (stewart_sim/studies/sweep/chunks.py); each finished task's text is written to
-a chunk file at once, so an interruption keeps every finished row and a rerun computes only
-the points not yet in the directory: the rows of the chunks that pass their checks (the sweep's
+checked against the rules (stewart_sim/studies/sweep/chunks.py); each finished task's text is
+written to a chunk file at once, so an interruption keeps every finished row and a rerun computes
+only the points not yet in the directory: the rows of the chunks that pass their checks (the sweep's
 fingerprint, their checksum, known points once each, plausible results); a chunk refused is set
 aside and its points are computed again. The table is merged from the chunk files, read again
 and checked again, in point order; no more than a task's rows are held at once, whatever the
@@ -16,8 +16,8 @@ point, is what a worker holds of them). A worker that dies
 takes its running tasks with it; the scheduler runs them again elsewhere, and a task's rows are
 written once, when its future completes. With `adaptive` N, the rounds of refinement (their
 points picked from the grid's rows, read back from its chunk files:
-stewart_sim/studies/sweep/adaptive.py) run in the same sized tasks on the same cluster after the grid,
-and the table merges the grid's and the rounds' chunk files with the column `refinement`.
+stewart_sim/studies/sweep/adaptive.py) run in the same sized tasks on the same cluster after the
+grid, and the table merges the grid's and the rounds' chunk files with the column `refinement`.
 """
 from __future__ import annotations
 
@@ -38,11 +38,11 @@ from stewart_sim.shell.progress import Progress
 from stewart_sim.studies.sweep.adaptive import REFINEMENT, Refinement, check_adaptive
 from stewart_sim.studies.sweep.batching import BatchSizer, TaskCosts
 from stewart_sim.studies.sweep.chunks import (ChunkRules, Ledger, check_task_text, checked_cells,
-                                      chunk_rules, chunk_text, ledger_rows, merge_chunks,
-                                      resume_ledger, write_chunk_text)
+                                              chunk_rules, chunk_text, ledger_rows, merge_chunks,
+                                              resume_ledger, write_chunk_text)
 from stewart_sim.studies.sweep.cluster import dask_client
 from stewart_sim.studies.sweep.evaluate import (EvalSpec, TrajectoryCache, columns, evaluate_batch,
-                                        has_drive, point_label, point_model)
+                                                has_drive, point_label, point_model)
 from stewart_sim.studies.sweep.grid import GridSpec
 from stewart_sim.studies.sweep.result_table import open_sweep
 
@@ -124,8 +124,8 @@ def run_sweep(scene: Path, grid: GridSpec, out: Path, scheduler: str | None = No
     """Run (or resume) the sweep into `out` and merge its table; see the module doc.
     `notice` gets one line for each chunk file refused on resume; `dashboard` the address of
     the scheduler's dashboard once the cluster is up (when it serves one). `adaptive` N: then
-    N more points where the outcome changes (stewart_sim/studies/sweep/adaptive.py), the table with the
-    column `refinement`."""
+    N more points where the outcome changes (stewart_sim/studies/sweep/adaptive.py), the table with
+    the column `refinement`."""
     spec = eval_spec(scene, grid)
     check_adaptive(grid, adaptive, has_drive(spec.scene))
     points = grid.point_sequence()

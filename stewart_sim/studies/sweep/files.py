@@ -10,9 +10,9 @@ from stewart_fmu.scene import load_scene
 from stewart_sim.shell.plots import save_figure
 from stewart_sim.shell.progress import Progress
 from stewart_sim.studies.sweep.adaptive_plots import REFINEMENT_PLOT, refinement_figure
+from stewart_sim.studies.sweep.dask_run import SweepSummary, run_sweep
 from stewart_sim.studies.sweep.grid import load_grid
 from stewart_sim.studies.sweep.plots import METRIC, results_figure, workspace_figures
-from stewart_sim.studies.sweep.dask_run import SweepSummary, run_sweep
 from stewart_sim.studies.sweep.result_table import read_table
 
 MAPS = ("force_envelope.png", "singularity_map.png")

@@ -1,6 +1,7 @@
 """A sweep's files in its output directory: rows land in chunk files as tasks finish (each
 written atomically and fsynced, so an interruption at any moment keeps every finished row and no
-half row: stewart_sim/studies/sweep/chunks.py), and are merged, sorted by point id, into one CSV table.
+half row: stewart_sim/studies/sweep/chunks.py), and are merged, sorted by point id, into one CSV
+table.
 
     DIR/sweep.json       the sweep's fingerprint (scene + grid), columns and size
     DIR/chunks/*.csv     one file per finished task
