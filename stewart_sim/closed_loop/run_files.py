@@ -30,7 +30,7 @@ from stewart_sim.view.sources import run_table_view
 RUN_FILES = ("run.csv", "run_tracking.png", "run_errors.png", "run_forces.png", "summary.md",
              VIEW_FILE)
 FORMATS = ("csv", "parquet")
-# Every file a `run` may write (in-process, --fmu, --link: link_run.LINK_FILES): a rerun removes
+# Every file a `run` may write (in-process, --fmu, --link: over_link.LINK_FILES): a rerun removes
 # them all from an earlier set written without the manifest (outputs.MANIFEST).
 ANY_RUN_FILES = (*RUN_FILES, "run.parquet", "run_link.png")
 

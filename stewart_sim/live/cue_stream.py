@@ -207,11 +207,11 @@ class CueStream:
 
 
 class OptimalStream:
-    """The optimal mode's face for the live loop: cueing.optimal_live.LiveOptimal (the MPC
+    """The optimal mode's face for the live loop: live.optimal_stream.LiveOptimal (the MPC
     without preview, stepped at its own rate, solving off the loop's thread) pushed every
     accepted sample and sampled every tick, both at the loop's clock time (never decreasing).
     `reset` does nothing: the MPC keeps its own state through a fade (its window holds the last
-    sample) and the live loop blends its plan in again on resume (cueing.fade.Blend)."""
+    sample) and the live loop blends its plan in again on resume (live.fade.Blend)."""
 
     mode = "optimal"
 

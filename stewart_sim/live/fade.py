@@ -1,6 +1,6 @@
 """The live pipeline's moves that are not the washout's: the fade to neutral (telemetry lost,
 park) and the ramp of the cue back in (resume), both along the project's one quintic
-(controller.trajectory.minimum_jerk) and both sent through the envelope (cueing.envelope), which
+(controller.trajectory.minimum_jerk) and both sent through the envelope (live.envelope), which
 keeps them within its limits whatever state they start from.
 
 Fade: from the pose commanded when the fade begins to home, rest to rest, in pose coordinates.
@@ -14,7 +14,7 @@ moves starts with a jump of the rate; the envelope's limited step absorbs it.
 Blend: on resume the washout restarts at rest and its cue is ramped in from the pose the
 platform holds: sent = start + w (cue - start) with the quintic weight w from 0 to 1 over
 BLEND_TIME, the rates and accelerations by the product rule; once done, the cue itself is
-sent. A resume during a fade (FADING, cueing.live_modes) starts the ramp from the pose sent
+sent. A resume during a fade (FADING, live.pipeline_modes) starts the ramp from the pose sent
 then, still moving: the blend starts at rest, so its first sample steps the rate, and the
 envelope takes that step within its limits.
 

@@ -2,8 +2,8 @@
 hil.modes is the device's.
 
 The pipeline holds one `Mode` and moves it only through `transition`; what each mode sends is
-the pipeline's (the washout's cue through cueing.envelope.Envelope.step, a fade of
-cueing.fade through the same step, or Envelope.brake). Every pair of the table is written out:
+the pipeline's (the washout's cue through live.envelope.Envelope.step, a fade of
+live.fade through the same step, or Envelope.brake). Every pair of the table is written out:
 an accepted event gives the next mode (possibly the same), a refused one keeps the mode and
 gives the reason (for the operator's commands, the line the pipeline reports).
 
@@ -12,7 +12,7 @@ Modes
              the platform holds home
   RUNNING    following the telemetry: washout -> envelope -> setpoints; the loss timer runs
   FADING     the telemetry stopped (no datagram for the loss time): the platform fades to home
-             along cueing.fade's quintic, within the envelope; telemetry that comes back
+             along live.fade's quintic, within the envelope; telemetry that comes back
              resumes RUNNING from where the fade got to
   PARKING    the operator's park: the same fade to home, telemetry ignored
   PARKED     at home at rest, telemetry ignored until the operator resumes
@@ -31,7 +31,7 @@ Events
 
 Resuming (STARTING or FADING -> RUNNING on TELEMETRY): the washout restarts at rest (its filters
 reset, so its cue starts at neutral, home, at rest) and the cue is ramped in from the pose the
-platform holds, cueing.fade.Blend: the pose sent is start + w (cue - start) along the minimum-jerk
+platform holds, live.fade.Blend: the pose sent is start + w (cue - start) along the minimum-jerk
 weight w (controller.trajectory.minimum_jerk) from 0 to 1, so neither a jump of the pose nor one
 of its rate reaches the envelope.
 

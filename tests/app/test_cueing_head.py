@@ -128,7 +128,7 @@ def test_a_head_at_the_origin_is_the_origins_result_bit_for_bit():
     for head in (None, [0.0, 0.0, 0.0], np.zeros(3), (-0.0, 0.0, -0.0)):
         f, w = delivered_motion(t, q, qd, qdd, GRAVITY, head)
         assert f.tobytes() == f0.tobytes() and w.tobytes() == w0.tobytes()
-    # the origin's formula, R^T (a - g), as it was before the head existed
+    # the formula at the origin (no head offset): R^T (a - g)
     for k in range(n):
         np.testing.assert_allclose(f0[k], _rot(*q[k, 3:]).T @ (qdd[k, :3] - GRAVITY), rtol=0,
                                    atol=1e-12)

@@ -99,7 +99,7 @@ def test_live_page_shows_the_platform_move_when_a_setpoint_arrives(browser):
 
 
 def test_live_page_keeps_the_last_good_picture_when_the_state_is_not_finite(browser):
-    """/state sends a non-finite number as null (live.state_document): the page keeps drawing
+    """/state sends a non-finite number as null (live_server.state_document): the page keeps drawing
     the last finite state and says why in its status line, without a page error."""
     model = load_scene(SCENE)
     latest = Latest()

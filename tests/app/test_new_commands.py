@@ -1,5 +1,5 @@
-"""The `simulate`, `trajectory` and `case` commands (stewart_sim.open_loop.forward, .trajectory,
-.case_report), called through a local argparse parser built from their command modules'
+"""The `simulate`, `trajectory` and `case` commands (stewart_sim.open_loop.forward,
+stewart_sim.open_loop.references, stewart_sim.studies.cases.report), called through a local argparse parser built from their command modules'
 add_parser functions (stewart_sim.commands, the way stewart_sim/cli.py registers them) and
 through their pipeline functions."""
 from __future__ import annotations

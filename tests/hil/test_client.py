@@ -375,8 +375,8 @@ def test_link_figures_report_end_to_end(tmp_path, model, config):
 
 def test_the_client_numbers_its_frames_per_link():
     """Every frame the host sends carries the next MAVLink sequence number (mod 256), one and
-    several per send alike, each client (link) counting from 0 on its own: the old client sent
-    0 on every frame, so the device could not see a lost one."""
+    several per send alike, each client (link) counting from 0 on its own, so the device sees a
+    lost one."""
     from hil.framing import Receiver
 
     a, b = queue_pair()

@@ -131,7 +131,7 @@ def test_run_writes_its_view_and_view_reads_the_run(tmp_path, capsys):
                      said)
     assert match and float(match.group(1)) == pytest.approx(again.stat().st_size / 1e6, abs=0.006)
     assert main(["run", MICRO, "--out", str(out), "--duration", "0.5", "--no-view"]) == 0
-    assert not (out / "view.html").exists()     # the new set replaced the old one whole
+    assert not (out / "view.html").exists()     # the new set took the earlier one's place whole
 
 
 def _error(capsys) -> str:
