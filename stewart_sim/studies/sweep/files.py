@@ -1,5 +1,5 @@
-"""The `sweep` pipeline: GRID.toml -> the sweep on Dask (sweep_run) -> DIR/sweep.csv and the
-designer's plots."""
+"""The `sweep` pipeline: GRID.toml -> the sweep on Dask (dask_run.run_sweep) -> DIR/sweep.csv
+and the designer's plots."""
 from __future__ import annotations
 
 from pathlib import Path
