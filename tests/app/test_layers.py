@@ -146,9 +146,6 @@ COMMAND_NAMES = {
     "device": "hil/device.py",                 # the emulated device the command serves
     "trajectory": "controller/trajectory.py",  # the reference trajectories the command writes
 }
-# hil/budget.py (the link's bandwidth) takes a name of its own on the branch that lays out hil
-# (the `device` helper's); stewart_fmu/budget.py (what an input may cost) keeps the name
-AWAITING_RENAME = {"hil/budget.py"}
 
 
 def _unit(module: str) -> str | None:
@@ -194,7 +191,6 @@ def _names() -> dict[str, list[str]]:
 def test_no_module_name_means_two_things():
     twice = {}
     for name, where in _names().items():
-        where = [w for w in where if w not in AWAITING_RENAME]
         if len(where) < 2 or name in ROLES:
             continue
         if name in COMMAND_NAMES and sorted(where) == sorted(
@@ -210,5 +206,3 @@ def test_the_allowances_are_in_use():
     assert [c for c, other in COMMAND_NAMES.items()
             if f"stewart_sim/commands/{c}.py" not in names.get(c, ())
             or other not in names.get(c, ())] == []
-    assert [p for p in AWAITING_RENAME if not (ROOT / p).is_file()] == [], \
-        "renamed: remove it from AWAITING_RENAME"
