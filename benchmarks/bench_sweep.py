@@ -38,10 +38,10 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-from stewart_sim.sweep.cluster import dask_environment
-from stewart_sim.sweep.evaluate import evaluate_batch
-from stewart_sim.sweep.grid import grid_from_dict
-from stewart_sim.sweep.run import eval_spec, run_sweep
+from stewart_sim.studies.sweep.cluster import dask_environment
+from stewart_sim.studies.sweep.dask_run import eval_spec, run_sweep
+from stewart_sim.studies.sweep.evaluate import evaluate_batch
+from stewart_sim.studies.sweep.grid import grid_from_dict
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "scenes" / "micro_manipulator.toml"

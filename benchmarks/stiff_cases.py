@@ -8,8 +8,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from stewart_sim.scene_load import load
-from stewart_sim.stiff_study import hour_drift, integrator_study
+from stewart_sim.scene.load import load
+from stewart_sim.studies.cases.study import hour_drift, integrator_study
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
 

@@ -1,4 +1,4 @@
-"""Sphinx configuration of the documentation site (`make docs`: docs/_build/html).
+"""Sphinx configuration of the documentation site (`make docs`: _build/html beside this file).
 
 Pages are Markdown (MyST); the command reference is generated from the command line's parser
 (sphinx-argparse, docs/reference/commands.md) and the API reference from the docstrings

@@ -1,7 +1,7 @@
 """Whom a UDP server device answers: the peer rule that stops a datagram from hijacking it.
 
-`hil.link.udp_server` used to answer whoever sent the last datagram, so one datagram of garbage
-from any port redirected replies and telemetry away from the host. `PeerGuard` (used by
+A server that answered whoever sent the last datagram would let one datagram of garbage from any
+port redirect replies and telemetry away from the host. `PeerGuard` (used by
 `hil.serve.serve` on an unconnected UDP transport) switches the transport's peer only when a
 datagram carried at least one VALID frame for this system (good CRC, decoded, addressed to us or
 unaddressed; with a signing key: correctly signed with an acceptable timestamp, see hil.signing):
@@ -16,7 +16,7 @@ unaddressed; with a signing key: correctly signed with an acceptable timestamp, 
 * unsigned: the device answers the sender of the last valid frame, unless the peer itself sent a
   valid frame less than PEER_HOLD s ago (a host streaming setpoints keeps its replies whatever
   another port sends; a host quiet for PEER_HOLD s can be replaced), and every change of peer
-  is reported with a STATUSTEXT (WARNING) to the new and to the old peer, and counted
+  is reported with a STATUSTEXT (WARNING) to the new and to the earlier peer, and counted
   (`DeviceCounters.peer_changes`); a change refused by the hold is counted
   (`DeviceCounters.peer_kept`).
 
@@ -81,7 +81,7 @@ class PeerGuard:
     def after_feed(self) -> int:
         """Call after each datagram was fed to the device (before its replies are sent): follow
         the datagram's sender when it carried a valid frame. Returns the frames sent here (the
-        change notice, to the new and the old peer)."""
+        change notice, to the new and the earlier peer)."""
         dev, tr = self.device, self.transport
         n = dev.counters.frames_valid
         valid, self._valid = n > self._valid, n

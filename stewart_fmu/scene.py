@@ -18,7 +18,7 @@ from .model import DriveParams, FrictionParams, LegParams, Model, TransmissionPa
 
 DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
 # Tables the project defines on top of the contract, each read by a command and checked where it
-# is parsed, once, at load (stewart_sim.scene_load: [controller], [cueing], [case], [solver],
+# is parsed, once, at load (stewart_sim.scene.load: [controller], [cueing], [case], [solver],
 # [sensors]): here they are only let through into Model.extra; any other table is refused.
 PROJECT_TABLES = frozenset({"controller", "case", "cueing", "solver", "sensors"})
 _TOP_KEYS = {"name", "gravity", "geometry", "platform", "legs", "drive", "friction",

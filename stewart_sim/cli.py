@@ -60,14 +60,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status (0 ok, 1 I/O failure, 2 bad input,
     128 + the signal on SIGINT, SIGTERM or SIGHUP, 141 on a closed pipe)."""
     # Ctrl-C is caught from the start, before anything beyond the standard library is imported
-    # (an interrupt inside an import waits for it to return: stewart_sim/interrupt.py)
-    from stewart_sim import interrupt, terminal
+    # (an interrupt inside an import waits for it to return: stewart_sim/shell/interrupt.py)
+    from stewart_sim.shell import interrupt, terminal
 
     interrupt.reset_interrupt()
     restore = _catch_sigint(interrupt.sigint_handler)
     try:
         # every line printed from here on has its control characters escaped (a scene name,
-        # a file name, a message quoting an input): stewart_sim/terminal.py
+        # a file name, a message quoting an input): stewart_sim/shell/terminal.py
         with terminal.escaping():
             argv = list(sys.argv[1:] if argv is None else argv)
             parser = build_parser(argv[0] if argv else None)
@@ -120,7 +120,7 @@ def _run(args: argparse.Namespace) -> int:
 
     from stewart_fmu.errors import StewartError
     from stewart_fmu.io import WRITE_ERRNOS, OutputError, SpecialOutputError, check_output
-    from stewart_sim import interrupt, outputs
+    from stewart_sim.shell import interrupt, outputs
 
     try:
         for name in OUTPUT_ARGS:        # the output rule, before any work
@@ -156,7 +156,7 @@ def _run(args: argparse.Namespace) -> int:
 
 def _interrupted(kept: str | None) -> int:
     """The line for a command a stop signal ended (what was kept), and its exit status."""
-    from stewart_sim import interrupt
+    from stewart_sim.shell import interrupt
 
     name = interrupt.signal_name()
     how = "interrupted" if name == "SIGINT" else f"interrupted ({name})"
@@ -185,7 +185,7 @@ def _catch_sigint(handler):
     callback (interrupt.interrupted() keeps it); returns the function that restores both."""
     import signal
 
-    from stewart_sim.interrupt import STOP_SIGNALS
+    from stewart_sim.shell.interrupt import STOP_SIGNALS
 
     hook = sys.unraisablehook
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import argparse
 
-from stewart_sim.argtypes import port, positive_seconds
 from stewart_sim.commands.constants import literals
+from stewart_sim.shell.argtypes import port, positive_seconds
 
 
 def add_parser(sub, help_text: str) -> None:
@@ -54,10 +54,10 @@ def add_parser(sub, help_text: str) -> None:
 
 def run(args: argparse.Namespace) -> None:
     """Serve until SIGINT or SIGTERM, then return. With --view the live view
-    (stewart_sim.view.live) listens on loopback from before the device starts (a taken port
+    (stewart_sim.view.live_server) listens on loopback from before the device starts (a taken port
     fails at once) until the device stops; its address is the line after the device's own."""
     from hil.spawn import serve_device  # pymavlink: only for this command
-    from stewart_sim.scene_load import load
+    from stewart_sim.scene.load import load
 
     if args.udp is None and not args.pty and args.gcs is None:
         from hil.errors import LinkError
@@ -74,7 +74,7 @@ def run(args: argparse.Namespace) -> None:
                      gcs=args.gcs, pty=args.pty, **hidden)
         return
     from hil.observe import Latest
-    from stewart_sim.view.live import LiveView, live_page
+    from stewart_sim.view.live_server import LiveView, live_page
 
     latest = Latest()
     with LiveView(live_page(model, config), latest, args.view) as view:

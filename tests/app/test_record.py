@@ -31,7 +31,7 @@ from stewart_fmu.io import trajectory_table, write_csv  # noqa: E402
 from stewart_fmu.kinematics import inverse_kinematics  # noqa: E402
 from stewart_fmu.scene import load_scene  # noqa: E402
 from stewart_sim import cli  # noqa: E402
-from stewart_sim.link_run import link_trajectory, record_table  # noqa: E402
+from stewart_sim.closed_loop.over_link import link_trajectory, record_table  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 MICRO = ROOT / "scenes" / "micro_manipulator.toml"

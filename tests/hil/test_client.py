@@ -170,7 +170,8 @@ def test_lockstep_over_the_link_equals_the_direct_run(model, config, lockstep_re
     assert len(run.table) == len(direct.table) == n
     assert_same(run, direct)  # bit for bit: the doubles survive the encoding
     assert run.summary.lost == 0 and run.summary.sent == 2 * n
-    # every step's round trip was measured (how long it took is a figure: stewart_sim.link_figures)
+    # every step's round trip was measured (how long it took is a figure:
+    # stewart_sim.closed_loop.link_figures)
     assert np.all(np.isfinite(run.table["rtt"])) and np.all(run.table["rtt"] > 0)
     assert s.device.counters.setpoints_accepted == n and s.device.counters.lockstep_refused == 0
     assert np.array_equal(run.table["step"], np.arange(n))
@@ -276,7 +277,7 @@ def _simulated_realtime(model, config, ref, latency):
 
 def test_realtime_error_grows_with_latency(model, config, realtime_ref):
     """The real-time loop through the link emulator on a simulated clock (deterministic; the
-    wall-clock figure is `python -m stewart_sim.link_figures`): with 5 ms each way the
+    wall-clock figure is `python -m stewart_sim.closed_loop.link_figures`): with 5 ms each way the
     setpoints reach the device 5 ms late and its states come back 5 ms late, so in host time
     the legs lag the reference and the error grows."""
     base = _simulated_realtime(model, config, realtime_ref, 0.0)
@@ -353,9 +354,10 @@ def test_realtime_rates_fit_the_line():
 
 
 def test_link_figures_report_end_to_end(tmp_path, model, config):
-    """`python -m stewart_sim.link_figures` on a small grid: the rate table, measured round trips over the
+    """`python -m stewart_sim.closed_loop.link_figures` on a small grid: the rate table, measured
+    round trips over the
     pty and UDP, and tracking against latency and loss, all finite, with the plot."""
-    from stewart_sim.link_figures import report
+    from stewart_sim.closed_loop.link_figures import report
 
     path = report(tmp_path, model, config, n=30, latencies=(0.0, 0.005), losses=(0.3,),
                   repeats=1)
@@ -373,8 +375,8 @@ def test_link_figures_report_end_to_end(tmp_path, model, config):
 
 def test_the_client_numbers_its_frames_per_link():
     """Every frame the host sends carries the next MAVLink sequence number (mod 256), one and
-    several per send alike, each client (link) counting from 0 on its own: the old client sent
-    0 on every frame, so the device could not see a lost one."""
+    several per send alike, each client (link) counting from 0 on its own, so the device sees a
+    lost one."""
     from hil.framing import Receiver
 
     a, b = queue_pair()

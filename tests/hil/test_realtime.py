@@ -395,8 +395,7 @@ def _flooded_run(model, flood_limit: bool, seconds: float = 1.0, flood_rate: flo
 
 
 def test_a_flood_from_another_port_cannot_make_the_ticks_late(model):
-    """50,000 valid HEARTBEATs a second from another local port (what the old device served
-    1.2 s behind wall time): each tick starts on time, the host's setpoints are handled
+    """50,000 valid HEARTBEATs a second from another local port: each tick starts on time, the host's setpoints are handled
     within the tick they arrive in and its replies stay with it, and the flood's datagrams
     over their budget are dropped undecoded and counted. Without the budget the same flood is
     decoded in full: 1.35 ms of work a millisecond, a backlog that grows without end, and the

@@ -139,10 +139,10 @@ def _follow(dev: Device, lengths, seconds: float, seq: int) -> tuple[np.ndarray,
 @pytest.mark.parametrize("scene", ["micro_manipulator", "motion_simulator"])
 def test_every_accepted_bound_is_reached_without_a_fault(scene):
     """A setpoint of exactly SP_LEN_MAX (then SP_LEN_MIN, then SP_LEN_MAX again) on every leg,
-    each a full-stroke step at the drive's no-load speed: the old device accepted SP_LEN_MAX =
-    leg_max and its servo overshot into the end stop (fault, disarmed). Now the bounds keep the
-    servo's overshoot room free: every step is accepted, reached, and nothing faults. Device
-    time only (ticks), deterministic."""
+    each a full-stroke step at the drive's no-load speed: were SP_LEN_MAX = leg_max, the servo
+    would overshoot into the end stop (fault, disarmed); the bounds keep the servo's overshoot
+    room free, so every step is accepted, reached, and nothing faults. Device time only
+    (ticks), deterministic."""
     m = load_scene(ROOT / "scenes" / f"{scene}.toml")
     dev = Device(m)
     room = input_bounds.overshoot_room(dev.ctrl.axis, float(np.max(np.abs(dev.plant.rack_force))))
@@ -294,7 +294,7 @@ def test_watchdog_flood_is_refused_and_statustext_is_rate_limited(model):
 
 
 def test_numerical_failure_in_the_loop_gives_a_safe_hold(model):
-    """Drive limits and gain as the old device accepted them (set behind the checks): the 4 mm
+    """Drive limits and gain beyond what the checks accept (set behind them): the 4 mm
     step makes the integration fail; the device holds the last good pose, disarms, says so
     once (CRITICAL) and keeps serving with the designed gains and rated limits."""
     dev = Device(model)
@@ -466,7 +466,7 @@ def test_a_datagram_cannot_hijack_the_replies(model, signed):
         assert attacker.drain() == 0                                 # the attacker gets nothing
         assert dev.counters.peer_changes == 0
         if not signed:  # a valid frame from a new port moves the peer (once the host has been
-            time.sleep(PEER_HOLD)   # quiet for the hold, hil.peer), and the old one is told
+            time.sleep(PEER_HOLD)   # quiet for the hold, hil.peer), and the earlier one is told
             attacker.send(bytes(read_kp().pack(host_mav())))
             told = host.collect(Receiver(ms), _has("STATUSTEXT", lambda m: "peer" in m.text))
             assert _has("STATUSTEXT", lambda m: m.text.startswith("peer 127.0.0.1:"))(told)
@@ -500,7 +500,7 @@ class _Server:
 def test_signed_frames_from_another_address_do_not_move_the_peer_while_armed(model):
     """Signed: the host arms from port 1000; a correctly signed frame from port 2000 (another
     holder of the key, or a replayed stream on a new link) is handled, but the replies and the
-    telemetry stay with the host while armed (the old device moved them); after disarm a
+    telemetry stay with the host while armed (they do not follow the new address); after disarm a
     signed frame from port 2000 may take the peer, and says so."""
     from hil.peer import PeerGuard
 
@@ -530,7 +530,7 @@ def test_signed_frames_from_another_address_do_not_move_the_peer_while_armed(mod
     assert not dev.armed
     datagram(other, omav, read_kp())                                     # disarmed: it may move
     assert tr.peer == other and dev.counters.peer_changes == 1 and dev.counters.peer_kept == 6
-    # the new peer arms; the old host's signed frames no longer move it
+    # the new peer arms; the earlier host's signed frames do not move it
     datagram(other, omav, arm())
     assert dev.armed
     datagram(host, hmav, read_kp())

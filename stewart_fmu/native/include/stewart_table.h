@@ -110,7 +110,7 @@
       "transmission damping, motor to leg (leg axis)")
 
 /* The FMU's own parameters (Real, fixed), after the scene's: the start state and the solver
-   (a scene's [solver] table takes the same bounds: stewart_sim/scene_load.py). */
+   (a scene's [solver] table takes the same bounds: stewart_sim/scene/load.py). */
 #define STEWART_FMU_SETTINGS(X)                                                                    \
     X(Q0, "q0", 6, STEWART_VECTOR, "pose", CLOSED, -1e3, 1e3, "initial pose")                      \
     X(QD0, "qd0", 6, STEWART_VECTOR, "rate", CLOSED, -1e3, 1e3, "initial pose rates")              \
