@@ -2,7 +2,7 @@
 
     python benchmarks/bench_gcs_hostile.py [--seconds S] [--clients N] [--seed K]
 
-The device is served in real time in this process (hil.serve over hil.gcs.link) while N clients,
+The device is served in real time in this process (hil.serve over hil.gcs.tcp_transport) while N clients,
 each in a process of its own, send seeded hostile bytes as fast as the server reads them (random
 binary, control bytes, overlong lines, floods of unknown commands, absurd numbers, moves and
 servo switching on an unreferenced twin; tests/hil/test_gcs.py's generator). Printed: bytes and
@@ -31,8 +31,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from hil.device import Device  # noqa: E402
-from hil.gcs import commands  # noqa: E402
-from hil.gcs.link import gcs_link  # noqa: E402
+from hil.gcs import command_set  # noqa: E402
+from hil.gcs.tcp_transport import gcs_link  # noqa: E402
 from hil.serve import serve_in_thread  # noqa: E402
 from stewart_fmu.scene import load_scene  # noqa: E402
 from tests.hil.test_gcs import _hostile_lines  # noqa: E402
@@ -80,7 +80,7 @@ def main() -> None:
     device = Device(model)
     link = gcs_link(device, "127.0.0.1", 0)
     codes: Counter = Counter()
-    run = commands.execute
+    run = command_set.execute
 
     def counting(c, s, text):      # every line's code, as ERR? would read it
         s.error = 0
@@ -88,7 +88,7 @@ def main() -> None:
         codes[s.error] += 1
         return out
 
-    commands.execute = counting
+    command_set.execute = counting
     import hil.gcs.server as server_module
     server_module.execute = counting
     q0 = np.asarray(device.snapshot().q)

@@ -168,7 +168,7 @@ def serve_device(model: Model, config: ControllerConfig, udp: str | None,
         transport, keep = pty_pair()
         first = keep.name
     if gcs_at is not None:
-        from hil.gcs.link import gcs_link       # only for --gcs
+        from hil.gcs.tcp_transport import gcs_link       # only for --gcs
         try:
             transport = gcs_link(device, *gcs_at, inner=transport)
         except LinkError:

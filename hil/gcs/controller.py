@@ -4,9 +4,9 @@ It holds what a PI hexapod controller holds (the commanded target, referenced, s
 system velocity, the travel range, the data recorder) and drives the device only through its
 public input: MAVLink messages of our dialect given to `Device.receive` (arm, disarm, home,
 LEG_SETPOINT) and nothing else, so the device's modes, bounds, watchdog and faults all apply.
-`step()` runs once per device tick, before it (hil.gcs.link calls it): it follows the device's
+`step()` runs once per device tick, before it (hil.gcs.tcp_transport calls it): it follows the device's
 mode (referencing done, a fault that disarmed it), sends the move's setpoint for the tick
-(hil.gcs.motion) and records (hil.gcs.recorder). Commands come from hil.gcs.commands.
+(hil.gcs.move_path) and records (hil.gcs.recorder). Commands come from hil.gcs.command_set.
 
 Referencing (FRF) is the device's homing: arm, then MAV_CMD_NAV_RETURN_TO_LAUNCH (a quintic in
 leg space to the scene's home); the axes count as referenced when the device reports ARMED
@@ -26,7 +26,7 @@ from hil import mavlink_stewart as ms
 from hil.device import Device
 from hil.gcs import errors as E
 from hil.gcs.axes import AXES, Frame
-from hil.gcs.motion import Mover
+from hil.gcs.move_path import Mover
 from hil.gcs.recorder import Recorder, Sample, leg_mm
 from hil.modes import Mode
 from stewart_fmu.kinematics import inverse_kinematics
@@ -63,7 +63,7 @@ class GcsController:
         self.referencing = False
         self.servo = False
         self.motion_errors = 0
-        self.internal_errors = 0     # lines whose handler raised (hil.gcs.commands.execute)
+        self.internal_errors = 0     # lines whose handler raised (hil.gcs.command_set.execute)
         self.low, self.high = self._travel_range()
         self._k = -1
         self._refused = 0
@@ -89,11 +89,11 @@ class GcsController:
             return np.zeros(6, dtype=bool)
         return np.abs(self.position() - self.target) > ONT_TOLERANCE
 
-    # --- actions (checked by hil.gcs.commands before they are called) ---------------------
+    # --- actions (checked by hil.gcs.command_set before they are called) ---------------------
 
     def command(self, cmd: int, p1: float = 0.0) -> list[Any]:
         """A COMMAND_LONG to the device; its replies (the first is the ack), which the next
-        `step` also hands on (to a MAVLink peer beside GCS, hil.gcs.link)."""
+        `step` also hands on (to a MAVLink peer beside GCS, hil.gcs.tcp_transport)."""
         out = self.device.receive(ms.MAVLink_command_long_message(
             self.device.mav.srcSystem, self.device.mav.srcComponent, cmd, 0, p1, 0, 0, 0, 0, 0, 0))
         self._outbox = (self._outbox + out)[-OUTBOX:]
@@ -139,7 +139,7 @@ class GcsController:
         self.target = target.copy()
 
     def halt(self) -> None:
-        """HLT: a move comes to rest smoothly along its path (hil.gcs.motion.Mover.halt), the
+        """HLT: a move comes to rest smoothly along its path (hil.gcs.move_path.Mover.halt), the
         target is where it will rest; referencing is stopped as STP stops it."""
         if self.referencing or not (self.servo and self.device.armed):
             self.stop()

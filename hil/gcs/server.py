@@ -1,7 +1,7 @@
 """GCS over TCP: a non-blocking line server polled from the device's own loop (no threads).
 
 `GcsServer.poll(timeout)` waits at most `timeout` for sockets to become ready, accepts, reads,
-runs complete lines through hil.gcs.commands.execute and writes answers. Everything is bounded:
+runs complete lines through hil.gcs.command_set.execute and writes answers. Everything is bounded:
 at most `max_clients` connections (one more is accepted and closed at once, counted), a
 connection idle for `idle_timeout` s is closed, a line longer than MAX_LINE bytes is an error 3
 and is skipped up to its LF, at most LINES_PER_POLL lines run per poll, and none after
@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Iterator
 
 from hil.gcs import errors as E
-from hil.gcs.commands import execute
+from hil.gcs.command_set import execute
 from hil.gcs.controller import GcsController, Session
 from hil.gcs.parser import SINGLE_BYTE
 

@@ -19,9 +19,9 @@ from hil.device import Device  # noqa: E402
 from hil.gcs import errors as E  # noqa: E402
 from hil.gcs import parser as P  # noqa: E402
 from hil.gcs.axes import Frame  # noqa: E402
-from hil.gcs.commands import COMMANDS, execute  # noqa: E402
+from hil.gcs.command_set import COMMANDS, execute  # noqa: E402
 from hil.gcs.controller import ONT_TOLERANCE, GcsController, Session  # noqa: E402
-from hil.gcs.link import GcsLink  # noqa: E402
+from hil.gcs.tcp_transport import GcsLink  # noqa: E402
 from hil.gcs.server import MAX_LINE, GcsServer  # noqa: E402
 from hil.modes import Mode  # noqa: E402
 from stewart_fmu.scene import load_scene  # noqa: E402
@@ -465,7 +465,7 @@ def test_gcs_beside_mavlink_drives_the_same_device(model):
     import time
 
     from hil import mavlink_stewart as ms
-    from hil.gcs.link import gcs_link
+    from hil.gcs.tcp_transport import gcs_link
     from hil.link import udp_server
     from hil.serve import serve_in_thread
     from stewart_fmu.kinematics import inverse_kinematics

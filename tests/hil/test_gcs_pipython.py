@@ -21,7 +21,7 @@ from pipython.pidevice.interfaces.pisocket import PISocket  # noqa: E402
 
 from hil.device import Device  # noqa: E402
 from hil.gcs.controller import ONT_TOLERANCE  # noqa: E402
-from hil.gcs.link import gcs_link  # noqa: E402
+from hil.gcs.tcp_transport import gcs_link  # noqa: E402
 from hil.serve import serve_in_thread  # noqa: E402
 from hil.spawn import device_process, parse_gcs  # noqa: E402
 from stewart_fmu.scene import load_scene  # noqa: E402
