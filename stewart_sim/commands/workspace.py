@@ -1,0 +1,96 @@
+"""`stewart-sim workspace SCENE`: what the mechanism can reach (stewart_sim.workspace, the
+feasibility engine of stewart_fmu.reach).
+
+    --check POSES.csv --out V.csv   each pose against every limit (the contract's V.csv)
+    --reach --direction D [--from Q]  the largest step along D before the first limit
+    --ranges [--out RANGES.csv]     per-axis travel from home, both ways, and what ends it
+"""
+from __future__ import annotations
+
+import argparse
+
+
+def add_parser(sub, help_text: str) -> None:
+    """Register `workspace` on the command line's subparsers."""
+    p = sub.add_parser("workspace", help=help_text,
+                       description="What the mechanism reaches: every limit's margin at poses, "
+                                   "the travel along a direction, the per-axis ranges.")
+    p.add_argument("scene", metavar="SCENE", help="scene file (TOML)")
+    what = p.add_mutually_exclusive_group(required=True)
+    what.add_argument("--check", metavar="POSES.csv",
+                      help="poses (columns x,y,z,thx,thy,thz; with dx..dthz and ddx..ddthz the "
+                           "drives' limits too) checked against every limit: --out V.csv")
+    what.add_argument("--reach", action="store_true",
+                      help="the largest step from --from along --direction before a limit")
+    what.add_argument("--ranges", action="store_true",
+                      help="travel from home along each axis, both ways (the datasheet table)")
+    p.add_argument("--out", metavar="FILE", help="V.csv of --check (required there); the "
+                   "ranges as CSV with --ranges")
+    p.add_argument("--frame", metavar="NAME",
+                   help="the frame poses are given in: platform, pivot, tool, user (default: "
+                        "the scene's [frames] default, else platform)")
+    p.add_argument("--from", dest="start", metavar="x,y,z,thx,thy,thz",
+                   help="--reach: the start pose (default: home, in the frame)")
+    p.add_argument("--direction", metavar="dx,dy,dz,dthx,dthy,dthz",
+                   help="--reach: the direction (the step is in its units: m or rad along a "
+                        "unit axis)")
+    p.set_defaults(run=run)
+
+
+def _six(text: str | None, what: str):
+    import numpy as np
+
+    from stewart_fmu.errors import StewartError
+
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) != 6 or not all(np.isfinite(values)):
+        raise StewartError(f"{what} {text!r}: need six finite numbers separated by commas")
+    return np.array(values)
+
+
+def run(args: argparse.Namespace) -> None:
+    """Answer the query asked; print what was written or found."""
+    from pathlib import Path
+
+    from stewart_fmu.errors import StewartError
+    from stewart_fmu.frames import default_frame, frame_change, from_platform
+    from stewart_sim.scene_load import load
+    from stewart_sim.workspace.engine import engine
+
+    scene = load(args.scene)
+    frame = args.frame or default_frame(scene.model)
+    frame_change(scene.model, frame)   # an unknown frame name: one line, exit 2
+    eng = engine(scene)
+    if args.check:
+        if not args.out:
+            raise StewartError("--check needs --out V.csv")
+        from stewart_fmu.io import write_csv
+        from stewart_sim.workspace.check import check_table, read_poses, summary
+
+        q, qd, qdd = read_poses(Path(args.check))
+        table = check_table(eng, q, qd, qdd, frame)
+        write_csv(args.out, table)
+        present = [lim.name for lim in eng.present(qd is not None, qdd is not None)]
+        print(f"wrote {args.out}: {summary(table, present)}")
+    elif args.reach:
+        from stewart_sim.workspace.ranges import reach_text
+
+        if args.direction is None:
+            raise StewartError("--reach needs --direction dx,dy,dz,dthx,dthy,dthz")
+        d = _six(args.direction, "--direction")
+        q0 = from_platform(scene.model, scene.model.home, frame) if args.start is None \
+            else _six(args.start, "--from")
+        print(reach_text(eng.travel(q0, d, frame=frame), q0, d, frame))
+    else:
+        from stewart_fmu.io import write_csv
+        from stewart_fmu.reach import axis_ranges
+        from stewart_sim.workspace.ranges import ranges_table, ranges_text
+
+        rows = axis_ranges(eng, frame)
+        print(ranges_text(rows, frame))
+        if args.out:
+            write_csv(args.out, ranges_table(rows))
+            print(f"wrote {args.out}")
