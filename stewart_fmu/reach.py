@@ -69,7 +69,7 @@ class Travel:
 
 def where_text(limit: int, element: int) -> str:
     """The leg, pair or obstacle and leg of a limit's element: 'leg 3', 'legs 1-2',
-    'obstacle 1 leg 4' (obstacles numbered from 0 as in the scene's list), '' for cond."""
+    '[1] leg 4' (the obstacle clearance.obstacles[1]), '' for cond."""
     kind = LIMITS[limit].kind
     if kind == table.LIMIT_LEG:
         return f"leg {element + 1}"
@@ -78,7 +78,7 @@ def where_text(limit: int, element: int) -> str:
         return f"legs {i}-{j}"
     if kind == table.LIMIT_OBSTACLE:
         o, leg = divmod(element, 6)
-        return f"obstacle {o} leg {leg + 1}"
+        return f"[{o}] leg {leg + 1}"
     return ""
 
 
