@@ -155,8 +155,8 @@ def main() -> None:
     rows.append((f"{len(Q):,} poses, no cond(J)", t_c, t_np))
     d = rng.normal(size=6) * [1, 1, 1, 5, 5, 5]
     d /= np.linalg.norm(d)
-    hmax = model.characteristic_length / 16 / np.hypot(np.linalg.norm(d[:3]),
-                                                       model.characteristic_length * np.linalg.norm(d[3:]))
+    lc = model.characteristic_length
+    hmax = lc / 16 / np.hypot(np.linalg.norm(d[:3]), lc * np.linalg.norm(d[3:]))
     home = np.asarray(model.home, dtype=float)
     s_c = eng.travel(home, d).step
     s_np = ref.travel(home, d, hmax)

@@ -122,7 +122,8 @@ def clearance(v, data: Mapping[str, Any]) -> ClearanceParams | None:
     if not isinstance(obstacles, list):
         v.fail_key("clearance.obstacles", "must be an array of tables ([[clearance.obstacles]])")
     if len(obstacles) > MAX_OBSTACLES:
-        v.fail_key("clearance.obstacles", f"at most {MAX_OBSTACLES} obstacles, got {len(obstacles)}")
+        v.fail_key("clearance.obstacles",
+                   f"at most {MAX_OBSTACLES} obstacles, got {len(obstacles)}")
     return ClearanceParams(radius, tuple(_obstacle(v, o, k) for k, o in enumerate(obstacles)))
 
 
@@ -148,7 +149,8 @@ def check_home(v, model) -> None:
     key: the cone, the leg radius, the obstacle)."""
     if model.joints is None and model.clearance is None:
         return
-    margin, where = np.empty(core.lib.STEWART_N_LIMITS), np.empty(core.lib.STEWART_N_LIMITS, np.intc)
+    n = core.lib.STEWART_N_LIMITS
+    margin, where = np.empty(n), np.empty(n, np.intc)
     ffi = core.ffi
     home = np.ascontiguousarray(model.home, dtype=float)
     core.lib.stewart_reach_margins(model.native.ptr, ffi.from_buffer(model.reach),

@@ -4,6 +4,7 @@ feasibility engine of stewart_fmu.reach).
     --check POSES.csv --out V.csv   each pose against every limit (the contract's V.csv)
     --reach --direction D [--from Q]  the largest step along D before the first limit
     --ranges [--out RANGES.csv]     per-axis travel from home, both ways, and what ends it
+    --map --out DIR [--resolution H]  the constant-orientation workspace: volume, runs, slices
 """
 from __future__ import annotations
 
@@ -24,6 +25,10 @@ def add_parser(sub, help_text: str) -> None:
                       help="the largest step from --from along --direction before a limit")
     what.add_argument("--ranges", action="store_true",
                       help="travel from home along each axis, both ways (the datasheet table)")
+    what.add_argument("--map", action="store_true",
+                      help="the constant-orientation workspace at --from's angles (default "
+                           "home's): its volume, DIR/map.csv (x, y, z_low, z_high of each run "
+                           "of a column) and DIR/slices.png; --out DIR")
     p.add_argument("--out", metavar="FILE", help="V.csv of --check (required there); the "
                    "ranges as CSV with --ranges")
     p.add_argument("--frame", metavar="NAME",
@@ -34,6 +39,8 @@ def add_parser(sub, help_text: str) -> None:
     p.add_argument("--direction", metavar="dx,dy,dz,dthx,dthy,dthz",
                    help="--reach: the direction (the step is in its units: m or rad along a "
                         "unit axis)")
+    p.add_argument("--resolution", type=float, metavar="H",
+                   help="--map: the x-y grid step, m (default: the characteristic length / 30)")
     p.set_defaults(run=run)
 
 
@@ -84,6 +91,8 @@ def run(args: argparse.Namespace) -> None:
         q0 = from_platform(scene.model, scene.model.home, frame) if args.start is None \
             else _six(args.start, "--from")
         print(reach_text(eng.travel(q0, d, frame=frame), q0, d, frame))
+    elif args.map:
+        _map(args, scene.model, eng, frame)
     else:
         from stewart_fmu.io import write_csv
         from stewart_fmu.reach import axis_ranges
@@ -94,3 +103,39 @@ def run(args: argparse.Namespace) -> None:
         if args.out:
             write_csv(args.out, ranges_table(rows))
             print(f"wrote {args.out}")
+
+
+def _map(args: argparse.Namespace, model, eng, frame: str) -> None:
+    """--map: the volume printed, map.csv and slices.png written together (a result set)."""
+    import math
+
+    import numpy as np
+
+    from stewart_fmu.errors import StewartError
+    from stewart_fmu.frames import from_platform
+    from stewart_fmu.io import named_array, write_csv
+    from stewart_sim.outputs import result_set
+    from stewart_sim.workspace.maps import MAX_CELLS, constant_orientation, position_box, slices
+
+    if not args.out:
+        raise StewartError("--map needs --out DIR")
+    h = args.resolution if args.resolution is not None else model.characteristic_length / 30
+    if not (math.isfinite(h) and h > 0):
+        raise StewartError(f"--resolution {args.resolution!r}: must be a finite step > 0 (m)")
+    start = from_platform(model, model.home, frame) if args.start is None \
+        else _six(args.start, "--from")
+    lo, hi = position_box(eng, start[3:], frame)
+    cells = float(np.prod((hi - lo) / h))
+    if not cells <= MAX_CELLS:
+        raise StewartError(f"--resolution {h!r}: {cells:.3g} grid cells in the box searched, "
+                           f"more than {MAX_CELLS:.0e}: give a coarser step")
+    m = constant_orientation(eng, start, frame, h)
+    with result_set(args.out, known=("map.csv", "slices.png")) as stage:
+        write_csv(stage / "map.csv", named_array({"x": m.runs[:, 0], "y": m.runs[:, 1],
+                                                  "z_low": m.runs[:, 2], "z_high": m.runs[:, 3]}))
+        slices(eng, m, start[:3], stage / "slices.png")
+    print(f"constant-orientation workspace at angles ({', '.join(f'{a:.6g}' for a in m.angles)})"
+          f" rad, {frame} frame: {m.volume * 1e3:.6g} litres ({len(m.runs)} runs of "
+          f"{len(np.unique(m.runs[:, :2], axis=0))} columns; x-y grid {h * 1e3:.4g} mm, z by "
+          f"bisection to 1e-9 m; {m.seconds:.2f} s)")
+    print(f"wrote {args.out}/map.csv and {args.out}/slices.png")

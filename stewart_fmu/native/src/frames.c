@@ -33,7 +33,8 @@ static void product(const double A[9], int transpose_a, const double B[9], int t
         for (j = 0; j < 3; ++j) {
             double s = 0.0;
             for (k = 0; k < 3; ++k)
-                s += (transpose_a ? A[3 * k + i] : A[3 * i + k]) * (transpose_b ? B[3 * j + k] : B[3 * k + j]);
+                s += (transpose_a ? A[3 * k + i] : A[3 * i + k])
+                     * (transpose_b ? B[3 * j + k] : B[3 * k + j]);
             C[3 * i + j] = s;
         }
 }

@@ -34,7 +34,8 @@ static void geometry(const double *p, const double q[6], pose_geometry *g)
     for (i = 0; i < 6; ++i) {
         const double *pj = p + STEWART_P_PLATFORM + 3 * i, *aj = p + STEWART_P_BASE + 3 * i;
         for (k = 0; k < 3; ++k) {
-            g->P[3 * i + k] = q[k] + (g->R[3 * k] * pj[0] + g->R[3 * k + 1] * pj[1] + g->R[3 * k + 2] * pj[2]);
+            g->P[3 * i + k] = q[k] + (g->R[3 * k] * pj[0] + g->R[3 * k + 1] * pj[1]
+                                      + g->R[3 * k + 2] * pj[2]);
             g->L[3 * i + k] = g->P[3 * i + k] - aj[k];
         }
         g->l[i] = sqrt(dot3(g->L + 3 * i, g->L + 3 * i));
@@ -44,7 +45,8 @@ static void geometry(const double *p, const double q[6], pose_geometry *g)
 /* The angle between a and b, accurate near 0 and pi (atan2 of |a x b| and a . b). */
 static double angle(const double a[3], const double b[3])
 {
-    double c0 = a[1] * b[2] - a[2] * b[1], c1 = a[2] * b[0] - a[0] * b[2], c2 = a[0] * b[1] - a[1] * b[0];
+    double c0 = a[1] * b[2] - a[2] * b[1], c1 = a[2] * b[0] - a[0] * b[2];
+    double c2 = a[0] * b[1] - a[1] * b[0];
     return atan2(sqrt(c0 * c0 + c1 * c1 + c2 * c2), dot3(a, b));
 }
 
@@ -173,7 +175,8 @@ static void obstacle_place(const double *o, const pose_geometry *g, const double
         for (j = 0; j < 3; ++j) {
             cw[j] = q[j] + dot3(g->R + 3 * j, c);
             for (k = 0; k < 3; ++k)
-                Rw[3 * j + k] = g->R[3 * j] * Ro[k] + g->R[3 * j + 1] * Ro[3 + k] + g->R[3 * j + 2] * Ro[6 + k];
+                Rw[3 * j + k] = g->R[3 * j] * Ro[k] + g->R[3 * j + 1] * Ro[3 + k]
+                                + g->R[3 * j + 2] * Ro[6 + k];
         }
     } else {
         for (j = 0; j < 3; ++j)
@@ -221,7 +224,8 @@ static void obstacle_margins(const double *o, int ob, const pose_geometry *g, co
             take(m, w, STEWART_LIMIT_OBSTACLE, bound[next], 6 * ob + next);
         } else if (bound[next] < m[STEWART_LIMIT_OBSTACLE]) {
             take(m, w, STEWART_LIMIT_OBSTACLE,
-                 segment_shape_distance(shape, a + 3 * next, d + 3 * next, h) - radius, 6 * ob + next);
+                 segment_shape_distance(shape, a + 3 * next, d + 3 * next, h) - radius,
+                 6 * ob + next);
         }
     }
 }
@@ -304,8 +308,8 @@ static void geometric_margins(const double *p, const double *reach, const double
     if (present[STEWART_LIMIT_OBSTACLE]) {
         int o, n = (int)RP(N_OBSTACLES);
         for (o = 0; o < n && o < STEWART_MAX_OBSTACLES; ++o)
-            obstacle_margins(reach + STEWART_R_OBSTACLES + STEWART_OBSTACLE_SIZE * o, o, &g, q, base,
-                             RP(LEG_RADIUS), m, w);
+            obstacle_margins(reach + STEWART_R_OBSTACLES + STEWART_OBSTACLE_SIZE * o, o, &g, q,
+                             base, RP(LEG_RADIUS), m, w);
     }
 }
 
