@@ -5,12 +5,15 @@ Algorithm (bisection on the margins, no geometric boundary): the positions' boun
 the intersection of the boxes of the spheres of radius leg_max about a_i - R p_i (every leg
 within its longest length; without a leg_max, 10 characteristic lengths about home). Columns
 along z on a square x-y grid of step h: each column sampled every COARSE h in one engine call,
-each run of inside samples extended at both ends by the engine's travel along z (march and
-bisection to 1e-9 m). The workspace is the runs connected to the start pose's (runs of
+then from each first inside sample the engine's travel along z, down and up, marching in steps
+of at most h and bisecting each end to 1e-9 m (a barrier at least h thick, such as the thin
+band of cond(J) above its limit about the singular pose with the platform in the base's
+plane, ends a run). The workspace is the runs connected to the start pose's (runs of
 neighbouring columns connect where their z intervals overlap): the stroke alone also admits
 the mirror image of the machine through its base, which no motion from home reaches. The
 volume is the sum of its runs' lengths times h^2 (the midpoint rule in x and y, exact in z to
-1e-9 m); runs thinner than COARSE h between two samples are missed.
+1e-9 m); runs thinner than COARSE h between two samples, and barriers thinner than h, are
+missed.
 """
 from __future__ import annotations
 
@@ -81,8 +84,8 @@ def constant_orientation(engine: Engine, start, frame: str, h: float) -> Workspa
         inside = engine.check(to_platform(model, grid.reshape(-1, 6), frame))["feasible"]
         inside = inside.reshape(len(ys), len(zs))
         for j in np.flatnonzero(inside.any(axis=1)):
-            for a, b in _runs(inside[j]):
-                runs.append((x, ys[j], *_ends(engine, grid[j], a, b, frame)))
+            for low, high in _column_runs(engine, grid[j], inside[j], frame, h):
+                runs.append((x, ys[j], low, high))
                 cells.append((i, j))
     keep = _connected(runs, cells, start[:3], lo, h)
     runs_arr = np.array([runs[k] for k in keep], dtype=float).reshape(-1, 4)
@@ -113,23 +116,44 @@ def _connected(runs: list, cells: list, at: np.ndarray, lo: np.ndarray, h: float
     return sorted(seen)
 
 
-def _runs(flags: np.ndarray) -> list[tuple[int, int]]:
-    """(first, last) indices of each run of True."""
-    edges = np.diff(np.r_[0, flags.astype(np.int8), 0])
-    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1))
+def _column_runs(engine: Engine, column: np.ndarray, inside: np.ndarray, frame: str,
+                 h: float) -> list[tuple[float, float]]:
+    """The z intervals of a column inside every limit: from each first inside sample, down to
+    the first limit, and up by the engine's travel marching in steps of at most h (a barrier
+    between two inside samples at least h thick ends the run there), each end bisected to
+    1e-9 m; the next run starts at the next inside sample above."""
+    big = column[1, 2] - column[0, 2] if len(column) > 1 else h
+    up_dir, down_dir = np.array([0, 0, 1.0, 0, 0, 0]), np.array([0, 0, -1.0, 0, 0, 0])
+    out, k, n = [], 0, len(column)
+    while k < n:
+        if not inside[k]:
+            k += 1
+            continue
+        down = engine.travel(column[k], down_dir, frame=frame, reach=big, step=h)
+        up = engine.travel(column[k], up_dir, frame=frame, reach=(n - k) * big, step=h)
+        top = column[k, 2] + up.step
+        out.append((column[k, 2] - down.step, top))
+        k = max(k + 1, int(np.floor((top - column[0, 2]) / big)) + 1)
+    return out
 
 
-def _ends(engine: Engine, column: np.ndarray, a: int, b: int, frame: str) -> tuple[float, float]:
-    """A run's z ends: its end samples moved out along -z and +z to the first limit."""
-    step = column[1, 2] - column[0, 2] if len(column) > 1 else 1.0
-    down = engine.travel(column[a], np.array([0, 0, -1.0, 0, 0, 0]), frame=frame, reach=step)
-    up = engine.travel(column[b], np.array([0, 0, 1.0, 0, 0, 0]), frame=frame, reach=step)
-    return column[a, 2] - down.step, column[b, 2] + up.step
+def _in_runs(m: WorkspaceMap, points: np.ndarray) -> np.ndarray:
+    """Whether each position lies in a run of the map (its x-y cell's)."""
+    cells: dict[tuple[int, int], list[tuple[float, float]]] = {}
+    for x, y, low, high in m.runs:
+        cell = (int((x - m.lo[0]) // m.h), int((y - m.lo[1]) // m.h))
+        cells.setdefault(cell, []).append((low, high))
+    out = np.zeros(len(points), dtype=bool)
+    for k, (x, y, z) in enumerate(points):
+        runs = cells.get((int((x - m.lo[0]) // m.h), int((y - m.lo[1]) // m.h)), ())
+        out[k] = any(low <= z <= high for low, high in runs)
+    return out
 
 
 def slices(engine: Engine, m: WorkspaceMap, center: np.ndarray, path) -> None:
     """Two slices through `center` (a position in the frame) as PNG: x-y and x-z, each grid
-    point coloured by the limit that binds there (white: inside)."""
+    point coloured by the limit that binds there; white where it is inside every limit and
+    reached from the start (a run of the map), light grey inside but not reached."""
     from matplotlib.colors import ListedColormap
     from matplotlib.figure import Figure
 
@@ -139,16 +163,18 @@ def slices(engine: Engine, m: WorkspaceMap, center: np.ndarray, path) -> None:
     xs, ys, zs = (np.arange(lo[k] + h / 2, hi[k], h) for k in range(3))
     fig = Figure(figsize=(11, 5))
     colours = ["white", "tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple",
-               "tab:brown", "tab:gray", "tab:olive", "tab:cyan", "tab:pink"]
-    cmap = ListedColormap(colours[:len(LIMITS) + 1])
+               "tab:brown", "tab:gray", "tab:olive", "tab:cyan", "tab:pink", "gainsboro"]
+    cmap = ListedColormap(colours[:len(LIMITS) + 2])
     for k, (name, axis, values) in enumerate((("x-y at z", 1, ys), ("x-z at y", 2, zs))):
         grid = np.tile(np.r_[center, m.angles], (len(values), len(xs), 1))
         grid[..., 0] = xs[None, :]
         grid[..., axis] = values[:, None]
         res = engine.check(to_platform(engine.model, grid.reshape(-1, 6), m.frame))
         code = (res["binding"].astype(int) + 1).reshape(len(values), len(xs))
+        mapped = _in_runs(m, grid.reshape(-1, 6)[:, :3]).reshape(code.shape)
+        code[(code == 0) & ~mapped] = len(LIMITS) + 1   # inside, not reached from the start
         ax = fig.add_subplot(1, 2, k + 1)
-        ax.imshow(code, origin="lower", cmap=cmap, vmin=0, vmax=len(LIMITS), aspect="equal",
+        ax.imshow(code, origin="lower", cmap=cmap, vmin=0, vmax=len(LIMITS) + 1, aspect="equal",
                   extent=(lo[0] * 1e3, hi[0] * 1e3, lo[axis] * 1e3, hi[axis] * 1e3),
                   interpolation="nearest")
         ax.set_xlabel("x (mm)")
@@ -157,10 +183,11 @@ def slices(engine: Engine, m: WorkspaceMap, center: np.ndarray, path) -> None:
         ax.set_title(f"{name} = {at * 1e3:.1f} mm")
         seen = sorted(set(np.unique(code)) - {0})
         for c in seen:
-            ax.plot([], [], "s", color=colours[c], label=LIMITS[c - 1].name)
+            ax.plot([], [], "s", color=colours[c],
+                    label=LIMITS[c - 1].name if c <= len(LIMITS) else "inside, not reached")
         if seen:
             ax.legend(loc="upper right", fontsize=7)
     fig.suptitle(f"constant-orientation workspace ({m.frame} frame, angles "
                  f"{', '.join(f'{a:.3g}' for a in m.angles)} rad): {m.volume * 1e3:.4g} l; "
-                 "white inside, colour: the binding limit")
+                 "white: reached from the start, colour: the binding limit")
     save_figure(fig, path)

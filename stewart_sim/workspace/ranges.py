@@ -17,13 +17,13 @@ def ranges_text(rows: tuple[AxisRange, ...], frame: str) -> str:
     that ends each (leg or pair)."""
     lines = [f"travel from home along each axis of the {frame} frame, the others held "
              "(interdependent ranges)",
-             f"{'axis':<5} {'minus':>10} {'plus':>10}  {'ends minus':<28} ends plus"]
+             f"{'axis':<5} {'minus':>13} {'plus':>13}  {'ends minus':<28} ends plus"]
     for r in rows:
         u = _UNITS[r.axis]
         minus = f"{r.minus_limit} {r.minus_where}".strip() or "none within reach"
         plus = f"{r.plus_limit} {r.plus_where}".strip() or "none within reach"
-        lines.append(f"{r.axis:<5} {_shown(r.axis, r.minus):>7.3f} {u:<3}"
-                     f"{_shown(r.axis, r.plus):>7.3f} {u:<3} {minus:<28} {plus}")
+        lines.append(f"{r.axis:<5} {_shown(r.axis, r.minus):>9.3f} {u:<3} "
+                     f"{_shown(r.axis, r.plus):>9.3f} {u:<3}  {minus:<28} {plus}")
     return "\n".join(lines)
 
 
