@@ -297,6 +297,43 @@ def test_map_volume_agrees_with_monte_carlo(tmp_path, capsys):
     assert abs(volumes[0.003] - estimate) <= 4 * sd + grid
 
 
+def test_check_with_rates_bounds_the_drives(tmp_path, capsys):
+    """Poses with their rates and accelerations (the trajectory's columns): the micro-
+    manipulator's drives bound leg speed (no-load speed), acceleration (peak force over the
+    constant load) and rack force (Kf I_max), each margin the least over the legs of the
+    kinematics' leg rates and the inverse dynamics' forces."""
+    from controller.drive import axis_model
+    from stewart_fmu import inverse_dynamics, inverse_kinematics
+    from stewart_sim.scene_load import load
+
+    scene = load(MICRO)
+    model = scene.model
+    axis = axis_model(model, scene.controller.motor, scene.controller.load_mass)
+    rng = np.random.default_rng(12)
+    n = 200
+    q = model.home + rng.uniform(-1, 1, (n, 6)) * [0.01, 0.01, 0.01, 0.05, 0.05, 0.05]
+    qd, qdd = rng.normal(0, 0.1, (n, 6)), rng.normal(0, 3.0, (n, 6))
+    poses = tmp_path / "poses.csv"
+    names = POSE + [f"d{c}" for c in POSE] + [f"dd{c}" for c in POSE]
+    with poses.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(names)
+        w.writerows(np.hstack([q, qd, qdd]).tolist())
+    out = tmp_path / "V.csv"
+    assert cli.main(["workspace", str(MICRO), "--check", str(poses), "--out", str(out)]) == 0
+    header, rows = read_v(out)
+    assert header[-4:] == ["speed", "acceleration", "force", "where"]
+    kin = inverse_kinematics(model, q, qd, qdd, with_cond=False)
+    sigma = inverse_dynamics(model, q, qd, qdd)
+    speed = axis.no_load_speed - np.max(np.abs(kin.rates), axis=1)
+    accel = axis.peak_acceleration - np.max(np.abs(kin.accelerations), axis=1)
+    force = axis.peak_force - np.max(np.abs(sigma), axis=1)
+    got = np.array([[float(r["speed"]), float(r["acceleration"]), float(r["force"])] for r in rows])
+    assert np.allclose(got, np.c_[speed, accel, force], rtol=0, atol=1e-9)
+    limits = {r["limit"] for r in rows}
+    assert {"speed", "acceleration"} & limits, limits
+
+
 # --- bad input: one line naming the key, exit 2 -----------------------------------------------
 
 BAD_SCENES = {
