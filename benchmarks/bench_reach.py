@@ -14,8 +14,8 @@ joint cones, the 15 leg pairs' clearance and cond(J) (limit 100) at each pose. R
 - a reach query: Engine.travel from home along a random direction to 1e-9, against a numpy
   march + bisection with the vectorised margins at one pose per step.
 
-Wall-clock figures on one core (the engine is single-threaded; numpy's SVD may use BLAS
-threads: OPENBLAS_NUM_THREADS=1 for a one-core comparison). Printed, never asserted in tests.
+CPU time of this process, the least of a few runs (run with OPENBLAS_NUM_THREADS=1: numpy's SVD
+then uses one core, as the engine does). Printed, never asserted in tests.
 """
 from __future__ import annotations
 
@@ -101,12 +101,14 @@ class NumpyLimits:
 
 
 def best_of(fn, repeat: int) -> float:
-    """The least wall time of `repeat` runs (s)."""
+    """The least CPU time of this process over `repeat` runs (s): on one core (the engine is
+    single-threaded; run with OPENBLAS_NUM_THREADS=1 so numpy is too), and less sensitive than
+    wall time to other processes on a busy machine."""
     best = np.inf
     for _ in range(repeat):
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         fn()
-        best = min(best, time.perf_counter() - t0)
+        best = min(best, time.process_time() - t0)
     return best
 
 

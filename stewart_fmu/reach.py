@@ -140,6 +140,18 @@ class Engine:
             out[f"{lim.name}_at"] = where[:, lim.index]
         return out
 
+    def binding(self, Q) -> np.ndarray:
+        """The binding limit of each pose (N, 6) of the geometric limits and cond(J), an index
+        into LIMITS (-1: inside every one), as `check` finds it, faster: the margins' values
+        are not computed where their sign is sure (stewart_reach_binding)."""
+        Q = _rows(Q, "poses")
+        out = np.empty(len(Q), dtype=np.intc)
+        got = _lib.stewart_reach_binding(self._params, self._reach_ptr, len(Q),
+                                         _ffi.from_buffer(Q), _ffi.from_buffer("int[]", out))
+        if got < 0:
+            raise TrajectoryError(f"pose row {-got} is not finite", index=-got - 1)
+        return out
+
     def travel(self, q0, direction, frame: str = "platform", reach: float | None = None,
                tol: float = TOL, step: float | None = None) -> Travel:
         """The largest step s with q0 + t direction inside every geometric limit and cond(J)

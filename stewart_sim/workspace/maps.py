@@ -4,11 +4,11 @@ reaches inside every geometric limit and cond(J)), its volume and two slices.
 Algorithm (bisection on the margins, no geometric boundary): the positions' bounding box is
 the intersection of the boxes of the spheres of radius leg_max about a_i - R p_i (every leg
 within its longest length; without a leg_max, 10 characteristic lengths about home). Columns
-along z on a square x-y grid of step h: each column sampled every COARSE h in one engine call,
-then from each first inside sample the engine's travel along z, down and up, marching in steps
-of at most h and bisecting each end to 1e-9 m (a barrier at least h thick, such as the thin
-band of cond(J) above its limit about the singular pose with the platform in the base's
-plane, ends a run). The workspace is the runs connected to the start pose's (runs of
+along z on a square x-y grid of step h: each column sampled every COARSE h in one engine call
+(the binding limits alone), then from each first inside sample the engine's travel along z,
+down and up, marching in steps of at most h and bisecting each end to 1e-9 m (a barrier at
+least h thick, such as the thin band of cond(J) above its limit about the singular pose with
+the platform in the base's plane, ends a run). The workspace is the runs connected to the start pose's (runs of
 neighbouring columns connect where their z intervals overlap): the stroke alone also admits
 the mirror image of the machine through its base, which no motion from home reaches. The
 volume is the sum of its runs' lengths times h^2 (the midpoint rule in x and y, exact in z to
@@ -81,7 +81,7 @@ def constant_orientation(engine: Engine, start, frame: str, h: float) -> Workspa
         grid = np.empty((len(ys), len(zs), 6))
         grid[..., 0], grid[..., 1], grid[..., 2] = x, ys[:, None], zs[None, :]
         grid[..., 3:] = angles
-        inside = engine.check(to_platform(model, grid.reshape(-1, 6), frame))["feasible"]
+        inside = engine.binding(to_platform(model, grid.reshape(-1, 6), frame)) < 0
         inside = inside.reshape(len(ys), len(zs))
         for j in np.flatnonzero(inside.any(axis=1)):
             for low, high in _column_runs(engine, grid[j], inside[j], frame, h):
@@ -169,8 +169,8 @@ def slices(engine: Engine, m: WorkspaceMap, center: np.ndarray, path) -> None:
         grid = np.tile(np.r_[center, m.angles], (len(values), len(xs), 1))
         grid[..., 0] = xs[None, :]
         grid[..., axis] = values[:, None]
-        res = engine.check(to_platform(engine.model, grid.reshape(-1, 6), m.frame))
-        code = (res["binding"].astype(int) + 1).reshape(len(values), len(xs))
+        binding = engine.binding(to_platform(engine.model, grid.reshape(-1, 6), m.frame))
+        code = (binding.astype(int) + 1).reshape(len(values), len(xs))
         mapped = _in_runs(m, grid.reshape(-1, 6)[:, :3]).reshape(code.shape)
         code[(code == 0) & ~mapped] = len(LIMITS) + 1   # inside, not reached from the start
         ax = fig.add_subplot(1, 2, k + 1)

@@ -230,3 +230,25 @@ def test_ranges_of_a_symmetric_machine_are_symmetric():
     rows = {r.axis: r for r in axis_ranges(Engine(model))}
     for axis in ("y", "thx", "thz"):
         assert abs(rows[axis].plus + rows[axis].minus) <= 2e-9, rows[axis]
+
+
+def test_binding_alone_is_checks_binding():
+    """Engine.binding (margins computed only where their sign is in doubt) names the same
+    binding limit as Engine.check, on poses that cross every geometric limit and cond(J): a
+    model with cones (first in order), one without where obstacles and cond(J) bind."""
+    rng = np.random.default_rng(8)
+    coned = micro(joints={"base_cone": 0.5, "platform_cone": 0.5},
+                  clearance={"leg_radius": 0.003, "obstacles": OBSTACLES[:1]})
+    box = Obstacle("box", "platform", (0.0, 0.0, -0.02), (0.0, 0.0, 0.3), (0.09, 0.09, 0.02))
+    bare = replace(micro(), clearance=ClearanceParams(0.004, (box,) + coned.clearance.obstacles))
+    seen = set()
+    # the default cond limit (100): its bound ||J||_F ||J^-1||_F (at least 6) spares the SVD
+    # on most poses; 3 (2.4 at home): cond(J) binds often, the bound never spares it
+    for model, limit in ((coned, 100.0), (bare, 100.0), (micro(), 3.0)):
+        q = model.home + rng.uniform(-1, 1, (20000, 6)) * [0.06, 0.06, 0.1, 0.6, 0.6, 1.2]
+        eng = Engine(model, cond_limit=limit)
+        full = eng.check(q)["binding"]
+        assert np.array_equal(eng.binding(q), full)
+        seen |= {NAMES[b] for b in set(full.tolist()) if b >= 0}
+    assert seen == {"stroke_min", "stroke_max", "base_cone", "platform_cone", "leg_clearance",
+                    "obstacle", "cond"}, seen

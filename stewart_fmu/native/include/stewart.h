@@ -536,6 +536,13 @@ long stewart_reach_batch(const double *params, const double *reach, long n, cons
                          const double *QD, const double *QDD, double *margins, int *where,
                          int *binding);
 
+/* The binding limit alone of n poses (row-major (n, 6); -1 inside), as stewart_reach_batch
+   finds it, without the margins' values: a margin surely positive is not computed exactly
+   (cond(J) below a bound of it, an obstacle beyond its bounding sphere). Returns the number
+   inside every limit, or -(1 + k) for the first pose k that is not finite. */
+long stewart_reach_binding(const double *params, const double *reach, long n, const double *Q,
+                           int *binding);
+
 /* The largest step s in [0, smax] with the pose q0 + t dir inside every geometric limit (and
    cond(J)) for all t in [0, s]; q0 and dir in a frame (frame: 12 doubles, mov then fix of
    stewart_frame_to_platform; NULL: the platform's own pose). Steps from 0 of at most hmax
