@@ -28,7 +28,9 @@ def add_parser(sub, help_text: str) -> None:
     what.add_argument("--map", action="store_true",
                       help="the constant-orientation workspace at --from's angles (default "
                            "home's): its volume, DIR/map.csv (x, y, z_low, z_high of each run "
-                           "of a column) and DIR/slices.png; --out DIR")
+                           "of a column) and DIR/slices.png; the orientation workspace at "
+                           "--from's position: DIR/tilt.csv and DIR/tilt.png (the largest "
+                           "tilt per azimuth); --out DIR")
     p.add_argument("--out", metavar="FILE", help="V.csv of --check (required there); the "
                    "ranges as CSV with --ranges")
     p.add_argument("--frame", metavar="NAME",
@@ -115,7 +117,8 @@ def _map(args: argparse.Namespace, model, eng, frame: str) -> None:
     from stewart_fmu.frames import from_platform
     from stewart_fmu.io import named_array, write_csv
     from stewart_sim.outputs import result_set
-    from stewart_sim.workspace.maps import MAX_CELLS, constant_orientation, position_box, slices
+    from stewart_sim.workspace.maps import (MAX_CELLS, constant_orientation, position_box, slices,
+                                            tilt_figure, tilts)
 
     if not args.out:
         raise StewartError("--map needs --out DIR")
@@ -130,12 +133,24 @@ def _map(args: argparse.Namespace, model, eng, frame: str) -> None:
         raise StewartError(f"--resolution {h!r}: {cells:.3g} grid cells in the box searched, "
                            f"more than {MAX_CELLS:.0e}: give a coarser step")
     m = constant_orientation(eng, start, frame, h)
-    with result_set(args.out, known=("map.csv", "slices.png")) as stage:
+    tilt = tilts(eng, start, frame)
+    with result_set(args.out, known=("map.csv", "slices.png", "tilt.csv", "tilt.png")) as stage:
         write_csv(stage / "map.csv", named_array({"x": m.runs[:, 0], "y": m.runs[:, 1],
                                                   "z_low": m.runs[:, 2], "z_high": m.runs[:, 3]}))
         slices(eng, m, start[:3], stage / "slices.png")
+        table = np.empty(len(tilt.azimuth), dtype=[("azimuth", "f8"), ("tilt", "f8"),
+                                                   ("limit", object), ("where", object)])
+        table["azimuth"], table["tilt"] = tilt.azimuth, tilt.tilt
+        table["limit"], table["where"] = tilt.limit, tilt.where
+        write_csv(stage / "tilt.csv", table)
+        tilt_figure(tilt, stage / "tilt.png")
     print(f"constant-orientation workspace at angles ({', '.join(f'{a:.6g}' for a in m.angles)})"
           f" rad, {frame} frame: {m.volume * 1e3:.6g} litres ({len(m.runs)} runs of "
           f"{len(np.unique(m.runs[:, :2], axis=0))} columns; x-y grid {h * 1e3:.4g} mm, z by "
           f"bisection to 1e-9 m; {m.seconds:.2f} s)")
-    print(f"wrote {args.out}/map.csv and {args.out}/slices.png")
+    k = int(np.argmin(tilt.tilt))
+    least = f"{tilt.limit[k]} {tilt.where[k]}".strip() or "no limit"
+    print(f"orientation workspace at ({', '.join(f'{v:.6g}' for v in start[:3])}) m: tilt "
+          f"{np.degrees(tilt.tilt.min()):.3f} to {np.degrees(tilt.tilt.max()):.3f} deg over "
+          f"{len(tilt.tilt)} azimuths (least at {np.degrees(tilt.azimuth[k]):.0f} deg: {least})")
+    print(f"wrote {args.out}/map.csv, slices.png, tilt.csv and tilt.png")

@@ -8,12 +8,16 @@ along z on a square x-y grid of step h: each column sampled every COARSE h in on
 (the binding limits alone), then from each first inside sample the engine's travel along z,
 down and up, marching in steps of at most h and bisecting each end to 1e-9 m (a barrier at
 least h thick, such as the thin band of cond(J) above its limit about the singular pose with
-the platform in the base's plane, ends a run). The workspace is the runs connected to the start pose's (runs of
-neighbouring columns connect where their z intervals overlap): the stroke alone also admits
-the mirror image of the machine through its base, which no motion from home reaches. The
-volume is the sum of its runs' lengths times h^2 (the midpoint rule in x and y, exact in z to
-1e-9 m); runs thinner than COARSE h between two samples, and barriers thinner than h, are
-missed.
+the platform in the base's plane, ends a run). The workspace is the runs connected to the
+start pose's (runs of neighbouring columns connect where their z intervals overlap): the
+stroke alone also admits the mirror image of the machine through its base, which no motion
+from home reaches. The volume is the sum of its runs' lengths times h^2 (the midpoint rule in
+x and y, exact in z to 1e-9 m); runs thinner than COARSE h between two samples, and barriers
+thinner than h, are missed.
+
+The orientation workspace at a position (`tilts`): the largest tilt from the start's angles
+along each of TILT_STEPS azimuths of the tilt axis in the thx-thy plane, by the engine's
+travel (march, then bisection to 1e-9 rad).
 """
 from __future__ import annotations
 
@@ -190,4 +194,43 @@ def slices(engine: Engine, m: WorkspaceMap, center: np.ndarray, path) -> None:
     fig.suptitle(f"constant-orientation workspace ({m.frame} frame, angles "
                  f"{', '.join(f'{a:.3g}' for a in m.angles)} rad): {m.volume * 1e3:.4g} l; "
                  "white: reached from the start, colour: the binding limit")
+    save_figure(fig, path)
+
+
+TILT_STEPS = 72   # azimuths of the orientation workspace's tilt directions (5 deg apart)
+
+
+@dataclass(frozen=True)
+class TiltMap:
+    """The orientation workspace at a position: per azimuth phi of the tilt axis (cos phi,
+    sin phi, 0) in the thx-thy plane of the frame's angles, the largest tilt (rad) from the
+    start's angles, and the limit that ends it."""
+
+    azimuth: np.ndarray    # rad
+    tilt: np.ndarray       # rad
+    limit: tuple[str, ...]
+    where: tuple[str, ...]
+
+
+def tilts(engine: Engine, start, frame: str, steps: int = TILT_STEPS) -> TiltMap:
+    """The largest tilt along each of `steps` azimuths from the pose `start` (in the frame),
+    its position and thz held: the engine's travel along (0, 0, 0, cos phi, sin phi, 0)."""
+    start = np.asarray(start, dtype=float)
+    phis = np.arange(steps) * (2 * np.pi / steps)
+    out = [engine.travel(start, np.array([0, 0, 0, np.cos(p), np.sin(p), 0.0]), frame=frame)
+           for p in phis]
+    return TiltMap(phis, np.array([t.step for t in out]), tuple(t.limit or "" for t in out),
+                   tuple(t.where for t in out))
+
+
+def tilt_figure(m: TiltMap, path) -> None:
+    """The largest tilt per azimuth as a polar plot (deg), PNG."""
+    from matplotlib.figure import Figure
+
+    from stewart_sim.plots import save_figure
+
+    fig = Figure(figsize=(5.5, 5.5))
+    ax = fig.add_subplot(1, 1, 1, projection="polar")
+    ax.plot(np.r_[m.azimuth, m.azimuth[:1]], np.degrees(np.r_[m.tilt, m.tilt[:1]]), "-o", ms=2)
+    ax.set_title("largest tilt (deg) per tilt axis azimuth (thx-thy plane)", fontsize=9)
     save_figure(fig, path)

@@ -271,7 +271,7 @@ def test_map_volume_agrees_with_monte_carlo(tmp_path, capsys):
                          "--resolution", str(h)]) == 0
         text = capsys.readouterr().out
         volumes[h] = float(re.search(r"frame: ([0-9.]+) litres", text).group(1)) * 1e-3
-        assert (out / "slices.png").stat().st_size > 0
+        assert (out / "slices.png").stat().st_size > 0 and (out / "tilt.png").stat().st_size > 0
         with (out / "map.csv").open(newline="") as fh:
             runs = np.array([[float(v) for v in row.values()] for row in csv.DictReader(fh)])
         assert np.all(runs[:, 3] > runs[:, 2])
@@ -295,6 +295,26 @@ def test_map_volume_agrees_with_monte_carlo(tmp_path, capsys):
     print(f"\nmap {volumes[0.003] * 1e3:.4f} l (6 mm: {volumes[0.006] * 1e3:.4f} l), Monte Carlo "
           f"{estimate * 1e3:.4f} +- {sd * 1e3:.4f} l")
     assert abs(volumes[0.003] - estimate) <= 4 * sd + grid
+
+
+def test_map_tilts_end_at_their_limit(tmp_path, capsys):
+    """--map's orientation workspace: each azimuth's largest tilt ends where the numpy margins
+    change sign (the pose at the tilt inside, 2e-9 rad further outside the limit named)."""
+    scene_file, ref = with_limits(MICRO, tmp_path)
+    out = tmp_path / "map"
+    assert cli.main(["workspace", str(scene_file), "--map", "--out", str(out),
+                     "--resolution", "0.01"]) == 0
+    home = np.array(tomllib_load(scene_file)["geometry"]["home"], dtype=float)
+    with (out / "tilt.csv").open(newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 72
+    for r in rows:
+        phi, tilt = float(r["azimuth"]), float(r["tilt"])
+        d = np.array([0, 0, 0, math.cos(phi), math.sin(phi), 0.0])
+        inside = ref.margins((home + tilt * d)[None])
+        beyond = ref.margins((home + (tilt + 2e-9) * d)[None])
+        assert min(float(v[0]) for v in inside.values()) >= -1e-12, r
+        assert float(beyond[r["limit"]][0]) < 1e-12, r
 
 
 def test_check_with_rates_bounds_the_drives(tmp_path, capsys):
