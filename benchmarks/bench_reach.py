@@ -12,7 +12,9 @@ joint cones, the 15 leg pairs' clearance and cond(J) (limit 100) at each pose. R
   poses (in blocks of 10^5);
 - N poses without cond(J): the same without the SVD (cond_limit None);
 - a reach query: Engine.travel from home along a random direction to 1e-9, against a numpy
-  march + bisection with the vectorised margins at one pose per step.
+  march + bisection with the vectorised margins at one pose per step;
+- the constant-orientation map of the shipped micro-manipulator (stroke and cond(J)) at
+  --map-grid (default 1 mm; stewart_sim.workspace.maps), engine only.
 
 CPU time of this process, the least of a few runs (run with OPENBLAS_NUM_THREADS=1: numpy's SVD
 then uses one core, as the engine does). Printed, never asserted in tests.
@@ -115,6 +117,7 @@ def best_of(fn, repeat: int) -> float:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--poses", type=int, default=1_000_000)
+    ap.add_argument("--map-grid", type=float, default=0.001, help="m; 0: no map row")
     args = ap.parse_args()
     data = read_scene_dict(MICRO)
     data["joints"] = {"base_cone": CONE, "platform_cone": CONE}
@@ -165,9 +168,19 @@ def main() -> None:
     t_c = best_of(lambda: [eng.travel(home, d) for _ in range(200)], 3) / 200
     t_np = best_of(lambda: ref.travel(home, d, hmax), 3)
     rows.append((f"reach query (steps {s_c:.9f} / {s_np:.9f})", t_c, t_np))
+    if args.map_grid > 0:
+        from stewart_fmu import load_scene
+        from stewart_sim.workspace.maps import constant_orientation
+
+        plain = Engine(load_scene(MICRO))
+        found = []
+        t_c = best_of(lambda: found.append(constant_orientation(plain, plain.model.home,
+                                                                "platform", args.map_grid)), 1)
+        rows.append((f"map {args.map_grid * 1e3:g} mm: {found[0].volume * 1e3:.5f} l", t_c, None))
     print(f"{'workload':<44} {'engine':>12} {'numpy':>12} {'ratio':>8}")
     for name, a, b in rows:
-        print(f"{name:<44} {fmt(a):>12} {fmt(b):>12} {b / a:>7.1f}x")
+        tail = f"{fmt(b):>12} {b / a:>7.1f}x" if b is not None else f"{'-':>12} {'-':>8}"
+        print(f"{name:<44} {fmt(a):>12} {tail}")
 
 
 def fmt(seconds: float) -> str:
