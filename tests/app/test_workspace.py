@@ -354,6 +354,40 @@ def test_check_with_rates_bounds_the_drives(tmp_path, capsys):
     assert {"speed", "acceleration"} & limits, limits
 
 
+def test_check_in_a_frame_is_the_check_of_the_converted_poses(tmp_path):
+    """Poses given in the user frame (tool frame seen from a tilted user frame): V.csv repeats
+    them as given, and its margins are those of the same poses converted to C's by numpy
+    (T_C = T_user T_f T_tool^-1) and checked in the platform frame."""
+    user, tool = [0.1, -0.05, 0.02, 0.05, -0.1, 0.3], [0.01, 0.0, 0.03, 0.2, 0.0, -0.1]
+    scene_file = tmp_path / "framed.toml"
+    scene_file.write_text(MICRO.read_text() + f"\n[frames]\nuser = {user}\ntool = {tool}\n"
+                          "default = \"user\"\n")
+    rng = np.random.default_rng(13)
+    home = np.array(tomllib_load(MICRO)["geometry"]["home"], dtype=float)
+    q = home + rng.uniform(-1, 1, (300, 6)) * [0.02, 0.02, 0.02, 0.2, 0.2, 0.2]
+    Ru, Rt = rotation(np.array([user[3:]]))[0], rotation(np.array([tool[3:]]))[0]
+    R = rotation(q[:, 3:])
+    pos = np.einsum("ji,nj->ni", Ru, q[:, :3] + np.einsum("nij,j->ni", R, tool[:3]) - user[:3])
+    Rf = np.einsum("ji,njk,kl->nil", Ru, R, Rt)
+    ang = np.c_[np.arctan2(Rf[:, 2, 1], Rf[:, 2, 2]),
+                np.arctan2(-Rf[:, 2, 0], np.hypot(Rf[:, 0, 0], Rf[:, 1, 0])),
+                np.arctan2(Rf[:, 1, 0], Rf[:, 0, 0])]
+    framed = np.c_[pos, ang]
+    write_poses(tmp_path / "framed.csv", framed)
+    write_poses(tmp_path / "plain.csv", q)
+    assert cli.main(["workspace", str(scene_file), "--check", str(tmp_path / "framed.csv"),
+                     "--out", str(tmp_path / "V1.csv")]) == 0          # the scene's default
+    assert cli.main(["workspace", str(scene_file), "--check", str(tmp_path / "plain.csv"),
+                     "--out", str(tmp_path / "V2.csv"), "--frame", "platform"]) == 0
+    _, a = read_v(tmp_path / "V1.csv")
+    _, b = read_v(tmp_path / "V2.csv")
+    assert [[float(r[c]) for c in POSE] for r in a] == framed.tolist()
+    for ra, rb in zip(a, b):
+        assert ra["limit"] == rb["limit"]
+        for name in ("stroke_min", "stroke_max"):
+            assert abs(float(ra[name]) - float(rb[name])) <= 1e-12
+
+
 # --- bad input: one line naming the key, exit 2 -----------------------------------------------
 
 BAD_SCENES = {
