@@ -23,6 +23,7 @@ whose margin is negative.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -100,6 +101,10 @@ class Engine:
         self.reach = r
         self._reach_ptr = _ffi.from_buffer(r)
         self._params = model.native.ptr
+        self._lc = model.characteristic_length
+        self._span = model.leg_max if model.leg_max is not None else 10.0 * self._lc
+        self._frames: dict[str, tuple] = {}   # frame name -> its (mov, fix) array and pointer
+        self._out = (_ffi.new("double *"), _ffi.new("int *"), _ffi.new("int *"))
 
     def present(self, rates: bool = False, accelerations: bool = False) -> tuple[table.Limit, ...]:
         """The limits a call computes (with rates; with rates and accelerations)."""
@@ -161,28 +166,33 @@ class Engine:
         lengths) of the position), then bisection."""
         q0 = np.ascontiguousarray(q0, dtype=float)
         d = np.ascontiguousarray(direction, dtype=float)
-        if q0.shape != (6,) or d.shape != (6,) or not np.all(np.isfinite(q0)) \
-                or not np.all(np.isfinite(d)):
-            raise StewartError("travel: the pose and the direction must be six finite numbers")
-        lc = self.model.characteristic_length
-        span = self.model.leg_max if self.model.leg_max is not None else 10.0 * lc
-        lin, ang = float(np.linalg.norm(d[:3])), float(np.linalg.norm(d[3:]))
-        if lin == 0.0 and ang == 0.0:
-            raise StewartError("travel: the direction is zero")
-        scaled = float(np.hypot(lin, lc * ang))
+        if q0.shape != (6,) or d.shape != (6,):
+            raise StewartError("travel: the pose and the direction must be six numbers each")
+        dx, dy, dz, ax, ay, az = d.tolist()
+        lin, ang = math.sqrt(dx * dx + dy * dy + dz * dz), math.sqrt(ax * ax + ay * ay + az * az)
+        if not (math.isfinite(lin) and math.isfinite(ang)) or (lin == 0.0 and ang == 0.0):
+            raise StewartError(f"travel: the direction must be finite and not zero, got "
+                               f"{d.tolist()}")
+        lc = self._lc
         if reach is None:
-            reach = min(2.0 * span / lin if lin else np.inf, np.pi / ang if ang else np.inf)
+            reach = min(2.0 * self._span / lin if lin else math.inf,
+                        math.pi / ang if ang else math.inf)
         if step is None:
-            step = lc / MARCH_STEPS / scaled
+            step = lc / MARCH_STEPS / math.hypot(lin, lc * ang)
         step = max(step, reach * 64.0 / 1e7)   # the march's bound (stewart_reach_travel)
-        change = frame_change(self.model, frame)
-        s, limit, where = _ffi.new("double *"), _ffi.new("int *"), _ffi.new("int *")
+        change = self._frames.get(frame)
+        if change is None:
+            arr = frame_change(self.model, frame)
+            ptr = _ffi.NULL if arr is None else _ffi.from_buffer(arr)
+            change = self._frames[frame] = (arr, ptr)
+        s, limit, where = self._out
         b = _ffi.from_buffer
-        status = _lib.stewart_reach_travel(self._params, self._reach_ptr,
-                                           _ffi.NULL if change is None else b(change), b(q0), b(d),
+        status = _lib.stewart_reach_travel(self._params, self._reach_ptr, change[1], b(q0), b(d),
                                            step, reach, tol, s, limit, where)
         if status < 0:
-            raise StewartError(f"travel: refused (reach {reach!r}, step {step!r}, tol {tol!r})")
+            raise StewartError(f"travel: refused: the pose not finite, or reach {reach!r}, step "
+                               f"{step!r} or tol {tol!r} not finite and > 0 (or reach / step "
+                               "beyond 156250)")
         if limit[0] < 0:
             return Travel(s[0], None, "", reach)
         return Travel(s[0], NAMES[limit[0]], where_text(limit[0], where[0]), reach, status == 0)
