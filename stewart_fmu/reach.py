@@ -56,6 +56,16 @@ class DriveBounds:
 
 
 @dataclass(frozen=True)
+class Verdict:
+    """One pose's answer: the binding limit (None: inside every one) and where it binds, and
+    every limit's margin in LIMITS order (+inf for a limit not present)."""
+
+    limit: str | None
+    where: str
+    margins: np.ndarray
+
+
+@dataclass(frozen=True)
 class Travel:
     """How far a pose moves along a direction before a limit: `step` (in units of the
     direction: m or rad along a unit axis), the limit that stops it and where ("" and None when
@@ -105,6 +115,10 @@ class Engine:
         self._span = model.leg_max if model.leg_max is not None else 10.0 * self._lc
         self._frames: dict[str, tuple] = {}   # frame name -> its (mov, fix) array and pointer
         self._out = (_ffi.new("double *"), _ffi.new("int *"), _ffi.new("int *"))
+        self._margin = np.empty(len(LIMITS))
+        self._where = np.empty(len(LIMITS), dtype=np.intc)
+        self._margin_ptr = _ffi.from_buffer(self._margin)
+        self._where_ptr = _ffi.from_buffer("int[]", self._where)
 
     def present(self, rates: bool = False, accelerations: bool = False) -> tuple[table.Limit, ...]:
         """The limits a call computes (with rates; with rates and accelerations)."""
@@ -144,6 +158,23 @@ class Engine:
             out[lim.name] = margins[:, lim.index]
             out[f"{lim.name}_at"] = where[:, lim.index]
         return out
+
+    def verdict(self, q, qd=None, qdd=None) -> Verdict:
+        """One pose (6,) (rates, accelerations optional): the binding limit and where, and every
+        limit's margin (+inf for those not present), in one C call (stewart_reach_margins) with
+        no table built: what a per-sample check takes. TrajectoryError for a non-finite pose."""
+        b = _ffi.from_buffer
+        q = np.ascontiguousarray(q, dtype=float)
+        rates = _ffi.NULL if qd is None else b(np.ascontiguousarray(qd, dtype=float))
+        accel = _ffi.NULL if qdd is None or qd is None \
+            else b(np.ascontiguousarray(qdd, dtype=float))
+        k = _lib.stewart_reach_margins(self._params, self._reach_ptr, b(q), rates, accel,
+                                       self._margin_ptr, self._where_ptr)
+        if k == len(LIMITS):
+            raise TrajectoryError("the pose (or its rates) is not finite")
+        if k < 0:
+            return Verdict(None, "", self._margin.copy())
+        return Verdict(NAMES[k], where_text(k, int(self._where[k])), self._margin.copy())
 
     def binding(self, Q) -> np.ndarray:
         """The binding limit of each pose (N, 6) of the geometric limits and cond(J), an index

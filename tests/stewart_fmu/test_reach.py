@@ -252,3 +252,19 @@ def test_binding_alone_is_checks_binding():
         seen |= {NAMES[b] for b in set(full.tolist()) if b >= 0}
     assert seen == {"stroke_min", "stroke_max", "base_cone", "platform_cone", "leg_clearance",
                     "obstacle", "cond"}, seen
+
+
+def test_verdict_of_one_pose_is_checks_row():
+    model = micro(joints={"base_cone": 0.5, "platform_cone": 0.5},
+                  clearance={"leg_radius": 0.003, "obstacles": OBSTACLES[:1]})
+    eng = Engine(model)
+    q = random_poses(model, 200, 9, tilt=0.5)
+    res = eng.check(q)
+    for k in range(len(q)):
+        v = eng.verdict(q[k])
+        b = int(res["binding"][k])
+        assert v.limit == (NAMES[b] if b >= 0 else None)
+        for lim in eng.present():
+            assert v.margins[lim.index] == res[lim.name][k]
+    with pytest.raises(TrajectoryError):
+        eng.verdict(np.full(6, np.nan))
