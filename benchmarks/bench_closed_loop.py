@@ -8,7 +8,7 @@ by default), feedforward "kane". The real-time factor is simulated time / the lo
 (Summary.realtime_factor: the per-sample loop only). Prints the best and the median of N runs,
 the end-to-end time of run_closed_loop (design, references and feedforward included) and the
 first (cold) run's time. The compiled Python loop this replaced ran 148-149x in the same kind of run
-(commit 5a10cb2; see the README's speed table).
+(commit 5a10cb2; see the speed table of docs/tests-and-speed.md).
 """
 from __future__ import annotations
 

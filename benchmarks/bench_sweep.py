@@ -90,7 +90,7 @@ class LoopbackCluster:
     def __enter__(self) -> "LoopbackCluster":
         from distributed import Client
 
-        env = {**os.environ, **dask_environment()}   # as the README advises
+        env = {**os.environ, **dask_environment()}   # as docs/guides/sweeps-and-sizing.md advises
         self.procs.append(subprocess.Popen(
             [str(BIN / "dask"), "scheduler", "--host", "127.0.0.1", "--port", str(self.port),
              "--dashboard-address", ":0"], stderr=subprocess.DEVNULL, env=env))

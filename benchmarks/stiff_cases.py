@@ -1,4 +1,5 @@
-"""The stiff cases with every integrator, and the drift of a simulated hour (README figures).
+"""The stiff cases with every integrator, and the drift of a simulated hour (the figures of
+docs/guides/accuracy-and-stiff.md).
 
     .venv/bin/python benchmarks/stiff_cases.py [--hour SECONDS]
 """

@@ -21,11 +21,11 @@ unaddressed; with a signing key: correctly signed with an acceptable timestamp, 
   (`DeviceCounters.peer_kept`).
 
 Served in real time, every datagram from an address other than the peer first passes its
-sender's token bucket (hil.limits.SourceLimiter, on the serve loop's clock): a trickle. A
+sender's token bucket (hil.throttle.SourceLimiter, on the serve loop's clock): a trickle. A
 datagram over the budget is dropped before it is decoded (so it can neither cost decoding time
 nor move the peer) and counted: a flood of valid frames from another port does not reach the
 decoder, and the host's frames behind it in the socket are read within the tick. An address
-that went over its budget within hil.limits.FLOOD_MEMORY s never becomes the peer, signed or
+that went over its budget within hil.throttle.FLOOD_MEMORY s never becomes the peer, signed or
 not (the change is refused and counted as `peer_kept`), even when the host has gone quiet.
 (That the ticks start on time whatever arrives is the serve loop's drain deadline, hil.serve.)
 In lockstep there are no ticks to protect: the host drives time, and nothing is limited.
@@ -38,7 +38,7 @@ import time
 from typing import Any, Callable
 
 from hil import mavlink_stewart as ms
-from hil.limits import SourceLimiter
+from hil.throttle import SourceLimiter
 
 # s (the serve loop's clock): how long a valid frame of the peer keeps it; longer than a host's
 # pause between commands (a restarted host on a new port waits this long to be answered)
@@ -62,7 +62,7 @@ class PeerGuard:
 
     def admit(self, nbytes: int, now: float) -> bool:
         """Whether the datagram just received (`nbytes` long, at clock time `now`) is the peer's
-        or within its sender's budget (hil.limits.SourceLimiter; always, without a limiter). A
+        or within its sender's budget (hil.throttle.SourceLimiter; always, without a limiter). A
         datagram over it is dropped undecoded and counted (`DeviceCounters.flood_dropped`)."""
         lim = self.limiter
         sender = getattr(self.transport, "sender", None)

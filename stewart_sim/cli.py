@@ -53,6 +53,8 @@ COMMANDS = {
 KEPT = "nothing new written (an earlier output is left as it was)"  # on Ctrl-C
 # the arguments that name what a command writes (the output rule checks them before any work)
 OUTPUT_ARGS = ("out", "record")
+# build_parser(EVERY): every command with its full arguments (the command reference of docs/)
+EVERY = "*"
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -85,7 +87,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     """The argument parser: every command of COMMANDS listed, and `command` (the one asked for)
-    with its full arguments from its module, so that `--help` imports no command module."""
+    with its full arguments from its module, so that `--help` imports no command module
+    (EVERY: every command with its full arguments)."""
     parser = argparse.ArgumentParser(
         prog=PROG, description="Dynamics of Stewart platforms (Kane's method).",
         epilog="Exit status: 0 ok, 2 usage error or bad scene/trajectory/pose, 1 a file could "
@@ -93,11 +96,17 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = parser.add_subparsers(title="commands", required=True, metavar="COMMAND")
     for name, help_text in COMMANDS.items():
-        if name == command:
+        if command in (name, EVERY):
             command_module(name).add_parser(sub, help_text)
         else:
             sub.add_parser(name, help=help_text)
     return parser
+
+
+def reference_parser() -> argparse.ArgumentParser:
+    """Every command with its full arguments: what the command reference of docs/ is generated
+    from (docs/reference/commands.md)."""
+    return build_parser(EVERY)
 
 
 def command_module(name: str):

@@ -25,7 +25,7 @@ from matplotlib.figure import Figure
 
 from controller.config import ControllerConfig
 from controller.moves import move_and_hold, run_reference
-from hil.budget import BAUDS, rate_table
+from hil.bandwidth import BAUDS, rate_table
 from hil.client import Client, connect_device, link_reference, run_lockstep, run_realtime
 from hil.device import Device
 from hil.link import Impairments, LinkEmulator, WallClock, queue_pair

@@ -20,7 +20,7 @@ from scipy.interpolate import BPoly
 from controller.config import ControllerConfig
 from controller.moves import run_reference
 from controller.trajectory import Trajectory
-from hil.budget import SERIAL_BAUD, realtime_rates
+from hil.bandwidth import SERIAL_BAUD, realtime_rates
 from hil.client import (
     Client,
     LinkReference,

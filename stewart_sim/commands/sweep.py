@@ -25,7 +25,8 @@ def add_parser(sub, help_text: str) -> None:
                                    "one stopped.")
     p.add_argument("scene", metavar="SCENE", help="the base scene file (TOML)")
     p.add_argument("--grid", required=True, metavar="GRID.toml",
-                   help="evaluation, trajectory or pose grid, and the [axes] to vary (README)")
+                   help="evaluation, trajectory or pose grid, and the [axes] to vary "
+                        "(docs/guides/sweeps-and-sizing.md)")
     p.add_argument("--out", required=True, metavar="DIR", help="output directory (resumable)")
     where = p.add_mutually_exclusive_group()
     where.add_argument("--scheduler", metavar="tcp://HOST:PORT",

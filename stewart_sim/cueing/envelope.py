@@ -5,8 +5,8 @@ Limits (`EnvelopeLimits`, built by `envelope_limits` from the scene and its driv
 
 =============  ==========================================================================
 stroke         [leg_min + room + m, leg_max - room - m]: the emulated device's setpoint
-               bounds (hil.limits.bounds, room = hil.limits.overshoot_room against the force
-               held at home) less a margin m, a fraction of the stroke
+               bounds (hil.input_bounds.device_bounds, room = hil.input_bounds.overshoot_room
+               against the force held at home) less a margin m, a fraction of the stroke
 speed          |ldot| <= (1 - margin) x the drive's no-load speed (controller.drive.AxisModel)
 acceleration   |lddot| <= (1 - margin) x the drive's peak acceleration (AxisModel)
 force          |sigma| <= (1 - margin) x Kf I_max, sigma the scene's inverse dynamics (every
@@ -74,7 +74,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from controller.config import ControllerConfig
-from hil.limits import overshoot_room
+from hil.input_bounds import overshoot_room
 from stewart_fmu.errors import SceneError
 from stewart_fmu.model import Model
 from stewart_fmu.native import core

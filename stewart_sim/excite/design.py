@@ -26,8 +26,8 @@ each run ending early when the objective changes by less than FTOL. The best poi
 limits seen over all runs is kept. The objective is taken from R of a Householder QR of W
 (backward stable; W^T W would square the condition number). The result is deterministic for a
 seed on a given machine; across BLAS builds, threads and CPU kernels the path differs in its
-last bits, and the starts and the polish bring each to a comparable optimum (README.md: the
-spread measured).
+last bits, and the starts and the polish bring each to a comparable optimum
+(docs/guides/identification-and-calibration.md: the spread measured).
 """
 from __future__ import annotations
 

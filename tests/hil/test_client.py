@@ -316,7 +316,7 @@ def test_cli_run_mode_needs_link(tmp_path, capsys):
 # ------------------------------------------------------------------------ figures
 
 def test_rate_table_is_computed_from_the_dialect_sizes():
-    from hil.budget import frame_sizes, loop_rate, rate_table
+    from hil.bandwidth import frame_sizes, loop_rate, rate_table
     from hil.framing import frame_length
 
     t = rate_table()
@@ -342,7 +342,7 @@ def test_rate_table_is_computed_from_the_dialect_sizes():
 def test_realtime_rates_fit_the_line():
     """UDP runs at the controller rate; a 921600 baud UART carries 424 setpoints a second (217 B
     frames with force and force rate), so a 1 kHz loop sends every third sample."""
-    from hil.budget import SERIAL_BAUD, frame_sizes, loop_rate, realtime_rates
+    from hil.bandwidth import SERIAL_BAUD, frame_sizes, loop_rate, realtime_rates
 
     assert realtime_rates("udp", 1000.0) == (1, 1000.0)
     every, state_rate = realtime_rates("serial", 1000.0)

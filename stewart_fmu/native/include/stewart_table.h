@@ -241,7 +241,7 @@ typedef struct {
 #define STEWART_VR_N_OUTPUTS STEWART_VR_END(OUTPUTS, stewart_fmu_outputs)
 
 /* ==== reach: the mechanism's limits (src/reach.c) and frames (src/frames.c) =================
-   The contract's tables [joints], [clearance] and [frames] (docs/reach.md), packed apart from
+   The contract's tables [joints], [clearance] and [frames] (docs/guides/workspace.md), packed apart from
    the plant's parameters (the FMU's variables and outputs are not affected): their scene keys
    with their bounds, the packed reach vector the engine reads, the obstacle records, and the
    limits the engine reports, in the order it reports them. */

@@ -1,4 +1,4 @@
-"""The link budget: frame sizes of our dialect and the message rates a serial line carries.
+"""The link's bandwidth: frame sizes of our dialect and the message rates a serial line carries.
 
 * `frame_sizes`: wire bytes of LEG_SETPOINT, LEG_STATE, DRIVE_STATUS, HEARTBEAT and LOCKSTEP from
   the generated dialect (`hil.framing.max_frame_length`: untruncated payload, unsigned; MAVLink 2

@@ -1,4 +1,5 @@
-"""The emulated device's telemetry: the MAVLink messages it streams, built from its state.
+"""What the emulated device sends: its MAVLink telemetry messages, built from plain values
+(hil.streams takes them from the device's state), and the NED/FRD mapping.
 
 HEARTBEAT at 1 Hz (MAV_TYPE_GENERIC, MAV_AUTOPILOT_GENERIC; base mode SAFETY_ARMED while armed,
 custom mode 1 in lockstep; system status STANDBY, ACTIVE, or CRITICAL while the watchdog has
