@@ -246,6 +246,22 @@ def read_samples(path: str | Path, columns: tuple[str, ...], what: str, *, prefi
     return data
 
 
+def read_table(path: str | Path, columns: tuple[str, ...], what: str) -> np.ndarray:
+    """The (N, len(columns)) numbers of a CSV that is no time series (poses: `workspace
+    --check`): its header holds each of `columns` once, in any order (further columns are
+    ignored), at least one row, every value finite; errors (TrajectoryError) name the file, the
+    line and the column, as read_samples'."""
+    path = Path(path)
+    with _reading(path, what) as fh:
+        data = _read_rows(path, fh, columns, False, True, None)
+    bad = np.argwhere(~np.isfinite(data))
+    if bad.size:
+        r, c = bad[0]
+        raise TrajectoryError(
+            f"{path}: line {r + 2}, column '{columns[c]}': non-finite value {data[r, c]}")
+    return data
+
+
 def csv_header(path: str | Path, what: str) -> tuple[str, ...]:
     """The column names of a CSV's header, stripped (none for an empty file); the errors of
     read_samples for a file that cannot be read."""

@@ -13,6 +13,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from .native.core import NativeParams
+from .reach_params import ClearanceParams, FrameParams, JointParams, pack_reach
 from .table import N_PARAMS, offset
 
 # Layout of Model.params, the flat float64 vector the compiled kernels read: the offsets of
@@ -132,7 +133,11 @@ class Model:
     extra: Mapping[str, Any] = field(default_factory=dict)  # project tables (controller, ...)
     source: str | None = None
     transmission: TransmissionParams | None = None   # project table [transmission]
+    joints: JointParams | None = None          # [joints]: the joints' cones (reach_params.py)
+    clearance: ClearanceParams | None = None   # [clearance]: leg capsules, obstacles
+    frames: FrameParams | None = None          # [frames]: pivot point, user and tool frames
     params: np.ndarray = field(init=False, repr=False)
+    reach: np.ndarray = field(init=False, repr=False)   # packed reach vector (reach.c)
     native: NativeParams = field(init=False, repr=False, compare=False)  # params for the C core
 
     def __post_init__(self) -> None:
@@ -143,6 +148,8 @@ class Model:
         object.__setattr__(self, "extra", MappingProxyType(dict(self.extra)))
         object.__setattr__(self, "params", _pack(self))
         object.__setattr__(self, "native", NativeParams(self.params))
+        object.__setattr__(self, "reach", pack_reach(self.params, self.home, self.joints,
+                                                     self.clearance))
 
     @property
     def characteristic_length(self) -> float:

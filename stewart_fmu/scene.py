@@ -12,7 +12,7 @@ import numpy as np
 
 from .budget import SCENE_BYTES, InputFileError, read_input
 from .errors import SceneError, SceneKeyError
-from . import table
+from . import scene_reach, table
 from .native import core
 from .model import DriveParams, FrictionParams, LegParams, Model, TransmissionParams
 
@@ -22,7 +22,7 @@ DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
 # [sensors]): here they are only let through into Model.extra; any other table is refused.
 PROJECT_TABLES = frozenset({"controller", "case", "cueing", "solver", "sensors"})
 _TOP_KEYS = {"name", "gravity", "geometry", "platform", "legs", "drive", "friction",
-             "transmission"}
+             "transmission", *scene_reach.REACH_TABLES}
 _OPTIONAL_KEYS = {"geometry.leg_min", "geometry.leg_max"}   # every other plant key is required
 # Every value of a scene, in every table: nested at most MAX_DEPTH tables and arrays deep (a
 # joint list is 2 inside its table; TOML readers recurse per level, so 50,000 levels are a
@@ -199,10 +199,17 @@ def scene_from_dict(data: Mapping[str, Any], source: str | None = None) -> Model
         leg_min=leg_min, leg_max=leg_max, platform_mass=mass, platform_inertia=inertia,
         legs=_legs(v, data), drive=_drive(v, data), friction=_friction(v, data),
         extra={k: data[k] for k in PROJECT_TABLES if k in data}, source=source,
-        transmission=_transmission(v, data),
+        transmission=_transmission(v, data), **_reach_tables(v, data),
     )
     _check_rules(v, model)
+    scene_reach.check_home(v, model)
     return model
+
+
+def _reach_tables(v: "_Validator", data: Mapping[str, Any]) -> dict[str, Any]:
+    """The Model's [joints], [clearance] and [frames] (stewart_fmu/scene_reach.py)."""
+    return {"joints": scene_reach.joints(v, data), "clearance": scene_reach.clearance(v, data),
+            "frames": scene_reach.frames(v, data)}
 
 
 def _check_values(v: "_Validator", data: Mapping[str, Any]) -> None:
@@ -372,6 +379,6 @@ class _Validator:
 
     def _bound(self, dotted: str, arr: np.ndarray) -> None:
         """The key's physical bounds: the one table's (native/include/stewart_table.h)."""
-        reason = table.bound_reason(table.scene_groups()[dotted], arr)
+        reason = table.bound_reason(table.key_group(scene_reach.generic_key(dotted)), arr)
         if reason is not None:
             self.fail_key(dotted, reason)
