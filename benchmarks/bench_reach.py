@@ -14,7 +14,7 @@ joint cones, the 15 leg pairs' clearance and cond(J) (limit 100) at each pose. R
 - a reach query: Engine.travel from home along a random direction to 1e-9, against a numpy
   march + bisection with the vectorised margins at one pose per step;
 - the constant-orientation map of the shipped micro-manipulator (stroke and cond(J)) at
-  --map-grid (default 1 mm; stewart_sim.workspace.maps), engine only.
+  --map-grid (default 1 mm; stewart_sim.studies.workspace.maps), engine only.
 
 CPU time of this process, the least of a few runs (run with OPENBLAS_NUM_THREADS=1: numpy's SVD
 then uses one core, as the engine does). Printed, never asserted in tests.
@@ -170,7 +170,7 @@ def main() -> None:
     rows.append((f"reach query (steps {s_c:.9f} / {s_np:.9f})", t_c, t_np))
     if args.map_grid > 0:
         from stewart_fmu import load_scene
-        from stewart_sim.workspace.maps import constant_orientation
+        from stewart_sim.studies.workspace.maps import constant_orientation
 
         plain = Engine(load_scene(MICRO))
         found = []

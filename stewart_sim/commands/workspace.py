@@ -1,4 +1,4 @@
-"""`stewart-sim workspace SCENE`: what the mechanism can reach (stewart_sim.workspace, the
+"""`stewart-sim workspace SCENE`: what the mechanism can reach (stewart_sim.studies.workspace, the
 feasibility engine of stewart_fmu.reach).
 
     --check POSES.csv --out V.csv   each pose against every limit (the contract's V.csv)
@@ -66,8 +66,8 @@ def run(args: argparse.Namespace) -> None:
 
     from stewart_fmu.errors import StewartError
     from stewart_fmu.frames import default_frame, frame_change, from_platform
-    from stewart_sim.scene_load import load
-    from stewart_sim.workspace.engine import engine
+    from stewart_sim.scene.load import load
+    from stewart_sim.studies.workspace.engine import engine
 
     scene = load(args.scene)
     frame = args.frame or default_frame(scene.model)
@@ -77,7 +77,7 @@ def run(args: argparse.Namespace) -> None:
         if not args.out:
             raise StewartError("--check needs --out V.csv")
         from stewart_fmu.io import write_csv
-        from stewart_sim.workspace.check import check_table, read_poses, summary
+        from stewart_sim.studies.workspace.check import check_table, read_poses, summary
 
         q, qd, qdd = read_poses(Path(args.check))
         table = check_table(eng, q, qd, qdd, frame)
@@ -85,7 +85,7 @@ def run(args: argparse.Namespace) -> None:
         present = [lim.name for lim in eng.present(qd is not None, qdd is not None)]
         print(f"wrote {args.out}: {summary(table, present)}")
     elif args.reach:
-        from stewart_sim.workspace.ranges import reach_text
+        from stewart_sim.studies.workspace.ranges import reach_text
 
         if args.direction is None:
             raise StewartError("--reach needs --direction dx,dy,dz,dthx,dthy,dthz")
@@ -98,7 +98,7 @@ def run(args: argparse.Namespace) -> None:
     else:
         from stewart_fmu.io import write_csv
         from stewart_fmu.reach import axis_ranges
-        from stewart_sim.workspace.ranges import ranges_table, ranges_text
+        from stewart_sim.studies.workspace.ranges import ranges_table, ranges_text
 
         rows = axis_ranges(eng, frame)
         print(ranges_text(rows, frame))
@@ -116,8 +116,8 @@ def _map(args: argparse.Namespace, model, eng, frame: str) -> None:
     from stewart_fmu.errors import StewartError
     from stewart_fmu.frames import from_platform
     from stewart_fmu.io import named_array, write_csv
-    from stewart_sim.outputs import result_set
-    from stewart_sim.workspace.maps import (MAX_CELLS, constant_orientation, position_box, slices,
+    from stewart_sim.shell.outputs import result_set
+    from stewart_sim.studies.workspace.maps import (MAX_CELLS, constant_orientation, position_box, slices,
                                             tilt_figure, tilts)
 
     if not args.out:

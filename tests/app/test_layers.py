@@ -107,6 +107,7 @@ ORDER = ("shell",         # argument types, terminal, Ctrl-C, result sets, progr
          "scene",         # a scene's tables read once, described; the [cueing] and [case]
                           # tables; the paper's six moves on a scene's model
          "view",          # the 3D pages (and the live view server)
+         "studies.workspace",  # the feasibility engine over a scene: checks, reach, ranges, maps
          "open_loop",     # reference trajectories, forces along them, motion from forces
          "closed_loop",   # the closed-loop run: in process, as an FMU, over a link
          "cueing",        # offline motion cueing: washout, perception, feasibility, MPC
@@ -142,7 +143,7 @@ COMMAND_NAMES = {
     "accuracy": "stewart_sim/studies/accuracy", "calibrate": "stewart_sim/studies/calibrate",
     "compare": "stewart_sim/studies/compare", "excite": "stewart_sim/studies/excite",
     "identify": "stewart_sim/studies/identify", "paper": "stewart_sim/studies/paper",
-    "sweep": "stewart_sim/studies/sweep", "view": "stewart_sim/view",
+    "sweep": "stewart_sim/studies/sweep", "view": "stewart_sim/view", "workspace": "stewart_sim/studies/workspace",
     "device": "hil/device.py",                 # the emulated device the command serves
     "trajectory": "controller/trajectory.py",  # the reference trajectories the command writes
 }

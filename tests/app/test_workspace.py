@@ -324,7 +324,7 @@ def test_check_with_rates_bounds_the_drives(tmp_path, capsys):
     kinematics' leg rates and the inverse dynamics' forces."""
     from controller.drive import axis_model
     from stewart_fmu import inverse_dynamics, inverse_kinematics
-    from stewart_sim.scene_load import load
+    from stewart_sim.scene.load import load
 
     scene = load(MICRO)
     model = scene.model

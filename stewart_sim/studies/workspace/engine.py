@@ -8,7 +8,7 @@ from stewart_fmu.reach import DriveBounds, Engine
 
 
 def drive_bounds(scene) -> DriveBounds | None:
-    """The drives' bounds of a loaded scene (stewart_sim.scene_load.Scene); None without a
+    """The drives' bounds of a loaded scene (stewart_sim.scene.load.Scene); None without a
     [drive] or a [controller] table (the legs' speed, acceleration and force are then not
     limited)."""
     model, controller = scene.model, scene.controller

@@ -161,7 +161,7 @@ def slices(engine: Engine, m: WorkspaceMap, center: np.ndarray, path) -> None:
     from matplotlib.colors import ListedColormap
     from matplotlib.figure import Figure
 
-    from stewart_sim.plots import save_figure
+    from stewart_sim.shell.plots import save_figure
 
     h, lo, hi = m.h, m.lo, m.hi
     xs, ys, zs = (np.arange(lo[k] + h / 2, hi[k], h) for k in range(3))
@@ -227,7 +227,7 @@ def tilt_figure(m: TiltMap, path) -> None:
     """The largest tilt per azimuth as a polar plot (deg), PNG."""
     from matplotlib.figure import Figure
 
-    from stewart_sim.plots import save_figure
+    from stewart_sim.shell.plots import save_figure
 
     fig = Figure(figsize=(5.5, 5.5))
     ax = fig.add_subplot(1, 1, 1, projection="polar")
