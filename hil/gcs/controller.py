@@ -25,7 +25,7 @@ import numpy as np
 from hil import mavlink_stewart as ms
 from hil.device import Device
 from hil.gcs import errors as E
-from hil.gcs.axes import AXES, Frame
+from hil.gcs.axes import AXES, MM_PER_M, Frame
 from hil.gcs.move_path import Mover
 from hil.gcs.recorder import Recorder, Sample, leg_mm
 from hil.modes import Mode
@@ -41,10 +41,13 @@ RANGE_STEPS = 40        # bisections of the step where it lies
 
 
 class Session:
-    """One connection's error register (ERR? reads and clears it; PI keeps the last error)."""
+    """One connection's error register (ERR? reads and clears it; PI keeps the last error) and
+    the reason of the last refusal (`why`: which limit a refused move leaves; GCS has no way to
+    send it, PI's ERR? answers the code alone)."""
 
     def __init__(self) -> None:
         self.error = E.NO_ERROR
+        self.why = ""
         self.seen_motion_errors = 0
 
 
@@ -130,6 +133,26 @@ class GcsController:
                if not (self.low[i] <= target[i] <= self.high[i])]
         if bad:
             raise E.GcsError(E.POS_OUT_OF_LIMITS, f"axes {' '.join(bad)} out of range")
+
+    def feasible(self, target: np.ndarray) -> None:
+        """VMO?: GcsError 7 when a move from the reference to `target` would be refused (the
+        travel range, then every pose on the way: hil.gcs.move_path.Mover.check_path)."""
+        self.check_target(target)
+        self.mover.check_path(self.mover.reference, target)
+
+    def set_pivot(self, pivot_mm: np.ndarray) -> None:
+        """SPI: the pivot point (R S T, mm, in C) where U V W are 0 (PI's rule: else error 9):
+        the commanded target, the path's reference and the pose (within ONT_TOLERANCE); X Y Z
+        keep their values, since with no rotation the pivot moves as C's origin does. The travel
+        range (NLM?/PLM?) is the new pivot's."""
+        here = self.position()
+        if self.referencing or np.any(self.target[3:] != 0.0) \
+                or np.any(self.mover.reference[3:] != 0.0) \
+                or np.any(np.abs(here[3:]) > ONT_TOLERANCE):
+            raise E.GcsError(E.SET_PIVOT_NOT_POSSIBLE, "U, V, W not all 0")
+        self.frame = Frame(self.device.model.home, np.asarray(pivot_mm, dtype=float) / MM_PER_M)
+        self.mover.frame = self.frame
+        self.low, self.high = self._travel_range()
 
     def move(self, target: np.ndarray) -> None:
         """MOV/MVR (already checked for servo and referencing): plan, then start."""

@@ -13,6 +13,7 @@ MOVE_WITHOUT_REF_OR_NO_SERVO = 5   # Unallowable move attempted on unreferenced 
 #                                    attempted with servo off
 POS_OUT_OF_LIMITS = 7       # Position out of limits
 VEL_OUT_OF_LIMITS = 8       # Velocity out of limits
+SET_PIVOT_NOT_POSSIBLE = 9  # Attempt to set pivot point while U,V and W not all 0
 STOP = 10                   # Controller was stopped by command
 INVALID_AXIS = 15           # Invalid axis identifier
 PARAM_OUT_OF_RANGE = 17     # Parameter out of range
@@ -37,6 +38,7 @@ TEXTS = {
                                   "attempted with servo off",
     POS_OUT_OF_LIMITS: "Position out of limits",
     VEL_OUT_OF_LIMITS: "Velocity out of limits",
+    SET_PIVOT_NOT_POSSIBLE: "Attempt to set pivot point while U,V and W not all 0",
     STOP: "Controller was stopped by command",
     INVALID_AXIS: "Invalid axis identifier",
     PARAM_OUT_OF_RANGE: "Parameter out of range",
