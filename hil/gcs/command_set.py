@@ -20,6 +20,10 @@ import numpy as np
 from hil.gcs import errors as E
 from hil.gcs import parser as P
 from hil.gcs.axes import AXES, MM_PER_M
+from hil.gcs.coordinate_systems import TOOL as CS_TOOL
+from hil.gcs.coordinate_systems import TYPES as CS_TYPES
+from hil.gcs.coordinate_systems import WORK as CS_WORK
+from hil.gcs.coordinate_systems import ZERO as CS_ZERO
 from hil.gcs.controller import VLS_MIN, GcsController, Session
 from hil.gcs.recorder import POINTS, TABLES, ShortRecord, help_text
 from hil.gcs.travel_query import travel
@@ -267,6 +271,8 @@ def tra_q(c: GcsController, s: Session, a: Args) -> Answer:
     """The absolute position each named axis reaches along the direction (components per axis,
     the others 0) from the plant's pose, at the first limit (hil.gcs.travel_query)."""
     pairs = P.axis_values(a)
+    if c.systems.enabled:
+        raise E.GcsError(E.QUERY_NOT_FOR_CS, "TRA? in ZERO only (KEN ZERO)")
     d = np.zeros(6)
     for i, v in pairs:
         d[i] = P.finite(v, E.PARAM_OUT_OF_RANGE, AXES[i])
@@ -278,6 +284,67 @@ def tra_q(c: GcsController, s: Session, a: Args) -> Answer:
 
 
 TRA_COMPONENT_MAX = 1e6     # |component| TRA? takes (only the direction matters)
+
+
+# --- coordinate systems (hil.gcs.coordinate_systems) ----------------------------------------
+
+def _define(kind: str) -> Handler:
+    def handler(c: GcsController, s: Session, a: Args) -> Answer:
+        if len(a) < 3:
+            raise E.GcsError(E.PARAM_SYNTAX, f"{kind} <CSname> {{<AxisID> <Value>}}")
+        pairs = P.axis_values(a[1:])
+        c.at_rest()
+        c.systems.define(kind, a[0], pairs)
+        return None
+    return handler
+
+
+def kln(c: GcsController, s: Session, a: Args) -> Answer:
+    if len(a) != 2:
+        raise E.GcsError(E.PARAM_SYNTAX, "KLN <Child> <Parent>")
+    c.systems.link(a[0], a[1])
+    return None
+
+
+def ken(c: GcsController, s: Session, a: Args) -> Answer:
+    if len(a) != 1:
+        raise E.GcsError(E.PARAM_SYNTAX, "KEN <CSname>")
+    name = c.systems.existing(a[0])
+    c.at_rest()
+    c.systems.enable(name)
+    c.reframe()
+    return None
+
+
+def krm(c: GcsController, s: Session, a: Args) -> Answer:
+    if len(a) != 1:
+        raise E.GcsError(E.PARAM_SYNTAX, "KRM <CSname>")
+    c.systems.remove(a[0])
+    return None
+
+
+def ket_q(c: GcsController, s: Session, a: Args) -> Answer:
+    enabled = c.systems.enabled
+    if not a:
+        rows = [f"{kind}={enabled[kind]}" for kind in CS_TYPES if kind in enabled]
+        return P.answer(rows or [f"{CS_ZERO}={CS_ZERO}"])
+    rows = []
+    for word in a:
+        kind = word.upper()
+        if kind not in CS_TYPES:
+            raise E.GcsError(E.CS_TYPE_UNKNOWN, word[:20])
+        if kind not in enabled:
+            raise E.GcsError(E.NO_CS_OF_TYPE_ENABLED, kind)
+        rows.append(f"{kind}={enabled[kind]}")
+    return P.answer(rows)
+
+
+def klt_q(c: GcsController, s: Session, a: Args) -> Answer:
+    if not 1 <= len(a) <= 2:
+        raise E.GcsError(E.PARAM_SYNTAX, "KLT? <StartCS> [<EndCS>]")
+    start = c.systems.existing(a[0])
+    end = c.systems.existing(a[1]) if len(a) == 2 else CS_ZERO
+    return _numbers(list(range(6)), c.systems.composed(start, end))
 
 
 # --- parameters (read-only: what PIPython's data recorder tools ask) --------------------------
@@ -399,6 +466,15 @@ COMMANDS: dict[str, Command] = {
     "VMO?": Command(vmo_q, "VMO? {<AxisID> <Position>}", "Virtual Move: Is The Target Reachable"),
     "TRA?": Command(tra_q, "TRA? {<AxisID> <Component>}",
                     "Get Maximum Travel Range In Direction Of Vector"),
+    "KSW": Command(_define(CS_WORK), "KSW <CSname> {<AxisID> <Value>}",
+                   "Define Work Coordinate System (fixed in space)"),
+    "KST": Command(_define(CS_TOOL), "KST <CSname> {<AxisID> <Value>}",
+                   "Define Tool Coordinate System (fixed to the platform)"),
+    "KLN": Command(kln, "KLN <Child> <Parent>", "Link Coordinate Systems"),
+    "KEN": Command(ken, "KEN <CSname>", "Enable Coordinate System (KEN ZERO: none)"),
+    "KRM": Command(krm, "KRM <CSname>", "Remove Coordinate System"),
+    "KET?": Command(ket_q, "KET? [{<Type>}]", "Get Enabled Coordinate Systems"),
+    "KLT?": Command(klt_q, "KLT? <StartCS> [<EndCS>]", "Get Pose Of A Chain"),
     "VLS": Command(vls, "VLS <SystemVelocity>", "Set System Velocity (mm/s, deg/s)"),
     "VLS?": Command(vls_q, "VLS?", "Get System Velocity"),
     "NLM?": Command(nlm_q, "NLM? [{<AxisID>}]", "Get Low Position Soft Limit"),

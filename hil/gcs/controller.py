@@ -26,6 +26,7 @@ from hil import mavlink_stewart as ms
 from hil.device import Device
 from hil.gcs import errors as E
 from hil.gcs.axes import AXES, MM_PER_M, Frame
+from hil.gcs.coordinate_systems import Enabled, Systems
 from hil.gcs.move_path import Mover
 from hil.gcs.recorder import Recorder, Sample, leg_mm
 from hil.modes import Mode
@@ -56,7 +57,9 @@ class GcsController:
 
     def __init__(self, device: Device, velocity: float = VLS_DEFAULT) -> None:
         self.device = device
-        self.frame = Frame(device.model.home)
+        self.zero = Frame(device.model.home)         # ZERO: the pivot's frame (SPI)
+        self.systems = Systems()                     # KSW/KST/KLN/KEN
+        self.frame: Frame | Enabled = self.zero      # what POS? and MOV speak in
         self.mover = Mover(device, self.frame)
         self.recorder = Recorder(device.rate)
         self.velocity = velocity
@@ -145,13 +148,29 @@ class GcsController:
         the commanded target, the path's reference and the pose (within ONT_TOLERANCE); X Y Z
         keep their values, since with no rotation the pivot moves as C's origin does. The travel
         range (NLM?/PLM?) is the new pivot's."""
+        if self.systems.enabled:
+            raise E.GcsError(E.SPI_NOT_WITH_CS, "a coordinate system is enabled (KEN ZERO)")
         here = self.position()
         if self.referencing or np.any(self.target[3:] != 0.0) \
                 or np.any(self.mover.reference[3:] != 0.0) \
                 or np.any(np.abs(here[3:]) > ONT_TOLERANCE):
             raise E.GcsError(E.SET_PIVOT_NOT_POSSIBLE, "U, V, W not all 0")
-        self.frame = Frame(self.device.model.home, np.asarray(pivot_mm, dtype=float) / MM_PER_M)
-        self.mover.frame = self.frame
+        self.zero = Frame(self.device.model.home, np.asarray(pivot_mm, dtype=float) / MM_PER_M)
+        self.frame = self.mover.frame = self.zero
+        self.low, self.high = self._travel_range()
+
+    def at_rest(self) -> None:
+        """GcsError 536 while a move or the referencing runs (coordinate systems change then)."""
+        if self.referencing or self.mover.moving:
+            raise E.GcsError(E.CS_WHILE_MOVING, "in motion")
+
+    def reframe(self) -> None:
+        """After KEN: POS?, MOV and the travel range in the enabled systems' frame; the target
+        and the path's reference are the same poses, written in it."""
+        old = self.frame
+        self.frame = self.mover.frame = self.systems.frame(self.zero, self.device.model)
+        self.target = self.frame.from_pose(old.to_pose(self.target))
+        self.mover.reference = self.frame.from_pose(old.to_pose(self.mover.reference))
         self.low, self.high = self._travel_range()
 
     def move(self, target: np.ndarray) -> None:

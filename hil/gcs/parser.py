@@ -108,5 +108,6 @@ def answer(lines: list[str]) -> str:
 
 
 def fmt(value: float) -> str:
-    """A number as answers carry it: the shortest text that reads back to the same float."""
-    return repr(float(value))
+    """A number as answers carry it: the shortest text that reads back to the same float (a
+    negative zero as 0.0)."""
+    return repr(float(value) + 0.0)

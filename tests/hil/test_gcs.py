@@ -266,7 +266,8 @@ def _hostile_lines(rng: random.Random, n: int) -> list[bytes]:
     words = [b"MOV", b"MVR", b"SVO", b"FRF", b"VLS", b"DRC", b"DRT", b"RTR", b"DRR?", b"POS?",
              b"X", b"Y", b"W", b"Q", b"1e308", b"-1e308", b"nan", b"inf", b"99999", b"-0",
              b"0.5", b"\x00", b"\xff\xfe", b"*IDN?", b"ERR?", b"HLP?", b"STP", b"#", b"0", b"1",
-             b"SPI", b"SPI?", b"VMO?", b"TRA?", b"R", b"T"]
+             b"SPI", b"SPI?", b"VMO?", b"TRA?", b"R", b"T", b"KSW", b"KST", b"KEN", b"KLN",
+             b"KLT?", b"KET?", b"ZERO"]
     out = []
     for _ in range(n):
         kind = rng.random()
@@ -702,3 +703,57 @@ def test_tra_is_the_workspace_commands_reach_on_the_same_scene(model, capsys, tm
     got = _values(ask(c, s, "TRA? Z -1 V 1"))
     assert abs(got["Z"] + step) <= 2e-9 and abs(got["V"] - step) <= 2e-9
     assert err(c, s) == 0
+
+
+# --- coordinate systems ------------------------------------------------------------------------
+
+def test_coordinate_systems_define_link_enable_and_moves_follow_them(model):
+    """KSW/KST/KLN/KEN/KET?/KLT?/KRM with PI's codes; with a work and a tool system enabled POS?
+    is the tool's pose seen from the work system (checked with scipy's rotations on the plant's
+    own pose), a move along X goes along the work system's X, a turn keeps the tool's origin."""
+    d, c, s = referenced(model)
+    assert ask(c, s, "KET?") == "ZERO=ZERO\n"
+    for line in ("KSW WORK X 5 Z 2 W 30", "KST TOOL Z 10 U 5", "KST TIP X 1", "KLN TIP TOOL"):
+        assert ask(c, s, line) is None and err(c, s) == 0, line
+    assert _values(ask(c, s, "KLT? TIP TOOL")) == pytest.approx(
+        {"X": 1.0, "Y": 0.0, "Z": 0.0, "U": 0.0, "V": 0.0, "W": 0.0}, abs=1e-12)
+    tip = _values(ask(c, s, "KLT? TIP"))           # TOOL then TIP: (0, 0, 10) + Rx(5) (1, 0, 0)
+    assert [tip[a] for a in "XYZUVW"] == pytest.approx([1, 0, 10, 5, 0, 0], abs=1e-12)
+    for line, code in (("KLN TOOL TIP", E.CS_CYCLIC), ("KLN TIP TIP", E.CS_LINKED_TO_ITSELF),
+                       ("KLN WORK TOOL", E.CS_MAY_NOT_BE_LINKED), ("KEN NONE", E.CS_DOES_NOT_EXIST),
+                       ("KSW ZERO X 1", E.CS_WRITE_PROTECTED), ("KST 1BAD X 1", E.CS_INVALID_NAME),
+                       ("KET? KSX", E.CS_TYPE_UNKNOWN), ("KET? KST", E.NO_CS_OF_TYPE_ENABLED),
+                       ("KSW WORK V 90", E.PARAM_OUT_OF_RANGE),
+                       ("KLT? TIP WORK", E.CS_NOT_SAME_CHAIN), ("KST WORK X 1", E.CS_IN_USE)):
+        assert ask(c, s, line) is None and err(c, s) == code, line
+    assert ask(c, s, "KEN WORK") is None and ask(c, s, "KEN TIP") is None and err(c, s) == 0
+    assert ask(c, s, "KET?") == "KSW=WORK \nKST=TIP\n"
+    for line, code in (("KSW WORK X 1", E.CS_IN_USE), ("KRM TOOL", E.CS_IN_USE),
+                       ("SPI T 1", E.SPI_NOT_WITH_CS), ("TRA? X 1", E.QUERY_NOT_FOR_CS)):
+        assert ask(c, s, line) is None and err(c, s) == code, line
+
+    def seen_from_work(q):
+        """The tip's pose in WORK from the plant's q, independently: scipy's rotations."""
+        r_c = Rotation.from_euler("xyz", q[3:])               # the contract's Rz Ry Rx
+        r_tip = r_c * Rotation.from_euler("XYZ", [5, 0, 0], degrees=True)
+        p_tip = q[:3] + r_c.apply([0.0, 0.0, 0.01]) + r_tip.apply([0.001, 0.0, 0.0])
+        r_w = Rotation.from_euler("XYZ", [0, 0, 30], degrees=True)
+        p = r_w.inv().apply(p_tip - (model.home[:3] + [0.005, 0.0, 0.002])) * 1e3
+        return np.r_[p, (r_w.inv() * r_tip).as_euler("XYZ", degrees=True)]
+
+    pos = np.array(list(_values(ask(c, s, "POS?")).values()))
+    assert np.all(np.abs(pos - seen_from_work(np.asarray(d.snapshot().q))) <= 1e-9)
+    assert np.allclose(list(_values(ask(c, s, "MOV?")).values()), pos, atol=ONT_TOLERANCE)
+    # a move along WORK's X, then a turn about the tip: on target, and the plant agrees
+    for line, goal in (("MOV X 2 Y 1 Z 8 U 0 V 0 W 0", [2, 1, 8, 0, 0, 0]),
+                       ("MOV U 1.5 V -1 W 2", [2, 1, 8, 1.5, -1, 2])):
+        assert ask(c, s, line) is None and err(c, s) == 0, line
+        for _ in range(1000):
+            run(c, 10)
+            if ask(c, s, "ONT?").count("=1") == 6:
+                break
+        assert ask(c, s, "ONT?").count("=1") == 6, line
+        got = seen_from_work(np.asarray(d.snapshot().q))
+        assert np.all(np.abs(got - goal) <= ONT_TOLERANCE), (line, got)
+    assert ask(c, s, "KEN ZERO") is None and ask(c, s, "KET?") == "ZERO=ZERO\n"
+    assert ask(c, s, "KRM TIP") is None and ask(c, s, "KRM TOOL") is None and err(c, s) == 0

@@ -281,3 +281,53 @@ def test_pivot_rotation_vmo_and_tra_through_pipython(capsys):
         stop.set()
         thread.join(10)
         link.close()
+
+
+@unraisable
+def test_coordinate_systems_through_pipython():
+    """PIPython's KSW, KST, KEN, qKET, qKLT, KRM: with a work system (5 mm along X, turned 30 deg
+    about Z) and a tool 10 mm above C enabled, MOV moves the tool in the work system's axes,
+    checked on the plant's own pose."""
+    from scipy.spatial.transform import Rotation
+
+    model = load_scene(SCENE)
+    device = Device(model)
+    link = gcs_link(device, "127.0.0.1", 0)
+    thread, stop, _ = serve_in_thread(device, link)
+    try:
+        with connect(link.server.address[1]) as pi:
+            pitools.startup(pi, refmodes="FRF")
+            pi.KSW("WORK", {"X": 5.0, "W": 30.0})
+            pi.KST("TIP", {"Z": 10.0})
+            pi.KEN("WORK")
+            pi.KEN("TIP")
+            assert pi.qKET() == {"KSW": "WORK", "KST": "TIP"}
+            assert pi.qKLT("TIP").split() == ["X=0.0", "Y=0.0", "Z=10.0", "U=0.0", "V=0.0",
+                                              "W=0.0"]
+            target = {"X": 1.0, "Y": 0.0, "Z": 10.0, "U": 0.0, "V": 0.0, "W": -30.0}
+            pi.MOV(target)
+            pitools.waitontarget(pi, timeout=WAIT, polldelay=0.05)
+            q = np.asarray(device.snapshot().q)
+            r = Rotation.from_euler("xyz", q[3:])
+            tip = q[:3] + r.apply([0.0, 0.0, 0.01]) - model.home[:3]
+            w = Rotation.from_euler("z", 30, degrees=True)
+            expected = (np.array([5.0, 0.0, 0.0]) + w.apply([1.0, 0.0, 10.0])) / 1e3
+            assert np.all(np.abs(tip - expected) <= ONT_TOLERANCE / 1e3)
+            # the tool's axes: the work system's turned back by W = -30 deg, i.e. the platform's
+            assert np.degrees(np.linalg.norm(r.as_rotvec())) <= 2 * ONT_TOLERANCE
+            with pytest.raises(GCSError) as exc:        # enabled: in use
+                pi.KRM("WORK")
+            assert exc.value.val == 532
+            pi.MOV({"X": 1.0, "Y": 0.0, "Z": 0.0, "W": 0.0})     # off a turned work frame
+            pitools.waitontarget(pi, timeout=WAIT, polldelay=0.05)
+            pi.KEN("ZERO")
+            assert pi.qKET() == {"ZERO": "ZERO"}
+            pi.KRM("WORK")
+            pi.KRM("TIP")
+            assert pi.qERR() == 0
+        del pi
+        release()
+    finally:
+        stop.set()
+        thread.join(10)
+        link.close()
