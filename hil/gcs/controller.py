@@ -30,7 +30,7 @@ from hil.gcs.coordinate_systems import Enabled, Systems
 from hil.gcs.move_path import Mover
 from hil.gcs.recorder import Recorder, Sample, leg_mm
 from hil.modes import Mode
-from stewart_fmu.kinematics import inverse_kinematics
+from stewart_fmu.reach import Engine
 
 VLS_DEFAULT = 10.0      # mm/s (and deg/s) system velocity at start
 VLS_MIN = 1e-3
@@ -233,13 +233,15 @@ class GcsController:
 
     # --- the travel range ----------------------------------------------------------------
 
-    def _reachable(self, g: np.ndarray) -> np.ndarray:
-        """Per GCS pose (rows of g): every leg within the device's setpoint stroke and cond(J)
-        within SP_COND_MAX."""
-        kin = inverse_kinematics(self.device.model, self.frame.to_pose(g))
+    def _reachable(self, g: np.ndarray, engine: Engine) -> np.ndarray:
+        """Per GCS pose (rows of g): every leg within the device's setpoint stroke, and inside
+        every limit of `engine` (its cond(J) limit SP_COND_MAX; Engine.binding spares cond's
+        SVD where its bound is sure, which keeps SPI and KEN, which recompute the range, short
+        on the device's loop)."""
+        lengths = self.mover.lengths(g)
         b = self.device.bounds
-        return (np.all(kin.lengths >= b.leg_min, axis=1) & np.all(kin.lengths <= b.leg_max, axis=1)
-                & (kin.cond <= self.device.settings.cond_max))
+        return (np.all(lengths >= b.leg_min, axis=1) & np.all(lengths <= b.leg_max, axis=1)
+                & (engine.binding(self.frame.to_pose(g)) < 0))
 
     def _travel_range(self) -> tuple[np.ndarray, np.ndarray]:
         """Per axis, with the other axes at 0, how far from the reference every pose on the way
@@ -247,12 +249,15 @@ class GcsController:
         RANGE_STEPS bisections of that step (the twelve ends at once); rounded inwards to 1e-6
         (mm, deg). An end whose whole ray is reachable is RANGE_MAX; one whose reference is not
         is 0."""
+        engine = Engine(self.device.model, cond_limit=self.device.settings.cond_max)
         ends = [(i, sign) for i in range(6) for sign in (-1.0, 1.0)]
         ok, bad = np.zeros(len(ends)), np.zeros(len(ends))
+        rays = np.zeros((len(ends), RANGE_SCAN + 1, 6))     # the twelve rays in one call
         for e, (i, sign) in enumerate(ends):
-            ray = np.zeros((RANGE_SCAN + 1, 6))
-            ray[:, i] = sign * np.linspace(0.0, RANGE_MAX[i], RANGE_SCAN + 1)
-            reach = self._reachable(ray)
+            rays[e, :, i] = sign * np.linspace(0.0, RANGE_MAX[i], RANGE_SCAN + 1)
+        reaches = self._reachable(rays.reshape(-1, 6), engine).reshape(len(ends), -1)
+        for e, (i, sign) in enumerate(ends):
+            ray, reach = rays[e], reaches[e]
             if reach.all():
                 ok[e] = bad[e] = RANGE_MAX[i]
             elif reach[0]:
@@ -263,7 +268,7 @@ class GcsController:
             g = np.zeros((len(ends), 6))
             for e, (i, sign) in enumerate(ends):
                 g[e, i] = sign * mid[e]
-            reach = self._reachable(g)
+            reach = self._reachable(g, engine)
             ok, bad = np.where(reach, mid, ok), np.where(reach, bad, mid)
         low, high = np.zeros(6), np.zeros(6)
         for e, (i, sign) in enumerate(ends):
