@@ -39,6 +39,7 @@ OUTBOX = 64             # replies to commands kept for the next step (the newest
 RANGE_MAX = (1000.0,) * 3 + (89.0,) * 3     # mm, deg: the travel-range search's bounds
 RANGE_SCAN = 512        # steps out to RANGE_MAX in which each end of the travel range is sought
 RANGE_STEPS = 40        # bisections of the step where it lies
+RANGES_KEPT = 16        # travel ranges kept, one per frame (SPI, KEN)
 
 
 class Session:
@@ -70,7 +71,8 @@ class GcsController:
         self.servo = False
         self.motion_errors = 0
         self.internal_errors = 0     # lines whose handler raised (hil.gcs.command_set.execute)
-        self.low, self.high = self._travel_range()
+        self._ranges: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+        self.low, self.high = self.travel_range()
         self._k = -1
         self._refused = 0
         self._outbox: list[Any] = []     # the device's replies to commands, for the next step
@@ -157,7 +159,7 @@ class GcsController:
             raise E.GcsError(E.SET_PIVOT_NOT_POSSIBLE, "U, V, W not all 0")
         self.zero = Frame(self.device.model.home, np.asarray(pivot_mm, dtype=float) / MM_PER_M)
         self.frame = self.mover.frame = self.zero
-        self.low, self.high = self._travel_range()
+        self.low, self.high = self.travel_range()
 
     def at_rest(self) -> None:
         """GcsError 536 while a move or the referencing runs (coordinate systems change then)."""
@@ -171,7 +173,7 @@ class GcsController:
         self.frame = self.mover.frame = self.systems.frame(self.zero, self.device.model)
         self.target = self.frame.from_pose(old.to_pose(self.target))
         self.mover.reference = self.frame.from_pose(old.to_pose(self.mover.reference))
-        self.low, self.high = self._travel_range()
+        self.low, self.high = self.travel_range()
 
     def move(self, target: np.ndarray) -> None:
         """MOV/MVR (already checked for servo and referencing): plan, then start."""
@@ -232,6 +234,20 @@ class GcsController:
                       leg_mm(snap.lengths), np.asarray(snap.forces, dtype=float))
 
     # --- the travel range ----------------------------------------------------------------
+
+    def travel_range(self) -> tuple[np.ndarray, np.ndarray]:
+        """The travel range of the frame now (`_travel_range`), kept for the last RANGES_KEPT
+        frames (the pivot, the enabled work and tool, SP_COND_MAX): a client that switches
+        between a few costs the device's loop one search each."""
+        f = self.frame
+        key = (tuple(self.zero.pivot), self.device.settings.cond_max,
+               *((tuple(f.work), tuple(f.tool)) if isinstance(f, Enabled) else ()))
+        if key not in self._ranges:
+            if len(self._ranges) >= RANGES_KEPT:
+                del self._ranges[next(iter(self._ranges))]
+            self._ranges[key] = self._travel_range()
+        low, high = self._ranges[key]
+        return low.copy(), high.copy()
 
     def _reachable(self, g: np.ndarray, engine: Engine) -> np.ndarray:
         """Per GCS pose (rows of g): every leg within the device's setpoint stroke, and inside

@@ -64,6 +64,7 @@ class Enabled:
 
     def __init__(self, zero: Frame, model, work: np.ndarray, tool: np.ndarray) -> None:
         self.zero, self.pivot = zero, zero.pivot
+        self.work, self.tool = np.array(work, dtype=float), np.array(tool, dtype=float)
         w, m = to_contract(work)[0], to_contract(tool)[0]
         self._frames = dataclasses.replace(model, frames=FrameParams(user=tuple(w),
                                                                      tool=tuple(m)))
