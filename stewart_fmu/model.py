@@ -13,7 +13,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from .native.core import NativeParams
-from .table import N_PARAMS, offset
+from .table import ELASTIC, N_ELASTIC, N_PARAMS, offset
 
 # Layout of Model.params, the flat float64 vector the compiled kernels read: the offsets of
 # the table (native/include/stewart_table.h, STEWART_PARAMS), read from the core.
@@ -114,6 +114,37 @@ class TransmissionParams:
 
 
 @dataclass(frozen=True)
+class StiffnessParams:
+    """[stiffness]: the legs' axial springs (per leg) and the joints' flexure stiffness
+    (stewart_table.h STEWART_ELASTIC says how they combine)."""
+
+    leg: PerLeg                       # N/m between the joints
+    joint_bending: float | None = None   # N m/rad, each joint; None: ball joints
+    joint_torsion: float | None = None   # N m/rad, each joint about the leg; None: free
+
+    @property
+    def leg_legs(self) -> np.ndarray:
+        """The six legs' axial stiffness (N/m)."""
+        return per_leg(self.leg)
+
+
+@dataclass(frozen=True)
+class PayloadParams:
+    """[payload]: a rigid body fixed to the platform."""
+
+    mass: float                 # kg
+    com: tuple[float, float, float]          # m, in C
+    inertia: tuple[float, ...]  # kg m^2 about its com in C: Ixx, Iyy, Izz (, Ixy, Ixz, Iyz)
+
+    @property
+    def inertia_tensor(self) -> np.ndarray:
+        """The symmetric 3x3 inertia tensor about the payload's com, in C's axes."""
+        i = np.zeros(6)
+        i[:len(self.inertia)] = self.inertia
+        return np.array([[i[0], i[3], i[4]], [i[3], i[1], i[5]], [i[4], i[5], i[2]]])
+
+
+@dataclass(frozen=True)
 class Model:
     """Immutable parameters of one Stewart mechanism."""
 
@@ -132,8 +163,12 @@ class Model:
     extra: Mapping[str, Any] = field(default_factory=dict)  # project tables (controller, ...)
     source: str | None = None
     transmission: TransmissionParams | None = None   # project table [transmission]
+    stiffness: StiffnessParams | None = None   # [stiffness]: the legs' and joints' springs
+    payload: PayloadParams | None = None       # [payload]: a body fixed to the platform
     params: np.ndarray = field(init=False, repr=False)
     native: NativeParams = field(init=False, repr=False, compare=False)  # params for the C core
+    # [stiffness] and [payload] for the stiffness and modes kernels (STEWART_ELASTIC layout)
+    elastic: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         for name in ("gravity", "base_joints", "platform_joints", "home", "platform_inertia"):
@@ -143,6 +178,7 @@ class Model:
         object.__setattr__(self, "extra", MappingProxyType(dict(self.extra)))
         object.__setattr__(self, "params", _pack(self))
         object.__setattr__(self, "native", NativeParams(self.params))
+        object.__setattr__(self, "elastic", _pack_elastic(self))
 
     @property
     def characteristic_length(self) -> float:
@@ -189,3 +225,28 @@ def _pack(m: Model) -> np.ndarray:
     p[P_PLATFORM:P_PLATFORM + 18] = m.platform_joints.ravel()
     p.flags.writeable = False
     return p
+
+
+def _pack_elastic(m: Model) -> np.ndarray:
+    """[stiffness] and [payload] as the stiffness kernels read them (STEWART_ELASTIC)."""
+    e = np.zeros(N_ELASTIC)
+
+    def put(name: str, value) -> None:
+        entry = ELASTIC[name]
+        v = np.ravel(np.asarray(value, dtype=float))
+        e[entry.offset:entry.offset + entry.count] = np.broadcast_to(v, (entry.count,)) \
+            if v.size == 1 else np.pad(v, (0, entry.count - v.size))
+
+    if m.stiffness is not None:
+        s = m.stiffness
+        put("HAS_STIFFNESS", 1.0)
+        put("LEG", s.leg_legs)
+        put("BENDING", s.joint_bending or 0.0)
+        put("TORSION", s.joint_torsion or 0.0)
+    if m.payload is not None:
+        put("HAS_PAYLOAD", 1.0)
+        put("PAYLOAD_MASS", m.payload.mass)
+        put("PAYLOAD_COM", m.payload.com)
+        put("PAYLOAD_INERTIA", m.payload.inertia)
+    e.flags.writeable = False
+    return e

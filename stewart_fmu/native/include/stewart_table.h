@@ -210,6 +210,39 @@
     X(DRIVE_MASS, "the reflected drive mass m_d = zeta^2 I / r^2", "kg", CLOSED, 0.0, 1e8)         \
     X(MOVING_MASS, "the moving mass (platform and 12 leg parts)", "kg", OPEN, 0.0, 1e7)
 
+/* The elastic model of the stiffness and the modes (src/stiffness.c), not FMU variables: the
+   scene tables [stiffness] and [payload] (stewart_fmu/scene.py reads them, Model.elastic packs
+   them), in layout order: X(NAME, KEY, COUNT, SHAPE, UNIT, BOUND, MIN, MAX, DESCRIPTION) with
+   the physical bounds of each value, as the plant's keys above; KEY "" for a computed entry
+   (a flag). How the springs combine (docs: the stiffness model):
+   - stiffness.leg: each leg's axial stiffness between its joints; with a [transmission] the
+     transmission's spring (transmission.stiffness, the motor held) acts in series with it,
+     k = k_leg k_t / (k_leg + k_t);
+   - stiffness.joint_bending: the bending stiffness of each of the 12 joints (flexures), about
+     any axis across the leg, relaxed at the pose: the base joint resists the leg's rotation
+     against the base, the platform joint the leg's rotation against the platform;
+   - stiffness.joint_torsion: each joint's stiffness about the leg's axis; the two joints of a
+     leg act in series on the platform's rotation about that axis (k_t / 2), the leg free to
+     spin between them.
+   The payload: a rigid body fixed to the platform, its mass, its centre of mass in C and its
+   inertia tensor about that centre in C's axes, [Ixx, Iyy, Izz, Ixy, Ixz, Iyz] the entries of
+   the symmetric matrix [[Ixx, Ixy, Ixz], [Ixy, Iyy, Iyz], [Ixz, Iyz, Izz]] (three principal
+   moments fill the first three). The mass and stroke bounds are the plant's. */
+#define STEWART_ELASTIC(X)                                                                       \
+    X(HAS_STIFFNESS, "", 1, STEWART_VECTOR, "1", CLOSED, 0.0, 1.0, "1 when the scene has [stiffness]") \
+    X(LEG, "stiffness.leg", 6, STEWART_PER_LEG, "N/m", OPEN, 0.0, 1e12,                          \
+      "axial stiffness of each leg between its joints")                                          \
+    X(BENDING, "stiffness.joint_bending", 1, STEWART_VECTOR, "N.m/rad", OPEN, 0.0, 1e9,          \
+      "bending stiffness of each joint (0 when absent: ball joints)")                            \
+    X(TORSION, "stiffness.joint_torsion", 1, STEWART_VECTOR, "N.m/rad", OPEN, 0.0, 1e9,          \
+      "torsion stiffness of each joint about the leg (0 when absent)")                           \
+    X(HAS_PAYLOAD, "", 1, STEWART_VECTOR, "1", CLOSED, 0.0, 1.0, "1 when the scene has [payload]") \
+    X(PAYLOAD_MASS, "payload.mass", 1, STEWART_VECTOR, "kg", OPEN, 0.0, 1e6, "payload mass")     \
+    X(PAYLOAD_COM, "payload.com", 3, STEWART_VECTOR, "m", CLOSED, -1e3, 1e3,                     \
+      "payload centre of mass in C")                                                             \
+    X(PAYLOAD_INERTIA, "payload.inertia", 6, STEWART_VECTOR, "kg.m2", CLOSED, -1e10, 1e10,       \
+      "payload inertia about its centre of mass in C: Ixx, Iyy, Izz, Ixy, Ixz, Iyz")
+
 #define STEWART_VR_TIME 0          /* FMI 3.0's independent variable */
 #define STEWART_VR_PARAMETERS 1    /* first value reference of each section */
 #define STEWART_VR_INPUTS 100
@@ -223,6 +256,8 @@ typedef struct {
     STEWART_FMU_SCENE(STEWART_X_VARIABLE) STEWART_FMU_SETTINGS(STEWART_X_VARIABLE)
 } stewart_fmu_parameters;
 typedef struct { STEWART_STANDARD(STEWART_X_FIELD) } stewart_standard_layout;
+#define STEWART_X_ELASTIC_FIELD(NAME, KEY, COUNT, ...) double NAME[COUNT];
+typedef struct { STEWART_ELASTIC(STEWART_X_ELASTIC_FIELD) } stewart_elastic_layout;
 typedef struct { STEWART_FMU_INPUTS(STEWART_X_VARIABLE) } stewart_fmu_inputs;
 typedef struct {
     STEWART_FMU_OUTPUTS(STEWART_X_VARIABLE) STEWART_FMU_OUTPUT_ARRAYS(STEWART_X_VARIABLE)
@@ -231,6 +266,7 @@ typedef struct {
 /* The offset of a packed entry, and the value reference of an FMU variable group
    (SECTION: PARAMETERS, INPUTS or OUTPUTS; LAYOUT: the struct of that section). */
 #define STEWART_OFFSET(NAME) ((int)(offsetof(stewart_param_layout, NAME) / sizeof(double)))
+#define STEWART_ELASTIC_OFFSET(NAME) ((int)(offsetof(stewart_elastic_layout, NAME) / sizeof(double)))
 #define STEWART_STANDARD_OFFSET(NAME) ((int)(offsetof(stewart_standard_layout, NAME) / sizeof(double)))
 #define STEWART_VR(SECTION, LAYOUT, ID) \
     (STEWART_VR_##SECTION + (int)(offsetof(LAYOUT, ID) / sizeof(double)))

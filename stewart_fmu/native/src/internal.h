@@ -35,6 +35,10 @@ int sw_solve_rate_trig(const double trig[4], double w0, double w1, double w2, do
 double sw_lu_factor(double A[36], int order[12]);
 void sw_lu_solve(const double LU[36], double b[6]);
 int sw_cholesky_solve(double A[36], double b[6]);
+int sw_cholesky_factor(double A[36]);
+void sw_cholesky_forward(const double L[36], double b[6]);
+void sw_cholesky_back(const double L[36], double b[6]);
+void sw_symmetric_eigen(double A[36], double w[6], double V[36]);
 void sw_singular_values(const double A[36], double s[6]);
 
 /* kane.c */

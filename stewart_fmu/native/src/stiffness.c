@@ -1,0 +1,420 @@
+/* stiffness.c -- the Cartesian stiffness of the platform on its elastic legs at a pose, its
+   compliance at a point, and the small oscillations about the static equilibrium there
+   (stewart_fmu/stiffness.py). The stiffness is the Hessian of the potential energy in the twist
+   coordinates chi = (dx, dtheta) at the equilibrium, term by term: each leg's spring and its
+   parts' weight are functions f(L) of the leg vector L = x + exp([dtheta]x) r - a (r = R p), whose
+   Hessian is A^T H A + sym(g r^T) - (g . r) I on the rotation block, with g = df/dL, H = d2f/dL2
+   and A = dL/dchi = [I, -[r]x]; the second term is the geometric stiffness of the static load
+   turning with the platform (Griffis and Duffy); the payload's weight is such a term with H = 0. */
+#include <math.h>
+#include "internal.h"
+
+#define P(k) p[STEWART_P_##k]
+#define E(k) e[STEWART_E_##k]
+
+static int finite_n(const double *a, int n)
+{
+    int k;
+    for (k = 0; k < n; ++k)
+        if (!isfinite(a[k]))
+            return 0;
+    return 1;
+}
+
+/* The payload's lever rho = R c in N (zero without a payload). */
+static void payload_lever(const double *e, const double R[9], double rho[3])
+{
+    int a;
+    for (a = 0; a < 3; ++a)
+        rho[a] = E(HAS_PAYLOAD) != 0.0 ? R[3 * a] * E(PAYLOAD_COM) + R[3 * a + 1] * e[STEWART_E_PAYLOAD_COM + 1]
+                                             + R[3 * a + 2] * e[STEWART_E_PAYLOAD_COM + 2]
+                                       : 0.0;
+}
+
+/* K += sym(g r^T) - (g . r) I on the rotation block: a static load with gradient g (dV/dpoint)
+   applied at lever r, turning with the platform. */
+static void add_geometric(double K[36], const double g[3], const double r[3])
+{
+    const double gr = g[0] * r[0] + g[1] * r[1] + g[2] * r[2];
+    int a, b;
+    for (a = 0; a < 3; ++a)
+        for (b = 0; b < 3; ++b)
+            K[(3 + a) * 6 + 3 + b] += 0.5 * (g[a] * r[b] + r[a] * g[b]) - (a == b ? gr : 0.0);
+}
+
+/* K += B^T c B for a 3x6 map B (row-major). */
+static void add_quadratic(double K[36], const double B[18], const double H[9])
+{
+    double HB[18];
+    int a, b, k;
+    for (a = 0; a < 3; ++a)
+        for (b = 0; b < 6; ++b)
+            HB[a * 6 + b] = H[a * 3] * B[b] + H[a * 3 + 1] * B[6 + b] + H[a * 3 + 2] * B[12 + b];
+    for (a = 0; a < 6; ++a)
+        for (b = 0; b < 6; ++b) {
+            double s = 0.0;
+            for (k = 0; k < 3; ++k)
+                s += B[k * 6 + a] * HB[k * 6 + b];
+            K[a * 6 + b] += s;
+        }
+}
+
+/* The leg's axial spring rate: the strut, in series with the transmission's when the motor side
+   is held. */
+static double leg_rate(const double *p, const double *e, int i)
+{
+    const double k = e[STEWART_E_LEG + i];
+    if (P(HAS_TRANSMISSION) == 0.0)
+        return k;
+    return k * P(STIFFNESS) / (k + P(STIFFNESS));
+}
+
+/* One leg's terms: its spring about the length that carries sigma, its parts' weight, its two
+   joints' bending and torsion. */
+static void add_leg(const double *p, const double *e, const sw_ws *ws, int i, double sigma,
+                    double K[36])
+{
+    const double *u = ws->U + 3 * i, *r = ws->Rr + 3 * i;
+    const double l = ws->leg[3 * i], il = 1.0 / l, k = leg_rate(p, e, i);
+    const double kb = E(BENDING), kt = E(TORSION);
+    const double *G = p + STEWART_P_GRAVITY;
+    double H[9], g[3], A[18], B[18], Pu[9], X[9];
+    int a, b, c;
+    for (a = 0; a < 3; ++a)
+        for (b = 0; b < 3; ++b)
+            Pu[a * 3 + b] = (a == b ? 1.0 : 0.0) - u[a] * u[b];
+    /* the spring: V = k (l - l0)^2 / 2 with k (l - l0) = -sigma; the base joint's bending,
+       k_b |P dL|^2 / (2 l^2) */
+    for (a = 0; a < 3; ++a) {
+        g[a] = -sigma * u[a];
+        for (b = 0; b < 3; ++b)
+            H[a * 3 + b] = k * u[a] * u[b] + (kb * il * il - sigma * il) * Pu[a * 3 + b];
+    }
+    if (P(HAS_LEGS) != 0.0) {
+        /* the parts' weight: V = -mu g.u - m_B g.L, mu = m_A c_A - m_B c_B */
+        const double mu = P(LOWER) * p[STEWART_P_LOWER + 1] - P(UPPER) * p[STEWART_P_UPPER + 1];
+        const double mB = P(UPPER), gu = G[0] * u[0] + G[1] * u[1] + G[2] * u[2];
+        const double s = -mu * il * il;
+        for (a = 0; a < 3; ++a) {
+            g[a] += -mu * il * (G[a] - gu * u[a]) - mB * G[a];
+            for (b = 0; b < 3; ++b)
+                H[a * 3 + b] += s * (-(G[a] * u[b] + u[a] * G[b]) - (a == b ? gu : 0.0)
+                                     + 3.0 * gu * u[a] * u[b]);
+        }
+    }
+    /* A = [I, -[r]x] */
+    for (a = 0; a < 18; ++a)
+        A[a] = 0.0;
+    A[0] = A[7] = A[14] = 1.0;
+    A[4] = r[2];  A[5] = -r[1];
+    A[9] = -r[2]; A[11] = r[0];
+    A[15] = r[1]; A[16] = -r[0];
+    add_quadratic(K, A, H);
+    add_geometric(K, g, r);
+    if (kb != 0.0) {
+        /* the platform joint: the leg's rotation against the platform across the leg,
+           phi = [u]x A chi / l - P dtheta; energy k_b |phi|^2 / 2 */
+        const double ux[9] = {0.0, -u[2], u[1], u[2], 0.0, -u[0], -u[1], u[0], 0.0};
+        for (a = 0; a < 3; ++a)
+            for (b = 0; b < 6; ++b) {
+                double s = 0.0;
+                for (c = 0; c < 3; ++c)
+                    s += ux[a * 3 + c] * A[c * 6 + b];
+                B[a * 6 + b] = s * il - (b >= 3 ? Pu[a * 3 + b - 3] : 0.0);
+            }
+        for (a = 0; a < 9; ++a)
+            X[a] = (a % 4 == 0) ? kb : 0.0;
+        add_quadratic(K, B, X);
+    }
+    if (kt != 0.0)   /* the two joints' torsion in series about the leg */
+        for (a = 0; a < 3; ++a)
+            for (b = 0; b < 3; ++b)
+                K[(3 + a) * 6 + 3 + b] += 0.5 * kt * u[a] * u[b];
+}
+
+/* The static leg forces and the stiffness at q; ws keeps the pose's kinematics (R, U, Rr, leg)
+   for the mass matrix. */
+static int stiffness_sample(const double *p, const double *e, const double q[6], sw_ws *ws,
+                            double K[36], double sigma[6])
+{
+    const double *G = p + STEWART_P_GRAVITY;
+    double W[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0}, rho[3], gp[3];
+    int st, k;
+    if (!finite_n(q, 6))
+        return STEWART_NONFINITE;
+    if (E(HAS_STIFFNESS) == 0.0)
+        return STEWART_SINGULAR;
+    sw_orientation(q, SW_ZERO6, SW_ZERO6, ws->R, ws->om, ws->al, ws->trig);
+    st = sw_twist_forces(p, q, SW_ZERO6, SW_ZERO6, ws->al, ws);
+    if (st != STEWART_OK)
+        return st;
+    if (!(sw_lu_factor(ws->JT, ws->order) >= STEWART_SINGULAR_PIVOT))
+        return STEWART_SINGULAR;
+    payload_lever(e, ws->R, rho);
+    if (E(HAS_PAYLOAD) != 0.0) {   /* the payload's weight and its moment about C */
+        const double m = E(PAYLOAD_MASS);
+        W[0] = m * G[0];
+        W[1] = m * G[1];
+        W[2] = m * G[2];
+        W[3] = rho[1] * W[2] - rho[2] * W[1];
+        W[4] = rho[2] * W[0] - rho[0] * W[2];
+        W[5] = rho[0] * W[1] - rho[1] * W[0];
+    }
+    for (k = 0; k < 6; ++k) {   /* at rest the generalized forces are gravity's alone */
+        const int j = ws->order[k];
+        ws->rhs[k] = -(ws->gen[18 + j] + W[j]);
+    }
+    sw_solve_jt(p, ws, ws->rhs);
+    for (k = 0; k < 6; ++k)
+        sigma[k] = ws->rhs[k];
+    for (k = 0; k < 36; ++k)
+        K[k] = 0.0;
+    for (k = 0; k < 6; ++k)
+        add_leg(p, e, ws, k, sigma[k], K);
+    if (E(HAS_PAYLOAD) != 0.0) {
+        for (k = 0; k < 3; ++k)
+            gp[k] = -E(PAYLOAD_MASS) * G[k];
+        add_geometric(K, gp, rho);
+    }
+    for (k = 0; k < 6; ++k) {   /* symmetric to the last bit */
+        int j;
+        for (j = 0; j < k; ++j)
+            K[k * 6 + j] = K[j * 6 + k] = 0.5 * (K[k * 6 + j] + K[j * 6 + k]);
+    }
+    return finite_n(K, 36) && finite_n(sigma, 6) ? STEWART_OK : STEWART_SINGULAR;
+}
+
+int stewart_stiffness(const double *params, const double *elastic, const double q[6],
+                      double K[36], double sigma[6])
+{
+    sw_ws ws;
+    sw_ws_init(&ws);
+    return stiffness_sample(params, elastic, q, &ws, K, sigma);
+}
+
+/* Cp = T^T K^-1 T at the pivot (K overwritten by its factor). */
+static int compliance_of(double K[36], const double R[9], const double pivot[3], double Cp[36])
+{
+    double C[36], c[6], rho[3];
+    int a, b;
+    if (!sw_cholesky_factor(K))
+        return STEWART_SINGULAR;
+    for (b = 0; b < 6; ++b) {
+        for (a = 0; a < 6; ++a)
+            c[a] = a == b ? 1.0 : 0.0;
+        sw_cholesky_forward(K, c);
+        sw_cholesky_back(K, c);
+        for (a = 0; a < 6; ++a)
+            C[a * 6 + b] = c[a];
+    }
+    for (a = 0; a < 3; ++a)
+        rho[a] = R[3 * a] * pivot[0] + R[3 * a + 1] * pivot[1] + R[3 * a + 2] * pivot[2];
+    /* T = [[I, 0], [X, I]], X = [rho]x: Cp = T^T C T; first C T (columns 0-2 gain C[:, 3:] X) */
+    for (a = 0; a < 6; ++a) {
+        const double c3 = C[a * 6 + 3], c4 = C[a * 6 + 4], c5 = C[a * 6 + 5];
+        C[a * 6 + 0] += rho[2] * c4 - rho[1] * c5;
+        C[a * 6 + 1] += -rho[2] * c3 + rho[0] * c5;
+        C[a * 6 + 2] += rho[1] * c3 - rho[0] * c4;
+    }
+    for (b = 0; b < 6; ++b) {   /* then T^T: rows 0-2 gain X^T C[3:, :] */
+        const double c3 = C[18 + b], c4 = C[24 + b], c5 = C[30 + b];
+        C[0 * 6 + b] += rho[2] * c4 - rho[1] * c5;
+        C[1 * 6 + b] += -rho[2] * c3 + rho[0] * c5;
+        C[2 * 6 + b] += rho[1] * c3 - rho[0] * c4;
+    }
+    for (a = 0; a < 36; ++a)
+        Cp[a] = C[a];
+    return STEWART_OK;
+}
+
+int stewart_compliance(const double *params, const double *elastic, const double q[6],
+                       const double pivot[3], double Cp[36])
+{
+    sw_ws ws;
+    double K[36], sigma[6];
+    int st;
+    sw_ws_init(&ws);
+    st = stiffness_sample(params, elastic, q, &ws, K, sigma);
+    return st != STEWART_OK ? st : compliance_of(K, ws.R, pivot, Cp);
+}
+
+/* The mass matrix of the modes at the kinematics of ws: the leg side's (the drive's inertia
+   out with a [transmission]) and the payload's [[m I, -m X], [m X, I_N - m X X]], X = [rho]x. */
+static void modes_mass(const double *p, const double *e, sw_ws *ws, double M[36])
+{
+    double pl[STEWART_N_PARAMS], rho[3], Ic[9], IR[9];
+    int a, b, k;
+    stewart_leg_side_params(p, pl);
+    sw_twist_mass_matrix(pl, ws, 1);
+    for (k = 0; k < 36; ++k)
+        M[k] = ws->Mt[k];
+    if (E(HAS_PAYLOAD) == 0.0)
+        return;
+    {
+        const double m = E(PAYLOAD_MASS), *I = e + STEWART_E_PAYLOAD_INERTIA, *R = ws->R;
+        double rr;
+        payload_lever(e, R, rho);
+        rr = rho[0] * rho[0] + rho[1] * rho[1] + rho[2] * rho[2];
+        Ic[0] = I[0]; Ic[4] = I[1]; Ic[8] = I[2];
+        Ic[1] = Ic[3] = I[3];
+        Ic[2] = Ic[6] = I[4];
+        Ic[5] = Ic[7] = I[5];
+        for (a = 0; a < 3; ++a)   /* I_N = R Ic R^T */
+            for (b = 0; b < 3; ++b) {
+                double s = 0.0;
+                for (k = 0; k < 3; ++k)
+                    s += R[a * 3 + k] * (Ic[k * 3] * R[b * 3] + Ic[k * 3 + 1] * R[b * 3 + 1]
+                                         + Ic[k * 3 + 2] * R[b * 3 + 2]);
+                IR[a * 3 + b] = s;
+            }
+        for (a = 0; a < 3; ++a) {
+            M[a * 7] += m;
+            for (b = 0; b < 3; ++b)
+                M[(3 + a) * 6 + 3 + b] += IR[a * 3 + b] + m * ((a == b ? rr : 0.0) - rho[a] * rho[b]);
+        }
+        /* -m [rho]x in the upper right block, m [rho]x in the lower left */
+        M[0 * 6 + 4] += m * rho[2];  M[4 * 6 + 0] += m * rho[2];
+        M[0 * 6 + 5] += -m * rho[1]; M[5 * 6 + 0] += -m * rho[1];
+        M[1 * 6 + 3] += -m * rho[2]; M[3 * 6 + 1] += -m * rho[2];
+        M[1 * 6 + 5] += m * rho[0];  M[5 * 6 + 1] += m * rho[0];
+        M[2 * 6 + 3] += m * rho[1];  M[3 * 6 + 2] += m * rho[1];
+        M[2 * 6 + 4] += -m * rho[0]; M[4 * 6 + 2] += -m * rho[0];
+    }
+}
+
+int stewart_modes_mass(const double *params, const double *elastic, const double q[6],
+                       double M[36])
+{
+    sw_ws ws;
+    int st;
+    sw_ws_init(&ws);
+    if (!finite_n(q, 6))
+        return STEWART_NONFINITE;
+    sw_orientation(q, SW_ZERO6, SW_ZERO6, ws.R, ws.om, ws.al, ws.trig);
+    st = sw_twist_forces(params, q, SW_ZERO6, SW_ZERO6, ws.al, &ws);
+    modes_mass(params, elastic, &ws, M);
+    return st;
+}
+
+/* w2 ascending and the mass-normalised shapes (rows) of K v = w2 M v: with M = L L^T, the
+   eigenpairs of L^-1 K L^-T, v = L^-T y. M and K are overwritten. */
+static int generalized_eigen(double M[36], double K[36], double w2[6], double shapes[36])
+{
+    double A[36], V[36], w[6], col[6];
+    int order[6], a, b, k;
+    if (!sw_cholesky_factor(M))
+        return STEWART_SINGULAR;
+    for (b = 0; b < 6; ++b) {   /* columns of L^-1 K */
+        for (a = 0; a < 6; ++a)
+            col[a] = K[a * 6 + b];
+        sw_cholesky_forward(M, col);
+        for (a = 0; a < 6; ++a)
+            A[a * 6 + b] = col[a];
+    }
+    for (a = 0; a < 6; ++a) {   /* rows: (L^-1 (L^-1 K)^T)^T = L^-1 K L^-T, symmetric */
+        for (b = 0; b < 6; ++b)
+            col[b] = A[a * 6 + b];
+        sw_cholesky_forward(M, col);
+        for (b = 0; b < 6; ++b)
+            K[a * 6 + b] = col[b];
+    }
+    for (a = 0; a < 6; ++a)
+        for (b = 0; b < a; ++b)
+            K[a * 6 + b] = K[b * 6 + a] = 0.5 * (K[a * 6 + b] + K[b * 6 + a]);
+    sw_symmetric_eigen(K, w, V);
+    for (a = 0; a < 6; ++a)
+        order[a] = a;
+    for (a = 1; a < 6; ++a)   /* insertion sort, ascending */
+        for (b = a; b > 0 && w[order[b]] < w[order[b - 1]]; --b) {
+            k = order[b];
+            order[b] = order[b - 1];
+            order[b - 1] = k;
+        }
+    for (a = 0; a < 6; ++a) {
+        const int j = order[a];
+        double big = 0.0;
+        w2[a] = w[j];
+        for (b = 0; b < 6; ++b)
+            col[b] = V[b * 6 + j];
+        sw_cholesky_back(M, col);
+        for (b = 0; b < 6; ++b)
+            if (fabs(col[b]) > fabs(big))
+                big = col[b];
+        for (b = 0; b < 6; ++b)
+            shapes[a * 6 + b] = big < 0.0 ? -col[b] : col[b];
+    }
+    return STEWART_OK;
+}
+
+/* The modal damping ratios of the legs' viscous friction: v^T J^T [c] J v / (2 w). */
+static void modal_damping(const double *p, const sw_ws *ws, const double w2[6],
+                          const double shapes[36], double zeta[6])
+{
+    int j, i;
+    for (j = 0; j < 6; ++j) {
+        const double *v = shapes + 6 * j;
+        double d = 0.0;
+        zeta[j] = 0.0;
+        if (P(HAS_FRICTION) == 0.0 || !(w2[j] > 0.0))
+            continue;
+        for (i = 0; i < 6; ++i) {
+            const double *u = ws->U + 3 * i, *r = ws->Rr + 3 * i;
+            const double ld = u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
+                              + (r[1] * u[2] - r[2] * u[1]) * v[3]
+                              + (r[2] * u[0] - r[0] * u[2]) * v[4]
+                              + (r[0] * u[1] - r[1] * u[0]) * v[5];
+            d += p[STEWART_P_VISCOUS + i] * ld * ld;
+        }
+        zeta[j] = d / (2.0 * sqrt(w2[j]));
+    }
+}
+
+static int modes_sample(const double *p, const double *e, const double q[6], sw_ws *ws,
+                        double w2[6], double shapes[36], double *K)
+{
+    double M[36], sigma[6], Kw[36];
+    int st, k;
+    st = stiffness_sample(p, e, q, ws, K, sigma);
+    if (st != STEWART_OK)
+        return st;
+    modes_mass(p, e, ws, M);
+    for (k = 0; k < 36; ++k)
+        Kw[k] = K[k];
+    st = generalized_eigen(M, Kw, w2, shapes);
+    if (st == STEWART_OK && !(finite_n(w2, 6) && finite_n(shapes, 36)))
+        st = STEWART_SINGULAR;
+    return st;
+}
+
+int stewart_modes(const double *params, const double *elastic, const double q[6], double w2[6],
+                  double shapes[36], double zeta[6])
+{
+    sw_ws ws;
+    double K[36];
+    int st;
+    sw_ws_init(&ws);
+    st = modes_sample(params, elastic, q, &ws, w2, shapes, K);
+    if (st == STEWART_OK)
+        modal_damping(params, &ws, w2, shapes, zeta);
+    return st;
+}
+
+long stewart_modes_batch(const double *params, const double *elastic, long n, const double *Q,
+                         const double pivot[3], double *W2, double *Cp, int *status)
+{
+    sw_ws ws;
+    double K[36], shapes[36];
+    long k;
+    sw_ws_init(&ws);
+    for (k = 0; k < n; ++k) {
+        int st = modes_sample(params, elastic, Q + 6 * k, &ws, W2 + 6 * k, shapes, K);
+        if (st == STEWART_OK && Cp != 0)
+            st = compliance_of(K, ws.R, pivot, Cp + 36 * k);
+        if (st != STEWART_OK) {
+            *status = st;
+            return k;
+        }
+    }
+    *status = STEWART_OK;
+    return -1;
+}
