@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .dynamics import _raise
+from .dynamics import raise_status
 from .errors import SceneError, UnstablePoseError
 from .kinematics import inverse_kinematics
 from .model import Model
@@ -71,23 +71,18 @@ def _checked(model: Model, q) -> np.ndarray:
     return q
 
 
-def _fail(model: Model, status: int, q: np.ndarray) -> None:
-    if status != core.OK:
-        _raise(model, status, 0, ("q",), (q,))
-
-
 def stiffness(model: Model, q, pivot=ORIGIN) -> Stiffness:
     """The stiffness at pose q and the compliance at `pivot` (a point of C, default its origin)."""
     q = _checked(model, q)
     K, sigma, st = core.stiffness(model.native, model.elastic, q)
-    _fail(model, st, q)
+    raise_status(model, st, q)
     pivot = np.ascontiguousarray(pivot, dtype=float)
     C, st = core.compliance(model.native, model.elastic, q, pivot)
     if st == core.SINGULAR:
         raise UnstablePoseError(
             f"the stiffness at pose {q.tolist()} is not positive definite (eigenvalues "
             f"{np.linalg.eigvalsh(K).tolist()}): the loads buckle the legs")
-    _fail(model, st, q)
+    raise_status(model, st, q)
     return Stiffness(q, K, sigma, pivot, C)
 
 
@@ -95,7 +90,7 @@ def modes(model: Model, q) -> Modes:
     """The six modes at pose q (K v = w^2 M v), ascending; UnstablePoseError when w^2 <= 0."""
     q = _checked(model, q)
     w2, shapes, zeta, st = core.modes(model.native, model.elastic, q)
-    _fail(model, st, q)
+    raise_status(model, st, q)
     if not w2[0] > 0.0:
         raise UnstablePoseError(
             f"the pose {q.tolist()} is not a stable equilibrium on the elastic legs: mode 1 has "
@@ -108,7 +103,7 @@ def mass_matrix(model: Model, q) -> np.ndarray:
     """The mass matrix of the modes at pose q (twist, 6x6)."""
     q = _checked(model, q)
     M, st = core.modes_mass(model.native, model.elastic, q)
-    _fail(model, st, q)
+    raise_status(model, st, q)
     return M
 
 
@@ -136,7 +131,7 @@ def modes_map(model: Model, Q, pivot=ORIGIN) -> ModesMap:
             if st2 == core.OK:
                 raise UnstablePoseError(f"the stiffness at pose {Q[index].tolist()} (pose "
                                         f"{index}) is not positive definite: the loads buckle the legs")
-        _raise(model, st, index, ("q",), (Q[index],))
+        raise_status(model, st, Q[index])
     if not np.all(W2[:, 0] > 0.0):
         k = int(np.argmin(W2[:, 0]))
         raise UnstablePoseError(f"pose {k} {Q[k].tolist()} is not a stable equilibrium: "

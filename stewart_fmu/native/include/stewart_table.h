@@ -214,20 +214,20 @@
    scene tables [stiffness] and [payload] (stewart_fmu/scene.py reads them, Model.elastic packs
    them), in layout order: X(NAME, KEY, COUNT, SHAPE, UNIT, BOUND, MIN, MAX, DESCRIPTION) with
    the physical bounds of each value, as the plant's keys above; KEY "" for a computed entry
-   (a flag). How the springs combine (docs: the stiffness model):
-   - stiffness.leg: each leg's axial stiffness between its joints; with a [transmission] the
-     transmission's spring (transmission.stiffness, the motor held) acts in series with it,
+   (a flag). How the springs combine (docs/scene-format.md, [stiffness]):
+   - [stiffness] leg: each leg's axial stiffness between its joints; with a [transmission] the
+     transmission's spring (its key stiffness, the motor held) acts in series with it,
      k = k_leg k_t / (k_leg + k_t);
-   - stiffness.joint_bending: the bending stiffness of each of the 12 joints (flexures), about
+   - [stiffness] joint_bending: the bending stiffness of each of the 12 joints (flexures), about
      any axis across the leg, relaxed at the pose: the base joint resists the leg's rotation
      against the base, the platform joint the leg's rotation against the platform;
-   - stiffness.joint_torsion: each joint's stiffness about the leg's axis; the two joints of a
+   - [stiffness] joint_torsion: each joint's stiffness about the leg's axis; the two joints of a
      leg act in series on the platform's rotation about that axis (k_t / 2), the leg free to
      spin between them.
    The payload: a rigid body fixed to the platform, its mass, its centre of mass in C and its
    inertia tensor about that centre in C's axes, [Ixx, Iyy, Izz, Ixy, Ixz, Iyz] the entries of
    the symmetric matrix [[Ixx, Ixy, Ixz], [Ixy, Iyy, Iyz], [Ixz, Iyz, Izz]] (three principal
-   moments fill the first three). The mass and stroke bounds are the plant's. */
+   moments fill the first three). */
 #define STEWART_ELASTIC(X)                                                                       \
     X(HAS_STIFFNESS, "", 1, STEWART_VECTOR, "1", CLOSED, 0.0, 1.0, "1 when the scene has [stiffness]") \
     X(LEG, "stiffness.leg", 6, STEWART_PER_LEG, "N/m", OPEN, 0.0, 1e12,                          \
