@@ -17,7 +17,6 @@ import numpy as np
 
 from .dynamics import raise_status
 from .errors import SceneError, UnstablePoseError
-from .kinematics import inverse_kinematics
 from .model import Model
 from .native import core
 
@@ -95,7 +94,7 @@ def modes(model: Model, q) -> Modes:
         raise UnstablePoseError(
             f"the pose {q.tolist()} is not a stable equilibrium on the elastic legs: mode 1 has "
             f"w^2 = {w2[0]:.6g} rad^2/s^2 <= 0 (the loads buckle the legs)")
-    J = inverse_kinematics(model, q, with_cond=False).jacobian
+    J, _ = core.jacobian(model.native, q)
     return Modes(q, w2, shapes, shapes @ J.T, zeta if model.friction is not None else None)
 
 
