@@ -115,3 +115,23 @@ def test_scene_without_stiffness_and_bad_stiffness_are_refused(tmp_path, capsys)
     assert cli.main(["modes", str(scene), "--out", str(tmp_path / "m")]) == 2
     assert "'stiffness.leg': must be > 0" in capsys.readouterr().err
     assert not (tmp_path / "m").exists()
+
+
+def test_readme_states_the_motion_simulators_modes_and_stiffness(tmp_path, capsys):
+    """README's row of the motion simulator: its stiffness and six modes, with and without the
+    payload it names, as `modes` prints them (4 significant digits)."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    row = next(line for line in text.splitlines() if line.startswith("| motion simulator |"))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    out = tmp_path / "m"
+    runs = {"": None, "payload": "mass = 300.0, com = [0.0, 0.0, 0.6], inertia = [60.0, 60.0, 40.0]"}
+    stated = {"": cells[5], "payload": cells[6].split(":")[1]}
+    assert "300 kg at z = 0.6 m" in cells[6]
+    for key, payload in runs.items():
+        argv = ["modes", str(SIM), "--out", str(out)] + (["--payload", payload] if payload else [])
+        assert cli.main(argv) == 0
+        f = [float(r[1]) for r in _read(out / "modes.csv")[1]]
+        assert [float(v) for v in stated[key].split(",")] == [float(f"{v:.4g}") for v in f]
+        if not payload:   # the stiffness README states: the scene's own
+            k = [float(r[1]) for r in _read(out / "stiffness.csv")[1]]
+    assert [float(c.split()[0]) for c in cells[1:5]] == [float(f"{v:.4g}") for v in (k[0], k[2], k[3], k[5])]
