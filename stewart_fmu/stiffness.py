@@ -70,6 +70,18 @@ def _checked(model: Model, q) -> np.ndarray:
     return q
 
 
+def static_forces(model: Model, q) -> np.ndarray:
+    """The leg forces (N, positive extends) that hold pose q at rest against gravity on the
+    platform, the leg parts and the scene's [payload] (no [stiffness] needed): the inverse
+    dynamics at rest with the payload's weight."""
+    q = np.ascontiguousarray(q, dtype=float)
+    if q.shape != (6,):
+        raise ValueError(f"a pose is 6 numbers (x, y, z, thx, thy, thz), got shape {q.shape}")
+    sigma, st = core.static_forces(model.native, model.elastic, q)
+    raise_status(model, st, q)
+    return sigma
+
+
 def stiffness(model: Model, q, pivot=ORIGIN) -> Stiffness:
     """The stiffness at pose q and the compliance at `pivot` (a point of C, default its origin)."""
     q = _checked(model, q)

@@ -351,3 +351,10 @@ def modes_batch(params, elastic, Q, pivot, with_compliance: bool = True):
     index = lib.stewart_modes_batch(_p(params), _buf(elastic), n, _buf(Q), _buf(pivot), _buf(W2),
                                     ffi.NULL if Cp is None else _buf(Cp), status)
     return W2, Cp, index, status[0]
+
+
+def static_forces(params, elastic, q):
+    """(sigma (6,), status): the leg forces holding pose q at rest, payload included
+    (stewart_static_forces)."""
+    sigma = np.empty(6)
+    return sigma, lib.stewart_static_forces(_p(params), _buf(elastic), _buf(q), _buf(sigma))

@@ -310,3 +310,23 @@ def test_map_is_the_single_pose_results():
         lam, vec = np.linalg.eigh(C)
         assert mp.weakest[k] == pytest.approx(1 / lam[-1], rel=1e-10)
         assert abs(abs(vec[:, -1] @ mp.weakest_direction[k]) - 1) <= 1e-8
+
+
+def test_static_forces_are_the_inverse_dynamics_at_rest_plus_the_payloads_weight():
+    """static_forces without a payload: inverse_dynamics at rest (1e-15); with one, the
+    difference balances the payload's weight and moment through J^T; no [stiffness] needed."""
+    from stewart_fmu import inverse_dynamics
+
+    d = scene_dict("sim")
+    plain = scene_from_dict(d)
+    d["payload"] = PAYLOAD["sim"]
+    loaded = scene_from_dict(d)
+    q = _pose("sim")
+    zero = np.zeros(6)
+    s0 = S.static_forces(plain, q)
+    assert np.allclose(s0, inverse_dynamics(plain, q, zero, zero), rtol=1e-15, atol=0)
+    J = inverse_kinematics(plain, q, with_cond=False).jacobian
+    F = PAYLOAD["sim"]["mass"] * plain.gravity
+    W = np.r_[F, np.cross(rotation(q) @ np.array(PAYLOAD["sim"]["com"]), F)]
+    ds = S.static_forces(loaded, q) - s0
+    assert np.allclose(J.T @ ds, -W, rtol=0, atol=1e-10 * np.abs(W).max())

@@ -311,8 +311,13 @@ int stewart_data_run(const double *params, const stewart_options *o, stewart_dat
    payload); with a [transmission] the motor side is held and its spring is in series with the
    leg's, and the drive's inertia stays out of the mass matrix. */
 
-/* The static leg forces sigma (N, as stewart_inverse_dynamics at rest, with the payload's
-   weight) and the 6x6 Cartesian stiffness K = -dW/dchi (row-major, symmetric): the legs'
+/* The static leg forces sigma (N): those that hold the pose against gravity on the platform,
+   the leg parts and the payload (stewart_inverse_dynamics at rest, with the payload's weight);
+   elastic needs no [stiffness]. Status: OK, NONFINITE, STROKE, SINGULAR. */
+int stewart_static_forces(const double *params, const double *elastic, const double q[6],
+                          double sigma[6]);
+
+/* The static leg forces sigma (as stewart_static_forces) and the 6x6 Cartesian stiffness K = -dW/dchi (row-major, symmetric): the legs'
    J^T k J, the joints' bending and torsion, and the geometric term of the loads (Griffis and
    Duffy): the leg forces turning with the legs, the leg parts' and the payload's weight turning
    with the platform. Status: OK, NONFINITE, STROKE, SINGULAR (J), or SINGULAR when elastic has

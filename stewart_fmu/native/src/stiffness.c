@@ -132,18 +132,17 @@ static void add_leg(const double *p, const double *e, const sw_ws *ws, int i, do
                 K[(3 + a) * 6 + 3 + b] += 0.5 * kt * u[a] * u[b];
 }
 
-/* The static leg forces and the stiffness at q; ws keeps the pose's kinematics (R, U, Rr, leg)
-   for the mass matrix. */
-static int stiffness_sample(const double *p, const double *e, const double q[6], sw_ws *ws,
-                            double K[36], double sigma[6])
+/* The static leg forces at q: those that hold the platform, the leg parts and the payload
+   against gravity (inverse dynamics at rest with the payload's weight); ws keeps the pose's
+   kinematics (R, U, Rr, leg). */
+static int static_sample(const double *p, const double *e, const double q[6], sw_ws *ws,
+                         double sigma[6])
 {
     const double *G = p + STEWART_P_GRAVITY;
-    double W[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0}, rho[3], gp[3];
+    double W[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0}, rho[3];
     int st, k;
     if (!finite_n(q, 6))
         return STEWART_NONFINITE;
-    if (E(HAS_STIFFNESS) == 0.0)
-        return STEWART_SINGULAR;
     sw_orientation(q, SW_ZERO6, SW_ZERO6, ws->R, ws->om, ws->al, ws->trig);
     st = sw_twist_forces(p, q, SW_ZERO6, SW_ZERO6, ws->al, ws);
     if (st != STEWART_OK)
@@ -167,6 +166,31 @@ static int stiffness_sample(const double *p, const double *e, const double q[6],
     sw_solve_jt(p, ws, ws->rhs);
     for (k = 0; k < 6; ++k)
         sigma[k] = ws->rhs[k];
+    return finite_n(sigma, 6) ? STEWART_OK : STEWART_SINGULAR;
+}
+
+int stewart_static_forces(const double *params, const double *elastic, const double q[6],
+                          double sigma[6])
+{
+    sw_ws ws;
+    sw_ws_init(&ws);
+    return static_sample(params, elastic, q, &ws, sigma);
+}
+
+/* The static leg forces and the stiffness at q; ws keeps the pose's kinematics (R, U, Rr, leg)
+   for the mass matrix. */
+static int stiffness_sample(const double *p, const double *e, const double q[6], sw_ws *ws,
+                            double K[36], double sigma[6])
+{
+    const double *G = p + STEWART_P_GRAVITY;
+    double rho[3], gp[3];
+    int st, k;
+    if (E(HAS_STIFFNESS) == 0.0)
+        return finite_n(q, 6) ? STEWART_SINGULAR : STEWART_NONFINITE;
+    st = static_sample(p, e, q, ws, sigma);
+    if (st != STEWART_OK)
+        return st;
+    payload_lever(e, ws->R, rho);
     for (k = 0; k < 36; ++k)
         K[k] = 0.0;
     for (k = 0; k < 6; ++k)
@@ -181,7 +205,7 @@ static int stiffness_sample(const double *p, const double *e, const double q[6],
         for (j = 0; j < k; ++j)
             K[k * 6 + j] = K[j * 6 + k] = 0.5 * (K[k * 6 + j] + K[j * 6 + k]);
     }
-    return finite_n(K, 36) && finite_n(sigma, 6) ? STEWART_OK : STEWART_SINGULAR;
+    return finite_n(K, 36) ? STEWART_OK : STEWART_SINGULAR;
 }
 
 int stewart_stiffness(const double *params, const double *elastic, const double q[6],
