@@ -53,7 +53,7 @@ class Modes:
     omega2: np.ndarray        # (6,) w^2 (rad^2/s^2)
     shapes: np.ndarray        # (6, 6) row j: mode j's twist (v, omega), v^T M v = 1
     leg_rates: np.ndarray     # (6, 6) row j: the leg length rates J v of mode j
-    damping: np.ndarray | None   # (6,) modal damping ratios of the legs' viscous friction
+    damping: np.ndarray | None   # (6,) damping ratios of the legs' viscous friction ([friction])
 
     @property
     def frequency_hz(self) -> np.ndarray:
@@ -98,16 +98,40 @@ def stiffness(model: Model, q, pivot=ORIGIN) -> Stiffness:
 
 
 def modes(model: Model, q) -> Modes:
-    """The six modes at pose q (K v = w^2 M v), ascending; UnstablePoseError when w^2 <= 0."""
+    """The six modes at pose q (K v = w^2 M v), ascending; UnstablePoseError when w^2 <= 0;
+    with [friction] the damping ratios (damping_ratios)."""
     q = _checked(model, q)
-    w2, shapes, zeta, st = core.modes(model.native, model.elastic, q)
+    w2, shapes, st = core.modes(model.native, model.elastic, q)
     raise_status(model, st, q)
     if not w2[0] > 0.0:
         raise UnstablePoseError(
             f"the pose {q.tolist()} is not a stable equilibrium on the elastic legs: mode 1 has "
             f"w^2 = {w2[0]:.6g} rad^2/s^2 <= 0 (the loads buckle the legs)")
     J, _ = core.jacobian(model.native, q)
-    return Modes(q, w2, shapes, shapes @ J.T, zeta if model.friction is not None else None)
+    zeta = None
+    if model.friction is not None:
+        K, _, _ = core.stiffness(model.native, model.elastic, q)
+        M, _ = core.modes_mass(model.native, model.elastic, q)
+        zeta = damping_ratios(M, K, J.T @ (model.friction.viscous_legs[:, None] * J))
+    return Modes(q, w2, shapes, shapes @ J.T, zeta)
+
+
+def damping_ratios(M: np.ndarray, K: np.ndarray, D: np.ndarray) -> np.ndarray:
+    """The damping ratios of M x'' + D x' + K x = 0, exact: from the eigenvalues of its
+    first-order form (a mode's pair -zeta w +- i w sqrt(1 - zeta^2): zeta = -Re / |lambda|; an
+    overdamped mode's two real ones l1, l2: zeta = -(l1 + l2) / (2 sqrt(l1 l2)), the reals paired
+    smallest with largest), ascending in w as the undamped modes. Not the modal projection
+    v^T D v / 2w, which fails where two modes lie closer than their damping couples them."""
+    n = M.shape[0]
+    A = np.block([[np.zeros((n, n)), np.eye(n)], [-np.linalg.solve(M, K), -np.linalg.solve(M, D)]])
+    lam = np.linalg.eigvals(A)
+    pairs = [(abs(x), -x.real / abs(x)) for x in lam if x.imag > 0]
+    real = np.sort(lam[np.abs(lam.imag) == 0].real)
+    for k in range(len(real) // 2):
+        l1, l2 = real[k], real[-1 - k]
+        pairs.append((np.sqrt(l1 * l2), -(l1 + l2) / (2 * np.sqrt(l1 * l2))))
+    pairs.sort()
+    return np.array([z for _, z in pairs])
 
 
 def mass_matrix(model: Model, q) -> np.ndarray:

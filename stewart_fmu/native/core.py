@@ -336,10 +336,10 @@ def modes_mass(params, elastic, q):
 
 
 def modes(params, elastic, q):
-    """(w2 (6,), shapes (6, 6) rows, zeta (6,), status) (stewart_modes)."""
-    w2, shapes, zeta = np.empty(6), np.empty((6, 6)), np.empty(6)
-    st = lib.stewart_modes(_p(params), _buf(elastic), _buf(q), _buf(w2), _buf(shapes), _buf(zeta))
-    return w2, shapes, zeta, st
+    """(w2 (6,), shapes (6, 6) rows, status) (stewart_modes)."""
+    w2, shapes = np.empty(6), np.empty((6, 6))
+    st = lib.stewart_modes(_p(params), _buf(elastic), _buf(q), _buf(w2), _buf(shapes))
+    return w2, shapes, st
 
 
 def modes_batch(params, elastic, Q, pivot, with_compliance: bool = True):

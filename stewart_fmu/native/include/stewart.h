@@ -340,11 +340,10 @@ int stewart_modes_mass(const double *params, const double *elastic, const double
 
 /* The small oscillations about the static equilibrium at q: K v = w2 M v. w2 (rad^2/s^2,
    ascending; a value <= 0 is an unstable direction), shapes (row-major, row j the mode j's
-   twist, mass-normalised v^T M v = 1, its largest entry positive), zeta the modal damping
-   ratios of the legs' viscous friction, v^T J^T [c] J v / (2 w) (0 without [friction], and
-   where w2 <= 0). Status of stewart_stiffness, or SINGULAR when M is not positive definite. */
+   twist, mass-normalised v^T M v = 1, its largest entry positive). Status of
+   stewart_stiffness, or SINGULAR when M is not positive definite. */
 int stewart_modes(const double *params, const double *elastic, const double q[6], double w2[6],
-                  double shapes[36], double zeta[6]);
+                  double shapes[36]);
 
 /* Over n poses (row-major (n, 6)): w2 (n, 6) and the compliance at the pivot Cp (n, 36) (may be
    NULL). Returns the index of the first failed pose (*status its code; the rows after it are not

@@ -370,29 +370,6 @@ static int generalized_eigen(double M[36], double K[36], double w2[6], double sh
     return STEWART_OK;
 }
 
-/* The modal damping ratios of the legs' viscous friction: v^T J^T [c] J v / (2 w). */
-static void modal_damping(const double *p, const sw_ws *ws, const double w2[6],
-                          const double shapes[36], double zeta[6])
-{
-    int j, i;
-    for (j = 0; j < 6; ++j) {
-        const double *v = shapes + 6 * j;
-        double d = 0.0;
-        zeta[j] = 0.0;
-        if (P(HAS_FRICTION) == 0.0 || !(w2[j] > 0.0))
-            continue;
-        for (i = 0; i < 6; ++i) {
-            const double *u = ws->U + 3 * i, *r = ws->Rr + 3 * i;
-            const double ld = u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
-                              + (r[1] * u[2] - r[2] * u[1]) * v[3]
-                              + (r[2] * u[0] - r[0] * u[2]) * v[4]
-                              + (r[0] * u[1] - r[1] * u[0]) * v[5];
-            d += p[STEWART_P_VISCOUS + i] * ld * ld;
-        }
-        zeta[j] = d / (2.0 * sqrt(w2[j]));
-    }
-}
-
 static int modes_sample(const double *p, const double *e, const double q[6], sw_ws *ws,
                         double w2[6], double shapes[36], double *K)
 {
@@ -411,16 +388,12 @@ static int modes_sample(const double *p, const double *e, const double q[6], sw_
 }
 
 int stewart_modes(const double *params, const double *elastic, const double q[6], double w2[6],
-                  double shapes[36], double zeta[6])
+                  double shapes[36])
 {
     sw_ws ws;
     double K[36];
-    int st;
     sw_ws_init(&ws);
-    st = modes_sample(params, elastic, q, &ws, w2, shapes, K);
-    if (st == STEWART_OK)
-        modal_damping(params, &ws, w2, shapes, zeta);
-    return st;
+    return modes_sample(params, elastic, q, &ws, w2, shapes, K);
 }
 
 long stewart_modes_batch(const double *params, const double *elastic, long n, const double *Q,
