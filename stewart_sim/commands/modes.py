@@ -25,7 +25,8 @@ def add_parser(sub, help_text: str) -> None:
                    help="the point of the stiffness table, in C (m; default C's origin)")
     p.add_argument("--map", metavar="GRID", help="map over poses, e.g. 'x=-0.01:0.01:11,z=0.11:0.13:5' "
                    "(start:stop:count per pose component, the others at --pose): DIR/map.csv with the "
-                   "lowest frequency and the weakest translational stiffness and its direction")
+                   "lowest frequency and the weakest translational stiffness and its direction, "
+                   "and their slices through the first two axes as PNG")
     p.set_defaults(run=run)
 
 
@@ -46,5 +47,5 @@ def run(args: argparse.Namespace) -> None:
     grid = study.parse_grid(args.map, np.asarray(q, dtype=float)) if args.map else None
     result = study.compute(model, np.asarray(q, dtype=float), pivot, args.modes)
     mapped = study.compute_map(model, grid, pivot) if grid is not None else None
-    report.write(args.out, result, mapped)
+    report.write(args.out, result, mapped, grid)
     print(report.summary(result))

@@ -1,6 +1,6 @@
 """The result set of `stewart-sim modes`, written whole or not at all (outputs.result_set):
 modes.csv (the contract's first columns mode,frequency_hz), stiffness.csv (per axis at the
-pivot), stiffness_matrix.csv (K in SI), and with --map, map.csv."""
+pivot), stiffness_matrix.csv (K in SI), and with --map, map.csv and its figures."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -11,7 +11,7 @@ from stewart_fmu import io
 from stewart_sim.outputs import result_set
 from stewart_sim.sweep.table import csv_text
 
-from .study import POSE, MapResult, ModesResult
+from .study import POSE, Grid, MapResult, ModesResult
 
 SHAPE = ("dx", "dy", "dz", "dthx", "dthy", "dthz")      # the mode's twist (mass-normalised)
 LEG_RATES = tuple(f"ldot{i}" for i in range(1, 7))      # the legs' length rates in the mode
@@ -72,8 +72,10 @@ def map_rows(m: MapResult) -> tuple[list[str], list[dict]]:
     return list(MAP_COLUMNS), rows
 
 
-def write(out: str | Path, result: ModesResult, map_result: MapResult | None = None) -> list[str]:
-    """Write the set into out (whole or not at all); the names written."""
+def write(out: str | Path, result: ModesResult, map_result: MapResult | None = None,
+          grid: Grid | None = None) -> list[str]:
+    """Write the set into out (whole or not at all); the names written. With a map, its
+    figures too (map_lowest_hz.png, map_weakest.png: stewart_sim.modes.plots)."""
     names = []
     with result_set(out) as stage:
         def table(name: str, columns_rows) -> None:
@@ -84,7 +86,14 @@ def write(out: str | Path, result: ModesResult, map_result: MapResult | None = N
         table("stiffness.csv", stiffness_rows(result))
         table("stiffness_matrix.csv", matrix_rows(result))
         if map_result is not None:
+            from stewart_sim.plots import save_figure   # matplotlib: only when writing a map
+
+            from .plots import map_figures
+
             table("map.csv", map_rows(map_result))
+            for name, fig in map_figures(result.model.name, grid, map_result).items():
+                save_figure(fig, stage / name)
+                names.append(name)
     return names
 
 

@@ -135,3 +135,24 @@ def test_readme_states_the_motion_simulators_modes_and_stiffness(tmp_path, capsy
         if not payload:   # the stiffness README states: the scene's own
             k = [float(r[1]) for r in _read(out / "stiffness.csv")[1]]
     assert [float(c.split()[0]) for c in cells[1:5]] == [float(f"{v:.4g}") for v in (k[0], k[2], k[3], k[5])]
+
+
+def test_map_figures_label_their_axes_and_colour_bars(tmp_path):
+    """--map with three axes: two PNGs in the set; each figure a slice through the first two
+    axes with units on both, a colour bar of >= 3 ticks, the held axis named in the title."""
+    from stewart_sim.modes import study
+    from stewart_sim.modes.plots import map_figures
+
+    out = tmp_path / "m"
+    grid_text = "x=-0.3:0.3:7,z=1.9:2.8:10,thz=-0.1:0.1:3"
+    assert cli.main(["modes", str(SIM), "--out", str(out), "--map", grid_text]) == 0
+    assert (out / "map_lowest_hz.png").stat().st_size > 0 and (out / "map_weakest.png").exists()
+    model = load_scene(SIM)
+    grid = study.parse_grid(grid_text, model.home)
+    figures = map_figures(model.name, grid, study.compute_map(model, grid, np.zeros(3)))
+    for fig in figures.values():
+        ax, cbar_ax = fig.axes
+        assert ax.get_xlabel() == "x (m)" and ax.get_ylabel() == "z (m)"
+        assert "(Hz)" in cbar_ax.get_ylabel() or "(N/um)" in cbar_ax.get_ylabel()
+        assert len(cbar_ax.get_yticks()) >= 3
+        assert "slice at thz = 0 rad" in ax.get_title()
