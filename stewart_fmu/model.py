@@ -28,6 +28,8 @@ P_CHAR_LENGTH = offset("CHAR_LENGTH")
 P_BASE, P_PLATFORM = offset("BASE"), offset("PLATFORM")
 P_HAS_TRANSMISSION = offset("HAS_TRANSMISSION")
 P_STIFFNESS, P_DAMPING = offset("STIFFNESS"), offset("DAMPING")
+P_HAS_PAYLOAD, P_PAYLOAD_MASS = offset("HAS_PAYLOAD"), offset("PAYLOAD_MASS")
+P_PAYLOAD_COM, P_PAYLOAD_INERTIA = offset("PAYLOAD_COM"), offset("PAYLOAD_INERTIA")
 
 
 @dataclass(frozen=True)
@@ -164,7 +166,7 @@ class Model:
     source: str | None = None
     transmission: TransmissionParams | None = None   # project table [transmission]
     stiffness: StiffnessParams | None = None   # [stiffness]: the legs' and joints' springs
-    payload: PayloadParams | None = None       # [payload]: a body fixed to the platform
+    payload: PayloadParams | None = None       # [payload]: a body fixed to the platform (in params)
     params: np.ndarray = field(init=False, repr=False)
     native: NativeParams = field(init=False, repr=False, compare=False)  # params for the C core
     # [stiffness] and [payload] for the stiffness and modes kernels (STEWART_ELASTIC layout)
@@ -218,6 +220,10 @@ def _pack(m: Model) -> np.ndarray:
     if m.transmission is not None:
         p[P_HAS_TRANSMISSION] = 1.0
         p[P_STIFFNESS], p[P_DAMPING] = m.transmission.stiffness, m.transmission.damping
+    if m.payload is not None:
+        p[P_HAS_PAYLOAD], p[P_PAYLOAD_MASS] = 1.0, m.payload.mass
+        p[P_PAYLOAD_COM:P_PAYLOAD_COM + 3] = m.payload.com
+        p[P_PAYLOAD_INERTIA:P_PAYLOAD_INERTIA + len(m.payload.inertia)] = m.payload.inertia
     p[P_LEG_MIN] = m.leg_min if m.leg_min is not None else 0.0
     p[P_LEG_MAX] = m.leg_max if m.leg_max is not None else np.inf
     p[P_CHAR_LENGTH] = m.characteristic_length
@@ -228,14 +234,12 @@ def _pack(m: Model) -> np.ndarray:
 
 
 def _pack_elastic(m: Model) -> np.ndarray:
-    """[stiffness] and [payload] as the stiffness kernels read them (STEWART_ELASTIC)."""
+    """[stiffness] as the stiffness kernels read it (STEWART_ELASTIC; the payload is in params)."""
     e = np.zeros(N_ELASTIC)
 
     def put(name: str, value) -> None:
         entry = ELASTIC[name]
-        v = np.ravel(np.asarray(value, dtype=float))
-        e[entry.offset:entry.offset + entry.count] = np.broadcast_to(v, (entry.count,)) \
-            if v.size == 1 else np.pad(v, (0, entry.count - v.size))
+        e[entry.offset:entry.offset + entry.count] = value
 
     if m.stiffness is not None:
         s = m.stiffness
@@ -243,10 +247,5 @@ def _pack_elastic(m: Model) -> np.ndarray:
         put("LEG", s.leg_legs)
         put("BENDING", s.joint_bending or 0.0)
         put("TORSION", s.joint_torsion or 0.0)
-    if m.payload is not None:
-        put("HAS_PAYLOAD", 1.0)
-        put("PAYLOAD_MASS", m.payload.mass)
-        put("PAYLOAD_COM", m.payload.com)
-        put("PAYLOAD_INERTIA", m.payload.inertia)
     e.flags.writeable = False
     return e

@@ -72,12 +72,12 @@ def _checked(model: Model, q) -> np.ndarray:
 
 def static_forces(model: Model, q) -> np.ndarray:
     """The leg forces (N, positive extends) that hold pose q at rest against gravity on the
-    platform, the leg parts and the scene's [payload] (no [stiffness] needed): the inverse
-    dynamics at rest with the payload's weight."""
+    platform, the payload and the leg parts (no [stiffness] needed): the inverse dynamics at
+    rest."""
     q = np.ascontiguousarray(q, dtype=float)
     if q.shape != (6,):
         raise ValueError(f"a pose is 6 numbers (x, y, z, thx, thy, thz), got shape {q.shape}")
-    sigma, st = core.static_forces(model.native, model.elastic, q)
+    sigma, st = core.static_forces(model.native, q)
     raise_status(model, st, q)
     return sigma
 
@@ -111,7 +111,7 @@ def modes(model: Model, q) -> Modes:
     zeta = None
     if model.friction is not None:
         K, _, _ = core.stiffness(model.native, model.elastic, q)
-        M, _ = core.modes_mass(model.native, model.elastic, q)
+        M, _ = core.modes_mass(model.native, q)
         zeta = damping_ratios(M, K, J.T @ (model.friction.viscous_legs[:, None] * J))
     return Modes(q, w2, shapes, shapes @ J.T, zeta)
 
@@ -137,7 +137,7 @@ def damping_ratios(M: np.ndarray, K: np.ndarray, D: np.ndarray) -> np.ndarray:
 def mass_matrix(model: Model, q) -> np.ndarray:
     """The mass matrix of the modes at pose q (twist, 6x6)."""
     q = _checked(model, q)
-    M, st = core.modes_mass(model.native, model.elastic, q)
+    M, st = core.modes_mass(model.native, q)
     raise_status(model, st, q)
     return M
 

@@ -101,11 +101,13 @@ SCENE_GROUPS: dict[str, VariableGroup] = {g.name: g for g in VARIABLES if g.scen
 
 @dataclass(frozen=True)
 class ElasticEntry:
-    """One entry of the elastic vector (STEWART_ELASTIC: [stiffness], [payload]; not FMU
-    variables): where it lies in Model.elastic, and as a key its shape, unit and bounds."""
+    """A key of [stiffness] or [payload] (STEWART_ELASTIC, STEWART_PAYLOAD_KEYS; not FMU
+    variables): its shape, unit and bounds, and where its values are packed: Model.elastic
+    (STEWART_E_<name>) or, for the payload, Model.params (STEWART_P_<name>)."""
 
-    name: str           # STEWART_E_<name>
+    name: str
     key: str            # the dotted scene key, "" for a computed entry
+    in_params: bool     # packed in Model.params (else in Model.elastic)
     offset: int
     count: int
     shape: int          # VECTOR or PER_LEG
@@ -118,8 +120,9 @@ class ElasticEntry:
 
 def _read_elastic() -> dict[str, ElasticEntry]:
     rows = (lib.stewart_elastic_table[k] for k in range(lib.stewart_elastic_table_size))
-    return {_text(r.name): ElasticEntry(_text(r.name), _text(r.key), r.offset, r.count, r.shape,
-                                        r.bound, r.min, r.max, _text(r.unit), _text(r.description))
+    return {_text(r.name): ElasticEntry(_text(r.name), _text(r.key), bool(r.in_params), r.offset,
+                                        r.count, r.shape, r.bound, r.min, r.max, _text(r.unit),
+                                        _text(r.description))
             for r in rows}
 
 

@@ -7,7 +7,7 @@ so the Python API layer can map codes to its typed errors. Inputs must be C-cont
 (unchecked, for speed: the C side trusts the sizes); outputs are written into `out` when
 given (no allocation), else into new arrays.
 
-params: the packed model vector (Model.params, 63 floats). `native_params(model.params)`
+params: the packed model vector (Model.params, N_PARAMS floats). `native_params(model.params)`
 converts it once to the C pointer the calls take; every function also accepts the numpy
 vector itself (one conversion per call more).
 """
@@ -329,10 +329,10 @@ def compliance(params, elastic, q, pivot):
     return C, lib.stewart_compliance(_p(params), _buf(elastic), _buf(q), _buf(pivot), _buf(C))
 
 
-def modes_mass(params, elastic, q):
+def modes_mass(params, q):
     """(M (6, 6), status): the mass matrix of the modes (stewart_modes_mass)."""
     M = np.empty((6, 6))
-    return M, lib.stewart_modes_mass(_p(params), _buf(elastic), _buf(q), _buf(M))
+    return M, lib.stewart_modes_mass(_p(params), _buf(q), _buf(M))
 
 
 def modes(params, elastic, q):
@@ -353,8 +353,8 @@ def modes_batch(params, elastic, Q, pivot, with_compliance: bool = True):
     return W2, Cp, index, status[0]
 
 
-def static_forces(params, elastic, q):
+def static_forces(params, q):
     """(sigma (6,), status): the leg forces holding pose q at rest, payload included
     (stewart_static_forces)."""
     sigma = np.empty(6)
-    return sigma, lib.stewart_static_forces(_p(params), _buf(elastic), _buf(q), _buf(sigma))
+    return sigma, lib.stewart_static_forces(_p(params), _buf(q), _buf(sigma))

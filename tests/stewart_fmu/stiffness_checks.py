@@ -1,6 +1,6 @@
 """The independent routes the stiffness tests compare the C core's stiffness.c against: the
 static wrench of the full nonlinear model (Kane's generalized gravity forces of the core's
-kane.c, the payload's weight, the legs as springs about their equilibrium lengths and the
+kane.c, the payload's weight among them, the legs as springs about their equilibrium lengths and the
 joints' flexures with their exact bending angles), and poses moved by a twist."""
 from __future__ import annotations
 
@@ -58,8 +58,8 @@ def _angle(a, b):
 
 class NonlinearStatics:
     """The static wrench on the platform (force, moment about C's origin, in N) at any pose:
-    gravity on the platform and leg parts as the core's Kane terms give it (kane.c, Eq. 8), the
-    payload's weight, each leg a spring k (l - l0) about the length l0 that holds the reference
+    gravity on the platform, the payload and the leg parts as the core's Kane terms give it
+    (kane.c, Eq. 8), each leg a spring k (l - l0) about the length l0 that holds the reference
     pose q0, and with flexure joints the bending moments k_b theta of their exact angles against
     their directions at q0 (the leg's against the base, and against the platform in C)."""
 
@@ -78,15 +78,10 @@ class NonlinearStatics:
         self.l0 = np.linalg.norm(L0, axis=1) - self._spring_force_needed() / self.k
 
     def _loads(self, q) -> np.ndarray:
+        """The weights' wrench: Kane's generalized gravity forces (platform, payload, legs)."""
         gen, _, st = core.twist_forces(self.model.native, q, np.zeros(6), np.zeros(6))
         assert st == core.OK
-        W = gen[3].copy()
-        p = self.model.payload
-        if p is not None:
-            F = p.mass * self.model.gravity
-            rho = rotation(q) @ np.asarray(p.com)
-            W += np.concatenate([F, np.cross(rho, F)])
-        return W
+        return gen[3].copy()
 
     def _spring_force_needed(self) -> np.ndarray:
         """The leg tensions k (l - l0) that balance the loads and the (relaxed) joints at q0."""

@@ -267,14 +267,18 @@ def _peak(x: np.ndarray, h: float) -> float:
     return (i + 0.5 * (a - c) / (a - 2 * b + c)) / (16 * n * h)
 
 
-@pytest.mark.parametrize("drop", [("drive", "friction"), ("friction",)])
-def test_free_vibration_of_the_nonlinear_simulation_peaks_at_the_modes(drop):
+@pytest.mark.parametrize("drop,payload", [(("drive", "friction"), False), (("friction",), False),
+                                          (("drive", "friction"), True)])
+def test_free_vibration_of_the_nonlinear_simulation_peaks_at_the_modes(drop, payload):
     """After a small kick along every mode, the nonlinear simulation's modal coordinates each
     peak at their computed frequency within 0.5 % (massive legs, per-leg springs, a pose off
-    home; with and without the drives' inertia; frictionless, so the spectrum is the modes')."""
+    home; with and without the drives' inertia, with a payload off C; frictionless, so the
+    spectrum is the modes')."""
     d = scene_dict("micro")
     for t in drop:
         d.pop(t)
+    if payload:
+        d["payload"] = PAYLOAD["micro"]
     d["stiffness"] = {"leg": [2e5, 2.2e5, 1.9e5, 2.1e5, 1.8e5, 2e5]}
     model = scene_from_dict(d)
     q0 = _pose("micro")

@@ -73,8 +73,9 @@ typedef struct {
 extern const stewart_standard_info stewart_standard_table[];
 extern const int stewart_standard_table_size;
 typedef struct {
-    const char *name;         /* NAME of STEWART_ELASTIC: STEWART_E_<name> */
+    const char *name;         /* NAME of STEWART_ELASTIC (STEWART_E_<name>) or of STEWART_PAYLOAD_KEYS */
     const char *key;          /* the scene key ("" for a computed entry) */
+    int in_params;            /* 1: packed in params (STEWART_P_PAYLOAD_<name>), 0: in elastic */
     int offset, count, shape, bound;
     double min, max;          /* the bounds of each value */
     const char *unit, *description;
@@ -308,14 +309,13 @@ int stewart_data_run(const double *params, const stewart_options *o, stewart_dat
    platform twist chi = (dx, dtheta) about C's origin in N (a point p of C moves by
    dx + dtheta x R p), wrenches (force, moment about C's origin) in N. The legs are springs about
    the lengths that hold the pose in static equilibrium under gravity (platform, leg parts,
-   payload); with a [transmission] the motor side is held and its spring is in series with the
+   payload: the payload is the model's, params' PAYLOAD_*); with a [transmission] the motor side is held and its spring is in series with the
    leg's, and the drive's inertia stays out of the mass matrix. */
 
 /* The static leg forces sigma (N): those that hold the pose against gravity on the platform,
    the leg parts and the payload (stewart_inverse_dynamics at rest, with the payload's weight);
-   elastic needs no [stiffness]. Status: OK, NONFINITE, STROKE, SINGULAR. */
-int stewart_static_forces(const double *params, const double *elastic, const double q[6],
-                          double sigma[6]);
+   Status: OK, NONFINITE, STROKE, SINGULAR. */
+int stewart_static_forces(const double *params, const double q[6], double sigma[6]);
 
 /* The static leg forces sigma (as stewart_static_forces) and the 6x6 Cartesian stiffness K = -dW/dchi (row-major, symmetric): the legs'
    J^T k J, the joints' bending and torsion, and the geometric term of the loads (Griffis and
@@ -332,11 +332,9 @@ int stewart_stiffness(const double *params, const double *elastic, const double 
 int stewart_compliance(const double *params, const double *elastic, const double q[6],
                        const double pivot[3], double Cp[36]);
 
-/* The mass matrix of the modes (twist, 6x6 row-major): the model's at rest (platform, leg
-   parts, drives; the leg side's with a [transmission]) plus the payload's. Status as
-   stewart_mass_matrix. */
-int stewart_modes_mass(const double *params, const double *elastic, const double q[6],
-                       double M[36]);
+/* The mass matrix of the modes (twist, 6x6 row-major): the model's at rest (platform, payload,
+   leg parts, drives; the leg side's with a [transmission]). Status as stewart_mass_matrix. */
+int stewart_modes_mass(const double *params, const double q[6], double M[36]);
 
 /* The small oscillations about the static equilibrium at q: K v = w2 M v. w2 (rad^2/s^2,
    ascending; a value <= 0 is an unstable direction), shapes (row-major, row j the mode j's

@@ -55,7 +55,11 @@
     X(PLATFORM, 18, PLATFORM, "m", "platform joints p_i in C, rows")                           \
     X(HAS_TRANSMISSION, 1, COMPUTED, "1", "1 when the scene has [transmission], else 0")       \
     X(STIFFNESS, 1, STIFFNESS, "N/m", "transmission stiffness (leg axis)")                     \
-    X(DAMPING, 1, DAMPING, "N.s/m", "transmission damping (leg axis)")
+    X(DAMPING, 1, DAMPING, "N.s/m", "transmission damping (leg axis)")                         \
+    X(HAS_PAYLOAD, 1, COMPUTED, "1", "1 when the scene has [payload], else 0")                 \
+    X(PAYLOAD_MASS, 1, COMPUTED, "kg", "payload mass ([payload]; not an FMU variable)")        \
+    X(PAYLOAD_COM, 3, COMPUTED, "m", "payload centre of mass in C")                            \
+    X(PAYLOAD_INERTIA, 6, COMPUTED, "kg.m2", "payload inertia about its centre of mass in C: Ixx, Iyy, Izz, Ixy, Ixz, Iyz")
 
 /* FMU variables by group, value references from STEWART_VR_PARAMETERS, _INPUTS and _OUTPUTS
    on (0 is time, FMI 3.0's independent variable): X(ID, NAME, COUNT, SHAPE, UNIT, BOUND,
@@ -210,11 +214,13 @@
     X(DRIVE_MASS, "the reflected drive mass m_d = zeta^2 I / r^2", "kg", CLOSED, 0.0, 1e8)         \
     X(MOVING_MASS, "the moving mass (platform and 12 leg parts)", "kg", OPEN, 0.0, 1e7)
 
-/* The elastic model of the stiffness and the modes (src/stiffness.c), not FMU variables: the
-   scene tables [stiffness] and [payload] (stewart_fmu/scene.py reads them, Model.elastic packs
-   them), in layout order: X(NAME, KEY, COUNT, SHAPE, UNIT, BOUND, MIN, MAX, DESCRIPTION) with
-   the physical bounds of each value, as the plant's keys above; KEY "" for a computed entry
-   (a flag). How the springs combine (docs/scene-format.md, [stiffness]):
+/* The scene keys of [stiffness] and [payload] (contract tables, not FMU variables), with the
+   physical bounds of each value as the plant's keys above (stewart_fmu/scene.py checks them):
+   X(NAME, KEY, COUNT, SHAPE, UNIT, BOUND, MIN, MAX, DESCRIPTION), KEY "" for a computed entry
+   (a flag). [stiffness] is packed into its own vector, the elastic one of the stiffness and the
+   modes (src/stiffness.c; Model.elastic), in STEWART_ELASTIC's order; [payload] into the
+   plant's parameters (STEWART_PARAMS PAYLOAD_*: the dynamics carries it), STEWART_PAYLOAD_KEYS
+   gives its keys' bounds. How the springs combine (docs/scene-format.md, [stiffness]):
    - [stiffness] leg: each leg's axial stiffness between its joints; with a [transmission] the
      transmission's spring (its key stiffness, the motor held) acts in series with it,
      k = k_leg k_t / (k_leg + k_t);
@@ -235,12 +241,12 @@
     X(BENDING, "stiffness.joint_bending", 1, STEWART_VECTOR, "N.m/rad", OPEN, 0.0, 1e9,          \
       "bending stiffness of each joint (0 when absent: ball joints)")                            \
     X(TORSION, "stiffness.joint_torsion", 1, STEWART_VECTOR, "N.m/rad", OPEN, 0.0, 1e9,          \
-      "torsion stiffness of each joint about the leg (0 when absent)")                           \
-    X(HAS_PAYLOAD, "", 1, STEWART_VECTOR, "1", CLOSED, 0.0, 1.0, "1 when the scene has [payload]") \
-    X(PAYLOAD_MASS, "payload.mass", 1, STEWART_VECTOR, "kg", OPEN, 0.0, 1e6, "payload mass")     \
-    X(PAYLOAD_COM, "payload.com", 3, STEWART_VECTOR, "m", CLOSED, -1e3, 1e3,                     \
-      "payload centre of mass in C")                                                             \
-    X(PAYLOAD_INERTIA, "payload.inertia", 6, STEWART_VECTOR, "kg.m2", CLOSED, -1e10, 1e10,       \
+      "torsion stiffness of each joint about the leg (0 when absent)")
+/* NAME: the STEWART_PARAMS entry PAYLOAD_<NAME> that holds the key's values. */
+#define STEWART_PAYLOAD_KEYS(X)                                                                  \
+    X(MASS, "payload.mass", 1, STEWART_VECTOR, "kg", OPEN, 0.0, 1e6, "payload mass")             \
+    X(COM, "payload.com", 3, STEWART_VECTOR, "m", CLOSED, -1e3, 1e3, "payload centre of mass in C") \
+    X(INERTIA, "payload.inertia", 6, STEWART_VECTOR, "kg.m2", CLOSED, -1e10, 1e10,               \
       "payload inertia about its centre of mass in C: Ixx, Iyy, Izz, Ixy, Ixz, Iyz")
 
 #define STEWART_VR_TIME 0          /* FMI 3.0's independent variable */

@@ -45,6 +45,8 @@ void sw_singular_values(const double A[36], double s[6]);
 int sw_twist_forces(const double *p, const double x[6], const double v[6], const double acc[6],
                     const double al[3], sw_ws *ws);
 void sw_twist_mass_matrix(const double *p, sw_ws *ws, int full);
+void sw_payload_lever(const double *p, const double R[9], double rho[3]);
+void sw_payload_mass(const double *p, const double R[9], double M[36]);
 
 /* dynamics.c */
 int sw_inverse_sample(const double *p, const double q[6], const double qd[6],

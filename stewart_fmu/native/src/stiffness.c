@@ -21,16 +21,6 @@ static int finite_n(const double *a, int n)
     return 1;
 }
 
-/* The payload's lever rho = R c in N (zero without a payload). */
-static void payload_lever(const double *e, const double R[9], double rho[3])
-{
-    int a;
-    for (a = 0; a < 3; ++a)
-        rho[a] = E(HAS_PAYLOAD) != 0.0 ? R[3 * a] * E(PAYLOAD_COM) + R[3 * a + 1] * e[STEWART_E_PAYLOAD_COM + 1]
-                                             + R[3 * a + 2] * e[STEWART_E_PAYLOAD_COM + 2]
-                                       : 0.0;
-}
-
 /* K += sym(g r^T) - (g . r) I on the rotation block: a static load with gradient g (dV/dpoint)
    applied at lever r, turning with the platform. */
 static void add_geometric(double K[36], const double g[3], const double r[3])
@@ -132,14 +122,11 @@ static void add_leg(const double *p, const double *e, const sw_ws *ws, int i, do
                 K[(3 + a) * 6 + 3 + b] += 0.5 * kt * u[a] * u[b];
 }
 
-/* The static leg forces at q: those that hold the platform, the leg parts and the payload
-   against gravity (inverse dynamics at rest with the payload's weight); ws keeps the pose's
-   kinematics (R, U, Rr, leg). */
-static int static_sample(const double *p, const double *e, const double q[6], sw_ws *ws,
-                         double sigma[6])
+/* The static leg forces at q: those that hold the platform, the payload and the leg parts
+   against gravity (the inverse dynamics at rest); ws keeps the pose's kinematics (R, U, Rr,
+   leg). */
+static int static_sample(const double *p, const double q[6], sw_ws *ws, double sigma[6])
 {
-    const double *G = p + STEWART_P_GRAVITY;
-    double W[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0}, rho[3];
     int st, k;
     if (!finite_n(q, 6))
         return STEWART_NONFINITE;
@@ -149,32 +136,19 @@ static int static_sample(const double *p, const double *e, const double q[6], sw
         return st;
     if (!(sw_lu_factor(ws->JT, ws->order) >= STEWART_SINGULAR_PIVOT))
         return STEWART_SINGULAR;
-    payload_lever(e, ws->R, rho);
-    if (E(HAS_PAYLOAD) != 0.0) {   /* the payload's weight and its moment about C */
-        const double m = E(PAYLOAD_MASS);
-        W[0] = m * G[0];
-        W[1] = m * G[1];
-        W[2] = m * G[2];
-        W[3] = rho[1] * W[2] - rho[2] * W[1];
-        W[4] = rho[2] * W[0] - rho[0] * W[2];
-        W[5] = rho[0] * W[1] - rho[1] * W[0];
-    }
-    for (k = 0; k < 6; ++k) {   /* at rest the generalized forces are gravity's alone */
-        const int j = ws->order[k];
-        ws->rhs[k] = -(ws->gen[18 + j] + W[j]);
-    }
+    for (k = 0; k < 6; ++k)   /* at rest the generalized forces are gravity's alone */
+        ws->rhs[k] = -ws->gen[18 + ws->order[k]];
     sw_solve_jt(p, ws, ws->rhs);
     for (k = 0; k < 6; ++k)
         sigma[k] = ws->rhs[k];
     return finite_n(sigma, 6) ? STEWART_OK : STEWART_SINGULAR;
 }
 
-int stewart_static_forces(const double *params, const double *elastic, const double q[6],
-                          double sigma[6])
+int stewart_static_forces(const double *params, const double q[6], double sigma[6])
 {
     sw_ws ws;
     sw_ws_init(&ws);
-    return static_sample(params, elastic, q, &ws, sigma);
+    return static_sample(params, q, &ws, sigma);
 }
 
 /* The static leg forces and the stiffness at q; ws keeps the pose's kinematics (R, U, Rr, leg)
@@ -187,17 +161,17 @@ static int stiffness_sample(const double *p, const double *e, const double q[6],
     int st, k;
     if (E(HAS_STIFFNESS) == 0.0)
         return finite_n(q, 6) ? STEWART_SINGULAR : STEWART_NONFINITE;
-    st = static_sample(p, e, q, ws, sigma);
+    st = static_sample(p, q, ws, sigma);
     if (st != STEWART_OK)
         return st;
-    payload_lever(e, ws->R, rho);
     for (k = 0; k < 36; ++k)
         K[k] = 0.0;
     for (k = 0; k < 6; ++k)
         add_leg(p, e, ws, k, sigma[k], K);
-    if (E(HAS_PAYLOAD) != 0.0) {
+    if (P(HAS_PAYLOAD) != 0.0) {   /* the payload's weight turning with the platform */
+        sw_payload_lever(p, ws->R, rho);
         for (k = 0; k < 3; ++k)
-            gp[k] = -E(PAYLOAD_MASS) * G[k];
+            gp[k] = -P(PAYLOAD_MASS) * G[k];
         add_geometric(K, gp, rho);
     }
     for (k = 0; k < 6; ++k) {   /* symmetric to the last bit */
@@ -263,51 +237,18 @@ int stewart_compliance(const double *params, const double *elastic, const double
 }
 
 /* The mass matrix of the modes at the kinematics of ws: the leg side's (the drive's inertia
-   out with a [transmission]) and the payload's [[m I, -m X], [m X, I_N - m X X]], X = [rho]x. */
-static void modes_mass(const double *p, const double *e, sw_ws *ws, double M[36])
+   out with a [transmission]; the payload's in). */
+static void modes_mass(const double *p, sw_ws *ws, double M[36])
 {
-    double pl[STEWART_N_PARAMS], rho[3], Ic[9], IR[9];
-    int a, b, k;
+    double pl[STEWART_N_PARAMS];
+    int k;
     stewart_leg_side_params(p, pl);
     sw_twist_mass_matrix(pl, ws, 1);
     for (k = 0; k < 36; ++k)
         M[k] = ws->Mt[k];
-    if (E(HAS_PAYLOAD) == 0.0)
-        return;
-    {
-        const double m = E(PAYLOAD_MASS), *I = e + STEWART_E_PAYLOAD_INERTIA, *R = ws->R;
-        double rr;
-        payload_lever(e, R, rho);
-        rr = rho[0] * rho[0] + rho[1] * rho[1] + rho[2] * rho[2];
-        Ic[0] = I[0]; Ic[4] = I[1]; Ic[8] = I[2];
-        Ic[1] = Ic[3] = I[3];
-        Ic[2] = Ic[6] = I[4];
-        Ic[5] = Ic[7] = I[5];
-        for (a = 0; a < 3; ++a)   /* I_N = R Ic R^T */
-            for (b = 0; b < 3; ++b) {
-                double s = 0.0;
-                for (k = 0; k < 3; ++k)
-                    s += R[a * 3 + k] * (Ic[k * 3] * R[b * 3] + Ic[k * 3 + 1] * R[b * 3 + 1]
-                                         + Ic[k * 3 + 2] * R[b * 3 + 2]);
-                IR[a * 3 + b] = s;
-            }
-        for (a = 0; a < 3; ++a) {
-            M[a * 7] += m;
-            for (b = 0; b < 3; ++b)
-                M[(3 + a) * 6 + 3 + b] += IR[a * 3 + b] + m * ((a == b ? rr : 0.0) - rho[a] * rho[b]);
-        }
-        /* -m [rho]x in the upper right block, m [rho]x in the lower left */
-        M[0 * 6 + 4] += m * rho[2];  M[4 * 6 + 0] += m * rho[2];
-        M[0 * 6 + 5] += -m * rho[1]; M[5 * 6 + 0] += -m * rho[1];
-        M[1 * 6 + 3] += -m * rho[2]; M[3 * 6 + 1] += -m * rho[2];
-        M[1 * 6 + 5] += m * rho[0];  M[5 * 6 + 1] += m * rho[0];
-        M[2 * 6 + 3] += m * rho[1];  M[3 * 6 + 2] += m * rho[1];
-        M[2 * 6 + 4] += -m * rho[0]; M[4 * 6 + 2] += -m * rho[0];
-    }
 }
 
-int stewart_modes_mass(const double *params, const double *elastic, const double q[6],
-                       double M[36])
+int stewart_modes_mass(const double *params, const double q[6], double M[36])
 {
     sw_ws ws;
     int st;
@@ -316,7 +257,7 @@ int stewart_modes_mass(const double *params, const double *elastic, const double
         return STEWART_NONFINITE;
     sw_orientation(q, SW_ZERO6, SW_ZERO6, ws.R, ws.om, ws.al, ws.trig);
     st = sw_twist_forces(params, q, SW_ZERO6, SW_ZERO6, ws.al, &ws);
-    modes_mass(params, elastic, &ws, M);
+    modes_mass(params, &ws, M);
     return st;
 }
 
@@ -378,7 +319,7 @@ static int modes_sample(const double *p, const double *e, const double q[6], sw_
     st = stiffness_sample(p, e, q, ws, K, sigma);
     if (st != STEWART_OK)
         return st;
-    modes_mass(p, e, ws, M);
+    modes_mass(p, ws, M);
     for (k = 0; k < 36; ++k)
         Kw[k] = K[k];
     st = generalized_eigen(M, Kw, w2, shapes);
