@@ -40,7 +40,8 @@ def _skew(v):
 
 def numpy_modes(model: Model, q: np.ndarray) -> np.ndarray:
     """w^2 of the six modes in numpy: the same stiffness (springs, leg weights, payload, the
-    geometric term), kane_terms' mass matrix, scipy's eigh."""
+    geometric term; the static leg forces from the core's generalized gravity forces),
+    kane_terms' mass matrix with the drives' and the payload's, scipy's eigh."""
     kin = inverse_kinematics(model, q, with_cond=False)
     R = kin.rotation if kin.rotation is not None else None
     u, l, J = kin.unit_vectors, kin.lengths, kin.jacobian
@@ -53,8 +54,8 @@ def numpy_modes(model: Model, q: np.ndarray) -> np.ndarray:
     p = model.payload
     rho = R @ np.asarray(p.com)
     Fp = p.mass * g
-    gen, _, _ = core.twist_forces(model.native, q, np.zeros(6), np.zeros(6))
-    sigma = np.linalg.solve(J.T, -(gen[3] + np.r_[Fp, np.cross(rho, Fp)]))
+    gen, _, _ = core.twist_forces(model.native, q, np.zeros(6), np.zeros(6))   # weights, payload's too
+    sigma = np.linalg.solve(J.T, -gen[3])
     lg = model.legs
     mu = lg.lower_mass * lg.lower_com - lg.upper_mass * lg.upper_com
     P = np.eye(3)[None] - u[:, :, None] * u[:, None, :]
