@@ -4,7 +4,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test test-numerics bench accuracy clean system-packages
+.PHONY: demo test test-numerics docs bench accuracy clean system-packages
 
 # The C sources too: an editable install compiles them only when it runs (setup.py, cffi).
 NATIVE := $(wildcard stewart_fmu/native/src/*.[ch] stewart_fmu/native/include/*.h controller/native/*.[ch])
@@ -30,6 +30,22 @@ test-numerics: $(STAMP)
 	kernel=$$(sh tools/second_blas_kernel.sh); echo "OPENBLAS_NUM_THREADS=1 OPENBLAS_CORETYPE=$$kernel"; \
 	OPENBLAS_NUM_THREADS=1 OPENBLAS_CORETYPE=$$kernel $(PY) -m pytest -q -n auto --dist loadfile -m numerics
 
+# The documentation site (docs/, Sphinx: docs/why-sphinx.md) into docs/_build/html, from a clean
+# build every time, every warning an error (-W; --keep-going reports them all first). The `docs`
+# extra goes into the same .venv, which the API reference needs (autodoc imports the packages).
+DOCS_STAMP := $(VENV)/.docs-installed
+
+$(DOCS_STAMP): pyproject.toml setup.py $(NATIVE)
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e '.[docs]'
+	touch $(DOCS_STAMP)
+
+docs: $(DOCS_STAMP)
+	rm -rf docs/_build
+	$(PY) -m sphinx -W --keep-going -q -b html docs docs/_build/html
+	@echo "docs/_build/html/index.html"
+
 # Debian packages the tests use, as command:package: mingw-w64's C compiler (export-fmu's
 # Windows DLL; stewart_fmu/fmu/windows.py) and wine (runs it). Installed with apt-get, without
 # their recommends (~160 MB, ~30 s), when we run as root and they are missing; elsewhere the
@@ -53,4 +69,4 @@ accuracy: $(STAMP)
 	for s in scenes/*.toml; do $(VENV)/bin/stewart-sim accuracy $$s --out results/accuracy/$$(basename $$s .toml) || exit 1; done
 
 clean:
-	rm -rf $(VENV) results build *.egg-info
+	rm -rf $(VENV) results build *.egg-info docs/_build docs/reference/generated

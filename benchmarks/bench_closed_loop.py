@@ -7,8 +7,8 @@ Scene scenes/micro_manipulator.toml, the `run` reference (controller.moves.run_r
 by default), feedforward "kane". The real-time factor is simulated time / the loop's wall time
 (Summary.realtime_factor: the per-sample loop only). Prints the best and the median of N runs,
 the end-to-end time of run_closed_loop (design, references and feedforward included) and the
-first (cold) run's time. The compiled Python loop this replaced ran 148-149x in the same kind of run
-(commit 5a10cb2; see the README's speed table).
+first (cold) run's time. For comparison, a compiled Python loop of the same arithmetic ran
+148-149x in the same kind of run (the speed table of docs/tests-and-speed.md).
 """
 from __future__ import annotations
 

@@ -40,7 +40,7 @@ import numpy as np
 
 from hil import mavlink_stewart as ms
 from hil.spawn import device_process, parse_udp
-from stewart_sim.cueing.telemetry import TelemetrySample, encode
+from stewart_sim.live.vehicle_datagrams import TelemetrySample, encode
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "scenes" / "motion_simulator.toml"

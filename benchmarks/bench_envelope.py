@@ -1,4 +1,4 @@
-"""What the live safety envelope (stewart_sim.cueing.envelope) costs per sample, timed one
+"""What the live safety envelope (stewart_sim.live.envelope) costs per sample, timed one
 sample at a time.
 
     python benchmarks/bench_envelope.py [--samples N]
@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from stewart_fmu import load_scene
-from stewart_sim.cueing.envelope import Envelope, envelope_limits
-from stewart_sim.scene_load import scene_of
+from stewart_sim.live.envelope import Envelope, envelope_limits
+from stewart_sim.scene.load import scene_of
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
 DT = 1e-3

@@ -27,11 +27,11 @@ from hil.sensors import SensorConfig
 from stewart_fmu import inverse_dynamics, load_scene
 from stewart_fmu.io import write_csv
 from stewart_fmu.standard import standard_parameters
-from stewart_sim.excite.design import design, excitation
-from stewart_sim.identify.runs import read_run
-from stewart_sim.identify.study import identify, predict
-from stewart_sim.identify.synthetic import perturbed_model
-from stewart_sim.link_run import link_reference, record_table
+from stewart_sim.closed_loop.over_link import link_reference, record_table
+from stewart_sim.studies.excite.design import design, excitation
+from stewart_sim.studies.identify.runs import read_run
+from stewart_sim.studies.identify.study import identify, predict
+from stewart_sim.studies.identify.synthetic import perturbed_model
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "scenes" / "micro_manipulator.toml"

@@ -45,12 +45,12 @@ import numpy as np
 
 from hil.client import Client, connect_udp
 from hil.timing import gc_frozen
-from stewart_sim.cueing.telemetry import TelemetrySample, encode
 from stewart_sim.live.cue_stream import CueStream
 from stewart_sim.live.device_out import DeviceOut
 from stewart_sim.live.receiver import AHEAD, TelemetryReceiver
 from stewart_sim.live.session import LOSS_TIMEOUT, make_session
-from stewart_sim.scene_load import load
+from stewart_sim.live.vehicle_datagrams import TelemetrySample, encode
+from stewart_sim.scene.load import load
 from tests.app.datagrams import Queue
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -1,4 +1,4 @@
-"""The live MPC's solve-time histogram (stewart_sim.cueing.optimal_live.SolveStats) at 50 and
+"""The live MPC's solve-time histogram (stewart_sim.live.optimal_stream.SolveStats) at 50 and
 100 Hz on the shipped motion simulator, with a shipped motion and a held-out one.
 
     python benchmarks/bench_mpc_live.py [--rates 50 100] [--horizon S] [--motion CSV]
@@ -36,11 +36,11 @@ from pathlib import Path
 import numpy as np
 
 from stewart_fmu.kinematics import inverse_kinematics
-from stewart_sim.cueing.config import cueing_config
 from stewart_sim.cueing.motion import VehicleMotion, read_motion
-from stewart_sim.cueing.optimal_live import LiveOptimal, SolveStats
 from stewart_sim.cueing.vestibular import delivered_motion, perception
-from stewart_sim.scene_load import load
+from stewart_sim.live.optimal_stream import LiveOptimal, SolveStats
+from stewart_sim.scene.cueing_config import cueing_config
+from stewart_sim.scene.load import load
 
 ROOT = Path(__file__).resolve().parents[1]
 

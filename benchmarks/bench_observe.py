@@ -26,7 +26,7 @@ from hil.device import Device
 from hil.observe import OBSERVE_HZ, Latest
 from stewart_fmu import load_scene
 from stewart_fmu.kinematics import inverse_kinematics
-from stewart_sim.view.live import state_document
+from stewart_sim.view.live_server import state_document
 
 SCENE = Path(__file__).resolve().parents[1] / "scenes" / "micro_manipulator.toml"
 BLOCK = 1000

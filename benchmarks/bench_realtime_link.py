@@ -14,7 +14,7 @@ peer (hil.peer), as an attack on a running session. The device prints the latene
 ticks (hil.timing.Lateness) and its counts when it stops; the table gives p50 / p99 / max tick
 lateness, how far device time fell behind wall time (the serve loop's wall time less ticks /
 rate), the host's tracking error and lost states, and the flood datagrams the device dropped
-(hil.limits.SourceLimiter). --device-tree runs
+(hil.throttle.SourceLimiter). --device-tree runs
 the device from another checkout (e.g. main's, before the limiter) for the "before" rows; the
 host side is always this tree's.
 """

@@ -38,10 +38,10 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-from stewart_sim.sweep.cluster import dask_environment
-from stewart_sim.sweep.evaluate import evaluate_batch
-from stewart_sim.sweep.grid import grid_from_dict
-from stewart_sim.sweep.run import eval_spec, run_sweep
+from stewart_sim.studies.sweep.cluster import dask_environment
+from stewart_sim.studies.sweep.dask_run import eval_spec, run_sweep
+from stewart_sim.studies.sweep.evaluate import evaluate_batch
+from stewart_sim.studies.sweep.grid import grid_from_dict
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "scenes" / "micro_manipulator.toml"
@@ -90,7 +90,7 @@ class LoopbackCluster:
     def __enter__(self) -> "LoopbackCluster":
         from distributed import Client
 
-        env = {**os.environ, **dask_environment()}   # as the README advises
+        env = {**os.environ, **dask_environment()}   # as docs/guides/sweeps-and-sizing.md advises
         self.procs.append(subprocess.Popen(
             [str(BIN / "dask"), "scheduler", "--host", "127.0.0.1", "--port", str(self.port),
              "--dashboard-address", ":0"], stderr=subprocess.DEVNULL, env=env))

@@ -20,10 +20,10 @@ import time
 from pathlib import Path
 
 from stewart_fmu import load_scene
-from stewart_sim.cueing.config import cueing_config
 from stewart_sim.cueing.motion import read_motion
 from stewart_sim.cueing.washout import classical_washout
 from stewart_sim.cueing.washout_step import WashoutStepper
+from stewart_sim.scene.cueing_config import cueing_config
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "scenes" / "motion_simulator.toml"

@@ -1,4 +1,5 @@
-"""The stiff cases with every integrator, and the drift of a simulated hour (README figures).
+"""The stiff cases with every integrator, and the drift of a simulated hour (the figures of
+docs/guides/accuracy-and-stiff.md).
 
     .venv/bin/python benchmarks/stiff_cases.py [--hour SECONDS]
 """
@@ -7,8 +8,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from stewart_sim.scene_load import load
-from stewart_sim.stiff_study import hour_drift, integrator_study
+from stewart_sim.scene.load import load
+from stewart_sim.studies.cases.study import hour_drift, integrator_study
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
 

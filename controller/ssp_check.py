@@ -3,8 +3,8 @@ instantiates an FMU (`stewart-sim check-ssp`).
 
 An FMU refuses a parameter outside its bounds with fmi2Error at initialisation; libcosim then
 aborts the importing process (SIGABRT, exit 134: the error is thrown on a worker thread, see
-README "The closed loop as an SSP"). This check reads, for every component of the
-SystemStructure.ssd, each value of its parameter sets (ssd:ParameterBinding, a resource or
+docs/guides/fmu-and-ssp.md, "The closed loop as an SSP"). This check reads, for every component
+of the SystemStructure.ssd, each value of its parameter sets (ssd:ParameterBinding, a resource or
 inline) and refuses, in one line naming the component, the parameter and the bound:
 - a name that is no Real parameter or input of the component's FMU (its modelDescription.xml);
 - a value outside that variable's min and max (FMI: both inclusive), or not finite;

@@ -1,6 +1,6 @@
-"""Export the plant as an FMU and run it with fmpy's defaults (README: The plant as an FMI
-co-simulation unit): no inputs set, the inputs start at the force holding home, so the
-platform stays put over the DefaultExperiment (0 to 1 s, 1 ms steps). Needs a C compiler."""
+"""Export the plant as an FMU and run it with fmpy's defaults (docs/guides/fmu-and-ssp.md: The
+plant as an FMI co-simulation unit): no inputs set, the inputs start at the force holding home,
+so the platform stays put over the DefaultExperiment (0 to 1 s, 1 ms steps). Needs a C compiler."""
 import tempfile
 from pathlib import Path
 

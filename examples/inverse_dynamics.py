@@ -1,4 +1,5 @@
-"""Inverse and forward dynamics of a scene along a smooth move (README: Inverse dynamics)."""
+"""Inverse and forward dynamics of a scene along a smooth move (docs/guides/plant-and-scenes.md:
+Inverse dynamics)."""
 from pathlib import Path
 
 import numpy as np

@@ -1,5 +1,5 @@
-"""The plant as an in-process FMI co-simulation component (README: The plant as an FMI
-co-simulation unit): hold the platform at home, push leg 1, roll back."""
+"""The plant as an in-process FMI co-simulation component (docs/guides/fmu-and-ssp.md: The
+plant as an FMI co-simulation unit): hold the platform at home, push leg 1, roll back."""
 from pathlib import Path
 
 import numpy as np

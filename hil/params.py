@@ -1,6 +1,6 @@
 """The emulated device's parameter table: names, what each reads and sets, its bounds.
 
-Every parameter has a range (hil.limits): a PARAM_SET out of range, or of a type other than
+Every parameter has a range (hil.input_bounds): a PARAM_SET out of range, or of a type other than
 REAL32 and the integer types up to 32 bits in MAVLink's bytewise encoding (hil.protocol), is
 refused with the unchanged PARAM_VALUE and a STATUSTEXT. The drive-derived setpoint bounds are
 read-only parameters (SP_LEN_MIN/MAX, SP_RATE_MAX, SP_FORCE_MAX, SP_FRATE_MAX).
@@ -18,10 +18,10 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
-from hil import limits, protocol
+from hil import input_bounds, protocol
 from hil import mavlink_stewart as ms
 from hil.servo import Servo
-from hil.telemetry import TELEMETRY
+from hil.downlink import TELEMETRY
 
 COND_MAX = 100.0           # default SP_COND_MAX: cond(J) (scaled) above this counts as singular
 #: The parameters hil.servo.Servo.restore_design brings back to the design after a numerical
@@ -45,47 +45,42 @@ class Param:
 @dataclass
 class Settings:
     """The device's settings that are not the drives': the watchdog (s), SP_COND_MAX and the
-    telemetry rates (Hz, by stream name of hil.telemetry.TELEMETRY)."""
+    telemetry rates (Hz, by stream name of hil.downlink.TELEMETRY)."""
 
     watchdog: float
     cond_max: float = COND_MAX
     rates: dict[str, float] = field(default_factory=lambda: dict(TELEMETRY))
 
 
-def check_rate(hz: Any) -> str | None:
-    """Why `hz` is no rate (a finite number >= 0), or None."""
-    if isinstance(hz, bool) or not isinstance(hz, (int, float)) or not math.isfinite(hz) or hz < 0:
-        return f"rate must be a finite number >= 0 Hz, got {hz!r}"
-    return None
-
-
-def parameters(servo: Servo, settings: Settings, b: limits.Bounds, rate: float) -> dict[str, Param]:
+def parameters(servo: Servo, settings: Settings, b: input_bounds.Bounds,
+               rate: float) -> dict[str, Param]:
     """The table, in the order PARAM_REQUEST_LIST answers (the index of PARAM_VALUE)."""
 
     def gain(name: str) -> Param:
         return Param(lambda: getattr(servo.ctrl.gains, name), lambda x: servo.set_gain(name, x),
-                     limits.in_range(0.0, b.gain_max[name]))
+                     input_bounds.in_range(0.0, b.gain_max[name]))
 
     def motor(name: str, rng: tuple[float, float], unit: str) -> Param:
         return Param(lambda: getattr(servo.ctrl.axis.motor, name),
-                     lambda x: servo.set_motor(name, x), limits.in_range(*rng, unit))
+                     lambda x: servo.set_motor(name, x), input_bounds.in_range(*rng, unit))
 
     def bound(value: float) -> Param:
-        return Param(lambda: value, lambda x: None, limits.read_only)
+        return Param(lambda: value, lambda x: None, input_bounds.read_only)
 
     def stream(name: str) -> Param:
         return Param(lambda: settings.rates[name], lambda x: settings.rates.__setitem__(name, x),
-                     lambda x: check_rate(x) or limits.in_range(0.0, min(rate, b.stream_max), "Hz")(x))
+                     lambda x: input_bounds.check_rate(x)
+                     or input_bounds.in_range(0.0, min(rate, b.stream_max), "Hz")(x))
 
     params = {"CTRL_KP": gain("kp"), "CTRL_KI": gain("ki"), "CTRL_KD": gain("kd"),
               "DRV_V_LIMIT": motor("voltage_limit", b.voltage_range, "V"),
               "DRV_I_LIMIT": motor("current_limit", b.current_range, "A"),
               "WDG_TIMEOUT": Param(lambda: settings.watchdog,
                                    lambda x: setattr(settings, "watchdog", x),
-                                   limits.in_range(*b.watchdog_range, "s")),
+                                   input_bounds.in_range(*b.watchdog_range, "s")),
               "SP_COND_MAX": Param(lambda: settings.cond_max,
                                    lambda x: setattr(settings, "cond_max", x),
-                                   limits.in_range(1.0, b.cond_max_limit, lo_open=True))}
+                                   input_bounds.in_range(1.0, b.cond_max_limit, lo_open=True))}
     params.update({p: stream(s) for p, s in STREAM_PARAMS.items()})
     params.update({"SP_LEN_MIN": bound(b.leg_min), "SP_LEN_MAX": bound(b.leg_max),
                    "SP_RATE_MAX": bound(b.rate_max), "SP_FORCE_MAX": bound(b.force_max),

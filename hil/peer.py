@@ -1,7 +1,7 @@
 """Whom a UDP server device answers: the peer rule that stops a datagram from hijacking it.
 
-`hil.link.udp_server` used to answer whoever sent the last datagram, so one datagram of garbage
-from any port redirected replies and telemetry away from the host. `PeerGuard` (used by
+A server that answered whoever sent the last datagram would let one datagram of garbage from any
+port redirect replies and telemetry away from the host. `PeerGuard` (used by
 `hil.serve.serve` on an unconnected UDP transport) switches the transport's peer only when a
 datagram carried at least one VALID frame for this system (good CRC, decoded, addressed to us or
 unaddressed; with a signing key: correctly signed with an acceptable timestamp, see hil.signing):
@@ -16,16 +16,16 @@ unaddressed; with a signing key: correctly signed with an acceptable timestamp, 
 * unsigned: the device answers the sender of the last valid frame, unless the peer itself sent a
   valid frame less than PEER_HOLD s ago (a host streaming setpoints keeps its replies whatever
   another port sends; a host quiet for PEER_HOLD s can be replaced), and every change of peer
-  is reported with a STATUSTEXT (WARNING) to the new and to the old peer, and counted
+  is reported with a STATUSTEXT (WARNING) to the new and to the earlier peer, and counted
   (`DeviceCounters.peer_changes`); a change refused by the hold is counted
   (`DeviceCounters.peer_kept`).
 
 Served in real time, every datagram from an address other than the peer first passes its
-sender's token bucket (hil.limits.SourceLimiter, on the serve loop's clock): a trickle. A
+sender's token bucket (hil.throttle.SourceLimiter, on the serve loop's clock): a trickle. A
 datagram over the budget is dropped before it is decoded (so it can neither cost decoding time
 nor move the peer) and counted: a flood of valid frames from another port does not reach the
 decoder, and the host's frames behind it in the socket are read within the tick. An address
-that went over its budget within hil.limits.FLOOD_MEMORY s never becomes the peer, signed or
+that went over its budget within hil.throttle.FLOOD_MEMORY s never becomes the peer, signed or
 not (the change is refused and counted as `peer_kept`), even when the host has gone quiet.
 (That the ticks start on time whatever arrives is the serve loop's drain deadline, hil.serve.)
 In lockstep there are no ticks to protect: the host drives time, and nothing is limited.
@@ -38,7 +38,7 @@ import time
 from typing import Any, Callable
 
 from hil import mavlink_stewart as ms
-from hil.limits import SourceLimiter
+from hil.throttle import SourceLimiter
 
 # s (the serve loop's clock): how long a valid frame of the peer keeps it; longer than a host's
 # pause between commands (a restarted host on a new port waits this long to be answered)
@@ -62,7 +62,7 @@ class PeerGuard:
 
     def admit(self, nbytes: int, now: float) -> bool:
         """Whether the datagram just received (`nbytes` long, at clock time `now`) is the peer's
-        or within its sender's budget (hil.limits.SourceLimiter; always, without a limiter). A
+        or within its sender's budget (hil.throttle.SourceLimiter; always, without a limiter). A
         datagram over it is dropped undecoded and counted (`DeviceCounters.flood_dropped`)."""
         lim = self.limiter
         sender = getattr(self.transport, "sender", None)
@@ -81,7 +81,7 @@ class PeerGuard:
     def after_feed(self) -> int:
         """Call after each datagram was fed to the device (before its replies are sent): follow
         the datagram's sender when it carried a valid frame. Returns the frames sent here (the
-        change notice, to the new and the old peer)."""
+        change notice, to the new and the earlier peer)."""
         dev, tr = self.device, self.transport
         n = dev.counters.frames_valid
         valid, self._valid = n > self._valid, n

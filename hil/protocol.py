@@ -13,9 +13,9 @@
   first bytes of the 4-byte float field, which is read as raw bytes, not as a float value.
   REAL64, (U)INT64 and unknown types are refused.
 * `home_position`: HOME_POSITION of the scene's home pose in the device's frame convention
-  (the one of LOCAL_POSITION_NED, see hil.telemetry): x = x_home, y = -y_home, z = -z_home (m,
+  (the one of LOCAL_POSITION_NED, see hil.downlink): x = x_home, y = -y_home, z = -z_home (m,
   our frame N mapped to NED by a half turn about x), q the home attitude in NED
-  (`hil.telemetry.ned_attitude`), the approach vector equal to the home position; the device has
+  (`hil.downlink.ned_attitude`), the approach vector equal to the home position; the device has
   no global position, so latitude, longitude and altitude are 0.
 * `attitude_euler`: ATTITUDE's roll, pitch, yaw (ZYX, NED/FRD) of a pose: the NED rotation is
   T Rz(thz) Ry(thy) Rx(thx) T = Rz(-thz) Ry(-thy) Rx(thx) (T = diag(1, -1, -1)), so roll =

@@ -11,7 +11,7 @@ backlog never delays a setpoint by more than the ticks it arrives between; a dra
 the tick is due (just before a tick: DRAIN_SHARE of a period after its due time; when the loop is
 further behind, after one datagram), so input without end, a flood, cannot hold the ticks back.
 On a UDP server end in real time, a datagram over its sender's budget (hil.peer,
-hil.limits.SourceLimiter) is dropped before it is decoded, and counted. Tick k (the one that
+hil.throttle.SourceLimiter) is dropped before it is decoded, and counted. Tick k (the one that
 takes device time from k / rate to (k + 1) / rate) is due at wall time start + (k + 1) / rate on
 the monotonic clock, and no tick is ever skipped: device time t maps to wall time start + t
 (+ the tick's lateness, which does not accumulate). When the loop falls behind it catches up

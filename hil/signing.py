@@ -16,7 +16,8 @@ the safe order:
 
 `SignedDecoder` puts the check in front of a key-less pymavlink `MAVLink.decode` (pymavlink's
 own signing then never runs on input); a refused frame raises `SigningError`, which
-`hil.framing.Receiver` drops and counts.
+`hil.framing.Receiver` drops and counts. `sign_outgoing` sets a device's own pymavlink `MAVLink`
+to sign what it sends and returns the `Verifier` of what it receives.
 """
 from __future__ import annotations
 
@@ -24,6 +25,8 @@ import hashlib
 import hmac
 import time
 from typing import Any, Callable
+
+from hil.errors import DeviceError
 
 SIGNING_EPOCH = 1420070400  # 2015-01-01T00:00:00Z
 MINUTE = 6_000_000          # one minute in 10 us units
@@ -102,3 +105,25 @@ class SignedDecoder:
             self.on_reject(why)
             raise SigningError(why)
         return self.mav.decode(frame)
+
+
+def sign_outgoing(mav: Any, key: bytes, clock: Callable[[], int],
+                  on_reject: Callable[[str], None]) -> Verifier:
+    """Make `mav` (pymavlink's MAVLink) sign every frame it packs with the 32-byte `key` (link
+    id 0, timestamps from the wall clock) and refuse, through `on_reject`, any unsigned frame
+    its own decode meets; the Verifier of incoming frames on `clock` (10 us units)."""
+    if not isinstance(key, (bytes, bytearray)) or len(key) != 32:
+        raise DeviceError("signing_key must be 32 bytes")
+    s = mav.signing
+    s.secret_key = bytes(key)
+    s.link_id = 0
+    s.sign_outgoing = True
+    s.timestamp = wall_timestamp()
+
+    def reject_unsigned(_mav: Any, _msg_id: int) -> bool:
+        """pymavlink asks this for every unsigned or badly signed frame: reject and count."""
+        on_reject("unsigned")
+        return False
+
+    s.allow_unsigned_callback = reject_unsigned
+    return Verifier(s.secret_key, clock)

@@ -26,6 +26,7 @@ from typing import Callable, Iterator
 
 from controller.config import ControllerConfig, controller_config
 from hil.device import Device
+from hil.address import host_port
 from hil.errors import LinkError
 from hil.link import pty_pair, udp_server
 from hil.observe import Latest
@@ -43,10 +44,10 @@ WATCHDOG = 0.2       # s: default safe-stop time without a valid setpoint while 
 
 def device_command(scene: str | Path, link: str, lockstep: bool,
                    truth: str | Path | None = None) -> list[str]:
-    """argv of `python -m hil.spawn SCENE (--udp 127.0.0.1:0 | --pty) [--lockstep]
-    [--truth TRUE.toml]` (what `stewart-sim device` runs)."""
+    """argv of `python -m hil.spawn SCENE (--udp 127.0.0.1:0 | --pty | --gcs 127.0.0.1:0)
+    [--lockstep] [--truth TRUE.toml]` (what `stewart-sim device` runs)."""
     argv = [sys.executable, "-m", "hil.spawn", str(scene)]
-    argv += ["--udp", "127.0.0.1:0"] if link == "udp" else ["--pty"]
+    argv += {"udp": ["--udp", "127.0.0.1:0"], "gcs": ["--gcs", "127.0.0.1:0"]}.get(link, ["--pty"])
     argv += ["--truth", str(truth)] if truth is not None else []
     return argv + (["--lockstep"] if lockstep else [])
 
@@ -55,10 +56,10 @@ def device_command(scene: str | Path, link: str, lockstep: bool,
 def device_process(scene: str | Path, link: str, lockstep: bool = False,
                    start_timeout: float = START_TIMEOUT,
                    truth: str | Path | None = None) -> Iterator[str]:
-    """Run the device for `scene` (its plant: `truth`'s when given) over `link` ("udp" or
-    "serial"); yield its first line."""
-    if link not in ("udp", "serial"):
-        raise LinkError(f"device_process: link must be 'udp' or 'serial', got {link!r}")
+    """Run the device for `scene` (its plant: `truth`'s when given) over `link` ("udp",
+    "serial" or "gcs"); yield its first line."""
+    if link not in ("udp", "serial", "gcs"):
+        raise LinkError(f"device_process: link must be 'udp', 'serial' or 'gcs', got {link!r}")
     proc = subprocess.Popen(device_command(scene, link, lockstep, truth), stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     try:
@@ -101,6 +102,19 @@ def parse_udp(line: str) -> tuple[str, int]:
     return loopback_address(address)
 
 
+def parse_gcs(line: str) -> tuple[str, int]:
+    """("127.0.0.1", PORT) from the device's first line ``gcs 127.0.0.1:PORT``."""
+    kind, _, address = line.partition(" ")
+    if kind != "gcs":
+        raise LinkError(f"expected 'gcs HOST:PORT' from the device, got {line!r}")
+    return gcs_address(address)
+
+
+def gcs_address(text: str) -> tuple[str, int]:
+    """`--gcs HOST:PORT`: a loopback IPv4 address, port 0 for any free one."""
+    return host_port(text, "--gcs", loopback_only="the GCS server listens on loopback only")
+
+
 def signing_key(text: str | None) -> bytes | None:
     """The 32-byte MAVLink 2 signing key from 64 hex digits (None: unsigned)."""
     if text is None:
@@ -119,15 +133,23 @@ def serve_device(model: Model, config: ControllerConfig, udp: str | None,
                  lockstep: bool = False, key_hex: str | None = None, *,
                  observer: Latest | None = None,
                  ready: Callable[[], None] | None = None,
-                 truth: Model | None = None, sensors: SensorConfig | None = None) -> None:
-    """Serve the emulated device for `model` (its [controller] table: `config`) on loopback UDP (`udp`, "127.0.0.1:PORT") or, with
-    udp None, a pseudo-terminal, until SIGINT or SIGTERM. The first line on stdout says where it
+                 truth: Model | None = None, sensors: SensorConfig | None = None,
+                 gcs: str | None = None, pty: bool = False) -> None:
+    """Serve the emulated device for `model` (its [controller] table: `config`) on loopback UDP
+    (`udp`, "127.0.0.1:PORT") or, with udp None, a pseudo-terminal (with `gcs`: only when `pty`
+    is True), until SIGINT or SIGTERM. The first line on stdout says where it
     listens; a summary goes to stderr when it stops. With `observer` the device publishes its
     snapshots there (`Device.observe`, hil.observe); `ready` is called once that first line is
     out, just before the loop starts (the caller announces what it serves beside the device).
     `truth`: the hidden true scene of the plant (hil.truth); `sensors`: what the device reports
-    (hil.sensors; None: ideal)."""
+    (hil.sensors; None: ideal). With `gcs` ("127.0.0.1:PORT") the device also speaks PI's GCS
+    2.0 on that loopback TCP port (hil.gcs), in real time: beside the MAVLink link when `udp` is
+    given or `pty` is True, alone otherwise; its line ``gcs 127.0.0.1:PORT`` follows the MAVLink
+    one (or is the first, alone)."""
     key = signing_key(key_hex)
+    if gcs is not None and lockstep:
+        raise LinkError("--gcs runs the device in real time: not with --lockstep")
+    gcs_at = gcs_address(gcs) if gcs is not None else None
     address = loopback_address(udp) if udp is not None else None
     device = Device(model, config, watchdog=watchdog, signing_key=key, lockstep=lockstep,
                     truth=truth, sensors=sensors)
@@ -138,12 +160,23 @@ def serve_device(model: Model, config: ControllerConfig, udp: str | None,
     gc.collect()
     gc.freeze()                     # what exists now is never scanned again by the collector
     keep = None  # the pty's slave end, held open so the master never sees a hang-up
+    transport = None
     if address is not None:
         transport = udp_server(*address)
         first = f"udp {transport.address[0]}:{transport.address[1]}"
-    else:
+    elif pty or gcs_at is None:
         transport, keep = pty_pair()
         first = keep.name
+    if gcs_at is not None:
+        from hil.gcs.tcp_transport import gcs_link       # only for --gcs
+        try:
+            transport = gcs_link(device, *gcs_at, inner=transport)
+        except LinkError:
+            if transport is not None:
+                transport.close()
+            raise
+        line = "gcs {}:{}".format(*transport.server.address)
+        first = line if transport.inner is None else f"{first}\n{line}"
     stop = threading.Event()
     handlers = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
@@ -173,25 +206,29 @@ def serve_device(model: Model, config: ControllerConfig, udp: str | None,
 
 
 def main(argv: list[str] | None = None) -> int:
-    """The device process: `python -m hil.spawn SCENE (--udp 127.0.0.1:PORT | --pty)
-    [--watchdog S] [--lockstep] [--signing-key HEX] [--truth TRUE.toml]` (`stewart-sim
-    device` with its help)."""
+    """The device process: `python -m hil.spawn SCENE [--udp 127.0.0.1:PORT | --pty]
+    [--gcs 127.0.0.1:PORT] [--watchdog S] [--lockstep] [--signing-key HEX] [--truth TRUE.toml]`,
+    one link at least (`stewart-sim device` with its help)."""
     parser = argparse.ArgumentParser(prog="python -m hil.spawn")
     parser.add_argument("scene")
-    where = parser.add_mutually_exclusive_group(required=True)
+    where = parser.add_mutually_exclusive_group()
     where.add_argument("--udp")
     where.add_argument("--pty", action="store_true")
+    parser.add_argument("--gcs")
     parser.add_argument("--watchdog", type=float, default=WATCHDOG)
     parser.add_argument("--lockstep", action="store_true")
     parser.add_argument("--signing-key")
     parser.add_argument("--truth")
     args = parser.parse_args(argv)
+    if args.udp is None and not args.pty and args.gcs is None:
+        parser.error("one of --udp, --pty, --gcs is required")
     try:
         model = load_scene(args.scene)
         truth = load_scene(args.truth) if args.truth is not None else None   # checked by Device
         serve_device(model, controller_config(model), args.udp, args.watchdog, args.lockstep,
                      args.signing_key, truth=truth,
-                     sensors=sensor_config(truth if truth is not None else model))
+                     sensors=sensor_config(truth if truth is not None else model), gcs=args.gcs,
+                     pty=args.pty)
     except StewartError as exc:
         print(f"device: {exc}", file=sys.stderr)
         return 2

@@ -41,7 +41,7 @@ def named_array(columns: dict[str, np.ndarray]) -> np.ndarray:
 def write_csv(path: str | Path, table: np.ndarray,
               progress: Callable[[int, int], None] | None = None) -> Path:
     """Write a structured array as CSV with repr-exact floats (and text fields, e.g. a method
-    name, as they are); the old file survives a failure. `progress(rows_written, rows)` is
+    name, as they are); an existing file survives a failure. `progress(rows_written, rows)` is
     called after each block of CHUNK_ROWS rows (long tables take seconds to write)."""
     starts = range(0, max(len(table), 1), CHUNK_ROWS)  # an empty table still gets its header
 
@@ -57,7 +57,7 @@ def write_csv_chunks(path: str | Path, chunks: Iterable[np.ndarray]) -> Path:
     """Write structured arrays with the same float64 fields as one CSV, atomically.
 
     The chunks may be computed while the file is written (long runs need not hold every row);
-    any failure, also one raised by `chunks`, leaves the old file untouched.
+    any failure, also one raised by `chunks`, leaves an existing file untouched.
     """
     def write(fh) -> None:
         names = None
@@ -80,7 +80,7 @@ def _cell(value) -> str:
 
 
 def atomic_write(path: str | Path, write: Callable[[IO], object], binary: bool = False) -> Path:
-    """Write a file through a temporary one beside it; a failure leaves the old file as it was.
+    """Write a file through a temporary one beside it; a failure leaves an existing file as it was.
 
     `path` must be a new path or a regular file (check_output); a full disk, a missing
     permission or a read-only file system while writing is an OutputError naming `path`."""
@@ -243,6 +243,22 @@ def read_samples(path: str | Path, columns: tuple[str, ...], what: str, *, prefi
         r = int(np.flatnonzero(np.diff(t) <= 0)[0]) + 3
         raise TrajectoryError(
             f"{path}: line {r}, column '{columns[0]}': time must increase strictly")
+    return data
+
+
+def read_table(path: str | Path, columns: tuple[str, ...], what: str) -> np.ndarray:
+    """The (N, len(columns)) numbers of a CSV that is no time series (poses: `workspace
+    --check`): its header holds each of `columns` once, in any order (further columns are
+    ignored), at least one row, every value finite; errors (TrajectoryError) name the file, the
+    line and the column, as read_samples'."""
+    path = Path(path)
+    with _reading(path, what) as fh:
+        data = _read_rows(path, fh, columns, False, True, None)
+    bad = np.argwhere(~np.isfinite(data))
+    if bad.size:
+        r, c = bad[0]
+        raise TrajectoryError(
+            f"{path}: line {r + 2}, column '{columns[c]}': non-finite value {data[r, c]}")
     return data
 
 

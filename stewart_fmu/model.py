@@ -13,6 +13,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from .native.core import NativeParams
+from .reach_params import ClearanceParams, FrameParams, JointParams, pack_reach
 from .table import ELASTIC, N_ELASTIC, N_PARAMS, offset
 
 # Layout of Model.params, the flat float64 vector the compiled kernels read: the offsets of
@@ -165,9 +166,13 @@ class Model:
     extra: Mapping[str, Any] = field(default_factory=dict)  # project tables (controller, ...)
     source: str | None = None
     transmission: TransmissionParams | None = None   # project table [transmission]
+    joints: JointParams | None = None          # [joints]: the joints' cones (reach_params.py)
+    clearance: ClearanceParams | None = None   # [clearance]: leg capsules, obstacles
+    frames: FrameParams | None = None          # [frames]: pivot point, user and tool frames
     stiffness: StiffnessParams | None = None   # [stiffness]: the legs' and joints' springs
     payload: PayloadParams | None = None       # [payload]: a body fixed to the platform (in params)
     params: np.ndarray = field(init=False, repr=False)
+    reach: np.ndarray = field(init=False, repr=False)   # packed reach vector (reach.c)
     native: NativeParams = field(init=False, repr=False, compare=False)  # params for the C core
     # [stiffness] and [payload] for the stiffness and modes kernels (STEWART_ELASTIC layout)
     elastic: np.ndarray = field(init=False, repr=False, compare=False)
@@ -180,6 +185,8 @@ class Model:
         object.__setattr__(self, "extra", MappingProxyType(dict(self.extra)))
         object.__setattr__(self, "params", _pack(self))
         object.__setattr__(self, "native", NativeParams(self.params))
+        object.__setattr__(self, "reach", pack_reach(self.params, self.home, self.joints,
+                                                     self.clearance))
         object.__setattr__(self, "elastic", _pack_elastic(self))
 
     @property

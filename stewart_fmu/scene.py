@@ -12,18 +12,18 @@ import numpy as np
 
 from .budget import SCENE_BYTES, InputFileError, read_input
 from .errors import SceneError, SceneKeyError
-from . import table
+from . import scene_reach, table
 from .native import core
 from .model import (DriveParams, FrictionParams, LegParams, Model, PayloadParams, StiffnessParams,
                     TransmissionParams)
 
 DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
 # Tables the project defines on top of the contract, each read by a command and checked where it
-# is parsed, once, at load (stewart_sim.scene_load: [controller], [cueing], [case], [solver],
+# is parsed, once, at load (stewart_sim.scene.load: [controller], [cueing], [case], [solver],
 # [sensors]): here they are only let through into Model.extra; any other table is refused.
 PROJECT_TABLES = frozenset({"controller", "case", "cueing", "solver", "sensors"})
 _TOP_KEYS = {"name", "gravity", "geometry", "platform", "legs", "drive", "friction",
-             "transmission", "stiffness", "payload"}
+             "transmission", *scene_reach.REACH_TABLES, "stiffness", "payload"}
 _OPTIONAL_KEYS = {"geometry.leg_min", "geometry.leg_max"}   # every other plant key is required
 # Every value of a scene, in every table: nested at most MAX_DEPTH tables and arrays deep (a
 # joint list is 2 inside its table; TOML readers recurse per level, so 50,000 levels are a
@@ -206,11 +206,18 @@ def scene_from_dict(data: Mapping[str, Any], source: str | None = None) -> Model
         leg_min=leg_min, leg_max=leg_max, platform_mass=mass, platform_inertia=inertia,
         legs=_legs(v, data), drive=_drive(v, data), friction=_friction(v, data),
         extra={k: data[k] for k in PROJECT_TABLES if k in data}, source=source,
-        transmission=_transmission(v, data), stiffness=_stiffness(v, data),
-        payload=_payload(v, data),
+        transmission=_transmission(v, data), **_reach_tables(v, data),
+        stiffness=_stiffness(v, data), payload=_payload(v, data),
     )
     _check_rules(v, model)
+    scene_reach.check_home(v, model)
     return model
+
+
+def _reach_tables(v: "_Validator", data: Mapping[str, Any]) -> dict[str, Any]:
+    """The Model's [joints], [clearance] and [frames] (stewart_fmu/scene_reach.py)."""
+    return {"joints": scene_reach.joints(v, data), "clearance": scene_reach.clearance(v, data),
+            "frames": scene_reach.frames(v, data)}
 
 
 def _check_values(v: "_Validator", data: Mapping[str, Any]) -> None:
@@ -418,7 +425,6 @@ class _Validator:
 
     def _bound(self, dotted: str, arr: np.ndarray) -> None:
         """The key's physical bounds: the one table's (native/include/stewart_table.h)."""
-        group = table.scene_groups().get(dotted) or table.ELASTIC_KEYS[dotted]
-        reason = table.bound_reason(group, arr)
+        reason = table.bound_reason(table.key_group(scene_reach.generic_key(dotted)), arr)
         if reason is not None:
             self.fail_key(dotted, reason)

@@ -5,8 +5,9 @@ pi holds the inertial and friction parameters on which the inverse dynamics depe
 table.py reads the packed layout): the platform's mass, first moment and inertia tensor about C;
 each leg part's mass, first moment and transverse moment about its joint and its axial moment;
 the drives' reflected masses and the joints' viscous and Coulomb friction, per leg.
-dynamics.regressor gives Y; `standard_parameters` a Model's pi; stewart_sim.identify.scene_out
-turns a pi back into the scene's keys (for an identified scene).
+dynamics.regressor gives Y; `standard_parameters` a Model's pi;
+stewart_sim.studies.identify.scene_out turns a pi back into the scene's keys (for an identified
+scene).
 """
 from __future__ import annotations
 

@@ -17,6 +17,7 @@ from .native.core import ffi, lib
 # The kind of a parameter's bounds (stewart_table.h STEWART_BOUND_*): MIN <= x <= MAX (CLOSED),
 # MIN < x <= MAX (OPEN); inputs and outputs have none (ANY).
 BOUND_ANY, BOUND_CLOSED, BOUND_OPEN = lib.STEWART_BOUND_ANY, lib.STEWART_BOUND_CLOSED, lib.STEWART_BOUND_OPEN
+BOUND_INTERIOR = lib.STEWART_BOUND_INTERIOR   # MIN < x < MAX (a cone inside (0, pi/2))
 # Shapes beyond a group's count: a plain vector, or one value per leg (or one for all legs).
 VECTOR, PER_LEG, STRING = lib.STEWART_VECTOR, lib.STEWART_PER_LEG, lib.STEWART_STRING
 
@@ -162,17 +163,89 @@ def bound_reason(group: VariableGroup | ElasticEntry, values) -> str | None:
     "must be <= 1e+06 kg, got 1e+308"."""
     if group.bound == BOUND_ANY:
         return None
-    open_ = group.bound == BOUND_OPEN
+    open_ = group.bound in (BOUND_OPEN, BOUND_INTERIOR)
+    top_open = group.bound == BOUND_INTERIOR
     arr = np.asarray(values, dtype=float)
     if arr.ndim == 0:   # one number: compared as a float (NaN fails both, as below)
         x = float(arr)
-        if (x > group.min if open_ else x >= group.min) and x <= group.max:
+        if (x > group.min if open_ else x >= group.min) and (x < group.max if top_open
+                                                             else x <= group.max):
             return None
     unit = unit_text(group.unit)
     low = ~(arr > group.min) if open_ else ~(arr >= group.min)
     got = arr.tolist()
     if np.any(low):
         return f"must be {'>' if open_ else '>='} {group.min:g}{'' if group.min == 0 else unit}, got {got}"
-    if np.any(~(arr <= group.max)):
-        return f"must be <= {group.max:g}{unit}, got {got}"
+    if np.any(~(arr < group.max) if top_open else ~(arr <= group.max)):
+        return f"must be {'<' if top_open else '<='} {group.max:g}{unit}, got {got}"
     return None
+
+
+# --- reach: the scene keys of [joints], [clearance], [frames], the packed reach vector and the
+# limits of the feasibility engine (stewart_table.h STEWART_REACH_SCENE, _REACH_PARAMS, _LIMITS)
+
+@dataclass(frozen=True)
+class ReachKey:
+    """A scene key of the reach tables and its bounds (an obstacle's under
+    'clearance.obstacles.<key>')."""
+
+    id: str
+    name: str
+    count: int
+    bound: int
+    min: float
+    max: float
+    unit: str
+    description: str
+
+
+@dataclass(frozen=True)
+class Limit:
+    """One limit of the engine: its index is its place in report order."""
+
+    index: int
+    id: str
+    name: str       # the column name of `workspace --check`
+    kind: int       # LIMIT_LEG, LIMIT_PAIR, LIMIT_OBSTACLE, LIMIT_POSE
+    unit: str
+    description: str
+
+
+LIMIT_LEG, LIMIT_PAIR, LIMIT_OBSTACLE, LIMIT_POSE = (
+    lib.STEWART_LIMIT_KIND_LEG, lib.STEWART_LIMIT_KIND_PAIR, lib.STEWART_LIMIT_KIND_OBSTACLE,
+    lib.STEWART_LIMIT_KIND_POSE)
+
+
+def _read_reach() -> tuple[dict[str, Param], dict[str, ReachKey], tuple[Limit, ...]]:
+    params = {}
+    for k in range(lib.stewart_reach_param_table_size):
+        r = lib.stewart_reach_param_table[k]
+        params[_text(r.name)] = Param(_text(r.name), r.offset, r.count, "", _text(r.unit),
+                                      _text(r.description))
+    keys = {}
+    for k in range(lib.stewart_reach_key_table_size):
+        r = lib.stewart_reach_key_table[k]
+        keys[_text(r.name)] = ReachKey(_text(r.id), _text(r.name), r.count, r.bound, r.min, r.max,
+                                       _text(r.unit), _text(r.description))
+    limits = tuple(Limit(k, _text(r.id), _text(r.name), r.kind, _text(r.unit), _text(r.description))
+                   for k, r in ((k, lib.stewart_limit_table[k])
+                                for k in range(lib.stewart_limit_table_size)))
+    return params, keys, limits
+
+
+REACH_PARAMS, REACH_KEYS, LIMITS = _read_reach()
+N_REACH: int = lib.STEWART_N_REACH
+
+
+def reach_offset(name: str) -> int:
+    """STEWART_R_<name>: where an entry starts in the packed reach vector (Model.reach)."""
+    return REACH_PARAMS[name].offset
+
+
+def key_group(dotted: str) -> VariableGroup | ReachKey | ElasticEntry:
+    """The bounds of a scene key: a plant key's FMU group, a reach table's key (an obstacle's
+    keys by their generic name, 'clearance.obstacles.radius'), or a key of [stiffness] or
+    [payload]."""
+    if dotted in SCENE_GROUPS:
+        return SCENE_GROUPS[dotted]
+    return REACH_KEYS[dotted] if dotted in REACH_KEYS else ELASTIC_KEYS[dotted]

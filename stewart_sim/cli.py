@@ -48,25 +48,28 @@ COMMANDS = {
     "size": "actuator sizing: what the motions ask of the drives, a catalogue ranked",
     "telemetry-replay": "stream a recorded vehicle motion as UDP telemetry in real time",
     "cue-live": "live motion simulator: UDP telemetry -> washout -> envelope -> the device",
+    "workspace": "what the mechanism reaches: limits' margins at poses, travel, ranges",
     "modes": "natural frequencies, mode shapes and stiffness at a pose ([stiffness])",
 }
 KEPT = "nothing new written (an earlier output is left as it was)"  # on Ctrl-C
 # the arguments that name what a command writes (the output rule checks them before any work)
 OUTPUT_ARGS = ("out", "record")
+# build_parser(EVERY): every command with its full arguments (the command reference of docs/)
+EVERY = "*"
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status (0 ok, 1 I/O failure, 2 bad input,
     128 + the signal on SIGINT, SIGTERM or SIGHUP, 141 on a closed pipe)."""
     # Ctrl-C is caught from the start, before anything beyond the standard library is imported
-    # (an interrupt inside an import waits for it to return: stewart_sim/interrupt.py)
-    from stewart_sim import interrupt, terminal
+    # (an interrupt inside an import waits for it to return: stewart_sim/shell/interrupt.py)
+    from stewart_sim.shell import interrupt, terminal
 
     interrupt.reset_interrupt()
     restore = _catch_sigint(interrupt.sigint_handler)
     try:
         # every line printed from here on has its control characters escaped (a scene name,
-        # a file name, a message quoting an input): stewart_sim/terminal.py
+        # a file name, a message quoting an input): stewart_sim/shell/terminal.py
         with terminal.escaping():
             argv = list(sys.argv[1:] if argv is None else argv)
             parser = build_parser(argv[0] if argv else None)
@@ -85,7 +88,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     """The argument parser: every command of COMMANDS listed, and `command` (the one asked for)
-    with its full arguments from its module, so that `--help` imports no command module."""
+    with its full arguments from its module, so that `--help` imports no command module
+    (EVERY: every command with its full arguments)."""
     parser = argparse.ArgumentParser(
         prog=PROG, description="Dynamics of Stewart platforms (Kane's method).",
         epilog="Exit status: 0 ok, 2 usage error or bad scene/trajectory/pose, 1 a file could "
@@ -93,11 +97,17 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = parser.add_subparsers(title="commands", required=True, metavar="COMMAND")
     for name, help_text in COMMANDS.items():
-        if name == command:
+        if command in (name, EVERY):
             command_module(name).add_parser(sub, help_text)
         else:
             sub.add_parser(name, help=help_text)
     return parser
+
+
+def reference_parser() -> argparse.ArgumentParser:
+    """Every command with its full arguments: what the command reference of docs/ is generated
+    from (docs/reference/commands.md)."""
+    return build_parser(EVERY)
 
 
 def command_module(name: str):
@@ -112,7 +122,7 @@ def _run(args: argparse.Namespace) -> int:
 
     from stewart_fmu.errors import StewartError
     from stewart_fmu.io import WRITE_ERRNOS, OutputError, SpecialOutputError, check_output
-    from stewart_sim import interrupt, outputs
+    from stewart_sim.shell import interrupt, outputs
 
     try:
         for name in OUTPUT_ARGS:        # the output rule, before any work
@@ -148,7 +158,7 @@ def _run(args: argparse.Namespace) -> int:
 
 def _interrupted(kept: str | None) -> int:
     """The line for a command a stop signal ended (what was kept), and its exit status."""
-    from stewart_sim import interrupt
+    from stewart_sim.shell import interrupt
 
     name = interrupt.signal_name()
     how = "interrupted" if name == "SIGINT" else f"interrupted ({name})"
@@ -177,7 +187,7 @@ def _catch_sigint(handler):
     callback (interrupt.interrupted() keeps it); returns the function that restores both."""
     import signal
 
-    from stewart_sim.interrupt import STOP_SIGNALS
+    from stewart_sim.shell.interrupt import STOP_SIGNALS
 
     hook = sys.unraisablehook
 

@@ -1,7 +1,8 @@
 """Shared helpers of the tests (imported as `helpers`: tests/ is on pytest's pythonpath): the two
 scenes as TOML dicts and Models, their model levels (tables dropped from the dict), smooth random
-trajectories near home, scene-dict edits, the record of worst residuals, and FMU exports without
-their Windows binary."""
+trajectories near home, scene-dict edits, the record of worst residuals, FMU exports without
+their Windows binary, and the documentation's pages (the one place a test looks up what the docs
+state)."""
 from __future__ import annotations
 
 import copy
@@ -20,6 +21,7 @@ ROOT = Path(__file__).resolve().parents[1]
 SCENES_DIR = ROOT / "scenes"
 SCENE_FILES = {"micro": SCENES_DIR / "micro_manipulator.toml",
                "sim": SCENES_DIR / "motion_simulator.toml"}
+DOCS_DIR = ROOT / "docs"
 
 # Model levels: the tables dropped from the scene dict. "platform_friction" is the variant with
 # friction but no drive (and no legs), so friction is seen without any leg or drive inertia.
@@ -292,3 +294,20 @@ def fmi2_logging_callbacks(log):
     addLoggerProxy(ctypes.byref(cb))
     _FMI2_LOGGERS.append((logger, cb))
     return cb
+
+
+def doc_pages() -> dict[str, str]:
+    """The documentation's Markdown pages (docs/, not the built site): the path from docs/ (as
+    "guides/closed-loop.md") -> the page's text."""
+    return {p.relative_to(DOCS_DIR).as_posix(): p.read_text(encoding="utf-8")
+            for p in sorted(DOCS_DIR.rglob("*.md")) if "_build" not in p.parts}
+
+
+def doc_page_with(text: str) -> tuple[str, str]:
+    """The one documentation page that holds `text`: (its path from docs/, its text). A test that
+    checks a figure or a word the documentation states finds the page here, wherever the text
+    moves; no page, or two, is a failure that names the text."""
+    found = [(name, page) for name, page in doc_pages().items() if text in page]
+    assert len(found) == 1, (f"{len(found)} pages of docs/ hold {text[:80]!r}: "
+                             f"{[name for name, _ in found]}")
+    return found[0]

@@ -1,8 +1,8 @@
 """Record the plant's results on every shipped scene into tests/data/plant_reference.npz.
 
-Written once, at commit 5a10cb2, by the compiled Python kernels that the C core (stewart_fmu/native)
-replaced; tests/stewart_fmu/test_plant_reference.py holds the C core to it (1e-12 relative), so
-the port stays checked against the implementation it replaced. What is recorded, per scene (the
+The file holds the results of a second implementation of the C core's arithmetic (compiled
+Python kernels, operation for operation the same); tests/stewart_fmu/test_plant_reference.py holds
+the C core (stewart_fmu/native) to it (1e-12 relative). What is recorded, per scene (the
 shipped, stiff and extreme scenes), from seeded states near home: inverse_dynamics,
 inverse_dynamics_parts, forward_dynamics, leg_state, cond(J), energy terms, and 20 Plant steps
 of 1 ms (with the inputs held from a seeded hold + 2 % wiggle) with rk4, euler and dopri5.

@@ -7,7 +7,8 @@ KERNEL32.dll and msvcrt.dll, which every Windows has, and -s (the symbol table o
 runtime would triple its size). It exports the functions marked FMI_EXPORT (fmi/fmi_export.h:
 dllexport) and nothing else. Its sin, cos and pow are mingw-w64's (x87), linked in statically
 (none is imported from msvcrt.dll): Windows computes them as wine does, and a few results differ
-from glibc's by one unit in the last place (README: "Windows against Linux, measured").
+from glibc's by one unit in the last place (docs/guides/fmu-and-ssp.md: "Windows against Linux,
+measured").
 """
 from __future__ import annotations
 

@@ -26,8 +26,9 @@ def _cdef() -> str:
     stewart.h and stewart_table.h declared (floating-point ones as `static const double`, the
     others as `#define NAME ...`: cffi reads their values from the compiled core), and the
     X-macro expansions of stewart.h replaced by the names they define (STEWART_P_* of the
-    STEWART_PARAMS table, STEWART_N_PARAMS; STEWART_S_* of STEWART_STANDARD, STEWART_N_STANDARD; STEWART_E_* of STEWART_ELASTIC,
-    STEWART_N_ELASTIC)."""
+    STEWART_PARAMS table, STEWART_N_PARAMS; STEWART_S_* of STEWART_STANDARD, STEWART_N_STANDARD;
+    STEWART_R_* of STEWART_REACH_PARAMS, STEWART_N_REACH; STEWART_LIMIT_* of STEWART_LIMITS,
+    STEWART_N_LIMITS; STEWART_E_* of STEWART_ELASTIC, STEWART_N_ELASTIC)."""
     header = _joined(HERE / "include" / "stewart.h")
     table = _joined(HERE / "include" / "stewart_table.h")
     out = [_constant(line) for line in table.splitlines() if line.strip().startswith("#define")]
@@ -41,6 +42,12 @@ def _cdef() -> str:
         elif "STEWART_STANDARD(" in s:
             out += [f"#define STEWART_S_{name} ..." for name in _table_names(table, "STEWART_STANDARD")]
             out.append("#define STEWART_N_STANDARD ...")
+        elif "STEWART_REACH_PARAMS(" in s:
+            out += [f"#define STEWART_R_{name} ..." for name in _table_names(table, "STEWART_REACH_PARAMS")]
+            out.append("#define STEWART_N_REACH ...")
+        elif "STEWART_LIMITS(" in s:
+            out += [f"#define STEWART_LIMIT_{name} ..." for name in _table_names(table, "STEWART_LIMITS")]
+            out.append("#define STEWART_N_LIMITS ...")
         elif "STEWART_ELASTIC(" in s:
             out += [f"#define STEWART_E_{name} ..." for name in _table_names(table, "STEWART_ELASTIC")]
             out.append("#define STEWART_N_ELASTIC ...")

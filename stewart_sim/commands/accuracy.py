@@ -1,13 +1,13 @@
 """`stewart-sim accuracy SCENE --out DIR [--horizon S] [--comm-step S] [--fine] [--repeats N]
 [--closed-loop-duration S | --no-closed-loop]`: the work-precision report
-(stewart_sim.accuracy) into DIR, all or nothing."""
+(stewart_sim.studies.accuracy) into DIR, all or nothing."""
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
 
-from stewart_sim.argtypes import number, positive_seconds
 from stewart_sim.commands.constants import literals
+from stewart_sim.shell.argtypes import number, positive_seconds
 
 _repeats = number(int, "an integer", lambda v: 1 <= v <= 20, "1 to 20")
 
@@ -15,7 +15,8 @@ _repeats = number(int, "an integer", lambda v: 1 <= v <= 20, "1 to 20")
 def add_parser(sub, help_text: str) -> None:
     """Register `accuracy` on the command line's subparsers."""
     horizon, comm_step, closed_loop, repeats = literals(
-        "stewart_sim.accuracy.study", "HORIZON", "COMM_STEP", "CLOSED_LOOP_DURATION", "REPEATS")
+        "stewart_sim.studies.accuracy.study", "HORIZON", "COMM_STEP", "CLOSED_LOOP_DURATION",
+        "REPEATS")
     p = sub.add_parser("accuracy", help=help_text,
                        description="Work-precision report: forward simulations of the scene "
                                    "with every integrator over a range of steps or tolerances "
@@ -46,15 +47,15 @@ def add_parser(sub, help_text: str) -> None:
 
 def run(args: argparse.Namespace) -> None:
     """Run the study, write its report, print the files."""
-    from stewart_sim.scene_load import load
+    from stewart_sim.scene.load import load
 
     scene = load(args.scene)        # a bad scene file fails before the heavy imports
     from stewart_fmu.io import writing
-    from stewart_sim.accuracy.report import write_accuracy_report
-    from stewart_sim.accuracy.study import CLOSED_LOOP_REFERENCE, accuracy_study
-    from stewart_sim.limits import check_samples
-    from stewart_sim.outputs import result_set, written_in
-    from stewart_sim.progress import Progress
+    from stewart_sim.shell.outputs import result_set, written_in
+    from stewart_sim.shell.progress import Progress
+    from stewart_sim.shell.run_length import check_samples
+    from stewart_sim.studies.accuracy.report import write_accuracy_report
+    from stewart_sim.studies.accuracy.study import CLOSED_LOOP_REFERENCE, accuracy_study
 
     check_samples("--horizon", args.horizon, 2.0 / args.comm_step,
                   "the open loop samples the move twice per --comm-step")

@@ -3,14 +3,14 @@ of the joints and leg-length offsets from tracker poses and encoder lengths.
 
 The poses file has the columns x,y,z,thx,thy,thz (the measured platform pose, docs/conventions.md)
 and l1..l6 (the lengths the encoders report), in any order; the model and the method are in
-stewart_sim/calibrate/study.py, the files DIR gets (all or nothing) in
-stewart_sim/calibrate/report.py.
+stewart_sim/studies/calibrate/study.py, the files DIR gets (all or nothing) in
+stewart_sim/studies/calibrate/report.py.
 """
 from __future__ import annotations
 
 import argparse
 
-from stewart_sim.argtypes import number
+from stewart_sim.shell.argtypes import number
 
 
 def _at_least_one(v: int) -> bool:
@@ -43,9 +43,10 @@ def add_parser(sub, help_text: str) -> None:
 
 def run(args: argparse.Namespace) -> None:
     """Run `calibrate`; StewartError subclasses for bad input."""
-    from stewart_sim.calibrate.report import write_calibration
-    from stewart_sim.calibrate.study import calibrate, check_bounds, check_finite, read_poses
-    from stewart_sim.scene_load import load
+    from stewart_sim.scene.load import load
+    from stewart_sim.studies.calibrate.report import write_calibration
+    from stewart_sim.studies.calibrate.study import (calibrate, check_bounds, check_finite,
+                                                     read_poses)
 
     scene = load(args.scene)
     data = read_poses(args.poses)

@@ -1,10 +1,10 @@
 """`stewart-sim case SCENE [--duration S]`: a shipped stiff or extreme scene's [case] against
-the outcome it expects (stewart_sim.case_report; exit status 1 on a mismatch)."""
+the outcome it expects (stewart_sim.studies.cases.report; exit status 1 on a mismatch)."""
 from __future__ import annotations
 
 import argparse
 
-from stewart_sim.argtypes import positive_seconds
+from stewart_sim.shell.argtypes import positive_seconds
 
 
 def add_parser(sub, help_text: str) -> None:
@@ -24,9 +24,9 @@ def add_parser(sub, help_text: str) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the case, print the report; exit status 1 (SystemExit) on a mismatch, else 0."""
-    from stewart_sim.case_report import MISMATCH_STATUS, agrees, report
-    from stewart_sim.cases import run_case
-    from stewart_sim.scene_load import load
+    from stewart_sim.scene.load import load
+    from stewart_sim.studies.cases.outcome import run_case
+    from stewart_sim.studies.cases.report import MISMATCH_STATUS, agrees, report
 
     scene = load(args.scene)
     model, case = scene.model, scene.require_case()

@@ -1,8 +1,8 @@
 """Module constants read from their source without importing the module (standard library only).
 
 A command's help states defaults that are declared in a library module (controller.moves,
-stewart_sim.accuracy.study, ...); importing that module would import numpy, the C core and the
-rest before `--help` could answer. The values are plain literals there, so the ast of the file
+stewart_sim.studies.accuracy.study, ...); importing that module would import numpy, the C core and
+the rest before `--help` could answer. The values are plain literals there, so the ast of the file
 gives them: one declaration, read where it is written.
 """
 from __future__ import annotations

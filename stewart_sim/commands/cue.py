@@ -50,8 +50,8 @@ def run(args: argparse.Namespace) -> None:
     from stewart_sim.cueing.motion import read_motion
     from stewart_sim.cueing.report import cue_view, verdict, write_cue_report
     from stewart_sim.cueing.study import MODES, cue_study
-    from stewart_sim.progress import Progress
-    from stewart_sim.scene_load import load
+    from stewart_sim.scene.load import load
+    from stewart_sim.shell.progress import Progress
     from stewart_sim.view.files import VIEW_FILE, write_beside
 
     scene = load(args.scene)

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import argparse
 
-from stewart_sim.argtypes import port, positive_rate, positive_seconds
 from stewart_sim.commands.constants import literals
+from stewart_sim.shell.argtypes import port, positive_rate, positive_seconds
 
 
 def add_parser(sub, help_text: str) -> None:
@@ -21,9 +21,9 @@ def add_parser(sub, help_text: str) -> None:
         "cue-live", help=help_text,
         description="Run the scene as a live motion simulator: vehicle telemetry datagrams "
                     "(the native format or Live for Speed's OutSim, "
-                    "stewart_sim/cueing/telemetry.py) -> the scene's classical washout, one step "
-                    "per sample at the nominal telemetry rate -> the safety envelope (stroke "
-                    "with a margin, leg speed and acceleration, rack force, cond(J)) -> leg "
+                    "stewart_sim/live/vehicle_datagrams.py) -> the scene's classical washout, "
+                    "one step per sample at the nominal telemetry rate -> the safety "
+                    "envelope (stroke with a margin, leg speed and acceleration, rack force, cond(J)) -> leg "
                     "setpoints with force feed-forward to the device over MAVLink at its "
                     "controller rate. No telemetry for --loss-timeout fades the platform to "
                     "neutral. Operator commands, one word per line on a terminal's standard "
@@ -77,15 +77,15 @@ def run(args: argparse.Namespace) -> None:
 
     from hil.errors import LinkError
     from stewart_fmu import io as sio
-    from stewart_sim import outputs
-    from stewart_sim.limits import MAX_SAMPLES
     from stewart_sim.live.address import device_address, telemetry_address
     from stewart_sim.live.control import Control
     from stewart_sim.live.device_out import DeviceOut
     from stewart_sim.live.receiver import TelemetryReceiver, UdpSource
     from stewart_sim.live.session import (PARK_TIMEOUT, RECORD_COLUMNS, Record, make_session,
                                           run_realtime, summary_lines)
-    from stewart_sim.scene_load import load
+    from stewart_sim.scene.load import load
+    from stewart_sim.shell import outputs
+    from stewart_sim.shell.run_length import MAX_SAMPLES
 
     scene = load(args.scene)
     controller = scene.require_controller()
@@ -106,7 +106,7 @@ def run(args: argparse.Namespace) -> None:
         latest = None
         if args.view is not None:
             from hil.observe import Latest
-            from stewart_sim.view.live import LiveView, live_page
+            from stewart_sim.view.live_server import LiveView, live_page
 
             latest = Latest()
             # bound now (a taken port fails before the device is armed), served from the start

@@ -1,12 +1,12 @@
 """`stewart-sim demo SCENE --out DIR [--duration S] [--no-view]`: what `make demo` runs
-(stewart_sim.demo.run_demo) into DIR, all or nothing."""
+(stewart_sim.studies.paper.demonstration.run_demo) into DIR, all or nothing."""
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
 
-from stewart_sim.argtypes import positive_seconds
 from stewart_sim.commands.constants import literals
+from stewart_sim.shell.argtypes import positive_seconds
 
 
 def add_parser(sub, help_text: str) -> None:
@@ -29,11 +29,11 @@ def add_parser(sub, help_text: str) -> None:
 def run(args: argparse.Namespace) -> None:
     """Write the demonstration set, print the paper's verdicts and the files."""
     from controller.moves import DEMO_RATE
-    from stewart_sim.demo import run_demo
-    from stewart_sim.limits import check_samples
-    from stewart_sim.outputs import result_set, written_in
-    from stewart_sim.paper.files import print_verdicts
-    from stewart_sim.scene_load import load
+    from stewart_sim.scene.load import load
+    from stewart_sim.shell.outputs import result_set, written_in
+    from stewart_sim.shell.run_length import check_samples
+    from stewart_sim.studies.paper.demonstration import run_demo
+    from stewart_sim.studies.paper.files import print_verdicts
 
     scene = load(args.scene)
     model = scene.model

@@ -1,12 +1,12 @@
-"""`stewart-sim device SCENE (--udp 127.0.0.1:PORT | --pty) [--watchdog S] [--lockstep]
-[--signing-key HEX] [--truth TRUE.toml] [--view [PORT]]`: the emulated micro-manipulator
-(hil.spawn.serve_device) until SIGINT or SIGTERM (exit status 0)."""
+"""`stewart-sim device SCENE [--udp 127.0.0.1:PORT | --pty] [--gcs 127.0.0.1:PORT] [--watchdog S]
+[--lockstep] [--signing-key HEX] [--truth TRUE.toml] [--view [PORT]]` (one link at least): the
+emulated micro-manipulator (hil.spawn.serve_device) until SIGINT or SIGTERM (exit status 0)."""
 from __future__ import annotations
 
 import argparse
 
-from stewart_sim.argtypes import port, positive_seconds
 from stewart_sim.commands.constants import literals
+from stewart_sim.shell.argtypes import port, positive_seconds
 
 
 def add_parser(sub, help_text: str) -> None:
@@ -16,16 +16,23 @@ def add_parser(sub, help_text: str) -> None:
                        description="Run the scene's plant and drive servo loops at the "
                                    "controller rate as an emulated device speaking MAVLink 2 "
                                    "(our dialect, hil/message_definitions/stewart.xml) over UDP "
-                                   "on loopback or a pseudo-terminal, until interrupted (Ctrl-C "
-                                   "exits 0). The first line printed is the pseudo-terminal's "
-                                   "path, or the UDP address listened on.")
+                                   "on loopback or a pseudo-terminal, and/or PI's GCS 2.0 over "
+                                   "TCP (--gcs), until interrupted (Ctrl-C exits 0). The first "
+                                   "line printed is the pseudo-terminal's path, or the UDP "
+                                   "address listened on; with --gcs the GCS address follows.")
     p.add_argument("scene", metavar="SCENE", help="scene file (TOML) with a [controller] table")
-    where = p.add_mutually_exclusive_group(required=True)
+    where = p.add_mutually_exclusive_group()
     where.add_argument("--udp", metavar="127.0.0.1:PORT",
                        help="listen on this loopback UDP port (0: any free port) and answer "
                             "whoever sends to it")
     where.add_argument("--pty", action="store_true",
                        help="open a pseudo-terminal and print its path on the first line")
+    p.add_argument("--gcs", metavar="127.0.0.1:PORT",
+                   help="also (or, without --udp and --pty, only) speak PI's GCS 2.0 over TCP "
+                        "on this loopback port (PI's is 50000; 0: any free port), so that "
+                        "PIPython drives the same device as a hexapod: axes X Y Z (mm) and "
+                        "U V W (deg), referencing, moves, the data recorder (hil/gcs); real "
+                        "time only. Its line 'gcs 127.0.0.1:PORT' follows the MAVLink one")
     p.add_argument("--watchdog", type=positive_seconds, default=watchdog, metavar="SECONDS",
                    help="safe stop (hold) after this long without a valid setpoint while armed "
                         f"(default {watchdog:g} s)")
@@ -47,11 +54,15 @@ def add_parser(sub, help_text: str) -> None:
 
 def run(args: argparse.Namespace) -> None:
     """Serve until SIGINT or SIGTERM, then return. With --view the live view
-    (stewart_sim.view.live) listens on loopback from before the device starts (a taken port
+    (stewart_sim.view.live_server) listens on loopback from before the device starts (a taken port
     fails at once) until the device stops; its address is the line after the device's own."""
     from hil.spawn import serve_device  # pymavlink: only for this command
-    from stewart_sim.scene_load import load
+    from stewart_sim.scene.load import load
 
+    if args.udp is None and not args.pty and args.gcs is None:
+        from hil.errors import LinkError
+        raise LinkError("device: give a link: --udp 127.0.0.1:PORT, --pty or "
+                        "--gcs 127.0.0.1:PORT")
     scene = load(args.scene)
     model, config = scene.model, scene.require_controller()
     machine = load(args.truth) if args.truth is not None else scene   # what the device is
@@ -60,10 +71,10 @@ def run(args: argparse.Namespace) -> None:
               "sensors": machine.sensors}
     if args.view is None:
         serve_device(model, config, args.udp, args.watchdog, args.lockstep, args.signing_key,
-                     **hidden)
+                     gcs=args.gcs, pty=args.pty, **hidden)
         return
     from hil.observe import Latest
-    from stewart_sim.view.live import LiveView, live_page
+    from stewart_sim.view.live_server import LiveView, live_page
 
     latest = Latest()
     with LiveView(live_page(model, config), latest, args.view) as view:
@@ -71,4 +82,4 @@ def run(args: argparse.Namespace) -> None:
             view.start()
             print(f"view: {view.url}", flush=True)
         serve_device(model, config, args.udp, args.watchdog, args.lockstep, args.signing_key,
-                     observer=latest, ready=ready, **hidden)
+                     observer=latest, ready=ready, gcs=args.gcs, pty=args.pty, **hidden)

@@ -1,12 +1,12 @@
 """`stewart-sim excite SCENE --out T.csv [--duration S] [--period S] [--harmonics H]
 [--starts N]`: an excitation trajectory for identification, optimised for the condition number
-of the stacked base regressor inside the scene's limits (stewart_sim/excite/)."""
+of the stacked base regressor inside the scene's limits (stewart_sim/studies/excite/)."""
 from __future__ import annotations
 
 import argparse
 
-from stewart_sim.argtypes import number, positive_seconds
 from stewart_sim.commands.constants import literals
+from stewart_sim.shell.argtypes import number, positive_seconds
 
 
 def _at_least(low: int):
@@ -20,9 +20,10 @@ def _between(low: int, high: int):
 def add_parser(sub, help_text: str) -> None:
     """Register `excite` on the command line's subparsers."""
     period, harmonics, periods, starts, most, iterations, polish = literals(
-        "stewart_sim.excite.design", "PERIOD", "HARMONICS", "PERIODS", "STARTS", "MAX_STARTS",
-        "MAX_ITERATIONS", "POLISH_ITERATIONS")
-    margin, fraction = literals("stewart_sim.excite.bounds", "STROKE_MARGIN", "LIMIT_FRACTION")
+        "stewart_sim.studies.excite.design", "PERIOD", "HARMONICS", "PERIODS", "STARTS",
+        "MAX_STARTS", "MAX_ITERATIONS", "POLISH_ITERATIONS")
+    margin, fraction = literals("stewart_sim.studies.excite.bounds", "STROKE_MARGIN",
+                                "LIMIT_FRACTION")
     (rate,) = literals("controller.moves", "DEMO_RATE")
     p = sub.add_parser(
         "excite", help=help_text,
@@ -61,11 +62,11 @@ def run(args: argparse.Namespace) -> None:
     """Run `excite`; StewartError subclasses for bad input."""
     from controller.moves import DEMO_RATE
     from stewart_fmu.errors import StewartError
-    from stewart_sim.excite.design import PERIODS, check_sizes, design, excitation
-    from stewart_sim.excite.report import side_paths, summary, write_excitation
-    from stewart_sim.limits import check_samples
-    from stewart_sim.progress import Progress
-    from stewart_sim.scene_load import load
+    from stewart_sim.scene.load import load
+    from stewart_sim.shell.progress import Progress
+    from stewart_sim.shell.run_length import check_samples
+    from stewart_sim.studies.excite.design import PERIODS, check_sizes, design, excitation
+    from stewart_sim.studies.excite.report import side_paths, summary, write_excitation
 
     side_paths(args.out)        # a bad --out before the work
     periods = PERIODS if args.duration is None else args.duration / args.period

@@ -39,7 +39,7 @@ def run(args: argparse.Namespace) -> None:
     from stewart_fmu.fmu.export import export_model
     from stewart_fmu.io import writing
     from stewart_fmu.scene import parse_scene_bytes, read_scene_bytes, scene_from_dict
-    from stewart_sim.scene_load import scene_of
+    from stewart_sim.scene.load import scene_of
 
     out = Path(args.out)
     if out.is_dir():

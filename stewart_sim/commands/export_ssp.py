@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from stewart_sim.argtypes import positive_seconds
+from stewart_sim.shell.argtypes import positive_seconds
 
 from .constants import literals
 
@@ -40,7 +40,7 @@ def run(args: argparse.Namespace) -> None:
     from stewart_fmu.errors import StewartError
     from stewart_fmu.io import writing
     from stewart_fmu.scene import parse_scene_bytes, read_scene_bytes, scene_from_dict
-    from stewart_sim.scene_load import scene_of
+    from stewart_sim.scene.load import scene_of
 
     out = Path(args.out)
     if out.is_dir():

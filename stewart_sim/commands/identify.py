@@ -1,15 +1,15 @@
 """`stewart-sim identify SCENE --runs RUN.csv [RUN2.csv ...] --out DIR [--validate RUN.csv ...]
 [--refine]`:
 the inertial and friction parameters of a platform from its measured runs (leg lengths and rack
-forces or motor currents). The pipeline is stewart_sim/identify/study.py, the files
-stewart_sim/identify/report.py, the run format stewart_sim/identify/runs.py, the output-error
-refinement stewart_sim/identify/refine.py.
+forces or motor currents). The pipeline is stewart_sim/studies/identify/study.py, the files
+stewart_sim/studies/identify/report.py, the run format stewart_sim/studies/identify/runs.py, the
+output-error refinement stewart_sim/studies/identify/refine.py.
 """
 from __future__ import annotations
 
 import argparse
 
-from stewart_sim.argtypes import number
+from stewart_sim.shell.argtypes import number
 
 
 def _positive(v: float) -> bool:
@@ -63,10 +63,10 @@ def add_parser(sub, help_text: str) -> None:
 
 def run(args: argparse.Namespace) -> None:
     """Run `identify`; StewartError subclasses for bad input."""
-    from stewart_sim.identify.report import percent, write_identification
-    from stewart_sim.identify.runs import read_run
-    from stewart_sim.identify.study import identify, predict
-    from stewart_sim.scene_load import load
+    from stewart_sim.scene.load import load
+    from stewart_sim.studies.identify.report import percent, write_identification
+    from stewart_sim.studies.identify.runs import read_run
+    from stewart_sim.studies.identify.study import identify, predict
 
     scene = load(args.scene)
     motor = scene.controller.motor if scene.controller is not None else None
@@ -75,8 +75,8 @@ def run(args: argparse.Namespace) -> None:
     ident = identify(scene.model, runs, args.cutoff, args.partial, args.force_delay)
     refined = None
     if args.refine:
-        from stewart_sim.identify.refine import refine
-        from stewart_sim.progress import Progress
+        from stewart_sim.shell.progress import Progress
+        from stewart_sim.studies.identify.refine import refine
 
         bar = Progress()
         refined = refine(ident, runs, progress=lambda k, n: bar.update(

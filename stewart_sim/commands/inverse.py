@@ -1,5 +1,6 @@
 """`stewart-sim inverse SCENE --trajectory TRAJ.csv --out FORCES.csv [--parts] [--no-view]`: the
-rack forces along a trajectory (stewart_sim.inverse.run_inverse) and their 3D view beside."""
+rack forces along a trajectory (stewart_sim.open_loop.inverse_forces.run_inverse) and their 3D view
+beside."""
 from __future__ import annotations
 
 import argparse
@@ -28,10 +29,10 @@ def add_parser(sub, help_text: str) -> None:
 def run(args: argparse.Namespace) -> None:
     """Write the forces (and their view) or neither; print what was written."""
     from stewart_fmu.errors import StewartError
-    from stewart_sim.inverse import run_inverse
-    from stewart_sim.outputs import file_set
-    from stewart_sim.progress import Progress
-    from stewart_sim.scene_load import load
+    from stewart_sim.open_loop.inverse_forces import run_inverse
+    from stewart_sim.scene.load import load
+    from stewart_sim.shell.outputs import file_set
+    from stewart_sim.shell.progress import Progress
 
     scene = load(args.scene)
     model = scene.model

@@ -1,6 +1,6 @@
 """`stewart-sim modes SCENE --pose x,y,z,thx,thy,thz --out DIR`: the small oscillations about the
 static equilibrium at a pose (DIR/modes.csv, first columns mode,frequency_hz, ascending) and the
-stiffness at the pivot (DIR/stiffness.csv), from the scene's [stiffness] (stewart_sim.modes)."""
+stiffness at the pivot (DIR/stiffness.csv), from the scene's [stiffness] (stewart_sim.studies.modes)."""
 from __future__ import annotations
 
 import argparse
@@ -32,12 +32,12 @@ def add_parser(sub, help_text: str) -> None:
 
 def run(args: argparse.Namespace) -> None:
     """Check every input, compute, write the set, print the summary."""
-    from stewart_sim.scene_load import load
+    from stewart_sim.scene.load import load
 
     scene = load(args.scene)        # a bad scene file fails before the heavy imports
     import numpy as np
 
-    from stewart_sim.modes import report, study
+    from stewart_sim.studies.modes import report, study
 
     model = scene.model
     if args.payload is not None:

@@ -1,5 +1,5 @@
 """`stewart-sim paper [SCENE] --out DIR [--no-view]`: the paper's Section 3 rerun
-(stewart_sim.paper.files.run_paper) into DIR, all or nothing."""
+(stewart_sim.studies.paper.files.run_paper) into DIR, all or nothing."""
 from __future__ import annotations
 
 import argparse
@@ -23,9 +23,9 @@ def add_parser(sub, help_text: str) -> None:
 
 def run(args: argparse.Namespace) -> None:
     """Rerun, write the report, print the verdicts."""
-    from stewart_sim.outputs import result_set
-    from stewart_sim.paper.files import print_verdicts, run_paper
-    from stewart_sim.scene_load import load
+    from stewart_sim.scene.load import load
+    from stewart_sim.shell.outputs import result_set
+    from stewart_sim.studies.paper.files import print_verdicts, run_paper
 
     scene = load(resolve_scene(args.scene))
     out = Path(args.out)

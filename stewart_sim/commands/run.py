@@ -1,20 +1,21 @@
 """`stewart-sim run SCENE [--fmu PLANT.fmu | --link serial|udp [--mode lockstep|realtime]
 [--truth TRUE.toml] [--trajectory T.csv] [--record RUN.csv]] --out DIR [--duration S]
-[--feedforward F] [--format csv|parquet] [--no-view]`: the closed loop (stewart_sim.run, or
-stewart_sim.link_run over the link) into DIR, all or nothing; then the recording RUN.csv."""
+[--feedforward F] [--format csv|parquet] [--no-view]`: the closed loop
+(stewart_sim.closed_loop.run_files, or stewart_sim.closed_loop.over_link over the link) into DIR,
+all or nothing; then the recording RUN.csv."""
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
 
-from stewart_sim.argtypes import positive_seconds
 from stewart_sim.commands.constants import literals
+from stewart_sim.shell.argtypes import positive_seconds
 
 
 def add_parser(sub, help_text: str) -> None:
     """Register `run` on the command line's subparsers."""
     duration, move, hold = literals("controller.moves", "DEMO_DURATION", "RUN_MOVE", "RUN_HOLD")
-    (formats,) = literals("stewart_sim.run", "FORMATS")
+    (formats,) = literals("stewart_sim.closed_loop.run_files", "FORMATS")
     (feedforward,) = literals("controller.config", "FEEDFORWARD")
     p = sub.add_parser("run", help=help_text,
                        description="Track a demonstration reference (a quintic six-axis move "
@@ -65,13 +66,14 @@ def run(args: argparse.Namespace) -> None:
     """Check the options against each other, run, print summary.md and the files."""
     from dataclasses import replace
 
-    from stewart_sim.scene_load import load
+    from stewart_sim.scene.load import load
 
     scene = load(args.scene)        # a bad scene file fails before the heavy imports
     from stewart_fmu.errors import StewartError
-    from stewart_sim.limits import check_samples
-    from stewart_sim.outputs import result_set
-    from stewart_sim.run import ANY_RUN_FILES, check_format, run_closed_loop_files, run_files
+    from stewart_sim.closed_loop.run_files import (ANY_RUN_FILES, check_format,
+                                                   run_closed_loop_files, run_files)
+    from stewart_sim.shell.outputs import result_set
+    from stewart_sim.shell.run_length import check_samples
     from stewart_sim.view.files import VIEW_FILE
 
     model, config = scene.model, scene.require_controller()
@@ -107,7 +109,8 @@ def run(args: argparse.Namespace) -> None:
     if args.link is not None:
         # hil (pymavlink, the device process): only for --link
         from stewart_fmu.io import write_csv, writing
-        from stewart_sim.link_run import LINK_FILES, link_trajectory, record_table, run_link_files
+        from stewart_sim.closed_loop.over_link import (LINK_FILES, link_trajectory, record_table,
+                                                       run_link_files)
 
         if args.format != "csv":
             raise StewartError("run --link: --format parquet is not supported over the link")

@@ -1,4 +1,4 @@
-"""`stewart-sim scene-info SCENE`: the model a scene builds (stewart_sim.scene_info), after the
+"""`stewart-sim scene-info SCENE`: the model a scene builds (stewart_sim.scene.describe), after the
 checks every command makes."""
 from __future__ import annotations
 
@@ -15,9 +15,9 @@ def add_parser(sub, help_text: str) -> None:
 
 def run(args: argparse.Namespace) -> None:
     """Print the description."""
-    from stewart_sim.scene_load import load
+    from stewart_sim.scene.load import load
 
     scene = load(args.scene)        # a bad scene file fails before the heavy imports
-    from stewart_sim.scene_info import describe
+    from stewart_sim.scene.describe import describe
 
     print(describe(scene))

@@ -1,5 +1,5 @@
 """`stewart-sim simulate SCENE --forces F.csv --out DIR [--integrator M]`: open-loop forward
-dynamics from rack forces (stewart_sim.simulate)."""
+dynamics from rack forces (stewart_sim.open_loop.forward)."""
 from __future__ import annotations
 
 import argparse
@@ -30,8 +30,8 @@ def add_parser(sub, help_text: str) -> None:
 
 def run(args: argparse.Namespace) -> None:
     """Run `simulate`; StewartError subclasses for bad input or a refused step."""
-    from stewart_sim.scene_load import load
-    from stewart_sim.simulate import FILES, read_forces, simulate, write_motion
+    from stewart_sim.open_loop.forward import FILES, read_forces, simulate, write_motion
+    from stewart_sim.scene.load import load
 
     scene = load(args.scene)
     model = scene.model

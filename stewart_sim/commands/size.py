@@ -1,15 +1,15 @@
 """`stewart-sim size SCENE --motions M1.csv [M2.csv ...] --out DIR [--catalogue drives.csv]
 [--margin F] [--scheduler tcp://HOST:PORT | --workers N]`: the actuators a platform needs for
-the motions it is to fly (stewart_sim.sizing). DIR gets the files listed in
-stewart_sim/sizing/report.py, all or nothing. Exit status 0 also when no drive qualifies: the
-report says so."""
+the motions it is to fly (stewart_sim.studies.sizing). DIR gets the files listed in
+stewart_sim/studies/sizing/report.py, all or nothing. Exit status 0 also when no drive qualifies:
+the report says so."""
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
 
-from stewart_sim.argtypes import number
 from stewart_sim.commands.constants import literals
+from stewart_sim.shell.argtypes import number
 
 _workers = number(int, "an integer", lambda v: 1 <= v <= 1024, "1 to 1024")
 _margin = number(float, "a number", lambda v: 0.0 <= v <= 10.0, "a fraction from 0 to 10")
@@ -17,7 +17,7 @@ _margin = number(float, "a number", lambda v: 0.0 <= v <= 10.0, "a fraction from
 
 def add_parser(sub, help_text: str) -> None:
     """Register `size` on the command line's subparsers."""
-    (margin,) = literals("stewart_sim.sizing.study", "DEFAULT_MARGIN")
+    (margin,) = literals("stewart_sim.studies.sizing.study", "DEFAULT_MARGIN")
     p = sub.add_parser(
         "size", help=help_text,
         description="For a set of motions (platform trajectories in the `inverse` format, `cue`'s "
@@ -49,13 +49,13 @@ def add_parser(sub, help_text: str) -> None:
 def run(args: argparse.Namespace) -> None:
     """Run the sizing and write its report; StewartError subclasses for bad input."""
     from stewart_fmu.errors import StewartError
-    from stewart_sim.progress import Progress
-    from stewart_sim.scene_load import load
-    from stewart_sim.sizing.catalogue import read_catalogue
-    from stewart_sim.sizing.motions import read_motions
-    from stewart_sim.sizing.report import write_size_report
-    from stewart_sim.sizing.study import (check_budget, check_finite, ranking, size_scene,
-                                          sweep_catalogue)
+    from stewart_sim.scene.load import load
+    from stewart_sim.shell.progress import Progress
+    from stewart_sim.studies.sizing.catalogue import read_catalogue
+    from stewart_sim.studies.sizing.motions import read_motions
+    from stewart_sim.studies.sizing.report import write_size_report
+    from stewart_sim.studies.sizing.study import (check_budget, check_finite, ranking, size_scene,
+                                                  sweep_catalogue)
 
     if not args.catalogue and (args.scheduler or args.workers):
         raise StewartError("--scheduler and --workers run the catalogue sweep: give --catalogue")

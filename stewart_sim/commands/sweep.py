@@ -1,5 +1,5 @@
 """`stewart-sim sweep SCENE --grid GRID.toml --out DIR [--scheduler tcp://HOST:PORT |
---workers N] [--adaptive N] [--no-plots]`: a design sweep on Dask (stewart_sim.sweep.files),
+--workers N] [--adaptive N] [--no-plots]`: a design sweep on Dask (stewart_sim.studies.sweep.files),
 resumable."""
 from __future__ import annotations
 
@@ -7,10 +7,10 @@ import argparse
 import sys
 from pathlib import Path
 
-from stewart_sim.argtypes import number
+from stewart_sim.shell.argtypes import number
 
 _workers = number(int, "an integer", lambda v: 1 <= v <= 1024, "1 to 1024")
-# the bound is stewart_sim.sweep.adaptive.MAX_ADDED (not imported: --help stays fast)
+# the bound is stewart_sim.studies.sweep.adaptive.MAX_ADDED (not imported: --help stays fast)
 _adaptive = number(int, "an integer", lambda v: 0 <= v <= 1_000_000, "an integer from 0 to 1000000")
 
 
@@ -25,7 +25,8 @@ def add_parser(sub, help_text: str) -> None:
                                    "one stopped.")
     p.add_argument("scene", metavar="SCENE", help="the base scene file (TOML)")
     p.add_argument("--grid", required=True, metavar="GRID.toml",
-                   help="evaluation, trajectory or pose grid, and the [axes] to vary (README)")
+                   help="evaluation, trajectory or pose grid, and the [axes] to vary "
+                        "(docs/guides/sweeps-and-sizing.md)")
     p.add_argument("--out", required=True, metavar="DIR", help="output directory (resumable)")
     where = p.add_mutually_exclusive_group()
     where.add_argument("--scheduler", metavar="tcp://HOST:PORT",
@@ -42,10 +43,10 @@ def add_parser(sub, help_text: str) -> None:
 
 def run(args: argparse.Namespace) -> None:
     """Run the sweep, print its figures and the files."""
-    from stewart_sim.scene_load import load
+    from stewart_sim.scene.load import load
 
     load(args.scene)    # every table of the base scene checked before the cluster starts
-    from stewart_sim.sweep.files import run_sweep_files  # dask: only for this command
+    from stewart_sim.studies.sweep.files import run_sweep_files  # dask: only for this command
 
     args.kept = (f"the points finished so far are kept in {args.out} (its chunk files), "
                  "the same command resumes from there")

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-from stewart_sim.argtypes import positive_rate, positive_seconds
+from stewart_sim.shell.argtypes import positive_rate, positive_seconds
 
 
 def add_parser(sub, help_text: str) -> None:
@@ -14,7 +14,7 @@ def add_parser(sub, help_text: str) -> None:
         "telemetry-replay", help=help_text,
         description="Send a vehicle motion (CSV t,fx,fy,fz,wx,wy,wz, as `cue` reads it; "
                     "scenes/motions/ has examples) as telemetry datagrams over UDP at its own "
-                    "times: the native format (60 bytes, stewart_sim/cueing/telemetry.py) or "
+                    "times: the native format (60 bytes, stewart_sim/live/vehicle_datagrams.py) or "
                     "Live for Speed's OutSim packet (64 bytes). Telemetry times start at 0.")
     p.add_argument("motion", metavar="MOTION.csv", help="vehicle motion file")
     p.add_argument("--to", required=True, metavar="udp://127.0.0.1:PORT",

@@ -1,19 +1,19 @@
 """`stewart-sim trajectory SCENE (--waypoints W.csv | --move demo|run|quintic) --out T.csv
 [--rate HZ] [--duration S]`: a smooth reference trajectory in the `inverse` format
-(stewart_sim.trajectory)."""
+(stewart_sim.open_loop.references)."""
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
 
-from stewart_sim.argtypes import positive_rate, positive_seconds
 from stewart_sim.commands.constants import literals
+from stewart_sim.shell.argtypes import positive_rate, positive_seconds
 
 
 def add_parser(sub, help_text: str) -> None:
     """Register `trajectory` on the command line's subparsers."""
     duration, rate = literals("controller.moves", "DEMO_DURATION", "DEMO_RATE")
-    (moves,) = literals("stewart_sim.trajectory", "MOVES")
+    (moves,) = literals("stewart_sim.open_loop.references", "MOVES")
     p = sub.add_parser(
         "trajectory", help=help_text,
         description="Write a smooth trajectory with exact rates and accelerations, checked by "
@@ -41,8 +41,9 @@ def run(args: argparse.Namespace) -> None:
     """Run `trajectory`; StewartError subclasses for bad input."""
     from controller.moves import DEMO_DURATION, DEMO_RATE
     from stewart_fmu.errors import StewartError
-    from stewart_sim.scene_load import load
-    from stewart_sim.trajectory import checked, move, waypoint_trajectory, write_trajectory
+    from stewart_sim.open_loop.references import (checked, move, waypoint_trajectory,
+                                                  write_trajectory)
+    from stewart_sim.scene.load import load
 
     scene = load(args.scene)
     model = scene.model

@@ -6,8 +6,8 @@ import argparse
 import time
 from pathlib import Path
 
-from stewart_sim.argtypes import positive_rate
 from stewart_sim.commands.constants import literals
+from stewart_sim.shell.argtypes import positive_rate
 
 
 def add_parser(sub, help_text: str) -> None:
@@ -39,7 +39,7 @@ def run(args: argparse.Namespace) -> None:
     """Write the page; print its size and what it shows."""
     from stewart_fmu.errors import StewartError
     from stewart_fmu.io import writing
-    from stewart_sim.scene_load import load
+    from stewart_sim.scene.load import load
     from stewart_sim.view.files import VIEW_FILE, describe
     from stewart_sim.view.html import write_view
     from stewart_sim.view.sources import view_of

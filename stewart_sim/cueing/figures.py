@@ -9,7 +9,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from stewart_sim.plots import plot_leg_forces, plot_line, tracking_figure
+from stewart_sim.shell.plots import plot_leg_forces, plot_line, tracking_figure
 
 from .study import CueStudy
 from .vestibular import AXES, ROTATION_AXES

@@ -46,14 +46,14 @@ constraints", Vehicle System Dynamics 51: 1151-1172), with the limits taken from
   still advanced and the QP re-solved every MPC step, the blocks refined to the steps
   (refine_plan). r = 1 (default) is the formulation above unchanged.
 
-The rate, horizon, margins, weights and solver settings are OptimalOptions (config.py): the
-scene's [cueing.optimal] table, read by config.optimal_options.
+The rate, horizon, margins, weights and solver settings are OptimalOptions
+(cueing_config.py): the scene's [cueing.optimal] table, read by cueing_config.optimal_options.
 
 The applied accelerations are integrated exactly (piecewise constant), so the returned q, qd,
 qdd are consistent at any sample rate; the cue is resampled at the motion's own times.
 
 OptimalStepper holds the QP and the state and takes one MPC step given the vehicle window;
-optimal_cueing is the loop over it on a recorded motion, optimal_live.LiveOptimal steps it
+optimal_cueing is the loop over it on a recorded motion, optimal_stream.LiveOptimal steps it
 live on telemetry.
 """
 from __future__ import annotations
@@ -71,7 +71,7 @@ from controller.drive import AxisModel, axis_model
 from stewart_fmu.errors import StewartError
 from stewart_fmu.model import Model
 
-from .config import CueingConfig, OptimalOptions
+from stewart_sim.scene.cueing_config import CueingConfig, OptimalOptions
 from .motion import VehicleMotion
 from .mpc_model import (
     NP,

@@ -26,8 +26,8 @@ import numpy as np
 
 from controller.config import ControllerConfig
 from stewart_fmu import io
-from stewart_sim.markdown import md_text
-from stewart_sim.outputs import result_set
+from stewart_sim.shell.markdown import md_text
+from stewart_sim.shell.outputs import result_set
 from stewart_sim.view.data import view_data
 from stewart_sim.view.sources import run_table_view
 
@@ -56,7 +56,7 @@ def write_cue_report(study: CueStudy, out: Path, title: str,
         if study.tracking is not None:
             io.write_csv(stage / "tracking.csv", study.tracking.table)
             names.append("tracking.csv")
-        from stewart_sim.plots import save_figure   # matplotlib: only when plotting
+        from stewart_sim.shell.plots import save_figure   # matplotlib: only when plotting
         for name, make in FIGURES:
             fig = make(study, title)
             if fig is not None:

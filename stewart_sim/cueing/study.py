@@ -29,9 +29,9 @@ from controller.trajectory import Trajectory
 from stewart_fmu.budget import check_count
 from stewart_fmu.errors import StewartError
 from stewart_fmu.model import Model
-from stewart_sim.scene_load import Scene
+from stewart_sim.scene.load import Scene
 
-from .config import CueingConfig
+from stewart_sim.scene.cueing_config import CueingConfig
 from .feasibility import Feasibility, feasibility
 from .motion import VehicleMotion
 from .optimal import Diagnostics, optimal_cueing

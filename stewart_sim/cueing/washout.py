@@ -49,7 +49,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .config import CueingConfig
+from stewart_sim.scene.cueing_config import CueingConfig
 from .motion import VehicleMotion
 from .washout_step import WashoutStepper
 

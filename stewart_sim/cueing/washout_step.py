@@ -45,7 +45,7 @@ import numpy as np
 from stewart_fmu.errors import KinematicsError
 from stewart_fmu.rotations import GIMBAL_LIMIT
 
-from .config import CueingConfig
+from stewart_sim.scene.cueing_config import CueingConfig
 from .filters import FilterBank, high_pass_denominator
 
 Vector3 = tuple[float, float, float]

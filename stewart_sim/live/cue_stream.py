@@ -52,7 +52,7 @@ from typing import Protocol
 import numpy as np
 
 from controller.trajectory import minimum_jerk
-from stewart_sim.cueing.telemetry import TelemetrySample
+from stewart_sim.live.vehicle_datagrams import TelemetrySample
 
 GRID_TOLERANCE = 1e-6   # of h: a sample this close to a grid point is on it
 MAX_STEPS = 10          # washout steps a tick may take (the default loss timeout at 100 Hz)
@@ -207,11 +207,11 @@ class CueStream:
 
 
 class OptimalStream:
-    """The optimal mode's face for the live loop: cueing.optimal_live.LiveOptimal (the MPC
+    """The optimal mode's face for the live loop: live.optimal_stream.LiveOptimal (the MPC
     without preview, stepped at its own rate, solving off the loop's thread) pushed every
     accepted sample and sampled every tick, both at the loop's clock time (never decreasing).
     `reset` does nothing: the MPC keeps its own state through a fade (its window holds the last
-    sample) and the live loop blends its plan in again on resume (cueing.fade.Blend)."""
+    sample) and the live loop blends its plan in again on resume (live.fade.Blend)."""
 
     mode = "optimal"
 

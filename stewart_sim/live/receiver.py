@@ -5,12 +5,12 @@ counted by kind.
 (non-blocking) until MAX_READ datagrams or until the clock has moved DRAIN_BUDGET past the
 start of the drain, whichever comes first, so a flood of datagrams costs a tick at most that
 budget and the rest waits in the socket (the kernel drops what overflows its buffer). Each
-datagram read is decoded (cueing.telemetry: the native format or OutSim); a refused one is
+datagram read is decoded (live.vehicle_datagrams: the native format or OutSim); a refused one is
 counted under its TelemetryError.kind (malformed, truncated, non_finite, absurd), a sample not
 newer than the newest seen (the last accepted one, or a newer one earlier in the same drain)
 under out_of_order (older) or duplicate (the same time), and a sample ahead of the stream's
 clock under ahead (below). Of the valid samples of one drain only the newest is returned; the
-ones it replaced are counted as superseded. A refused datagram never reaches the washout: the
+older ones are counted as superseded. A refused datagram never reaches the washout: the
 platform moves only on an accepted sample.
 
 The stream's clock: the first sample accepted (after a start or `forget_order`) anchors a time
@@ -34,8 +34,8 @@ import socket
 from dataclasses import dataclass, field
 from typing import Callable, Protocol
 
-from stewart_sim.cueing.telemetry import (REFUSAL_KINDS, TelemetryError, TelemetrySample,
-                                          decode_native, decode_outsim)
+from stewart_sim.live.vehicle_datagrams import (REFUSAL_KINDS, TelemetryError, TelemetrySample,
+                                                decode_native, decode_outsim)
 
 MAX_READ = 256          # datagrams read at most per tick
 DRAIN_BUDGET = 2e-4     # s of clock a tick's drain may take before it stops reading

@@ -22,7 +22,8 @@ import numpy as np
 from hil.timing import wait_until
 from stewart_sim.cueing.motion import VehicleMotion
 from stewart_sim.cueing.study import resample
-from stewart_sim.cueing.telemetry import TelemetryError, TelemetrySample, encode, encode_outsim
+from stewart_sim.live.vehicle_datagrams import (TelemetryError, TelemetrySample, encode,
+                                                encode_outsim)
 
 ENCODERS: dict[str, Callable[[TelemetrySample], bytes]] = {"native": encode,
                                                            "outsim": encode_outsim}

@@ -3,14 +3,14 @@
 Each tick k (session time t_k = k / rate, the device's time; due at start + t_k on the clock):
 1. the operator's commands (stewart_sim.live.control) and the newest valid telemetry sample
    (stewart_sim.live.receiver: a bounded drain, refusals counted by kind);
-2. the mode (cueing.live_modes: its one transition table): an accepted sample while cueing
+2. the mode (live.pipeline_modes: its one transition table): an accepted sample while cueing
    steps the washout (stewart_sim.live.cue_stream; at most MAX_STEPS steps a tick, a backlog
    taken by the next ticks); no sample for `loss_timeout` s is a
    telemetry loss: the platform fades to neutral and the washout restarts at rest when
    telemetry is back (after the fade has reached neutral);
 3. the pose reference: the cue extrapolated to t_k, or the neutral pose at rest while fading,
    parking or parked;
-4. the safety envelope (cueing.envelope.Envelope: stroke, leg speed and acceleration, rack
+4. the safety envelope (live.envelope.Envelope: stroke, leg speed and acceleration, rack
    force, cond(J); an emergency stop is its `brake`) -> leg lengths, rates and feed-forward
    forces; the force rate is the backward difference of the forces sent;
 5. LEG_SETPOINT k to the device (stewart_sim.live.device_out), and the row of the record; no
@@ -49,20 +49,20 @@ import numpy as np
 
 from hil.observe import OBSERVE_HZ, Latest, Snapshot
 from hil.timing import Lateness, gc_frozen, wait_until
-from stewart_fmu.model import Model
 from stewart_fmu.kinematics import condition_number
-from stewart_sim.cueing.envelope import Envelope, envelope_limits
-from stewart_sim.cueing.fade import Blend, Fade, fade_to_home
-from stewart_sim.cueing.live_modes import Event, Mode, fading, transition
-from stewart_sim.cueing.optimal_live import LIVE_RATE_MIN, LiveOptimal
+from stewart_fmu.model import Model
 from stewart_sim.cueing.study import CueError
 from stewart_sim.cueing.vestibular import delivered_at
 from stewart_sim.cueing.washout_step import WashoutStepper
 from stewart_sim.live.control import Control
 from stewart_sim.live.cue_stream import CueStream, OptimalStream, Reference
 from stewart_sim.live.device_out import DeviceOut
+from stewart_sim.live.envelope import Envelope, envelope_limits
+from stewart_sim.live.fade import Blend, Fade, fade_to_home
+from stewart_sim.live.optimal_stream import LIVE_RATE_MIN, LiveOptimal
+from stewart_sim.live.pipeline_modes import Event, Mode, fading, transition
 from stewart_sim.live.receiver import TelemetryReceiver
-from stewart_sim.scene_load import Scene
+from stewart_sim.scene.load import Scene
 
 LOSS_TIMEOUT = 0.1      # s without an accepted telemetry sample: a loss, the platform fades
 MAX_LAG = 0.01          # s a tick may start late before the ticks it missed are skipped
@@ -164,10 +164,10 @@ class LiveSession:
     # --- the mode ---------------------------------------------------------------------------
 
     def event(self, ev: Event, now: float) -> bool:
-        """Apply an event to the mode (cueing.live_modes' table); False when refused. Entering
+        """Apply an event to the mode (live.pipeline_modes' table); False when refused. Entering
         RUNNING restarts the washout at rest and blends its cue in from the pose held
-        (cueing.fade.Blend); entering FADING or PARKING starts the fade home from the pose
-        last sent (cueing.fade.fade_to_home) unless one is under way."""
+        (live.fade.Blend); entering FADING or PARKING starts the fade home from the pose
+        last sent (live.fade.fade_to_home) unless one is under way."""
         t = transition(self.mode, ev)
         if t.refusal is not None:
             return False
@@ -368,8 +368,8 @@ def make_session(scene: Scene, receiver: TelemetryReceiver, device: DeviceOut,
                  warn: Callable[[str], None] | None = None) -> LiveSession:
     """The live loop of a scene: its [cueing] washout stepped at `telemetry_rate`
     (cueing.washout_step.WashoutStepper; mode "optimal": the MPC without preview,
-    cueing.optimal_live.LiveOptimal, `synchronous` on a simulated clock), its envelope at the
-    controller rate (cueing.envelope), setpoints at the controller rate (the device's). The
+    live.optimal_stream.LiveOptimal, `synchronous` on a simulated clock), its envelope at the
+    controller rate (live.envelope), setpoints at the controller rate (the device's). The
     MPC steps at `mpc_rate` (default: the scene's [cueing.optimal] rate, at least
     LIVE_RATE_MIN). `device_timeout` (default: the device's watchdog) and `warn` (default: a
     line on stderr): LiveSession's."""

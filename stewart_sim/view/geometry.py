@@ -31,7 +31,7 @@ from controller.config import ControllerConfig
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.model import Model
 from stewart_fmu.rotations import euler_motion
-from stewart_sim.cueing.config import cueing_config
+from stewart_sim.scene.cueing_config import cueing_config
 from stewart_sim.view.colours import nice_ceiling
 
 # cond(J) (scaled, stewart_fmu.kinematics) above which a pose is marked near-singular: the

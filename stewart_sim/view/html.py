@@ -23,7 +23,7 @@ from stewart_sim.view.colours import colour_table, nice_ceiling
 from stewart_sim.view.data import ViewData
 from stewart_sim.view.geometry import ViewGeometry
 from stewart_sim.view.geometry import CUES
-from stewart_sim.view.scene import CUE_COLOURS, PLATE, rgb, scene_commands
+from stewart_sim.view.meshcat_scene import CUE_COLOURS, PLATE, rgb, scene_commands
 
 _HERE = Path(__file__).resolve().parent
 LIVE_PERIOD_MS = 50     # the live page asks for a state every 50 ms (20 Hz)

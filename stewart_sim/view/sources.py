@@ -18,14 +18,14 @@ from pathlib import Path
 import numpy as np
 
 from controller.config import ControllerConfig
+from stewart_fmu.budget import CSV_BYTES, SCENE_BYTES, InputFileError, open_input, read_input
 from stewart_fmu.dynamics import inverse_dynamics
 from stewart_fmu.errors import KinematicsError, StewartError
-from stewart_fmu.budget import CSV_BYTES, SCENE_BYTES, InputFileError, open_input, read_input
 from stewart_fmu.io import (FORCE_COLUMNS, POSE, TRAJECTORY_COLUMNS, csv_header, read_samples,
                             read_trajectory)
 from stewart_fmu.kinematics import forward_kinematics
 from stewart_fmu.model import Model
-from stewart_sim.paper.study import TRAJECTORIES, make_trajectory
+from stewart_sim.scene.paper_moves import TRAJECTORIES, make_trajectory
 from stewart_sim.view.data import DEFAULT_FPS, ViewData, frame_indices, view_data
 
 SIGMA = "actuator force sigma"
@@ -208,7 +208,7 @@ def _directory_view(directory: Path, model: Model, controller: ControllerConfig 
 def _paper_directory_view(directory: Path, model: Model,
                           controller: ControllerConfig | None) -> ViewData:
     """The paper directory's six moves: poses from the study's own definition of each move
-    (stewart_sim.paper.study.make_trajectory) at the CSV's times, forces from the CSVs."""
+    (stewart_sim.scene.paper_moves.make_trajectory) at the CSV's times, forces from the CSVs."""
     t_all, q_all, f_all = [], [], []
     offset = 0.0
     for name in TRAJECTORIES:

@@ -10,7 +10,7 @@ import os
 import signal
 from pathlib import Path
 
-from stewart_sim import dirswap, outputs
+from stewart_sim.shell import dirswap, outputs
 
 NEW_SET = {"a.csv": "t,x\n0,new\n", "b.csv": "t,y\n0,new\n", "c.md": "# new\n"}
 STEPS = ("rename", "replace", "link", "symlink", "unlink", "remove", "mkdir", "rmdir", "chmod")

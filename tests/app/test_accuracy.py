@@ -1,8 +1,9 @@
-"""Work-precision study (stewart_sim.accuracy.study): fixed-step methods converge with their
+"""Work-precision study (stewart_sim.studies.accuracy.study): fixed-step methods converge with their
 theoretical order, the reference agrees with its second method, the command writes its files.
 
 Open-loop case: the default scene (micro-manipulator: smooth right-hand side, no Coulomb
-friction) driven by its demonstration forces plus a perturbation (stewart_sim.accuracy.study)."""
+friction) driven by its demonstration forces plus a perturbation
+(stewart_sim.studies.accuracy.study)."""
 from __future__ import annotations
 
 import csv
@@ -13,7 +14,8 @@ import pytest
 
 from stewart_fmu import load_scene
 from stewart_fmu.integrators import FIXED_STEP
-from stewart_sim.accuracy.study import (
+from stewart_sim.cli import main
+from stewart_sim.studies.accuracy.study import (
     REFERENCE_TOLERANCE,
     convergence_orders,
     open_loop_case,
@@ -21,7 +23,6 @@ from stewart_sim.accuracy.study import (
     reference_solution,
     settings_for,
 )
-from stewart_sim.cli import main
 
 SCENE = Path(__file__).resolve().parents[2] / "scenes" / "micro_manipulator.toml"
 HORIZON = 0.5   # s: shorter than the command's default, same physics

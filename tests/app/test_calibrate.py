@@ -1,4 +1,5 @@
-"""Kinematic calibration (stewart_sim.calibrate, `stewart-sim calibrate`): synthetic machines
+"""Kinematic calibration (stewart_sim.studies.calibrate, `stewart-sim calibrate`): synthetic
+machines
 with known joints and leg offsets, measured through the model l_i = |x + R p_i - a_i| +
 delta_i, recovered exactly without noise and to the issue's accuracy with the tracker's noise;
 honest standard deviations, unobservable directions named, D-optimal pose selection, the files
@@ -15,8 +16,8 @@ from stewart_fmu.io import named_array, write_csv
 from stewart_fmu.kinematics import check_poses
 from stewart_fmu.scene import load_scene
 from stewart_sim import cli
-from stewart_sim.calibrate import study
-from stewart_sim.calibrate.report import FILES, residuals_figure
+from stewart_sim.studies.calibrate import study
+from stewart_sim.studies.calibrate.report import FILES, residuals_figure
 from tests.app.test_plot_labels import check_figure
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -12,9 +12,10 @@ import numpy as np
 import pytest
 
 from stewart_fmu import PARTS, check_poses, inverse_dynamics, inverse_dynamics_parts, io, load_scene
-from stewart_sim import cli, progress
-from stewart_sim import inverse as inverse_files
+from stewart_sim import cli
 from stewart_sim.commands.paper import resolve_scene
+from stewart_sim.open_loop import inverse_forces as inverse_files
+from stewart_sim.shell import progress
 
 ROOT = Path(__file__).resolve().parents[2]
 MICRO = ROOT / "scenes" / "micro_manipulator.toml"

@@ -15,8 +15,9 @@ import pytest
 
 from controller.moves import demo_trajectory
 from stewart_fmu import io, load_scene
-from stewart_sim import cli, interrupt, limits, outputs, progress
-from stewart_sim.outputs import MANIFEST
+from stewart_sim import cli
+from stewart_sim.shell import interrupt, outputs, progress, run_length
+from stewart_sim.shell.outputs import MANIFEST
 from stewart_sim.view import files as view_command
 from tests.app.console import EXE, WAIT, partials, signal_when_ready
 
@@ -91,7 +92,7 @@ def test_an_earlier_set_without_manifest_is_replaced_by_its_known_names(tmp_path
 
 
 def cli_run_files() -> tuple[str, ...]:
-    from stewart_sim.run import RUN_FILES
+    from stewart_sim.closed_loop.run_files import RUN_FILES
     return RUN_FILES
 
 
@@ -322,15 +323,15 @@ def test_too_long_refused_before_work(args, option, tmp_path, capsys, monkeypatc
     assert cli.main([args[0], str(MICRO), "--out", str(out), *args[1:]]) == 2
     assert opened == []
     err = _one_error_line(capsys)
-    assert f"{option} " in err and f"at most {limits.MAX_SAMPLES:,}" in err
+    assert f"{option} " in err and f"at most {run_length.MAX_SAMPLES:,}" in err
     assert "memory budget of 2 GiB" in err
     assert not out.exists()
 
 
 def test_longest_run_allowed_fits_the_budget() -> None:
-    limits.check_samples("--duration", limits.MAX_SAMPLES / 1000.0, 1000.0)
-    with pytest.raises(limits.StewartError):
-        limits.check_samples("--duration", limits.MAX_SAMPLES / 1000.0 + 0.01, 1000.0)
+    run_length.check_samples("--duration", run_length.MAX_SAMPLES / 1000.0, 1000.0)
+    with pytest.raises(run_length.StewartError):
+        run_length.check_samples("--duration", run_length.MAX_SAMPLES / 1000.0 + 0.01, 1000.0)
 
 
 def test_progress_covers_writing_the_table(tmp_path, monkeypatch, capsys) -> None:
@@ -435,27 +436,27 @@ def test_help_defaults_are_the_librarys() -> None:
     """The commands read a few defaults from the library's source to stay light
     (stewart_sim.commands.constants); they must be the library's."""
     from controller import moves
-    from stewart_sim.accuracy import study
     from stewart_sim.commands.constants import literals
+    from stewart_sim.studies.accuracy import study
 
     assert literals("controller.moves", "DEMO_DURATION", "DEMO_RATE", "RUN_MOVE", "RUN_HOLD") == (
         moves.DEMO_DURATION, moves.DEMO_RATE, moves.RUN_MOVE, moves.RUN_HOLD)
-    assert literals("stewart_sim.accuracy.study", "HORIZON", "COMM_STEP",
+    assert literals("stewart_sim.studies.accuracy.study", "HORIZON", "COMM_STEP",
                     "CLOSED_LOOP_DURATION") == (
         study.HORIZON, study.COMM_STEP, study.CLOSED_LOOP_DURATION)
     from hil import spawn
-    from stewart_sim.compare import study as compare
+    from stewart_sim.studies.compare import study as compare
     from stewart_sim.view import data
 
-    assert literals("stewart_sim.accuracy.study", "REPEATS") == (study.REPEATS,)
-    assert literals("stewart_sim.compare.study", "N_POINTS") == (compare.N_POINTS,)
+    assert literals("stewart_sim.studies.accuracy.study", "REPEATS") == (study.REPEATS,)
+    assert literals("stewart_sim.studies.compare.study", "N_POINTS") == (compare.N_POINTS,)
     assert literals("hil.spawn", "WATCHDOG") == (spawn.WATCHDOG,)
     assert literals("stewart_sim.view.data", "DEFAULT_FPS") == (data.DEFAULT_FPS,)
 
 
 def test_any_run_files_covers_the_link_run() -> None:
-    from stewart_sim.link_run import LINK_FILES
-    from stewart_sim.run import ANY_RUN_FILES, RUN_FILES, run_files
+    from stewart_sim.closed_loop.over_link import LINK_FILES
+    from stewart_sim.closed_loop.run_files import ANY_RUN_FILES, RUN_FILES, run_files
 
     assert set(LINK_FILES) | set(RUN_FILES) | set(run_files("parquet")) == set(ANY_RUN_FILES)
 
@@ -500,7 +501,7 @@ def test_sweep_value_breaking_its_keys_rule_is_refused_up_front(tmp_path, capsys
 def test_a_swallowed_sigint_still_stops_the_set(tmp_path) -> None:
     """Ctrl-C raised where Python cannot propagate it ("Exception ignored in ..."): the set
     is not moved into place and the command still ends as interrupted."""
-    from stewart_sim import outputs
+    from stewart_sim.shell import outputs
 
     class Swallowed:
         def __del__(self):

@@ -19,7 +19,7 @@ from stewart_fmu import load_scene
 from stewart_fmu.fmu.export import export_fmu
 from stewart_fmu.io import POSE
 from stewart_sim import cli
-from stewart_sim import run as run_files
+from stewart_sim.closed_loop import run_files
 from tests.helpers import host_binary_only
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -13,12 +13,12 @@ import pytest
 from stewart_fmu import io, load_scene
 from stewart_fmu.dynamics import inverse_dynamics
 from stewart_fmu.kinematics import inverse_kinematics
+from stewart_sim import cli
 from stewart_sim.cueing.motion import VehicleMotion, read_motion
 from stewart_sim.cueing.report import write_cue_report
 from stewart_sim.cueing.study import cue_study, make_cue, resample
-from stewart_sim.cueing.config import cueing_config
-from stewart_sim import cli
-from stewart_sim.scene_load import scene_of
+from stewart_sim.scene.cueing_config import cueing_config
+from stewart_sim.scene.load import scene_of
 
 ROOT = Path(__file__).resolve().parents[2]
 SIM = ROOT / "scenes" / "motion_simulator.toml"

@@ -23,18 +23,18 @@ from hil.link import pty_pair, udp_server
 from hil.serve import serve_in_thread
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_sim import cli
-from stewart_sim.cueing.live_modes import Mode
 from stewart_sim.cueing.motion import VehicleMotion, read_motion
 from stewart_sim.cueing.study import cue_study
-from stewart_sim.cueing.telemetry import TelemetrySample, encode, encode_outsim
 from stewart_sim.cueing.washout import classical_washout
 from stewart_sim.live.control import Control
-from stewart_sim.live.device_out import DeviceCounts, DeviceOut
-from stewart_sim.live.receiver import DRAIN_BUDGET, TelemetryReceiver, UdpSource
 from stewart_sim.live.cue_stream import CueStream, Reference
+from stewart_sim.live.device_out import DeviceCounts, DeviceOut
+from stewart_sim.live.pipeline_modes import Mode
+from stewart_sim.live.receiver import DRAIN_BUDGET, TelemetryReceiver, UdpSource
 from stewart_sim.live.replay import Replay, UdpSink
 from stewart_sim.live.session import Record, make_session
-from stewart_sim.scene_load import load
+from stewart_sim.live.vehicle_datagrams import TelemetrySample, encode, encode_outsim
+from stewart_sim.scene.load import load
 from tests.app.datagrams import Queue
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -622,8 +622,8 @@ def test_a_long_gap_is_caught_up_max_steps_a_tick_and_a_huge_one_re_anchors(scen
     washout stepped on the input interpolated over the whole gap; a sample more than
     MAX_BACKLOG grid points past the last step re-anchors: one step on the sample, the grid
     restarted at its time (the next sample one period later takes one step)."""
-    from stewart_sim.live.cue_stream import MAX_BACKLOG, MAX_STEPS
     from stewart_sim.cueing.washout_step import WashoutStepper
+    from stewart_sim.live.cue_stream import MAX_BACKLOG, MAX_STEPS
 
     h = 1.0 / TELEMETRY_RATE
     model = scene.model
@@ -662,8 +662,8 @@ def test_a_sample_during_a_backlog_continues_from_the_newest_step(scene):
     """A sample that comes while grid points before the last one remain: the segment goes on
     from the newest step's input to the new sample, so its grid points are taken in time
     order, each once, and every step is finite."""
-    from stewart_sim.live.cue_stream import MAX_STEPS
     from stewart_sim.cueing.washout_step import WashoutStepper
+    from stewart_sim.live.cue_stream import MAX_STEPS
 
     h = 1.0 / TELEMETRY_RATE
     model = scene.model

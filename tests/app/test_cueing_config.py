@@ -1,4 +1,5 @@
-"""The scene's [cueing.optimal] sub-table (stewart_sim/cueing/config.py `optimal_options`): every
+"""The scene's [cueing.optimal] sub-table (stewart_sim/scene/cueing_config.py `optimal_options`):
+every
 OptimalOptions field is a key; a scene without the sub-table gives OptimalOptions() exactly and
 the shipped simulator's written-out sub-table is those defaults; each bad value is refused
 naming `cueing.optimal.<key>` (also by the `cue` command: one line, exit 2); a changed option
@@ -17,17 +18,17 @@ import pytest
 
 from stewart_fmu import load_scene, scene_from_dict
 from stewart_fmu.errors import SceneError
-from stewart_sim.cueing.config import (
+from stewart_sim.cueing.optimal import optimal_cueing
+from stewart_sim.cueing.study import make_cue
+from stewart_sim.scene.cueing_config import (
     DEFAULTS,
     MPC_STEPS,
     OptimalOptions,
     cueing_config,
     optimal_options,
 )
-from stewart_sim.cueing.optimal import optimal_cueing
-from stewart_sim.cueing.study import make_cue
-from stewart_sim.scene_info import describe
-from stewart_sim.scene_load import scene_of
+from stewart_sim.scene.describe import describe
+from stewart_sim.scene.load import scene_of
 from tests.helpers import ROOT, scene_dict
 from tests.helpers import vehicle_motion as motion
 

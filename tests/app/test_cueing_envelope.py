@@ -17,9 +17,9 @@ from controller.trajectory import minimum_jerk
 from stewart_fmu.dynamics import inverse_dynamics
 from stewart_fmu.kinematics import condition_number, inverse_kinematics
 from stewart_fmu.scene import load_scene
-from stewart_sim.cueing.envelope import LIMITS, Envelope, Margins, envelope_limits
-from stewart_sim.cueing.fade import BLEND_TIME, FADE_FRACTION, Blend, fade_to_home
-from stewart_sim.scene_load import scene_of
+from stewart_sim.live.envelope import LIMITS, Envelope, Margins, envelope_limits
+from stewart_sim.live.fade import BLEND_TIME, FADE_FRACTION, Blend, fade_to_home
+from stewart_sim.scene.load import scene_of
 
 SCENE = Path(__file__).resolve().parents[2] / "scenes" / "micro_manipulator.toml"
 DT = 1e-3

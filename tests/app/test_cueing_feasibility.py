@@ -11,7 +11,7 @@ from stewart_fmu import scene_from_dict
 from stewart_fmu.dynamics import inverse_dynamics
 from stewart_fmu.errors import SceneError
 from stewart_sim.cueing.feasibility import COND_LIMIT, feasibility
-from stewart_sim.scene_load import scene_of
+from stewart_sim.scene.load import scene_of
 from tests.helpers import agrees_at_limit, level_model, near_peak, runs_mask, scene_dict
 
 DT = 0.01

@@ -16,15 +16,15 @@ import pytest
 from stewart_fmu import scene_from_dict
 from stewart_fmu.errors import SceneError
 from stewart_sim import cli
-from stewart_sim.cueing.config import DEFAULTS, HEAD_REACH, cueing_config
 from stewart_sim.cueing.motion import read_motion
 from stewart_sim.cueing.mpc_model import linearise
 from stewart_sim.cueing.optimal import OptimalOptions, known_inputs, optimal_cueing
 from stewart_sim.cueing.report import perception_table, summary_markdown
 from stewart_sim.cueing.study import cue_study
 from stewart_sim.cueing.vestibular import delivered_at, delivered_motion, perception
-from stewart_sim.scene_info import describe
-from stewart_sim.scene_load import scene_of
+from stewart_sim.scene.cueing_config import DEFAULTS, HEAD_REACH, cueing_config
+from stewart_sim.scene.describe import describe
+from stewart_sim.scene.load import scene_of
 from tests.helpers import ROOT, scene_dict, smooth_step
 from tests.helpers import vehicle_motion as motion
 
@@ -128,7 +128,7 @@ def test_a_head_at_the_origin_is_the_origins_result_bit_for_bit():
     for head in (None, [0.0, 0.0, 0.0], np.zeros(3), (-0.0, 0.0, -0.0)):
         f, w = delivered_motion(t, q, qd, qdd, GRAVITY, head)
         assert f.tobytes() == f0.tobytes() and w.tobytes() == w0.tobytes()
-    # the origin's formula, R^T (a - g), as it was before the head existed
+    # the formula at the origin (no head offset): R^T (a - g)
     for k in range(n):
         np.testing.assert_allclose(f0[k], _rot(*q[k, 3:]).T @ (qdd[k, :3] - GRAVITY), rtol=0,
                                    atol=1e-12)

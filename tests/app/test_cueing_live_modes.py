@@ -1,4 +1,4 @@
-"""cueing.live_modes: every (mode, event) pair of the live pipeline's transition table against
+"""live.pipeline_modes: every (mode, event) pair of the live pipeline's transition table against
 the rules as written here, and the rules' own consequences over the whole table: an emergency
 stop is accepted everywhere and ends in STOPPED; nothing but a park leaves STOPPED; telemetry
 moves the platform only from STARTING or FADING (a resume); every mode is reachable from
@@ -9,7 +9,7 @@ import itertools
 
 import pytest
 
-from stewart_sim.cueing.live_modes import (
+from stewart_sim.live.pipeline_modes import (
     TABLE,
     Event,
     Mode,

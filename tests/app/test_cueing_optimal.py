@@ -14,7 +14,6 @@ import pytest
 
 from stewart_fmu import scene_from_dict
 from stewart_fmu.kinematics import inverse_kinematics
-from stewart_sim.cueing.config import DEFAULTS, cueing_config
 from stewart_sim.cueing.feasibility import feasibility
 from stewart_sim.cueing.motion import read_motion
 from stewart_sim.cueing.mpc_model import linearise, prediction_model
@@ -27,7 +26,8 @@ from stewart_sim.cueing.optimal import (
 )
 from stewart_sim.cueing.vestibular import delivered_motion, perception
 from stewart_sim.cueing.washout import Cue, classical_washout
-from stewart_sim.scene_load import scene_of
+from stewart_sim.scene.cueing_config import DEFAULTS, cueing_config
+from stewart_sim.scene.load import scene_of
 from tests.helpers import ROOT, scene_dict, smooth_step
 from tests.helpers import vehicle_motion as motion
 

@@ -1,4 +1,4 @@
-"""The model-predictive cueing live (stewart_sim/cueing/optimal_live.py), on a simulated clock:
+"""The model-predictive cueing live (stewart_sim/live/optimal_stream.py), on a simulated clock:
 a vehicle at rest leaves the platform exactly at home (no false cue: zero specific-force error,
 exactly), also before a held-out forward step, after which the cue has the step's sign; the
 flown q, qd, qdd are one trajectory across the MPC steps; a lead of several steps flies rest
@@ -12,10 +12,10 @@ import multiprocessing
 import numpy as np
 import pytest
 
-from stewart_sim.cueing.config import cueing_config
-from stewart_sim.cueing.optimal_live import LiveOptimal, LiveOptimalError
 from stewart_sim.cueing.vestibular import delivered_motion
-from stewart_sim.scene_load import load
+from stewart_sim.live.optimal_stream import LiveOptimal, LiveOptimalError
+from stewart_sim.scene.cueing_config import cueing_config
+from stewart_sim.scene.load import load
 from tests.helpers import ROOT
 
 LOOP = 1e-3      # s, the live loop's period

@@ -18,12 +18,12 @@ from stewart_fmu import scene_from_dict
 from stewart_fmu.errors import SceneError
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.rotations import euler_motion
-from stewart_sim.cueing.config import DEFAULTS, CueingConfig, cueing_config
-from stewart_sim.cueing.motion import VehicleMotion, read_motion
 from stewart_sim.cueing.filters import high_pass_denominator
+from stewart_sim.cueing.motion import VehicleMotion, read_motion
 from stewart_sim.cueing.washout import classical_washout
-from stewart_sim.scene_info import describe
-from stewart_sim.scene_load import scene_of
+from stewart_sim.scene.cueing_config import DEFAULTS, CueingConfig, cueing_config
+from stewart_sim.scene.describe import describe
+from stewart_sim.scene.load import scene_of
 from tests.helpers import ROOT, level_model, scene_dict, smooth_step
 from tests.helpers import vehicle_motion as motion
 

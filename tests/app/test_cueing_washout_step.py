@@ -16,7 +16,6 @@ import pytest
 
 from stewart_fmu import scene_from_dict
 from stewart_fmu.errors import SceneError
-from stewart_sim.cueing.config import DEFAULTS, CueingConfig, cueing_config
 from stewart_sim.cueing.motion import read_motion
 from stewart_sim.cueing.washout import Cue, classical_washout
 from stewart_sim.cueing.washout_step import (
@@ -25,8 +24,9 @@ from stewart_sim.cueing.washout_step import (
     rate_limit_step,
     soft_limit,
 )
-from stewart_sim.scene_info import describe
-from stewart_sim.scene_load import scene_of
+from stewart_sim.scene.cueing_config import DEFAULTS, CueingConfig, cueing_config
+from stewart_sim.scene.describe import describe
+from stewart_sim.scene.load import scene_of
 from tests.helpers import ROOT, level_model, scene_dict, smooth_step
 from tests.helpers import vehicle_motion as motion
 

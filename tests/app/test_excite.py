@@ -1,4 +1,5 @@
-"""Excitation trajectories (stewart_sim.excite, `stewart-sim excite`): the Fourier series at rest
+"""Excitation trajectories (stewart_sim.studies.excite, `stewart-sim excite`): the Fourier series at
+rest
 at home at both ends and periodic, its derivatives exact; the command's trajectory on the
 micro-manipulator recomputed from the file it writes: the condition number of the stacked base
 regressor at or below the issue's 100, every limit kept with the margins it reports, read back
@@ -20,12 +21,12 @@ from stewart_fmu.dynamics import inverse_dynamics, regressor
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_sim import cli
 from stewart_sim.cueing.feasibility import COND_LIMIT, feasibility
-from stewart_sim.excite.bounds import LIMIT_FRACTION, STROKE_MARGIN
-from stewart_sim.excite.design import PERIOD, PERIODS
-from stewart_sim.excite.fourier import FourierSeries
-from stewart_sim.excite.report import figure
-from stewart_sim.identify.base import scaled_condition, stacked, structural_base
-from stewart_sim.scene_load import load
+from stewart_sim.scene.load import load
+from stewart_sim.studies.excite.bounds import LIMIT_FRACTION, STROKE_MARGIN
+from stewart_sim.studies.excite.design import PERIOD, PERIODS
+from stewart_sim.studies.excite.fourier import FourierSeries
+from stewart_sim.studies.excite.report import figure
+from stewart_sim.studies.identify.base import scaled_condition, stacked, structural_base
 from tests.app.test_plot_labels import check_figure
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -182,7 +183,7 @@ def test_inverse_runs_on_it(excited, tmp_path):
 
 
 def test_figure_has_units(excited, scene):
-    from stewart_sim.excite.design import design, excitation
+    from stewart_sim.studies.excite.design import design, excitation
     d = design(scene.model, scene.controller, starts=1, max_iterations=2, polish=0)
     check_figure(figure(scene.model, excitation(scene.model, scene.controller, d, 2, 100.0)))
 
@@ -230,7 +231,7 @@ def test_bad_input_in_one_line(tmp_path, capsys, case, words):
 
 def test_no_room_is_refused_before_any_optimisation(tmp_path):
     from stewart_fmu.errors import StewartError
-    from stewart_sim.excite.bounds import limits
+    from stewart_sim.studies.excite.bounds import limits
     tight = load(no_room(tmp_path))
     with pytest.raises(StewartError, match="mm from an end of its stroke"):
         limits(tight.model, tight.controller)
@@ -294,7 +295,7 @@ def test_harmonics_the_rate_cannot_hold_are_refused(tmp_path, capsys):
 def test_the_budget_is_the_projects():
     """One budget: the counts are checked by stewart_fmu.budget.check_count."""
     from stewart_fmu.budget import MEMORY_BUDGET, BudgetError
-    from stewart_sim.excite.design import check_sizes
+    from stewart_sim.studies.excite.design import check_sizes
     check_sizes(5, PERIOD, PERIODS, 1000.0)            # the defaults fit
     with pytest.raises(BudgetError, match=f"{MEMORY_BUDGET / 1024**3:g} GiB"):
         check_sizes(5, PERIOD, 400, 1000.0)
@@ -335,7 +336,7 @@ def test_fuzzed_inputs_give_one_line_or_a_finite_result(tmp_path, capfd, recwarn
     result; refusals are one line, exit 2, nothing written. The optimiser is cut to 2 iterations
     a run (what is fuzzed is the input's path, not the optimum) and --starts to 1 where valid."""
     import functools
-    from stewart_sim.excite import design as design_module
+    from stewart_sim.studies.excite import design as design_module
     monkeypatch.setattr(design_module, "design",
                         functools.partial(design_module.design, max_iterations=2, polish=2))
     edge, extra = list(fuzz_cases(24, seed=34))[case]

@@ -9,9 +9,10 @@ import pytest
 
 from stewart_fmu import forward_dynamics, inverse_dynamics, inverse_kinematics, load_scene
 from stewart_fmu.kinematics import COND_LIMIT
-from stewart_sim.cases import case_of, case_trajectory, run_case
-from stewart_sim.scene_load import scene_of
-from stewart_sim.stiff_study import hour_drift
+from stewart_sim.scene.case_config import case_of
+from stewart_sim.scene.load import scene_of
+from stewart_sim.studies.cases.outcome import case_trajectory, run_case
+from stewart_sim.studies.cases.study import hour_drift
 from tests.helpers import level_model
 
 EXTREME = Path(__file__).resolve().parents[2] / "scenes" / "extreme"

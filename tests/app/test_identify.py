@@ -11,9 +11,9 @@ import pytest
 from stewart_fmu import inverse_dynamics, load_scene
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.standard import NAMES, standard_parameters
-from stewart_sim.identify.report import standard_rows
-from stewart_sim.identify.runs import read_run
-from stewart_sim.identify.study import identify, predict
+from stewart_sim.studies.identify.report import standard_rows
+from stewart_sim.studies.identify.runs import read_run
+from stewart_sim.studies.identify.study import identify, predict
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENE = ROOT / "scenes" / "micro_manipulator.toml"
@@ -174,7 +174,7 @@ def test_noise_free_runs_with_per_leg_friction_identify(tmp_path):
     scene is written, every friction >= 0 exactly, the zero ones within 1e-8 N of zero, and
     the written scene predicts a held-out run to 1e-8 of its peak (what noise-free data give,
     test_noise_free_runs_give_the_truth)."""
-    from stewart_sim.identify.report import write_identification
+    from stewart_sim.studies.identify.report import write_identification
 
     truth = load_scene(SCENE, overrides=PER_LEG)
     a = write_run(tmp_path / "a.csv", truth, *fourier_motion(truth, 1))
@@ -218,7 +218,7 @@ def test_a_prior_the_constraints_must_move_is_reported(tmp_path):
     identified first moment m c and joint inertia J of the lower part admit no consistent body
     with the prior's mass (J - J_a / 2 >= (m c)^2 / m fails), so the mass, which the runs do not
     determine, moves; the report names it, its prior and the identified combination behind it."""
-    from stewart_sim.identify.report import report_text
+    from stewart_sim.studies.identify.report import report_text
 
     over = dict(TRUTH, **{"legs.lower_mass": 0.2, "legs.lower_com": 0.07,
                           "legs.lower_inertia": [1e-5, 1e-6]})

@@ -9,9 +9,10 @@ import pytest
 from stewart_fmu import load_scene
 from stewart_fmu.dynamics import regressor
 from stewart_fmu.standard import N_STANDARD, present, span, standard_parameters
-from stewart_sim.identify.base import base_parameters, random_motion, stacked, structural_base
-from stewart_sim.identify.estimate import estimate, scales
-from stewart_sim.identify.synthetic import perturbed_model
+from stewart_sim.studies.identify.base import (base_parameters, random_motion, stacked,
+                                               structural_base)
+from stewart_sim.studies.identify.estimate import estimate, scales
+from stewart_sim.studies.identify.synthetic import perturbed_model
 
 SCENE = Path(__file__).resolve().parents[2] / "scenes" / "micro_manipulator.toml"
 

@@ -15,10 +15,11 @@ from stewart_fmu.io import named_array, write_csv
 from stewart_fmu.kinematics import forward_kinematics_many, inverse_kinematics
 from stewart_fmu.rotations import solve_rate_matrices, solve_rate_matrix
 from stewart_fmu.standard import NAMES, present, standard_parameters
-from stewart_sim.identify.plots import residual_figure, validation_figure
-from stewart_sim.identify.runs import MIN_SAMPLES, pose_of, read_run
-from stewart_sim.identify.scene_out import NOT_HELD, scene_values, write_identified
-from stewart_sim.identify.signal import (
+from stewart_sim.scene.load import load
+from stewart_sim.studies.identify.plots import residual_figure, validation_figure
+from stewart_sim.studies.identify.runs import MIN_SAMPLES, pose_of, read_run
+from stewart_sim.studies.identify.scene_out import NOT_HELD, scene_values, write_identified
+from stewart_sim.studies.identify.signal import (
     DECIMATED_RATIO,
     TRIM_PERIODS,
     choose_filter,
@@ -26,7 +27,6 @@ from stewart_sim.identify.signal import (
     derivatives,
     lowpass,
 )
-from stewart_sim.scene_load import load
 from tests.app.test_plot_labels import check_figure
 from tests.helpers import SCENE_FILES, record
 

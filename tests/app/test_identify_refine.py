@@ -11,9 +11,9 @@ import pytest
 from stewart_fmu import inverse_dynamics, load_scene
 from stewart_fmu.dynamics import regressor
 from stewart_fmu.kinematics import inverse_kinematics
-from stewart_sim.identify.refine import refine
-from stewart_sim.identify.runs import read_run
-from stewart_sim.identify.study import identify
+from stewart_sim.studies.identify.refine import refine
+from stewart_sim.studies.identify.runs import read_run
+from stewart_sim.studies.identify.study import identify
 
 sys.path.insert(0, str(Path(__file__).parent))
 from test_identify import SCENE, TRUTH, fourier_motion  # noqa: E402

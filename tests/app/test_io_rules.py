@@ -19,7 +19,8 @@ import pytest
 
 from stewart_fmu import budget, io
 from stewart_fmu.errors import SceneError, TrajectoryError
-from stewart_sim import cli, interrupt, outputs, terminal
+from stewart_sim import cli
+from stewart_sim.shell import interrupt, outputs, terminal
 from stewart_sim.view.data import frame_indices
 from tests.app.console import EXE, WAIT, console_env, partials, signal_when_ready
 
@@ -456,7 +457,7 @@ def test_control_characters_in_a_figure_are_drawn_escaped(tmp_path) -> None:
 
     from matplotlib.figure import Figure
 
-    from stewart_sim.plots import save_figure
+    from stewart_sim.shell.plots import save_figure
 
     fig = Figure()
     ax = fig.add_subplot()

@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 
 from stewart_sim.cueing.motion import read_motion
-from stewart_sim.cueing.telemetry import (TelemetryError, TelemetrySample, decode_native,
-                                          decode_outsim, encode, encode_outsim)
 from stewart_sim.live.address import AddressError, device_address, telemetry_address
 from stewart_sim.live.receiver import TelemetryReceiver, UdpSource
 from stewart_sim.live.replay import Replay, UdpSink
+from stewart_sim.live.vehicle_datagrams import (TelemetryError, TelemetrySample, decode_native,
+                                                decode_outsim, encode, encode_outsim)
 from tests.app.datagrams import Queue
 
 ROOT = Path(__file__).resolve().parents[2]

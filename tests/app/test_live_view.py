@@ -1,4 +1,4 @@
-"""The live view of the emulated device (stewart_sim.view.live, `stewart-sim device --view`):
+"""The live view of the emulated device (stewart_sim.view.live_server, `stewart-sim device --view`):
 loopback only, the page and /state with their content types, /state following the device as
 setpoints arrive, the command's lines, port checks and its stop on SIGINT. Every wait is
 bounded; nothing asserts a wall-clock time."""
@@ -24,8 +24,9 @@ from hil.observe import Latest, Snapshot  # noqa: E402
 from stewart_fmu.kinematics import condition_number, inverse_kinematics  # noqa: E402
 from stewart_fmu.scene import load_scene  # noqa: E402
 from stewart_sim.cli import main  # noqa: E402
-from stewart_sim.scene_load import scene_of  # noqa: E402
-from stewart_sim.view.live import LiveView, ViewError, live_page, state_document  # noqa: E402
+from stewart_sim.scene.load import scene_of  # noqa: E402
+from stewart_sim.view.live_server import (  # noqa: E402
+    LiveView, ViewError, live_page, state_document)
 from tests.helpers import ROOT  # noqa: E402
 from tests.hil.test_device import SCENE, arm, setpoint  # noqa: E402
 

@@ -1,7 +1,8 @@
 """The live view as a person sees it: headless Chromium (the session's `browser` fixture,
-tests/browser.py) loads the page of `stewart_sim.view.live` while the device is ticked by hand
-(device time, deterministic), and sees the platform move when a setpoint arrives: the platform's
-transform the page shows is the geometry's for the published pose (the same 4x4 as Python's
+tests/browser.py) loads the page of `stewart_sim.view.live_server` while the device is ticked by
+hand (device time, deterministic), and sees the platform move when a setpoint arrives: the
+platform's transform the page shows is the geometry's for the published pose (the same 4x4 as
+Python's
 `object_transforms`), and the pixels around the platform's projection change. Skipped, with the
 reason, where Chromium or Playwright cannot be had."""
 from __future__ import annotations
@@ -17,9 +18,9 @@ from hil.device import Device  # noqa: E402
 from hil.observe import Latest, Snapshot  # noqa: E402
 from stewart_fmu.kinematics import inverse_kinematics  # noqa: E402
 from stewart_fmu.scene import load_scene  # noqa: E402
-from stewart_sim.scene_load import scene_of  # noqa: E402
+from stewart_sim.scene.load import scene_of  # noqa: E402
 from stewart_sim.view.geometry import object_transforms, view_geometry  # noqa: E402
-from stewart_sim.view.live import LiveView, live_page  # noqa: E402
+from stewart_sim.view.live_server import LiveView, live_page  # noqa: E402
 from tests.browser import VIEWPORT, canvas_pixels, settle  # noqa: E402
 from tests.hil.test_device import SCENE, arm, setpoint  # noqa: E402
 
@@ -98,7 +99,7 @@ def test_live_page_shows_the_platform_move_when_a_setpoint_arrives(browser):
 
 
 def test_live_page_keeps_the_last_good_picture_when_the_state_is_not_finite(browser):
-    """/state sends a non-finite number as null (live.state_document): the page keeps drawing
+    """/state sends a non-finite number as null (live_server.state_document): the page keeps drawing
     the last finite state and says why in its status line, without a page error."""
     model = load_scene(SCENE)
     latest = Latest()

@@ -1,4 +1,4 @@
-"""`stewart-sim modes` (stewart_sim/commands/modes.py, stewart_sim/modes): the contract's
+"""`stewart-sim modes` (stewart_sim/commands/modes.py, stewart_sim/studies/modes): the contract's
 modes.csv, the stiffness table, --payload, --map, and bad input refused in one line (exit 2)
 with nothing already written lost."""
 from __future__ import annotations
@@ -117,10 +117,11 @@ def test_scene_without_stiffness_and_bad_stiffness_are_refused(tmp_path, capsys)
     assert not (tmp_path / "m").exists()
 
 
-def test_readme_states_the_motion_simulators_modes_and_stiffness(tmp_path, capsys):
-    """README's row of the motion simulator: its stiffness and six modes, with and without the
-    payload it names, as `modes` prints them (4 significant digits)."""
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
+def test_the_guide_states_the_motion_simulators_modes_and_stiffness(tmp_path, capsys):
+    """The guide's row of the motion simulator (docs/guides/stiffness-and-modes.md): its
+    stiffness and six modes, with and without the payload it names, as `modes` prints them (4
+    significant digits)."""
+    text = (ROOT / "docs" / "guides" / "stiffness-and-modes.md").read_text(encoding="utf-8")
     row = next(line for line in text.splitlines() if line.startswith("| motion simulator |"))
     cells = [c.strip() for c in row.strip("|").split("|")]
     out = tmp_path / "m"
@@ -132,7 +133,7 @@ def test_readme_states_the_motion_simulators_modes_and_stiffness(tmp_path, capsy
         assert cli.main(argv) == 0
         f = [float(r[1]) for r in _read(out / "modes.csv")[1]]
         assert [float(v) for v in stated[key].split(",")] == [float(f"{v:.4g}") for v in f]
-        if not payload:   # the stiffness README states: the scene's own
+        if not payload:   # the stiffness the guide states: the scene's own
             k = [float(r[1]) for r in _read(out / "stiffness.csv")[1]]
     assert [float(c.split()[0]) for c in cells[1:5]] == [float(f"{v:.4g}") for v in (k[0], k[2], k[3], k[5])]
 
@@ -140,8 +141,8 @@ def test_readme_states_the_motion_simulators_modes_and_stiffness(tmp_path, capsy
 def test_map_figures_label_their_axes_and_colour_bars(tmp_path):
     """--map with three axes: two PNGs in the set; each figure a slice through the first two
     axes with units on both, a colour bar of >= 3 ticks, the held axis named in the title."""
-    from stewart_sim.modes import study
-    from stewart_sim.modes.plots import map_figures
+    from stewart_sim.studies.modes import study
+    from stewart_sim.studies.modes.plots import map_figures
 
     out = tmp_path / "m"
     grid_text = "x=-0.3:0.3:7,z=1.9:2.8:10,thz=-0.1:0.1:3"

@@ -1,5 +1,5 @@
-"""The `simulate`, `trajectory` and `case` commands (stewart_sim.simulate, .trajectory,
-.case_report), called through a local argparse parser built from their command modules'
+"""The `simulate`, `trajectory` and `case` commands (stewart_sim.open_loop.forward,
+stewart_sim.open_loop.references, stewart_sim.studies.cases.report), called through a local argparse parser built from their command modules'
 add_parser functions (stewart_sim.commands, the way stewart_sim/cli.py registers them) and
 through their pipeline functions."""
 from __future__ import annotations
@@ -17,9 +17,11 @@ from stewart_fmu import io, load_scene
 from stewart_fmu.errors import StewartError, TrajectoryError
 from stewart_fmu.io import POSE, TRAJECTORY_COLUMNS
 from stewart_fmu.plant import StepRejected
-from stewart_sim import case_report, cli, simulate, trajectory
-from stewart_sim.inverse import run_inverse
-from stewart_sim.progress import Progress
+from stewart_sim import cli
+from stewart_sim.open_loop import forward, references
+from stewart_sim.open_loop.inverse_forces import run_inverse
+from stewart_sim.shell.progress import Progress
+from stewart_sim.studies.cases import report as case_report
 from tests.helpers import record
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -74,7 +76,7 @@ def test_simulate_round_trip_of_inverse(tmp_path):
     io.write_csv(held, io.named_array({n: table[:, k] for k, n in enumerate(header)}))
     run("simulate", MICRO, "--forces", held, "--out", tmp_path / "out", "--integrator", "rk4")
     names, motion = read_csv(tmp_path / "out" / "motion.csv")
-    assert names == list(simulate.MOTION_COLUMNS)
+    assert names == list(forward.MOTION_COLUMNS)
     assert (tmp_path / "out" / "motion.png").stat().st_size > 0
     q_ref, qd_ref = q2[::2], qd2[::2]
     assert np.allclose(motion[:, 0], np.arange(501) * H, atol=1e-12)
@@ -90,7 +92,7 @@ def test_simulate_round_trip_of_inverse(tmp_path):
     # the same forces sampled at the interval starts: first order (the h/2 lag)
     t, q, qd, qdd = demo_trajectory(model, 0.5, RATE)
     from stewart_fmu import inverse_dynamics
-    lag = simulate.simulate(model, t, inverse_dynamics(model, q, qd, qdd), "rk4")
+    lag = forward.simulate(model, t, inverse_dynamics(model, q, qd, qdd), "rk4")
     lag_err = float(np.max([np.abs(lag[c] - q[:, k]).max() for k, c in enumerate(POSE[:3])]))
     assert 100 * pos < lag_err < 1e-3
 
@@ -100,7 +102,7 @@ def test_simulate_refused_step_writes_nothing(tmp_path):
     the time), and no output directory, not even a partial one."""
     model = load_scene(MICRO)
     t = np.arange(501) * H
-    hold = simulate.simulate(model, t[:2], np.tile(_hold(model), (2, 1)))   # sanity: holds
+    hold = forward.simulate(model, t[:2], np.tile(_hold(model), (2, 1)))   # sanity: holds
     assert abs(hold["z"][-1] - model.home[2]) < 1e-12
     forces = tmp_path / "push.csv"
     sigma = np.tile(_hold(model) + 50.0, (t.size, 1))
@@ -137,12 +139,12 @@ def test_simulate_bad_forces_file(tmp_path, text, message):
         run("simulate", MICRO, "--forces", path, "--out", tmp_path / "out")
     assert not (tmp_path / "out").exists()
     with pytest.raises(TrajectoryError, match="cannot read"):
-        simulate.read_forces(tmp_path / "missing.csv")
+        forward.read_forces(tmp_path / "missing.csv")
 
 
 # --- trajectory -----------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("move", trajectory.MOVES)
+@pytest.mark.parametrize("move", references.MOVES)
 def test_trajectory_moves_feed_inverse(tmp_path, move):
     """Each move's file has the contract's columns, starts at rest at home and `inverse` reads
     it; its forces equal the inverse dynamics of the move built in memory."""
@@ -155,7 +157,7 @@ def test_trajectory_moves_feed_inverse(tmp_path, move):
     forces = tmp_path / "forces.csv"
     n, table = run_inverse(model, out, forces, False, Progress(), keep=True)
     assert n == t.size
-    ref = trajectory.move(model, move, 2.0, 500.0)
+    ref = references.move(model, move, 2.0, 500.0)
     from stewart_fmu import inverse_dynamics
     sigma = np.column_stack([table[f"sigma{i}"] for i in range(1, 7)])
     assert np.array_equal(sigma, inverse_dynamics(model, ref.q, ref.qd, ref.qdd))
@@ -181,7 +183,7 @@ def test_trajectory_waypoints_round_trip(tmp_path):
         k = int(round(tk * 200))
         assert np.allclose(q[k], pose, atol=1e-15)
     assert np.abs(qd[[0, -1]]).max() < 1e-15
-    ref = trajectory.waypoint_trajectory(wp, 200.0)
+    ref = references.waypoint_trajectory(wp, 200.0)
     assert np.array_equal(q, ref.q) and np.array_equal(qdd, ref.qdd)
     n, _ = run_inverse(model, out, tmp_path / "f.csv", True, Progress())
     assert n == 201

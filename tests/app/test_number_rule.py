@@ -16,7 +16,7 @@ from controller.drive import axis_model
 from stewart_fmu import table
 from stewart_fmu.native import core
 from stewart_sim import cli
-from stewart_sim.scene_load import load
+from stewart_sim.scene.load import load
 from tests.helpers import SCENE_FILES, SCENES_DIR
 
 

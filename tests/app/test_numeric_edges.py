@@ -22,13 +22,13 @@ from stewart_fmu.errors import StewartError
 from stewart_fmu.io import named_array, write_csv
 from stewart_fmu.scene import read_scene_dict
 from stewart_sim import cli
-from stewart_sim.calibrate import study
 from stewart_sim.cueing.feasibility import Margin
-from stewart_sim.markdown import md_code, md_text
-from stewart_sim.sizing import catalogue as catalogue_module
-from stewart_sim.sizing import study as sizing
-from stewart_sim.sizing.motions import Motion
-from stewart_sim.sizing.report import report_markdown
+from stewart_sim.shell.markdown import md_code, md_text
+from stewart_sim.studies.calibrate import study
+from stewart_sim.studies.sizing import catalogue as catalogue_module
+from stewart_sim.studies.sizing import study as sizing
+from stewart_sim.studies.sizing.motions import Motion
+from stewart_sim.studies.sizing.report import report_markdown
 
 ROOT = Path(__file__).resolve().parents[2]
 MICRO = ROOT / "scenes" / "micro_manipulator.toml"

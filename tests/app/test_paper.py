@@ -1,4 +1,5 @@
-"""The paper rerun (stewart_sim.paper.study) and its writer (stewart_sim.paper.report): physics of the
+"""The paper rerun (stewart_sim.studies.paper.study) and its writer
+(stewart_sim.studies.paper.report): physics of the
 three nested levels, the claim figures we observe, and the files written."""
 from __future__ import annotations
 
@@ -19,8 +20,9 @@ from stewart_fmu import (
     scene_from_dict,
 )
 from stewart_fmu.model import P_HAS_DRIVE, P_HAS_FRICTION, P_HAS_LEGS, P_VISCOUS
-from stewart_sim.paper.report import write_paper_report
-from stewart_sim.paper.study import LEVELS, TRAJECTORIES, VARIANTS, PaperResults, run_paper_experiments
+from stewart_sim.scene.paper_moves import TRAJECTORIES
+from stewart_sim.studies.paper.report import write_paper_report
+from stewart_sim.studies.paper.study import LEVELS, VARIANTS, PaperResults, run_paper_experiments
 from tests.reference.newton_euler import reference_inverse_dynamics
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"

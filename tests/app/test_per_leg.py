@@ -213,13 +213,14 @@ def test_run_feedforward_forces_differ_leg_by_leg(scenes, fmus, tmp_path):
     force (linear in it), and the FMU plant runs the six-friction scene as the in-process one.
     The eight scenes' loops run as `run` runs them (controller.cosim.run_closed_loop on the
     scene's controller with --feedforward kane, the demonstration reference and the scene's
-    [solver], as stewart_sim.run.run_closed_loop_files calls it) without the three plots each;
-    the command itself runs the six-friction scene, and its run.csv is that loop's table."""
+    [solver], as stewart_sim.closed_loop.run_files.run_closed_loop_files calls it) without the three
+    plots each; the command itself runs the six-friction scene, and its run.csv is that loop's
+    table."""
     from dataclasses import replace
 
     from controller.cosim import run_closed_loop
     from controller.moves import run_reference
-    from stewart_sim.scene_load import load
+    from stewart_sim.scene.load import load
 
     v_ff = {}
     for name, scene in scenes.items():

@@ -17,9 +17,10 @@ from controller.moves import demo_trajectory, run_reference
 from stewart_fmu import io
 from stewart_fmu.dynamics import present_parts
 from stewart_fmu.scene import load_scene
-from stewart_sim.inverse import run_inverse
-from stewart_sim.link_figures import run_link_figure, tracking_vs_link_figure
-from stewart_sim.plots import (
+from stewart_sim.closed_loop.link_figures import run_link_figure, tracking_vs_link_figure
+from stewart_sim.open_loop.forward import motion_figure
+from stewart_sim.open_loop.inverse_forces import run_inverse
+from stewart_sim.shell.plots import (
     MAX_POINTS,
     decimate,
     drive_figure,
@@ -27,10 +28,9 @@ from stewart_sim.plots import (
     leg_errors_figure,
     tracking_figure,
 )
-from stewart_sim.progress import Progress
-from stewart_sim.simulate import motion_figure
-from stewart_sim.sweep.grid import grid_from_dict
-from stewart_sim.sweep.plots import axis_label, results_figure, workspace_figures
+from stewart_sim.shell.progress import Progress
+from stewart_sim.studies.sweep.grid import grid_from_dict
+from stewart_sim.studies.sweep.plots import axis_label, results_figure, workspace_figures
 
 SCENE = Path(__file__).resolve().parents[2] / "scenes" / "micro_manipulator.toml"
 LONG = 120.0                       # s: `demo --duration 120`, `run --duration 120`

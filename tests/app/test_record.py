@@ -31,7 +31,7 @@ from stewart_fmu.io import trajectory_table, write_csv  # noqa: E402
 from stewart_fmu.kinematics import inverse_kinematics  # noqa: E402
 from stewart_fmu.scene import load_scene  # noqa: E402
 from stewart_sim import cli  # noqa: E402
-from stewart_sim.link_run import link_trajectory, record_table  # noqa: E402
+from stewart_sim.closed_loop.over_link import link_trajectory, record_table  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 MICRO = ROOT / "scenes" / "micro_manipulator.toml"
@@ -82,8 +82,8 @@ def one_error_line(capsys) -> str:
 
 
 def test_record_from_the_device_with_a_truth_scene(tmp_path, capsys) -> None:
-    """The end-to-end path of the README: the spawned device's plant and sensors are the truth
-    scene's. RUN.csv has exactly the columns identify reads (and the currents), one row per
+    """The end-to-end path of the identification guide (Recording runs): the spawned device's
+    plant and sensors are the truth scene's. RUN.csv has exactly the columns identify reads (and the currents), one row per
     controller period in device time, lengths on the 1 um grid, the first two rows the start
     (latency 2 ticks); and it is the in-process run of a Device built from the same truth and
     [sensors] bit for bit (currents: DRIVE_STATUS carries float32)."""

@@ -14,8 +14,10 @@ What is a reference (prose around it is never checked):
 - a path (`stewart_fmu/native/src/step.c`, `docs/scene-format.md`) whose first part is a folder
   of the repository, or `shared/`: it exists from the repository root or from a folder above
   the file that names it. `shared/` is not in the repository: cite docs/conventions.md.
-History words: "numba", "pythonfmu", and issue or pull-request numbers ("issue 12", "#12",
-"PR 12", "gh-12").
+History words, in comments, docstrings and the names of tests: "numba", "pythonfmu", issue or
+pull-request numbers ("issue 12", "#12", "PR 12", "gh-12"), commit ids (seven or more hex digits,
+letters and digits both), and the phrases that tell what code was rather than what it is: "used
+to", "formerly", "previously", "the old", "it (they, this, that, which) replaced".
 """
 from __future__ import annotations
 
@@ -46,7 +48,11 @@ CHECKED_EXTENSIONS = frozenset({"py", "c", "h"})
 DOTTED = re.compile(r"""(?<![\w./\\\['"-])[A-Za-z_]\w*(?:\.[A-Za-z_]\w*)+""")
 PATH = re.compile(r"(?<![\w./:\\*-])[\w.*-]+(?:/[\w.*-]+)+/?")
 HISTORY = re.compile(r"\bnumba\b|\bpythonfmu\b|\bissues?\s*#?\d+|\bpull request\s*#?\d+"
-                     r"|(?-i:\bPR)(?:\s*#|\s+)\d+|\bgh-\d+\b|(?<![\w#&/])#\d+\b", re.IGNORECASE)
+                     r"|(?-i:\bPR)(?:\s*#|\s+)\d+|\bgh-\d+\b|(?<![\w#&/])#\d+\b"
+                     r"|(?-i:(?<![\w.#+-])(?=[0-9a-f]*[a-f])(?=[0-9a-f]*[0-9])"
+                     r"[0-9a-f]{7,40}(?![\w.]))"
+                     r"|\bused to\b|\bformerly\b|\bpreviously\b|\bthe old\b"
+                     r"|\b(?:it|they|this|that|which)\s+replaced\b", re.IGNORECASE)
 SKIPPED = (".git", ".venv", "build", "results", "__pycache__", ".pytest_cache")
 
 
@@ -325,6 +331,15 @@ def test_every_reference_in_comments_resolves():
     assert report == []
 
 
+def test_no_test_is_named_for_history():
+    """A test's name says what it holds, not what the code once was (HISTORY, words as `_`)."""
+    named = [f"{rel}: {name}" for rel, path in _sources() if rel.startswith("tests/")
+             and rel.endswith(".py")
+             for name in re.findall(r"^\s*def (test_\w+)", path.read_text(encoding="utf-8"), re.M)
+             if HISTORY.search(name.replace("_", " "))]
+    assert named == []
+
+
 def test_the_resolver_tells_good_from_stale():
     assert _check_dotted("stewart_fmu.plant.Plant") is None
     assert _check_dotted("kinematics.inverse_kinematics") is None
@@ -349,3 +364,10 @@ def test_the_resolver_tells_good_from_stale():
     assert HISTORY.search("the numba kernels") and HISTORY.search("see issue 12")
     assert HISTORY.search("(#12)") and HISTORY.search("PR 7") and HISTORY.search("gh-3")
     assert not HISTORY.search("leg l1, 2 # comment") and not HISTORY.search("pr2 = p99")
+    for text in ("recorded at commit 5a10cb2", "it used to answer", "formerly a module",
+                 "as previously", "the old device", "the Python kernel it replaced"):
+        assert HISTORY.search(text), text
+    for text in ("0x7fffffff", "a sha256 of 64 digits " + "ab12" * 16, "1e-12 relative",
+                 "-abcd1234", "dotted keys replaced", "replaced by the previous one",
+                 "an existing file survives"):
+        assert not HISTORY.search(text), text

@@ -1,4 +1,4 @@
-"""A scene read once (stewart_sim/scene_load.py): every table parsed at load, any key no command
+"""A scene read once (stewart_sim/scene/load.py): every table parsed at load, any key no command
 reads refused with one line naming the dotted key (exit 2) by every command; [solver] is the
 in-process plant's integrator for `run` and `simulate`."""
 from __future__ import annotations
@@ -13,8 +13,8 @@ from controller.config import controller_config
 from stewart_fmu import SceneError, load_scene, scene_from_dict
 from stewart_fmu.stability import default_options
 from stewart_sim import cli
-from stewart_sim.cueing.config import cueing_config, optimal_options
-from stewart_sim.scene_load import load, scene_of
+from stewart_sim.scene.cueing_config import cueing_config, optimal_options
+from stewart_sim.scene.load import load, scene_of
 from tests.helpers import scene_dict
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -121,7 +121,8 @@ GOOD_CASE = {"kind": "stiff", "description": "", "motion": "hold", "duration": 1
      "case.motion"),
 ])
 def test_scene_rejects_bad_case_tables(mutate, key):
-    """A bad [case] table is refused at load (stewart_sim.cases.case_of) naming the key."""
+    """A bad [case] table is refused at load (stewart_sim.scene.case_config.case_of) naming the
+    key."""
     d = scene_dict("micro")
     d["transmission"] = {"stiffness": 1e6, "damping": 1.0}
     mutate(d)

@@ -13,8 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from stewart_sim import dirswap, outputs
-from stewart_sim.outputs import MANIFEST
+from stewart_sim.shell import dirswap, outputs
+from stewart_sim.shell.outputs import MANIFEST
 from tests.app.set_writer_child import NEW_SET, fork_writer
 
 EARLIER = {"a.csv": "t,x\n0,old\n", "b.csv": "t,y\n0,old\n", "gone.png": "old figure\n"}

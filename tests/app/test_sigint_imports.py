@@ -2,7 +2,7 @@
 
 A real SIGINT is raised (signal.raise_signal) from inside the import system at a chosen point,
 in a child process running the command line, so the moment is exact: no timing. Each point is
-one where a KeyboardInterrupt raised on the spot did damage before stewart_sim/interrupt.py
+one where a KeyboardInterrupt raised on the spot did damage before stewart_sim/shell/interrupt.py
 held it back until the import returned and cli.main installed it first: the parser's import
 ended in a traceback, numpy turned it into an ImportError traceback,
 matplotlib's ft2font was left half initialised ("Fatal Python error" and an abort at exit), and
@@ -63,7 +63,7 @@ class Trigger:
             fire()
         elif point == "ft2font-c-init" and name == "matplotlib.ft2font":
             sys.settrace(in_ft2font_init)
-        elif point == "dataclass-exec" and name == "stewart_sim.paper":
+        elif point == "dataclass-exec" and name == "stewart_sim.studies.paper":
             sys.settrace(in_exec_of_text)
         return None
 

@@ -1,4 +1,5 @@
-"""`stewart-sim size` (stewart_sim/commands/size.py, stewart_sim/sizing/): the shipped motion
+"""`stewart-sim size` (stewart_sim/commands/size.py, stewart_sim/studies/sizing/): the shipped
+motion
 simulator with the three shipped vehicle motions and the shipped drive catalogue writes its
 report; its peak rack force is `inverse`'s on the same motion (through the real commands:
 `cue` writes the trajectory, `inverse` its forces); a catalogue drive's torque and speed
@@ -24,7 +25,7 @@ SIM = ROOT / "scenes" / "motion_simulator.toml"
 MOTIONS = [ROOT / "scenes" / "motions" / f"{n}.csv"
            for n in ("braking_car", "lane_change", "takeoff")]
 CATALOGUE = ROOT / "scenes" / "catalogues" / "drives.csv"
-MARGIN = 0.2                 # size's default (stewart_sim.sizing.study.DEFAULT_MARGIN)
+MARGIN = 0.2                 # size's default (stewart_sim.studies.sizing.study.DEFAULT_MARGIN)
 SAME = 1e-12                 # the same float64 computation on the same numbers, relative
 
 
@@ -211,10 +212,10 @@ def test_on_a_running_scheduler_the_ranking_is_the_in_process_one(tmp_path, caps
     from distributed import LocalCluster
 
     from stewart_fmu.scene import read_scene_dict
-    from stewart_sim.scene_load import load
-    from stewart_sim.sizing.catalogue import read_catalogue
-    from stewart_sim.sizing.motions import read_motions
-    from stewart_sim.sizing.study import evaluate_drive, ranking
+    from stewart_sim.scene.load import load
+    from stewart_sim.studies.sizing.catalogue import read_catalogue
+    from stewart_sim.studies.sizing.motions import read_motions
+    from stewart_sim.studies.sizing.study import evaluate_drive, ranking
 
     motion = MOTIONS[1]
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
@@ -235,9 +236,9 @@ def test_on_a_running_scheduler_the_ranking_is_the_in_process_one(tmp_path, caps
 
 
 def test_without_a_price_the_drives_rank_by_mass(tmp_path):
-    from stewart_sim.sizing.catalogue import read_catalogue
-    from stewart_sim.sizing.study import CandidateMotion, CandidateResult, ranking
     from stewart_sim.cueing.feasibility import Margin
+    from stewart_sim.studies.sizing.catalogue import read_catalogue
+    from stewart_sim.studies.sizing.study import CandidateMotion, CandidateResult, ranking
 
     path = tmp_path / "drives.csv"
     path.write_text("mass,name,gear_ratio,pinion_radius,rotor_inertia,peak_torque,"

@@ -12,8 +12,9 @@ from stewart_fmu import load_scene
 from stewart_fmu.errors import IntegrationError
 from stewart_fmu.integrators import IntegratorOptions
 from stewart_fmu.stability import stable_step
-from stewart_sim.cases import case_of, run_case
-from stewart_sim.scene_load import scene_of
+from stewart_sim.scene.case_config import case_of
+from stewart_sim.scene.load import scene_of
+from stewart_sim.studies.cases.outcome import run_case
 
 STIFF = Path(__file__).resolve().parents[2] / "scenes" / "stiff"
 REFERENCE = IntegratorOptions("Radau", rtol=1e-10, atol=1e-13)

@@ -18,10 +18,10 @@ import pytest
 
 from stewart_fmu.errors import SceneError, SweepError
 from stewart_sim.cli import main
-from stewart_sim.sweep.evaluate import columns, evaluate_batch
-from stewart_sim.sweep.grid import grid_from_dict, load_grid
-from stewart_sim.sweep.run import eval_spec, run_sweep
-from stewart_sim.sweep.table import CHUNKS, csv_text, read_table
+from stewart_sim.studies.sweep.dask_run import eval_spec, run_sweep
+from stewart_sim.studies.sweep.evaluate import columns, evaluate_batch
+from stewart_sim.studies.sweep.grid import grid_from_dict, load_grid
+from stewart_sim.studies.sweep.result_table import CHUNKS, csv_text, read_table
 
 distributed = pytest.importorskip("distributed")
 

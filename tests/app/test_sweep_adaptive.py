@@ -20,14 +20,14 @@ from stewart_fmu.io import trajectory_table, write_csv
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.scene import apply_overrides, load_scene, read_scene_dict, scene_from_dict
 from stewart_sim.cli import main
-from stewart_sim.sweep.adaptive import REFINEMENT, ROUNDS, check_adaptive
-from stewart_sim.sweep.adaptive_plots import RESULT_UNITS, refinement_figure
-from stewart_sim.sweep.evaluate import RESULTS
-from stewart_sim.sweep.evaluate import columns, evaluate_batch
-from stewart_sim.sweep.plots import results_figure
-from stewart_sim.sweep.grid import grid_from_dict, load_grid
-from stewart_sim.sweep.run import eval_spec, run_sweep
-from stewart_sim.sweep.table import CHUNKS, MANIFEST, csv_text, read_table
+from stewart_sim.studies.sweep.adaptive import REFINEMENT, ROUNDS, check_adaptive
+from stewart_sim.studies.sweep.adaptive_plots import RESULT_UNITS, refinement_figure
+from stewart_sim.studies.sweep.dask_run import eval_spec, run_sweep
+from stewart_sim.studies.sweep.evaluate import RESULTS
+from stewart_sim.studies.sweep.evaluate import columns, evaluate_batch
+from stewart_sim.studies.sweep.grid import grid_from_dict, load_grid
+from stewart_sim.studies.sweep.plots import results_figure
+from stewart_sim.studies.sweep.result_table import CHUNKS, MANIFEST, csv_text, read_table
 from tests.app.test_plot_labels import check_figure
 
 distributed = pytest.importorskip("distributed")

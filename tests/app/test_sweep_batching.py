@@ -16,17 +16,18 @@ import pytest
 from stewart_fmu.dynamics import inverse_dynamics
 from stewart_fmu.errors import SweepError
 from stewart_sim.cli import main
-from stewart_sim.progress import rate_text
-from stewart_sim.sweep.batching import (MIN_SECONDS, PROBE, TARGET_SECONDS, BatchSizer,
-                                        TaskCosts)
-from stewart_sim.sweep.chunks import (check_task_text, checked_cells, chunk_rules, chunk_text,
-                                      merge_chunks, resume_ledger, write_chunk)
-from stewart_sim.sweep.cluster import LOCAL_CLUSTER, dask_client, dask_environment
-from stewart_sim.sweep.evaluate import (LEGS, columns, evaluate_batch, has_drive, point_model,
-                                        point_trajectory, trajectory)
-from stewart_sim.sweep.grid import MAX_BATCH, grid_from_dict, load_grid
-from stewart_sim.sweep.run import TaskContext, eval_spec, evaluate_task, fingerprint, run_sweep
-from stewart_sim.sweep.table import CHUNKS, csv_text, open_sweep
+from stewart_sim.shell.progress import rate_text
+from stewart_sim.studies.sweep.batching import (MIN_SECONDS, PROBE, TARGET_SECONDS, BatchSizer,
+                                                TaskCosts)
+from stewart_sim.studies.sweep.chunks import (check_task_text, checked_cells, chunk_rules,
+                                              chunk_text, merge_chunks, resume_ledger, write_chunk)
+from stewart_sim.studies.sweep.cluster import LOCAL_CLUSTER, dask_client, dask_environment
+from stewart_sim.studies.sweep.dask_run import (TaskContext, eval_spec, evaluate_task, fingerprint,
+                                                run_sweep)
+from stewart_sim.studies.sweep.evaluate import (LEGS, columns, evaluate_batch, has_drive,
+                                                point_model, point_trajectory, trajectory)
+from stewart_sim.studies.sweep.grid import MAX_BATCH, grid_from_dict, load_grid
+from stewart_sim.studies.sweep.result_table import CHUNKS, csv_text, open_sweep
 
 distributed = pytest.importorskip("distributed")
 
@@ -284,13 +285,14 @@ def test_the_settings_as_environment_variables_are_the_local_clusters():
 
 
 def test_the_settings_print_as_shell_exports():
-    """`python -m stewart_sim.sweep.cluster` prints dask_environment as `export` lines a shell
+    """`python -m stewart_sim.studies.sweep.cluster` prints dask_environment as `export` lines a
+    shell
     takes back as they are."""
     import shlex
     import subprocess
     import sys
 
-    out = subprocess.run([sys.executable, "-m", "stewart_sim.sweep.cluster"], check=True,
+    out = subprocess.run([sys.executable, "-m", "stewart_sim.studies.sweep.cluster"], check=True,
                          capture_output=True, text=True).stdout
     got = {}
     for line in out.splitlines():

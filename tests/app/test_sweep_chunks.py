@@ -16,12 +16,12 @@ import pytest
 
 from stewart_fmu.errors import SweepError
 from stewart_sim.cli import main
-from stewart_sim.sweep.chunks import MAGIC, REFUSED, chunk_rules, resume_rows, write_chunk
-from stewart_sim.sweep.evaluate import (RESULTS, columns, evaluate_batch, evaluate_point,
-                                        has_drive, result_problem)
-from stewart_sim.sweep.grid import load_grid
-from stewart_sim.sweep.run import eval_spec, fingerprint, run_sweep
-from stewart_sim.sweep.table import CHUNKS, csv_text, merge, read_table
+from stewart_sim.studies.sweep.chunks import MAGIC, REFUSED, chunk_rules, resume_rows, write_chunk
+from stewart_sim.studies.sweep.dask_run import eval_spec, fingerprint, run_sweep
+from stewart_sim.studies.sweep.evaluate import (RESULTS, columns, evaluate_batch, evaluate_point,
+                                                has_drive, result_problem)
+from stewart_sim.studies.sweep.grid import load_grid
+from stewart_sim.studies.sweep.result_table import CHUNKS, csv_text, merge, read_table
 
 distributed = pytest.importorskip("distributed")
 
@@ -266,7 +266,7 @@ def test_a_table_is_never_merged_from_rows_it_refused(sweep, tmp_path):
 def test_a_result_that_is_not_finite_is_an_error_row(sweep, monkeypatch):
     """No row with status ok carries a non-finite result: the point becomes a row with its
     error, the result named."""
-    import stewart_sim.sweep.evaluate as ev
+    import stewart_sim.studies.sweep.evaluate as ev
 
     grid = load_grid(sweep["grid"])
     spec = eval_spec(SCENE, grid)
@@ -281,7 +281,7 @@ def test_a_result_that_is_not_finite_is_an_error_row(sweep, monkeypatch):
 def test_an_error_row_is_one_a_chunk_takes(sweep, tmp_path, monkeypatch, message):
     """An error's text is cut to ERROR_CHARS (a chunk's rows have a size bound) and never
     empty: the row is written and taken back on resume."""
-    import stewart_sim.sweep.evaluate as ev
+    import stewart_sim.studies.sweep.evaluate as ev
 
     def fail(*args):
         raise ValueError(message)

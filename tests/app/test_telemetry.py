@@ -8,8 +8,9 @@ import struct
 import numpy as np
 import pytest
 
-from stewart_sim.cueing.telemetry import (NATIVE_SIZES, OUTSIM_SIZES, TelemetryError,
-                                          TelemetrySample, decode_native, decode_outsim, encode)
+from stewart_sim.live.vehicle_datagrams import (NATIVE_SIZES, OUTSIM_SIZES, TelemetryError,
+                                                TelemetrySample, decode_native, decode_outsim,
+                                                encode)
 
 G = 9.81
 

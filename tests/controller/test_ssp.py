@@ -319,8 +319,8 @@ def test_the_check_refuses_what_the_fmu_would(loop, tmp_path, capsys):
 
 
 def test_libcosim_aborts_on_an_fmu_error_at_initialisation(loop, tmp_path):
-    """What README says libcosim does with platform.mass = -1 in the archive (run in a child
-    process, whose abort cannot take pytest down): the plant FMU answers fmi2Error in
+    """What the FMU and SSP guide says libcosim does with platform.mass = -1 in the archive (run
+    in a child process, whose abort cannot take pytest down): the plant FMU answers fmi2Error in
     initialisation mode and libcosim throws cosim::error on a worker thread: std::terminate,
     SIGABRT (exit 134 from a shell, -6 here), the step never returns. check_ssp refuses the
     archive first (test_the_check_refuses_what_the_fmu_would)."""

@@ -170,7 +170,8 @@ def test_lockstep_over_the_link_equals_the_direct_run(model, config, lockstep_re
     assert len(run.table) == len(direct.table) == n
     assert_same(run, direct)  # bit for bit: the doubles survive the encoding
     assert run.summary.lost == 0 and run.summary.sent == 2 * n
-    # every step's round trip was measured (how long it took is a figure: stewart_sim.link_figures)
+    # every step's round trip was measured (how long it took is a figure:
+    # stewart_sim.closed_loop.link_figures)
     assert np.all(np.isfinite(run.table["rtt"])) and np.all(run.table["rtt"] > 0)
     assert s.device.counters.setpoints_accepted == n and s.device.counters.lockstep_refused == 0
     assert np.array_equal(run.table["step"], np.arange(n))
@@ -276,7 +277,7 @@ def _simulated_realtime(model, config, ref, latency):
 
 def test_realtime_error_grows_with_latency(model, config, realtime_ref):
     """The real-time loop through the link emulator on a simulated clock (deterministic; the
-    wall-clock figure is `python -m stewart_sim.link_figures`): with 5 ms each way the
+    wall-clock figure is `python -m stewart_sim.closed_loop.link_figures`): with 5 ms each way the
     setpoints reach the device 5 ms late and its states come back 5 ms late, so in host time
     the legs lag the reference and the error grows."""
     base = _simulated_realtime(model, config, realtime_ref, 0.0)
@@ -316,7 +317,7 @@ def test_cli_run_mode_needs_link(tmp_path, capsys):
 # ------------------------------------------------------------------------ figures
 
 def test_rate_table_is_computed_from_the_dialect_sizes():
-    from hil.budget import frame_sizes, loop_rate, rate_table
+    from hil.bandwidth import frame_sizes, loop_rate, rate_table
     from hil.framing import frame_length
 
     t = rate_table()
@@ -342,7 +343,7 @@ def test_rate_table_is_computed_from_the_dialect_sizes():
 def test_realtime_rates_fit_the_line():
     """UDP runs at the controller rate; a 921600 baud UART carries 424 setpoints a second (217 B
     frames with force and force rate), so a 1 kHz loop sends every third sample."""
-    from hil.budget import SERIAL_BAUD, frame_sizes, loop_rate, realtime_rates
+    from hil.bandwidth import SERIAL_BAUD, frame_sizes, loop_rate, realtime_rates
 
     assert realtime_rates("udp", 1000.0) == (1, 1000.0)
     every, state_rate = realtime_rates("serial", 1000.0)
@@ -353,9 +354,10 @@ def test_realtime_rates_fit_the_line():
 
 
 def test_link_figures_report_end_to_end(tmp_path, model, config):
-    """`python -m stewart_sim.link_figures` on a small grid: the rate table, measured round trips over the
+    """`python -m stewart_sim.closed_loop.link_figures` on a small grid: the rate table, measured
+    round trips over the
     pty and UDP, and tracking against latency and loss, all finite, with the plot."""
-    from stewart_sim.link_figures import report
+    from stewart_sim.closed_loop.link_figures import report
 
     path = report(tmp_path, model, config, n=30, latencies=(0.0, 0.005), losses=(0.3,),
                   repeats=1)
@@ -373,8 +375,8 @@ def test_link_figures_report_end_to_end(tmp_path, model, config):
 
 def test_the_client_numbers_its_frames_per_link():
     """Every frame the host sends carries the next MAVLink sequence number (mod 256), one and
-    several per send alike, each client (link) counting from 0 on its own: the old client sent
-    0 on every frame, so the device could not see a lost one."""
+    several per send alike, each client (link) counting from 0 on its own, so the device sees a
+    lost one."""
     from hil.framing import Receiver
 
     a, b = queue_pair()

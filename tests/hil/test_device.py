@@ -25,7 +25,7 @@ from pymavlink.dialects.v20 import common as pm_common  # noqa: E402
 from controller.trajectory import leg_references, quintic  # noqa: E402
 from hil import mavlink_stewart as ms  # noqa: E402
 from hil.device import Device  # noqa: E402
-from hil.telemetry import ned_attitude, rotation  # noqa: E402
+from hil.downlink import ned_attitude, rotation  # noqa: E402
 from hil.errors import LinkError  # noqa: E402
 from hil.framing import Receiver  # noqa: E402
 from hil.link import (  # noqa: E402

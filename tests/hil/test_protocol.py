@@ -15,7 +15,7 @@ pytest.importorskip("pymavlink")
 from hil import mavlink_stewart as ms  # noqa: E402
 from hil.device import Device  # noqa: E402
 from hil.modes import Mode  # noqa: E402
-from hil.telemetry import ned_attitude  # noqa: E402
+from hil.downlink import ned_attitude  # noqa: E402
 from hil.framing import Receiver  # noqa: E402
 from hil.protocol import param_encode_int, statustext_chunks  # noqa: E402
 from stewart_fmu.scene import load_scene  # noqa: E402
@@ -146,7 +146,7 @@ def test_statustext_chunks_on_character_boundaries(model, text):
     if len(chunks) > 1:
         assert len(chunks[-1]) < 50                        # the last one ends with a NUL
     dev = Device(model)
-    msgs = dev._statustext(ms.MAV_SEVERITY_INFO, text)
+    msgs = dev.statustext(ms.MAV_SEVERITY_INFO, text)
     if len(text.encode()) <= 50:
         assert len(msgs) == 1 and msgs[0].id == 0
     else:
@@ -155,7 +155,7 @@ def test_statustext_chunks_on_character_boundaries(model, text):
     rx = Receiver(ms, host())
     got = [m for f in msgs for m in rx.feed(dev.pack(f))]
     assert _reassemble(got) == text
-    again = dev._statustext(ms.MAV_SEVERITY_INFO, "b" * 120)
+    again = dev.statustext(ms.MAV_SEVERITY_INFO, "b" * 120)
     assert again[0].id != msgs[0].id
 
 

@@ -185,14 +185,14 @@ def test_watchdog_by_the_wall_clock_not_by_caught_up_ticks(model):
     t_sp = clock.t + 0.0515     # arrives during the stall of tick 50: handled at the catch-up
     tr.inbox.append((t_sp, frame(mav, setpoint(0, l0))))
     trips = []
-    orig = dev._statustext
+    orig = dev.statustext
 
     def spy(sev, text):
         if text.startswith("watchdog"):
             trips.append(clock.t)
         return orig(sev, text)
 
-    dev._statustext = spy
+    dev.statustext = spy
     serve(dev, tr, True, max_ticks=400, clock=clock)
     assert dev.counters.watchdog_trips == 1 and len(trips) == 1
     i = [t for t, _ in dev.handled_at].index("LEG_SETPOINT")
@@ -395,8 +395,7 @@ def _flooded_run(model, flood_limit: bool, seconds: float = 1.0, flood_rate: flo
 
 
 def test_a_flood_from_another_port_cannot_make_the_ticks_late(model):
-    """50,000 valid HEARTBEATs a second from another local port (what the old device served
-    1.2 s behind wall time): each tick starts on time, the host's setpoints are handled
+    """50,000 valid HEARTBEATs a second from another local port: each tick starts on time, the host's setpoints are handled
     within the tick they arrive in and its replies stay with it, and the flood's datagrams
     over their budget are dropped undecoded and counted. Without the budget the same flood is
     decoded in full: 1.35 ms of work a millisecond, a backlog that grows without end, and the
@@ -411,9 +410,9 @@ def test_a_flood_from_another_port_cannot_make_the_ticks_late(model):
     assert tr.sent_to.get(ATTACKER, 0) == 0                # nothing goes to the flooder
     assert tr.flood_sent > 45_000 and c.flood_dropped > 0.99 * tr.flood_sent
     # the flood's admitted part: one stranger's burst plus its rate, and nothing more
-    from hil import limits
+    from hil import throttle
     admitted = tr.flood_sent - c.flood_dropped
-    assert admitted * len(tr.heartbeat) <= limits.STRANGER_BURST + limits.STRANGER_RATE * 1.0
+    assert admitted * len(tr.heartbeat) <= throttle.STRANGER_BURST + throttle.STRANGER_RATE * 1.0
     # "before": no budget (the drain still stops at the tick's due time)
     dev0, tr0, st0, lag0 = _flooded_run(model, flood_limit=False, seconds=0.5)
     assert dev0.counters.flood_dropped == 0

@@ -1,6 +1,6 @@
 """Hostile input to the emulated device: every repro of the hardening brief is refused and the
-device keeps serving (hil.limits, hil.signing, hil.peer, the numerical safe hold); a seeded fuzz
-in process and once against the device process over UDP. Bounded and deterministic: no
+device keeps serving (hil.input_bounds, hil.throttle, hil.signing, hil.peer, the numerical safe
+hold); a seeded fuzz in process and once against the device process over UDP. Bounded and deterministic: no
 wall-clock pass/fail (wall-clock waits only bound how long a socket is read)."""
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ import pytest
 
 pytest.importorskip("pymavlink")
 
-from hil import limits  # noqa: E402
+from hil import input_bounds, throttle  # noqa: E402
 from hil import mavlink_stewart as ms  # noqa: E402
 from hil.device import Device, DeviceError  # noqa: E402
 from hil.framing import Receiver, crc16, pack  # noqa: E402
@@ -139,13 +139,13 @@ def _follow(dev: Device, lengths, seconds: float, seq: int) -> tuple[np.ndarray,
 @pytest.mark.parametrize("scene", ["micro_manipulator", "motion_simulator"])
 def test_every_accepted_bound_is_reached_without_a_fault(scene):
     """A setpoint of exactly SP_LEN_MAX (then SP_LEN_MIN, then SP_LEN_MAX again) on every leg,
-    each a full-stroke step at the drive's no-load speed: the old device accepted SP_LEN_MAX =
-    leg_max and its servo overshot into the end stop (fault, disarmed). Now the bounds keep the
-    servo's overshoot room free: every step is accepted, reached, and nothing faults. Device
-    time only (ticks), deterministic."""
+    each a full-stroke step at the drive's no-load speed: were SP_LEN_MAX = leg_max, the servo
+    would overshoot into the end stop (fault, disarmed); the bounds keep the servo's overshoot
+    room free, so every step is accepted, reached, and nothing faults. Device time only
+    (ticks), deterministic."""
     m = load_scene(ROOT / "scenes" / f"{scene}.toml")
     dev = Device(m)
-    room = limits.overshoot_room(dev.ctrl.axis, float(np.max(np.abs(dev.plant.rack_force))))
+    room = input_bounds.overshoot_room(dev.ctrl.axis, float(np.max(np.abs(dev.plant.rack_force))))
     b = dev.bounds
     assert room > 0 and (b.leg_min, b.leg_max) == pytest.approx((m.leg_min + room, m.leg_max - room))
     values = {p.param_id: p.param_value for p in dev.receive(ms.MAVLink_param_request_list_message(1, 1))}
@@ -216,9 +216,10 @@ def test_absurd_finite_setpoints_are_refused(model, field, value, flags):
 def test_bounds_table_follows_the_drive(model):
     dev = Device(model)
     b, ax = dev.bounds, dev.ctrl.axis
-    assert b.rate_max == pytest.approx(limits.RATE_MARGIN * 24.0 / ax.emf_constant)  # 10 x 0.3 m/s
-    assert b.force_max == pytest.approx(limits.FORCE_MARGIN * ax.force_constant * 2.0)
-    room = limits.overshoot_room(ax, float(np.max(np.abs(dev.plant.rack_force))))
+    # 10 x 0.3 m/s
+    assert b.rate_max == pytest.approx(input_bounds.RATE_MARGIN * 24.0 / ax.emf_constant)
+    assert b.force_max == pytest.approx(input_bounds.FORCE_MARGIN * ax.force_constant * 2.0)
+    room = input_bounds.overshoot_room(ax, float(np.max(np.abs(dev.plant.rack_force))))
     assert (b.leg_min, b.leg_max) == (model.leg_min + room, model.leg_max - room)
     assert b.voltage_range[1] == 24.0 and b.current_range[1] == 2.0
     values = {m.param_id: m.param_value for m in dev.receive(ms.MAVLink_param_request_list_message(1, 1))}
@@ -284,7 +285,7 @@ def test_watchdog_flood_is_refused_and_statustext_is_rate_limited(model):
             n_text += len(texts(dev.receive(param_set(f"NOPE{k}", 1.0))))
         n_text += len(texts(dev.tick()))
     assert dev.counters.watchdog_trips == 50
-    assert n_text <= limits.STATUS_BURST + limits.STATUS_RATE * 1.0 + 1, n_text
+    assert n_text <= throttle.STATUS_BURST + throttle.STATUS_RATE * 1.0 + 1, n_text
     assert dev.counters.statustexts_rate_limited >= 500
     still_serving(dev)
 
@@ -293,7 +294,7 @@ def test_watchdog_flood_is_refused_and_statustext_is_rate_limited(model):
 
 
 def test_numerical_failure_in_the_loop_gives_a_safe_hold(model):
-    """Drive limits and gain as the old device accepted them (set behind the checks): the 4 mm
+    """Drive limits and gain beyond what the checks accept (set behind them): the 4 mm
     step makes the integration fail; the device holds the last good pose, disarms, says so
     once (CRITICAL) and keeps serving with the designed gains and rated limits."""
     dev = Device(model)
@@ -465,7 +466,7 @@ def test_a_datagram_cannot_hijack_the_replies(model, signed):
         assert attacker.drain() == 0                                 # the attacker gets nothing
         assert dev.counters.peer_changes == 0
         if not signed:  # a valid frame from a new port moves the peer (once the host has been
-            time.sleep(PEER_HOLD)   # quiet for the hold, hil.peer), and the old one is told
+            time.sleep(PEER_HOLD)   # quiet for the hold, hil.peer), and the earlier one is told
             attacker.send(bytes(read_kp().pack(host_mav())))
             told = host.collect(Receiver(ms), _has("STATUSTEXT", lambda m: "peer" in m.text))
             assert _has("STATUSTEXT", lambda m: m.text.startswith("peer 127.0.0.1:"))(told)
@@ -499,7 +500,7 @@ class _Server:
 def test_signed_frames_from_another_address_do_not_move_the_peer_while_armed(model):
     """Signed: the host arms from port 1000; a correctly signed frame from port 2000 (another
     holder of the key, or a replayed stream on a new link) is handled, but the replies and the
-    telemetry stay with the host while armed (the old device moved them); after disarm a
+    telemetry stay with the host while armed (they do not follow the new address); after disarm a
     signed frame from port 2000 may take the peer, and says so."""
     from hil.peer import PeerGuard
 
@@ -529,7 +530,7 @@ def test_signed_frames_from_another_address_do_not_move_the_peer_while_armed(mod
     assert not dev.armed
     datagram(other, omav, read_kp())                                     # disarmed: it may move
     assert tr.peer == other and dev.counters.peer_changes == 1 and dev.counters.peer_kept == 6
-    # the new peer arms; the old host's signed frames no longer move it
+    # the new peer arms; the earlier host's signed frames do not move it
     datagram(other, omav, arm())
     assert dev.armed
     datagram(host, hmav, read_kp())
@@ -566,24 +567,24 @@ def test_unsigned_a_streaming_peer_keeps_its_replies(model):
 
 
 def test_source_limiter_budgets_and_bounded_memory():
-    """hil.limits.SourceLimiter: a stranger gets its burst and its rate, 10,000 rotating source
+    """hil.throttle.SourceLimiter: a stranger gets its burst and its rate, 10,000 rotating source
     addresses hold at most SOURCES + 1 buckets and share one budget beyond SOURCES, and an idle
     source is forgotten."""
-    lim = limits.SourceLimiter()
+    lim = throttle.SourceLimiter()
     # one stranger flooding 21-byte frames every 10 us for 1 s: its burst, then its rate
     ok = sum(lim.admit("a", 21, 10.0 + k * 1e-5) for k in range(100_000))
-    assert ok * 21 <= limits.STRANGER_BURST + limits.STRANGER_RATE * 1.0 + 21
-    assert ok * 21 >= limits.STRANGER_RATE * 1.0
+    assert ok * 21 <= throttle.STRANGER_BURST + throttle.STRANGER_RATE * 1.0 + 21
+    assert ok * 21 >= throttle.STRANGER_RATE * 1.0
     # 10,000 addresses, each one datagram, within 0.1 s: bounded table, bounded total
-    lim2 = limits.SourceLimiter()
+    lim2 = throttle.SourceLimiter()
     ok = sum(lim2.admit(("127.0.0.1", 1024 + i), 100, i * 1e-5) for i in range(10_000))
-    assert len(lim2) <= limits.SOURCES + 1
-    assert ok * 100 <= (limits.SOURCES + 1) * limits.STRANGER_BURST + limits.STRANGER_RATE * 0.1
+    assert len(lim2) <= throttle.SOURCES + 1
+    assert ok * 100 <= (throttle.SOURCES + 1) * throttle.STRANGER_BURST + throttle.STRANGER_RATE * 0.1
     assert lim2.dropped == 10_000 - ok and lim2.bytes_dropped == 100 * lim2.dropped
     # 2 s later the table's sources are idle: a new address gets a bucket of its own
-    assert lim2.admit(("127.0.0.1", 9), 1000, 2.1) and len(lim2) <= limits.SOURCES + 1
+    assert lim2.admit(("127.0.0.1", 9), 1000, 2.1) and len(lim2) <= throttle.SOURCES + 1
     # flooding: over the budget within FLOOD_MEMORY s (the shared bucket for sources beyond)
-    assert lim.flooding("a", 11.0) and not lim.flooding("a", 11.0 + limits.FLOOD_MEMORY)
+    assert lim.flooding("a", 11.0) and not lim.flooding("a", 11.0 + throttle.FLOOD_MEMORY)
     assert not lim2.flooding(("127.0.0.1", 9), 2.1) and not lim.flooding("b", 11.0)
     assert ("127.0.0.1", 9) in lim2._buckets
 

@@ -4,7 +4,7 @@ What the public API's tests do not reach: cond(J) by the core's SVD against nump
 singular pose; the plant step's refusals (energy gain where Plant raises, a non-finite state,
 the bound on its work) and the run holder (core.Run) against single steps. The physics
 (tests/stewart_fmu/test_dynamics_physics.py and the others) runs on this core through the public
-API, and tests/stewart_fmu/test_plant_reference.py holds it to the kernels it replaced.
+API, and tests/stewart_fmu/test_plant_reference.py holds it to its recorded reference.
 """
 from __future__ import annotations
 

@@ -82,7 +82,7 @@ def test_call_sequence_is_checked():
         plant.do_step(plant.time, H)
 
 
-def test_bad_inputs_are_rejected_and_keep_the_old_ones():
+def test_bad_inputs_are_rejected_and_the_inputs_held_are_kept():
     """Non-finite or mis-shaped inputs raise TrajectoryError naming the input; nothing changes."""
     model = load_scene(SCENES / "micro_manipulator.toml")
     plant = _started(model)

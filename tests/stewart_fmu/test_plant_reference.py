@@ -1,7 +1,7 @@
-"""The plant on the C core against the compiled Python kernels it replaced, on every shipped scene.
+"""The plant on the C core against its recorded reference, on every shipped scene.
 
-tests/data/plant_reference.npz was recorded by tools/plant_reference.py at commit 5a10cb2 from
-those kernels (inverse dynamics, the force breakdown, forward dynamics, leg state, cond(J),
+tests/data/plant_reference.npz (tools/plant_reference.py) holds the results of a second
+implementation of the same arithmetic, compiled Python kernels (inverse dynamics, the force breakdown, forward dynamics, leg state, cond(J),
 energy terms, and 20 Plant steps of 1 ms with rk4, euler and dopri5, including where a step is
 refused and why). The same computation on today's plant must agree to 1e-12 relative (per
 quantity, to its largest entry), and refuse the same steps with the same status.
@@ -26,7 +26,7 @@ def _name(path: Path) -> str:
 
 
 @pytest.mark.parametrize("seed,path", list(enumerate(SCENES)), ids=[_name(p) for p in SCENES])
-def test_plant_equals_the_numba_kernels_it_replaced(seed, path):
+def test_plant_equals_its_recorded_reference(seed, path):
     name = _name(path)
     now = compute(path, seed)
     worst = 0.0
@@ -40,5 +40,5 @@ def test_plant_equals_the_numba_kernels_it_replaced(seed, path):
             scale = max(float(np.max(np.abs(ref))), 1e-300)
             worst = max(worst, float(np.max(np.abs(value - ref))) / scale)
     assert {f"outcome_{m}" for m in METHODS} <= set(now)
-    record(f"C core vs the numba kernels [{name}]", worst, TOL)
+    record(f"C core vs the recorded reference [{name}]", worst, TOL)
     assert worst <= TOL, worst

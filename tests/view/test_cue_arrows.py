@@ -19,7 +19,7 @@ from stewart_fmu.kinematics import inverse_kinematics
 from stewart_sim.cueing.motion import read_motion
 from stewart_sim.cueing.report import cue_view
 from stewart_sim.cueing.study import cue_study
-from stewart_sim.scene_load import scene_of
+from stewart_sim.scene.load import scene_of
 from stewart_sim.view.geometry import (
     CUES,
     arrow_transforms,
@@ -28,7 +28,7 @@ from stewart_sim.view.geometry import (
     view_geometry,
 )
 from stewart_sim.view.html import static_view_html, write_view
-from stewart_sim.view.live import LiveView, live_page
+from stewart_sim.view.live_server import LiveView, live_page
 from tests.browser import VIEWPORT, open_view, settle
 from tests.helpers import ROOT, scene_dict
 

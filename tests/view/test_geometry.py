@@ -7,6 +7,7 @@ import pytest
 
 from hil.params import COND_MAX
 from stewart_fmu.kinematics import inverse_kinematics
+from stewart_sim.scene.load import scene_of
 from stewart_sim.view.geometry import (
     COND_WARN,
     at_stroke_limit,
@@ -16,7 +17,6 @@ from stewart_sim.view.geometry import (
     rotation,
     view_geometry,
 )
-from stewart_sim.scene_load import scene_of
 from tests.helpers import random_states
 
 

@@ -16,7 +16,7 @@ from controller.config import controller_config
 from controller.cosim import run_closed_loop
 from controller.moves import RUN_MOVE, run_reference
 from stewart_fmu.kinematics import inverse_kinematics
-from stewart_sim.scene_load import scene_of
+from stewart_sim.scene.load import scene_of
 from stewart_sim.view.colours import force_colours, nice_ceiling
 from stewart_sim.view.data import view_data
 from stewart_sim.view.geometry import object_transforms, view_geometry

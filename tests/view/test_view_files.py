@@ -17,10 +17,10 @@ from controller.cosim import run_closed_loop
 from controller.moves import DEMO_DURATION, DEMO_RATE, demo_trajectory, run_reference
 from stewart_fmu import io
 from stewart_sim.cli import main
-from stewart_sim.scene_load import scene_of
+from stewart_sim.scene.load import scene_of
 from stewart_sim.view.data import DEFAULT_FPS, frame_indices
-from stewart_sim.view.html import live_view_html, static_view_html
 from stewart_sim.view.geometry import view_geometry
+from stewart_sim.view.html import live_view_html, static_view_html
 from stewart_sim.view.sources import run_table_view, trajectory_view
 from tests.helpers import SCENE_FILES, level_model
 
@@ -131,7 +131,7 @@ def test_run_writes_its_view_and_view_reads_the_run(tmp_path, capsys):
                      said)
     assert match and float(match.group(1)) == pytest.approx(again.stat().st_size / 1e6, abs=0.006)
     assert main(["run", MICRO, "--out", str(out), "--duration", "0.5", "--no-view"]) == 0
-    assert not (out / "view.html").exists()     # the new set replaced the old one whole
+    assert not (out / "view.html").exists()     # the new set took the earlier one's place whole
 
 
 def _error(capsys) -> str:

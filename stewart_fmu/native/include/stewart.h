@@ -539,6 +539,97 @@ int stewart_serialize(const stewart_component *s, const void *extra, size_t extr
 int stewart_deserialize(const void *in, size_t size, unsigned long long key, stewart_component *s,
                         void *extra, size_t extra_size);
 
+
+/* ==== reach: every limit's margin at a pose (reach.c), frames (frames.c) ================= */
+/* STEWART_R_<NAME>: offsets of the packed reach vector (STEWART_REACH_PARAMS of
+   stewart_table.h), STEWART_N_REACH its length; STEWART_LIMIT_<ID>: the limits' indices in
+   report order (STEWART_LIMITS), STEWART_N_LIMITS their number. */
+#define STEWART_X_REACH_OFFSET(NAME, ...) STEWART_R_##NAME = STEWART_REACH_OFFSET(NAME),
+enum { STEWART_REACH_PARAMS(STEWART_X_REACH_OFFSET) STEWART_N_REACH = (int)(sizeof(stewart_reach_layout) / sizeof(double)) };
+#define STEWART_X_LIMIT_INDEX(ID, ...) STEWART_LIMIT_##ID,
+enum { STEWART_LIMITS(STEWART_X_LIMIT_INDEX) STEWART_N_LIMITS };
+
+typedef struct {
+    const char *name;         /* NAME of STEWART_REACH_PARAMS: STEWART_R_<name> */
+    int offset, count;
+    const char *unit, *description;
+} stewart_reach_param_info;
+typedef struct {
+    const char *id, *name;    /* ID and dotted scene key of STEWART_REACH_SCENE */
+    int count, bound;
+    double min, max;
+    const char *unit, *description;
+} stewart_reach_key_info;
+typedef struct {
+    const char *id, *name;    /* ID and NAME of STEWART_LIMITS, index = its row */
+    int kind;                 /* STEWART_LIMIT_KIND_* */
+    const char *unit, *description;
+} stewart_limit_info;
+extern const stewart_reach_param_info stewart_reach_param_table[];
+extern const int stewart_reach_param_table_size;
+extern const stewart_reach_key_info stewart_reach_key_table[];
+extern const int stewart_reach_key_table_size;
+extern const stewart_limit_info stewart_limit_table[];
+extern const int stewart_limit_table_size;
+
+/* Which limits a call computes (present[k] = 1): the stroke's ends the model bounds, the cones
+   with [joints], leg clearance with [clearance], obstacles when it has any, cond(J) when its
+   limit is finite, speed with rates (has_qd) and acceleration and force with accelerations
+   (has_qdd) when their bounds are finite. */
+void stewart_reach_present(const double *params, const double *reach, int has_qd, int has_qdd,
+                           int *present);
+
+/* Every limit's margin at pose q (rates qd and accelerations qdd may be NULL): margin[k] the
+   least over the limit's legs, pairs or obstacle-leg pairs (positive inside; +inf for a limit
+   not present), where[k] the element that gives it (leg 0..5; pair 0..14 in the order (1,2),
+   (1,3) .. (5,6); obstacle o and leg i as 6 o + i; 0 for cond(J)). Returns the binding limit:
+   the first in report order whose margin is negative, or -1 when the pose is inside every
+   limit; STEWART_N_LIMITS when q (or qd, qdd) is not finite (margins then NaN). */
+int stewart_reach_margins(const double *params, const double *reach, const double q[6],
+                          const double *qd, const double *qdd, double margin[STEWART_N_LIMITS],
+                          int *where);
+
+/* stewart_reach_margins over n poses (row-major (n, 6); QD, QDD may be NULL): margins and
+   where (n, STEWART_N_LIMITS), binding (n). Returns the number of poses inside every limit, or
+   -(1 + k) for the first pose k that is not finite (rows after it are not computed). */
+long stewart_reach_batch(const double *params, const double *reach, long n, const double *Q,
+                         const double *QD, const double *QDD, double *margins, int *where,
+                         int *binding);
+
+/* The binding limit alone of n poses (row-major (n, 6); -1 inside), as stewart_reach_batch
+   finds it, without the margins' values: a margin surely positive is not computed exactly
+   (cond(J) below a bound of it, an obstacle beyond its bounding sphere). Returns the number
+   inside every limit, or -(1 + k) for the first pose k that is not finite. */
+long stewart_reach_binding(const double *params, const double *reach, long n, const double *Q,
+                           int *binding);
+
+/* The largest step s in [0, smax] with the pose q0 + t dir inside every geometric limit (and
+   cond(J)) for all t in [0, s]; q0 and dir in a frame (frame: 12 doubles, mov then fix of
+   stewart_frame_to_platform; NULL: the platform's own pose). Steps from 0 of at most hmax
+   (growing from hmax / 64), then bisection to tol between the last pose inside and the first
+   outside. *limit, *where: what ends it (-1: nothing within smax). Returns 0; 1 when q0 itself
+   is outside a limit (s = 0, *limit the binding one); -1 when q0, dir or frame is not finite,
+   tol, hmax or smax not > 0, or smax / hmax above 156250 (the march's bound). A limit crossed
+   and left again within one march step (< hmax) is not seen: hmax is the resolution. */
+int stewart_reach_travel(const double *params, const double *reach, const double *frame,
+                         const double q0[6], const double dir[6], double hmax, double smax,
+                         double tol, double *s, int *limit, int *where);
+
+/* Each leg's direction at pose q: u_i in N (base[3i..]) and R^T u_i in C (platform[3i..]):
+   the joints' axes a scene leaves out are these at its home pose. */
+void stewart_leg_axes(const double *params, const double q[6], double base[18], double platform[18]);
+
+/* Frames (frames.c). A frame change is a moving frame M given in C (mov: a pose, position in
+   C and angles) and a fixed frame W given in N (fix); the pose of M in W is
+   T_W^-1 T_C(q) T_M, written f. stewart_frame_from_platform: f from q; stewart_frame_to_platform:
+   q from f. A frame whose angles are all zero rotates nothing (its angles pass through
+   unchanged). Angles out: thy in [-pi/2, pi/2], thx, thz in (-pi, pi] (a pose whose angles
+   lie there comes back to itself). n poses, row-major (n, 6). */
+void stewart_frame_from_platform(const double mov[6], const double fix[6], long n,
+                                 const double *Q, double *F);
+void stewart_frame_to_platform(const double mov[6], const double fix[6], long n,
+                               const double *F, double *Q);
+
 #ifdef __cplusplus
 }
 #endif

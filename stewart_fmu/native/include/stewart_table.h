@@ -114,7 +114,7 @@
       "transmission damping, motor to leg (leg axis)")
 
 /* The FMU's own parameters (Real, fixed), after the scene's: the start state and the solver
-   (a scene's [solver] table takes the same bounds: stewart_sim/scene_load.py). */
+   (a scene's [solver] table takes the same bounds: stewart_sim/scene/load.py). */
 #define STEWART_FMU_SETTINGS(X)                                                                    \
     X(Q0, "q0", 6, STEWART_VECTOR, "pose", CLOSED, -1e3, 1e3, "initial pose")                      \
     X(QD0, "qd0", 6, STEWART_VECTOR, "rate", CLOSED, -1e3, 1e3, "initial pose rates")              \
@@ -281,5 +281,95 @@ typedef struct {
 #define STEWART_VR_N_PARAMETERS STEWART_VR_END(PARAMETERS, stewart_fmu_parameters)
 #define STEWART_VR_METHOD STEWART_VR_N_PARAMETERS  /* the String parameter solver.method */
 #define STEWART_VR_N_OUTPUTS STEWART_VR_END(OUTPUTS, stewart_fmu_outputs)
+
+/* ==== reach: the mechanism's limits (src/reach.c) and frames (src/frames.c) =================
+   The contract's tables [joints], [clearance] and [frames] (docs/guides/workspace.md), packed apart from
+   the plant's parameters (the FMU's variables and outputs are not affected): their scene keys
+   with their bounds, the packed reach vector the engine reads, the obstacle records, and the
+   limits the engine reports, in the order it reports them. */
+#define STEWART_BOUND_INTERIOR 3  /* MIN < x < MAX: an angle strictly inside (0, pi/2) */
+
+/* Scene keys of the reach tables: X(ID, NAME, COUNT, UNIT, BOUND, MIN, MAX, DESCRIPTION); an
+   obstacle's keys are read in each [[clearance.obstacles]] table. The pivot lies within 10 m of
+   C (per component); the rest takes the plant's length bound (1 km). */
+#define STEWART_REACH_SCENE(X)                                                                   \
+    X(BASE_CONE, "joints.base_cone", 1, "rad", INTERIOR, 0.0, 1.5707963267948966,                \
+      "largest angle between leg i and its base joint's axis")                                   \
+    X(PLATFORM_CONE, "joints.platform_cone", 1, "rad", INTERIOR, 0.0, 1.5707963267948966,        \
+      "largest angle between leg i and its platform joint's axis")                               \
+    X(BASE_AXES, "joints.base_axes", 18, "1", CLOSED, -1e3, 1e3, "base joint axes in N (six directions)") \
+    X(PLATFORM_AXES, "joints.platform_axes", 18, "1", CLOSED, -1e3, 1e3,                         \
+      "platform joint axes in C (six directions)")                                               \
+    X(LEG_RADIUS, "clearance.leg_radius", 1, "m", OPEN, 0.0, 10.0, "radius of each leg's capsule") \
+    X(OBSTACLE_CENTER, "clearance.obstacles.center", 3, "m", CLOSED, -1e3, 1e3,                  \
+      "an obstacle's centre, in N (body base) or C (body platform)")                             \
+    X(OBSTACLE_ANGLES, "clearance.obstacles.angles", 3, "rad", CLOSED, -1e3, 1e3,                \
+      "an obstacle's orientation in its body (thx, thy, thz as a pose's)")                       \
+    X(OBSTACLE_SIZE, "clearance.obstacles.size", 3, "m", OPEN, 0.0, 1e3, "a box's edge lengths") \
+    X(OBSTACLE_RADIUS, "clearance.obstacles.radius", 1, "m", OPEN, 0.0, 1e3,                     \
+      "a sphere's or cylinder's radius")                                                         \
+    X(OBSTACLE_LENGTH, "clearance.obstacles.length", 1, "m", OPEN, 0.0, 1e3,                     \
+      "a cylinder's length along its axis (local z)")                                            \
+    X(PIVOT, "frames.pivot", 3, "m", CLOSED, -10.0, 10.0, "the pivot point in C")               \
+    X(USER, "frames.user", 6, "pose", CLOSED, -1e3, 1e3, "the user (work) frame's pose in N")     \
+    X(TOOL, "frames.tool", 6, "pose", CLOSED, -1e3, 1e3, "the tool frame's pose in C")
+
+/* Obstacles: at most STEWART_MAX_OBSTACLES, each a record of STEWART_OBSTACLE_SIZE doubles:
+   shape, body, centre (3) in its body, rotation (9, row-major, local to body), half extents
+   (3: a box's half edges; a cylinder's radius, radius, half length; a sphere's radius). */
+#define STEWART_MAX_OBSTACLES 16
+#define STEWART_OBSTACLE_SIZE 17
+#define STEWART_SHAPE_SPHERE 0
+#define STEWART_SHAPE_BOX 1
+#define STEWART_SHAPE_CYLINDER 2
+#define STEWART_BODY_BASE 0
+#define STEWART_BODY_PLATFORM 1
+
+/* The packed reach vector (stewart_fmu/reach_params.py builds it): X(NAME, COUNT, UNIT,
+   DESCRIPTION). A limit whose table or bound is absent has its HAS_ flag 0 (or its bound inf)
+   and is not computed. */
+#define STEWART_REACH_PARAMS(X)                                                                  \
+    X(HAS_JOINTS, 1, "1", "1 when the scene has [joints]")                                       \
+    X(BASE_CONE, 1, "rad", "base joint cone")                                                    \
+    X(PLATFORM_CONE, 1, "rad", "platform joint cone")                                            \
+    X(BASE_AXES, 18, "1", "base joint axes in N, unit rows")                                     \
+    X(PLATFORM_AXES, 18, "1", "platform joint axes in C, unit rows")                             \
+    X(HAS_CLEARANCE, 1, "1", "1 when the scene has [clearance]")                                 \
+    X(LEG_RADIUS, 1, "m", "leg capsule radius")                                                  \
+    X(N_OBSTACLES, 1, "1", "number of obstacle records")                                         \
+    X(OBSTACLES, STEWART_MAX_OBSTACLES * STEWART_OBSTACLE_SIZE, "", "obstacle records")         \
+    X(COND_LIMIT, 1, "1", "largest scaled cond(J) (inf: not limited)")                           \
+    X(SPEED, 1, "m/s", "largest |leg speed| (inf: not limited)")                                 \
+    X(ACCELERATION, 1, "m/s2", "largest |leg acceleration| (inf: not limited)")                  \
+    X(FORCE, 1, "N", "largest |rack force| (inf: not limited)")
+
+/* The limits, in the order the engine reports them (the first violated one in this order is
+   the binding limit): X(ID, NAME, KIND, UNIT, DESCRIPTION). KIND: LEG (one margin per leg),
+   PAIR (per pair of legs, (1,2), (1,3) .. (5,6)), OBSTACLE (per obstacle and leg), POSE (one).
+   A margin is positive inside the limit, in UNIT. */
+#define STEWART_LIMIT_KIND_LEG 0
+#define STEWART_LIMIT_KIND_PAIR 1
+#define STEWART_LIMIT_KIND_OBSTACLE 2
+#define STEWART_LIMIT_KIND_POSE 3
+#define STEWART_LIMITS(X)                                                                        \
+    X(STROKE_MIN, "stroke_min", LEG, "m", "leg length above geometry.leg_min")                   \
+    X(STROKE_MAX, "stroke_max", LEG, "m", "leg length below geometry.leg_max")                   \
+    X(BASE_CONE, "base_cone", LEG, "rad", "joints.base_cone less the leg's angle to its base joint's axis") \
+    X(PLATFORM_CONE, "platform_cone", LEG, "rad",                                                \
+      "joints.platform_cone less the leg's angle to its platform joint's axis")                  \
+    X(LEG_CLEARANCE, "leg_clearance", PAIR, "m", "distance between two legs' segments less 2 leg_radius") \
+    X(OBSTACLE, "obstacle", OBSTACLE, "m", "signed distance of a leg's segment to an obstacle less leg_radius") \
+    X(COND, "cond", POSE, "1", "the cond limit less the scaled cond(J)")                         \
+    X(SPEED, "speed", LEG, "m/s", "the speed limit less |leg speed|")                            \
+    X(ACCELERATION, "acceleration", LEG, "m/s2", "the acceleration limit less |leg acceleration|") \
+    X(FORCE, "force", LEG, "N", "the force limit less |rack force| (inverse dynamics, drive included)")
+
+/* The scaled cond(J) a pose may reach by default (the emulated device's SP_COND_MAX default):
+   beyond it forces amplify ~100x. */
+#define STEWART_REACH_COND_LIMIT 100.0
+
+#define STEWART_X_REACH_FIELD(NAME, COUNT, ...) double NAME[COUNT];
+typedef struct { STEWART_REACH_PARAMS(STEWART_X_REACH_FIELD) } stewart_reach_layout;
+#define STEWART_REACH_OFFSET(NAME) ((int)(offsetof(stewart_reach_layout, NAME) / sizeof(double)))
 
 #endif /* STEWART_TABLE_H */

@@ -75,4 +75,9 @@ int sw_leg_kinematics(const double *pl, const double *y, sw_ws *ws);
 /* energy.c */
 void sw_energy_terms(const double *p, const double *y, sw_ws *ws, double out[9]);
 
+/* frames.c: the rotations of a frame change (mov, fix), and one pose f in it back to C's q */
+void sw_frame_rotations(const double mov[6], const double fix[6], double Rt[9], double Rw[9]);
+void sw_frame_to_platform(const double mov[6], const double fix[6], const double Rt[9],
+                          const double Rw[9], const double f[6], double q[6]);
+
 #endif

@@ -128,11 +128,11 @@ static void platform_inertia(const double *p, const double *R, const double *om,
    al the angular acceleration; ws->R and ws->om must hold the orientation. Returns OK, or
    STROKE when a leg is outside its limits.
 
-   Layout for speed, arithmetic as the Python kernel it replaced (held to it by
-   tests/stewart_fmu/test_plant_reference.py): the per-leg terms are computed leg-parallel over
+   Layout for speed, arithmetic as the recorded reference's (tests/data/plant_reference.npz, held
+   by tests/stewart_fmu/test_plant_reference.py): the per-leg terms are computed leg-parallel over
    arrays of six (loops the compiler vectorizes), each leg's contribution [f; r x f] to a body
-   group is kept, and the contributions are then summed over the legs in leg order 0..5 as that
-   kernel accumulated them, so every result is the same to the last bit. */
+   group is kept, and the contributions are then summed over the legs in leg order 0..5 as the
+   reference accumulates them, so every result is the same to the last bit. */
 int sw_twist_forces(const double *p, const double x[6], const double v[6], const double acc[6],
                     const double al[3], sw_ws *ws)
 {

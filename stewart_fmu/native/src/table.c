@@ -50,3 +50,18 @@ const int stewart_variable_table_size =
 const stewart_input_range stewart_input_range_table[] = {STEWART_FMU_INPUT_RANGES(RANGE_ROW)};
 const int stewart_input_range_table_size =
     sizeof stewart_input_range_table / sizeof stewart_input_range_table[0];
+
+#define REACH_PARAM_ROW(NAME, COUNT, UNIT, WHAT) {#NAME, STEWART_R_##NAME, COUNT, UNIT, WHAT},
+const stewart_reach_param_info stewart_reach_param_table[] = {STEWART_REACH_PARAMS(REACH_PARAM_ROW)};
+const int stewart_reach_param_table_size =
+    sizeof stewart_reach_param_table / sizeof stewart_reach_param_table[0];
+
+#define REACH_KEY_ROW(ID, NAME, COUNT, UNIT, BOUND, MIN, MAX, WHAT) \
+    {#ID, NAME, COUNT, STEWART_BOUND_##BOUND, MIN, MAX, UNIT, WHAT},
+const stewart_reach_key_info stewart_reach_key_table[] = {STEWART_REACH_SCENE(REACH_KEY_ROW)};
+const int stewart_reach_key_table_size =
+    sizeof stewart_reach_key_table / sizeof stewart_reach_key_table[0];
+
+#define LIMIT_ROW(ID, NAME, KIND, UNIT, WHAT) {#ID, NAME, STEWART_LIMIT_KIND_##KIND, UNIT, WHAT},
+const stewart_limit_info stewart_limit_table[] = {STEWART_LIMITS(LIMIT_ROW)};
+const int stewart_limit_table_size = sizeof stewart_limit_table / sizeof stewart_limit_table[0];

@@ -1,0 +1,557 @@
+/* reach.c -- the feasibility engine: every limit of STEWART_LIMITS at a pose in one call
+   (stroke, joint cones, leg-to-leg clearance, obstacle clearance, cond(J), and with rates and
+   accelerations the drives' leg speed, acceleration and rack force), batched over poses, and
+   the travel along a direction (the largest step before the first limit). The limits' bounds
+   are the packed reach vector's (stewart_table.h STEWART_REACH_PARAMS). */
+#include <math.h>
+#include "internal.h"
+
+#define RP(k) reach[STEWART_R_##k]
+#define N_PAIRS 15
+/* Golden-section steps of a leg's closest approach to a box or cylinder: the interval shrinks
+   by 0.618 a step, 64 steps leave 4e-14 of the leg. */
+#define GOLDEN_STEPS 64
+/* The most poses one travel evaluates while marching (a bound on the loop; smax / hmax beyond
+   it is refused). */
+#define MAX_MARCH 10000000.0
+
+/* Where the legs are at a pose: R, the platform joints P_i = x + R p_i and the legs L_i = P_i - a_i
+   in N, their lengths. */
+typedef struct {
+    double R[9], P[18], L[18], l[6];
+} pose_geometry;
+
+static double dot3(const double a[3], const double b[3])
+{
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+static void geometry(const double *p, const double q[6], pose_geometry *g)
+{
+    double om[3], al[3];
+    int i, k;
+    sw_orientation(q, SW_ZERO6, SW_ZERO6, g->R, om, al, 0);
+    for (i = 0; i < 6; ++i) {
+        const double *pj = p + STEWART_P_PLATFORM + 3 * i, *aj = p + STEWART_P_BASE + 3 * i;
+        for (k = 0; k < 3; ++k) {
+            g->P[3 * i + k] = q[k] + (g->R[3 * k] * pj[0] + g->R[3 * k + 1] * pj[1]
+                                      + g->R[3 * k + 2] * pj[2]);
+            g->L[3 * i + k] = g->P[3 * i + k] - aj[k];
+        }
+        g->l[i] = sqrt(dot3(g->L + 3 * i, g->L + 3 * i));
+    }
+}
+
+/* The angle between a and b, accurate near 0 and pi (atan2 of |a x b| and a . b). */
+static double angle(const double a[3], const double b[3])
+{
+    double c0 = a[1] * b[2] - a[2] * b[1], c1 = a[2] * b[0] - a[0] * b[2];
+    double c2 = a[0] * b[1] - a[1] * b[0];
+    return atan2(sqrt(c0 * c0 + c1 * c1 + c2 * c2), dot3(a, b));
+}
+
+static double clamp01(double x)
+{
+    return x < 0.0 ? 0.0 : (x > 1.0 ? 1.0 : x);
+}
+
+/* The squared distance between segments p1-q1 and p2-q2 (Ericson, Real-Time Collision Detection,
+   5.1.9: the closest points' parameters s, t clamped to [0, 1] in turn). */
+static double segment_distance2(const double p1[3], const double q1[3], const double p2[3],
+                                const double q2[3])
+{
+    double d1[3], d2[3], r[3], a, e, f, s, t, out = 0.0;
+    int k;
+    for (k = 0; k < 3; ++k) {
+        d1[k] = q1[k] - p1[k];
+        d2[k] = q2[k] - p2[k];
+        r[k] = p1[k] - p2[k];
+    }
+    a = dot3(d1, d1);
+    e = dot3(d2, d2);
+    f = dot3(d2, r);
+    if (a <= 0.0 && e <= 0.0) {
+        s = t = 0.0;
+    } else if (a <= 0.0) {
+        s = 0.0;
+        t = clamp01(f / e);
+    } else {
+        double c = dot3(d1, r);
+        if (e <= 0.0) {
+            t = 0.0;
+            s = clamp01(-c / a);
+        } else {
+            double b = dot3(d1, d2), denom = a * e - b * b;
+            s = denom > 0.0 ? clamp01((b * f - c * e) / denom) : 0.0;
+            t = (b * s + f) / e;
+            if (t < 0.0) {
+                t = 0.0;
+                s = clamp01(-c / a);
+            } else if (t > 1.0) {
+                t = 1.0;
+                s = clamp01((b - c) / a);
+            }
+        }
+    }
+    for (k = 0; k < 3; ++k) {
+        double dk = (p1[k] + d1[k] * s) - (p2[k] + d2[k] * t);
+        out += dk * dk;
+    }
+    return out;
+}
+
+/* Signed distance of point x (in the shape's own frame) to a box of half edges h, or to a
+   cylinder of radius h[0] and half length h[2] about local z (negative inside). */
+static double box_distance(const double x[3], const double h[3])
+{
+    double d0 = fabs(x[0]) - h[0], d1 = fabs(x[1]) - h[1], d2 = fabs(x[2]) - h[2];
+    double o0 = PY_MAX(d0, 0.0), o1 = PY_MAX(d1, 0.0), o2 = PY_MAX(d2, 0.0);
+    double inside = PY_MIN(PY_MAX(d0, PY_MAX(d1, d2)), 0.0);
+    return sqrt(o0 * o0 + o1 * o1 + o2 * o2) + inside;
+}
+
+static double cylinder_distance(const double x[3], const double h[3])
+{
+    double dr = sqrt(x[0] * x[0] + x[1] * x[1]) - h[0], dz = fabs(x[2]) - h[2];
+    double o0 = PY_MAX(dr, 0.0), o1 = PY_MAX(dz, 0.0);
+    return sqrt(o0 * o0 + o1 * o1) + PY_MIN(PY_MAX(dr, dz), 0.0);
+}
+
+static double shape_distance(int shape, const double a[3], const double d[3], double t,
+                             const double h[3])
+{
+    double x[3];
+    x[0] = a[0] + t * d[0];
+    x[1] = a[1] + t * d[1];
+    x[2] = a[2] + t * d[2];
+    return shape == STEWART_SHAPE_BOX ? box_distance(x, h) : cylinder_distance(x, h);
+}
+
+/* The least signed distance of segment a + t d, t in [0, 1] (in the shape's frame), to a box or
+   cylinder: a signed distance of a convex set is convex, and so along a segment; golden-section
+   search finds its minimum. */
+static double segment_shape_distance(int shape, const double a[3], const double d[3],
+                                     const double h[3])
+{
+    const double g = 0.6180339887498949;
+    double lo = 0.0, hi = 1.0, x1 = hi - g, x2 = g;
+    double f1 = shape_distance(shape, a, d, x1, h), f2 = shape_distance(shape, a, d, x2, h);
+    double best = PY_MIN(shape_distance(shape, a, d, 0.0, h), shape_distance(shape, a, d, 1.0, h));
+    int k;
+    for (k = 0; k < GOLDEN_STEPS; ++k) {
+        if (f1 <= f2) {
+            hi = x2;
+            x2 = x1;
+            f2 = f1;
+            x1 = hi - g * (hi - lo);
+            f1 = shape_distance(shape, a, d, x1, h);
+        } else {
+            lo = x1;
+            x1 = x2;
+            f1 = f2;
+            x2 = lo + g * (hi - lo);
+            f2 = shape_distance(shape, a, d, x2, h);
+        }
+    }
+    return PY_MIN(best, PY_MIN(f1, f2));
+}
+
+/* margin[k] = min(margin[k], x), where[k] the element of the least. */
+static void take(double *margin, int *where, int k, double x, int element)
+{
+    if (x < margin[k]) {
+        margin[k] = x;
+        where[k] = element;
+    }
+}
+
+/* Obstacle record o placed in N at the pose: its centre cw and rotation Rw (local to N). */
+static void obstacle_place(const double *o, const pose_geometry *g, const double q[6],
+                           double cw[3], double Rw[9])
+{
+    const double *c = o + 2, *Ro = o + 5;
+    int j, k;
+    if (o[1] == STEWART_BODY_PLATFORM) {   /* the obstacle moves with the platform */
+        for (j = 0; j < 3; ++j) {
+            cw[j] = q[j] + dot3(g->R + 3 * j, c);
+            for (k = 0; k < 3; ++k)
+                Rw[3 * j + k] = g->R[3 * j] * Ro[k] + g->R[3 * j + 1] * Ro[3 + k]
+                                + g->R[3 * j + 2] * Ro[6 + k];
+        }
+    } else {
+        for (j = 0; j < 3; ++j)
+            cw[j] = c[j];
+        for (j = 0; j < 9; ++j)
+            Rw[j] = Ro[j];
+    }
+}
+
+/* The least margin of the legs to obstacle record o (the signed distance of a leg's segment
+   to the shape less the leg's radius) into m, w as obstacle ob. A leg whose distance to the
+   shape's bounding sphere (a lower bound) is no less than the least margin so far cannot give
+   a lesser one and is skipped: the box and cylinder searches run for the near legs only. */
+static void obstacle_margins(const double *o, int ob, const pose_geometry *g, const double q[6],
+                             const double *base, double radius, int sign_only, double *m, int *w)
+{
+    const double *h = o + 14;
+    const int shape = (int)o[0];
+    double cw[3], Rw[9], a[18], d[18], bound[6];
+    const double zero[3] = {0.0, 0.0, 0.0};
+    const double outer = shape == STEWART_SHAPE_SPHERE ? h[0]
+                       : sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
+    int i, j, k, done[6] = {0, 0, 0, 0, 0, 0};
+    obstacle_place(o, g, q, cw, Rw);
+    for (i = 0; i < 6; ++i) {   /* the leg's ends in the obstacle's frame: Rw^T (x - cw) */
+        double ea[3], eb[3], b[3];
+        for (j = 0; j < 3; ++j) {
+            ea[j] = base[3 * i + j] - cw[j];
+            eb[j] = g->P[3 * i + j] - cw[j];
+        }
+        for (k = 0; k < 3; ++k) {
+            a[3 * i + k] = Rw[k] * ea[0] + Rw[3 + k] * ea[1] + Rw[6 + k] * ea[2];
+            b[k] = Rw[k] * eb[0] + Rw[3 + k] * eb[1] + Rw[6 + k] * eb[2];
+            d[3 * i + k] = b[k] - a[3 * i + k];
+        }
+        bound[i] = sqrt(segment_distance2(a + 3 * i, b, zero, zero)) - outer - radius;
+    }
+    for (k = 0; k < 6; ++k) {   /* legs by their bound, nearest first */
+        int next = -1;
+        for (i = 0; i < 6; ++i)
+            if (!done[i] && (next < 0 || bound[i] < bound[next]))
+                next = i;
+        done[next] = 1;
+        if (shape == STEWART_SHAPE_SPHERE) {
+            take(m, w, STEWART_LIMIT_OBSTACLE, bound[next], 6 * ob + next);
+        } else if (bound[next] < m[STEWART_LIMIT_OBSTACLE] && !(sign_only && bound[next] >= 0.0)) {
+            take(m, w, STEWART_LIMIT_OBSTACLE,
+                 segment_shape_distance(shape, a + 3 * next, d + 3 * next, h) - radius,
+                 6 * ob + next);
+        }
+    }
+}
+
+void stewart_reach_present(const double *params, const double *reach, int has_qd, int has_qdd,
+                           int *present)
+{
+    int drive = has_qd && has_qdd;
+    present[STEWART_LIMIT_STROKE_MIN] = params[STEWART_P_LEG_MIN] > 0.0;
+    present[STEWART_LIMIT_STROKE_MAX] = isfinite(params[STEWART_P_LEG_MAX]) != 0;
+    present[STEWART_LIMIT_BASE_CONE] = RP(HAS_JOINTS) != 0.0;
+    present[STEWART_LIMIT_PLATFORM_CONE] = RP(HAS_JOINTS) != 0.0;
+    present[STEWART_LIMIT_LEG_CLEARANCE] = RP(HAS_CLEARANCE) != 0.0;
+    present[STEWART_LIMIT_OBSTACLE] = RP(HAS_CLEARANCE) != 0.0 && RP(N_OBSTACLES) > 0.0;
+    present[STEWART_LIMIT_COND] = isfinite(RP(COND_LIMIT)) != 0;
+    present[STEWART_LIMIT_SPEED] = has_qd && isfinite(RP(SPEED));
+    present[STEWART_LIMIT_ACCELERATION] = drive && isfinite(RP(ACCELERATION));
+    present[STEWART_LIMIT_FORCE] = drive && isfinite(RP(FORCE));
+}
+
+/* Whether cond(J) is surely below limit: ||J||_F ||J^-1||_F bounds cond_2(J) from above (LU
+   of J and six solves, ~0.2 us against the SVD's ~3 us); with a relative allowance of 1e-9 for
+   the rounding of the bound. A sign-only evaluation (travel) takes the SVD only when this
+   fails. */
+static int cond_surely_below(const double J[36], double limit)
+{
+    double LU[36], fj = 0.0, fi = 0.0;
+    int order[12], k, c;
+    for (k = 0; k < 36; ++k) {
+        LU[k] = J[k];
+        fj += J[k] * J[k];
+    }
+    for (k = 0; k < 6; ++k) {
+        order[k] = k;
+        order[6 + k] = k;
+    }
+    if (!(sw_lu_factor(LU, order) > 0.0))
+        return 0;
+    for (c = 0; c < 6; ++c) {   /* column c of J^-1: J x = e_c */
+        double b[6];
+        for (k = 0; k < 6; ++k)
+            b[k] = order[k] == c ? 1.0 : 0.0;
+        sw_lu_solve(LU, b);
+        for (k = 0; k < 6; ++k)
+            fi += b[k] * b[k];
+    }
+    return sqrt(fj) * sqrt(fi) * (1.0 + 1e-9) < limit;
+}
+
+/* cond(J) of the scaled leg Jacobian at the geometry g (kinematics.c's rows [u_i, (R p_i) x
+   u_i / char_length], its singular values by the core's one SVD, linalg.c); with sign_only,
+   0 when cond_surely_below the limit (the value is then not needed). */
+static double condition(const double *p, const double q[6], const pose_geometry *g,
+                        double limit, int sign_only)
+{
+    double J[36], s[6], smax = 0.0, smin = HUGE_VAL, scale = 1.0 / p[STEWART_P_CHAR_LENGTH];
+    int i;
+    for (i = 0; i < 6; ++i) {
+        const double *L = g->L + 3 * i;
+        double u0 = L[0] / g->l[i], u1 = L[1] / g->l[i], u2 = L[2] / g->l[i];
+        double r0 = g->P[3 * i] - q[0], r1 = g->P[3 * i + 1] - q[1], r2 = g->P[3 * i + 2] - q[2];
+        J[6 * i] = u0;
+        J[6 * i + 1] = u1;
+        J[6 * i + 2] = u2;
+        J[6 * i + 3] = scale * (r1 * u2 - r2 * u1);
+        J[6 * i + 4] = scale * (r2 * u0 - r0 * u2);
+        J[6 * i + 5] = scale * (r0 * u1 - r1 * u0);
+    }
+    for (i = 0; i < 36; ++i)
+        if (!isfinite(J[i]))
+            return HUGE_VAL;
+    if (sign_only && cond_surely_below(J, limit))
+        return 0.0;
+    sw_singular_values(J, s);
+    for (i = 0; i < 6; ++i) {
+        smax = PY_MAX(smax, s[i]);
+        smin = PY_MIN(smin, s[i]);
+    }
+    return smin > 0.0 ? smax / smin : HUGE_VAL;
+}
+
+/* The geometric limits' and cond(J)'s margins; with sign_only, a margin that is surely
+   positive may be left larger than it is (cond(J), obstacles: what travel needs). */
+static void geometric_margins(const double *p, const double *reach, const double q[6],
+                              const int present[], int sign_only, double *m, int *w)
+{
+    const double *base = p + STEWART_P_BASE;
+    pose_geometry g;
+    int i, j, pair;
+    geometry(p, q, &g);
+    if (present[STEWART_LIMIT_COND])
+        m[STEWART_LIMIT_COND] = RP(COND_LIMIT) - condition(p, q, &g, RP(COND_LIMIT), sign_only);
+    for (i = 0; i < 6; ++i) {
+        if (present[STEWART_LIMIT_STROKE_MIN])
+            take(m, w, STEWART_LIMIT_STROKE_MIN, g.l[i] - p[STEWART_P_LEG_MIN], i);
+        if (present[STEWART_LIMIT_STROKE_MAX])
+            take(m, w, STEWART_LIMIT_STROKE_MAX, p[STEWART_P_LEG_MAX] - g.l[i], i);
+    }
+    if (present[STEWART_LIMIT_BASE_CONE])
+        for (i = 0; i < 6; ++i) {
+            const double *c = reach + STEWART_R_PLATFORM_AXES + 3 * i;
+            double Rc[3];
+            for (j = 0; j < 3; ++j)   /* the platform joint's axis in N */
+                Rc[j] = dot3(g.R + 3 * j, c);
+            take(m, w, STEWART_LIMIT_BASE_CONE,
+                 RP(BASE_CONE) - angle(g.L + 3 * i, reach + STEWART_R_BASE_AXES + 3 * i), i);
+            take(m, w, STEWART_LIMIT_PLATFORM_CONE, RP(PLATFORM_CONE) - angle(g.L + 3 * i, Rc), i);
+        }
+    if (present[STEWART_LIMIT_LEG_CLEARANCE])
+        for (i = 0, pair = 0; i < 6; ++i)
+            for (j = i + 1; j < 6; ++j, ++pair)
+                take(m, w, STEWART_LIMIT_LEG_CLEARANCE,
+                     sqrt(segment_distance2(base + 3 * i, g.P + 3 * i, base + 3 * j, g.P + 3 * j))
+                         - 2.0 * RP(LEG_RADIUS), pair);
+    if (present[STEWART_LIMIT_OBSTACLE]) {
+        int o, n = (int)RP(N_OBSTACLES);
+        for (o = 0; o < n && o < STEWART_MAX_OBSTACLES; ++o)
+            obstacle_margins(reach + STEWART_R_OBSTACLES + STEWART_OBSTACLE_SIZE * o, o, &g, q,
+                             base, RP(LEG_RADIUS), sign_only, m, w);
+    }
+}
+
+/* Leg speed, acceleration and rack force against the drives' bounds. */
+static void drive_margins(const double *p, const double *reach, const double q[6],
+                          const double qd[6], const double qdd[6], const int present[], double *m,
+                          int *w)
+{
+    sw_ws ws;
+    int i;
+    sw_ws_init(&ws);
+    sw_orientation(q, qd, qdd, ws.R, ws.om, ws.al, 0);
+    sw_twist_forces(p, q, qd, qdd, ws.al, &ws);
+    for (i = 0; i < 6; ++i) {
+        if (present[STEWART_LIMIT_SPEED])
+            take(m, w, STEWART_LIMIT_SPEED, RP(SPEED) - fabs(ws.leg[3 * i + 1]), i);
+        if (present[STEWART_LIMIT_ACCELERATION])
+            take(m, w, STEWART_LIMIT_ACCELERATION, RP(ACCELERATION) - fabs(ws.leg[3 * i + 2]), i);
+    }
+    if (present[STEWART_LIMIT_FORCE]) {
+        double free[STEWART_N_PARAMS], sigma[6];
+        int k;
+        for (k = 0; k < STEWART_N_PARAMS; ++k)   /* the stroke is a limit here, not a refusal */
+            free[k] = p[k];
+        free[STEWART_P_LEG_MIN] = 0.0;
+        free[STEWART_P_LEG_MAX] = HUGE_VAL;
+        if (stewart_inverse_dynamics(free, q, qd, qdd, sigma) != STEWART_OK)
+            take(m, w, STEWART_LIMIT_FORCE, -HUGE_VAL, 0);
+        else
+            for (i = 0; i < 6; ++i)
+                take(m, w, STEWART_LIMIT_FORCE, RP(FORCE) - fabs(sigma[i]), i);
+    }
+}
+
+static int finite6(const double *x)
+{
+    int k;
+    if (!x)
+        return 1;
+    for (k = 0; k < 6; ++k)
+        if (!isfinite(x[k]))
+            return 0;
+    return 1;
+}
+
+/* The margins of the present limits; returns the binding limit (-1: inside every one). */
+static int margins_of(const double *params, const double *reach, const int present[],
+                      int sign_only, const double q[6], const double *qd, const double *qdd,
+                      double *m, int *w)
+{
+    int k;
+    for (k = 0; k < STEWART_N_LIMITS; ++k) {
+        m[k] = HUGE_VAL;
+        w[k] = 0;
+    }
+    geometric_margins(params, reach, q, present, sign_only, m, w);
+    if (qd && (present[STEWART_LIMIT_SPEED] || present[STEWART_LIMIT_ACCELERATION] ||
+               present[STEWART_LIMIT_FORCE]))
+        drive_margins(params, reach, q, qd, qdd ? qdd : SW_ZERO6, present, m, w);
+    for (k = 0; k < STEWART_N_LIMITS; ++k)
+        if (m[k] < 0.0)
+            return k;
+    return -1;
+}
+
+int stewart_reach_margins(const double *params, const double *reach, const double q[6],
+                          const double *qd, const double *qdd, double margin[STEWART_N_LIMITS],
+                          int *where)
+{
+    int present[STEWART_N_LIMITS], k;
+    if (!finite6(q) || !finite6(qd) || !finite6(qdd)) {
+        for (k = 0; k < STEWART_N_LIMITS; ++k) {
+            margin[k] = NAN;
+            where[k] = 0;
+        }
+        return STEWART_N_LIMITS;
+    }
+    stewart_reach_present(params, reach, qd != 0, qdd != 0, present);
+    return margins_of(params, reach, present, 0, q, qd, qdd, margin, where);
+}
+
+long stewart_reach_batch(const double *params, const double *reach, long n, const double *Q,
+                         const double *QD, const double *QDD, double *margins, int *where,
+                         int *binding)
+{
+    int present[STEWART_N_LIMITS];
+    long k, inside = 0;
+    stewart_reach_present(params, reach, QD != 0, QDD != 0, present);
+    for (k = 0; k < n; ++k) {
+        const double *q = Q + 6 * k, *qd = QD ? QD + 6 * k : 0, *qdd = QDD ? QDD + 6 * k : 0;
+        if (!finite6(q) || !finite6(qd) || !finite6(qdd))
+            return -(1 + k);
+        binding[k] = margins_of(params, reach, present, 0, q, qd, qdd,
+                                margins + STEWART_N_LIMITS * k, where + STEWART_N_LIMITS * k);
+        inside += binding[k] < 0;
+    }
+    return inside;
+}
+
+long stewart_reach_binding(const double *params, const double *reach, long n, const double *Q,
+                           int *binding)
+{
+    int present[STEWART_N_LIMITS], w[STEWART_N_LIMITS];
+    double m[STEWART_N_LIMITS];
+    long k, inside = 0;
+    stewart_reach_present(params, reach, 0, 0, present);
+    for (k = 0; k < n; ++k) {
+        if (!finite6(Q + 6 * k))
+            return -(1 + k);
+        binding[k] = margins_of(params, reach, present, 1, Q + 6 * k, 0, 0, m, w);
+        inside += binding[k] < 0;
+    }
+    return inside;
+}
+
+/* A line of poses f = q0 + t dir in a frame (frame: mov, fix of frames.c; NULL: C itself). */
+typedef struct {
+    const double *params, *reach, *q0, *dir, *frame;
+    double Rt[9], Rw[9];
+    int present[STEWART_N_LIMITS];
+} travel_line;
+
+/* The binding limit at t on the line (-1: inside every one), where of it in *w. */
+static int binding_at(const travel_line *line, double t, int *w)
+{
+    double f[6], q[6], m[STEWART_N_LIMITS];
+    int ws[STEWART_N_LIMITS], k, b;
+    for (k = 0; k < 6; ++k)
+        f[k] = line->q0[k] + t * line->dir[k];
+    if (line->frame)
+        sw_frame_to_platform(line->frame, line->frame + 6, line->Rt, line->Rw, f, q);
+    b = margins_of(line->params, line->reach, line->present, 1, line->frame ? q : f, 0, 0, m, ws);
+    *w = b >= 0 ? ws[b] : -1;
+    return b;
+}
+
+int stewart_reach_travel(const double *params, const double *reach, const double *frame,
+                         const double q0[6], const double dir[6], double hmax, double smax,
+                         double tol, double *s, int *limit, int *where)
+{
+    travel_line line;
+    int b, w;
+    double lo = 0.0, hi = 0.0, h;
+    *s = 0.0;
+    *limit = *where = -1;
+    if (!finite6(q0) || !finite6(dir) || (frame && (!finite6(frame) || !finite6(frame + 6))) ||
+        !(tol > 0.0) || !(hmax > 0.0) || !(smax > 0.0) || !isfinite(smax) ||
+        !(smax / hmax <= MAX_MARCH / 64.0))
+        return -1;
+    line.params = params;
+    line.reach = reach;
+    line.q0 = q0;
+    line.dir = dir;
+    line.frame = frame;
+    if (frame)
+        sw_frame_rotations(frame, frame + 6, line.Rt, line.Rw);
+    stewart_reach_present(params, reach, 0, 0, line.present);
+    b = binding_at(&line, 0.0, &w);
+    if (b >= 0) {
+        *limit = b;
+        *where = w;
+        return 1;
+    }
+    h = hmax / 64.0;
+    for (;;) {   /* march: lo inside, until a pose outside (or smax) */
+        hi = PY_MIN(lo + h, smax);
+        b = binding_at(&line, hi, &w);
+        if (b >= 0)
+            break;
+        lo = hi;
+        if (lo >= smax) {
+            *s = smax;
+            return 0;
+        }
+        h = PY_MIN(2.0 * h, hmax);
+    }
+    while (hi - lo > tol) {   /* bisection: lo inside, hi outside */
+        double mid = lo + 0.5 * (hi - lo);
+        int bm, wm;
+        if (!(mid > lo && mid < hi))
+            break;
+        bm = binding_at(&line, mid, &wm);
+        if (bm >= 0) {
+            hi = mid;
+            b = bm;
+            w = wm;
+        } else {
+            lo = mid;
+        }
+    }
+    *s = lo;
+    *limit = b;
+    *where = w;
+    return 0;
+}
+
+void stewart_leg_axes(const double *params, const double q[6], double base[18], double platform[18])
+{
+    pose_geometry g;
+    int i, k;
+    geometry(params, q, &g);
+    for (i = 0; i < 6; ++i) {
+        const double *L = g.L + 3 * i;
+        for (k = 0; k < 3; ++k) {
+            base[3 * i + k] = L[k] / g.l[i];
+            /* R^T u_i: column k of R */
+            platform[3 * i + k] = (g.R[k] * L[0] + g.R[3 + k] * L[1] + g.R[6 + k] * L[2]) / g.l[i];
+        }
+    }
+}

@@ -1,0 +1,156 @@
+"""`stewart-sim workspace SCENE`: what the mechanism can reach (stewart_sim.studies.workspace, the
+feasibility engine of stewart_fmu.reach).
+
+    --check POSES.csv --out V.csv   each pose against every limit (the contract's V.csv)
+    --reach --direction D [--from Q]  the largest step along D before the first limit
+    --ranges [--out RANGES.csv]     per-axis travel from home, both ways, and what ends it
+    --map --out DIR [--resolution H]  the constant-orientation workspace: volume, runs, slices
+"""
+from __future__ import annotations
+
+import argparse
+
+
+def add_parser(sub, help_text: str) -> None:
+    """Register `workspace` on the command line's subparsers."""
+    p = sub.add_parser("workspace", help=help_text,
+                       description="What the mechanism reaches: every limit's margin at poses, "
+                                   "the travel along a direction, the per-axis ranges.")
+    p.add_argument("scene", metavar="SCENE", help="scene file (TOML)")
+    what = p.add_mutually_exclusive_group(required=True)
+    what.add_argument("--check", metavar="POSES.csv",
+                      help="poses (columns x,y,z,thx,thy,thz; with dx..dthz and ddx..ddthz the "
+                           "drives' limits too) checked against every limit: --out V.csv")
+    what.add_argument("--reach", action="store_true",
+                      help="the largest step from --from along --direction before a limit")
+    what.add_argument("--ranges", action="store_true",
+                      help="travel from home along each axis, both ways (the datasheet table)")
+    what.add_argument("--map", action="store_true",
+                      help="the constant-orientation workspace at --from's angles (default "
+                           "home's): its volume, DIR/map.csv (x, y, z_low, z_high of each run "
+                           "of a column) and DIR/slices.png; the orientation workspace at "
+                           "--from's position: DIR/tilt.csv and DIR/tilt.png (the largest "
+                           "tilt per azimuth); --out DIR")
+    p.add_argument("--out", metavar="FILE", help="V.csv of --check (required there); the "
+                   "ranges as CSV with --ranges")
+    p.add_argument("--frame", metavar="NAME",
+                   help="the frame poses are given in: platform, pivot, tool, user (default: "
+                        "the scene's [frames] default, else platform)")
+    p.add_argument("--from", dest="start", metavar="x,y,z,thx,thy,thz",
+                   help="--reach: the start pose (default: home, in the frame)")
+    p.add_argument("--direction", metavar="dx,dy,dz,dthx,dthy,dthz",
+                   help="--reach: the direction (the step is in its units: m or rad along a "
+                        "unit axis)")
+    p.add_argument("--resolution", type=float, metavar="H",
+                   help="--map: the x-y grid step, m (default: the characteristic length / 30)")
+    p.set_defaults(run=run)
+
+
+def _six(text: str | None, what: str):
+    import numpy as np
+
+    from stewart_fmu.errors import StewartError
+
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) != 6 or not all(np.isfinite(values)):
+        raise StewartError(f"{what} {text!r}: need six finite numbers separated by commas")
+    return np.array(values)
+
+
+def run(args: argparse.Namespace) -> None:
+    """Answer the query asked; print what was written or found."""
+    from pathlib import Path
+
+    from stewart_fmu.errors import StewartError
+    from stewart_fmu.frames import default_frame, frame_change, from_platform
+    from stewart_sim.scene.load import load
+    from stewart_sim.studies.workspace.engine import engine
+
+    scene = load(args.scene)
+    frame = args.frame or default_frame(scene.model)
+    frame_change(scene.model, frame)   # an unknown frame name: one line, exit 2
+    eng = engine(scene)
+    if args.check:
+        if not args.out:
+            raise StewartError("--check needs --out V.csv")
+        from stewart_fmu.io import write_csv
+        from stewart_sim.studies.workspace.check import check_table, read_poses, summary
+
+        q, qd, qdd = read_poses(Path(args.check))
+        table = check_table(eng, q, qd, qdd, frame)
+        write_csv(args.out, table)
+        present = [lim.name for lim in eng.present(qd is not None, qdd is not None)]
+        print(f"wrote {args.out}: {summary(table, present)}")
+    elif args.reach:
+        from stewart_sim.studies.workspace.ranges import reach_text
+
+        if args.direction is None:
+            raise StewartError("--reach needs --direction dx,dy,dz,dthx,dthy,dthz")
+        d = _six(args.direction, "--direction")
+        q0 = from_platform(scene.model, scene.model.home, frame) if args.start is None \
+            else _six(args.start, "--from")
+        print(reach_text(eng.travel(q0, d, frame=frame), q0, d, frame))
+    elif args.map:
+        _map(args, scene.model, eng, frame)
+    else:
+        from stewart_fmu.io import write_csv
+        from stewart_fmu.reach import axis_ranges
+        from stewart_sim.studies.workspace.ranges import ranges_table, ranges_text
+
+        rows = axis_ranges(eng, frame)
+        print(ranges_text(rows, frame))
+        if args.out:
+            write_csv(args.out, ranges_table(rows))
+            print(f"wrote {args.out}")
+
+
+def _map(args: argparse.Namespace, model, eng, frame: str) -> None:
+    """--map: the volume printed, map.csv and slices.png written together (a result set)."""
+    import math
+
+    import numpy as np
+
+    from stewart_fmu.errors import StewartError
+    from stewart_fmu.frames import from_platform
+    from stewart_fmu.io import named_array, write_csv
+    from stewart_sim.shell.outputs import result_set
+    from stewart_sim.studies.workspace.maps import (MAX_CELLS, constant_orientation, position_box, slices,
+                                            tilt_figure, tilts)
+
+    if not args.out:
+        raise StewartError("--map needs --out DIR")
+    h = args.resolution if args.resolution is not None else model.characteristic_length / 30
+    if not (math.isfinite(h) and h > 0):
+        raise StewartError(f"--resolution {args.resolution!r}: must be a finite step > 0 (m)")
+    start = from_platform(model, model.home, frame) if args.start is None \
+        else _six(args.start, "--from")
+    lo, hi = position_box(eng, start[3:], frame)
+    cells = float(np.prod((hi - lo) / h))
+    if not cells <= MAX_CELLS:
+        raise StewartError(f"--resolution {h!r}: {cells:.3g} grid cells in the box searched, "
+                           f"more than {MAX_CELLS:.0e}: give a coarser step")
+    m = constant_orientation(eng, start, frame, h)
+    tilt = tilts(eng, start, frame)
+    with result_set(args.out, known=("map.csv", "slices.png", "tilt.csv", "tilt.png")) as stage:
+        write_csv(stage / "map.csv", named_array({"x": m.runs[:, 0], "y": m.runs[:, 1],
+                                                  "z_low": m.runs[:, 2], "z_high": m.runs[:, 3]}))
+        slices(eng, m, start[:3], stage / "slices.png")
+        table = np.empty(len(tilt.azimuth), dtype=[("azimuth", "f8"), ("tilt", "f8"),
+                                                   ("limit", object), ("where", object)])
+        table["azimuth"], table["tilt"] = tilt.azimuth, tilt.tilt
+        table["limit"], table["where"] = tilt.limit, tilt.where
+        write_csv(stage / "tilt.csv", table)
+        tilt_figure(tilt, stage / "tilt.png")
+    print(f"constant-orientation workspace at angles ({', '.join(f'{a:.6g}' for a in m.angles)})"
+          f" rad, {frame} frame: {m.volume * 1e3:.6g} litres ({len(m.runs)} runs of "
+          f"{len(np.unique(m.runs[:, :2], axis=0))} columns; x-y grid {h * 1e3:.4g} mm, z by "
+          f"bisection to 1e-9 m; {m.seconds:.2f} s)")
+    k = int(np.argmin(tilt.tilt))
+    least = f"{tilt.limit[k]} {tilt.where[k]}".strip() or "no limit"
+    print(f"orientation workspace at ({', '.join(f'{v:.6g}' for v in start[:3])}) m: tilt "
+          f"{np.degrees(tilt.tilt.min()):.3f} to {np.degrees(tilt.tilt.max()):.3f} deg over "
+          f"{len(tilt.tilt)} azimuths (least at {np.degrees(tilt.azimuth[k]):.0f} deg: {least})")
+    print(f"wrote {args.out}/map.csv, slices.png, tilt.csv and tilt.png")

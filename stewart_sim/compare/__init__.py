@@ -1,1 +1,0 @@
-"""Constant-load control against Kane feedforward over gear ratios: `study` and `report`."""

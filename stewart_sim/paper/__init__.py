@@ -1,1 +1,0 @@
-"""The paper's Section 3 rerun: `study` returns the data, `report` writes its files."""

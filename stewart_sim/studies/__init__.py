@@ -1,0 +1,1 @@
+"""The studies: each returns data (study) and writes its files (report, files)."""
