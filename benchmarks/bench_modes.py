@@ -6,8 +6,8 @@ Scene scenes/motion_simulator.toml (its [stiffness]) with a payload off C. One p
 core's stiffness and six modes (stewart_modes; per pose in a batch call, and one Python call
 through stewart_fmu.stiffness.modes with its checks and the damping ratios, numpy's eig of the
 12x12 first-order form) against numpy (the stiffness of
-stiffness.c's formulas in numpy, the mass matrix of kane_terms, the Python reference of Eq. 7,
-plus the drives' and the payload's, and scipy.linalg.eigh), the ratio in the same run. The map:
+stiffness.c's formulas in numpy, the mass matrix of kane_terms, the Python reference of Eq. 7
+with the payload as a body of its own, plus the drives', and scipy.linalg.eigh), the ratio in the same run. The map:
 the lowest frequency and the compliance at the pivot over N random poses in one C call
 (stewart_modes_batch, modes_map's kernel), one core. Prints the best of N runs of each.
 """
@@ -41,7 +41,7 @@ def _skew(v):
 def numpy_modes(model: Model, q: np.ndarray) -> np.ndarray:
     """w^2 of the six modes in numpy: the same stiffness (springs, leg weights, payload, the
     geometric term; the static leg forces from the core's generalized gravity forces),
-    kane_terms' mass matrix with the drives' and the payload's, scipy's eigh."""
+    kane_terms' mass matrix (the payload a body of its own) with the drives', scipy's eigh."""
     kin = inverse_kinematics(model, q, with_cond=False)
     R = kin.rotation if kin.rotation is not None else None
     u, l, J = kin.unit_vectors, kin.lengths, kin.jacobian
@@ -71,11 +71,7 @@ def numpy_modes(model: Model, q: np.ndarray) -> np.ndarray:
     gp = -Fp
     geo += 0.5 * (np.outer(gp, rho) + np.outer(rho, gp)) - (gp @ rho) * np.eye(3)
     K[3:, 3:] += geo
-    i = np.array(p.inertia)
-    Ic = np.array([[i[0], i[3], i[4]], [i[3], i[1], i[5]], [i[4], i[5], i[2]]])
-    X = np.block([[np.eye(3), -_skew(rho)], [np.zeros((3, 3)), np.eye(3)]])
-    G = np.block([[p.mass * np.eye(3), np.zeros((3, 3))], [np.zeros((3, 3)), R @ Ic @ R.T]])
-    M = J.T @ (mass_matrix(model, q) + drive_inertia(model)) @ J + X.T @ G @ X
+    M = J.T @ (mass_matrix(model, q) + drive_inertia(model)) @ J   # the payload a body of kane_terms
     return scipy.linalg.eigh(K, M, eigvals_only=True)
 
 
