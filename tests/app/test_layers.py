@@ -115,6 +115,7 @@ ORDER = ("shell",         # argument types, terminal, Ctrl-C, result sets, progr
          "studies.cases", "studies.paper", "studies.accuracy", "studies.calibrate",
          "studies.compare", "studies.sweep", "studies.sizing", "studies.identify",
          "studies.excite",
+         "studies.modes",  # the stiffness and the modes at a pose, their map
          "commands",      # one module per command
          "cli", "__main__")
 CONTAINERS = ("stewart_sim", "stewart_sim.studies")   # packages that only hold units
@@ -189,6 +190,13 @@ def _names() -> dict[str, list[str]]:
     return out
 
 
+# Names the public contract gives (docs/contract.md: the `modes` command) that an older module
+# already had: exactly these places, each meaning stated. hil/modes.py is the emulated device's
+# operating modes; the command and its study are the platform's vibration modes.
+CONTRACT_NAMES = {"modes": ["hil/modes.py", "stewart_sim/commands/modes.py",
+                            "stewart_sim/studies/modes"]}
+
+
 def test_no_module_name_means_two_things():
     twice = {}
     for name, where in _names().items():
@@ -196,6 +204,8 @@ def test_no_module_name_means_two_things():
             continue
         if name in COMMAND_NAMES and sorted(where) == sorted(
                 [f"stewart_sim/commands/{name}.py", COMMAND_NAMES[name]]):
+            continue
+        if sorted(where) == sorted(CONTRACT_NAMES.get(name, [])):
             continue
         twice[name] = where
     assert twice == {}
