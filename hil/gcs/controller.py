@@ -28,7 +28,7 @@ from hil.gcs import errors as E
 from hil.gcs.axes import AXES, Frame
 from hil.gcs.move_path import Mover
 from hil.gcs.recorder import Recorder, Sample, leg_mm
-from hil.modes import Mode
+from hil.operating_mode import Mode
 from stewart_fmu.kinematics import inverse_kinematics
 
 VLS_DEFAULT = 10.0      # mm/s (and deg/s) system velocity at start

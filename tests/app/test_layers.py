@@ -145,6 +145,7 @@ COMMAND_NAMES = {
     "compare": "stewart_sim/studies/compare", "excite": "stewart_sim/studies/excite",
     "identify": "stewart_sim/studies/identify", "paper": "stewart_sim/studies/paper",
     "sweep": "stewart_sim/studies/sweep", "view": "stewart_sim/view", "workspace": "stewart_sim/studies/workspace",
+    "modes": "stewart_sim/studies/modes",
     "device": "hil/device.py",                 # the emulated device the command serves
     "trajectory": "controller/trajectory.py",  # the reference trajectories the command writes
 }
@@ -190,13 +191,6 @@ def _names() -> dict[str, list[str]]:
     return out
 
 
-# Names the public contract gives (docs/contract.md: the `modes` command) that an older module
-# already had: exactly these places, each meaning stated. hil/modes.py is the emulated device's
-# operating modes; the command and its study are the platform's vibration modes.
-CONTRACT_NAMES = {"modes": ["hil/modes.py", "stewart_sim/commands/modes.py",
-                            "stewart_sim/studies/modes"]}
-
-
 def test_no_module_name_means_two_things():
     twice = {}
     for name, where in _names().items():
@@ -204,8 +198,6 @@ def test_no_module_name_means_two_things():
             continue
         if name in COMMAND_NAMES and sorted(where) == sorted(
                 [f"stewart_sim/commands/{name}.py", COMMAND_NAMES[name]]):
-            continue
-        if sorted(where) == sorted(CONTRACT_NAMES.get(name, [])):
             continue
         twice[name] = where
     assert twice == {}
