@@ -49,6 +49,7 @@ COMMANDS = {
     "telemetry-replay": "stream a recorded vehicle motion as UDP telemetry in real time",
     "cue-live": "live motion simulator: UDP telemetry -> washout -> envelope -> the device",
     "workspace": "what the mechanism reaches: limits' margins at poses, travel, ranges",
+    "modes": "natural frequencies, mode shapes and stiffness at a pose ([stiffness])",
 }
 KEPT = "nothing new written (an earlier output is left as it was)"  # on Ctrl-C
 # the arguments that name what a command writes (the output rule checks them before any work)

@@ -29,7 +29,7 @@ from hil.gcs.axes import AXES, MM_PER_M, Frame
 from hil.gcs.coordinate_systems import Enabled, Systems
 from hil.gcs.move_path import Mover
 from hil.gcs.recorder import Recorder, Sample, leg_mm
-from hil.modes import Mode
+from hil.operating_mode import Mode
 from stewart_fmu.reach import Engine
 
 VLS_DEFAULT = 10.0      # mm/s (and deg/s) system velocity at start

@@ -23,7 +23,7 @@ from hil.gcs.command_set import COMMANDS, execute  # noqa: E402
 from hil.gcs.controller import ONT_TOLERANCE, GcsController, Session  # noqa: E402
 from hil.gcs.tcp_transport import GcsLink  # noqa: E402
 from hil.gcs.server import MAX_LINE, GcsServer  # noqa: E402
-from hil.modes import Mode  # noqa: E402
+from hil.operating_mode import Mode  # noqa: E402
 from stewart_fmu.scene import load_scene  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
