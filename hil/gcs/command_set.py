@@ -310,6 +310,10 @@ def ken(c: GcsController, s: Session, a: Args) -> Answer:
     if len(a) != 1:
         raise E.GcsError(E.PARAM_SYNTAX, "KEN <CSname>")
     name = c.systems.existing(a[0])
+    if name != CS_ZERO and np.any(c.zero.home[3:] != 0.0):
+        # ZERO's X Y Z run along N's axes and its U V W from home's orientation: a rigid tool
+        # or work system composes with them only while that orientation is N's
+        raise E.GcsError(E.CMD_NOT_ALLOWED_FOR_STAGE, "the scene's home is rotated")
     c.at_rest()
     c.systems.enable(name)
     c.reframe()

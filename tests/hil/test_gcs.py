@@ -757,3 +757,13 @@ def test_coordinate_systems_define_link_enable_and_moves_follow_them(model):
         assert np.all(np.abs(got - goal) <= ONT_TOLERANCE), (line, got)
     assert ask(c, s, "KEN ZERO") is None and ask(c, s, "KET?") == "ZERO=ZERO\n"
     assert ask(c, s, "KRM TIP") is None and ask(c, s, "KRM TOOL") is None and err(c, s) == 0
+
+
+def test_coordinate_systems_are_refused_on_a_scene_whose_home_is_rotated(model):
+    import dataclasses
+
+    tilted = dataclasses.replace(model, home=np.r_[model.home[:3], 0.02, 0.0, 0.0])
+    d, c, s = twin(tilted)
+    assert ask(c, s, "KSW WORK X 1") is None and err(c, s) == 0
+    assert ask(c, s, "KEN WORK") is None and err(c, s) == E.CMD_NOT_ALLOWED_FOR_STAGE
+    assert ask(c, s, "KET?") == "ZERO=ZERO\n"
