@@ -271,8 +271,6 @@ def tra_q(c: GcsController, s: Session, a: Args) -> Answer:
     """The absolute position each named axis reaches along the direction (components per axis,
     the others 0) from the plant's pose, at the first limit (hil.gcs.travel_query)."""
     pairs = P.axis_values(a)
-    if c.systems.enabled:
-        raise E.GcsError(E.QUERY_NOT_FOR_CS, "TRA? in ZERO only (KEN ZERO)")
     d = np.zeros(6)
     for i, v in pairs:
         d[i] = P.finite(v, E.PARAM_OUT_OF_RANGE, AXES[i])

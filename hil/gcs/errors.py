@@ -36,7 +36,6 @@ CS_UNUSED_MUST_BE_DELETED = 543    # Unused coordinate system must be deleted be
 SPI_NOT_WITH_CS = 544       # With this coordinate system type SPI usage is not supported
 CS_WRITE_PROTECTED = 546    # Coordinate system is write protected
 CS_MAY_NOT_BE_LINKED = 548  # Coordinate system may not be linked
-QUERY_NOT_FOR_CS = 551      # This query is not supported for this coordinate system type
 CS_TYPE_UNKNOWN = 554       # This coordinate system type does not exist
 NO_CS_OF_TYPE_ENABLED = 556  # No coordinate system of this type is enabled
 CS_INVALID_NAME = 557       # Name of coordinate system is invalid
@@ -76,7 +75,6 @@ TEXTS = {
     SPI_NOT_WITH_CS: 'With this coordinate system type SPI usage is not supported',
     CS_WRITE_PROTECTED: 'Coordinate system is write protected',
     CS_MAY_NOT_BE_LINKED: 'Coordinate system may not be linked',
-    QUERY_NOT_FOR_CS: 'This query is not supported for this coordinate system type',
     CS_TYPE_UNKNOWN: 'This coordinate system type does not exist',
     NO_CS_OF_TYPE_ENABLED: 'No coordinate system of this type is enabled',
     CS_INVALID_NAME: 'Name of coordinate system is invalid',

@@ -729,7 +729,7 @@ def test_coordinate_systems_define_link_enable_and_moves_follow_them(model):
     assert ask(c, s, "KEN WORK") is None and ask(c, s, "KEN TIP") is None and err(c, s) == 0
     assert ask(c, s, "KET?") == "KSW=WORK \nKST=TIP\n"
     for line, code in (("KSW WORK X 1", E.CS_IN_USE), ("KRM TOOL", E.CS_IN_USE),
-                       ("SPI T 1", E.SPI_NOT_WITH_CS), ("TRA? X 1", E.QUERY_NOT_FOR_CS)):
+                       ("SPI T 1", E.SPI_NOT_WITH_CS)):
         assert ask(c, s, line) is None and err(c, s) == code, line
 
     def seen_from_work(q):
@@ -767,3 +767,36 @@ def test_coordinate_systems_are_refused_on_a_scene_whose_home_is_rotated(model):
     assert ask(c, s, "KSW WORK X 1") is None and err(c, s) == 0
     assert ask(c, s, "KEN WORK") is None and err(c, s) == E.CMD_NOT_ALLOWED_FOR_STAGE
     assert ask(c, s, "KET?") == "ZERO=ZERO\n"
+
+
+def test_tra_in_enabled_coordinate_systems(model, capsys, tmp_path):
+    """With a work system (5 mm along X, turned 30 deg about Z) and a tool 10 mm above C: TRA?
+    along X and W equals `workspace --reach` in the user frame of a scene whose [frames] say the
+    same; along U (about the work's X axis, not a line of the contract's angles) the end is
+    where the engine's verdict turns, on the GCS line itself (sampled poses all inside, the
+    end's neighbour 1e-6 deg on outside): the first limit, a band of cond(J) 1.4 deg wide at
+    53.7 deg that the engine's default march steps over (hil.gcs.travel_query.MARCH_STEP)."""
+    from stewart_fmu.reach import Engine
+
+    d, c, s = twin(model)
+    for line in ("KSW WORK X 5 W 30", "KST TIP Z 10", "KEN WORK", "KEN TIP"):
+        assert ask(c, s, line) is None and err(c, s) == 0, line
+    scene = tmp_path / "frames.toml"
+    scene.write_text(SCENE.read_text() + "\n[frames]\nuser = [0.005, 0.0, 0.12, 0.0, 0.0, "
+                     f"{math.radians(30.0)!r}]\ntool = [0.0, 0.0, 0.01, 0.0, 0.0, 0.0]\n")
+    g0 = np.array(list(_values(ask(c, s, "POS?")).values()))
+    step = _reach_step(capsys, scene, [1.0, 0, 0, 0, 0, 0], "user")
+    assert abs(_values(ask(c, s, "TRA? X 1"))["X"] - (g0[0] + step * 1e3)) <= 2e-9 * 1e3 + 1e-9
+    step = _reach_step(capsys, scene, [0, 0, 0, 0, 0, 1.0], "user")
+    assert abs(_values(ask(c, s, "TRA? W 1"))["W"] - (g0[5] + math.degrees(step))) \
+        <= math.degrees(2e-9) + 1e-9
+    end = _values(ask(c, s, "TRA? U 1"))["U"]
+    engine = Engine(model)
+    line = np.tile(g0, (201, 1))
+    line[:, 3] = np.linspace(g0[3], end, 201)
+    assert np.all(engine.binding(c.frame.to_pose(line)) < 0)
+    beyond = g0.copy()
+    beyond[3] = end + 1e-6
+    assert engine.binding(c.frame.to_pose(beyond[None]))[0] >= 0
+    assert 53.0 < end < 54.5
+    assert err(c, s) == 0
