@@ -25,6 +25,11 @@ def add_parser(sub, help_text: str) -> None:
                    help="local Dask worker processes (default: one per core)")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="a running Dask scheduler (tcp://HOST:PORT) instead of a local cluster")
+    p.add_argument("--population", type=int, metavar="N",
+                   help="candidates per generation, in place of design.toml's search.population")
+    p.add_argument("--generations", type=int, metavar="N",
+                   help="generations, in place of search.generations")
+    p.add_argument("--seed", type=int, metavar="N", help="in place of search.seed")
     p.set_defaults(run=run)
 
 
@@ -33,6 +38,8 @@ def run(args: argparse.Namespace) -> int:
     from stewart_sim.studies.design import spec as design_spec
 
     spec = design_spec.load(args.design)    # a bad file fails before the cluster starts
+    spec = design_spec.with_search(spec, population=args.population,
+                                   generations=args.generations, seed=args.seed)
     if args.workers is not None and not 1 <= args.workers <= 1024:
         raise design_spec.DesignInputError(f"--workers: need 1..1024, got {args.workers}")
     import os

@@ -126,4 +126,4 @@ def binding(names: tuple[str, ...], M: np.ndarray) -> list[tuple[str, float]]:
 
 def least_violating(M: np.ndarray) -> int:
     """The candidate with the least sum of negative relative margins."""
-    return int(np.argmin(np.minimum(M, 0.0).sum(axis=1)))
+    return int(np.argmax(np.minimum(M, 0.0).sum(axis=1)))

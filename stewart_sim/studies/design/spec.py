@@ -214,6 +214,23 @@ def _requirements(t: dict, src: str) -> Requirements:
                         cond, *cones)
 
 
+def with_search(spec: DesignSpec, **given) -> DesignSpec:
+    """The spec with [search] keys replaced (command-line options: --population, --generations,
+    --seed; None keeps the file's), checked as the file's are (DesignInputError naming the
+    option)."""
+    from dataclasses import asdict, replace
+
+    t = asdict(spec.search)
+    for key, value in given.items():
+        if value is not None:
+            t[key] = value
+    try:
+        search = _search(t, spec.source)
+    except DesignInputError as exc:
+        raise DesignInputError(str(exc).replace(f"{spec.source}: search.", "--")) from None
+    return replace(spec, search=search)
+
+
 def _search(t: dict, src: str) -> Search:
     _only(t, {"population", "generations", "seed", "reserve"}, "search.", src)
     return Search(_int(t, "population", 40, 4, MAX_POPULATION, "search.", src),
