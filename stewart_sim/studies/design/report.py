@@ -124,7 +124,10 @@ def infeasible_lines(spec: DesignSpec, r: SearchResult) -> list[str]:
         out += [""]
     i = least_violating(r.margins)
     out += [f"The least-violating candidate ({i}) falls short on:", ""]
-    out += [f"- {n}: {m:+.1%}" for n, m in zip(r.names, r.margins[i]) if m < 0]
+    out += [f"- {m.name}: {m.absolute:+.6g} {m.unit} ({m.relative:+.1%}) {m.where}".rstrip()
+            for m in r.closest.margins if m.relative < 0]
+    out += ["", "| parameter | value | unit |", "|---|---|---|"]
+    out += [f"| {k} | {v:.6g} | {PARAMETERS[k][0]} |" for k, v in r.closest.values.items()]
     return out
 
 
@@ -133,11 +136,12 @@ def binding_line(r: SearchResult) -> str:
     unmet = binding(r.names, r.margins)
     if unmet:
         n, b = unmet[0]
-        return f"no geometry meets {n}: the best candidate is short by {-b:.1%} of it"
-    i = least_violating(r.margins)
-    k = int(np.argmin(r.margins[i]))
+        m = next(m for m in r.closest.margins if m.name == n)
+        return (f"no geometry meets {n}: the best candidate is short by {-b:.1%} of it (the "
+                f"least-violating one by {-m.absolute:.6g} {m.unit})")
+    m = r.closest.least
     return (f"no candidate meets every requirement at once: the least-violating one is short "
-            f"on {r.names[k]} by {-r.margins[i, k]:.1%}")
+            f"on {m.name} by {-m.relative:.1%} ({-m.absolute:.6g} {m.unit})")
 
 
 def write(folder: Path, spec: DesignSpec, r: SearchResult) -> list[str]:

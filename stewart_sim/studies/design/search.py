@@ -4,7 +4,7 @@ the chosen design re-checked densely.
 
 Objectives, both minimised: the base radius (m: the footprint) and minus the least relative
 margin over the requirements (robustness); constraints: every relative margin >= 0. pymoo's
-random state is seeded from design.toml's search.seed and the evaluations are deterministic
+random state is seeded from design.toml's [search] seed and the evaluations are deterministic
 C calls, gathered in the population's order: a seed gives the same generations on any number
 of workers."""
 from __future__ import annotations
@@ -31,6 +31,7 @@ class SearchResult:
     chosen: Candidate | None        # the chosen design, its dense check's margins
     chosen_index: int | None
     dense_failed: tuple[int, ...]   # front designs the dense check rejected
+    closest: Candidate | None       # no design chosen: the least-violating candidate's margins
     seconds: float                  # the search's wall time (evaluations and NSGA-II)
     workers: int
 
@@ -72,7 +73,9 @@ def run(spec: DesignSpec, client, workers: int, progress=print) -> SearchResult:
     X, M, gen = np.vstack(Xs), np.vstack(Ms), np.concatenate(gens)
     front = _front(spec, X, M)
     chosen, index, failed = _choose(spec, X, M, front, names)
-    return SearchResult(names, X, M, gen, front, chosen, index, failed, seconds, workers)
+    closest = None if chosen is not None else evaluate(spec, X[least_violating(M)], names)
+    return SearchResult(names, X, M, gen, front, chosen, index, failed, closest, seconds,
+                        workers)
 
 
 def _evaluate(client, spec_future, X: np.ndarray, names, workers: int) -> np.ndarray:
@@ -100,8 +103,8 @@ def _front(spec: DesignSpec, X: np.ndarray, M: np.ndarray) -> np.ndarray:
 
 
 def _choose(spec: DesignSpec, X, M, front, names):
-    """The most compact front design keeping search.reserve on every requirement whose dense
-    check passes (every requirement met on the workspace's check_points grid); else the front's
+    """The most compact front design keeping the [search] reserve on every requirement whose
+    dense check passes (every requirement met on the workspace's check_points grid); else the front's
     most robust that passes; (None, None, rejected) when none does."""
     reserve = spec.search.reserve
     order = [i for i in front if M[i].min() >= reserve]

@@ -65,7 +65,7 @@ class Workspace:
 @dataclass(frozen=True)
 class Requirements:
     first_resonance: float | None            # Hz, least first mode over the workspace
-    stiffness: tuple[float | None, ...]      # per axis x..thz (N/m, N m/rad) at home and the worst pose
+    stiffness: tuple[float | None, ...]      # per axis x..thz (N/m, N m/rad); None: no need
     cond_limit: float                        # cond(J) limit over the workspace
     base_cone: float | None                  # rad: the joints' cones (a margin is what is left)
     platform_cone: float | None
