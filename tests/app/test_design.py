@@ -117,6 +117,8 @@ def test_a_requirement_no_geometry_meets_is_named_with_its_shortfall(tmp_path):
     ({"parameters": {"stroke": [0.06, 0.02]}}, "parameters.stroke"),
     ({"requirements": {"first_resonance": -1.0}}, "requirements.first_resonance"),
     ({"search": {"seed": -3}}, "search.seed"),
+    ({"payload": {"mass": -5.0}}, "payload.mass"),
+    ({"parameters": {"base_half_angle": [0.0, 0.5]}}, "parameters.base_half_angle"),
 ])
 def test_bad_input_is_one_line_naming_the_key(tmp_path, tables, key):
     out = tmp_path / "out"

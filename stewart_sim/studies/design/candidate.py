@@ -181,8 +181,13 @@ def _modal(spec: DesignSpec, model, Q: np.ndarray) -> tuple[float, dict]:
 def _failed_home(spec: DesignSpec, values: dict, names: tuple[str, ...]) -> Candidate:
     """A candidate whose home is outside its stroke (or singular): the stroke margins at home,
     FAILED on the rest (the search is steered back by how far home is out)."""
-    model = candidate_model(spec, values, check=False)
-    lengths = np.asarray(inverse_kinematics(model, model.home).lengths).ravel()
+    try:
+        model = candidate_model(spec, values, check=False)
+        lengths = np.asarray(inverse_kinematics(model, model.home).lengths).ravel()
+    except StewartError as exc:    # no pose computed at all (singular at home)
+        why = str(exc)[:80]
+        return Candidate(values, tuple(Margin(n, float("nan"), UNITS.get(n, ""), FAILED, why)
+                                       for n in names), float("nan"), 0)
     lo, hi = values["leg_min"], values["leg_min"] + values["stroke"]
     at_home = {"stroke_min": float(lengths.min() - lo), "stroke_max": float(hi - lengths.max())}
     margins = []

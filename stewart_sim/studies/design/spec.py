@@ -20,8 +20,9 @@ POSE = ("x", "y", "z", "thx", "thy", "thz")
 PARAMETERS = {
     "base_radius": ("m", 1e-3, 100.0),
     "platform_radius": ("m", 1e-3, 100.0),
-    "base_half_angle": ("rad", 0.0, math.pi / 3),
-    "platform_half_angle": ("rad", 0.0, math.pi / 3),
+    # a pair's joints apart, and apart from the next pair's (0 and pi/3 make joints coincide)
+    "base_half_angle": ("rad", 1e-3, math.pi / 3 - 1e-3),
+    "platform_half_angle": ("rad", 1e-3, math.pi / 3 - 1e-3),
     "home_height": ("m", 1e-3, 100.0),
     "platform_joint_z": ("m", -100.0, 100.0),
     "leg_min": ("m", 1e-3, 100.0),
@@ -128,11 +129,27 @@ def parse(data: dict, path: Path) -> DesignSpec:
         base = read_scene_dict(scene_path)
     except StewartError as exc:
         raise DesignInputError(f"{src}: design.base_scene: {exc}") from None
+    payload = _table(data, "payload", src) or None
+    if payload is not None:
+        _check_payload(base, payload, src)
     return DesignSpec(src, base, _parameters(_table(data, "parameters", src, required=True), src),
                       _workspace(_table(data, "workspace", src, required=True), src),
-                      _table(data, "payload", src) or None,
+                      payload,
                       _requirements(_table(data, "requirements", src, required=True), src),
                       _search(_table(data, "search", src), src))
+
+
+def _check_payload(base: dict, payload: dict, src: str) -> None:
+    """[payload] checked as a scene's, on the base scene (SceneError naming payload.<key>)."""
+    from stewart_fmu.errors import SceneError
+    from stewart_fmu.scene import scene_from_dict
+
+    try:
+        scene_from_dict({**base, "payload": payload}, source=src)
+    except SceneError as exc:
+        if exc.key.startswith("payload"):
+            raise DesignInputError(f"{src}: {exc.key}: {exc.reason}") from None
+        raise DesignInputError(f"{src}: design.base_scene: {exc}") from None
 
 
 def _parameters(t: dict, src: str) -> tuple[Parameter, ...]:
