@@ -79,11 +79,29 @@ def run(spec: DesignSpec, client, workers: int, progress=print) -> SearchResult:
 
 
 def _evaluate(client, spec_future, X: np.ndarray, names, workers: int) -> np.ndarray:
-    """Relative margins of X (N, free) on the cluster, a few tasks per worker, in X's order."""
-    parts = np.array_split(X, min(len(X), max(1, workers * TASKS_PER_WORKER)))
-    futures = [client.submit(evaluate_many, spec_future, part, names, pure=False)
-               for part in parts if len(part)]
-    return np.vstack(client.gather(futures))
+    """Relative margins of X (N, free) on the cluster, a few tasks per worker, in X's order
+    (results placed by their part, whatever order they finish in); a lost task is a
+    SweepError, and Ctrl-C cancels what is still pending (as the sweep's tasks are)."""
+    from distributed import as_completed
+    from distributed.client import FutureCancelledError
+    from distributed.scheduler import KilledWorker
+
+    from stewart_fmu.errors import SweepError
+
+    parts = [p for p in np.array_split(X, min(len(X), max(1, workers * TASKS_PER_WORKER)))
+             if len(p)]
+    futures = {client.submit(evaluate_many, spec_future, part, names, pure=False): k
+               for k, part in enumerate(parts)}
+    results: list = [None] * len(parts)
+    try:
+        for fut in as_completed(futures):
+            results[futures.pop(fut)] = fut.result()
+    except (KilledWorker, FutureCancelledError) as exc:
+        raise SweepError(None, f"a design task was lost on the cluster: {exc}") from None
+    finally:
+        if futures:
+            client.cancel(list(futures))
+    return np.vstack(results)
 
 
 def _front(spec: DesignSpec, X: np.ndarray, M: np.ndarray) -> np.ndarray:
