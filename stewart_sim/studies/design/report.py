@@ -80,8 +80,11 @@ def front_png(path: Path, spec: DesignSpec, r: SearchResult) -> None:
     ax.axhline(0.0, c="k", lw=0.8)
     ax.set_xlabel("base radius (mm)")
     ax.set_ylabel("least margin over the requirements (% of each)")
-    lo = max(-100.0, float(np.percentile(-F[:, 1] * 100, 5)))
-    ax.set_ylim(lo, None)
+    # candidates far outside (a home out of its stroke is -1000 %) are left below the frame
+    least = -F[:, 1] * 100
+    lo = max(-100.0, float(np.percentile(least, 5)))
+    hi = float(least.max())
+    ax.set_ylim(lo - 0.05 * (hi - lo), hi + 0.1 * (hi - lo) + 1e-9)
     ax.legend(loc="best", fontsize=8)
     ax.set_title(f"design: {len(r.X)} candidates, seed {spec.search.seed}")
     fig.tight_layout()
