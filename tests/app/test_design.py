@@ -160,3 +160,21 @@ def test_a_seed_gives_one_search_on_any_workers_and_blas_threads(tmp_path):
     # the same candidates (pymoo's draws from the seed, the same selections); the margins are
     # C calls and LAPACK's eigenvalues, equal to rounding (1e-9 of a relative margin)
     np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9)
+
+
+def test_the_workspace_grids_box_axes_and_orientations():
+    ws = S.Workspace({"x": (-0.01, 0.02), "thz": (-0.1, 0.1)}, "box", 3, 5, ((0.05, 0.0, 0.0),))
+    home = np.array([0.0, 0.0, 0.1, 0.0, 0.0, 0.0])
+    Q = C.workspace_poses(ws, home, 3)
+    # 3 x 3 combinations, then the orientation at each of the 3 positions (x's values)
+    assert len(Q) == 9 + 3
+    box = Q[:9] - home
+    assert {tuple(r) for r in box[:, [0, 5]].round(12)} == {
+        (x, t) for x in (-0.01, 0.005, 0.02) for t in (-0.1, 0.0, 0.1)}
+    assert np.all(box[:, [1, 2, 3, 4]] == 0.0)
+    tilt = Q[9:] - home
+    assert np.allclose(tilt[:, 3:], [0.05, 0.0, 0.0])
+    assert np.allclose(sorted(tilt[:, 0]), [-0.01, 0.005, 0.02], rtol=0, atol=1e-15)
+    axes = C.workspace_poses(S.Workspace(ws.ranges, "axes", 3, 5, ()), home, 5)
+    # home, then each axis's values other than home: x's five (none is 0), thz's four
+    assert len(axes) == 1 + 5 + 4
