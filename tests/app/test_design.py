@@ -109,7 +109,7 @@ def test_a_requirement_no_geometry_meets_is_named_with_its_shortfall(tmp_path):
     assert "first_resonance" in line and f"short by {-best:.1%}" in line
     summary = (out / "summary.md").read_text()
     assert "No design found" in summary and "first_resonance" in summary
-    assert not (out / "best.toml").exists()
+    assert not (out / "best.toml").exists() and (out / "margins.png").is_file()
 
 
 @pytest.mark.parametrize("tables,key", [
@@ -132,7 +132,8 @@ def test_the_example_at_a_reduced_size_finds_a_design_that_holds(tmp_path):
     out = tmp_path / "out"
     r = cli("design", EXAMPLE, "--out", out, "--workers", "2", *REDUCED)
     assert r.returncode == 0, r.stderr
-    for name in ("pareto.csv", "candidates.csv", "best.toml", "front.png", "summary.md"):
+    for name in ("pareto.csv", "candidates.csv", "best.toml", "front.png", "margins.png",
+                 "summary.md"):
         assert (out / name).is_file(), name
     # best.toml re-checked here on the dense grid, every requirement of the example
     spec = S.load(EXAMPLE)

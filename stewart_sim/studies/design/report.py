@@ -1,6 +1,7 @@
 """What `design` writes: pareto.csv (the front), candidates.csv (every candidate evaluated),
-best.toml (the chosen design as a scene, commented with its dense check's margins), front.png
-and summary.md; or, when no candidate meets every requirement, the report of the binding ones."""
+best.toml (the chosen design as a scene, commented with its dense check's margins), front.png,
+margins.png and summary.md; or, when no candidate meets every requirement, the report of the
+binding ones."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -16,7 +17,7 @@ from .layout import scene_dict
 from .search import SearchResult, binding, least_violating, objectives
 from .spec import PARAMETERS, DesignSpec
 
-FILES = ("pareto.csv", "candidates.csv", "best.toml", "front.png", "summary.md")
+FILES = ("pareto.csv", "candidates.csv", "best.toml", "front.png", "margins.png", "summary.md")
 
 
 def candidates_table(spec: DesignSpec, r: SearchResult, rows: np.ndarray) -> np.ndarray:
@@ -91,6 +92,36 @@ def front_png(path: Path, spec: DesignSpec, r: SearchResult) -> None:
     save_figure(fig, path)
 
 
+def margins_png(path: Path, r: SearchResult) -> None:
+    """Each requirement's relative margin (%) of the chosen design on the search's grid and on
+    the dense check's (of the least-violating candidate when none was chosen)."""
+    from matplotlib.figure import Figure
+
+    from stewart_sim.shell.plots import save_figure
+
+    c = r.chosen if r.chosen is not None else r.closest
+    fig = Figure(figsize=(7, 4.5))
+    ax = fig.add_subplot()
+    y = np.arange(len(r.names))
+    dense = np.array([m.relative for m in c.margins]) * 100
+    if r.chosen is not None:
+        ax.barh(y + 0.2, r.margins[r.chosen_index] * 100, 0.4, color="0.7",
+                label="search grid")
+        ax.barh(y - 0.2, dense, 0.4, color="tab:blue", label="dense check")
+        title = "the chosen design's margins"
+    else:
+        ax.barh(y, dense, 0.6, color="tab:red", label="search grid")
+        title = "no design: the least-violating candidate's margins"
+    ax.axvline(0.0, c="k", lw=0.8)
+    ax.set_yticks(y, r.names)
+    ax.invert_yaxis()
+    ax.set_xlabel("margin (% of the requirement: stroke, cone, cond limit, frequency, stiffness)")
+    ax.set_title(title)
+    ax.legend(loc="best", fontsize=8)
+    fig.tight_layout()
+    save_figure(fig, path)
+
+
 def summary_text(spec: DesignSpec, r: SearchResult) -> str:
     ok = int(np.sum(np.all(r.margins >= 0, axis=1)))
     lines = [f"# design: {Path(spec.source).name}", "",
@@ -157,5 +188,6 @@ def write(folder: Path, spec: DesignSpec, r: SearchResult) -> list[str]:
         write_text(folder / "best.toml", best_text(spec, r.chosen, spec.workspace.check_points))
         written.append("best.toml")
     front_png(folder / "front.png", spec, r)
+    margins_png(folder / "margins.png", r)
     write_text(folder / "summary.md", summary_text(spec, r))
-    return written + ["front.png", "summary.md"]
+    return written + ["front.png", "margins.png", "summary.md"]
