@@ -20,7 +20,7 @@ def add_parser(sub, help_text: str) -> None:
     p.add_argument("design", metavar="DESIGN.toml", help="the requirements (docs/guides/design.md)")
     p.add_argument("--out", required=True, metavar="DIR",
                    help="result directory: pareto.csv, candidates.csv, best.toml, front.png, "
-                        "margins.png, summary.md")
+                        "margins.png, parameters.png, summary.md")
     p.add_argument("--workers", type=int, metavar="N",
                    help="local Dask worker processes (default: one per core)")
     p.add_argument("--scheduler", metavar="ADDRESS",

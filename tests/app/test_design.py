@@ -133,7 +133,7 @@ def test_the_example_at_a_reduced_size_finds_a_design_that_holds(tmp_path):
     r = cli("design", EXAMPLE, "--out", out, "--workers", "2", *REDUCED)
     assert r.returncode == 0, r.stderr
     for name in ("pareto.csv", "candidates.csv", "best.toml", "front.png", "margins.png",
-                 "summary.md"):
+                 "parameters.png", "summary.md"):
         assert (out / name).is_file(), name
     # best.toml re-checked here on the dense grid, every requirement of the example
     spec = S.load(EXAMPLE)

@@ -1,7 +1,7 @@
 """What `design` writes: pareto.csv (the front), candidates.csv (every candidate evaluated),
 best.toml (the chosen design as a scene, commented with its dense check's margins), front.png,
-margins.png and summary.md; or, when no candidate meets every requirement, the report of the
-binding ones."""
+margins.png, parameters.png and summary.md; or, when no candidate meets every requirement, the
+report of the binding ones."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -17,7 +17,8 @@ from .layout import scene_dict
 from .search import SearchResult, binding, least_violating, objectives
 from .spec import PARAMETERS, DesignSpec
 
-FILES = ("pareto.csv", "candidates.csv", "best.toml", "front.png", "margins.png", "summary.md")
+FILES = ("pareto.csv", "candidates.csv", "best.toml", "front.png", "margins.png",
+         "parameters.png", "summary.md")
 
 
 def candidates_table(spec: DesignSpec, r: SearchResult, rows: np.ndarray) -> np.ndarray:
@@ -122,6 +123,34 @@ def margins_png(path: Path, r: SearchResult) -> None:
     save_figure(fig, path)
 
 
+def parameters_png(path: Path, spec: DesignSpec, r: SearchResult) -> None:
+    """The free parameters of the front's designs and of the chosen one, each on its bounds
+    (0: low, 1: high; the bounds in the axis labels with their units)."""
+    from matplotlib.figure import Figure
+
+    from stewart_sim.shell.plots import save_figure
+
+    free = spec.free
+    lo = np.array([p.low for p in free])
+    span = np.array([p.high - p.low for p in free])
+    fig = Figure(figsize=(8, 4.5))
+    ax = fig.add_subplot()
+    k = np.arange(len(free))
+    for i in r.front:
+        ax.plot(k, (r.X[i] - lo) / span, "-", c="tab:orange", alpha=0.5, lw=1)
+    if r.chosen_index is not None:
+        ax.plot(k, (r.X[r.chosen_index] - lo) / span, "o-", c="tab:red", lw=2, label="chosen")
+    ax.plot([], [], "-", c="tab:orange", label=f"front ({len(r.front)})")
+    ax.set_xticks(k, [f"{p.name}\n[{p.low:.3g}, {p.high:.3g}]\n{PARAMETERS[p.name][0]}"
+                      for p in free], fontsize=7, rotation=20, ha="right")
+    ax.set_ylabel("position in its bounds (0: low, 1: high)")
+    ax.set_ylim(-0.05, 1.05)
+    ax.legend(loc="best", fontsize=8)
+    ax.set_title("the free parameters of the front")
+    fig.tight_layout()
+    save_figure(fig, path)
+
+
 def summary_text(spec: DesignSpec, r: SearchResult) -> str:
     ok = int(np.sum(np.all(r.margins >= 0, axis=1)))
     lines = [f"# design: {Path(spec.source).name}", "",
@@ -189,5 +218,6 @@ def write(folder: Path, spec: DesignSpec, r: SearchResult) -> list[str]:
         written.append("best.toml")
     front_png(folder / "front.png", spec, r)
     margins_png(folder / "margins.png", r)
+    parameters_png(folder / "parameters.png", spec, r)
     write_text(folder / "summary.md", summary_text(spec, r))
-    return written + ["front.png", "margins.png", "summary.md"]
+    return written + ["front.png", "margins.png", "parameters.png", "summary.md"]
