@@ -42,12 +42,27 @@ static void geometry(const double *p, const double q[6], pose_geometry *g)
     }
 }
 
-/* The angle between a and b, accurate near 0 and pi (atan2 of |a x b| and a . b). */
-static double angle(const double a[3], const double b[3])
+/* The angle between a and b as the pair (|a x b|, a . b), each scaled by |a| |b|: its
+   atan2 is the angle, accurate near 0 and pi. */
+typedef struct {
+    double s, c;
+} angle_pair;
+
+static angle_pair angle_of(const double a[3], const double b[3])
 {
     double c0 = a[1] * b[2] - a[2] * b[1], c1 = a[2] * b[0] - a[0] * b[2];
     double c2 = a[0] * b[1] - a[1] * b[0];
-    return atan2(sqrt(c0 * c0 + c1 * c1 + c2 * c2), dot3(a, b));
+    angle_pair out;
+    out.s = sqrt(c0 * c0 + c1 * c1 + c2 * c2);
+    out.c = dot3(a, b);
+    return out;
+}
+
+/* Whether angle x is larger than angle y (both in [0, pi]: the sign of sin(x - y), as the
+   positive scales of the pairs do not change it); the largest of six then takes one atan2. */
+static int wider(angle_pair x, angle_pair y)
+{
+    return x.s * y.c - x.c * y.s > 0.0;
 }
 
 static double clamp01(double x)
@@ -302,6 +317,34 @@ static double condition(const double *p, const double q[6], const pose_geometry 
     return sw_condition(J);
 }
 
+/* Both joint cones' margins: the cone less the widest angle of the six legs to the joint's
+   axis (the base joint's fixed in N, the platform joint's turning with R). */
+static void cone_margins(const double *reach, const pose_geometry *g, double *m, int *w)
+{
+    angle_pair base_wide = {0.0, 1.0}, top_wide = {0.0, 1.0};
+    int i, j, base_at = 0, top_at = 0;
+    for (i = 0; i < 6; ++i) {
+        const double *c = reach + STEWART_R_PLATFORM_AXES + 3 * i;
+        double Rc[3];
+        angle_pair b, t;
+        for (j = 0; j < 3; ++j)   /* the platform joint's axis in N */
+            Rc[j] = dot3(g->R + 3 * j, c);
+        b = angle_of(g->L + 3 * i, reach + STEWART_R_BASE_AXES + 3 * i);
+        t = angle_of(g->L + 3 * i, Rc);
+        if (i == 0 || wider(b, base_wide)) {
+            base_wide = b;
+            base_at = i;
+        }
+        if (i == 0 || wider(t, top_wide)) {
+            top_wide = t;
+            top_at = i;
+        }
+    }
+    take(m, w, STEWART_LIMIT_BASE_CONE, RP(BASE_CONE) - atan2(base_wide.s, base_wide.c), base_at);
+    take(m, w, STEWART_LIMIT_PLATFORM_CONE, RP(PLATFORM_CONE) - atan2(top_wide.s, top_wide.c),
+         top_at);
+}
+
 /* The geometric limits' and cond(J)'s margins; with sign_only, a margin that is surely
    positive may be left larger than it is (cond(J), obstacles: what travel needs). */
 static void geometric_margins(const double *p, const double *reach, const double q[6],
@@ -320,21 +363,20 @@ static void geometric_margins(const double *p, const double *reach, const double
             take(m, w, STEWART_LIMIT_STROKE_MAX, p[STEWART_P_LEG_MAX] - g.l[i], i);
     }
     if (present[STEWART_LIMIT_BASE_CONE])
-        for (i = 0; i < 6; ++i) {
-            const double *c = reach + STEWART_R_PLATFORM_AXES + 3 * i;
-            double Rc[3];
-            for (j = 0; j < 3; ++j)   /* the platform joint's axis in N */
-                Rc[j] = dot3(g.R + 3 * j, c);
-            take(m, w, STEWART_LIMIT_BASE_CONE,
-                 RP(BASE_CONE) - angle(g.L + 3 * i, reach + STEWART_R_BASE_AXES + 3 * i), i);
-            take(m, w, STEWART_LIMIT_PLATFORM_CONE, RP(PLATFORM_CONE) - angle(g.L + 3 * i, Rc), i);
-        }
-    if (present[STEWART_LIMIT_LEG_CLEARANCE])
-        for (i = 0, pair = 0; i < 6; ++i)
-            for (j = i + 1; j < 6; ++j, ++pair)
-                take(m, w, STEWART_LIMIT_LEG_CLEARANCE,
-                     sqrt(segment_distance2(base + 3 * i, g.P + 3 * i, base + 3 * j, g.P + 3 * j))
-                         - 2.0 * RP(LEG_RADIUS), pair);
+        cone_margins(reach, &g, m, w);
+    if (present[STEWART_LIMIT_LEG_CLEARANCE]) {
+        double d2, least = HUGE_VAL;
+        int at = 0;
+        for (i = 0, pair = 0; i < 6; ++i)   /* the nearest pair, then one square root */
+            for (j = i + 1; j < 6; ++j, ++pair) {
+                d2 = segment_distance2(base + 3 * i, g.P + 3 * i, base + 3 * j, g.P + 3 * j);
+                if (d2 < least) {
+                    least = d2;
+                    at = pair;
+                }
+            }
+        take(m, w, STEWART_LIMIT_LEG_CLEARANCE, sqrt(least) - 2.0 * RP(LEG_RADIUS), at);
+    }
     if (present[STEWART_LIMIT_OBSTACLE]) {
         int o, n = (int)RP(N_OBSTACLES);
         for (o = 0; o < n && o < STEWART_MAX_OBSTACLES; ++o)
