@@ -3,6 +3,7 @@
    accelerations the drives' leg speed, acceleration and rack force), batched over poses, and
    the travel along a direction (the largest step before the first limit). The limits' bounds
    are the packed reach vector's (stewart_table.h STEWART_REACH_PARAMS). */
+#include <float.h>
 #include <math.h>
 #include "internal.h"
 
@@ -14,6 +15,9 @@
 /* The most poses one travel evaluates while marching (a bound on the loop; smax / hmax beyond
    it is refused). */
 #define MAX_MARCH 10000000.0
+/* The most refinement steps of a travel's bracket: the first half regula falsi, then
+   bisection (from at most hmax to tol: 2 x 64 halvings cover any double bracket). */
+#define MAX_REFINE 256
 
 /* Where the legs are at a pose: R, the platform joints P_i = x + R p_i and the legs L_i = P_i - a_i
    in N, their lengths. */
@@ -504,8 +508,9 @@ typedef struct {
     int present[STEWART_N_LIMITS];
 } travel_line;
 
-/* The binding limit at t on the line (-1: inside every one), where of it in *w. */
-static int binding_at(const travel_line *line, double t, int *w)
+/* The binding limit at t on the line (-1: inside every one), where of it in *w, and the least
+   margin in *least (of the sign-only evaluation: an estimate where surely positive). */
+static int binding_at(const travel_line *line, double t, int *w, double *least)
 {
     double f[6], q[6], m[STEWART_N_LIMITS];
     int ws[STEWART_N_LIMITS], k, b;
@@ -515,7 +520,25 @@ static int binding_at(const travel_line *line, double t, int *w)
         sw_frame_to_platform(line->frame, line->frame + 6, line->Rt, line->Rw, f, q);
     b = margins_of(line->params, line->reach, line->present, 1, line->frame ? q : f, 0, 0, m, ws);
     *w = b >= 0 ? ws[b] : -1;
+    *least = HUGE_VAL;
+    for (k = 0; k < STEWART_N_LIMITS; ++k)
+        *least = PY_MIN(*least, m[k]);
     return b;
+}
+
+/* The next point inside (lo, hi) where the least margin fl > 0 at lo, fh < 0 at hi: regula
+   falsi, kept at least tol / 2 from either end (each step shrinks the bracket by that much,
+   and the last one closes it), the midpoint when the margins give no usable line. */
+static double falsi_point(double lo, double hi, double fl, double fh, double tol)
+{
+    double c = lo + 0.5 * (hi - lo);
+    if (isfinite(fl) && isfinite(fh) && fl > fh)
+        c = lo + (hi - lo) * (fl / (fl - fh));
+    if (!(c > lo + 0.5 * tol))
+        c = lo + 0.5 * tol;
+    if (!(c < hi - 0.5 * tol))
+        c = hi - 0.5 * tol;
+    return c;
 }
 
 int stewart_reach_travel(const double *params, const double *reach, const double *frame,
@@ -523,8 +546,8 @@ int stewart_reach_travel(const double *params, const double *reach, const double
                          double tol, double *s, int *limit, int *where)
 {
     travel_line line;
-    int b, w;
-    double lo = 0.0, hi = 0.0, h;
+    int b, w, steps, side = 0;
+    double lo = 0.0, hi = 0.0, h, fl, fh;
     *s = 0.0;
     *limit = *where = -1;
     if (!finite6(q0) || !finite6(dir) || (frame && (!finite6(frame) || !finite6(frame + 6))) ||
@@ -539,7 +562,7 @@ int stewart_reach_travel(const double *params, const double *reach, const double
     if (frame)
         sw_frame_rotations(frame, frame + 6, line.Rt, line.Rw);
     stewart_reach_present(params, reach, 0, 0, line.present);
-    b = binding_at(&line, 0.0, &w);
+    b = binding_at(&line, 0.0, &w, &fl);
     if (b >= 0) {
         *limit = b;
         *where = w;
@@ -548,28 +571,41 @@ int stewart_reach_travel(const double *params, const double *reach, const double
     h = hmax / 64.0;
     for (;;) {   /* march: lo inside, until a pose outside (or smax) */
         hi = PY_MIN(lo + h, smax);
-        b = binding_at(&line, hi, &w);
+        b = binding_at(&line, hi, &w, &fh);
         if (b >= 0)
             break;
         lo = hi;
+        fl = fh;
         if (lo >= smax) {
             *s = smax;
             return 0;
         }
         h = PY_MIN(2.0 * h, hmax);
     }
-    while (hi - lo > tol) {   /* bisection: lo inside, hi outside */
-        double mid = lo + 0.5 * (hi - lo);
+    /* Illinois (regula falsi on the least margin, halving the margin of an end kept twice):
+       lo inside, hi outside; superlinear where bisection gains a bit a step. */
+    for (steps = 0; hi - lo > tol && steps < MAX_REFINE; ++steps) {
+        double mid = falsi_point(lo, hi, fl, fh, tol), fm;
         int bm, wm;
         if (!(mid > lo && mid < hi))
             break;
-        bm = binding_at(&line, mid, &wm);
+        if (steps >= MAX_REFINE / 2)   /* a safeguard: plain bisection */
+            mid = lo + 0.5 * (hi - lo);
+        bm = binding_at(&line, mid, &wm, &fm);
         if (bm >= 0) {
             hi = mid;
+            fh = PY_MIN(fm, -DBL_MIN);
             b = bm;
             w = wm;
+            if (side == 1)
+                fl *= 0.5;
+            side = 1;
         } else {
             lo = mid;
+            fl = PY_MAX(fm, DBL_MIN);
+            if (side == -1)
+                fh *= 0.5;
+            side = -1;
         }
     }
     *s = lo;
