@@ -176,17 +176,24 @@ void sw_singular_values(const double A[36], double s[6])
         int rotated = 0;
         for (j = 0; j < 6; ++j)
             n[j] = dot6(W + 6 * j, W + 6 * j);
-        for (r = 0; r < 15; r += 3) {
+        for (r = 0; r < 15; r += 3) {   /* the round's three rotations, then their work */
             double g[3], c[3], sn[3], t[3];
+            int on[3];
             for (m = 0; m < 3; ++m)
                 g[m] = dot6(W + 6 * JACOBI_PAIRS[r + m][0], W + 6 * JACOBI_PAIRS[r + m][1]);
             for (m = 0; m < 3; ++m) {
+                const double na = n[JACOBI_PAIRS[r + m][0]], nb = n[JACOBI_PAIRS[r + m][1]];
+                on[m] = g[m] * g[m] > JACOBI_TOL2 * (na * nb);
+                /* computed for every pair (a pair not on: of g = 1, never used), so that the
+                   three run side by side; never a division by zero, an overflow or a NaN */
+                jacobi_rotation(na, nb, on[m] ? g[m] : 1.0, c + m, sn + m, t + m);
+            }
+            for (m = 0; m < 3; ++m) {
                 const int a = JACOBI_PAIRS[r + m][0], b = JACOBI_PAIRS[r + m][1];
                 double *x = W + 6 * a, *y = W + 6 * b;
-                if (!(g[m] * g[m] > JACOBI_TOL2 * (n[a] * n[b])))
+                if (!on[m])
                     continue;
                 rotated = 1;
-                jacobi_rotation(n[a], n[b], g[m], c + m, sn + m, t + m);
                 for (i = 0; i < 6; ++i) {
                     const double xa = x[i], yb = y[i];
                     x[i] = c[m] * xa - sn[m] * yb;
