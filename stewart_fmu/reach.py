@@ -37,7 +37,7 @@ from .scene_reach import pair_legs
 
 LIMITS = table.LIMITS
 NAMES = tuple(lim.name for lim in LIMITS)
-TOL = 1e-9   # travel: bisection to this step (m or rad along a unit axis)
+TOL = 1e-9   # travel: the bracket of the first limit closed to this (m or rad along a unit axis)
 # travel's march: steps of at most the characteristic length / MARCH_STEPS (scaled units: the
 # angles times the characteristic length)
 MARCH_STEPS = 16
@@ -194,7 +194,7 @@ class Engine:
         for t in [0, s] (poses in `frame`), to `tol`: marching steps of at most `step`
         (default: the characteristic length / MARCH_STEPS, in scaled units) up to `reach`
         (default: a half turn of the angles, twice the longest leg (or 10 characteristic
-        lengths) of the position), then bisection."""
+        lengths) of the position), then regula falsi on the least margin."""
         q0 = np.ascontiguousarray(q0, dtype=float)
         d = np.ascontiguousarray(direction, dtype=float)
         if q0.shape != (6,) or d.shape != (6,):

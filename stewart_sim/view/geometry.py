@@ -17,6 +17,11 @@ platform delivers, each a vector in the platform frame felt at the pilot's head 
 [cueing] head), drawn from the head point x + R head along R f, `arrow_scale` metres per m/s^2:
 a shaft (a cylinder of unit length, stretched) and a cone of `arrow_tip` at its end.
 
+Frames (when the scene has [frames], stewart_fmu.frames): the pivot point, a sphere at
+x + R pivot on the platform; the tool frame's triad at x + R t_tool, axes R R_tool (moving with
+the platform); the user frame's triad at its pose on the base (fixed). A triad is three
+cylinders of `frames["axis_length"]` from its origin along its x, y and z axes.
+
 The page (stewart_sim/view/page.js) computes the same transforms per frame; `object_transforms`
 and `arrow_transforms` are the references the browser tests hold it to. Every matrix is 4x4, homogeneous, in N (metres),
 for meshcat's objects, whose cylinders have their axis along their local y (three.js).
@@ -71,6 +76,9 @@ class ViewGeometry:
     arrow_tip: float              # m, the cone's length (its base radius: 2.2 x the shaft's)
     cond_warn: float = COND_WARN
     stroke_margin: float = STROKE_MARGIN
+    # [frames] (None: the scene has none): "pivot" (3, in C), "tool" (pose in C), "user" (pose
+    # in N), "axis_length", "axis_radius" and "marker_radius" (m), plain lists and numbers
+    frames: dict | None = None
 
     @property
     def size(self) -> float:
@@ -107,7 +115,18 @@ def view_geometry(model: Model, *, controller: ControllerConfig | None) -> ViewG
         plate_thickness=0.12 * plat_r, force_scale=drive_peak_force(model, controller),
         head=np.array(cueing_config(model).head, dtype=float),
         arrow_scale=nice_ceiling(0.5 * radius / ARROW_REFERENCE), arrow_radius=0.4 * cyl_r,
-        arrow_tip=0.12 * radius)
+        arrow_tip=0.12 * radius, frames=frames_geometry(model, radius, cyl_r))
+
+
+def frames_geometry(model: Model, plate_radius: float, leg_radius: float) -> dict | None:
+    """The scene's [frames] as the view draws them (None without [frames]): triads half the
+    platform's radius long, the pivot a sphere a little smaller than a joint."""
+    f = model.frames
+    if f is None:
+        return None
+    return {"pivot": [float(v) for v in f.pivot], "tool": f.tool_pose.tolist(),
+            "user": [float(v) for v in f.user], "axis_length": 0.5 * plate_radius,
+            "axis_radius": 0.25 * leg_radius, "marker_radius": 0.9 * leg_radius}
 
 
 def drive_peak_force(model: Model, controller: ControllerConfig | None) -> float | None:
@@ -177,6 +196,32 @@ def object_transforms(geometry: ViewGeometry, q) -> dict[str, np.ndarray]:
         out[f"legs/{i + 1}/piston"] = homogeneous(turn, p - u * g.piston_length / 2)
         out[f"joints/base/{i + 1}"] = homogeneous(np.eye(3), a)
         out[f"joints/platform/{i + 1}"] = homogeneous(np.eye(3), p)
+    if g.frames is not None:
+        out.update(frame_transforms(g.frames, R, x))
+    return out
+
+
+TRIAD = ("x", "y", "z")   # a triad's axes, its cylinders' names
+
+
+def frame_transforms(frames: dict, R: np.ndarray, x: np.ndarray) -> dict[str, np.ndarray]:
+    """The frames' nodes at the pose (R, x): "frames/pivot" (the pivot's point, axes of N),
+    "frames/tool" (the tool frame: origin x + R t, axes R R_tool), "frames/user" (the user
+    frame's pose in N, fixed). A triad's axes hang below its node (triad_transforms)."""
+    tool = np.asarray(frames["tool"], dtype=float)
+    user = np.asarray(frames["user"], dtype=float)
+    return {"frames/pivot": homogeneous(np.eye(3), x + R @ np.asarray(frames["pivot"])),
+            "frames/tool": homogeneous(R @ rotation(tool), x + R @ tool[:3]),
+            "frames/user": homogeneous(rotation(user), user[:3])}
+
+
+def triad_transforms(length: float) -> dict[str, np.ndarray]:
+    """Each axis of a triad in its frame: the cylinder (along local y, centred) turned onto
+    the axis and moved half its length along it, so it runs from the origin to `length`."""
+    out = {}
+    for k, name in enumerate(TRIAD):
+        e = np.eye(3)[k]
+        out[name] = homogeneous(axis_to(e), e * length / 2)
     return out
 
 

@@ -9,13 +9,22 @@ Paths: "/stewart/<key>" for the actual mechanism and "/ghost/<key>" for the refe
 with the keys of geometry.object_transforms; "/stewart/limits/<i>" marks a leg at a stroke limit;
 "/cues/<name>/shaft" and "/cues/<name>/tip" are the specific-force arrows (geometry.CUES, with
 geometry.arrow_transforms) and "/cues/head" the head they start from, hidden until a frame
-has them.
+has them. With the scene's [frames]: "/stewart/frames/pivot" the pivot point and
+"/stewart/frames/<user|tool>/<x|y|z>" the two frames' triads (geometry.frame_transforms places
+the nodes, geometry.triad_transforms the axes below them).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from stewart_sim.view.geometry import CUES, ViewGeometry
+from stewart_sim.view.geometry import (
+    CUES,
+    TRIAD,
+    ViewGeometry,
+    frame_transforms,
+    rotation,
+    triad_transforms,
+)
 
 PLATE = 0x8fa3b8      # brushed aluminium, a little blue
 BASE = 0x5b6470
@@ -32,6 +41,8 @@ CUE_COLOURS = {"f_vehicle": 0x2e9e44, "f_delivered": 0x8e24aa}
 CUE_WIDTH = {"f_vehicle": 1.8, "f_delivered": 1.0}
 CUE_OPACITY = {"f_vehicle": 0.45, "f_delivered": 1.0}
 HEAD = 0x202020
+PIVOT = 0xffc107      # amber: a point, not a part of the machine
+TRIAD_COLOURS = {"x": 0xe53935, "y": 0x43a047, "z": 0x1e88e5}   # x red, y green, z blue
 
 def rgb(colour: int) -> list[float]:
     """0xRRGGBB as [r, g, b] in [0, 1] (meshcat's set_property "color" takes these, and alpha)."""
@@ -116,6 +127,26 @@ def cue_arrows(g: ViewGeometry) -> list[dict]:
     return cmds
 
 
+def frame_marks(g: ViewGeometry) -> list[dict]:
+    """The pivot's sphere and the user and tool frames' triads (nothing without [frames]),
+    placed at home (the page moves the pivot and the tool frame with the platform)."""
+    f = g.frames
+    if f is None:
+        return []
+    cmds = [set_object("/stewart/frames/pivot", sphere(f["marker_radius"]), PIVOT)]
+    axes = triad_transforms(f["axis_length"])
+    for frame in ("user", "tool"):
+        for axis in TRIAD:
+            path = f"/stewart/frames/{frame}/{axis}"
+            cmds += [set_object(path, cylinder(f["axis_length"], f["axis_radius"]),
+                                TRIAD_COLOURS[axis]),
+                     set_transform(path, axes[axis])]
+    home = np.asarray(g.home, dtype=float)
+    for key, T in frame_transforms(f, rotation(home), home[:3]).items():
+        cmds.append(set_transform(f"/stewart/{key}", T))
+    return cmds
+
+
 def scene_commands(g: ViewGeometry, with_ghost: bool, with_cues: bool = False) -> list[dict]:
     """Every command that builds the scene, in order."""
     size = g.size
@@ -135,6 +166,7 @@ def scene_commands(g: ViewGeometry, with_ghost: bool, with_cues: bool = False) -
                      [float(eye[0]), float(eye[2]), float(-eye[1])]),
     ]
     cmds += mechanism("/stewart", g, ghost=False)
+    cmds += frame_marks(g)
     if with_ghost:
         cmds += mechanism("/ghost", g, ghost=True)
     if with_cues:

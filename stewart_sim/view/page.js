@@ -71,6 +71,12 @@
       out[`joints/base/${i + 1}`] = matrix(I3, a);
       out[`joints/platform/${i + 1}`] = matrix(I3, p);
     }
+    if (G.frames) {                   // geometry.py frame_transforms
+      const F = G.frames;
+      out["frames/pivot"] = matrix(I3, add(x, apply(R, F.pivot), 1));
+      out["frames/tool"] = matrix(mul(R, rotation(F.tool)), add(x, apply(R, F.tool.slice(0, 3)), 1));
+      out["frames/user"] = matrix(rotation(F.user), F.user.slice(0, 3));
+    }
     return out;
   }
 

@@ -15,15 +15,16 @@ import pytest
 from controller.config import controller_config
 from controller.cosim import run_closed_loop
 from controller.moves import RUN_MOVE, run_reference
+from stewart_fmu import scene_from_dict
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_sim.scene.load import scene_of
 from stewart_sim.view.colours import force_colours, nice_ceiling
 from stewart_sim.view.data import view_data
-from stewart_sim.view.geometry import object_transforms, view_geometry
+from stewart_sim.view.geometry import TRIAD, object_transforms, triad_transforms, view_geometry
 from stewart_sim.view.html import live_view_html, write_view
 from stewart_sim.view.sources import run_table_view
 from tests.browser import canvas_pixels, open_view, settle
-from tests.helpers import level_model
+from tests.helpers import level_model, scene_dict
 
 DURATION = 1.0   # s of closed loop: out (0.3 s), hold, back, hold
 
@@ -255,6 +256,43 @@ def test_live_page_draws_what_the_url_serves(browser, micro_model):
         assert page.evaluate("window.stewartView.forceScale()") == pytest.approx(g.force_scale)
         assert not page.is_visible("#player")
         assert "t = 1.250 s" in page.inner_text("#info")
+    finally:
+        page.close()
+        server.shutdown()
+
+
+def test_live_page_draws_the_pivot_and_the_frames_where_geometry_puts_them(browser):
+    """A scene with [frames]: the page (page.js) moves the pivot's sphere and the tool triad
+    with the platform, and keeps the user triad on the base, as geometry.frame_transforms and
+    triad_transforms place them."""
+    data = scene_dict("micro")
+    data["frames"] = {"pivot": [0.001, -0.002, 0.01], "tool": [0.003, 0.001, 0.02, 0.1, -0.2, 0.3],
+                      "user": [0.02, -0.01, 0.005, -0.05, 0.15, 0.4]}
+    model = scene_from_dict(data)
+    g = view_geometry(model, controller=None)
+    q = model.home + np.array([0.01, -0.005, 0.01, 0.05, 0.0, -0.05])
+    handler = type("Handler", (_State,), {
+        "page": live_view_html(g, "/state").encode(),
+        "state": {"t": 0.5, "q": q.tolist(), "q_ref": None, "lengths": [0.13] * 6,
+                  "forces": [0.0] * 6, "cond": 2.5}})
+    server = ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    page = browser.new_page()
+    try:
+        page.goto(f"http://127.0.0.1:{server.server_address[1]}/")
+        page.wait_for_function("window.stewartView && window.stewartView.ready", timeout=60_000)
+        page.wait_for_function("window.stewartView.shown() !== null", timeout=60_000)
+        expected = object_transforms(g, q)
+        axes = triad_transforms(g.frames["axis_length"])
+        keys = ["frames/pivot"] + [f"frames/{f}/{a}" for f in ("user", "tool") for a in TRIAD]
+        got = world_matrices(page, keys)
+        np.testing.assert_allclose(got["frames/pivot"], expected["frames/pivot"], atol=1e-9)
+        for f in ("user", "tool"):
+            for a in TRIAD:
+                np.testing.assert_allclose(got[f"frames/{f}/{a}"],
+                                           expected[f"frames/{f}"] @ axes[a], atol=1e-9,
+                                           err_msg=f"{f}/{a}")
     finally:
         page.close()
         server.shutdown()

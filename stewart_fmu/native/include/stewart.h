@@ -606,8 +606,8 @@ long stewart_reach_binding(const double *params, const double *reach, long n, co
 /* The largest step s in [0, smax] with the pose q0 + t dir inside every geometric limit (and
    cond(J)) for all t in [0, s]; q0 and dir in a frame (frame: 12 doubles, mov then fix of
    stewart_frame_to_platform; NULL: the platform's own pose). Steps from 0 of at most hmax
-   (growing from hmax / 64), then bisection to tol between the last pose inside and the first
-   outside. *limit, *where: what ends it (-1: nothing within smax). Returns 0; 1 when q0 itself
+   (growing from hmax / 64), then regula falsi (Illinois) on the least margin to tol between the
+   last pose inside and the first outside. *limit, *where: what ends it (-1: nothing within smax). Returns 0; 1 when q0 itself
    is outside a limit (s = 0, *limit the binding one); -1 when q0, dir or frame is not finite,
    tol, hmax or smax not > 0, or smax / hmax above 156250 (the march's bound). A limit crossed
    and left again within one march step (< hmax) is not seen: hmax is the resolution. */

@@ -40,6 +40,7 @@ void sw_cholesky_forward(const double L[36], double b[6]);
 void sw_cholesky_back(const double L[36], double b[6]);
 void sw_symmetric_eigen(double A[36], double w[6], double V[36]);
 void sw_singular_values(const double A[36], double s[6]);
+double sw_condition(const double A[36]);
 
 /* kane.c */
 int sw_twist_forces(const double *p, const double x[6], const double v[6], const double acc[6],

@@ -50,7 +50,7 @@ int stewart_jacobian(const double *params, const double q[6], int scaled, double
 /* cond(J) = s_max / s_min of the scaled Jacobian, as numpy.linalg.cond (2-norm). */
 int stewart_condition_number(const double *params, const double q[6], double *cond)
 {
-    double J[36], s[6], smax = 0.0, smin = HUGE_VAL;
+    double J[36];
     int i;
     for (i = 0; i < 6; ++i)
         if (!isfinite(q[i])) {
@@ -58,18 +58,6 @@ int stewart_condition_number(const double *params, const double q[6], double *co
             return STEWART_NONFINITE;
         }
     stewart_jacobian(params, q, 1, J);
-    for (i = 0; i < 36; ++i)
-        if (!isfinite(J[i])) {
-            *cond = HUGE_VAL;
-            return STEWART_OK;
-        }
-    sw_singular_values(J, s);
-    for (i = 0; i < 6; ++i) {
-        if (s[i] > smax)
-            smax = s[i];
-        if (s[i] < smin)
-            smin = s[i];
-    }
-    *cond = smin > 0.0 ? smax / smin : HUGE_VAL;
+    *cond = sw_condition(J);
     return STEWART_OK;
 }

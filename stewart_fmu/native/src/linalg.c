@@ -1,5 +1,6 @@
-/* linalg.c -- small dense 6x6 solves and the singular values of a 6x6 (for cond(J),
-   kinematics.condition_number). No allocation; row-major. */
+/* linalg.c -- small dense 6x6 solves, the singular values and condition number of a 6x6
+   (cond(J): kinematics.condition_number, the feasibility engine) and a symmetric
+   eigen-solver (stiffness.c). No allocation; row-major. */
 #include <math.h>
 #include "internal.h"
 
@@ -122,49 +123,110 @@ int sw_cholesky_solve(double A[36], double b[6])
     return 1;
 }
 
+/* The 15 column pairs of a 6x6 in five rounds of three disjoint pairs (a round-robin): the
+   three rotations of a round are independent, so they overlap in the processor's pipeline. */
+static const int JACOBI_PAIRS[15][2] = {{0, 1}, {2, 3}, {4, 5}, {0, 2}, {1, 4}, {3, 5},
+                                        {0, 3}, {1, 5}, {2, 4}, {0, 4}, {1, 3}, {2, 5},
+                                        {0, 5}, {1, 2}, {3, 4}};
+
+/* A pair counts as orthogonal when gamma^2 <= (6 eps)^2 alpha beta: 6 eps bounds the rounding
+   of the computed 6-term product gamma, so a rotation below it would only turn noise (and
+   moves each singular value by less than 6 eps relative). */
+#define JACOBI_TOL2 (36.0 * 2.220446049250313e-16 * 2.220446049250313e-16)
+
+static double dot6(const double *x, const double *y)
+{
+    double a = 0.0;
+    int i;
+    for (i = 0; i < 6; ++i)
+        a += x[i] * y[i];
+    return a;
+}
+
+/* The rotation (c, s, t = s/c) that makes two columns of squared norms alpha, beta and product
+   g orthogonal (Rutishauser's smaller angle); for a small angle (|zeta| > 1e5) the series of
+   the same formulas, whose dropped terms are below 1e-20 relative. */
+static void jacobi_rotation(double alpha, double beta, double g, double *c, double *s,
+                            double *t)
+{
+    const double zeta = (beta - alpha) / (2.0 * g);
+    if (fabs(zeta) > 1e5) {
+        const double h = 0.5 / zeta;
+        *t = h * (1.0 - h * h);
+        *c = 1.0 - 0.5 * *t * *t;
+    } else {
+        *t = (zeta >= 0.0 ? 1.0 : -1.0) / (fabs(zeta) + sqrt(1.0 + zeta * zeta));
+        *c = 1.0 / sqrt(1.0 + *t * *t);
+    }
+    *s = *c * *t;
+}
+
 /* Singular values of a 6x6 (unordered) by one-sided Jacobi (Hestenes): plane rotations of
    column pairs until all columns are orthogonal to working precision; the singular values
-   are then the column norms. Each value is found to high relative accuracy. */
+   are then the column norms, each to high relative accuracy. The columns are kept as rows of
+   W (contiguous), their squared norms recomputed each sweep and updated by each rotation. */
 void sw_singular_values(const double A[36], double s[6])
 {
-    double W[36];
-    int i, j, k, sweep;
-    for (i = 0; i < 36; ++i)
-        W[i] = A[i];
+    double W[36], n[6];
+    int i, j, m, r, sweep;
+    for (i = 0; i < 6; ++i)
+        for (j = 0; j < 6; ++j)
+            W[j * 6 + i] = A[i * 6 + j];
     for (sweep = 0; sweep < 60; ++sweep) {
         int rotated = 0;
-        for (j = 0; j < 5; ++j) {
-            for (k = j + 1; k < 6; ++k) {
-                double alpha = 0.0, beta = 0.0, gamma = 0.0, zeta, t, c, sn;
-                for (i = 0; i < 6; ++i) {
-                    double a = W[i * 6 + j], b = W[i * 6 + k];
-                    alpha += a * a;
-                    beta += b * b;
-                    gamma += a * b;
-                }
-                if (gamma == 0.0 || fabs(gamma) <= 2.2e-16 * sqrt(alpha * beta))
+        for (j = 0; j < 6; ++j)
+            n[j] = dot6(W + 6 * j, W + 6 * j);
+        for (r = 0; r < 15; r += 3) {   /* the round's three rotations, then their work */
+            double g[3], c[3], sn[3], t[3];
+            int on[3];
+            for (m = 0; m < 3; ++m)
+                g[m] = dot6(W + 6 * JACOBI_PAIRS[r + m][0], W + 6 * JACOBI_PAIRS[r + m][1]);
+            for (m = 0; m < 3; ++m) {
+                const double na = n[JACOBI_PAIRS[r + m][0]], nb = n[JACOBI_PAIRS[r + m][1]];
+                on[m] = g[m] * g[m] > JACOBI_TOL2 * (na * nb);
+                /* computed for every pair (a pair not on: of g = 1, never used), so that the
+                   three run side by side; never a division by zero, an overflow or a NaN */
+                jacobi_rotation(na, nb, on[m] ? g[m] : 1.0, c + m, sn + m, t + m);
+            }
+            for (m = 0; m < 3; ++m) {
+                const int a = JACOBI_PAIRS[r + m][0], b = JACOBI_PAIRS[r + m][1];
+                double *x = W + 6 * a, *y = W + 6 * b;
+                if (!on[m])
                     continue;
                 rotated = 1;
-                zeta = (beta - alpha) / (2.0 * gamma);
-                t = (zeta >= 0.0 ? 1.0 : -1.0) / (fabs(zeta) + sqrt(1.0 + zeta * zeta));
-                c = 1.0 / sqrt(1.0 + t * t);
-                sn = c * t;
                 for (i = 0; i < 6; ++i) {
-                    double a = W[i * 6 + j], b = W[i * 6 + k];
-                    W[i * 6 + j] = c * a - sn * b;
-                    W[i * 6 + k] = sn * a + c * b;
+                    const double xa = x[i], yb = y[i];
+                    x[i] = c[m] * xa - sn[m] * yb;
+                    y[i] = sn[m] * xa + c[m] * yb;
                 }
+                n[a] -= t[m] * g[m];
+                n[b] += t[m] * g[m];
             }
         }
         if (!rotated)
             break;
     }
-    for (j = 0; j < 6; ++j) {
-        double n = 0.0;
-        for (i = 0; i < 6; ++i)
-            n += W[i * 6 + j] * W[i * 6 + j];
-        s[j] = sqrt(n);
+    for (j = 0; j < 6; ++j)
+        s[j] = sqrt(dot6(W + 6 * j, W + 6 * j));
+}
+
+/* The 2-norm condition number s_max / s_min of a 6x6 from sw_singular_values (as
+   numpy.linalg.cond); inf when A is singular or not finite. The one cond(J) of the core
+   (kinematics.c, reach.c). */
+double sw_condition(const double A[36])
+{
+    double s[6], smax = 0.0, smin = HUGE_VAL, cond;
+    int i;
+    for (i = 0; i < 36; ++i)
+        if (!isfinite(A[i]))
+            return HUGE_VAL;
+    sw_singular_values(A, s);
+    for (i = 0; i < 6; ++i) {
+        smax = PY_MAX(smax, s[i]);
+        smin = PY_MIN(smin, s[i]);
     }
+    cond = smax / smin;
+    return smin > 0.0 && isfinite(cond) ? cond : HUGE_VAL;
 }
 
 /* Eigenvalues w and eigenvectors (columns of V) of a symmetric 6x6 by cyclic Jacobi rotations

@@ -3,6 +3,7 @@
    accelerations the drives' leg speed, acceleration and rack force), batched over poses, and
    the travel along a direction (the largest step before the first limit). The limits' bounds
    are the packed reach vector's (stewart_table.h STEWART_REACH_PARAMS). */
+#include <float.h>
 #include <math.h>
 #include "internal.h"
 
@@ -14,6 +15,9 @@
 /* The most poses one travel evaluates while marching (a bound on the loop; smax / hmax beyond
    it is refused). */
 #define MAX_MARCH 10000000.0
+/* The most refinement steps of a travel's bracket: the first half regula falsi, then
+   bisection (from at most hmax to tol: 2 x 64 halvings cover any double bracket). */
+#define MAX_REFINE 256
 
 /* Where the legs are at a pose: R, the platform joints P_i = x + R p_i and the legs L_i = P_i - a_i
    in N, their lengths. */
@@ -42,12 +46,27 @@ static void geometry(const double *p, const double q[6], pose_geometry *g)
     }
 }
 
-/* The angle between a and b, accurate near 0 and pi (atan2 of |a x b| and a . b). */
-static double angle(const double a[3], const double b[3])
+/* The angle between a and b as the pair (|a x b|, a . b), each scaled by |a| |b|: its
+   atan2 is the angle, accurate near 0 and pi. */
+typedef struct {
+    double s, c;
+} angle_pair;
+
+static angle_pair angle_of(const double a[3], const double b[3])
 {
     double c0 = a[1] * b[2] - a[2] * b[1], c1 = a[2] * b[0] - a[0] * b[2];
     double c2 = a[0] * b[1] - a[1] * b[0];
-    return atan2(sqrt(c0 * c0 + c1 * c1 + c2 * c2), dot3(a, b));
+    angle_pair out;
+    out.s = sqrt(c0 * c0 + c1 * c1 + c2 * c2);
+    out.c = dot3(a, b);
+    return out;
+}
+
+/* Whether angle x is larger than angle y (both in [0, pi]: the sign of sin(x - y), as the
+   positive scales of the pairs do not change it); the largest of six then takes one atan2. */
+static int wider(angle_pair x, angle_pair y)
+{
+    return x.s * y.c - x.c * y.s > 0.0;
 }
 
 static double clamp01(double x)
@@ -247,9 +266,9 @@ void stewart_reach_present(const double *params, const double *reach, int has_qd
 }
 
 /* Whether cond(J) is surely below limit: ||J||_F ||J^-1||_F bounds cond_2(J) from above (LU
-   of J and six solves, ~0.2 us against the SVD's ~3 us); with a relative allowance of 1e-9 for
-   the rounding of the bound. A sign-only evaluation (travel) takes the SVD only when this
-   fails. */
+   of J and six solves, ~0.2 us against sw_condition's ~1.2 us); with a relative allowance of
+   1e-9 for the rounding of the bound. A sign-only evaluation (travel) takes the SVD only when
+   this fails. */
 static int cond_surely_below(const double J[36], double limit)
 {
     double LU[36], fj = 0.0, fi = 0.0;
@@ -276,12 +295,12 @@ static int cond_surely_below(const double J[36], double limit)
 }
 
 /* cond(J) of the scaled leg Jacobian at the geometry g (kinematics.c's rows [u_i, (R p_i) x
-   u_i / char_length], its singular values by the core's one SVD, linalg.c); with sign_only,
+   u_i / char_length], by the core's one sw_condition, linalg.c); with sign_only,
    0 when cond_surely_below the limit (the value is then not needed). */
 static double condition(const double *p, const double q[6], const pose_geometry *g,
                         double limit, int sign_only)
 {
-    double J[36], s[6], smax = 0.0, smin = HUGE_VAL, scale = 1.0 / p[STEWART_P_CHAR_LENGTH];
+    double J[36], scale = 1.0 / p[STEWART_P_CHAR_LENGTH];
     int i;
     for (i = 0; i < 6; ++i) {
         const double *L = g->L + 3 * i;
@@ -299,12 +318,35 @@ static double condition(const double *p, const double q[6], const pose_geometry 
             return HUGE_VAL;
     if (sign_only && cond_surely_below(J, limit))
         return 0.0;
-    sw_singular_values(J, s);
+    return sw_condition(J);
+}
+
+/* Both joint cones' margins: the cone less the widest angle of the six legs to the joint's
+   axis (the base joint's fixed in N, the platform joint's turning with R). */
+static void cone_margins(const double *reach, const pose_geometry *g, double *m, int *w)
+{
+    angle_pair base_wide = {0.0, 1.0}, top_wide = {0.0, 1.0};
+    int i, j, base_at = 0, top_at = 0;
     for (i = 0; i < 6; ++i) {
-        smax = PY_MAX(smax, s[i]);
-        smin = PY_MIN(smin, s[i]);
+        const double *c = reach + STEWART_R_PLATFORM_AXES + 3 * i;
+        double Rc[3];
+        angle_pair b, t;
+        for (j = 0; j < 3; ++j)   /* the platform joint's axis in N */
+            Rc[j] = dot3(g->R + 3 * j, c);
+        b = angle_of(g->L + 3 * i, reach + STEWART_R_BASE_AXES + 3 * i);
+        t = angle_of(g->L + 3 * i, Rc);
+        if (i == 0 || wider(b, base_wide)) {
+            base_wide = b;
+            base_at = i;
+        }
+        if (i == 0 || wider(t, top_wide)) {
+            top_wide = t;
+            top_at = i;
+        }
     }
-    return smin > 0.0 ? smax / smin : HUGE_VAL;
+    take(m, w, STEWART_LIMIT_BASE_CONE, RP(BASE_CONE) - atan2(base_wide.s, base_wide.c), base_at);
+    take(m, w, STEWART_LIMIT_PLATFORM_CONE, RP(PLATFORM_CONE) - atan2(top_wide.s, top_wide.c),
+         top_at);
 }
 
 /* The geometric limits' and cond(J)'s margins; with sign_only, a margin that is surely
@@ -325,21 +367,20 @@ static void geometric_margins(const double *p, const double *reach, const double
             take(m, w, STEWART_LIMIT_STROKE_MAX, p[STEWART_P_LEG_MAX] - g.l[i], i);
     }
     if (present[STEWART_LIMIT_BASE_CONE])
-        for (i = 0; i < 6; ++i) {
-            const double *c = reach + STEWART_R_PLATFORM_AXES + 3 * i;
-            double Rc[3];
-            for (j = 0; j < 3; ++j)   /* the platform joint's axis in N */
-                Rc[j] = dot3(g.R + 3 * j, c);
-            take(m, w, STEWART_LIMIT_BASE_CONE,
-                 RP(BASE_CONE) - angle(g.L + 3 * i, reach + STEWART_R_BASE_AXES + 3 * i), i);
-            take(m, w, STEWART_LIMIT_PLATFORM_CONE, RP(PLATFORM_CONE) - angle(g.L + 3 * i, Rc), i);
-        }
-    if (present[STEWART_LIMIT_LEG_CLEARANCE])
-        for (i = 0, pair = 0; i < 6; ++i)
-            for (j = i + 1; j < 6; ++j, ++pair)
-                take(m, w, STEWART_LIMIT_LEG_CLEARANCE,
-                     sqrt(segment_distance2(base + 3 * i, g.P + 3 * i, base + 3 * j, g.P + 3 * j))
-                         - 2.0 * RP(LEG_RADIUS), pair);
+        cone_margins(reach, &g, m, w);
+    if (present[STEWART_LIMIT_LEG_CLEARANCE]) {
+        double d2, least = HUGE_VAL;
+        int at = 0;
+        for (i = 0, pair = 0; i < 6; ++i)   /* the nearest pair, then one square root */
+            for (j = i + 1; j < 6; ++j, ++pair) {
+                d2 = segment_distance2(base + 3 * i, g.P + 3 * i, base + 3 * j, g.P + 3 * j);
+                if (d2 < least) {
+                    least = d2;
+                    at = pair;
+                }
+            }
+        take(m, w, STEWART_LIMIT_LEG_CLEARANCE, sqrt(least) - 2.0 * RP(LEG_RADIUS), at);
+    }
     if (present[STEWART_LIMIT_OBSTACLE]) {
         int o, n = (int)RP(N_OBSTACLES);
         for (o = 0; o < n && o < STEWART_MAX_OBSTACLES; ++o)
@@ -467,8 +508,9 @@ typedef struct {
     int present[STEWART_N_LIMITS];
 } travel_line;
 
-/* The binding limit at t on the line (-1: inside every one), where of it in *w. */
-static int binding_at(const travel_line *line, double t, int *w)
+/* The binding limit at t on the line (-1: inside every one), where of it in *w, and the least
+   margin in *least (of the sign-only evaluation: an estimate where surely positive). */
+static int binding_at(const travel_line *line, double t, int *w, double *least)
 {
     double f[6], q[6], m[STEWART_N_LIMITS];
     int ws[STEWART_N_LIMITS], k, b;
@@ -478,7 +520,25 @@ static int binding_at(const travel_line *line, double t, int *w)
         sw_frame_to_platform(line->frame, line->frame + 6, line->Rt, line->Rw, f, q);
     b = margins_of(line->params, line->reach, line->present, 1, line->frame ? q : f, 0, 0, m, ws);
     *w = b >= 0 ? ws[b] : -1;
+    *least = HUGE_VAL;
+    for (k = 0; k < STEWART_N_LIMITS; ++k)
+        *least = PY_MIN(*least, m[k]);
     return b;
+}
+
+/* The next point inside (lo, hi) where the least margin fl > 0 at lo, fh < 0 at hi: regula
+   falsi, kept at least tol / 2 from either end (each step shrinks the bracket by that much,
+   and the last one closes it), the midpoint when the margins give no usable line. */
+static double falsi_point(double lo, double hi, double fl, double fh, double tol)
+{
+    double c = lo + 0.5 * (hi - lo);
+    if (isfinite(fl) && isfinite(fh) && fl > fh)
+        c = lo + (hi - lo) * (fl / (fl - fh));
+    if (!(c > lo + 0.5 * tol))
+        c = lo + 0.5 * tol;
+    if (!(c < hi - 0.5 * tol))
+        c = hi - 0.5 * tol;
+    return c;
 }
 
 int stewart_reach_travel(const double *params, const double *reach, const double *frame,
@@ -486,8 +546,8 @@ int stewart_reach_travel(const double *params, const double *reach, const double
                          double tol, double *s, int *limit, int *where)
 {
     travel_line line;
-    int b, w;
-    double lo = 0.0, hi = 0.0, h;
+    int b, w, steps, side = 0;
+    double lo = 0.0, hi = 0.0, h, fl, fh;
     *s = 0.0;
     *limit = *where = -1;
     if (!finite6(q0) || !finite6(dir) || (frame && (!finite6(frame) || !finite6(frame + 6))) ||
@@ -502,7 +562,7 @@ int stewart_reach_travel(const double *params, const double *reach, const double
     if (frame)
         sw_frame_rotations(frame, frame + 6, line.Rt, line.Rw);
     stewart_reach_present(params, reach, 0, 0, line.present);
-    b = binding_at(&line, 0.0, &w);
+    b = binding_at(&line, 0.0, &w, &fl);
     if (b >= 0) {
         *limit = b;
         *where = w;
@@ -511,28 +571,41 @@ int stewart_reach_travel(const double *params, const double *reach, const double
     h = hmax / 64.0;
     for (;;) {   /* march: lo inside, until a pose outside (or smax) */
         hi = PY_MIN(lo + h, smax);
-        b = binding_at(&line, hi, &w);
+        b = binding_at(&line, hi, &w, &fh);
         if (b >= 0)
             break;
         lo = hi;
+        fl = fh;
         if (lo >= smax) {
             *s = smax;
             return 0;
         }
         h = PY_MIN(2.0 * h, hmax);
     }
-    while (hi - lo > tol) {   /* bisection: lo inside, hi outside */
-        double mid = lo + 0.5 * (hi - lo);
+    /* Illinois (regula falsi on the least margin, halving the margin of an end kept twice):
+       lo inside, hi outside; superlinear where bisection gains a bit a step. */
+    for (steps = 0; hi - lo > tol && steps < MAX_REFINE; ++steps) {
+        double mid = falsi_point(lo, hi, fl, fh, tol), fm;
         int bm, wm;
         if (!(mid > lo && mid < hi))
             break;
-        bm = binding_at(&line, mid, &wm);
+        if (steps >= MAX_REFINE / 2)   /* a safeguard: plain bisection */
+            mid = lo + 0.5 * (hi - lo);
+        bm = binding_at(&line, mid, &wm, &fm);
         if (bm >= 0) {
             hi = mid;
+            fh = PY_MIN(fm, -DBL_MIN);
             b = bm;
             w = wm;
+            if (side == 1)
+                fl *= 0.5;
+            side = 1;
         } else {
             lo = mid;
+            fl = PY_MAX(fm, DBL_MIN);
+            if (side == -1)
+                fh *= 0.5;
+            side = -1;
         }
     }
     *s = lo;

@@ -17,7 +17,7 @@ thinner than h, are missed.
 
 The orientation workspace at a position (`tilts`): the largest tilt from the start's angles
 along each of TILT_STEPS azimuths of the tilt axis in the thx-thy plane, by the engine's
-travel (march, then bisection to 1e-9 rad).
+travel (march, then regula falsi to 1e-9 rad).
 """
 from __future__ import annotations
 
