@@ -69,6 +69,9 @@ class Bounds:
     watchdog_range: tuple[float, float] = WATCHDOG_RANGE
     cond_max_limit: float = COND_MAX_LIMIT
     stream_max: float = STREAM_MAX
+    # the pose's own limits (controller.capability.geometric_engine: joint cones, leg and
+    # obstacle clearance), None: not checked
+    reach: Any = None
 
     def setpoint(self, msg: Any, flags: int, rate_flag: int, force_flag: int,
                  force_rate_flag: int) -> str | None:
@@ -100,11 +103,12 @@ def overshoot_room(axis: Any, holding_force: float) -> float:
 
 
 def device_bounds(leg_min: float, leg_max: float, axis: Any, gains: Any,
-                  room: float = 0.0) -> Bounds:
+                  room: float = 0.0, reach: Any = None) -> Bounds:
     """The bounds of a device whose stroke is [leg_min, leg_max], whose drive is `axis`
     (controller.drive.AxisModel, with the scene's motor ratings) and whose designed gains are
     `gains` (controller.design.PidGains); setpoint lengths keep `room` (overshoot_room) free at
-    each end of the stroke."""
+    each end of the stroke; a setpoint's pose stays inside the limits of `reach` (a
+    stewart_fmu.reach.Engine of the pose's own limits)."""
     m = axis.motor
     kf, ke = axis.force_constant, axis.emf_constant
     return Bounds(
@@ -114,7 +118,7 @@ def device_bounds(leg_min: float, leg_max: float, axis: Any, gains: Any,
         force_rate_max=FORCE_RATE_MARGIN * kf * m.voltage_limit / m.inductance,
         gain_max={k: GAIN_FACTOR * getattr(gains, k) for k in ("kp", "ki", "kd")},
         voltage_range=(LIMIT_FLOOR * m.voltage_limit, m.voltage_limit),
-        current_range=(LIMIT_FLOOR * m.current_limit, m.current_limit))
+        current_range=(LIMIT_FLOOR * m.current_limit, m.current_limit), reach=reach)
 
 
 def check_rate(hz: Any) -> str | None:
