@@ -18,6 +18,7 @@ import numpy as np
 from stewart_fmu import table
 from stewart_fmu.model import Model
 from stewart_fmu.reach import LIMITS, DriveBounds, Engine
+from stewart_fmu.reach_params import COND_LIMIT
 
 from .config import ControllerConfig
 from .drive import AxisModel, axis_model
@@ -49,6 +50,53 @@ class Margins:
                 raise ValueError(f"envelope margin '{name}' must be in [0, 1), got {x!r}")
 
 
+# What the offline consumers keep free of the limits: excite's excitation (stroke: a fraction
+# of the stroke at each end; the drives' limits and cond(J): at most a fraction of each)
+EXCITE_STROKE = 0.05
+EXCITE_FRACTION = 0.8
+# The emulated device's headroom over the drives' limits (hil.input_bounds): planned moves may
+# ask more than a drive delivers (it then saturates); the device refuses absurd values, not
+# ambitious ones
+DEVICE_RATE = 10.0      # setpoint rate: this many times the no-load speed
+DEVICE_FORCE = 50.0     # feed-forward force: this many times the peak force
+
+
+@dataclass(frozen=True)
+class Capability:
+    """What one scene's mechanism and drives can do: its stroke (None: not limited), its drive
+    (None without [drive] or [controller]), the drives' bounds, the motor's voltage limit and
+    the cond(J) limit; `engine()` the feasibility engine over them."""
+
+    model: Model
+    axis: AxisModel | None
+    drive: DriveBounds | None
+    voltage: float | None      # V, the motor's voltage_limit
+    cond: float = COND_LIMIT
+
+    @property
+    def leg_min(self) -> float | None:
+        return self.model.leg_min
+
+    @property
+    def leg_max(self) -> float | None:
+        return self.model.leg_max
+
+    @property
+    def force(self) -> float | None:
+        """N, the drives' peak rack force Kf I_max (None: no drive)."""
+        return None if self.drive is None else self.drive.force
+
+    def engine(self) -> Engine:
+        return Engine(self.model, self.drive, self.cond)
+
+
+def capability(model: Model, config: ControllerConfig | None) -> Capability:
+    """The scene's capability (its [drive] and [controller.motor] when it has both)."""
+    axis = axis_of(model, config)
+    return Capability(model, axis, bounds_of(axis),
+                      None if axis is None else axis.motor.voltage_limit)
+
+
 def axis_of(model: Model, config: ControllerConfig | None) -> AxisModel | None:
     """The drive of the scene's legs (controller.drive.axis_model with the scene's motor and
     load), None without a [drive] or a [controller] table."""
@@ -73,7 +121,7 @@ def drive_bounds(model: Model, config: ControllerConfig | None) -> DriveBounds |
 def engine(model: Model, config: ControllerConfig | None) -> Engine:
     """The scene's engine: its geometric limits, its drives' bounds when it has them, the
     default cond(J) limit."""
-    return Engine(model, drive_bounds(model, config))
+    return capability(model, config).engine()
 
 
 def geometric_engine(model: Model) -> Engine:
