@@ -9,7 +9,7 @@ one controller period per `tick()`, and returns the messages it wants to send (p
 (hil.handlers: message id -> function of the device and the message; the commands in a second
 table), every tick to the servo, the watchdog and fault rules (hil.faults) and the telemetry due
 (hil.streams, over the message builders of hil.downlink). Its other parts: the mode and its one
-transition table (hil.modes: DISARMED, ARMED, TRACKING, HOMING, TRIPPED), the plant and the six
+transition table (hil.operating_mode: DISARMED, ARMED, TRACKING, HOMING, TRIPPED), the plant and the six
 drive loops (hil.servo, whose tick is the co-simulation master's `controller.axis.servo_step`),
 the setpoint checks (hil.setpoint), the parameter table (hil.params), the input bounds
 (hil.input_bounds), the STATUSTEXT rules (hil.statustext, hil.throttle) and signing
@@ -26,8 +26,9 @@ servo's overshoot room at each end, hil.input_bounds.overshoot_room), forward ki
 no pose for the lengths (Newton from the last accepted pose), cond(J) at that pose exceeds the
 parameter SP_COND_MAX, or the pose violates a joint cone or a leg or obstacle clearance of the
 scene's [joints] and [clearance] tables (controller.capability.geometric_engine; the text names
-the limit, the leg or pair, and the margin). A valid setpoint is the event SETPOINT: applied while armed, ignored and
-counted while disarmed (hil.modes). Rates are used with STEWART_SETPOINT_FLAG_RATE_VALID, forces
+the limit, the leg or pair, and the margin). A valid setpoint is the event SETPOINT: applied
+while armed, ignored and counted while disarmed (hil.operating_mode). Rates are used with
+STEWART_SETPOINT_FLAG_RATE_VALID, forces
 with STEWART_SETPOINT_FLAG_FORCE_VALID (the feed-forward of hil.servo; di/dt from the force rate
 with STEWART_SETPOINT_FLAG_FORCE_RATE_VALID, else 0). HOLD holds the current leg lengths.
 
@@ -92,13 +93,13 @@ from controller.capability import geometric_engine
 from controller.config import ControllerConfig, controller_config
 from controller.design import PidGains
 from controller.plants import PlantStepError
-from hil import faults, handlers, input_bounds, modes, params, streams, throttle
+from hil import faults, handlers, input_bounds, operating_mode, params, streams, throttle
 from hil import mavlink_stewart as ms
 from hil import statustext as texts
 from hil.device_state import DeviceCounters, DeviceState
 from hil.errors import DeviceError
 from hil.framing import Receiver, pack
-from hil.modes import Event, Mode
+from hil.operating_mode import Event, Mode
 from hil.observe import Latest, publish_to, take_snapshot
 from hil.sensors import SensorConfig, Sensors
 from hil.servo import Servo
@@ -168,17 +169,17 @@ class Device:
 
     @property
     def mode(self) -> Mode:
-        """The device's mode (hil.modes)."""
+        """The device's mode (hil.operating_mode)."""
         return self.state.mode
 
     @property
     def armed(self) -> bool:
-        return modes.armed(self.state.mode)
+        return operating_mode.armed(self.state.mode)
 
     @property
     def watchdog_state(self) -> int:
         """The watchdog's state as DRIVE_STATUS sends it (STEWART_WATCHDOG_*)."""
-        return modes.WATCHDOG_STATE[self.state.mode]
+        return operating_mode.WATCHDOG_STATE[self.state.mode]
 
     @property
     def watchdog(self) -> float:
@@ -205,8 +206,8 @@ class Device:
         return self.k / self.rate
 
     def fire(self, event: Event) -> str | None:
-        """Move the mode as hil.modes.transition says; the refusal (mode unchanged) or None."""
-        t = modes.transition(self.state.mode, event)
+        """Move the mode as hil.operating_mode.transition says; the refusal (mode unchanged) or None."""
+        t = operating_mode.transition(self.state.mode, event)
         if t.refusal is None:
             self.state.mode = t.mode
             if t.mode is Mode.DISARMED:

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any, Callable, Protocol
 
 import numpy as np
 
-from hil.modes import Event, Mode
+from hil.operating_mode import Event, Mode
 
 if TYPE_CHECKING:
     from hil.input_bounds import Bounds
@@ -58,7 +58,7 @@ class DeviceState:
     """What the handlers and the tick's rules read and move, besides the servo."""
 
     last_pose: np.ndarray            # the pose of the last accepted setpoint (at start: home)
-    mode: Mode = Mode.DISARMED       # moved only by Device.fire (hil.modes.transition)
+    mode: Mode = Mode.DISARMED       # moved only by Device.fire (hil.operating_mode.transition)
     last_setpoint_k: int = 0         # tick of the last valid setpoint
     last_setpoint_wall: float = 0.0  # its time on Device.clock (served in real time)
     ignored_said: bool = False       # one "setpoints ignored" per disarmed period

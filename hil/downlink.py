@@ -22,7 +22,7 @@ import numpy as np
 
 from hil import mavlink_stewart as ms
 from hil import protocol
-from hil.modes import WATCHDOG_STATE, Mode, armed
+from hil.operating_mode import WATCHDOG_STATE, Mode, armed
 from stewart_fmu.rotations import euler_motion
 
 #: Default telemetry rates (Hz); HEARTBEAT is always 1 Hz.

@@ -1,5 +1,5 @@
 """What a tick of the device does when the watchdog expires, the plant refuses a step, or a
-number fails: hold, move the mode (hil.modes), say so once. The device never exits on numbers.
+number fails: hold, move the mode (hil.operating_mode), say so once. The device never exits on numbers.
 
 Every function takes the device (`hil.device.Device`) and returns the STATUSTEXT to send.
 """
@@ -12,7 +12,7 @@ import numpy as np
 from hil import mavlink_stewart as ms
 from hil import params
 from hil.device_state import DeviceView
-from hil.modes import Event
+from hil.operating_mode import Event
 
 
 def watchdog_expired(dev: DeviceView) -> bool:

@@ -6,7 +6,7 @@ MAV_RESULT_UNSUPPORTED). Every function takes the device (`hil.device.Device`: i
 drives, its replies) and the message, and returns the messages to send back; `Device.receive`
 looks the function up, calls it, and drops and counts a message whose handling raises. What each
 message does is the module doc of hil.device; the mode moves only through `Device.fire`
-(hil.modes).
+(hil.operating_mode).
 """
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ import numpy as np
 from hil import mavlink_stewart as ms
 from hil import params
 from hil.device_state import DeviceView
-from hil.modes import Event, Mode
+from hil.operating_mode import Event, Mode
 from hil.setpoint import check_setpoint, flagged
 
 Handler = Callable[[DeviceView, Any], list[Any]]

@@ -8,7 +8,7 @@ unstable sampled loop). One tick: measure the leg lengths and rates, one
 motor currents over the sample), step the plant by the controller period with the mean motor
 torques.
 
-The references are what the device's mode (hil.modes) asks: `hold` (the lengths measured now, at
+The references are what the device's mode (hil.operating_mode) asks: `hold` (the lengths measured now, at
 rest), `follow` (a setpoint's lengths, rates and optional force feed-forward: the voltage
 R i + L di/dt + Ke' ldot_ref with i = F / Kf) or the homing quintic (`start_homing`,
 `homing_reference`). When a feed-forward stream begins or ends the integral takes its static part

@@ -126,6 +126,12 @@ def _check_shapes(names, arrays) -> None:
                 f"'{name}' must have shape (N, 6) or (6,) like '{names[0]}' {shape}, got {a.shape}")
 
 
+def raise_status(model: Model, status: int, q) -> None:
+    """The typed error of a kernel's status at one pose q (nothing when it is OK)."""
+    if status != core.OK:
+        _raise(model, status, 0, ("q",), (np.asarray(q),))
+
+
 def _raise(model: Model, status: int, index: int, names, rows) -> None:
     """Turn a kernel status into the typed error, naming the sample and the values."""
 

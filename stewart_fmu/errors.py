@@ -79,3 +79,8 @@ class SweepError(StewartError, ValueError):
         where = f"{source}: " if source else ""
         what = "" if key is None else f"grid key '{key}': "
         super().__init__(f"{where}{what}{reason}")
+
+
+class UnstablePoseError(KinematicsError):
+    """The pose is not a stable static equilibrium on the elastic legs: the loads' geometric
+    stiffness outweighs the springs in some direction (the stiffness is not positive definite)."""

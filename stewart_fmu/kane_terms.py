@@ -27,6 +27,7 @@ class PartialVelocities:
     lower_linear: np.ndarray      # (6 legs, 6, 3) V_jA_i of the lower parts' centres of mass
     upper_linear: np.ndarray      # (6 legs, 6, 3) V_jB_i
     leg_angular: np.ndarray       # (6 legs, 6, 3) omega_jL_i, shared by A_i and B_i
+    payload_linear: np.ndarray | None = None   # (6, 3) V_j of the payload's centre of mass
 
 
 @dataclass(frozen=True)
@@ -72,11 +73,22 @@ def twist_partials(model: Model, q) -> tuple[np.ndarray, ...]:
 
 
 def partial_velocities(model: Model, q) -> PartialVelocities:
-    """V_jP, omega_jP, V_jA_i, V_jB_i, omega_jL_i with respect to the leg rates (Eqs. 1-2)."""
-    Jinv = np.linalg.inv(inverse_kinematics(model, q, with_cond=False).jacobian)  # nu = J^-1 ldot
+    """V_jP, omega_jP, V_jA_i, V_jB_i, omega_jL_i with respect to the leg rates (Eqs. 1-2), and
+    with a [payload] its centre of mass's V_j (it turns with the platform: omega_jP)."""
+    kin = inverse_kinematics(model, q, with_cond=False)
+    Jinv = np.linalg.inv(kin.jacobian)  # nu = J^-1 ldot
     VP, WP, VA, VB, WL = twist_partials(model, q)
     speeds = lambda T: np.swapaxes(T @ Jinv, -1, -2)
-    return PartialVelocities(speeds(VP), speeds(WP), speeds(VA), speeds(VB), speeds(WL))
+    payload = None
+    if model.payload is not None:   # v + omega x rho, rho = R c
+        rho = kin.rotation @ np.asarray(model.payload.com, dtype=float)
+        payload = speeds(np.hstack([np.eye(3), -_skew(rho)]))
+    return PartialVelocities(speeds(VP), speeds(WP), speeds(VA), speeds(VB), speeds(WL), payload)
+
+
+def _payload_inertia_n(model: Model, R: np.ndarray) -> np.ndarray:
+    """The payload's inertia tensor about its centre of mass, in N."""
+    return R @ model.payload.inertia_tensor @ R.T
 
 
 def body_motion(model: Model, q, qd, qdd) -> BodyMotion:
@@ -103,6 +115,11 @@ def inertia_forces(model: Model, q, qd, qdd) -> dict[str, tuple[np.ndarray, np.n
     wc, ac = R.T @ om, R.T @ al                               # in C, where I_P is diagonal
     TP = R @ -(Ic * ac + np.cross(wc, Ic * wc))               # Eq. 4 then Eq. 5
     out = {"platform": (-model.platform_mass * a, TP)}
+    if model.payload is not None:   # a body off C: its centre of mass's acceleration, Eq. 4 in N
+        rho = R @ np.asarray(model.payload.com, dtype=float)
+        I_N = _payload_inertia_n(model, R)
+        a_c = a + np.cross(al, rho) + np.cross(om, np.cross(om, rho))
+        out["payload"] = (-model.payload.mass * a_c, -(I_N @ al + np.cross(om, I_N @ om)))
     mA, _, ItA, IaA, mB, _, ItB, IaB = _leg_constants(model)
     w, alL = mot.leg
     uu = u[:, :, None] * u[:, None, :]
@@ -119,6 +136,8 @@ def generalized_inertia_forces(model: Model, q, qd, qdd) -> np.ndarray:
     pv = partial_velocities(model, q)
     f = inertia_forces(model, q, qd, qdd)
     K = pv.platform_linear @ f["platform"][0] + pv.platform_angular @ f["platform"][1]
+    if model.payload is not None:
+        K = K + pv.payload_linear @ f["payload"][0] + pv.platform_angular @ f["payload"][1]
     if model.legs is not None:
         K = K + np.einsum("ijk,ik->j", pv.lower_linear, f["lower"][0])
         K = K + np.einsum("ijk,ik->j", pv.upper_linear, f["upper"][0])
@@ -132,6 +151,8 @@ def gravity_terms(model: Model, q) -> np.ndarray:
     mA, _, _, _, mB, _, _, _ = _leg_constants(model)
     g = model.gravity
     K = pv.platform_linear @ (model.platform_mass * g)
+    if model.payload is not None:
+        K = K + pv.payload_linear @ (model.payload.mass * g)
     if model.legs is not None:
         K = K + (pv.lower_linear @ (mA * g) + pv.upper_linear @ (mB * g)).sum(axis=0)
     return K
@@ -166,6 +187,9 @@ def mass_matrix(model: Model, q) -> np.ndarray:
     I_P = kin.rotation @ np.diag(model.platform_inertia) @ kin.rotation.T
     Mm = (model.platform_mass * pv.platform_linear @ pv.platform_linear.T
           + pv.platform_angular @ I_P @ pv.platform_angular.T)
+    if model.payload is not None:
+        Mm = Mm + (model.payload.mass * pv.payload_linear @ pv.payload_linear.T
+                   + pv.platform_angular @ _payload_inertia_n(model, kin.rotation) @ pv.platform_angular.T)
     if model.legs is not None:
         mA, _, ItA, IaA, mB, _, ItB, IaB = _leg_constants(model)
         u = kin.unit_vectors

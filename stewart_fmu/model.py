@@ -14,7 +14,7 @@ import numpy as np
 
 from .native.core import NativeParams
 from .reach_params import ClearanceParams, FrameParams, JointParams, pack_reach
-from .table import N_PARAMS, offset
+from .table import ELASTIC, N_ELASTIC, N_PARAMS, offset
 
 # Layout of Model.params, the flat float64 vector the compiled kernels read: the offsets of
 # the table (native/include/stewart_table.h, STEWART_PARAMS), read from the core.
@@ -29,6 +29,8 @@ P_CHAR_LENGTH = offset("CHAR_LENGTH")
 P_BASE, P_PLATFORM = offset("BASE"), offset("PLATFORM")
 P_HAS_TRANSMISSION = offset("HAS_TRANSMISSION")
 P_STIFFNESS, P_DAMPING = offset("STIFFNESS"), offset("DAMPING")
+P_HAS_PAYLOAD, P_PAYLOAD_MASS = offset("HAS_PAYLOAD"), offset("PAYLOAD_MASS")
+P_PAYLOAD_COM, P_PAYLOAD_INERTIA = offset("PAYLOAD_COM"), offset("PAYLOAD_INERTIA")
 
 
 @dataclass(frozen=True)
@@ -115,6 +117,37 @@ class TransmissionParams:
 
 
 @dataclass(frozen=True)
+class StiffnessParams:
+    """[stiffness]: the legs' axial springs (per leg) and the joints' flexure stiffness
+    (stewart_table.h STEWART_ELASTIC says how they combine)."""
+
+    leg: PerLeg                       # N/m between the joints
+    joint_bending: float | None = None   # N m/rad, each joint; None: ball joints
+    joint_torsion: float | None = None   # N m/rad, each joint about the leg; None: free
+
+    @property
+    def leg_legs(self) -> np.ndarray:
+        """The six legs' axial stiffness (N/m)."""
+        return per_leg(self.leg)
+
+
+@dataclass(frozen=True)
+class PayloadParams:
+    """[payload]: a rigid body fixed to the platform."""
+
+    mass: float                 # kg
+    com: tuple[float, float, float]          # m, in C
+    inertia: tuple[float, ...]  # kg m^2 about its com in C: Ixx, Iyy, Izz (, Ixy, Ixz, Iyz)
+
+    @property
+    def inertia_tensor(self) -> np.ndarray:
+        """The symmetric 3x3 inertia tensor about the payload's com, in C's axes."""
+        i = np.zeros(6)
+        i[:len(self.inertia)] = self.inertia
+        return np.array([[i[0], i[3], i[4]], [i[3], i[1], i[5]], [i[4], i[5], i[2]]])
+
+
+@dataclass(frozen=True)
 class Model:
     """Immutable parameters of one Stewart mechanism."""
 
@@ -136,9 +169,13 @@ class Model:
     joints: JointParams | None = None          # [joints]: the joints' cones (reach_params.py)
     clearance: ClearanceParams | None = None   # [clearance]: leg capsules, obstacles
     frames: FrameParams | None = None          # [frames]: pivot point, user and tool frames
+    stiffness: StiffnessParams | None = None   # [stiffness]: the legs' and joints' springs
+    payload: PayloadParams | None = None       # [payload]: a body fixed to the platform (in params)
     params: np.ndarray = field(init=False, repr=False)
     reach: np.ndarray = field(init=False, repr=False)   # packed reach vector (reach.c)
     native: NativeParams = field(init=False, repr=False, compare=False)  # params for the C core
+    # [stiffness] and [payload] for the stiffness and modes kernels (STEWART_ELASTIC layout)
+    elastic: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         for name in ("gravity", "base_joints", "platform_joints", "home", "platform_inertia"):
@@ -150,6 +187,7 @@ class Model:
         object.__setattr__(self, "native", NativeParams(self.params))
         object.__setattr__(self, "reach", pack_reach(self.params, self.home, self.joints,
                                                      self.clearance))
+        object.__setattr__(self, "elastic", _pack_elastic(self))
 
     @property
     def characteristic_length(self) -> float:
@@ -189,6 +227,10 @@ def _pack(m: Model) -> np.ndarray:
     if m.transmission is not None:
         p[P_HAS_TRANSMISSION] = 1.0
         p[P_STIFFNESS], p[P_DAMPING] = m.transmission.stiffness, m.transmission.damping
+    if m.payload is not None:
+        p[P_HAS_PAYLOAD], p[P_PAYLOAD_MASS] = 1.0, m.payload.mass
+        p[P_PAYLOAD_COM:P_PAYLOAD_COM + 3] = m.payload.com
+        p[P_PAYLOAD_INERTIA:P_PAYLOAD_INERTIA + len(m.payload.inertia)] = m.payload.inertia
     p[P_LEG_MIN] = m.leg_min if m.leg_min is not None else 0.0
     p[P_LEG_MAX] = m.leg_max if m.leg_max is not None else np.inf
     p[P_CHAR_LENGTH] = m.characteristic_length
@@ -196,3 +238,21 @@ def _pack(m: Model) -> np.ndarray:
     p[P_PLATFORM:P_PLATFORM + 18] = m.platform_joints.ravel()
     p.flags.writeable = False
     return p
+
+
+def _pack_elastic(m: Model) -> np.ndarray:
+    """[stiffness] as the stiffness kernels read it (STEWART_ELASTIC; the payload is in params)."""
+    e = np.zeros(N_ELASTIC)
+
+    def put(name: str, value) -> None:
+        entry = ELASTIC[name]
+        e[entry.offset:entry.offset + entry.count] = value
+
+    if m.stiffness is not None:
+        s = m.stiffness
+        put("HAS_STIFFNESS", 1.0)
+        put("LEG", s.leg_legs)
+        put("BENDING", s.joint_bending or 0.0)
+        put("TORSION", s.joint_torsion or 0.0)
+    e.flags.writeable = False
+    return e

@@ -14,7 +14,8 @@ from .budget import SCENE_BYTES, InputFileError, read_input
 from .errors import SceneError, SceneKeyError
 from . import scene_reach, table
 from .native import core
-from .model import DriveParams, FrictionParams, LegParams, Model, TransmissionParams
+from .model import (DriveParams, FrictionParams, LegParams, Model, PayloadParams, StiffnessParams,
+                    TransmissionParams)
 
 DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
 # Tables the project defines on top of the contract, each read by a command and checked where it
@@ -22,7 +23,7 @@ DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
 # [sensors]): here they are only let through into Model.extra; any other table is refused.
 PROJECT_TABLES = frozenset({"controller", "case", "cueing", "solver", "sensors"})
 _TOP_KEYS = {"name", "gravity", "geometry", "platform", "legs", "drive", "friction",
-             "transmission", *scene_reach.REACH_TABLES}
+             "transmission", *scene_reach.REACH_TABLES, "stiffness", "payload"}
 _OPTIONAL_KEYS = {"geometry.leg_min", "geometry.leg_max"}   # every other plant key is required
 # Every value of a scene, in every table: nested at most MAX_DEPTH tables and arrays deep (a
 # joint list is 2 inside its table; TOML readers recurse per level, so 50,000 levels are a
@@ -49,6 +50,12 @@ _VECTOR_KEYS = {k for k, g in table.scene_groups().items() if g.count > 1 and g.
 # Dotted keys of the contract's tables that hold a single number (what a sweep may vary).
 NUMBER_KEYS = frozenset(f"{t}.{k}" for t, (need, opt) in _TABLE_KEYS.items()
                         for k in need | opt) - _VECTOR_KEYS
+# [stiffness] and [payload] (STEWART_ELASTIC of stewart_table.h: their bounds): the optional keys.
+_ELASTIC_OPTIONAL = {"stiffness.joint_bending", "stiffness.joint_torsion"}
+for _key in table.ELASTIC_KEYS:
+    _tab, _, _name = _key.partition(".")
+    _need, _opt = _TABLE_KEYS.setdefault(_tab, (set(), set()))
+    (_opt if _key in _ELASTIC_OPTIONAL else _need).add(_name)
 
 
 def load_scene(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Model:
@@ -200,6 +207,7 @@ def scene_from_dict(data: Mapping[str, Any], source: str | None = None) -> Model
         legs=_legs(v, data), drive=_drive(v, data), friction=_friction(v, data),
         extra={k: data[k] for k in PROJECT_TABLES if k in data}, source=source,
         transmission=_transmission(v, data), **_reach_tables(v, data),
+        stiffness=_stiffness(v, data), payload=_payload(v, data),
     )
     _check_rules(v, model)
     scene_reach.check_home(v, model)
@@ -271,6 +279,44 @@ def _transmission(v: "_Validator", data: Mapping[str, Any]) -> TransmissionParam
     if data.get("drive") is None:
         v.fail("transmission", "needs the [drive] table: the motor side moves the drive inertia")
     return _params(v, data, "transmission", TransmissionParams)
+
+
+def _stiffness(v: "_Validator", data: Mapping[str, Any]) -> StiffnessParams | None:
+    """[stiffness]: each leg's axial stiffness (one number or six), the joints' optional
+    bending and torsion stiffness; each > 0 (STEWART_ELASTIC)."""
+    t = v.table(data, "stiffness")
+    if t is None:
+        return None
+    return StiffnessParams(
+        leg=v.per_leg(t, "stiffness.leg"),
+        joint_bending=v.number(t, "stiffness.joint_bending", optional=True),
+        joint_torsion=v.number(t, "stiffness.joint_torsion", optional=True))
+
+
+def _payload(v: "_Validator", data: Mapping[str, Any]) -> PayloadParams | None:
+    """[payload]: mass (> 0), com ([x, y, z] in C), inertia about the com in C: three principal
+    moments or [Ixx, Iyy, Izz, Ixy, Ixz, Iyz], a tensor a rigid body can have (positive
+    definite, its principal moments within the triangle inequality)."""
+    t = v.table(data, "payload")
+    if t is None:
+        return None
+    mass = v.number(t, "payload.mass")
+    com = tuple(float(c) for c in v.vector(t, "payload.com", 3))
+    raw = t["inertia"]
+    n = len(raw) if isinstance(raw, list) else 0
+    if n not in (3, 6):
+        v.fail_key("payload.inertia", "must be 3 principal moments [Ixx, Iyy, Izz] or 6 values "
+                   f"[Ixx, Iyy, Izz, Ixy, Ixz, Iyz], got {raw!r}")
+    inertia = tuple(float(x) for x in v.vector(t, "payload.inertia", n))
+    payload = PayloadParams(mass=mass, com=com, inertia=inertia)
+    moments = np.linalg.eigvalsh(payload.inertia_tensor)
+    if not moments[0] > 0.0:
+        v.fail_key("payload.inertia", "must be positive definite (principal moments "
+                   f"{[float(f'{m:.6g}') for m in moments]})")
+    if moments[2] > (moments[0] + moments[1]) * (1.0 + 1e-12):
+        v.fail_key("payload.inertia", "no rigid body has these principal moments: the largest "
+                   f"{moments[2]:.6g} exceeds the sum of the others {moments[0] + moments[1]:.6g}")
+    return payload
 
 
 def _check_rules(v: "_Validator", model: Model) -> None:

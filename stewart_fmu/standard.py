@@ -65,12 +65,18 @@ def span(name: str) -> slice:
 
 def standard_parameters(model: Model) -> np.ndarray:
     """pi of a model: the values of its scene in the standard parameters (zero for the effects
-    it lacks, and for the platform's first moment and products of inertia, which the scene's
-    model holds at zero)."""
+    it lacks; the platform's first moment and products of inertia are zero but for a
+    [payload], which joins the platform: its mass, its first moment m c and its inertia moved
+    to C, I_c + m (|c|^2 I - c c^T))."""
     pi = np.zeros(N_STANDARD)
     pi[span("PLATFORM_MASS")] = model.platform_mass
-    ixx, iyy, izz = model.platform_inertia
-    pi[span("PLATFORM_INERTIA")] = (ixx, 0.0, 0.0, iyy, 0.0, izz)
+    tensor = np.diag(model.platform_inertia)
+    if model.payload is not None:
+        m, c = model.payload.mass, np.asarray(model.payload.com)
+        pi[span("PLATFORM_MASS")] += m
+        pi[span("PLATFORM_MOMENT")] = m * c
+        tensor = tensor + model.payload.inertia_tensor + m * ((c @ c) * np.eye(3) - np.outer(c, c))
+    pi[span("PLATFORM_INERTIA")] = tensor[np.triu_indices(3)]
     if model.legs is not None:
         lg = model.legs
         for part, m, c, (it, ia) in (("LOWER", lg.lower_mass, lg.lower_com, lg.lower_inertia),

@@ -100,6 +100,39 @@ def vr(group_id: str) -> int:
 SCENE_GROUPS: dict[str, VariableGroup] = {g.name: g for g in VARIABLES if g.scene}
 
 
+@dataclass(frozen=True)
+class ElasticEntry:
+    """A key of [stiffness] or [payload] (STEWART_ELASTIC, STEWART_PAYLOAD_KEYS; not FMU
+    variables): its shape, unit and bounds, and where its values are packed: Model.elastic
+    (STEWART_E_<name>) or, for the payload, Model.params (STEWART_P_<name>)."""
+
+    name: str
+    key: str            # the dotted scene key, "" for a computed entry
+    in_params: bool     # packed in Model.params (else in Model.elastic)
+    offset: int
+    count: int
+    shape: int          # VECTOR or PER_LEG
+    bound: int
+    min: float
+    max: float
+    unit: str
+    description: str
+
+
+def _read_elastic() -> dict[str, ElasticEntry]:
+    rows = (lib.stewart_elastic_table[k] for k in range(lib.stewart_elastic_table_size))
+    return {_text(r.name): ElasticEntry(_text(r.name), _text(r.key), bool(r.in_params), r.offset,
+                                        r.count, r.shape, r.bound, r.min, r.max, _text(r.unit),
+                                        _text(r.description))
+            for r in rows}
+
+
+ELASTIC: dict[str, ElasticEntry] = _read_elastic()
+N_ELASTIC: int = lib.STEWART_N_ELASTIC
+# The scene keys of [stiffness] and [payload], by dotted key (bound_reason takes them).
+ELASTIC_KEYS: dict[str, ElasticEntry] = {e.key: e for e in ELASTIC.values() if e.key}
+
+
 # The FMU's solver settings by key (rtol, atol, max_step): a scene's [solver] takes their bounds.
 SOLVER_GROUPS: dict[str, VariableGroup] = {g.name.removeprefix("solver."): g for g in VARIABLES
                                            if g.name.startswith("solver.") and g.shape != STRING}
@@ -124,7 +157,7 @@ def unit_text(unit: str) -> str:
     return {"pose": " (m, rad)", "rate": " (m/s, rad/s)", "": "", "1": ""}.get(unit, f" {unit}")
 
 
-def bound_reason(group: VariableGroup, values) -> str | None:
+def bound_reason(group: VariableGroup | ElasticEntry, values) -> str | None:
     """Why values (a number or an array) break their group's bounds, None when they do not: the
     words of the FMU's validation (fmi/model.c validate), e.g. "must be > 0, got -0.5" or
     "must be <= 1e+06 kg, got 1e+308"."""
@@ -209,7 +242,10 @@ def reach_offset(name: str) -> int:
     return REACH_PARAMS[name].offset
 
 
-def key_group(dotted: str) -> VariableGroup | ReachKey:
-    """The bounds of a scene key: a plant key's FMU group, or a reach table's key (an obstacle's
-    keys by their generic name, 'clearance.obstacles.radius')."""
-    return SCENE_GROUPS[dotted] if dotted in SCENE_GROUPS else REACH_KEYS[dotted]
+def key_group(dotted: str) -> VariableGroup | ReachKey | ElasticEntry:
+    """The bounds of a scene key: a plant key's FMU group, a reach table's key (an obstacle's
+    keys by their generic name, 'clearance.obstacles.radius'), or a key of [stiffness] or
+    [payload]."""
+    if dotted in SCENE_GROUPS:
+        return SCENE_GROUPS[dotted]
+    return REACH_KEYS[dotted] if dotted in REACH_KEYS else ELASTIC_KEYS[dotted]

@@ -19,7 +19,7 @@ import zipfile
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from ..errors import StewartError
+from ..errors import SceneError, StewartError
 from ..model import Model
 from ..scene import parse_scene_bytes, read_scene_bytes, scene_from_dict
 from . import model_description, variables, windows
@@ -108,6 +108,9 @@ def export_model(model: Model, scene_text: bytes, out_path: str | Path,
     as resources/scene.toml for `run --fmu`'s check); returns out_path."""
     if fmi_version not in FMI_VERSIONS:
         raise ValueError(f"fmi_version must be 2 or 3, got {fmi_version!r}")
+    if model.payload is not None:   # no FMU variable holds it: the FMU would drop it
+        raise SceneError("payload", "the FMU has no payload parameters: export the scene without "
+                         "[payload], or fold it into [platform]", model.source)
     compiler = find_compiler()
     platform_folder(fmi_version)   # BuildError before any work: no binaries folder for this platform
     out = Path(out_path)

@@ -28,7 +28,7 @@ def _cdef() -> str:
     X-macro expansions of stewart.h replaced by the names they define (STEWART_P_* of the
     STEWART_PARAMS table, STEWART_N_PARAMS; STEWART_S_* of STEWART_STANDARD, STEWART_N_STANDARD;
     STEWART_R_* of STEWART_REACH_PARAMS, STEWART_N_REACH; STEWART_LIMIT_* of STEWART_LIMITS,
-    STEWART_N_LIMITS)."""
+    STEWART_N_LIMITS; STEWART_E_* of STEWART_ELASTIC, STEWART_N_ELASTIC)."""
     header = _joined(HERE / "include" / "stewart.h")
     table = _joined(HERE / "include" / "stewart_table.h")
     out = [_constant(line) for line in table.splitlines() if line.strip().startswith("#define")]
@@ -48,6 +48,9 @@ def _cdef() -> str:
         elif "STEWART_LIMITS(" in s:
             out += [f"#define STEWART_LIMIT_{name} ..." for name in _table_names(table, "STEWART_LIMITS")]
             out.append("#define STEWART_N_LIMITS ...")
+        elif "STEWART_ELASTIC(" in s:
+            out += [f"#define STEWART_E_{name} ..." for name in _table_names(table, "STEWART_ELASTIC")]
+            out.append("#define STEWART_N_ELASTIC ...")
         elif s.startswith("#") or s in ('extern "C" {', "}") or not s:
             continue
         else:

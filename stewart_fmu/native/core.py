@@ -7,7 +7,7 @@ so the Python API layer can map codes to its typed errors. Inputs must be C-cont
 (unchecked, for speed: the C side trusts the sizes); outputs are written into `out` when
 given (no allocation), else into new arrays.
 
-params: the packed model vector (Model.params, 63 floats). `native_params(model.params)`
+params: the packed model vector (Model.params, N_PARAMS floats). `native_params(model.params)`
 converts it once to the C pointer the calls take; every function also accepts the numpy
 vector itself (one conversion per call more).
 """
@@ -313,3 +313,48 @@ class Run:
         status = lib.stewart_data_run(self.params.ptr, self.options, self.data, self._rack, h,
                                       n, self._done)
         return status, self._done[0]
+
+
+# --- stiffness and modes (stiffness.c) ----------------------------------------------------------
+
+def stiffness(params, elastic, q):
+    """(K (6, 6), static leg forces sigma (6,), status) at pose q (stewart_stiffness)."""
+    K, sigma = np.empty((6, 6)), np.empty(6)
+    return K, sigma, lib.stewart_stiffness(_p(params), _buf(elastic), _buf(q), _buf(K), _buf(sigma))
+
+
+def compliance(params, elastic, q, pivot):
+    """(Cp (6, 6), status): the compliance at the pivot (in C) (stewart_compliance)."""
+    C = np.empty((6, 6))
+    return C, lib.stewart_compliance(_p(params), _buf(elastic), _buf(q), _buf(pivot), _buf(C))
+
+
+def modes_mass(params, q):
+    """(M (6, 6), status): the mass matrix of the modes (stewart_modes_mass)."""
+    M = np.empty((6, 6))
+    return M, lib.stewart_modes_mass(_p(params), _buf(q), _buf(M))
+
+
+def modes(params, elastic, q):
+    """(w2 (6,), shapes (6, 6) rows, status) (stewart_modes)."""
+    w2, shapes = np.empty(6), np.empty((6, 6))
+    st = lib.stewart_modes(_p(params), _buf(elastic), _buf(q), _buf(w2), _buf(shapes))
+    return w2, shapes, st
+
+
+def modes_batch(params, elastic, Q, pivot, with_compliance: bool = True):
+    """(W2 (N, 6), Cp (N, 6, 6) or None, index of the first failed pose or -1, its status)."""
+    n = Q.shape[0]
+    W2 = np.empty((n, 6))
+    Cp = np.empty((n, 6, 6)) if with_compliance else None
+    status = ffi.new("int *")
+    index = lib.stewart_modes_batch(_p(params), _buf(elastic), n, _buf(Q), _buf(pivot), _buf(W2),
+                                    ffi.NULL if Cp is None else _buf(Cp), status)
+    return W2, Cp, index, status[0]
+
+
+def static_forces(params, q):
+    """(sigma (6,), status): the leg forces holding pose q at rest, payload included
+    (stewart_static_forces)."""
+    sigma = np.empty(6)
+    return sigma, lib.stewart_static_forces(_p(params), _buf(q), _buf(sigma))

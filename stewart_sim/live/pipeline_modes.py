@@ -1,5 +1,5 @@
 """The live cueing pipeline's mode: one enum, one table of (mode, event) -> transition, as
-hil.modes is the device's.
+hil.operating_mode is the device's.
 
 The pipeline holds one `Mode` and moves it only through `transition`; what each mode sends is
 the pipeline's (the washout's cue through live.envelope.Envelope.step, a fade of

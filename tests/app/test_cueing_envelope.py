@@ -363,7 +363,7 @@ def test_the_emulated_device_accepts_every_setpoint_and_stays_in_its_stroke(mode
     pytest.importorskip("pymavlink")
     from hil import mavlink_stewart as ms
     from hil.device import Device
-    from hil.modes import Mode
+    from hil.operating_mode import Mode
 
     dev = Device(model, watchdog=1.0)
     assert dev.dt == DT

@@ -13,7 +13,10 @@ from tests.helpers import doc_page_with, doc_pages
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = sorted((ROOT / "examples").glob("*.py"))
-TIMEOUT = 120  # s per example
+# s per example: a guard against a hang, not a speed test; a 2-core machine with other work on
+# it runs an example several times slower than a quiet one (the identification example with
+# excite's trajectories: 79 s quiet, 147-280 s at load average 3 to 10)
+TIMEOUT = 900
 
 
 def guide_snippets() -> list[str]:
@@ -51,57 +54,32 @@ def test_example_runs(example, tmp_path):
     assert proc.stdout.strip()
 
 
-# A number of a printed line: not a digit of a name such as run2.csv.
-NUMBER = r"(?<![\w.])\d+(?:\.\d+)?(?:e[-+]?\d+)?(?!\w)"
-
-
-def docs_printed(example: str) -> list[tuple[str, list[tuple[float, float]]]]:
-    """The lines the docs page holding `example`'s code says it printed, each with the range of
-    each of its numbers over the floating-point environments tried: the `- ` items of the "It
-    printed" list that follows the snippet of examples/<example>, a line of its output in
-    backquotes, then "— over the kernels tried: LO to HI, ..." (a number without a range:
-    exactly as written)."""
+def docs_printed(example: str) -> list[str]:
+    """The lines the docs page holding `example`'s code says it printed: the `- ` items of the
+    "It printed" list that follows the snippet of examples/<example>, each a line of its output
+    in backquotes."""
     code = (ROOT / "examples" / example).read_text(encoding="utf-8")
     _, text = doc_page_with(code)
     after = text[text.index(code) + len(code):]
     block = after[after.index("It printed"):].split("\n\n")[0]
-    stated = []
-    for line, spans in re.findall(r"^- `(.*)`(?: — over the kernels tried: (.*))?$", block, flags=re.M):
-        ranges = [tuple(float(x) for x in span.split(" to ")) for span in spans.split(", ")] \
-            if spans else [(float(x), float(x)) for x in re.findall(NUMBER, line)]
-        stated.append((line, ranges))
-    return stated
-
-
-def _figures(line: str, printed: set[str]) -> list[float] | None:
-    """The numbers of the printed line that reads as `line` but for its numbers (None: none)."""
-    words = f"({NUMBER})".join(re.escape(part) for part in re.split(NUMBER, line))
-    for out in printed:
-        m = re.fullmatch(words, out)
-        if m:
-            return [float(x) for x in m.groups()]
-    return None
+    return re.findall(r"^- `(.*)`$", block, flags=re.M)
 
 
 @pytest.mark.numerics
 def test_the_identification_example_prints_the_documented_figures(tmp_path):
-    """Every line the identification guide states for examples/identify_machine.py was printed
-    (the identified frictions and drive masses against the truth, the held-out error), each of
-    its figures within the range the guide states for it over the floating-point environments
-    tried."""
+    """Every line the identification guide states for examples/identify_machine.py was
+    printed, word for word and figure for figure (the identified frictions and drive masses
+    against the truth, the held-out error): its trajectories are the same files in every
+    floating-point environment, and its figures, printed to two or three digits, the same in
+    each one tried."""
     stated = docs_printed("identify_machine.py")
     assert len(stated) >= 4, stated
     proc = run_example(ROOT / "examples" / "identify_machine.py", tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     printed = {line.strip() for line in proc.stdout.splitlines()}
-    for line, ranges in stated:
-        assert len(ranges) == len(re.findall(NUMBER, line)), (line, ranges)
-        # the guide's own figures lie in their ranges
-        assert all(lo <= float(x) <= hi for x, (lo, hi) in zip(re.findall(NUMBER, line), ranges))
-        got = _figures(line, printed)
-        assert got is not None, f"the guide says the example printed {line!r}; it printed:\n" \
+    for line in stated:
+        assert line in printed, f"the guide says the example printed {line!r}; it printed:\n" \
                                 f"{proc.stdout}"
-        assert all(lo <= x <= hi for x, (lo, hi) in zip(got, ranges)), (line, got, ranges)
 
 
 def _env() -> dict:

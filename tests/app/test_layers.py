@@ -115,6 +115,8 @@ ORDER = ("shell",         # argument types, terminal, Ctrl-C, result sets, progr
          "studies.cases", "studies.paper", "studies.accuracy", "studies.calibrate",
          "studies.compare", "studies.sweep", "studies.sizing", "studies.identify",
          "studies.excite",
+         "studies.modes",  # the stiffness and the modes at a pose, their map
+         "studies.design",  # geometry from requirements: the engine, the modes, the sweep's cluster
          "commands",      # one module per command
          "cli", "__main__")
 CONTAINERS = ("stewart_sim", "stewart_sim.studies")   # packages that only hold units
@@ -144,6 +146,7 @@ COMMAND_NAMES = {
     "compare": "stewart_sim/studies/compare", "excite": "stewart_sim/studies/excite",
     "identify": "stewart_sim/studies/identify", "paper": "stewart_sim/studies/paper",
     "sweep": "stewart_sim/studies/sweep", "view": "stewart_sim/view", "workspace": "stewart_sim/studies/workspace",
+    "modes": "stewart_sim/studies/modes",
     "device": "hil/device.py",                 # the emulated device the command serves
     "trajectory": "controller/trajectory.py",  # the reference trajectories the command writes
 }

@@ -1,4 +1,4 @@
-"""hil.modes: every (mode, event) pair of the device's transition table against the rules as
+"""hil.operating_mode: every (mode, event) pair of the device's transition table against the rules as
 written here (a grid read off hil.device's contract), and the device following the table end
 to end: each mode reached through messages and ticks, each event made through messages and
 ticks, the mode and what the host sees (HEARTBEAT's armed flag, DRIVE_STATUS.watchdog, the
@@ -15,7 +15,7 @@ pytest.importorskip("pymavlink")
 from controller.plants import PlantStepError  # noqa: E402
 from hil import mavlink_stewart as ms  # noqa: E402
 from hil.device import Device  # noqa: E402
-from hil.modes import TABLE, WATCHDOG_STATE, Event, Mode, armed, transition  # noqa: E402
+from hil.operating_mode import TABLE, WATCHDOG_STATE, Event, Mode, armed, transition  # noqa: E402
 from hil.servo import HOMING_MIN_TIME  # noqa: E402
 from stewart_fmu.scene import load_scene  # noqa: E402
 

@@ -14,7 +14,7 @@ pytest.importorskip("pymavlink")
 
 from hil import mavlink_stewart as ms  # noqa: E402
 from hil.device import Device  # noqa: E402
-from hil.modes import Mode  # noqa: E402
+from hil.operating_mode import Mode  # noqa: E402
 from hil.downlink import ned_attitude  # noqa: E402
 from hil.framing import Receiver  # noqa: E402
 from hil.protocol import param_encode_int, statustext_chunks  # noqa: E402

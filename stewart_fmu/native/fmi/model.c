@@ -108,7 +108,15 @@ static void clear_outputs(Instance *c) {
 
 static void update_rack(Instance *c) {
     double gain = has_drive() ? c->d.par[VR_GEAR_RATIO] / c->d.par[VR_PINION_RADIUS] : 0.0;
+    int i, finite = 1;
     stewart_component_hold(&c->d.s, gain);
+    for (i = 0; i < 6; i++)
+        finite = finite && isfinite(c->d.s.rack[i]);
+    /* Before exitInitializationMode the drive's values are not yet validated: one that gives no
+       finite rack force (a zero pinion radius: inf * 0) must not make the FMU's state one its
+       own check refuses; validation refuses such values, and the rack is recomputed then. */
+    if (!finite)
+        stewart_component_hold(&c->d.s, 0.0);
 }
 
 /* q0, qd0 of the parameter values, as the component's initial values. */

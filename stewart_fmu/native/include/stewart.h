@@ -37,6 +37,11 @@ enum { STEWART_PARAMS(STEWART_X_OFFSET) STEWART_N_PARAMS = (int)(sizeof(stewart_
 #define STEWART_X_STANDARD(NAME, ...) STEWART_S_##NAME = STEWART_STANDARD_OFFSET(NAME),
 enum { STEWART_STANDARD(STEWART_X_STANDARD) STEWART_N_STANDARD = (int)(sizeof(stewart_standard_layout) / sizeof(double)) };
 
+/* STEWART_E_<NAME>: the offset of each entry of the elastic vector (STEWART_ELASTIC of
+   stewart_table.h); STEWART_N_ELASTIC: its length. */
+#define STEWART_X_ELASTIC(NAME, ...) STEWART_E_##NAME = STEWART_ELASTIC_OFFSET(NAME),
+enum { STEWART_ELASTIC(STEWART_X_ELASTIC) STEWART_N_ELASTIC = (int)(sizeof(stewart_elastic_layout) / sizeof(double)) };
+
 /* The tables compiled into the core (src/table.c), for the Python side. */
 typedef struct {
     const char *name;         /* NAME of STEWART_PARAMS: STEWART_P_<name> */
@@ -67,6 +72,16 @@ typedef struct {
 } stewart_standard_info;
 extern const stewart_standard_info stewart_standard_table[];
 extern const int stewart_standard_table_size;
+typedef struct {
+    const char *name;         /* NAME of STEWART_ELASTIC (STEWART_E_<name>) or of STEWART_PAYLOAD_KEYS */
+    const char *key;          /* the scene key ("" for a computed entry) */
+    int in_params;            /* 1: packed in params (STEWART_P_PAYLOAD_<name>), 0: in elastic */
+    int offset, count, shape, bound;
+    double min, max;          /* the bounds of each value */
+    const char *unit, *description;
+} stewart_elastic_info;
+extern const stewart_elastic_info stewart_elastic_table[];
+extern const int stewart_elastic_table_size;
 extern const stewart_param_info stewart_param_table[];
 extern const int stewart_param_table_size;
 extern const stewart_variable_info stewart_variable_table[];
@@ -288,6 +303,51 @@ int stewart_data_step(const double *params, const stewart_options *o, stewart_da
    *done (may be NULL) the steps completed. */
 int stewart_data_run(const double *params, const stewart_options *o, stewart_data *d,
                      const double rack[6], double h, long n, long *done);
+
+/* ==== stiffness and modes (src/stiffness.c; stewart_fmu/stiffness.py) ===================== */
+/* elastic: the STEWART_N_ELASTIC doubles of STEWART_ELASTIC (Model.elastic). Coordinates: the
+   platform twist chi = (dx, dtheta) about C's origin in N (a point p of C moves by
+   dx + dtheta x R p), wrenches (force, moment about C's origin) in N. The legs are springs about
+   the lengths that hold the pose in static equilibrium under gravity (platform, leg parts,
+   payload: the payload is the model's, params' PAYLOAD_*); with a [transmission] the motor side is held and its spring is in series with the
+   leg's, and the drive's inertia stays out of the mass matrix. */
+
+/* The static leg forces sigma (N): those that hold the pose against gravity on the platform,
+   the leg parts and the payload (stewart_inverse_dynamics at rest, with the payload's weight);
+   Status: OK, NONFINITE, STROKE, SINGULAR. */
+int stewart_static_forces(const double *params, const double q[6], double sigma[6]);
+
+/* The static leg forces sigma (as stewart_static_forces) and the 6x6 Cartesian stiffness K = -dW/dchi (row-major, symmetric): the legs'
+   J^T k J, the joints' bending and torsion, and the geometric term of the loads (Griffis and
+   Duffy): the leg forces turning with the legs, the leg parts' and the payload's weight turning
+   with the platform. Status: OK, NONFINITE, STROKE, SINGULAR (J), or SINGULAR when elastic has
+   no [stiffness]. */
+int stewart_stiffness(const double *params, const double *elastic, const double q[6],
+                      double K[36], double sigma[6]);
+
+/* The compliance at a point of the platform (pivot, in C): Cp (6x6, row-major) maps a force
+   and a moment applied there (N) to the point's displacement and the platform's rotation,
+   Cp = T^T K^-1 T with T = [[I, 0], [[R pivot]x, I]]. Status of stewart_stiffness, or SINGULAR
+   when K is not positive definite (the loads buckle the pose). */
+int stewart_compliance(const double *params, const double *elastic, const double q[6],
+                       const double pivot[3], double Cp[36]);
+
+/* The mass matrix of the modes (twist, 6x6 row-major): the model's at rest (platform, payload,
+   leg parts, drives; the leg side's with a [transmission]). Status as stewart_mass_matrix. */
+int stewart_modes_mass(const double *params, const double q[6], double M[36]);
+
+/* The small oscillations about the static equilibrium at q: K v = w2 M v. w2 (rad^2/s^2,
+   ascending; a value <= 0 is an unstable direction), shapes (row-major, row j the mode j's
+   twist, mass-normalised v^T M v = 1, its largest entry positive). Status of
+   stewart_stiffness, or SINGULAR when M is not positive definite. */
+int stewart_modes(const double *params, const double *elastic, const double q[6], double w2[6],
+                  double shapes[36]);
+
+/* Over n poses (row-major (n, 6)): w2 (n, 6) and the compliance at the pivot Cp (n, 36) (may be
+   NULL). Returns the index of the first failed pose (*status its code; the rows after it are not
+   computed), or -1 with *status = OK. */
+long stewart_modes_batch(const double *params, const double *elastic, long n, const double *Q,
+                         const double pivot[3], double *W2, double *Cp, int *status);
 
 /* ==== words: status names, what they mean, the refusal of a step (status.c) ============== */
 #include <stddef.h>

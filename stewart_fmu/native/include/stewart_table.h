@@ -55,7 +55,11 @@
     X(PLATFORM, 18, PLATFORM, "m", "platform joints p_i in C, rows")                           \
     X(HAS_TRANSMISSION, 1, COMPUTED, "1", "1 when the scene has [transmission], else 0")       \
     X(STIFFNESS, 1, STIFFNESS, "N/m", "transmission stiffness (leg axis)")                     \
-    X(DAMPING, 1, DAMPING, "N.s/m", "transmission damping (leg axis)")
+    X(DAMPING, 1, DAMPING, "N.s/m", "transmission damping (leg axis)")                         \
+    X(HAS_PAYLOAD, 1, COMPUTED, "1", "1 when the scene has [payload], else 0")                 \
+    X(PAYLOAD_MASS, 1, COMPUTED, "kg", "payload mass ([payload]; not an FMU variable)")        \
+    X(PAYLOAD_COM, 3, COMPUTED, "m", "payload centre of mass in C")                            \
+    X(PAYLOAD_INERTIA, 6, COMPUTED, "kg.m2", "payload inertia about its centre of mass in C: Ixx, Iyy, Izz, Ixy, Ixz, Iyz")
 
 /* FMU variables by group, value references from STEWART_VR_PARAMETERS, _INPUTS and _OUTPUTS
    on (0 is time, FMI 3.0's independent variable): X(ID, NAME, COUNT, SHAPE, UNIT, BOUND,
@@ -210,6 +214,41 @@
     X(DRIVE_MASS, "the reflected drive mass m_d = zeta^2 I / r^2", "kg", CLOSED, 0.0, 1e8)         \
     X(MOVING_MASS, "the moving mass (platform and 12 leg parts)", "kg", OPEN, 0.0, 1e7)
 
+/* The scene keys of [stiffness] and [payload] (contract tables, not FMU variables), with the
+   physical bounds of each value as the plant's keys above (stewart_fmu/scene.py checks them):
+   X(NAME, KEY, COUNT, SHAPE, UNIT, BOUND, MIN, MAX, DESCRIPTION), KEY "" for a computed entry
+   (a flag). [stiffness] is packed into its own vector, the elastic one of the stiffness and the
+   modes (src/stiffness.c; Model.elastic), in STEWART_ELASTIC's order; [payload] into the
+   plant's parameters (STEWART_PARAMS PAYLOAD_*: the dynamics carries it), STEWART_PAYLOAD_KEYS
+   gives its keys' bounds. How the springs combine (docs/scene-format.md, [stiffness]):
+   - [stiffness] leg: each leg's axial stiffness between its joints; with a [transmission] the
+     transmission's spring (its key stiffness, the motor held) acts in series with it,
+     k = k_leg k_t / (k_leg + k_t);
+   - [stiffness] joint_bending: the bending stiffness of each of the 12 joints (flexures), about
+     any axis across the leg, relaxed at the pose: the base joint resists the leg's rotation
+     against the base, the platform joint the leg's rotation against the platform;
+   - [stiffness] joint_torsion: each joint's stiffness about the leg's axis; the two joints of a
+     leg act in series on the platform's rotation about that axis (k_t / 2), the leg free to
+     spin between them.
+   The payload: a rigid body fixed to the platform, its mass, its centre of mass in C and its
+   inertia tensor about that centre in C's axes, [Ixx, Iyy, Izz, Ixy, Ixz, Iyz] the entries of
+   the symmetric matrix [[Ixx, Ixy, Ixz], [Ixy, Iyy, Iyz], [Ixz, Iyz, Izz]] (three principal
+   moments fill the first three). */
+#define STEWART_ELASTIC(X)                                                                       \
+    X(HAS_STIFFNESS, "", 1, STEWART_VECTOR, "1", CLOSED, 0.0, 1.0, "1 when the scene has [stiffness]") \
+    X(LEG, "stiffness.leg", 6, STEWART_PER_LEG, "N/m", OPEN, 0.0, 1e12,                          \
+      "axial stiffness of each leg between its joints")                                          \
+    X(BENDING, "stiffness.joint_bending", 1, STEWART_VECTOR, "N.m/rad", OPEN, 0.0, 1e9,          \
+      "bending stiffness of each joint (0 when absent: ball joints)")                            \
+    X(TORSION, "stiffness.joint_torsion", 1, STEWART_VECTOR, "N.m/rad", OPEN, 0.0, 1e9,          \
+      "torsion stiffness of each joint about the leg (0 when absent)")
+/* NAME: the STEWART_PARAMS entry PAYLOAD_<NAME> that holds the key's values. */
+#define STEWART_PAYLOAD_KEYS(X)                                                                  \
+    X(MASS, "payload.mass", 1, STEWART_VECTOR, "kg", OPEN, 0.0, 1e6, "payload mass")             \
+    X(COM, "payload.com", 3, STEWART_VECTOR, "m", CLOSED, -1e3, 1e3, "payload centre of mass in C") \
+    X(INERTIA, "payload.inertia", 6, STEWART_VECTOR, "kg.m2", CLOSED, -1e10, 1e10,               \
+      "payload inertia about its centre of mass in C: Ixx, Iyy, Izz, Ixy, Ixz, Iyz")
+
 #define STEWART_VR_TIME 0          /* FMI 3.0's independent variable */
 #define STEWART_VR_PARAMETERS 1    /* first value reference of each section */
 #define STEWART_VR_INPUTS 100
@@ -223,6 +262,8 @@ typedef struct {
     STEWART_FMU_SCENE(STEWART_X_VARIABLE) STEWART_FMU_SETTINGS(STEWART_X_VARIABLE)
 } stewart_fmu_parameters;
 typedef struct { STEWART_STANDARD(STEWART_X_FIELD) } stewart_standard_layout;
+#define STEWART_X_ELASTIC_FIELD(NAME, KEY, COUNT, ...) double NAME[COUNT];
+typedef struct { STEWART_ELASTIC(STEWART_X_ELASTIC_FIELD) } stewart_elastic_layout;
 typedef struct { STEWART_FMU_INPUTS(STEWART_X_VARIABLE) } stewart_fmu_inputs;
 typedef struct {
     STEWART_FMU_OUTPUTS(STEWART_X_VARIABLE) STEWART_FMU_OUTPUT_ARRAYS(STEWART_X_VARIABLE)
@@ -231,6 +272,7 @@ typedef struct {
 /* The offset of a packed entry, and the value reference of an FMU variable group
    (SECTION: PARAMETERS, INPUTS or OUTPUTS; LAYOUT: the struct of that section). */
 #define STEWART_OFFSET(NAME) ((int)(offsetof(stewart_param_layout, NAME) / sizeof(double)))
+#define STEWART_ELASTIC_OFFSET(NAME) ((int)(offsetof(stewart_elastic_layout, NAME) / sizeof(double)))
 #define STEWART_STANDARD_OFFSET(NAME) ((int)(offsetof(stewart_standard_layout, NAME) / sizeof(double)))
 #define STEWART_VR(SECTION, LAYOUT, ID) \
     (STEWART_VR_##SECTION + (int)(offsetof(LAYOUT, ID) / sizeof(double)))

@@ -26,6 +26,11 @@ void sw_energy_terms(const double *p, const double *y, sw_ws *ws, double out[9])
         for (b = 0; b < 6; ++b)
             T += 0.5 * nu[a] * ws->Mt[a * 6 + b] * nu[b];
     V = -P(MASS) * (gx * y[0] + gy * y[1] + gz * y[2]);
+    if (P(HAS_PAYLOAD) != 0.0) {   /* its kinetic energy is in M_nu */
+        double rho[3];
+        sw_payload_lever(p, ws->R, rho);
+        V -= P(PAYLOAD_MASS) * (gx * (y[0] + rho[0]) + gy * (y[1] + rho[1]) + gz * (y[2] + rho[2]));
+    }
     for (i = 0; i < 6; ++i) {
         const double l = ws->leg[3 * i];
         if (P(HAS_LEGS) != 0.0) {

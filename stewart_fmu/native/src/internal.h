@@ -35,12 +35,18 @@ int sw_solve_rate_trig(const double trig[4], double w0, double w1, double w2, do
 double sw_lu_factor(double A[36], int order[12]);
 void sw_lu_solve(const double LU[36], double b[6]);
 int sw_cholesky_solve(double A[36], double b[6]);
+int sw_cholesky_factor(double A[36]);
+void sw_cholesky_forward(const double L[36], double b[6]);
+void sw_cholesky_back(const double L[36], double b[6]);
+void sw_symmetric_eigen(double A[36], double w[6], double V[36]);
 void sw_singular_values(const double A[36], double s[6]);
 
 /* kane.c */
 int sw_twist_forces(const double *p, const double x[6], const double v[6], const double acc[6],
                     const double al[3], sw_ws *ws);
 void sw_twist_mass_matrix(const double *p, sw_ws *ws, int full);
+void sw_payload_lever(const double *p, const double R[9], double rho[3]);
+void sw_payload_mass(const double *p, const double R[9], double M[36]);
 
 /* dynamics.c */
 int sw_inverse_sample(const double *p, const double q[6], const double qd[6],

@@ -14,6 +14,86 @@ void sw_ws_init(sw_ws *ws)
         ws->order[k] = ws->order[6 + k] = k;
 }
 
+/* The payload's lever rho = R c in N, from C's origin to its centre of mass. */
+void sw_payload_lever(const double *p, const double R[9], double rho[3])
+{
+    const double *c = p + STEWART_P_PAYLOAD_COM;
+    int a;
+    for (a = 0; a < 3; ++a)
+        rho[a] = R[3 * a] * c[0] + R[3 * a + 1] * c[1] + R[3 * a + 2] * c[2];
+}
+
+/* The payload's inertia tensor about its centre of mass in N, R I_c R^T (row-major). */
+static void payload_inertia_n(const double *p, const double R[9], double IN[9])
+{
+    const double *I = p + STEWART_P_PAYLOAD_INERTIA;
+    const double Ic[9] = {I[0], I[3], I[4], I[3], I[1], I[5], I[4], I[5], I[2]};
+    int a, b, k;
+    for (a = 0; a < 3; ++a)
+        for (b = 0; b < 3; ++b) {
+            double s = 0.0;
+            for (k = 0; k < 3; ++k)
+                s += R[a * 3 + k] * (Ic[k * 3] * R[b * 3] + Ic[k * 3 + 1] * R[b * 3 + 1]
+                                     + Ic[k * 3 + 2] * R[b * 3 + 2]);
+            IN[a * 3 + b] = s;
+        }
+}
+
+/* The payload's inertia forces on the twist, added to g: F* = -m (a + alpha x rho + omega x
+   (omega x rho)) at its centre of mass, and about C's origin rho x F* - (I alpha + omega x
+   I omega), I = R I_c R^T (Eqs. 3-5 for a body off C). */
+static void payload_inertia_forces(const double *p, const double *R, const double *om,
+                                   const double *acc, const double *al, double *g)
+{
+    const double m = P(PAYLOAD_MASS);
+    double rho[3], IN[9], ar[3], wr[3], a[3], F[3], Ia[3], Iw[3];
+    int k;
+    sw_payload_lever(p, R, rho);
+    payload_inertia_n(p, R, IN);
+    ar[0] = al[1] * rho[2] - al[2] * rho[1];
+    ar[1] = al[2] * rho[0] - al[0] * rho[2];
+    ar[2] = al[0] * rho[1] - al[1] * rho[0];
+    wr[0] = om[1] * rho[2] - om[2] * rho[1];
+    wr[1] = om[2] * rho[0] - om[0] * rho[2];
+    wr[2] = om[0] * rho[1] - om[1] * rho[0];
+    a[0] = acc[0] + ar[0] + om[1] * wr[2] - om[2] * wr[1];
+    a[1] = acc[1] + ar[1] + om[2] * wr[0] - om[0] * wr[2];
+    a[2] = acc[2] + ar[2] + om[0] * wr[1] - om[1] * wr[0];
+    for (k = 0; k < 3; ++k) {
+        F[k] = -m * a[k];
+        Ia[k] = IN[3 * k] * al[0] + IN[3 * k + 1] * al[1] + IN[3 * k + 2] * al[2];
+        Iw[k] = IN[3 * k] * om[0] + IN[3 * k + 1] * om[1] + IN[3 * k + 2] * om[2];
+    }
+    g[0] += F[0];
+    g[1] += F[1];
+    g[2] += F[2];
+    g[3] += rho[1] * F[2] - rho[2] * F[1] - (Ia[0] + om[1] * Iw[2] - om[2] * Iw[1]);
+    g[4] += rho[2] * F[0] - rho[0] * F[2] - (Ia[1] + om[2] * Iw[0] - om[0] * Iw[2]);
+    g[5] += rho[0] * F[1] - rho[1] * F[0] - (Ia[2] + om[0] * Iw[1] - om[1] * Iw[0]);
+}
+
+/* The payload's twist mass matrix, added to M: [[m I, -m X], [m X, I - m X X]], X = [rho]x. */
+void sw_payload_mass(const double *p, const double R[9], double M[36])
+{
+    const double m = P(PAYLOAD_MASS);
+    double rho[3], IN[9], rr;
+    int a, b;
+    sw_payload_lever(p, R, rho);
+    payload_inertia_n(p, R, IN);
+    rr = rho[0] * rho[0] + rho[1] * rho[1] + rho[2] * rho[2];
+    for (a = 0; a < 3; ++a) {
+        M[a * 7] += m;
+        for (b = 0; b < 3; ++b)
+            M[(3 + a) * 6 + 3 + b] += IN[a * 3 + b] + m * ((a == b ? rr : 0.0) - rho[a] * rho[b]);
+    }
+    M[0 * 6 + 4] += m * rho[2];  M[4 * 6 + 0] += m * rho[2];
+    M[0 * 6 + 5] += -m * rho[1]; M[5 * 6 + 0] += -m * rho[1];
+    M[1 * 6 + 3] += -m * rho[2]; M[3 * 6 + 1] += -m * rho[2];
+    M[1 * 6 + 5] += m * rho[0];  M[5 * 6 + 1] += m * rho[0];
+    M[2 * 6 + 3] += m * rho[1];  M[3 * 6 + 2] += m * rho[1];
+    M[2 * 6 + 4] += -m * rho[0]; M[4 * 6 + 2] += -m * rho[0];
+}
+
 /* F* = -m a and T* = R (-(I alpha_c + omega_c x I omega_c)) in C (Eqs. 3-5). */
 static void platform_inertia(const double *p, const double *R, const double *om,
                              const double *acc, const double *al, double *g)
@@ -76,6 +156,18 @@ int sw_twist_forces(const double *p, const double x[6], const double v[6], const
     gen[18] = mp * gx;
     gen[19] = mp * gy;
     gen[20] = mp * gz;
+    if (P(HAS_PAYLOAD) != 0.0) {   /* with the platform's parts: its inertia and its weight */
+        const double m = P(PAYLOAD_MASS);
+        double rho[3];
+        payload_inertia_forces(p, R, om, acc, al, gen);
+        sw_payload_lever(p, R, rho);
+        gen[18] += m * gx;
+        gen[19] += m * gy;
+        gen[20] += m * gz;
+        gen[21] += m * (rho[1] * gz - rho[2] * gy);
+        gen[22] += m * (rho[2] * gx - rho[0] * gz);
+        gen[23] += m * (rho[0] * gy - rho[1] * gx);
+    }
     /* Leg kinematics: r = R p_i, L = x + r - a_i, u = L / l (one division per leg). */
     for (i = 0; i < 6; ++i) {
         const double *pb = p + STEWART_P_PLATFORM + 3 * i, *pa = p + STEWART_P_BASE + 3 * i;
@@ -188,7 +280,7 @@ int sw_twist_forces(const double *p, const double x[6], const double v[6], const
     return status;
 }
 
-/* M_nu = M_platform + sum_i S_i^T (M_leg,i + m_d,i u u^T) S_i, S_i = [I, -[r_i]x];
+/* M_nu = M_platform (+ the payload's) + sum_i S_i^T (M_leg,i + m_d,i u u^T) S_i, S_i = [I, -[r_i]x];
    M_leg = m_B uu^T + (k / l^2) P, k = m_A c_A^2 + m_B (l - c_B)^2
    + I_tA + I_tB. Reads ws->R, U, Rr, leg; writes ws->Mt, all of it when `full`, else only
    its lower triangle (all that sw_cholesky_solve reads; each entry computed as in full). */
@@ -261,6 +353,8 @@ void sw_twist_mass_matrix(const double *p, sw_ws *ws, int full)
                 s += R[a * 3 + k] * p[STEWART_P_INERTIA + k] * R[b * 3 + k];
             Mt[(3 + a) * 6 + 3 + b] += s;
         }
+    if (P(HAS_PAYLOAD) != 0.0)
+        sw_payload_mass(p, R, Mt);
 }
 
 int stewart_twist_forces(const double *params, const double q[6], const double qd[6],

@@ -65,8 +65,9 @@ void sw_lu_solve(const double LU[36], double b[6])
     }
 }
 
-/* Solve A x = b in place for symmetric positive-definite A (overwritten); 0 if not SPD. */
-int sw_cholesky_solve(double A[36], double b[6])
+/* Cholesky factor of a symmetric positive-definite 6x6 in place: its lower triangle becomes L
+   (A = L L^T; the upper triangle is left as it was); 0 if A is not SPD. */
+int sw_cholesky_factor(double A[36])
 {
     int i, j, k;
     for (j = 0; j < 6; ++j) {
@@ -84,18 +85,40 @@ int sw_cholesky_solve(double A[36], double b[6])
             A[i * 6 + j] = s / d;
         }
     }
+    return 1;
+}
+
+/* b <- L^-1 b (forward substitution with the factor of sw_cholesky_factor). */
+void sw_cholesky_forward(const double L[36], double b[6])
+{
+    int i, k;
     for (i = 0; i < 6; ++i) {
         double s = b[i];
         for (k = 0; k < i; ++k)
-            s -= A[i * 6 + k] * b[k];
-        b[i] = s / A[i * 6 + i];
+            s -= L[i * 6 + k] * b[k];
+        b[i] = s / L[i * 6 + i];
     }
+}
+
+/* b <- L^-T b (back substitution with the factor of sw_cholesky_factor). */
+void sw_cholesky_back(const double L[36], double b[6])
+{
+    int i, k;
     for (i = 5; i >= 0; --i) {
         double s = b[i];
         for (k = i + 1; k < 6; ++k)
-            s -= A[k * 6 + i] * b[k];
-        b[i] = s / A[i * 6 + i];
+            s -= L[k * 6 + i] * b[k];
+        b[i] = s / L[i * 6 + i];
     }
+}
+
+/* Solve A x = b in place for symmetric positive-definite A (overwritten); 0 if not SPD. */
+int sw_cholesky_solve(double A[36], double b[6])
+{
+    if (!sw_cholesky_factor(A))
+        return 0;
+    sw_cholesky_forward(A, b);
+    sw_cholesky_back(A, b);
     return 1;
 }
 
@@ -142,4 +165,54 @@ void sw_singular_values(const double A[36], double s[6])
             n += W[i * 6 + j] * W[i * 6 + j];
         s[j] = sqrt(n);
     }
+}
+
+/* Eigenvalues w and eigenvectors (columns of V) of a symmetric 6x6 by cyclic Jacobi rotations
+   (A is overwritten, its off-diagonal driven to zero), unordered. A rotation is skipped when
+   its entry is below 1e-18 of the geometric mean of its two diagonal entries: the eigenvalues
+   then hold to high relative accuracy, also a small one beside a large one. */
+void sw_symmetric_eigen(double A[36], double w[6], double V[36])
+{
+    int i, p, q, k, sweep;
+    for (i = 0; i < 36; ++i)
+        V[i] = (i % 7 == 0) ? 1.0 : 0.0;
+    for (sweep = 0; sweep < 60; ++sweep) {
+        int rotated = 0;
+        for (p = 0; p < 5; ++p)
+            for (q = p + 1; q < 6; ++q) {
+                const double apq = A[p * 6 + q], app = A[p * 6 + p], aqq = A[q * 6 + q];
+                double theta, t, c, s;
+                if (apq == 0.0)
+                    continue;
+                if (fabs(apq) <= 1e-18 * sqrt(fabs(app * aqq))) {
+                    A[p * 6 + q] = A[q * 6 + p] = 0.0;
+                    continue;
+                }
+                rotated = 1;
+                theta = (aqq - app) / (2.0 * apq);
+                t = (theta >= 0.0 ? 1.0 : -1.0) / (fabs(theta) + sqrt(theta * theta + 1.0));
+                c = 1.0 / sqrt(t * t + 1.0);
+                s = t * c;
+                for (k = 0; k < 6; ++k) {   /* columns: A P */
+                    const double akp = A[k * 6 + p], akq = A[k * 6 + q];
+                    A[k * 6 + p] = c * akp - s * akq;
+                    A[k * 6 + q] = s * akp + c * akq;
+                }
+                for (k = 0; k < 6; ++k) {   /* rows: P^T A */
+                    const double apk = A[p * 6 + k], aqk = A[q * 6 + k];
+                    A[p * 6 + k] = c * apk - s * aqk;
+                    A[q * 6 + k] = s * apk + c * aqk;
+                }
+                A[p * 6 + q] = A[q * 6 + p] = 0.0;
+                for (k = 0; k < 6; ++k) {   /* V P */
+                    const double vkp = V[k * 6 + p], vkq = V[k * 6 + q];
+                    V[k * 6 + p] = c * vkp - s * vkq;
+                    V[k * 6 + q] = s * vkp + c * vkq;
+                }
+            }
+        if (!rotated)
+            break;
+    }
+    for (i = 0; i < 6; ++i)
+        w[i] = A[i * 7];
 }

@@ -14,6 +14,15 @@ const stewart_standard_info stewart_standard_table[] = {STEWART_STANDARD(STANDAR
 const int stewart_standard_table_size =
     sizeof stewart_standard_table / sizeof stewart_standard_table[0];
 
+#define ELASTIC_ROW(NAME, KEY, COUNT, SHAPE, UNIT, BOUND, MIN, MAX, WHAT)                       \
+    {#NAME, KEY, 0, STEWART_E_##NAME, COUNT, SHAPE, STEWART_BOUND_##BOUND, MIN, MAX, UNIT, WHAT},
+#define PAYLOAD_ROW(NAME, KEY, COUNT, SHAPE, UNIT, BOUND, MIN, MAX, WHAT)                       \
+    {"PAYLOAD_" #NAME, KEY, 1, STEWART_OFFSET(PAYLOAD_##NAME), COUNT, SHAPE, STEWART_BOUND_##BOUND, MIN,  \
+     MAX, UNIT, WHAT},
+const stewart_elastic_info stewart_elastic_table[] = {STEWART_ELASTIC(ELASTIC_ROW)
+                                                      STEWART_PAYLOAD_KEYS(PAYLOAD_ROW)};
+const int stewart_elastic_table_size = sizeof stewart_elastic_table / sizeof stewart_elastic_table[0];
+
 #define PARAMETER_ROW(ID, NAME, COUNT, SHAPE, UNIT, BOUND, MIN, MAX, WHAT, SCENE)                 \
     {#ID, NAME, STEWART_VR(PARAMETERS, stewart_fmu_parameters, ID), COUNT, SHAPE,                 \
      STEWART_BOUND_##BOUND, MIN, MAX, SCENE, 0, "parameter", UNIT, WHAT},

@@ -185,15 +185,17 @@ def _variables(prior: np.ndarray, scale: np.ndarray, free: np.ndarray):
     return x, pi
 
 
-def _physical(pi, free: np.ndarray, length: float, scale: np.ndarray) -> list:
+def _physical(pi, free: np.ndarray, length: float, scale: np.ndarray,
+              inside: float = MARGIN) -> list:
     """The consistency constraints (module docstring) on the free standard parameters; the
     pseudo-inertias scaled by diag(1/length, 1/length, 1/length, 1) (a congruence: same
     semidefiniteness, better conditioned), and kept MARGIN times their body's mass scale inside
     the cone: a solution on its boundary (a body of zero thickness) would be refused by the
-    scene's own rules (axial <= 2 x transverse, the triangle inequality) for a rounding error."""
+    scene's own rules (axial <= 2 x transverse, the triangle inequality) for a rounding error.
+    `inside` replaces MARGIN for a point deeper inside (refine's start)."""
     import cvxpy as cp
 
-    margin = MARGIN * scale[[span(n).start for n in ("PLATFORM_MASS", "LOWER_MASS",
+    margin = inside * scale[[span(n).start for n in ("PLATFORM_MASS", "LOWER_MASS",
                                                      "UPPER_MASS")]]
     cons = []
     m = pi[span("PLATFORM_MASS").start]
@@ -240,14 +242,16 @@ def _solve(problem) -> bool:
 
 
 def consistent_point(base: BaseParameters, beta: np.ndarray, prior: np.ndarray,
-                     scale: np.ndarray, length: float, free: np.ndarray) -> np.ndarray | None:
+                     scale: np.ndarray, length: float, free: np.ndarray,
+                     inside: float = MARGIN) -> np.ndarray | None:
     """The physically consistent pi nearest the prior (scaled) with K pi = beta, the standard
-    parameters not `free` held at the prior, or None. When the nearest point with K pi = beta
+    parameters not `free` held at the prior, or None; the pseudo-inertias `inside` (times
+    their mass scale) inside the cone (_physical). When the nearest point with K pi = beta
     (least squares, closed form) is consistent it is that point, and no semidefinite program is
     set up (nor cvxpy imported): the constraints are then inactive and the program's optimum is
     the same point."""
     nearest = _nearest(base, beta, prior, scale, free)
-    if nearest is not None and meets(nearest, free, length, scale):
+    if nearest is not None and meets(nearest, free, length, scale, inside):
         return nearest
     import cvxpy as cp
 
@@ -257,7 +261,8 @@ def consistent_point(base: BaseParameters, beta: np.ndarray, prior: np.ndarray,
     bscale = np.abs(K) @ scale
     eq = [(K[i] @ cp.hstack([_expr(v) for v in pi]) - beta[i]) / bscale[i] == 0
           for i in range(len(beta))]
-    problem = cp.Problem(cp.Minimize(cp.sum_squares(x)), eq + _physical(pi, free, length, scale))
+    problem = cp.Problem(cp.Minimize(cp.sum_squares(x)),
+                         eq + _physical(pi, free, length, scale, inside))
     if not _solve(problem) or problem.status != cp.OPTIMAL:
         return None
     out = _values(pi)
@@ -300,31 +305,34 @@ def _nearest(base: BaseParameters, beta: np.ndarray, prior: np.ndarray, scale: n
     return out
 
 
-def meets(pi: np.ndarray, free: np.ndarray, length: float, scale: np.ndarray) -> bool:
-    """Whether pi meets the consistency constraints of _physical (with their margins) on the
-    bodies with a free parameter: project would return it unchanged, and no leg part's mass is
-    within its margin of zero."""
+def meets(pi: np.ndarray, free: np.ndarray, length: float, scale: np.ndarray,
+          inside: float = MARGIN) -> bool:
+    """Whether pi meets the consistency constraints of _physical (with their margins, `inside`)
+    on the bodies with a free parameter: project would return it unchanged, and no leg part's
+    mass is within its margin of zero."""
     for part in ("LOWER", "UPPER"):
         k_m = span(f"{part}_MASS").start
-        if free[k_m:span(f"{part}_AXIAL").stop].any() and pi[k_m] <= MARGIN * scale[k_m]:
+        if free[k_m:span(f"{part}_AXIAL").stop].any() and pi[k_m] <= inside * scale[k_m]:
             return False
-    return bool(np.array_equal(project(pi, free, length, scale), pi))
+    return bool(np.array_equal(project(pi, free, length, scale, inside), pi))
 
 
-def project(pi: np.ndarray, free: np.ndarray, length: float, scale: np.ndarray) -> np.ndarray:
+def project(pi: np.ndarray, free: np.ndarray, length: float, scale: np.ndarray,
+            inside: float = MARGIN) -> np.ndarray:
     """pi meeting the consistency constraints (_physical) exactly, where the solver met them
     to its tolerance only: a drive mass or friction below zero set to zero; a platform
     pseudo-inertia with an eigenvalue below its margin shifted by the identity (mass and
     diagonal inertia up by the deficit, first moment and products kept); a leg part's axial
     moment below zero set to zero, then its transverse term raised to the least value that
     makes its pseudo-inertia meet the margin (mass and first moment kept). Only bodies with a
-    free parameter are touched, and a parameter that meets its constraint is returned as is."""
+    free parameter are touched, and a parameter that meets its constraint is returned as is.
+    `inside` replaces MARGIN (_physical)."""
     out = np.array(pi, dtype=float)
     for name in ("DRIVE_MASS", "VISCOUS", "COULOMB"):
         sl = span(name)
         out[sl] = np.where(free[sl] & (out[sl] < 0.0), 0.0, out[sl])
     L, L2 = length, length * length
-    margin = MARGIN * scale[span("PLATFORM_MASS").start]
+    margin = inside * scale[span("PLATFORM_MASS").start]
     P = _platform_pseudo_inertia(out, L)
     deficit = margin - float(np.linalg.eigvalsh(P).min())
     if deficit > 0.0 and free[:span("PLATFORM_INERTIA").stop].any():
@@ -336,7 +344,7 @@ def project(pi: np.ndarray, free: np.ndarray, length: float, scale: np.ndarray) 
         k_j, k_a = span(f"{part}_INERTIA").start, span(f"{part}_AXIAL").start
         if not free[[k_m, k_c, k_j, k_a]].any():
             continue
-        margin = MARGIN * scale[k_m]
+        margin = inside * scale[k_m]
         if free[k_a] and out[k_a] < 0.0:
             out[k_a] = 0.0
         m, mc = out[k_m], out[k_c] / L
