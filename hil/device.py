@@ -23,9 +23,12 @@ A setpoint is refused (STATUSTEXT, counted, never applied) when a length, rate o
 finite, a rate, force or force rate is beyond the bounds of hil.input_bounds (the text names the
 leg, the value and the bound), a length is outside [SP_LEN_MIN, SP_LEN_MAX] (the stroke less the
 servo's overshoot room at each end, hil.input_bounds.overshoot_room), forward kinematics finds
-no pose for the lengths (Newton from the last accepted pose), or cond(J) at that pose exceeds the
-parameter SP_COND_MAX. A valid setpoint is the event SETPOINT: applied while armed, ignored and
-counted while disarmed (hil.operating_mode). Rates are used with STEWART_SETPOINT_FLAG_RATE_VALID, forces
+no pose for the lengths (Newton from the last accepted pose), cond(J) at that pose exceeds the
+parameter SP_COND_MAX, or the pose violates a joint cone or a leg or obstacle clearance of the
+scene's [joints] and [clearance] tables (controller.capability.geometric_engine; the text names
+the limit, the leg or pair, and the margin). A valid setpoint is the event SETPOINT: applied
+while armed, ignored and counted while disarmed (hil.operating_mode). Rates are used with
+STEWART_SETPOINT_FLAG_RATE_VALID, forces
 with STEWART_SETPOINT_FLAG_FORCE_VALID (the feed-forward of hil.servo; di/dt from the force rate
 with STEWART_SETPOINT_FLAG_FORCE_RATE_VALID, else 0). HOLD holds the current leg lengths.
 
@@ -86,6 +89,7 @@ from typing import Any, Callable, Iterable
 import numpy as np
 
 from controller.axis import AxisControllers, MotorCurrents
+from controller.capability import geometric_engine
 from controller.config import ControllerConfig, controller_config
 from controller.design import PidGains
 from controller.plants import PlantStepError
@@ -143,7 +147,7 @@ class Device:
         self.leg_min = model.leg_min if model.leg_min is not None else 0.0
         self.leg_max = model.leg_max if model.leg_max is not None else math.inf
         self.home_lengths = inverse_kinematics(model, model.home, with_cond=False).lengths.copy()
-        self.bounds = _bounds(self.leg_min, self.leg_max, self.servo)
+        self.bounds = _bounds(self.leg_min, self.leg_max, self.servo, model)
         self.state = DeviceState(np.asarray(model.home, dtype=float).copy())
         self.k = 0                       # ticks done; device time = k / rate
         self.load = 0                    # per mille of the tick period (set by serve)
@@ -329,12 +333,14 @@ def _sensors(config: SensorConfig | None, servo: Servo, rate: float,
                    plant_scene.source)
 
 
-def _bounds(leg_min: float, leg_max: float, servo: Servo) -> input_bounds.Bounds:
-    """The input bounds of a device of this stroke and servo (hil.input_bounds); DeviceError when
-    the servo's overshoot room leaves no setpoint length."""
+def _bounds(leg_min: float, leg_max: float, servo: Servo, model: Model) -> input_bounds.Bounds:
+    """The input bounds of a device of this stroke and servo (hil.input_bounds), with the
+    geometric limits of `model` (controller.capability); DeviceError when the servo's overshoot
+    room leaves no setpoint length."""
     held = float(np.max(np.abs(servo.plant.rack_force)))
     room = input_bounds.overshoot_room(servo.ctrl.axis, held)
-    b = input_bounds.device_bounds(leg_min, leg_max, servo.ctrl.axis, servo.design_gains, room)
+    b = input_bounds.device_bounds(leg_min, leg_max, servo.ctrl.axis, servo.design_gains, room,
+                                   geometric_engine(model))
     if not b.leg_min < b.leg_max:
         raise DeviceError(f"the stroke [{leg_min:g}, {leg_max:g}] m leaves no "
                           f"setpoint once the servo's overshoot room ({room:.3g} m at each "

@@ -41,12 +41,15 @@ from typing import Any
 
 import numpy as np
 
-# Headroom over the drive's physical limits. Planned moves may ask more than a drive delivers
-# (it then saturates): the project's own references for the paper's 0.1 s moves ask the
+from controller.capability import DEVICE_FORCE, DEVICE_RATE, bounds_of
+
+# Headroom over the drive's physical limits (declared in controller.capability beside the
+# other consumers' margins). Planned moves may ask more than a drive delivers (it then
+# saturates): the project's own references for the paper's 0.1 s moves ask the
 # micro-manipulator's legs for 6.5x the no-load speed and 21x the peak force (Kane feed-forward),
 # and the host must be able to send them. These bounds refuse absurd values, not ambitious ones.
-RATE_MARGIN = 10.0
-FORCE_MARGIN = 50.0
+RATE_MARGIN = DEVICE_RATE
+FORCE_MARGIN = DEVICE_FORCE
 FORCE_RATE_MARGIN = 10.0
 GAIN_FACTOR = 10.0      # gains up to this many times the design's
 LIMIT_FLOOR = 0.01      # drive limits down to this fraction of the motor's rating
@@ -69,6 +72,9 @@ class Bounds:
     watchdog_range: tuple[float, float] = WATCHDOG_RANGE
     cond_max_limit: float = COND_MAX_LIMIT
     stream_max: float = STREAM_MAX
+    # the pose's own limits (controller.capability.geometric_engine: joint cones, leg and
+    # obstacle clearance), None: not checked
+    reach: Any = None
 
     def setpoint(self, msg: Any, flags: int, rate_flag: int, force_flag: int,
                  force_rate_flag: int) -> str | None:
@@ -100,21 +106,22 @@ def overshoot_room(axis: Any, holding_force: float) -> float:
 
 
 def device_bounds(leg_min: float, leg_max: float, axis: Any, gains: Any,
-                  room: float = 0.0) -> Bounds:
+                  room: float = 0.0, reach: Any = None) -> Bounds:
     """The bounds of a device whose stroke is [leg_min, leg_max], whose drive is `axis`
     (controller.drive.AxisModel, with the scene's motor ratings) and whose designed gains are
     `gains` (controller.design.PidGains); setpoint lengths keep `room` (overshoot_room) free at
-    each end of the stroke."""
+    each end of the stroke; a setpoint's pose stays inside the limits of `reach` (a
+    stewart_fmu.reach.Engine of the pose's own limits)."""
     m = axis.motor
-    kf, ke = axis.force_constant, axis.emf_constant
+    kf, drive = axis.force_constant, bounds_of(axis)
     return Bounds(
         leg_min=leg_min + room, leg_max=leg_max - room,
-        rate_max=RATE_MARGIN * m.voltage_limit / ke,
-        force_max=FORCE_MARGIN * kf * m.current_limit,
+        rate_max=RATE_MARGIN * drive.speed,
+        force_max=FORCE_MARGIN * drive.force,
         force_rate_max=FORCE_RATE_MARGIN * kf * m.voltage_limit / m.inductance,
         gain_max={k: GAIN_FACTOR * getattr(gains, k) for k in ("kp", "ki", "kd")},
         voltage_range=(LIMIT_FLOOR * m.voltage_limit, m.voltage_limit),
-        current_range=(LIMIT_FLOOR * m.current_limit, m.current_limit))
+        current_range=(LIMIT_FLOOR * m.current_limit, m.current_limit), reach=reach)
 
 
 def check_rate(hz: Any) -> str | None:

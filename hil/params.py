@@ -22,8 +22,9 @@ from hil import input_bounds, protocol
 from hil import mavlink_stewart as ms
 from hil.servo import Servo
 from hil.downlink import TELEMETRY
+from stewart_fmu.reach_params import COND_LIMIT
 
-COND_MAX = 100.0           # default SP_COND_MAX: cond(J) (scaled) above this counts as singular
+COND_MAX = COND_LIMIT      # default SP_COND_MAX: the engine's cond(J) limit (scaled)
 #: The parameters hil.servo.Servo.restore_design brings back to the design after a numerical
 #: fault: the PID gains and the drive limits.
 DESIGN_PARAMS = ("CTRL_KP", "CTRL_KI", "CTRL_KD", "DRV_V_LIMIT", "DRV_I_LIMIT")

@@ -3,7 +3,9 @@
 In order (the first failure is the reason, legs numbered 1..6): every length, and every rate,
 force and force rate its flags declare valid, finite; those within the bounds of hil.input_bounds;
 every length within [SP_LEN_MIN, SP_LEN_MAX]; a pose with these lengths (forward kinematics by
-Newton from the last accepted pose); cond(J) at that pose at most SP_COND_MAX.
+Newton from the last accepted pose); cond(J) at that pose at most SP_COND_MAX; the pose inside
+the joint cones and the leg and obstacle clearances (the engine of Bounds.reach,
+controller.capability: the one feasibility engine).
 """
 from __future__ import annotations
 
@@ -11,11 +13,13 @@ from typing import Any
 
 import numpy as np
 
+from controller.capability import first_violated
 from hil import mavlink_stewart as ms
 from hil.input_bounds import Bounds
 from stewart_fmu.errors import StewartError
 from stewart_fmu.kinematics import condition_number, forward_kinematics
 from stewart_fmu.model import Model
+from stewart_fmu.reach import LIMITS
 
 
 def check_setpoint(msg: Any, flags: int, bounds: Bounds, model: Model, guess: np.ndarray,
@@ -49,7 +53,21 @@ def check_setpoint(msg: Any, flags: int, bounds: Bounds, model: Model, guess: np
     cond = condition_number(model, pose)
     if not cond <= cond_max:
         return f"near-singular, cond {cond:.3g} > {cond_max:g}", None
-    return None, pose
+    why = geometry(bounds.reach, pose)
+    return (why, None) if why is not None else (None, pose)
+
+
+def geometry(engine: Any, pose: np.ndarray) -> str | None:
+    """Why `pose` violates a joint cone or a clearance of `engine` (the limit, the leg or pair,
+    the margin), or None (also without an engine)."""
+    if engine is None:
+        return None
+    v = engine.verdict(pose)
+    k = first_violated(v.margins)
+    if k is None:
+        return None
+    lim = LIMITS[k]
+    return f"{lim.name} at {v.where_of(k)}, margin {v.margins[k]:.3g} {lim.unit}"
 
 
 def flagged(flags: int, flag: int, values: Any) -> np.ndarray | None:

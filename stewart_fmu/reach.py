@@ -58,11 +58,17 @@ class DriveBounds:
 @dataclass(frozen=True)
 class Verdict:
     """One pose's answer: the binding limit (None: inside every one) and where it binds, and
-    every limit's margin in LIMITS order (+inf for a limit not present)."""
+    every limit's margin in LIMITS order (+inf for a limit not present) with its element
+    (`at`: the leg, pair or obstacle and leg where each margin is least)."""
 
     limit: str | None
     where: str
     margins: np.ndarray
+    at: np.ndarray | None = None
+
+    def where_of(self, index: int) -> str:
+        """Where the limit LIMITS[index] is least ('leg 3', 'legs 1-2', ...)."""
+        return "" if self.at is None else where_text(index, int(self.at[index]))
 
 
 @dataclass(frozen=True)
@@ -172,9 +178,10 @@ class Engine:
                                        self._margin_ptr, self._where_ptr)
         if k == len(LIMITS):
             raise TrajectoryError("the pose (or its rates) is not finite")
+        at = self._where.copy()
         if k < 0:
-            return Verdict(None, "", self._margin.copy())
-        return Verdict(NAMES[k], where_text(k, int(self._where[k])), self._margin.copy())
+            return Verdict(None, "", self._margin.copy(), at)
+        return Verdict(NAMES[k], where_text(k, int(self._where[k])), self._margin.copy(), at)
 
     def binding(self, Q) -> np.ndarray:
         """The binding limit of each pose (N, 6) of the geometric limits and cond(J), an index

@@ -19,7 +19,7 @@ NUMERICS_FILES = frozenset({
     "test_calibrate.py", "test_excite.py", "test_identify.py", "test_identify_estimate.py",
     "test_identify_refine.py", "test_cueing_feasibility.py", "test_cueing_optimal.py",
     "test_cueing_optimal_live.py", "test_cueing_envelope.py", "test_cueing_head.py",
-    "test_size.py", "test_sweep_adaptive.py", "test_extreme_cases.py",
+    "test_size.py", "test_sweep_adaptive.py", "test_extreme_cases.py", "test_envelope_reach.py",
 })
 
 

@@ -65,6 +65,8 @@ def run(args: argparse.Namespace) -> None:
                                                                               unit="steps"))
     finally:
         progress.close()
+    if scene.controller is not None:
+        study = preflown(study, scene, motion)
     out = Path(args.out)
     title = f"{model.name}: {Path(args.motion).name}, {args.mode} cue"
     lines: list[str] = []
@@ -76,3 +78,16 @@ def run(args: argparse.Namespace) -> None:
     for path in write_cue_report(study, out, title, extra=view if args.view else None):
         print(f"wrote {path}" + (f": {lines[0]}" if path.name == VIEW_FILE else ""))
     print(verdict(study))
+
+
+def preflown(study, scene, motion):
+    """The study with each classical run's cue-live preflight (live.preflight: the envelope
+    on a simulated clock); the optimal mode's live MPC has no preview, another cue: not
+    preflown."""
+    from dataclasses import replace
+
+    from stewart_sim.live.preflight import preflight
+
+    runs = tuple(replace(r, live=preflight(scene, motion).as_dict()) if r.mode == "classical"
+                 else r for r in study.runs)
+    return replace(study, runs=runs)

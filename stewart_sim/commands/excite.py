@@ -22,8 +22,7 @@ def add_parser(sub, help_text: str) -> None:
     period, harmonics, periods, starts, most, iterations, polish = literals(
         "stewart_sim.studies.excite.design", "PERIOD", "HARMONICS", "PERIODS", "STARTS",
         "MAX_STARTS", "MAX_ITERATIONS", "POLISH_ITERATIONS")
-    margin, fraction = literals("stewart_sim.studies.excite.bounds", "STROKE_MARGIN",
-                                "LIMIT_FRACTION")
+    margin, fraction = literals("controller.capability", "EXCITE_STROKE", "EXCITE_FRACTION")
     (rate,) = literals("controller.moves", "DEMO_RATE")
     p = sub.add_parser(
         "excite", help=help_text,

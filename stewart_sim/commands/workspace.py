@@ -67,12 +67,12 @@ def run(args: argparse.Namespace) -> None:
     from stewart_fmu.errors import StewartError
     from stewart_fmu.frames import default_frame, frame_change, from_platform
     from stewart_sim.scene.load import load
-    from stewart_sim.studies.workspace.engine import engine
+    from controller.capability import engine
 
     scene = load(args.scene)
     frame = args.frame or default_frame(scene.model)
     frame_change(scene.model, frame)   # an unknown frame name: one line, exit 2
-    eng = engine(scene)
+    eng = engine(scene.model, scene.controller)
     if args.check:
         if not args.out:
             raise StewartError("--check needs --out V.csv")

@@ -7,10 +7,11 @@ need for those forces (controller/drive.py):
     V = R i + L di/dt + Ke' ldot     Ke' = Ke zeta / r (AxisModel.voltage)
 
 (AxisModel.drive_for, as the controller's feedforward: di/dt by central differences.)
-Limits: the stroke [leg_min, leg_max] of [geometry]; cond(J) (scaled as in
-stewart_fmu.kinematics) below `cond_limit`; |i| and |V| below [controller.motor]'s
-current_limit and voltage_limit; |sigma| below Kf x current_limit (AxisModel.peak_force), the
-most force the drive can give. A scene without [controller] (or without [drive]) has no motor:
+Limits (controller.capability, the one home of what the mechanism and its drives can do): the
+stroke [leg_min, leg_max] of [geometry]; cond(J) (scaled as in stewart_fmu.kinematics) below
+`cond_limit` (the engine's COND_LIMIT); |i| and |V| below [controller.motor]'s current_limit
+and voltage_limit; |sigma| below the drives' peak force Kf x current_limit, the most force the
+drive can give. What `cue-live`'s envelope keeps free of them on top is live.preflight's. A scene without [controller] (or without [drive]) has no motor:
 current, voltage and the force limit are then not computed (`drive_note` says why).
 
 Forces are computed at every sample, also those past the stroke (the stroke is checked here,
@@ -22,15 +23,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from controller.capability import capability
 from controller.config import ControllerConfig
-from controller.drive import axis_model
 from stewart_fmu.dynamics import inverse_dynamics
 from stewart_fmu.errors import TrajectoryError
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.model import Model
-
-COND_LIMIT = 100.0  # scaled cond(J) above this counts as near-singular: the emulated device's
-                    # default SP_COND_MAX (hil/params.py), forces then amplify ~100x
+from stewart_fmu.reach_params import COND_LIMIT   # the engine's cond(J) limit, SP_COND_MAX's default
 QUANTITIES = ("stroke_min", "stroke_max", "cond", "force", "current", "voltage")
 UNITS = {"stroke_min": "m", "stroke_max": "m", "cond": "1", "force": "N", "current": "A",
          "voltage": "V"}
@@ -112,11 +111,10 @@ def feasibility(model: Model, t, q, qd, qdd, controller: ControllerConfig | None
         note = ("the scene has no [drive] table (gearbox and pinion): current, voltage and the "
                 "force limit not computed")
     else:
-        axis = axis_model(model, controller.motor, controller.load_mass)
-        voltage, current = axis.drive_for(t, sigma, kin.rates)
-        motor = controller.motor
-        current_limit, voltage_limit = motor.current_limit, motor.voltage_limit
-        force_limit = axis.peak_force
+        cap = capability(model, controller)
+        voltage, current = cap.axis.drive_for(t, sigma, kin.rates)
+        current_limit, voltage_limit = cap.axis.motor.current_limit, cap.voltage
+        force_limit = cap.force
     checks = {"stroke_min": (kin.lengths, model.leg_min, -1),
               "stroke_max": (kin.lengths, model.leg_max, +1),
               "cond": (kin.cond[:, None], cond_limit, +1),

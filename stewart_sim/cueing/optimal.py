@@ -66,8 +66,8 @@ import numpy as np
 import osqp
 import scipy.sparse as sp
 
+from controller.capability import Capability, capability
 from controller.config import ControllerConfig
-from controller.drive import AxisModel, axis_model
 from stewart_fmu.errors import StewartError
 from stewart_fmu.model import Model
 
@@ -149,30 +149,6 @@ def held_move(dq: np.ndarray, qd: np.ndarray, qdd: np.ndarray, tau
     return dq + qd * tau + 0.5 * qdd * tau**2, qd + qdd * tau, qdd
 
 
-@dataclass(frozen=True)
-class Limits:
-    """The mechanism's limits the MPC keeps (None: the scene does not declare it)."""
-
-    leg_min: float | None
-    leg_max: float | None
-    force: float | None       # N, Kf I_max (rack force)
-    voltage: float | None     # V
-    axis: AxisModel | None
-    tilt_rate: float | None   # rad/s
-
-
-def mechanism_limits(model: Model, controller: ControllerConfig | None,
-                     tilt_rate: float | None) -> Limits:
-    """Stroke from [geometry]; force and voltage from [controller.motor] (`controller`) and
-    [drive] when the scene has both (otherwise those limits are not imposed)."""
-    axis = None
-    if model.drive is not None and controller is not None:
-        axis = axis_model(model, controller.motor, controller.load_mass)
-    return Limits(model.leg_min, model.leg_max,
-                  None if axis is None else axis.force_constant * axis.motor.current_limit,
-                  None if axis is None else axis.motor.voltage_limit, axis, tilt_rate)
-
-
 def interval_means(t: np.ndarray, y: np.ndarray, edges: np.ndarray) -> np.ndarray:
     """Mean of the sampled signal y (N, m) (linear between samples, held past the ends) over
     each [edges[j], edges[j+1]): the zero-order-hold input that carries the same impulse."""
@@ -232,11 +208,13 @@ class _Qp:
 
     Variables z = (x_0..x_N, u_0..u_{N-1}, s_0..s_{N-1}); s_k >= 0 relaxes the stroke at k+1."""
 
-    def __init__(self, pm: PredictionModel, lim: Limits, legs: LegLinearisation, steps: int,
+    def __init__(self, pm: PredictionModel, lim: Capability, tilt_rate: float | None,
+                 legs: LegLinearisation, steps: int,
                  weights: np.ndarray, state_weights: np.ndarray, input_weights: np.ndarray,
                  slack_weight: tuple[float, float], margins: dict[str, float],
                  tolerance: float, max_iter: int, terminal_weight: float):
         self.pm, self.lim, self.N, self.margin = pm, lim, steps, margins
+        self.tilt_rate = tilt_rate
         self.tolerance, self.max_iter = tolerance, max_iter
         n, N = pm.n, steps
         self.nx, self.nu0, self.ns0 = (N + 1) * n, (N + 1) * n, (N + 1) * n + N * NU
@@ -291,12 +269,12 @@ class _Qp:
             for k in range(N):
                 A.add("voltage", r + 6 * k, xi(k + 1), np.zeros((6, NP)))
                 A.add("voltage", r + 6 * k, ui(k), np.zeros((6, NU)))
-        if lim.tilt_rate is not None:
+        if tilt_rate is not None:
             r = section("tilt_rate", 2 * N)
             for k in range(N):
                 # roll and pitch rates, in units of the limit
-                A.add(None, r + 2 * k, xi(k + 1) + 9, np.array([[1.0, 0.0]]) / lim.tilt_rate)
-                A.add(None, r + 2 * k + 1, xi(k + 1) + 10, np.array([[1.0]]) / lim.tilt_rate)
+                A.add(None, r + 2 * k, xi(k + 1) + 9, np.array([[1.0, 0.0]]) / tilt_rate)
+                A.add(None, r + 2 * k + 1, xi(k + 1) + 10, np.array([[1.0]]) / tilt_rate)
         r = section("slack", N)
         A.add(None, r, self.ns0, np.eye(N))
         self.Atrip = A
@@ -357,8 +335,8 @@ class _Qp:
             l[S["voltage"]] = (-vmax - vbase).ravel() / lim.voltage
             u[S["voltage"]] = (vmax - vbase).ravel() / lim.voltage
         if "tilt_rate" in S:
-            l[S["tilt_rate"]] = (vehicle_rate / lim.tilt_rate - 1.0).ravel()
-            u[S["tilt_rate"]] = (vehicle_rate / lim.tilt_rate + 1.0).ravel()
+            l[S["tilt_rate"]] = (vehicle_rate / self.tilt_rate - 1.0).ravel()
+            u[S["tilt_rate"]] = (vehicle_rate / self.tilt_rate + 1.0).ravel()
         self.solver.update(q=q, l=l, u=u, Ax=self.Atrip.csc_data())
         res = self.solver.solve(raise_error=False)   # warm-started from the previous solution
         if res.info.status == "solved" and res.info.status_polish != 1:
@@ -504,7 +482,7 @@ class OptimalStepper:
         self.steps = N = blocks * r
         tilt_rate = options.tilt_rate_limit if options.tilt_rate_limit is not None \
             else config.tilt_rate_limit
-        self.limits = lim = mechanism_limits(model, controller, tilt_rate)
+        self.limits = lim = capability(model, controller)
         self.lin = linearise(self.home, g, config.head)
         thresholds = np.r_[OTOLITH_THRESHOLD, CANAL_THRESHOLD]
         self.pm = pm = prediction_model(self.lin, VESTIBULAR_CHANNELS, self.dt)
@@ -519,7 +497,7 @@ class OptimalStepper:
         n = pm.n
         X = np.zeros((N + 1, n))          # the prediction the rows are linearised on
         U = np.zeros((N, NU))
-        self._qp = _Qp(grid, lim, leg_rows(model, lim, self.home, X[::r, :NP], U[::r])[1], blocks,
+        self._qp = _Qp(grid, lim, tilt_rate, leg_rows(model, lim, self.home, X[::r, :NP], U[::r])[1], blocks,
                        weights,
                        state_weights, input_weights, options.slack_weight, margins,
                        options.tolerance, options.max_iter, options.terminal_weight)
@@ -529,7 +507,7 @@ class OptimalStepper:
         self.limit_names = tuple(name for name, on in (
             ("stroke", lim.leg_min is not None or lim.leg_max is not None),
             ("force", lim.force is not None), ("voltage", lim.voltage is not None),
-            ("tilt_rate", lim.tilt_rate is not None)) if on)
+            ("tilt_rate", tilt_rate is not None)) if on)
         self.variables, self.constraints = self._qp.nz, self._qp.m
 
     def solve(self, window: np.ndarray) -> Solution:
@@ -621,7 +599,7 @@ def known_inputs(lin: Linearisation, home: np.ndarray, xp: np.ndarray, u: np.nda
     return w
 
 
-def leg_rows(model: Model, lim: Limits, home: np.ndarray, xp: np.ndarray, u: np.ndarray
+def leg_rows(model: Model, lim: Capability, home: np.ndarray, xp: np.ndarray, u: np.ndarray
              ) -> tuple[LegLinearisation, LegLinearisation]:
     """The leg quantities linearised at the start (x_k, u_k) and the end (x_k+1, u_k) of each
     step of a predicted trajectory (xp (K+1, 12), u (K, 6))."""

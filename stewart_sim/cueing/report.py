@@ -118,6 +118,7 @@ def summary_markdown(study: CueStudy, title: str) -> str:
     lines += _margins_section(study.runs)
     for run in study.runs:
         lines += _violations_section(run)
+        lines += _live_section(run)
     lines += _tracking_section(study)
     return "\n".join(lines) + "\n"
 
@@ -221,6 +222,22 @@ def _violations_section(run: CueRun) -> list[str]:
     return lines + [""]
 
 
+def live_text(live: dict) -> str:
+    """The live envelope's interventions in words: samples limited, per limit."""
+    hits = ", ".join(f"{k} {v}" for k, v in live["per_limit"].items() if v)
+    return f"{live['limited']} of {live['samples']} samples limited ({hits})"
+
+
+def _live_section(run: CueRun) -> list[str]:
+    """What cue-live's envelope does with the motion on a simulated clock (live.preflight):
+    the same limits, less the same margins (controller.capability)."""
+    if run.live is None:
+        return []
+    words = ("every sample passed unchanged" if not run.live["limited"]
+             else live_text(run.live))
+    return [f"## cue-live ({run.mode}, simulated clock): {words}", ""]
+
+
 def _tracking_section(study: CueStudy) -> list[str]:
     if study.tracking is None:
         return ([f"## Closed loop: not run ({study.tracking_note})", ""]
@@ -254,17 +271,24 @@ def cue_view(study: CueStudy, title: str, controller: ControllerConfig | None):
 
 
 def verdict(study: CueStudy) -> str:
-    """One line per mode: feasible or its first violations; the RMS perceived error."""
+    """One line per mode: feasible (inside the mechanism's limits and, when preflown, passed
+    unchanged by cue-live's envelope) or its first violations and the envelope's
+    interventions; the RMS perceived error."""
     lines = []
     for r in study.runs:
         p = r.perception
         rms = (f"RMS perceived error f {', '.join(f'{v:.3g}' for v in p.rms_f)} m/s², "
                f"ω {', '.join(f'{math.degrees(v):.3g}' for v in p.rms_w)} deg/s")
         v = r.feasibility.violations
-        if not v:
+        live = "" if r.live is None or not r.live["limited"] else \
+            f"cue-live's envelope: {live_text(r.live)}; "
+        if not v and not live:
             lines.append(f"{r.mode}: inside every limit; {rms}")
+        elif not v:
+            lines.append(f"{r.mode}: inside the mechanism's limits, not the live margins: "
+                         f"{live}{rms}")
         else:
             first = ", ".join(f"{x.quantity} leg {x.leg} at t = {x.t:.3f} s" if x.leg else
                               f"{x.quantity} at t = {x.t:.3f} s" for x in v[:3])
-            lines.append(f"{r.mode}: {len(v)} limit crossings (first: {first}); {rms}")
+            lines.append(f"{r.mode}: {len(v)} limit crossings (first: {first}); {live}{rms}")
     return "\n".join(lines)

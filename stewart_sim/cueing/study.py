@@ -51,6 +51,9 @@ class CueRun:
     feasibility: Feasibility
     seconds: float            # wall time to compute the cue (reported, never judged)
     solver: Diagnostics | None = None   # the optimal mode's QP record
+    # what cue-live's envelope does with the motion on a simulated clock (live.preflight:
+    # Interventions.as_dict()); None: not flown
+    live: dict | None = None
 
 
 @dataclass(frozen=True)

@@ -1,19 +1,23 @@
 """The live safety envelope: between the washout's pose samples and the device's leg setpoints,
 one causal step per sample, a bounded amount of work each.
 
-Limits (`EnvelopeLimits`, built by `envelope_limits` from the scene and its drives):
+Limits (`EnvelopeLimits`, built by `envelope_limits` from the one feasibility engine of the scene
+and its drives, controller.capability, less the margins its `Margins` keep free):
 
 =============  ==========================================================================
 stroke         [leg_min + room + m, leg_max - room - m]: the emulated device's setpoint
                bounds (hil.input_bounds.device_bounds, room = hil.input_bounds.overshoot_room
                against the force held at home) less a margin m, a fraction of the stroke
-speed          |ldot| <= (1 - margin) x the drive's no-load speed (controller.drive.AxisModel)
-acceleration   |lddot| <= (1 - margin) x the drive's peak acceleration (AxisModel)
+speed          |ldot| <= (1 - margin) x the drive's no-load speed (DriveBounds.speed)
+acceleration   |lddot| <= (1 - margin) x the drive's peak acceleration (DriveBounds)
 force          |sigma| <= (1 - margin) x Kf I_max, sigma the scene's inverse dynamics (every
                declared effect, the drive's reflected inertia included: the rack force);
-               Kf I_max from cueing.optimal.mechanism_limits
-cond           scaled cond(J) (stewart_fmu.kinematics) <= (1 - margin) x cueing.feasibility's
+               Kf I_max the drive's peak force (DriveBounds.force)
+cond           scaled cond(J) (stewart_fmu.kinematics) <= (1 - margin) x the engine's
                COND_LIMIT (the device's default SP_COND_MAX)
+joint cones,   the engine's base_cone, platform_cone, leg_clearance and obstacle margins
+clearances     (scene's [joints], [clearance]) at least a fraction of the cone angle, of the
+               leg radius (Margins.cone, Margins.clearance)
 =============  ==========================================================================
 
 A sample passes unchanged (bit for bit: the cue's q, qd, qdd, their leg lengths and rates from
@@ -51,12 +55,17 @@ start state, A by the C core's leg kinematics), so
    leg that must brake to stay in its stroke brakes even where that takes more than the force
    limit (counted as a force intervention).
 
-A cue pose above the cond limit (or one that is not finite, or that the core refuses) is
-refused until the cue is good again: the target acceleration becomes -qd / dt (stop within
+A cue pose above the cond limit or inside the margin of a joint cone or a clearance (or one
+that is not finite, or that the core refuses) is refused until the cue is good again: the target acceleration becomes -qd / dt (stop within
 one sample, as `brake()`) plus k_d k_p (q_good - q), which, once stopped, brings the platform
 back to the last good pose sent (a time constant of 1 / (k_d k_p dt)); the stop itself runs
 within the limits, so a platform moving into the singular direction passes the cond limit by
 its braking distance (the cond margin below the device's SP_COND_MAX is there for that).
+
+No sample sent leaves a joint cone or a clearance (the margin not kept there, the limit
+itself): a step whose pose would is replaced by the emergency stop's step, and where that
+would too, by the last pose sent held at rest (the one step that may exceed the acceleration
+limit: the geometry outranks the drives).
 
 `brake()` is the emergency stop: the same step with the target acceleration -qd / dt (stop
 within one sample), scaled into the boxes, so the platform stops as fast as the limits allow
@@ -64,7 +73,9 @@ along the path it was on, then holds where it stopped.
 
 Work per sample: three C-core calls when a sample passes (leg state, cond(J), inverse
 dynamics), at most fifteen when it is limited (the leg Jacobian by six more calls of the
-core's leg kinematics only when a leg is clipped into its box); no iteration.
+core's leg kinematics only when a leg is clipped into its box); no iteration. A scene with
+joint cones or a clearance adds one engine call per sample (stewart_reach_margins), three when
+limited (the step's pose and where it would stop), and one step more where the stop replaces it.
 """
 from __future__ import annotations
 
@@ -73,16 +84,20 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from controller.capability import (GEOMETRIC, Margins, axis_of, bounds_of, first_violated,
+                                   geometric_engine, kept)
 from controller.config import ControllerConfig
 from hil.input_bounds import overshoot_room
 from stewart_fmu.errors import SceneError
 from stewart_fmu.model import Model
 from stewart_fmu.native import core
+from stewart_fmu.reach import LIMITS as REACH_LIMITS
+from stewart_fmu.reach import Engine
+from stewart_fmu.reach_params import COND_LIMIT
 
-from stewart_sim.cueing.feasibility import COND_LIMIT
-from stewart_sim.cueing.optimal import mechanism_limits
-
-LIMITS = ("stroke", "speed", "acceleration", "force", "cond", "invalid")
+LIMITS = ("stroke", "speed", "acceleration", "force", "cond", "invalid") + GEOMETRIC
+# the limits of the pose alone: a cue pose beyond one is refused (stop, the last good pose held)
+POSE_LIMITS = ("cond", "invalid") + GEOMETRIC
 BOX_LIMITS = LIMITS[:3]     # the per-leg limits of a step's leg accelerations, in priority order
 # A pose stepped at a constant pose acceleration does not move its legs at exactly constant leg
 # accelerations (the kinematics are not linear): the leg rates and accelerations it ends at
@@ -95,20 +110,9 @@ TRACK_TIME = 0.01   # s, the time constant of the tracking law's rate loop (at l
 
 
 @dataclass(frozen=True)
-class Margins:
-    """What the envelope keeps free of each limit: the stroke's as a fraction of the stroke,
-    the others as fractions of the limit."""
-
-    stroke: float = 0.02
-    speed: float = 0.2
-    acceleration: float = 0.2
-    force: float = 0.2
-    cond: float = 0.2
-
-
-@dataclass(frozen=True)
 class EnvelopeLimits:
-    """The envelope's limits (see the module doc), SI."""
+    """The envelope's limits (see the module doc), SI: the engine's (controller.capability)
+    less the margins kept free of them."""
 
     leg_min: float
     leg_max: float
@@ -116,22 +120,23 @@ class EnvelopeLimits:
     acceleration: float   # m/s^2
     force: float          # N
     cond: float           # scaled cond(J)
+    # the pose's own limits (joint cones, clearances; controller.capability.geometric_engine)
+    # and the margin kept free of each (per limit of stewart_fmu.reach.LIMITS); None: none
+    reach: Engine | None = None
+    keep: np.ndarray | None = None
 
 
 def envelope_limits(model: Model, controller: ControllerConfig | None,
                     margins: Margins = Margins()) -> EnvelopeLimits:
-    """The limits of `model`'s legs and drives (the scene's [drive] and [controller] tables),
-    each less its margin. SceneError when the scene has no drive or no motor; ValueError
-    naming the margin when one is not in [0, 1)."""
-    for name in ("stroke", "speed", "acceleration", "force", "cond"):
-        x = getattr(margins, name)
-        if not 0.0 <= x < 1.0:
-            raise ValueError(f"envelope margin '{name}' must be in [0, 1), got {x!r}")
-    lim = mechanism_limits(model, controller, None)
-    if lim.axis is None or lim.force is None:
+    """The limits of `model`'s legs and drives (the scene's [drive] and [controller] tables,
+    as controller.capability gives them), each less its margin. SceneError when the scene has
+    no drive or no motor; ValueError naming the margin when one is not in [0, 1)."""
+    margins.check()
+    axis = axis_of(model, controller)
+    drive = bounds_of(axis)
+    if drive is None:
         raise SceneError("controller", "the live envelope needs the drives' limits: the scene's "
                          "[drive] and [controller.motor] tables", model.source)
-    axis = lim.axis
     free = replace(model, leg_min=None, leg_max=None)
     home = np.asarray(model.home, dtype=float)
     held, status = core.inverse_dynamics(free.native, home, np.zeros(6), np.zeros(6))
@@ -147,9 +152,13 @@ def envelope_limits(model: Model, controller: ControllerConfig | None,
         raise SceneError("geometry", f"the stroke [{leg_min:g}, {leg_max:g}] m leaves no room "
                          f"once the servo's overshoot room ({room:.3g} m) and the envelope's "
                          f"margin ({keep:.3g} m) are kept at each end", model.source)
-    return EnvelopeLimits(lo, hi, (1 - margins.speed) * axis.no_load_speed,
-                          (1 - margins.acceleration) * axis.peak_acceleration,
-                          (1 - margins.force) * lim.force, (1 - margins.cond) * COND_LIMIT)
+    reach = geometric_engine(model)
+    geometric = bool({lim.name for lim in reach.present()} & set(GEOMETRIC))
+    return EnvelopeLimits(lo, hi, (1 - margins.speed) * drive.speed,
+                          (1 - margins.acceleration) * drive.acceleration,
+                          (1 - margins.force) * drive.force, (1 - margins.cond) * COND_LIMIT,
+                          reach if geometric else None,
+                          kept(model, margins) if geometric else None)
 
 
 @dataclass(frozen=True)
@@ -210,9 +219,10 @@ class Envelope:
         z = np.zeros(6)
         legs, status = self._legs(q0, z, z)
         if status or not self._cond(q0) <= limits.cond or not (
-                np.all(legs[:, 0] >= limits.leg_min) and np.all(legs[:, 0] <= limits.leg_max)):
-            raise ValueError("the envelope's start pose must lie inside its stroke and cond "
-                             "limits")
+                np.all(legs[:, 0] >= limits.leg_min) and np.all(legs[:, 0] <= limits.leg_max)) \
+                or self._geometry(q0, None) is not None:
+            raise ValueError("the envelope's start pose must lie inside its stroke, cond, "
+                             "joint cone and clearance limits")
         forces, _ = core.inverse_dynamics(self._p, q0, z, z)
         self.last = EnvelopeStep(legs[:, 0].copy(), legs[:, 1].copy(), forces, q0, z.copy(),
                                  z.copy(), True)
@@ -238,6 +248,8 @@ class Envelope:
             reasons["invalid"] = [False] * 6
         elif not self._cond(q) <= self.limits.cond:
             reasons["cond"] = [False] * 6
+        elif (name := self._geometry(q, self.limits.keep)) is not None:
+            reasons[name] = [False] * 6
         else:
             forces, _ = core.inverse_dynamics(self._p, q, qd, qdd)
             reasons = self._check(legs.tolist(), forces.tolist())
@@ -246,7 +258,7 @@ class Envelope:
             out = EnvelopeStep(legs[:, 0].copy(), legs[:, 1].copy(), forces, q, qd, qdd, True)
             return self._record(out)
         last = self.last
-        if "cond" in reasons or "invalid" in reasons:
+        if any(name in reasons for name in POSE_LIMITS):
             # stop at once (as brake()), then creep back to the last good pose
             if self._hold is None:
                 self._hold = last.q
@@ -260,12 +272,12 @@ class Envelope:
             approach = np.sign(e) * np.minimum(self._kp * np.abs(e),
                                                np.sqrt(2.0 * self._a_pose * np.abs(e)))
             a_des = qdd + self._kd * (qd - qdd * dt - last.qd + approach)
-        return self._record(self._limited_step(a_des, reasons))
+        return self._record(self._guarded_step(a_des, reasons))
 
     def brake(self) -> EnvelopeStep:
         """The emergency stop's sample: stop as fast as the limits allow (target: no pose
         rate after this sample), then hold the pose where the platform stopped."""
-        return self._record(self._limited_step(-self.last.qd / self.dt, {}))
+        return self._record(self._guarded_step(-self.last.qd / self.dt, {}))
 
     @property
     def interventions(self) -> Interventions:
@@ -278,6 +290,14 @@ class Envelope:
         """(rows (6, 3) of leg length, rate, acceleration; status) from the C core."""
         _, legs, status = core.twist_forces(self._p, q, qd, qdd)
         return legs, status
+
+    def _geometry(self, q, keep) -> str | None:
+        """The first joint cone or clearance (GEOMETRIC) whose margin at q is below `keep`
+        (per limit; None: 0), or None (also without such limits)."""
+        if self.limits.reach is None:
+            return None
+        k = first_violated(self.limits.reach.verdict(q).margins, 0.0 if keep is None else keep)
+        return None if k is None else REACH_LIMITS[k].name
 
     def _cond(self, q) -> float:
         cond, status = core.condition_number(self._p, q)
@@ -351,6 +371,26 @@ class Envelope:
 
     # ------------------------------------------------------------------ the limited step
 
+    def _guarded_step(self, a_des: np.ndarray, reasons: dict[str, list[bool]]) -> EnvelopeStep:
+        """The limited step, unless its pose leaves a joint cone or a clearance (no margin
+        kept): then the emergency stop's step, and if that leaves one too, the last pose sent
+        held at rest. No sample sent lies outside those limits."""
+        if self.limits.reach is None:
+            return self._limited_step(a_des, reasons)
+        out = self._limited_step(a_des, dict(reasons))
+        name = self._geometry(out.q, None) or self._geometry(self._stop(out), None)
+        if name is None:
+            return out
+        _mark(reasons, name, [True] * 6)
+        out = self._limited_step(-self.last.qd / self.dt, reasons)
+        if self._geometry(out.q, None) is None:
+            return out
+        last, z = self.last, np.zeros(6)
+        legs, _ = self._legs(last.q, z, z)
+        forces, _ = core.inverse_dynamics(self._p, last.q, z, z)
+        return EnvelopeStep(legs[:, 0].copy(), legs[:, 1].copy(), forces, last.q.copy(), z, z,
+                            False, tuple(n for n in LIMITS if n in reasons), np.ones(6, bool))
+
     def _limited_step(self, a_des: np.ndarray, reasons: dict[str, list[bool]]) -> EnvelopeStep:
         """One step of the envelope's own state with the pose acceleration a_des brought into
         the legs' boxes and the force limit (see the module doc)."""
@@ -400,6 +440,11 @@ class Envelope:
         return EnvelopeStep(legs[:, 0].copy(), legs[:, 1].copy(), forces, q, qd, acc, False,
                             tuple(n for n in LIMITS if n in reasons), np.array(mask))
 
+    def _stop(self, out: EnvelopeStep) -> np.ndarray:
+        """Where a sample's state comes to rest braking each pose coordinate at the tracking
+        law's a_p (half the acceleration limit; the stop itself runs at the legs' limits)."""
+        return out.q + out.qd * np.abs(out.qd) / (2.0 * self._a_pose)
+
     def _leg_jacobian(self, q, qd, c: np.ndarray) -> np.ndarray:
         """d lddot / d qdd at (q, qd) (6, 6): the leg accelerations are affine in the pose
         acceleration, so one core call per column is exact."""
@@ -416,7 +461,7 @@ class Envelope:
             self._limited += 1
             for name in out.limits:
                 self._per_limit[name] += 1
-                if name not in ("cond", "invalid"):
+                if name not in POSE_LIMITS:
                     self._per_leg[name] += out.legs
         self.last = out
         self._lp, self._vp = out.lengths.tolist(), out.rates.tolist()

@@ -1,6 +1,7 @@
 """The limits an excitation trajectory keeps, and how far a trajectory is from each.
 
-Every limit is one the project already derives; excite keeps a margin from each:
+Every limit is the scene's capability (controller.capability: the one home of what the
+mechanism and its drives can do); excite keeps a margin from each (declared there too):
 
 - stroke: [leg_min, leg_max] of [geometry], STROKE_MARGIN of the stroke kept free at each end;
 - leg speed: the drive's no-load speed V_max / Ke' (controller.drive.AxisModel.no_load_speed);
@@ -9,11 +10,11 @@ Every limit is one the project already derives; excite keeps a margin from each:
   dynamics, drives included (stewart_sim.cueing.feasibility);
 - motor voltage: [controller.motor] voltage_limit against R i + L di/dt + Ke' ldot (feasibility);
 - cond(J): the scaled condition number of the Jacobian (stewart_fmu.kinematics) against
-  feasibility's COND_LIMIT.
+  the engine's COND_LIMIT.
 
 Speed, acceleration, force, voltage and cond(J) are kept to LIMIT_FRACTION of their limit. A
 scene without [controller] or [drive] has no motor: its speed, acceleration, force and voltage
-are then not limited (`Limits.note` says why), the stroke still bounds the motion.
+are then not limited (`Kept.note` says why), the stroke still bounds the motion.
 """
 from __future__ import annotations
 
@@ -21,33 +22,59 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from controller.capability import EXCITE_FRACTION, EXCITE_STROKE, Capability, capability
 from controller.config import ControllerConfig
-from controller.drive import axis_model
 from stewart_fmu.errors import StewartError
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.model import Model
-from stewart_sim.cueing.feasibility import COND_LIMIT, feasibility
+from stewart_sim.cueing.feasibility import feasibility
 
-STROKE_MARGIN = 0.05    # fraction of the stroke kept free at each end
-LIMIT_FRACTION = 0.8    # speed, acceleration, force, voltage and cond(J): at most this of the limit
+STROKE_MARGIN = EXCITE_STROKE     # fraction of the stroke kept free at each end
+LIMIT_FRACTION = EXCITE_FRACTION  # speed, acceleration, force, voltage and cond(J): at most this
 QUANTITIES = ("stroke_min", "stroke_max", "speed", "acceleration", "force", "voltage", "cond")
 MAX_SLACKS = 6 * (len(QUANTITIES) - 1) + 1   # entries of `slack` per sample: per leg, cond(J) one
 
 
 @dataclass(frozen=True)
-class Limits:
-    """The limits of a scene (None: not limited, see `note`) and the margins kept from them."""
+class Kept:
+    """What excite keeps free of a scene's capability (controller.capability: the stroke, the
+    drives' bounds, the motor's voltage, cond(J); None: not limited, see `note`): `margin` m
+    at each end of the stroke, at most `fraction` of the others."""
 
-    leg_min: float          # m
-    leg_max: float          # m
+    cap: Capability
     margin: float           # m kept free at each end of the stroke
-    speed: float | None     # m/s
-    acceleration: float | None   # m/s^2
-    force: float | None     # N
-    voltage: float | None   # V
-    cond: float             # scaled cond(J)
     fraction: float = LIMIT_FRACTION
     note: str | None = None
+
+    @property
+    def leg_min(self) -> float:
+        return self.cap.leg_min
+
+    @property
+    def leg_max(self) -> float:
+        return self.cap.leg_max
+
+    @property
+    def speed(self) -> float | None:
+        """m/s, the drives' no-load speed."""
+        return None if self.cap.drive is None else self.cap.drive.speed
+
+    @property
+    def acceleration(self) -> float | None:
+        """m/s^2, the drives' peak acceleration of their constant load."""
+        return None if self.cap.drive is None else self.cap.drive.acceleration
+
+    @property
+    def force(self) -> float | None:
+        return self.cap.force
+
+    @property
+    def voltage(self) -> float | None:
+        return self.cap.voltage
+
+    @property
+    def cond(self) -> float:
+        return self.cap.cond
 
     def bound(self, quantity: str) -> float | None:
         """What the trajectory may reach: leg_min + margin, leg_max - margin, fraction x the
@@ -75,7 +102,7 @@ class Peaks:
     cond: float
 
 
-def limits(model: Model, controller: ControllerConfig | None) -> Limits:
+def limits(model: Model, controller: ControllerConfig | None) -> Kept:
     """The scene's limits; StewartError when it gives no stroke or leaves home no room."""
     if model.leg_min is None or model.leg_max is None:
         raise StewartError("excite: the scene gives no stroke ([geometry] leg_min and leg_max): "
@@ -87,15 +114,12 @@ def limits(model: Model, controller: ControllerConfig | None) -> Limits:
         raise StewartError(f"excite: no room to move: a leg at home is {free * 1e3:.3g} mm from "
                            f"an end of its stroke, within the margin of {margin * 1e3:.3g} mm "
                            f"({STROKE_MARGIN:.0%} of the stroke)")
-    if controller is None or model.drive is None:
+    cap = capability(model, controller)
+    if cap.drive is None:
         what = "[controller] table (the motor)" if controller is None else "[drive] table"
-        return Limits(model.leg_min, model.leg_max, margin, None, None, None, None, COND_LIMIT,
-                      note=f"the scene has no {what}: leg speed, acceleration, rack force and "
-                           "voltage not limited")
-    axis = axis_model(model, controller.motor, controller.load_mass)
-    return Limits(model.leg_min, model.leg_max, margin, axis.no_load_speed,
-                  axis.peak_acceleration, axis.peak_force, controller.motor.voltage_limit,
-                  COND_LIMIT)
+        return Kept(cap, margin, note=f"the scene has no {what}: leg speed, acceleration, rack "
+                                      "force and voltage not limited")
+    return Kept(cap, margin)
 
 
 @dataclass(frozen=True)
@@ -132,7 +156,7 @@ def peaks(model: Model, controller: ControllerConfig | None, t: np.ndarray, q: n
                  float(np.max(s.cond)))
 
 
-def slack(lim: Limits, p: Peaks | Samples) -> np.ndarray:
+def slack(lim: Kept, p: Peaks | Samples) -> np.ndarray:
     """How far inside its bound each quantity is, as a fraction (>= 0: inside): the stroke's per
     leg in units of the stroke, the others 1 - value / bound per leg (cond(J): one column).
     Of Peaks: one number per quantity and leg, in the order of `slack_names`; of Samples: that
@@ -152,7 +176,7 @@ def slack(lim: Limits, p: Peaks | Samples) -> np.ndarray:
     return np.concatenate(out, axis=-1)
 
 
-def slack_names(lim: Limits) -> list[str]:
+def slack_names(lim: Kept) -> list[str]:
     """The quantity of each entry of `slack` ("speed leg 3", "cond")."""
     names = []
     for quantity in QUANTITIES:
@@ -163,7 +187,7 @@ def slack_names(lim: Limits) -> list[str]:
     return names
 
 
-def tightest(lim: Limits, g: np.ndarray) -> str:
+def tightest(lim: Kept, g: np.ndarray) -> str:
     """The entry of `slack` g (of Peaks, or of Samples flattened) with the least slack, as
     'speed leg 3 slack -0.02'."""
     g = np.ravel(g)

@@ -46,7 +46,7 @@ from stewart_fmu.dynamics import regressor
 from stewart_fmu.errors import StewartError
 from stewart_fmu.model import Model
 from stewart_fmu.standard import N_STANDARD
-from stewart_sim.studies.excite.bounds import (MAX_SLACKS, Limits, Peaks, limits, peaks, samples,
+from stewart_sim.studies.excite.bounds import (MAX_SLACKS, Kept, Peaks, limits, peaks, samples,
                                                slack, tightest)
 from stewart_sim.studies.excite.fourier import FourierSeries
 from stewart_sim.studies.identify.base import (BaseParameters, scaled_condition, stacked,
@@ -113,7 +113,7 @@ class Design:
     x: np.ndarray
     cond: float
     base: BaseParameters
-    limits: Limits
+    limits: Kept
     starts: tuple[float, ...]     # cond reached from each start (inf: none feasible)
     evaluations: int              # regressor evaluations (objective and gradients)
 
@@ -122,7 +122,7 @@ class _Problem:
     """Objective and constraints of x on the grid, cached per x (SLSQP asks each one apart)."""
 
     def __init__(self, model: Model, controller: ControllerConfig | None, series: FourierSeries,
-                 lim: Limits, columns: np.ndarray) -> None:
+                 lim: Kept, columns: np.ndarray) -> None:
         self.series, self.lim = series, lim
         # the drive's constant load once (axis_model would derive it at every evaluation)
         self.controller = controller if controller is None or controller.load_mass is not None \
@@ -271,7 +271,7 @@ def _minimise(problem: _Problem, x0: np.ndarray, iterations: int, stage: str,
     return found
 
 
-def _scale(model: Model, lim: Limits) -> np.ndarray:
+def _scale(model: Model, lim: Kept) -> np.ndarray:
     """The amplitude per unit of x: a tenth of the stroke for x, y, z (m), that over the
     scene's characteristic length for the angles (rad)."""
     span = 0.1 * (lim.leg_max - lim.leg_min)

@@ -23,7 +23,7 @@ from stewart_fmu.model import Model
 from stewart_sim.shell.markdown import md_code, md_text
 from stewart_sim.shell.outputs import file_set
 from stewart_sim.shell.plots import LEG_COLOURS, plot_line, save_figure
-from stewart_sim.studies.excite.bounds import Limits, Peaks
+from stewart_sim.studies.excite.bounds import Kept, Peaks
 from stewart_sim.studies.excite.design import GRID_PER_HARMONIC, Excitation
 
 MM = 1e3
@@ -50,7 +50,7 @@ def write_excitation(model: Model, e: Excitation, scene: str, out: str | Path) -
     return list(paths)
 
 
-def margins(lim: Limits, p: Peaks) -> list[tuple[str, str, str, str]]:
+def margins(lim: Kept, p: Peaks) -> list[tuple[str, str, str, str]]:
     """(limit, reached, bound kept, limit itself) per quantity, as text with units."""
     rows = [("stroke, shortest leg", f"{np.min(p.stroke_min) * MM:.2f} mm",
              f">= {lim.bound('stroke_min') * MM:.2f} mm", f"{lim.leg_min * MM:.2f} mm"),

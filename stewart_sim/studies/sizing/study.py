@@ -4,7 +4,7 @@ against its ratings; the catalogue sweep runs on Dask, one task per drive.
 
 The scene's drive ([drive] and [controller.motor]) is checked, per motion, on:
   stroke_min, stroke_max, cond, force (Kf I_max), current, voltage: cueing.feasibility's margins;
-  speed: the peak |ldot| against the no-load speed V_max / Ke' (AxisModel.no_load_speed).
+  speed: the peak |ldot| against the drives' no-load speed V_max / Ke' (controller.capability).
 A catalogue drive replaces [drive] (gear ratio, pinion radius, rotor inertia: its reflected
 inertia changes the rack force) and is checked, per motion, on:
   torque_peak: peak |torque| against peak_torque;
@@ -27,8 +27,9 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from controller.capability import capability
 from controller.config import ControllerConfig
-from controller.drive import AxisModel, axis_model
+from controller.drive import AxisModel
 from stewart_fmu.budget import check_count
 from stewart_fmu.errors import KinematicsError, StewartError, SweepError
 from stewart_fmu.model import Model
@@ -89,16 +90,15 @@ def size_scene(model: Model, controller: ControllerConfig | None,
             demands.append(leg_demand(model, m, controller))
         except KinematicsError as exc:     # a pose the dynamics refuse: name the motion
             raise type(exc)(f"{m.name}: {exc}") from None
-    axis = None
-    if controller is not None and model.drive is not None:
-        axis = axis_model(model, controller.motor, controller.load_mass)
+    cap = capability(model, controller)
     checks = []
     for d in demands:
         found = list(d.feasibility.margins)
-        if axis is not None:
-            found.append(_peak_check("speed", d.values["speed"], d.t, axis.no_load_speed, "m/s"))
+        if cap.drive is not None:
+            found.append(_peak_check("speed", d.values["speed"], d.t, cap.drive.speed, "m/s"))
         checks.append(tuple(found))
-    return SceneSizing(tuple(demands), tuple(checks), axis, demands[0].feasibility.drive_note)
+    return SceneSizing(tuple(demands), tuple(checks), cap.axis,
+                       demands[0].feasibility.drive_note)
 
 
 @dataclass(frozen=True)
