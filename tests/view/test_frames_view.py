@@ -1,4 +1,4 @@
-"""The 3D view draws the scene's [frames] (issue 36 item 3): the pivot point as a sphere on the
+"""The 3D view draws the scene's [frames]: the pivot point as a sphere on the
 platform and the user and tool frames as triads. The scene commands hold their objects; the
 nodes' transforms put the pivot at x + R pivot, the tool triad at the tool frame's pose in N
 as the core's frames.c computes it (stewart_fmu.frames.from_platform), and the user triad so
