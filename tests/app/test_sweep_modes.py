@@ -97,3 +97,24 @@ def test_the_shipped_grid_and_a_scene_without_stiffness(tmp_path, capsys):
                      "--workers", "1"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "'stiffness'" in err
+
+
+def test_the_shipped_grid_finds_what_the_guide_says():
+    """scenes/sweeps/modes_joints.toml evaluated serially: the guide's best (30.8 Hz, 64.8 N/um
+    at 8 deg, 56 deg, 1.0 m), worst (9.5 Hz, 9.2 N/um at 24 deg, 36 deg, 1.0 m) and shipped
+    layout (26.8 Hz, 47.9 N/um), every point ok."""
+    from stewart_sim.studies.sweep.evaluate import evaluate_batch
+
+    grid = load_grid(GRID)
+    rows = evaluate_batch(EvalSpec("modes", read_scene_dict(SIM)), list(grid.points()))
+    assert all(r["status"] == "ok" for r in rows)
+
+    def stated(r):
+        return (r["layout.base_angle"], r["layout.platform_angle"], r["layout.platform_radius"],
+                round(r["lowest_hz"], 1), round(r["weakest_n_per_um"], 1))
+
+    by_f = sorted(rows, key=lambda r: r["lowest_hz"])
+    assert stated(by_f[-1]) == (8.0, 56.0, 1.0, 30.8, 64.8)
+    assert stated(by_f[0]) == (24.0, 36.0, 1.0, 9.5, 9.2)
+    (own,) = [r for r in rows if stated(r)[:3] == (12.0, 48.0, 1.4)]
+    assert stated(own)[3:] == (26.8, 47.9)
