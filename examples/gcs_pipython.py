@@ -28,6 +28,15 @@ with device_process(SCENE, "gcs") as first:       # "gcs 127.0.0.1:PORT"
     pi.MVR("Z", -0.5)
     pitools.waitontarget(pi, "Z")
 
+    # the pivot 12 mm above C's origin (PI sets it only while U V W are 0), then a turn about it
+    pitools.moveandwait(pi, {"U": 0.0, "V": 0.0, "W": 0.0})
+    pi.SPI({"R": 0.0, "S": 0.0, "T": 12.0})
+    print("SPI?", dict(pi.qSPI()))
+    print("VMO?", pi.qVMO({"U": 2.0, "V": -1.0}), pi.qVMO({"X": 80.0, "Z": 55.0}))
+    print("TRA? W", round(pi.qTRA({"W": 1.0})["W"], 3), "deg at the first limit")
+    pitools.moveandwait(pi, {"U": 2.0, "V": -1.0})
+    print("POS?", {axis: round(value, 4) for axis, value in pi.qPOS().items()})
+
     # the data recorder: X, leg 1's length and rack force, the time; every 5th servo tick
     pi.DRC([1, 2, 3, 4], ["X", "1", "1", "X"], [2, 2, 100, 8])
     pi.DRT(0, 1)                               # start with the next command that moves

@@ -1,7 +1,8 @@
 """The stewart-sim command line: the command table, exit statuses and Ctrl-C.
 
 Each command is a module of stewart_sim.commands (its arguments and its run function); COMMANDS
-below is the one list of them. Exit status: 0 on success; 2 on a usage error or on an error in
+below is the one list of them. Exit status: 0 on success (a command may return its own, documented: `design` 3 when no
+design meets every requirement); 2 on a usage error or on an error in
 the inputs (every StewartError: scene, trajectory, pose); 1 when an output cannot be written
 (OutputError, or a full disk, a missing permission, a read-only file system); 130 on Ctrl-C,
 143 on SIGTERM, 129 on SIGHUP (all three end a command alike); 141, quietly, when standard
@@ -50,6 +51,7 @@ COMMANDS = {
     "cue-live": "live motion simulator: UDP telemetry -> washout -> envelope -> the device",
     "workspace": "what the mechanism reaches: limits' margins at poses, travel, ranges",
     "modes": "natural frequencies, mode shapes and stiffness at a pose ([stiffness])",
+    "design": "a hexapod's geometry from its requirements (NSGA-II on Dask, densely checked)",
 }
 KEPT = "nothing new written (an earlier output is left as it was)"  # on Ctrl-C
 # the arguments that name what a command writes (the output rule checks them before any work)
@@ -128,7 +130,7 @@ def _run(args: argparse.Namespace) -> int:
         for name in OUTPUT_ARGS:        # the output rule, before any work
             if isinstance(getattr(args, name, None), str):
                 check_output(getattr(args, name))
-        args.run(args)
+        status = args.run(args)         # None: 0; a command's own status (design: 3)
         interrupt.check_interrupted()   # a Ctrl-C swallowed in a callback still ends with 130
         sys.stdout.flush()              # a closed pipe shows here, not at the exit
     except outputs.Interrupted as exc:   # one line: interrupted, and what was kept
@@ -153,7 +155,7 @@ def _run(args: argparse.Namespace) -> int:
     except (ArithmeticError, LinAlgError) as exc:   # inputs within their bounds still overflowed
         return _fail(f"the inputs are beyond what the computation holds in float64 "
                      f"({type(exc).__name__}: {exc})", 2)
-    return 0
+    return status if isinstance(status, int) else 0
 
 
 def _interrupted(kept: str | None) -> int:

@@ -6,9 +6,9 @@ its answer (None for a set command). `execute` runs one line: an unknown command
 refused one sets its error in the session (ERR? reads it) and answers nothing; an accepted one
 may start the data recorder (hil.gcs.recorder triggers).
 
-New commands slot in as entries of COMMANDS: the pivot and frames (SPI/SPI?, KSD/KST/KSW/KEN/
-KLN/KLT?/KET?) as changes of the controller's `hil.gcs.axes.Frame`, the workspace queries
-(VMO?, TRA?) as queries over the feasibility engine.
+The pivot point (SPI/SPI?) is a change of the controller's `hil.gcs.axes.Frame`; the workspace
+queries ask the feasibility engine (VMO?: the check a move gets, hil.gcs.move_path; TRA?: the
+engine's travel, hil.gcs.travel_query).
 """
 from __future__ import annotations
 
@@ -19,9 +19,14 @@ import numpy as np
 
 from hil.gcs import errors as E
 from hil.gcs import parser as P
-from hil.gcs.axes import AXES
+from hil.gcs.axes import AXES, MM_PER_M
+from hil.gcs.coordinate_systems import TOOL as CS_TOOL
+from hil.gcs.coordinate_systems import TYPES as CS_TYPES
+from hil.gcs.coordinate_systems import WORK as CS_WORK
+from hil.gcs.coordinate_systems import ZERO as CS_ZERO
 from hil.gcs.controller import VLS_MIN, GcsController, Session
 from hil.gcs.recorder import POINTS, TABLES, ShortRecord, help_text
+from hil.gcs.travel_query import travel
 
 NAME = "STEWART-SIM-TWIN"          # *IDN?'s model field (PIPython's devname)
 VERSION = "0.1.0"
@@ -228,6 +233,122 @@ def plm_q(c: GcsController, s: Session, a: Args) -> Answer:
     return _numbers(ax, c.high)
 
 
+# --- the pivot point and the workspace queries ---------------------------------------------
+
+PIVOT = ("R", "S", "T")     # the pivot point's coordinates, mm, in the platform's frame C
+PIVOT_MAX = 1000.0          # mm: the largest |R|, |S|, |T| SPI takes
+
+
+def spi(c: GcsController, s: Session, a: Args) -> Answer:
+    pivot = c.frame.pivot * MM_PER_M
+    for i, v in P.axis_values(a, PIVOT):
+        if not abs(v) <= PIVOT_MAX:
+            raise E.GcsError(E.PARAM_OUT_OF_RANGE, f"{PIVOT[i]} beyond {PIVOT_MAX} mm")
+        pivot[i] = v
+    c.set_pivot(pivot)
+    return None
+
+
+def spi_q(c: GcsController, s: Session, a: Args) -> Answer:
+    ax = P.axes(a, PIVOT)
+    pivot = c.frame.pivot * MM_PER_M
+    return P.answer([f"{PIVOT[i]}={P.fmt(pivot[i])}" for i in ax])
+
+
+def vmo_q(c: GcsController, s: Session, a: Args) -> Answer:
+    """1 when MOV to these targets would be accepted from where the next move starts, else 0
+    (the reason kept in the session as a refusal's is)."""
+    target = _targets(c, a, relative=False)
+    try:
+        c.feasible(target)
+    except E.GcsError as exc:
+        s.why = exc.why
+        return "0\n"
+    return "1\n"
+
+
+def tra_q(c: GcsController, s: Session, a: Args) -> Answer:
+    """The absolute position each named axis reaches along the direction (components per axis,
+    the others 0) from the plant's pose, at the first limit (hil.gcs.travel_query)."""
+    pairs = P.axis_values(a)
+    d = np.zeros(6)
+    for i, v in pairs:
+        d[i] = P.finite(v, E.PARAM_OUT_OF_RANGE, AXES[i])
+    if not np.all(np.isfinite(d)) or np.max(np.abs(d)) > TRA_COMPONENT_MAX:
+        raise E.GcsError(E.PARAM_OUT_OF_RANGE, "a direction component is out of range")
+    t, g0 = travel(c.device.model, c.frame, np.asarray(c.device.snapshot().q), d)
+    end = g0 + t.step * d
+    return _numbers([i for i, _ in pairs], end)
+
+
+TRA_COMPONENT_MAX = 1e6     # |component| TRA? takes (only the direction matters)
+
+
+# --- coordinate systems (hil.gcs.coordinate_systems) ----------------------------------------
+
+def _define(kind: str) -> Handler:
+    def handler(c: GcsController, s: Session, a: Args) -> Answer:
+        if len(a) < 3:
+            raise E.GcsError(E.PARAM_SYNTAX, f"{kind} <CSname> {{<AxisID> <Value>}}")
+        pairs = P.axis_values(a[1:])
+        c.at_rest()
+        c.systems.define(kind, a[0], pairs)
+        return None
+    return handler
+
+
+def kln(c: GcsController, s: Session, a: Args) -> Answer:
+    if len(a) != 2:
+        raise E.GcsError(E.PARAM_SYNTAX, "KLN <Child> <Parent>")
+    c.systems.link(a[0], a[1])
+    return None
+
+
+def ken(c: GcsController, s: Session, a: Args) -> Answer:
+    if len(a) != 1:
+        raise E.GcsError(E.PARAM_SYNTAX, "KEN <CSname>")
+    name = c.systems.existing(a[0])
+    if name != CS_ZERO and np.any(c.zero.home[3:] != 0.0):
+        # ZERO's X Y Z run along N's axes and its U V W from home's orientation: a rigid tool
+        # or work system composes with them only while that orientation is N's
+        raise E.GcsError(E.CMD_NOT_ALLOWED_FOR_STAGE, "the scene's home is rotated")
+    c.at_rest()
+    c.systems.enable(name)
+    c.reframe()
+    return None
+
+
+def krm(c: GcsController, s: Session, a: Args) -> Answer:
+    if len(a) != 1:
+        raise E.GcsError(E.PARAM_SYNTAX, "KRM <CSname>")
+    c.systems.remove(a[0])
+    return None
+
+
+def ket_q(c: GcsController, s: Session, a: Args) -> Answer:
+    enabled = c.systems.enabled
+    if not a:
+        rows = [f"{kind}={enabled[kind]}" for kind in CS_TYPES if kind in enabled]
+        return P.answer(rows or [f"{CS_ZERO}={CS_ZERO}"])
+    rows = []
+    for word in a:
+        kind = word.upper()
+        if kind not in CS_TYPES:
+            raise E.GcsError(E.CS_TYPE_UNKNOWN, word[:20])
+        if kind not in enabled:
+            raise E.GcsError(E.NO_CS_OF_TYPE_ENABLED, kind)
+        rows.append(f"{kind}={enabled[kind]}")
+    return P.answer(rows)
+
+
+def klt_q(c: GcsController, s: Session, a: Args) -> Answer:
+    if not 1 <= len(a) <= 2:
+        raise E.GcsError(E.PARAM_SYNTAX, "KLT? <StartCS> [<EndCS>]")
+    start = c.systems.existing(a[0])
+    end = c.systems.existing(a[1]) if len(a) == 2 else CS_ZERO
+    return _numbers(list(range(6)), c.systems.composed(start, end))
+
+
 # --- parameters (read-only: what PIPython's data recorder tools ask) --------------------------
 
 def _parameters(c: GcsController) -> dict[int, tuple[str, str, object]]:
@@ -341,6 +462,21 @@ COMMANDS: dict[str, Command] = {
     "#24": Command(stp, "#24", "Stop All Axes"),
     "STP": Command(stp, "STP", "Stop All Axes"),
     "HLT": Command(hlt, "HLT [{<AxisID>}]", "Halt Motion Smoothly (all axes)"),
+    "SPI": Command(spi, "SPI {<PPCoordinate> <Position>}",
+                   "Set Pivot Point (R S T, mm; only while U V W are 0)"),
+    "SPI?": Command(spi_q, "SPI? [{<PPCoordinate>}]", "Get Pivot Point"),
+    "VMO?": Command(vmo_q, "VMO? {<AxisID> <Position>}", "Virtual Move: Is The Target Reachable"),
+    "TRA?": Command(tra_q, "TRA? {<AxisID> <Component>}",
+                    "Get Maximum Travel Range In Direction Of Vector"),
+    "KSW": Command(_define(CS_WORK), "KSW <CSname> {<AxisID> <Value>}",
+                   "Define Work Coordinate System (fixed in space)"),
+    "KST": Command(_define(CS_TOOL), "KST <CSname> {<AxisID> <Value>}",
+                   "Define Tool Coordinate System (fixed to the platform)"),
+    "KLN": Command(kln, "KLN <Child> <Parent>", "Link Coordinate Systems"),
+    "KEN": Command(ken, "KEN <CSname>", "Enable Coordinate System (KEN ZERO: none)"),
+    "KRM": Command(krm, "KRM <CSname>", "Remove Coordinate System"),
+    "KET?": Command(ket_q, "KET? [{<Type>}]", "Get Enabled Coordinate Systems"),
+    "KLT?": Command(klt_q, "KLT? <StartCS> [<EndCS>]", "Get Pose Of A Chain"),
     "VLS": Command(vls, "VLS <SystemVelocity>", "Set System Velocity (mm/s, deg/s)"),
     "VLS?": Command(vls_q, "VLS?", "Get System Velocity"),
     "NLM?": Command(nlm_q, "NLM? [{<AxisID>}]", "Get Low Position Soft Limit"),
@@ -381,7 +517,7 @@ def execute(c: GcsController, s: Session, text: str) -> Answer:
         s.error = short.code
         return short.text
     except E.GcsError as exc:
-        s.error = exc.code
+        s.error, s.why = exc.code, exc.why
         return None
     except Exception:  # a defect of the twin: the line is refused, the device keeps serving
         s.error = E.CONTROLLER_ERROR

@@ -25,11 +25,12 @@ import numpy as np
 from hil import mavlink_stewart as ms
 from hil.device import Device
 from hil.gcs import errors as E
-from hil.gcs.axes import AXES, Frame
+from hil.gcs.axes import AXES, MM_PER_M, Frame
+from hil.gcs.coordinate_systems import Enabled, Systems
 from hil.gcs.move_path import Mover
 from hil.gcs.recorder import Recorder, Sample, leg_mm
 from hil.operating_mode import Mode
-from stewart_fmu.kinematics import inverse_kinematics
+from stewart_fmu.reach import Engine
 
 VLS_DEFAULT = 10.0      # mm/s (and deg/s) system velocity at start
 VLS_MIN = 1e-3
@@ -38,13 +39,17 @@ OUTBOX = 64             # replies to commands kept for the next step (the newest
 RANGE_MAX = (1000.0,) * 3 + (89.0,) * 3     # mm, deg: the travel-range search's bounds
 RANGE_SCAN = 512        # steps out to RANGE_MAX in which each end of the travel range is sought
 RANGE_STEPS = 40        # bisections of the step where it lies
+RANGES_KEPT = 16        # travel ranges kept, one per frame (SPI, KEN)
 
 
 class Session:
-    """One connection's error register (ERR? reads and clears it; PI keeps the last error)."""
+    """One connection's error register (ERR? reads and clears it; PI keeps the last error) and
+    the reason of the last refusal (`why`: which limit a refused move leaves; GCS has no way to
+    send it, PI's ERR? answers the code alone)."""
 
     def __init__(self) -> None:
         self.error = E.NO_ERROR
+        self.why = ""
         self.seen_motion_errors = 0
 
 
@@ -53,7 +58,9 @@ class GcsController:
 
     def __init__(self, device: Device, velocity: float = VLS_DEFAULT) -> None:
         self.device = device
-        self.frame = Frame(device.model.home)
+        self.zero = Frame(device.model.home)         # ZERO: the pivot's frame (SPI)
+        self.systems = Systems()                     # KSW/KST/KLN/KEN
+        self.frame: Frame | Enabled = self.zero      # what POS? and MOV speak in
         self.mover = Mover(device, self.frame)
         self.recorder = Recorder(device.rate)
         self.velocity = velocity
@@ -64,7 +71,8 @@ class GcsController:
         self.servo = False
         self.motion_errors = 0
         self.internal_errors = 0     # lines whose handler raised (hil.gcs.command_set.execute)
-        self.low, self.high = self._travel_range()
+        self._ranges: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+        self.low, self.high = self.travel_range()
         self._k = -1
         self._refused = 0
         self._outbox: list[Any] = []     # the device's replies to commands, for the next step
@@ -131,6 +139,42 @@ class GcsController:
         if bad:
             raise E.GcsError(E.POS_OUT_OF_LIMITS, f"axes {' '.join(bad)} out of range")
 
+    def feasible(self, target: np.ndarray) -> None:
+        """VMO?: GcsError 7 when a move from the reference to `target` would be refused (the
+        travel range, then every pose on the way: hil.gcs.move_path.Mover.check_path)."""
+        self.check_target(target)
+        self.mover.check_path(self.mover.reference, target)
+
+    def set_pivot(self, pivot_mm: np.ndarray) -> None:
+        """SPI: the pivot point (R S T, mm, in C) where U V W are 0 (PI's rule: else error 9):
+        the commanded target, the path's reference and the pose (within ONT_TOLERANCE); X Y Z
+        keep their values, since with no rotation the pivot moves as C's origin does. The travel
+        range (NLM?/PLM?) is the new pivot's."""
+        if self.systems.enabled:
+            raise E.GcsError(E.SPI_NOT_WITH_CS, "a coordinate system is enabled (KEN ZERO)")
+        here = self.position()
+        if self.referencing or np.any(self.target[3:] != 0.0) \
+                or np.any(self.mover.reference[3:] != 0.0) \
+                or np.any(np.abs(here[3:]) > ONT_TOLERANCE):
+            raise E.GcsError(E.SET_PIVOT_NOT_POSSIBLE, "U, V, W not all 0")
+        self.zero = Frame(self.device.model.home, np.asarray(pivot_mm, dtype=float) / MM_PER_M)
+        self.frame = self.mover.frame = self.zero
+        self.low, self.high = self.travel_range()
+
+    def at_rest(self) -> None:
+        """GcsError 536 while a move or the referencing runs (coordinate systems change then)."""
+        if self.referencing or self.mover.moving:
+            raise E.GcsError(E.CS_WHILE_MOVING, "in motion")
+
+    def reframe(self) -> None:
+        """After KEN: POS?, MOV and the travel range in the enabled systems' frame; the target
+        and the path's reference are the same poses, written in it."""
+        old = self.frame
+        self.frame = self.mover.frame = self.systems.frame(self.zero, self.device.model)
+        self.target = self.frame.from_pose(old.to_pose(self.target))
+        self.mover.reference = self.frame.from_pose(old.to_pose(self.mover.reference))
+        self.low, self.high = self.travel_range()
+
     def move(self, target: np.ndarray) -> None:
         """MOV/MVR (already checked for servo and referencing): plan, then start."""
         self.check_target(target)
@@ -191,13 +235,29 @@ class GcsController:
 
     # --- the travel range ----------------------------------------------------------------
 
-    def _reachable(self, g: np.ndarray) -> np.ndarray:
-        """Per GCS pose (rows of g): every leg within the device's setpoint stroke and cond(J)
-        within SP_COND_MAX."""
-        kin = inverse_kinematics(self.device.model, self.frame.to_pose(g))
+    def travel_range(self) -> tuple[np.ndarray, np.ndarray]:
+        """The travel range of the frame now (`_travel_range`), kept for the last RANGES_KEPT
+        frames (the pivot, the enabled work and tool, SP_COND_MAX): a client that switches
+        between a few costs the device's loop one search each."""
+        f = self.frame
+        key = (tuple(self.zero.pivot), self.device.settings.cond_max,
+               *((tuple(f.work), tuple(f.tool)) if isinstance(f, Enabled) else ()))
+        if key not in self._ranges:
+            if len(self._ranges) >= RANGES_KEPT:
+                del self._ranges[next(iter(self._ranges))]
+            self._ranges[key] = self._travel_range()
+        low, high = self._ranges[key]
+        return low.copy(), high.copy()
+
+    def _reachable(self, g: np.ndarray, engine: Engine) -> np.ndarray:
+        """Per GCS pose (rows of g): every leg within the device's setpoint stroke, and inside
+        every limit of `engine` (its cond(J) limit SP_COND_MAX; Engine.binding spares cond's
+        SVD where its bound is sure, which keeps SPI and KEN, which recompute the range, short
+        on the device's loop)."""
+        lengths = self.mover.lengths(g)
         b = self.device.bounds
-        return (np.all(kin.lengths >= b.leg_min, axis=1) & np.all(kin.lengths <= b.leg_max, axis=1)
-                & (kin.cond <= self.device.settings.cond_max))
+        return (np.all(lengths >= b.leg_min, axis=1) & np.all(lengths <= b.leg_max, axis=1)
+                & (engine.binding(self.frame.to_pose(g)) < 0))
 
     def _travel_range(self) -> tuple[np.ndarray, np.ndarray]:
         """Per axis, with the other axes at 0, how far from the reference every pose on the way
@@ -205,12 +265,15 @@ class GcsController:
         RANGE_STEPS bisections of that step (the twelve ends at once); rounded inwards to 1e-6
         (mm, deg). An end whose whole ray is reachable is RANGE_MAX; one whose reference is not
         is 0."""
+        engine = Engine(self.device.model, cond_limit=self.device.settings.cond_max)
         ends = [(i, sign) for i in range(6) for sign in (-1.0, 1.0)]
         ok, bad = np.zeros(len(ends)), np.zeros(len(ends))
+        rays = np.zeros((len(ends), RANGE_SCAN + 1, 6))     # the twelve rays in one call
         for e, (i, sign) in enumerate(ends):
-            ray = np.zeros((RANGE_SCAN + 1, 6))
-            ray[:, i] = sign * np.linspace(0.0, RANGE_MAX[i], RANGE_SCAN + 1)
-            reach = self._reachable(ray)
+            rays[e, :, i] = sign * np.linspace(0.0, RANGE_MAX[i], RANGE_SCAN + 1)
+        reaches = self._reachable(rays.reshape(-1, 6), engine).reshape(len(ends), -1)
+        for e, (i, sign) in enumerate(ends):
+            ray, reach = rays[e], reaches[e]
             if reach.all():
                 ok[e] = bad[e] = RANGE_MAX[i]
             elif reach[0]:
@@ -221,7 +284,7 @@ class GcsController:
             g = np.zeros((len(ends), 6))
             for e, (i, sign) in enumerate(ends):
                 g[e, i] = sign * mid[e]
-            reach = self._reachable(g)
+            reach = self._reachable(g, engine)
             ok, bad = np.where(reach, mid, ok), np.where(reach, bad, mid)
         low, high = np.zeros(6), np.zeros(6)
         for e, (i, sign) in enumerate(ends):

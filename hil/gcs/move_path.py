@@ -5,8 +5,10 @@ A move runs from the reference now (where the previous path stands; at rest afte
 finished move) to the goal along the minimum-jerk profile of controller.trajectory (every
 coordinate on one straight line in X Y Z U V W, the pivot on a straight line). Before it starts
 the whole path is checked at PATH_SAMPLES poses: every leg within the device's own setpoint
-stroke (hil.input_bounds: the stroke less the servo's overshoot room) and cond(J) within
-SP_COND_MAX, else GcsError 7 and nothing moves. Its duration is the longest of: the translation
+stroke (hil.input_bounds: the stroke less the servo's overshoot room), cond(J) within
+SP_COND_MAX and every limit of the feasibility engine (stewart_fmu.reach) inside, else
+GcsError 7 naming the limit (the session keeps it: hil.gcs.controller.Session) and nothing
+moves. Its duration is the longest of: the translation
 at the system velocity (VLS, mm/s), the rotation at the same number in deg/s, and the legs at
 the drive's no-load speed (hil.input_bounds: SP_RATE_MAX / RATE_MARGIN), each with the quintic's
 peak rate factor. The leg rates sent are the central difference of the leg lengths along the
@@ -30,6 +32,7 @@ from hil.device import Device
 from hil.gcs import errors as E
 from hil.gcs.axes import Frame
 from stewart_fmu.kinematics import inverse_kinematics
+from stewart_fmu.reach import Engine
 
 PATH_SAMPLES = 129      # poses checked along a path before it starts
 FD_STEP = 1e-6          # path-parameter step of the rates' central difference
@@ -68,6 +71,7 @@ class Mover:
     def __init__(self, device: Device, frame: Frame) -> None:
         self.device, self.frame = device, frame
         self.model = device.model
+        self.engine = Engine(device.model)      # the geometric limits and cond(J)
         self.speed = device.bounds.rate_max / input_bounds.RATE_MARGIN   # the drive's no-load speed
         self.reference = np.zeros(6)            # GCS: where the path stands now
         self.path: Path | None = None
@@ -85,20 +89,39 @@ class Mover:
         self.path, self.held = None, None
         self.reference = np.asarray(at, dtype=float).copy()
 
-    def plan(self, goal: np.ndarray, velocity: float, k: int) -> Path:
-        """The move from the reference to `goal` from tick k (GcsError 7 when a pose on the way
-        leaves the device's setpoint stroke or comes near a singularity)."""
-        start = self.reference.copy()
-        d = goal - start
+    def check_path(self, start: np.ndarray, goal: np.ndarray) -> np.ndarray:
+        """The leg lengths (m, (PATH_SAMPLES, 6)) at the poses checked on the straight line from
+        `start` to `goal` (GCS); GcsError 7 naming the first limit a pose on the way leaves: the
+        device's setpoint stroke or its cond(J) bound, else any limit of the feasibility engine
+        (stewart_fmu.reach: the mechanism's stroke, the joints' cones, the legs' clearance, the
+        obstacles, its cond(J) limit, as far as the scene has them)."""
         s = np.linspace(0.0, 1.0, PATH_SAMPLES)
-        kin = inverse_kinematics(self.model, self.frame.to_pose(start + d * s[:, None]))
+        q = self.frame.to_pose(start + (goal - start) * s[:, None])
+        kin = inverse_kinematics(self.model, q)
         b = self.device.bounds
         lengths = kin.lengths
-        if not (np.all(np.isfinite(lengths)) and np.all(lengths >= b.leg_min)
-                and np.all(lengths <= b.leg_max)):
-            raise E.GcsError(E.POS_OUT_OF_LIMITS, "a leg leaves the stroke on the way")
+        if not np.all(np.isfinite(lengths)):
+            raise E.GcsError(E.POS_OUT_OF_LIMITS, "a pose on the way is not finite")
+        for name, bad in (("below the setpoint stroke", lengths < b.leg_min),
+                          ("above the setpoint stroke", lengths > b.leg_max)):
+            if bad.any():
+                leg = int(np.argmax(bad.any(axis=0))) + 1
+                raise E.GcsError(E.POS_OUT_OF_LIMITS, f"leg {leg} {name} on the way")
         if not np.all(kin.cond <= self.device.settings.cond_max):
-            raise E.GcsError(E.POS_OUT_OF_LIMITS, "near a singularity on the way")
+            raise E.GcsError(E.POS_OUT_OF_LIMITS, "cond(J) above SP_COND_MAX on the way")
+        binding = self.engine.binding(q)
+        if np.any(binding >= 0):
+            v = self.engine.verdict(q[int(np.argmax(binding >= 0))])
+            raise E.GcsError(E.POS_OUT_OF_LIMITS,
+                             f"{v.limit}{' at ' + v.where if v.where else ''} on the way")
+        return lengths
+
+    def plan(self, goal: np.ndarray, velocity: float, k: int) -> Path:
+        """The move from the reference to `goal` from tick k (GcsError 7 when a pose on the way
+        leaves a limit: `check_path`)."""
+        start = self.reference.copy()
+        d = goal - start
+        lengths = self.check_path(start, goal)
         dl_ds = float(np.max(np.abs(np.diff(lengths, axis=0)))) * (PATH_SAMPLES - 1)
         duration = QUINTIC_PEAK_RATE * max(float(np.max(np.abs(d[:3]))) / velocity,
                                            float(np.max(np.abs(d[3:]))) / velocity,

@@ -63,22 +63,23 @@ def integer(word: str) -> int:
     return int(word)
 
 
-def axis(word: str) -> int:
-    """The index of an axis identifier (GcsError 15 when it is not one of X Y Z U V W)."""
+def axis(word: str, names: tuple[str, ...] = AXES) -> int:
+    """The index of an axis identifier in `names` (GcsError 15 when it is not one: X Y Z U V W,
+    or the pivot point's R S T)."""
     try:
-        return AXES.index(word)
+        return names.index(word)
     except ValueError:
         raise E.GcsError(E.INVALID_AXIS, f"axis {word[:NUMBER_MAX]!r}") from None
 
 
-def axes(args: tuple[str, ...]) -> list[int]:
+def axes(args: tuple[str, ...], names: tuple[str, ...] = AXES) -> list[int]:
     """The axes a query names (all of them when it names none), in the order named."""
     if not args:
-        return list(range(len(AXES)))
-    return [axis(a) for a in args]
+        return list(range(len(names)))
+    return [axis(a, names) for a in args]
 
 
-def axis_values(args: tuple[str, ...]) -> list[tuple[int, float]]:
+def axis_values(args: tuple[str, ...], names: tuple[str, ...] = AXES) -> list[tuple[int, float]]:
     """Axis-value pairs (`X 1 Y 2`): GcsError 1 when they do not pair up or a value is not a
     number, 15 for an unknown axis, 22 for an axis named twice."""
     if not args or len(args) % 2:
@@ -86,7 +87,7 @@ def axis_values(args: tuple[str, ...]) -> list[tuple[int, float]]:
     out: list[tuple[int, float]] = []
     seen: set[int] = set()
     for i in range(0, len(args), 2):
-        k = axis(args[i])
+        k = axis(args[i], names)
         if k in seen:
             raise E.GcsError(E.DOUBLE_AXIS, f"axis {args[i]} twice")
         seen.add(k)
@@ -107,5 +108,6 @@ def answer(lines: list[str]) -> str:
 
 
 def fmt(value: float) -> str:
-    """A number as answers carry it: the shortest text that reads back to the same float."""
-    return repr(float(value))
+    """A number as answers carry it: the shortest text that reads back to the same float (a
+    negative zero as 0.0)."""
+    return repr(float(value) + 0.0)

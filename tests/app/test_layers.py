@@ -116,6 +116,7 @@ ORDER = ("shell",         # argument types, terminal, Ctrl-C, result sets, progr
          "studies.compare", "studies.sweep", "studies.sizing", "studies.identify",
          "studies.excite",
          "studies.modes",  # the stiffness and the modes at a pose, their map
+         "studies.design",  # geometry from requirements: the engine, the modes, the sweep's cluster
          "commands",      # one module per command
          "cli", "__main__")
 CONTAINERS = ("stewart_sim", "stewart_sim.studies")   # packages that only hold units

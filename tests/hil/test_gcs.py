@@ -155,7 +155,10 @@ def test_identification_axes_help(idle):
     ("DRC 1 X 55", E.INVALID_RECORDER_SRC_OPT), ("RTR 0", E.PARAM_OUT_OF_RANGE),
     ("STP", E.STOP), ("*IDN? X", E.PARAM_SYNTAX), ("MOV\x01 X 1", E.UNKNOWN_COMMAND),
     ("SPA 1 0x0E000200 0.5", E.READ_ONLY_PARAMETER), ("SPA? 1 0x12345", E.UNKNOWN_PARAMETER),
-    ("SPA? X 0x0E000200", E.INVALID_AXIS), ("SPA? 1 zz", E.PARAM_SYNTAX)])
+    ("SPA? X 0x0E000200", E.INVALID_AXIS), ("SPA? 1 zz", E.PARAM_SYNTAX),
+    ("SPI Q 1", E.INVALID_AXIS), ("SPI T 1e4", E.PARAM_OUT_OF_RANGE), ("SPI T", E.PARAM_SYNTAX),
+    ("SPI? X", E.INVALID_AXIS), ("VMO? X nan", E.PARAM_SYNTAX), ("TRA? X 0", E.PARAM_OUT_OF_RANGE),
+    ("TRA? U 1 W 1", E.PARAM_OUT_OF_RANGE), ("TRA? X 1e400", E.PARAM_OUT_OF_RANGE)])
 def test_a_refused_line_sets_pis_error_answers_nothing_and_changes_nothing(idle, line, code):
     d, c, s = idle
     before = (c.target.copy(), c.velocity, c.servo, c.referenced, d.mode, d.counters.commands)
@@ -262,7 +265,9 @@ def _hostile_lines(rng: random.Random, n: int) -> list[bytes]:
     referencing is the one command that may move an unreferenced twin (to its home)."""
     words = [b"MOV", b"MVR", b"SVO", b"FRF", b"VLS", b"DRC", b"DRT", b"RTR", b"DRR?", b"POS?",
              b"X", b"Y", b"W", b"Q", b"1e308", b"-1e308", b"nan", b"inf", b"99999", b"-0",
-             b"0.5", b"\x00", b"\xff\xfe", b"*IDN?", b"ERR?", b"HLP?", b"STP", b"#", b"0", b"1"]
+             b"0.5", b"\x00", b"\xff\xfe", b"*IDN?", b"ERR?", b"HLP?", b"STP", b"#", b"0", b"1",
+             b"SPI", b"SPI?", b"VMO?", b"TRA?", b"R", b"T", b"KSW", b"KST", b"KEN", b"KLN",
+             b"KLT?", b"KET?", b"ZERO"]
     out = []
     for _ in range(n):
         kind = rng.random()
@@ -294,13 +299,15 @@ def test_fuzz_hostile_lines_set_pis_errors_and_never_move_or_fault(model):
         code = s.error
         s.error = 0
         codes[code] = codes.get(code, 0) + 1
-        assert code in allowed, (text, code)
+        assert code in allowed, (line, code)
         if i % 10 == 0:
             run(c, 1)
     assert c.internal_errors == 0 and not c.referenced
     assert np.allclose(np.asarray(d.snapshot().q), q0, atol=1e-9)
     assert d.counters.faults == 0 and d.counters.numeric_faults == 0
     assert codes.get(E.UNKNOWN_COMMAND, 0) > 500 and codes.get(E.PARAM_SYNTAX, 0) > 50
+    print("fuzz codes", sorted(codes.items(), key=lambda kv: -kv[1]),
+          "moved", float(np.max(np.abs(np.asarray(d.snapshot().q) - q0))))
 
 
 def _serve(link, device, ticks):
@@ -599,3 +606,197 @@ def test_travel_range_ends_where_a_leg_or_the_singularity_bound_binds(idle):
             assert inside(g), (i, end)
             g[i] = end + out
             assert not inside(g), (i, end)
+
+
+# --- the pivot point and the workspace queries -----------------------------------------------
+
+def _values(answer: str) -> dict[str, float]:
+    return {k: float(v) for k, v in (row.strip().split("=") for row in answer.splitlines())}
+
+
+def test_pivot_is_set_only_while_u_v_w_are_0_and_the_platform_turns_about_it(model):
+    d, c, s = referenced(model)
+    assert _values(ask(c, s, "SPI?")) == {"R": 0.0, "S": 0.0, "T": 0.0}
+    assert ask(c, s, "MOV X 1 Y -0.5") is None and err(c, s) == 0
+    run(c, 400)
+    assert ask(c, s, "SPI R 1 S -2 T 15") is None and err(c, s) == 0   # X Y Z keep their values
+    assert _values(ask(c, s, "SPI? T R")) == {"T": 15.0, "R": 1.0}
+    assert _values(ask(c, s, "MOV? X Y Z")) == {"X": 1.0, "Y": -0.5, "Z": 0.0}
+    goal = np.array([1.0, -0.5, 0.0, 2.0, -1.5, 3.0])
+    assert ask(c, s, "MOV U 2 V -1.5 W 3") is None and err(c, s) == 0
+    for _ in range(400):
+        run(c, 10)
+        if ask(c, s, "ONT?").count("=1") == 6:
+            break
+    assert ask(c, s, "ONT?").count("=1") == 6
+    # the plant's own pose: the pivot (in C) stays where X Y Z put it, while C's origin moved
+    q = np.asarray(d.snapshot().q)
+    p = np.array([1.0, -2.0, 15.0]) / 1e3
+    r = Rotation.from_euler("xyz", q[3:]).as_matrix()
+    pivot_n = q[:3] + r @ p
+    expected = model.home[:3] + p + goal[:3] / 1e3
+    assert np.all(np.abs(pivot_n - expected) <= ONT_TOLERANCE / 1e3)
+    assert np.linalg.norm(q[:3] - (model.home[:3] + goal[:3] / 1e3)) > 100 * ONT_TOLERANCE / 1e3
+    # rotated: SPI is PI's error 9, and nothing changes
+    assert ask(c, s, "SPI T 0") is None and err(c, s) == E.SET_PIVOT_NOT_POSSIBLE
+    assert _values(ask(c, s, "SPI? T")) == {"T": 15.0}
+
+
+def test_vmo_says_what_mov_does_and_a_refused_move_names_its_limit(model):
+    d, c, s = referenced(model)
+    high = _values(ask(c, s, "PLM?"))
+    assert ask(c, s, "VMO? X 1 W 2") == "1\n" and err(c, s) == 0
+    assert ask(c, s, f"VMO? X {high['X'] + 1}") == "0\n" and s.why == "axes X out of range"
+    # inside each axis's range, not together: a leg leaves the stroke on the way
+    target = f"X {0.9 * high['X']} Z {0.9 * high['Z']}"
+    assert ask(c, s, f"VMO? {target}") == "0\n" and err(c, s) == 0
+    why = s.why
+    assert why.startswith("leg ") and "setpoint stroke on the way" in why
+    assert ask(c, s, f"MOV {target}") is None and err(c, s) == E.POS_OUT_OF_LIMITS
+    assert s.why == why and np.all(c.target == 0.0) and not c.mover.moving
+    # the setpoint stroke binds before the mechanism's: the engine names the limit it reaches
+    n = int(why.split()[1]) - 1
+    kin_q = c.frame.to_pose(np.r_[0.9 * high["X"], 0.0, 0.9 * high["Z"], 0.0, 0.0, 0.0])
+    from stewart_fmu.kinematics import inverse_kinematics
+    lengths = inverse_kinematics(model, kin_q[None]).lengths[0]
+    assert not d.bounds.leg_min <= lengths[n] <= d.bounds.leg_max
+
+
+def _reach_step(capsys, scene, direction, frame=None) -> float:
+    from stewart_sim import cli
+
+    args = ["workspace", str(scene), "--reach", "--direction",
+            ",".join(repr(float(v)) for v in direction)]
+    assert cli.main(args + (["--frame", frame] if frame else [])) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("largest step ") and "stopped by" in out
+    return float(out.split()[2])
+
+
+def test_tra_is_the_workspace_commands_reach_on_the_same_scene(model, capsys, tmp_path):
+    """From home exactly (a fresh twin: the plant starts there), TRA? along an axis ends where
+    `stewart-sim workspace --reach` does: the same engine, marched along the same line, each
+    bisected to 1e-9 of its step's unit."""
+    d, c, s = twin(model)
+    assert np.array_equal(np.asarray(d.snapshot().q), model.home)
+    tol_mm, tol_deg = 2e-9 * 1e3, math.degrees(2e-9)
+    for axis, sign in (("X", 1), ("Y", -1), ("Z", 1), ("W", 1)):
+        i = "XYZUVW".index(axis)
+        direction = np.zeros(6)
+        direction[i] = sign
+        step = _reach_step(capsys, SCENE, direction)
+        got = _values(ask(c, s, f"TRA? {axis} {sign}"))[axis]
+        expected = sign * step * (1e3 if i < 3 else math.degrees(1.0))
+        assert abs(got - expected) <= (tol_mm if i < 3 else tol_deg), axis
+    # with a pivot 10 mm above C: the scene's [frames] pivot and the pivot frame
+    scene = tmp_path / "pivot.toml"
+    scene.write_text(SCENE.read_text() + "\n[frames]\npivot = [0.0, 0.0, 0.01]\n")
+    assert ask(c, s, "SPI T 10") is None and err(c, s) == 0
+    for axis in ("U", "V"):
+        direction = np.zeros(6)
+        direction["XYZUVW".index(axis)] = 1.0
+        step = _reach_step(capsys, scene, direction, "pivot")
+        got = _values(ask(c, s, f"TRA? {axis} 1"))[axis]
+        assert abs(got - math.degrees(step)) <= tol_deg, axis
+    # a translation and a turn together: 1 mm and 1 deg per unit step
+    step = _reach_step(capsys, scene, [0.0, 0.0, -1e-3, 0.0, math.radians(1.0), 0.0], "pivot")
+    got = _values(ask(c, s, "TRA? Z -1 V 1"))
+    assert abs(got["Z"] + step) <= 2e-9 and abs(got["V"] - step) <= 2e-9
+    assert err(c, s) == 0
+
+
+# --- coordinate systems ------------------------------------------------------------------------
+
+def test_coordinate_systems_define_link_enable_and_moves_follow_them(model):
+    """KSW/KST/KLN/KEN/KET?/KLT?/KRM with PI's codes; with a work and a tool system enabled POS?
+    is the tool's pose seen from the work system (checked with scipy's rotations on the plant's
+    own pose), a move along X goes along the work system's X, a turn keeps the tool's origin."""
+    d, c, s = referenced(model)
+    assert ask(c, s, "KET?") == "ZERO=ZERO\n"
+    for line in ("KSW WORK X 5 Z 2 W 30", "KST TOOL Z 10 U 5", "KST TIP X 1", "KLN TIP TOOL"):
+        assert ask(c, s, line) is None and err(c, s) == 0, line
+    assert _values(ask(c, s, "KLT? TIP TOOL")) == pytest.approx(
+        {"X": 1.0, "Y": 0.0, "Z": 0.0, "U": 0.0, "V": 0.0, "W": 0.0}, abs=1e-12)
+    tip = _values(ask(c, s, "KLT? TIP"))           # TOOL then TIP: (0, 0, 10) + Rx(5) (1, 0, 0)
+    assert [tip[a] for a in "XYZUVW"] == pytest.approx([1, 0, 10, 5, 0, 0], abs=1e-12)
+    for line, code in (("KLN TOOL TIP", E.CS_CYCLIC), ("KLN TIP TIP", E.CS_LINKED_TO_ITSELF),
+                       ("KLN WORK TOOL", E.CS_MAY_NOT_BE_LINKED), ("KEN NONE", E.CS_DOES_NOT_EXIST),
+                       ("KSW ZERO X 1", E.CS_WRITE_PROTECTED), ("KST 1BAD X 1", E.CS_INVALID_NAME),
+                       ("KET? KSX", E.CS_TYPE_UNKNOWN), ("KET? KST", E.NO_CS_OF_TYPE_ENABLED),
+                       ("KSW WORK V 90", E.PARAM_OUT_OF_RANGE),
+                       ("KLT? TIP WORK", E.CS_NOT_SAME_CHAIN), ("KST WORK X 1", E.CS_IN_USE)):
+        assert ask(c, s, line) is None and err(c, s) == code, line
+    assert ask(c, s, "KEN WORK") is None and ask(c, s, "KEN TIP") is None and err(c, s) == 0
+    assert ask(c, s, "KET?") == "KSW=WORK \nKST=TIP\n"
+    for line, code in (("KSW WORK X 1", E.CS_IN_USE), ("KRM TOOL", E.CS_IN_USE),
+                       ("SPI T 1", E.SPI_NOT_WITH_CS)):
+        assert ask(c, s, line) is None and err(c, s) == code, line
+
+    def seen_from_work(q):
+        """The tip's pose in WORK from the plant's q, independently: scipy's rotations."""
+        r_c = Rotation.from_euler("xyz", q[3:])               # the contract's Rz Ry Rx
+        r_tip = r_c * Rotation.from_euler("XYZ", [5, 0, 0], degrees=True)
+        p_tip = q[:3] + r_c.apply([0.0, 0.0, 0.01]) + r_tip.apply([0.001, 0.0, 0.0])
+        r_w = Rotation.from_euler("XYZ", [0, 0, 30], degrees=True)
+        p = r_w.inv().apply(p_tip - (model.home[:3] + [0.005, 0.0, 0.002])) * 1e3
+        return np.r_[p, (r_w.inv() * r_tip).as_euler("XYZ", degrees=True)]
+
+    pos = np.array(list(_values(ask(c, s, "POS?")).values()))
+    assert np.all(np.abs(pos - seen_from_work(np.asarray(d.snapshot().q))) <= 1e-9)
+    assert np.allclose(list(_values(ask(c, s, "MOV?")).values()), pos, atol=ONT_TOLERANCE)
+    # a move along WORK's X, then a turn about the tip: on target, and the plant agrees
+    for line, goal in (("MOV X 2 Y 1 Z 8 U 0 V 0 W 0", [2, 1, 8, 0, 0, 0]),
+                       ("MOV U 1.5 V -1 W 2", [2, 1, 8, 1.5, -1, 2])):
+        assert ask(c, s, line) is None and err(c, s) == 0, line
+        for _ in range(1000):
+            run(c, 10)
+            if ask(c, s, "ONT?").count("=1") == 6:
+                break
+        assert ask(c, s, "ONT?").count("=1") == 6, line
+        got = seen_from_work(np.asarray(d.snapshot().q))
+        assert np.all(np.abs(got - goal) <= ONT_TOLERANCE), (line, got)
+    assert ask(c, s, "KEN ZERO") is None and ask(c, s, "KET?") == "ZERO=ZERO\n"
+    assert ask(c, s, "KRM TIP") is None and ask(c, s, "KRM TOOL") is None and err(c, s) == 0
+
+
+def test_coordinate_systems_are_refused_on_a_scene_whose_home_is_rotated(model):
+    import dataclasses
+
+    tilted = dataclasses.replace(model, home=np.r_[model.home[:3], 0.02, 0.0, 0.0])
+    d, c, s = twin(tilted)
+    assert ask(c, s, "KSW WORK X 1") is None and err(c, s) == 0
+    assert ask(c, s, "KEN WORK") is None and err(c, s) == E.CMD_NOT_ALLOWED_FOR_STAGE
+    assert ask(c, s, "KET?") == "ZERO=ZERO\n"
+
+
+def test_tra_in_enabled_coordinate_systems(model, capsys, tmp_path):
+    """With a work system (5 mm along X, turned 30 deg about Z) and a tool 10 mm above C: TRA?
+    along X and W equals `workspace --reach` in the user frame of a scene whose [frames] say the
+    same; along U (about the work's X axis, not a line of the contract's angles) the end is
+    where the engine's verdict turns, on the GCS line itself (sampled poses all inside, the
+    end's neighbour 1e-6 deg on outside): the first limit, a band of cond(J) 1.4 deg wide at
+    53.7 deg that the engine's default march steps over (hil.gcs.travel_query.MARCH_STEP)."""
+    from stewart_fmu.reach import Engine
+
+    d, c, s = twin(model)
+    for line in ("KSW WORK X 5 W 30", "KST TIP Z 10", "KEN WORK", "KEN TIP"):
+        assert ask(c, s, line) is None and err(c, s) == 0, line
+    scene = tmp_path / "frames.toml"
+    scene.write_text(SCENE.read_text() + "\n[frames]\nuser = [0.005, 0.0, 0.12, 0.0, 0.0, "
+                     f"{math.radians(30.0)!r}]\ntool = [0.0, 0.0, 0.01, 0.0, 0.0, 0.0]\n")
+    g0 = np.array(list(_values(ask(c, s, "POS?")).values()))
+    step = _reach_step(capsys, scene, [1.0, 0, 0, 0, 0, 0], "user")
+    assert abs(_values(ask(c, s, "TRA? X 1"))["X"] - (g0[0] + step * 1e3)) <= 2e-9 * 1e3 + 1e-9
+    step = _reach_step(capsys, scene, [0, 0, 0, 0, 0, 1.0], "user")
+    assert abs(_values(ask(c, s, "TRA? W 1"))["W"] - (g0[5] + math.degrees(step))) \
+        <= math.degrees(2e-9) + 1e-9
+    end = _values(ask(c, s, "TRA? U 1"))["U"]
+    engine = Engine(model)
+    line = np.tile(g0, (201, 1))
+    line[:, 3] = np.linspace(g0[3], end, 201)
+    assert np.all(engine.binding(c.frame.to_pose(line)) < 0)
+    beyond = g0.copy()
+    beyond[3] = end + 1e-6
+    assert engine.binding(c.frame.to_pose(beyond[None]))[0] >= 0
+    assert 53.0 < end < 54.5
+    assert err(c, s) == 0

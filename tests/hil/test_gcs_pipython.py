@@ -195,20 +195,22 @@ def test_recorded_table_equals_the_devices_own_record_and_pipythons_datarecorder
             y, leg3, force6, t = wait_data(pi)
             # PIPython's own Datarecorder (its samples' way): servo time and table size from
             # SPA?/HPA? and HDR?, sample rate by RTR, armed by DRC/DRT, read by DRR?
-            drec = datarectools.Datarecorder(pi)
-            assert drec.servotime == 1.0 / device.rate and drec.maxnumvalues == 16384
-            drec.numvalues, drec.samplefreq = 400, 200
-            drec.options = (datarectools.RecordOptions.ACTUAL_POSITION_2,
-                            datarectools.RecordOptions.COMMANDED_POSITION_1)
-            drec.sources = ("Z", "Z")
-            drec.trigsources = datarectools.TriggerSources.POSITION_CHANGING_COMMAND_1
-            drec.arm()
-            pi.MOV("Z", 0.5)
-            header, (z_actual, z_commanded) = drec.getdata(timeout=WAIT)
-            assert header["NDATA"] == 400 and header["SAMPLE_TIME"] == 0.005
-            assert z_commanded[0] == pytest.approx(0.0, abs=1e-3) and z_commanded[-1] == 0.5
-            assert abs(z_actual[-1] - 0.5) <= ONT_TOLERANCE
-            assert np.all(np.diff(z_commanded) >= 0)       # the quintic only rises
+            # `with`: PIPython keeps every Datarecorder's callback in a class-wide list until
+            # it exits, and calls it when any later PISocket connects
+            with datarectools.Datarecorder(pi) as drec:
+                assert drec.servotime == 1.0 / device.rate and drec.maxnumvalues == 16384
+                drec.numvalues, drec.samplefreq = 400, 200
+                drec.options = (datarectools.RecordOptions.ACTUAL_POSITION_2,
+                                datarectools.RecordOptions.COMMANDED_POSITION_1)
+                drec.sources = ("Z", "Z")
+                drec.trigsources = datarectools.TriggerSources.POSITION_CHANGING_COMMAND_1
+                drec.arm()
+                pi.MOV("Z", 0.5)
+                header, (z_actual, z_commanded) = drec.getdata(timeout=WAIT)
+                assert header["NDATA"] == 400 and header["SAMPLE_TIME"] == 0.005
+                assert z_commanded[0] == pytest.approx(0.0, abs=1e-3) and z_commanded[-1] == 0.5
+                assert abs(z_actual[-1] - 0.5) <= ONT_TOLERANCE
+                assert np.all(np.diff(z_commanded) >= 0)       # the quintic only rises
             assert pi.qERR() == 0
         del pi
         release()
@@ -223,3 +225,109 @@ def test_recorded_table_equals_the_devices_own_record_and_pipythons_datarecorder
         assert leg3[k] == snap.lengths[2] * 1e3
         assert force6[k] == snap.forces[5]
     assert y[-1] == pytest.approx(-1.0, abs=ONT_TOLERANCE)
+
+
+@unraisable
+def test_pivot_rotation_vmo_and_tra_through_pipython(capsys):
+    """PIPython's qSPI/SPI, qVMO and qTRA against the twin in process (so the plant's own pose
+    can be read): the platform turns about the pivot set, VMO? answers what MOV then does, and
+    TRA? ends where `stewart-sim workspace --reach` does from home."""
+    from scipy.spatial.transform import Rotation
+
+    from tests.hil.test_gcs import _reach_step
+
+    model = load_scene(SCENE)
+    device = Device(model)
+    link = gcs_link(device, "127.0.0.1", 0)
+    thread, stop, _ = serve_in_thread(device, link)
+    try:
+        with connect(link.server.address[1]) as pi:
+            # TRA? before referencing, from the plant at home (it starts there; at rest it
+            # drifts by rounding only, orders of magnitude below the bisection's 1e-9)
+            assert np.all(np.abs(np.asarray(device.snapshot().q) - model.home) <= 1e-15)
+            x_end = pi.qTRA("X", 1.0)["X"]
+            step = _reach_step(capsys, SCENE, [1.0, 0, 0, 0, 0, 0])
+            assert abs(x_end - step * 1e3) <= 2e-9 * 1e3
+            pitools.startup(pi, refmodes="FRF")
+            assert pi.qSPI() == {"R": 0.0, "S": 0.0, "T": 0.0}
+            pi.SPI({"R": 2.0, "T": 12.0})
+            assert pi.qSPI() == {"R": 2.0, "S": 0.0, "T": 12.0}
+            turn = {"U": 1.5, "V": -2.0, "W": 2.5}
+            assert pi.qVMO(turn) is True
+            pi.MOV(turn)
+            pitools.waitontarget(pi, timeout=WAIT, polldelay=0.05)
+            q = np.asarray(device.snapshot().q)
+            p = np.array([2.0, 0.0, 12.0]) / 1e3
+            pivot_n = q[:3] + Rotation.from_euler("xyz", q[3:]).as_matrix() @ p
+            assert np.all(np.abs(pivot_n - (model.home[:3] + p)) <= ONT_TOLERANCE / 1e3)
+            with pytest.raises(GCSError) as exc:        # rotated: PI's error 9
+                pi.SPI("T", 0.0)
+            assert exc.value.val == 9
+            # a target inside each axis's range but not together: VMO? False, MOV refused (7)
+            high = pi.qPLM()
+            target = {"X": 0.9 * high["X"], "Z": 0.9 * high["Z"], "U": 0.0, "V": 0.0, "W": 0.0}
+            assert pi.qVMO(target) is False
+            with pytest.raises(GCSError) as exc:
+                pi.MOV(target)
+            assert exc.value.val == 7
+            assert pi.qMOV() == {"X": 0.0, "Y": 0.0, "Z": 0.0, **turn}
+            # TRA? from the turned pose: the end is on the line, beyond where the platform is
+            end = pi.qTRA({"W": 1.0})["W"]
+            assert turn["W"] < end < 180.0
+            assert pi.qERR() == 0
+        del pi
+        release()
+    finally:
+        stop.set()
+        thread.join(10)
+        link.close()
+
+
+@unraisable
+def test_coordinate_systems_through_pipython():
+    """PIPython's KSW, KST, KEN, qKET, qKLT, KRM: with a work system (5 mm along X, turned 30 deg
+    about Z) and a tool 10 mm above C enabled, MOV moves the tool in the work system's axes,
+    checked on the plant's own pose."""
+    from scipy.spatial.transform import Rotation
+
+    model = load_scene(SCENE)
+    device = Device(model)
+    link = gcs_link(device, "127.0.0.1", 0)
+    thread, stop, _ = serve_in_thread(device, link)
+    try:
+        with connect(link.server.address[1]) as pi:
+            pitools.startup(pi, refmodes="FRF")
+            pi.KSW("WORK", {"X": 5.0, "W": 30.0})
+            pi.KST("TIP", {"Z": 10.0})
+            pi.KEN("WORK")
+            pi.KEN("TIP")
+            assert pi.qKET() == {"KSW": "WORK", "KST": "TIP"}
+            assert pi.qKLT("TIP").split() == ["X=0.0", "Y=0.0", "Z=10.0", "U=0.0", "V=0.0",
+                                              "W=0.0"]
+            target = {"X": 1.0, "Y": 0.0, "Z": 10.0, "U": 0.0, "V": 0.0, "W": -30.0}
+            pi.MOV(target)
+            pitools.waitontarget(pi, timeout=WAIT, polldelay=0.05)
+            q = np.asarray(device.snapshot().q)
+            r = Rotation.from_euler("xyz", q[3:])
+            tip = q[:3] + r.apply([0.0, 0.0, 0.01]) - model.home[:3]
+            w = Rotation.from_euler("z", 30, degrees=True)
+            expected = (np.array([5.0, 0.0, 0.0]) + w.apply([1.0, 0.0, 10.0])) / 1e3
+            assert np.all(np.abs(tip - expected) <= ONT_TOLERANCE / 1e3)
+            # the tool's axes: the work system's turned back by W = -30 deg, i.e. the platform's
+            assert np.degrees(np.linalg.norm(r.as_rotvec())) <= 2 * ONT_TOLERANCE
+            with pytest.raises(GCSError) as exc:        # enabled: in use
+                pi.KRM("WORK")
+            assert exc.value.val == 532
+            pi.MOV({"X": 1.0, "Y": 0.0, "Z": 0.0, "W": 0.0})     # off a turned work frame
+            pitools.waitontarget(pi, timeout=WAIT, polldelay=0.05)
+            pi.KEN("ZERO")
+            assert pi.qKET() == {"ZERO": "ZERO"}
+            pi.KRM("WORK")
+            pi.KRM("TIP")
+            assert pi.qERR() == 0
+        del pi
+        release()
+    finally:
+        stop.set()
+        thread.join(10)
+        link.close()

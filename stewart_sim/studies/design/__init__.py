@@ -1,0 +1,1 @@
+"""`stewart-sim design`: a hexapod's geometry from its requirements (docs/guides/design.md)."""

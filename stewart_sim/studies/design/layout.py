@@ -1,0 +1,52 @@
+"""The six joints from a few numbers, laid out as the shipped scenes are: joints in three pairs
+about pair centres at 0, 120 and 240 deg, leg 2k+1 at centre_k - half angle and leg 2k+2 at
+centre_k + half angle, on the base (radius, z = 0 in N) and on the platform (radius, at
+platform_joint_z in C). scenes/micro_manipulator.toml is (0.10 m, 10 deg; 0.06 m, 50 deg,
+z -0.01 m); scenes/motion_simulator.toml (2.2 m, 12 deg; 1.4 m, 48 deg, z -0.35 m)."""
+from __future__ import annotations
+
+import copy
+from typing import Any
+
+import numpy as np
+
+PAIR_CENTRES = np.radians([0.0, 120.0, 240.0])
+
+
+def joint_angles(half_angle: float) -> np.ndarray:
+    """The six joints' azimuths (rad), legs 1..6."""
+    return np.column_stack([PAIR_CENTRES - half_angle, PAIR_CENTRES + half_angle]).ravel()
+
+
+def joints(radius: float, half_angle: float, z: float = 0.0) -> np.ndarray:
+    """Six joints (6, 3) on a circle of `radius` at height z, in pairs of `half_angle`."""
+    a = joint_angles(half_angle)
+    return np.column_stack([radius * np.cos(a), radius * np.sin(a), np.full(6, z)])
+
+
+def scene_dict(base: dict[str, Any], p: dict[str, float], payload: dict | None = None,
+               cones: tuple[float | None, float | None] = (None, None)) -> dict[str, Any]:
+    """The base scene with the candidate's geometry (the parameters `p` of spec.PARAMETERS),
+    leg stiffness, payload and joint cones in place (the base's [joints] axes dropped: they
+    belong to its own legs; the default axes are the legs' directions at home)."""
+    d = copy.deepcopy(base)
+    g = d.setdefault("geometry", {})
+    g["base_joints"] = _rounded(joints(p["base_radius"], p["base_half_angle"]))
+    g["platform_joints"] = _rounded(joints(p["platform_radius"], p["platform_half_angle"],
+                                           p["platform_joint_z"]))
+    g["home"] = [0.0, 0.0, p["home_height"], 0.0, 0.0, 0.0]
+    g["leg_min"] = p["leg_min"]
+    g["leg_max"] = p["leg_min"] + p["stroke"]
+    stiff = d.setdefault("stiffness", {})
+    stiff["leg"] = p["leg_stiffness"]
+    if payload is not None:
+        d["payload"] = copy.deepcopy(payload)
+    d.pop("joints", None)
+    if cones[0] is not None or cones[1] is not None:
+        d["joints"] = {k: v for k, v in zip(("base_cone", "platform_cone"), cones) if v is not None}
+    return d
+
+
+def _rounded(a: np.ndarray) -> list[list[float]]:
+    # plain floats (a scene written from the dict reads back the same numbers)
+    return [[float(v) for v in row] for row in a]
