@@ -35,9 +35,9 @@ def _laid_out(data: dict, side: str, radius: float, angle: float) -> dict:
 
 
 @pytest.mark.parametrize("values", [
-    {"layout.base_angle": 20.0},
-    {"layout.platform_radius": 1.0, "layout.platform_angle": 56.0},
-    {"layout.base_radius": 2.0, "layout.base_angle": 8.0, "layout.platform_angle": 40.0},
+    {"pairs.base_half_angle": 20.0},
+    {"pairs.platform_radius": 1.0, "pairs.platform_half_angle": 56.0},
+    {"pairs.base_radius": 2.0, "pairs.base_half_angle": 8.0, "pairs.platform_half_angle": 40.0},
 ])
 def test_the_columns_are_stewart_fmus_at_home(values):
     data = read_scene_dict(SIM)
@@ -46,7 +46,7 @@ def test_the_columns_are_stewart_fmus_at_home(values):
     assert set(columns("modes", list(values))) == set(row)
     expect = data
     for side in ("base", "platform"):
-        r, a = values.get(f"layout.{side}_radius"), values.get(f"layout.{side}_angle")
+        r, a = values.get(f"pairs.{side}_radius"), values.get(f"pairs.{side}_half_angle")
         if r is None and a is None:
             continue
         first = np.array(data["geometry"][f"{side}_joints"][1])
@@ -64,14 +64,14 @@ def test_the_columns_are_stewart_fmus_at_home(values):
 def test_the_scenes_own_layout_gives_its_modes():
     """The shipped layout's values (12 deg, 48 deg): the scene's joints to their 6 digits."""
     row = evaluate_point(EvalSpec("modes", read_scene_dict(SIM)), 0,
-                         {"layout.base_angle": 12.0, "layout.platform_angle": 48.0})
+                         {"pairs.base_half_angle": 12.0, "pairs.platform_half_angle": 48.0})
     model = load_scene(SIM)
     assert row["lowest_hz"] == pytest.approx(S.modes(model, model.home).frequency_hz[0], rel=1e-6)
 
 
 @pytest.mark.parametrize("values,words", [
-    ({"layout.platform_radius": 0.0}, "layout.platform_radius"),
-    ({"layout.base_angle": 60.0}, "layout.base_angle"),
+    ({"pairs.platform_radius": 0.0}, "pairs.platform_radius"),
+    ({"pairs.base_half_angle": 60.0}, "pairs.base_half_angle"),
 ])
 def test_a_bad_layout_is_the_points_error(values, words):
     row = evaluate_point(EvalSpec("modes", read_scene_dict(SIM)), 3, values)
@@ -84,7 +84,7 @@ def test_joints_not_on_circles_cannot_take_the_axes():
     joints = [list(j) for j in data["geometry"]["base_joints"]]
     joints[3][0] += 0.01
     data["geometry"]["base_joints"] = joints
-    row = evaluate_point(EvalSpec("modes", data), 0, {"layout.base_angle": 10.0})
+    row = evaluate_point(EvalSpec("modes", data), 0, {"pairs.base_half_angle": 10.0})
     assert row["status"] == "error" and "geometry.base_joints" in row["error"]
 
 
@@ -110,8 +110,8 @@ def test_the_shipped_grid_finds_what_the_guide_says():
     assert all(r["status"] == "ok" for r in rows)
 
     def stated(r):
-        return (r["layout.base_angle"], r["layout.platform_angle"], r["layout.platform_radius"],
-                round(r["lowest_hz"], 1), round(r["weakest_n_per_um"], 1))
+        return (r["pairs.base_half_angle"], r["pairs.platform_half_angle"],
+                r["pairs.platform_radius"], round(r["lowest_hz"], 1), round(r["weakest_n_per_um"], 1))
 
     by_f = sorted(rows, key=lambda r: r["lowest_hz"])
     assert stated(by_f[-1]) == (8.0, 56.0, 1.0, 30.8, 64.8)

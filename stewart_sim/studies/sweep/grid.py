@@ -21,7 +21,7 @@ a full grid or a seeded Latin hypercube over dotted scene, controller and trajec
     threshold = 1500.0                # a result column: the value whose crossing is sought
     [axes]
     "platform.mass" = [0.5, 1.0, 2.0]                     # values
-    "layout.base_angle" = [8.0, 12.0, 16.0]               # the joints' layout (joint_layout.py)
+    "pairs.base_half_angle" = [8.0, 12.0, 16.0]           # the joints (sweep/joint_layout.py)
     "drive.gear_ratio" = {min = 5, max = 40, points = 8, log = true}   # a range
 """
 from __future__ import annotations
