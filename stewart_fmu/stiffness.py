@@ -17,6 +17,7 @@ import numpy as np
 
 from .dynamics import raise_status
 from .errors import SceneError, UnstablePoseError
+from .kinematics import COND_LIMIT, inverse_kinematics
 from .model import Model
 from .native import core
 
@@ -150,6 +151,15 @@ class ModesMap:
     lowest_hz: np.ndarray        # (N,) the first mode's frequency
     weakest: np.ndarray          # (N,) the least translational stiffness at the pivot (N/m)
     weakest_direction: np.ndarray   # (N, 3) its unit direction in N (z component >= 0)
+
+
+def regular_poses(model: Model, Q) -> np.ndarray:
+    """(N,) bool: the poses of Q (N, 6) within the stroke and away from singularities
+    (cond(J) < COND_LIMIT), those modes_map takes."""
+    kin = inverse_kinematics(model, np.atleast_2d(np.asarray(Q, dtype=float)))
+    lo = model.leg_min if model.leg_min is not None else -np.inf
+    hi = model.leg_max if model.leg_max is not None else np.inf
+    return np.all((kin.lengths >= lo) & (kin.lengths <= hi), axis=1) & (kin.cond < COND_LIMIT)
 
 
 def modes_map(model: Model, Q, pivot=ORIGIN) -> ModesMap:

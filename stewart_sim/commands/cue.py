@@ -6,7 +6,8 @@ angular velocity in rad/s, vehicle frame x forward, y left, z up; at rest fz = +
 sampling): see scenes/motions/README.md. The scene's [cueing] table sets the washout
 (docs/scene-format.md; defaults when absent). DIR gets the files listed in
 stewart_sim/cueing/report.py, all or nothing. Exit status 0 also when the cue breaks a limit:
-the violations are the result, listed in summary.md and on the terminal.
+the violations are the result, listed in summary.md and on the terminal; a cue that reaches the
+scene's first mode ([stiffness]) is a warning on stderr and in summary.md.
 """
 from __future__ import annotations
 
@@ -45,6 +46,16 @@ def add_parser(sub, help_text: str) -> None:
     p.set_defaults(run=run)
 
 
+def warn_first_mode(study) -> None:
+    """On stderr, a line for each cue that reaches the scene's first mode."""
+    import sys
+
+    from stewart_sim.cueing.report import first_mode_warnings
+
+    for line in first_mode_warnings(study):
+        print(line, file=sys.stderr)
+
+
 def run(args: argparse.Namespace) -> None:
     """Run `cue`; StewartError subclasses for bad input."""
     from stewart_sim.cueing.motion import read_motion
@@ -69,6 +80,7 @@ def run(args: argparse.Namespace) -> None:
         study = preflown(study, scene, motion)
     out = Path(args.out)
     title = f"{model.name}: {Path(args.motion).name}, {args.mode} cue"
+    warn_first_mode(study)
     lines: list[str] = []
 
     def view(stage: Path) -> list[str]:

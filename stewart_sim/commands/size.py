@@ -2,10 +2,12 @@
 [--margin F] [--scheduler tcp://HOST:PORT | --workers N]`: the actuators a platform needs for
 the motions it is to fly (stewart_sim.studies.sizing). DIR gets the files listed in
 stewart_sim/studies/sizing/report.py, all or nothing. Exit status 0 also when no drive qualifies:
-the report says so."""
+the report says so. A motion that reaches the scene's first mode ([stiffness]) is a warning on
+stderr and in report.md."""
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from stewart_sim.commands.constants import literals
@@ -51,6 +53,7 @@ def run(args: argparse.Namespace) -> None:
     from stewart_fmu.errors import StewartError
     from stewart_sim.scene.load import load
     from stewart_sim.shell.progress import Progress
+    from stewart_sim.cueing.resonance import resonance
     from stewart_sim.studies.sizing.catalogue import read_catalogue
     from stewart_sim.studies.sizing.motions import read_motions
     from stewart_sim.studies.sizing.report import write_size_report
@@ -66,6 +69,7 @@ def run(args: argparse.Namespace) -> None:
     if drives is not None:
         check_budget(drives, motions, args.catalogue)
     sizing = size_scene(model, scene.controller, motions)
+    first_mode = tuple(resonance(model, m.t, m.q, m.qd, m.qdd) for m in motions)
     sweep, ranked = None, []
     if drives is not None:
         progress = Progress()
@@ -79,8 +83,11 @@ def run(args: argparse.Namespace) -> None:
         print(f"catalogue: {len(drives)} drives on {sweep.workers} workers ({where}"
               + (f", dashboard {sweep.dashboard}" if sweep.dashboard else "") + ")")
     check_finite(sizing, sweep.results if sweep else (), args.catalogue)   # before any file
+    for m, r in zip(motions, first_mode):
+        if r is not None and r.reaches:
+            print(r.line(m.name), file=sys.stderr)
     for path in write_size_report(Path(args.out), model, motions, sizing, sweep, ranked,
-                                  args.margin, model.name):
+                                  args.margin, model.name, first_mode):
         print(f"wrote {path}")
     peak = max((d.statistics()["force"].peak for d in sizing.demands), key=lambda p: p.magnitude)
     motion = next(d.motion for d in sizing.demands if d.statistics()["force"].peak == peak)

@@ -113,6 +113,7 @@ def summary_markdown(study: CueStudy, title: str) -> str:
              + ", ".join(f"{r.mode} ({r.seconds:.3f} s to compute)" for r in study.runs)
              + f"; the written trajectory is the {study.runs[0].mode} cue's.", ""]
     lines += _solver_lines(study.runs)
+    lines += _first_mode_lines(study)
     lines += _perception_section(study.runs)
     lines += _workspace_section(study.runs)
     lines += _margins_section(study.runs)
@@ -137,6 +138,22 @@ def _solver_lines(runs: tuple[CueRun, ...]) -> list[str]:
                      f"{float(np.sum(d.solve_time)):.2f} s of {d.wall_time:.2f} s; stroke slack "
                      f"up to {1e3 * float(np.max(d.slack)):.2f} mm.")
     return lines + ([""] if lines else [])
+
+
+def first_mode_warnings(study: CueStudy) -> list[str]:
+    """The line of each run whose cue reaches the scene's first mode (resonance.py)."""
+    return [r.line(f"the {run.mode} cue") for run, r in zip(study.runs, study.resonance)
+            if r is not None and r.reaches]
+
+
+def _first_mode_lines(study: CueStudy) -> list[str]:
+    """Each run's cue against the first mode, with the scene's [stiffness] (else nothing)."""
+    found = [(run, r) for run, r in zip(study.runs, study.resonance) if r is not None]
+    if not found:
+        return []
+    reached = "reached" if any(r.reaches for _, r in found) else "not reached"
+    return ([f"## First mode ([stiffness]): {reached}", ""]
+            + [f"- {md_text(r.line(f'the {run.mode} cue'))}" for run, r in found] + [""])
 
 
 def _perception_section(runs: tuple[CueRun, ...]) -> list[str]:

@@ -6,7 +6,8 @@ For each cueing mode asked for, the cue (washout.Cue) goes through
   otolith and canal models, the perceived error, the false cues, the workspace used;
 - feasibility (feasibility.feasibility): inverse kinematics (stroke, cond(J)), the scene's
   inverse dynamics (every declared effect) and its drives (current, voltage), every crossing
-  reported with its time and leg.
+  reported with its time and leg;
+- with the scene's [stiffness], the cue's content against the first mode (resonance.py).
 Optionally the scene's closed loop (controller.cosim, as `run`) tracks the first mode's cue,
 so the user sees what the drives deliver; the cue is then computed again at the controller's
 rate from the vehicle motion interpolated linearly. The washout's linear filters are exact for
@@ -35,6 +36,7 @@ from stewart_sim.scene.cueing_config import CueingConfig
 from .feasibility import Feasibility, feasibility
 from .motion import VehicleMotion
 from .optimal import Diagnostics, optimal_cueing
+from .resonance import Resonance, resonance
 from .vestibular import Perception, perception
 from .washout import Cue, classical_washout
 
@@ -67,6 +69,8 @@ class CueStudy:
     runs: tuple[CueRun, ...]
     tracking: ClosedLoopResult | None = None
     tracking_note: str | None = None     # why the closed loop was not run, if asked for
+    # per run: its cue against the first mode (resonance.py); None: no [stiffness]
+    resonance: tuple[Resonance | None, ...] = ()
 
 
 class CueError(StewartError):
@@ -94,7 +98,12 @@ def cue_study(scene: Scene, motion: VehicleMotion, modes: tuple[str, ...] = ("cl
     tracking, note = None, None
     if track:
         tracking, note = track_cue(scene, config, motion, runs[0], progress)
-    return CueStudy(model, config, motion, tuple(runs), tracking, note)
+    return CueStudy(model, config, motion, tuple(runs), tracking, note, first_mode(model, runs))
+
+
+def first_mode(model: Model, runs: list[CueRun]) -> tuple[Resonance | None, ...]:
+    """Each run's cue against the scene's first mode (resonance.resonance)."""
+    return tuple(resonance(model, r.cue.t, r.cue.q, r.cue.qd, r.cue.qdd) for r in runs)
 
 
 def _stage(progress: Callable[[str, int, int], None] | None,

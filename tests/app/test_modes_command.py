@@ -117,23 +117,39 @@ def test_scene_without_stiffness_and_bad_stiffness_are_refused(tmp_path, capsys)
     assert not (tmp_path / "m").exists()
 
 
-def test_the_guide_states_the_motion_simulators_modes_and_stiffness(tmp_path, capsys):
-    """The guide's row of the motion simulator (docs/guides/stiffness-and-modes.md): its
-    stiffness and six modes, with and without the payload it names, as `modes` prints them (4
+# the machines the guide's and the README's tables state: the scene (the micro-manipulator's with
+# the contract's example stiffness added), the payload and the words that name it in the table
+MACHINES = {
+    "micro-manipulator": ("micro_manipulator.toml", "\n[stiffness]\nleg = 2.0e7\n",
+                          "mass = 0.5, com = [0.0, 0.0, 0.03], inertia = [3e-4, 3e-4, 3e-4]",
+                          "0.5 kg at z = 0.03 m"),
+    "motion simulator": ("motion_simulator.toml", "",
+                         "mass = 300.0, com = [0.0, 0.0, 0.6], inertia = [60.0, 60.0, 40.0]",
+                         "300 kg at z = 0.6 m"),
+}
+
+
+@pytest.mark.parametrize("document", ["docs/guides/stiffness-and-modes.md", "README.md"])
+@pytest.mark.parametrize("machine", list(MACHINES))
+def test_the_guide_and_the_readme_state_the_modes_and_stiffness(tmp_path, document, machine):
+    """The row of each shipped machine in the guide's and the README's table: its stiffness
+    and six modes, with and without the payload it names, as `modes` prints them (4
     significant digits)."""
-    text = (ROOT / "docs" / "guides" / "stiffness-and-modes.md").read_text(encoding="utf-8")
-    row = next(line for line in text.splitlines() if line.startswith("| motion simulator |"))
+    name, added, payload, words = MACHINES[machine]
+    scene = tmp_path / name
+    scene.write_text((ROOT / "scenes" / name).read_text() + added)
+    text = (ROOT / document).read_text(encoding="utf-8")
+    row = next(line for line in text.splitlines() if line.startswith(f"| {machine} |"))
     cells = [c.strip() for c in row.strip("|").split("|")]
     out = tmp_path / "m"
-    runs = {"": None, "payload": "mass = 300.0, com = [0.0, 0.0, 0.6], inertia = [60.0, 60.0, 40.0]"}
-    stated = {"": cells[5], "payload": cells[6].split(":")[1]}
-    assert "300 kg at z = 0.6 m" in cells[6]
-    for key, payload in runs.items():
-        argv = ["modes", str(SIM), "--out", str(out)] + (["--payload", payload] if payload else [])
+    stated = {None: cells[5], payload: cells[6].split(":")[1]}
+    assert words in cells[6]
+    for key in stated:
+        argv = ["modes", str(scene), "--out", str(out)] + (["--payload", key] if key else [])
         assert cli.main(argv) == 0
         f = [float(r[1]) for r in _read(out / "modes.csv")[1]]
         assert [float(v) for v in stated[key].split(",")] == [float(f"{v:.4g}") for v in f]
-        if not payload:   # the stiffness the guide states: the scene's own
+        if not key:   # the stiffness stated: the scene's own
             k = [float(r[1]) for r in _read(out / "stiffness.csv")[1]]
     assert [float(c.split()[0]) for c in cells[1:5]] == [float(f"{v:.4g}") for v in (k[0], k[2], k[3], k[5])]
 

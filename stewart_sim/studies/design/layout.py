@@ -2,7 +2,8 @@
 about pair centres at 0, 120 and 240 deg, leg 2k+1 at centre_k - half angle and leg 2k+2 at
 centre_k + half angle, on the base (radius, z = 0 in N) and on the platform (radius, at
 platform_joint_z in C). scenes/micro_manipulator.toml is (0.10 m, 10 deg; 0.06 m, 50 deg,
-z -0.01 m); scenes/motion_simulator.toml (2.2 m, 12 deg; 1.4 m, 48 deg, z -0.35 m)."""
+z -0.01 m); scenes/motion_simulator.toml (2.2 m, 12 deg; 1.4 m, 48 deg, z -0.35 m). The layout
+is the sweep's (stewart_sim.studies.sweep.joint_layout.joints), one implementation for both."""
 from __future__ import annotations
 
 import copy
@@ -10,18 +11,7 @@ from typing import Any
 
 import numpy as np
 
-PAIR_CENTRES = np.radians([0.0, 120.0, 240.0])
-
-
-def joint_angles(half_angle: float) -> np.ndarray:
-    """The six joints' azimuths (rad), legs 1..6."""
-    return np.column_stack([PAIR_CENTRES - half_angle, PAIR_CENTRES + half_angle]).ravel()
-
-
-def joints(radius: float, half_angle: float, z: float = 0.0) -> np.ndarray:
-    """Six joints (6, 3) on a circle of `radius` at height z, in pairs of `half_angle`."""
-    a = joint_angles(half_angle)
-    return np.column_stack([radius * np.cos(a), radius * np.sin(a), np.full(6, z)])
+from stewart_sim.studies.sweep.joint_layout import joints
 
 
 def scene_dict(base: dict[str, Any], p: dict[str, float], payload: dict | None = None,

@@ -16,7 +16,8 @@ from stewart_fmu.errors import SceneError, StewartError
 from stewart_fmu.kinematics import COND_LIMIT, inverse_kinematics
 from stewart_fmu.model import Model, PayloadParams
 from stewart_fmu.scene import scene_from_dict
-from stewart_fmu.stiffness import Modes, ModesMap, Stiffness, modes, modes_map, stiffness
+from stewart_fmu.stiffness import (Modes, ModesMap, Stiffness, modes, modes_map, regular_poses,
+                                   stiffness)
 
 POSE = ("x", "y", "z", "thx", "thy", "thz")
 N_MODES = 6     # the platform's six degrees of freedom
@@ -197,9 +198,6 @@ def compute_map(model: Model, grid: Grid, pivot: np.ndarray) -> MapResult:
     """The lowest frequency and the weakest translational stiffness at each pose of the grid
     within the stroke and away from singularities (the others are left out, marked)."""
     Q = grid.poses()
-    kin = inverse_kinematics(model, Q)
-    lo = model.leg_min if model.leg_min is not None else -np.inf
-    hi = model.leg_max if model.leg_max is not None else np.inf
-    inside = np.all((kin.lengths >= lo) & (kin.lengths <= hi), axis=1) & (kin.cond < COND_LIMIT)
+    inside = regular_poses(model, Q)
     values = modes_map(model, Q[inside], pivot) if inside.any() else None
     return MapResult(Q, inside, values)

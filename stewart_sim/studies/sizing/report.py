@@ -1,6 +1,7 @@
 """The files of `stewart-sim size`, written into DIR all or nothing (stewart_sim.shell.outputs):
 
-    report.md                what the motions ask, the scene's drive against them, the ranking
+    report.md                what the motions ask, the scene's drive against them, each
+                             motion against the first mode ([stiffness]), the ranking
     motions.csv              per motion: stroke used, and per quantity its peak (value, time,
                              leg) and the worst leg's RMS, on the scene's drive
     scene_checks.csv         per motion and check: the scene's drive and motor against it
@@ -25,6 +26,7 @@ from typing import Any, Sequence
 from stewart_fmu import io
 from stewart_fmu.model import Model, per_leg
 from stewart_sim.cueing.feasibility import Margin
+from stewart_sim.cueing.resonance import Resonance
 from stewart_sim.shell.markdown import md_text
 from stewart_sim.shell.outputs import result_set
 from stewart_sim.studies.sweep.result_table import csv_text
@@ -116,8 +118,10 @@ def candidate_motion_rows(ranked: Sequence[CandidateResult]) -> tuple[list[str],
 
 def write_size_report(out: Path, model: Model, motions: Sequence[Motion], scene: SceneSizing,
                       sweep: CatalogueSweep | None, ranked: Sequence[CandidateResult],
-                      margin: float, title: str) -> list[Path]:
-    """Every file of the sizing into `out`, all or nothing; returns their paths."""
+                      margin: float, title: str,
+                      first_mode: Sequence[Resonance | None] = ()) -> list[Path]:
+    """Every file of the sizing into `out`, all or nothing; returns their paths. `first_mode`:
+    each motion against the scene's first mode (cueing.resonance; None: no [stiffness])."""
     from stewart_sim.shell.plots import save_figure   # matplotlib: only when writing
 
     names = []
@@ -141,7 +145,8 @@ def write_size_report(out: Path, model: Model, motions: Sequence[Motion], scene:
             table("candidate_motions.csv", candidate_motion_rows(ranked))
             figure("candidates.png", candidates_figure(ranked, margin, title))
         io.write_text(stage / "report.md",
-                      report_markdown(model, motions, scene, sweep, ranked, margin, title, names))
+                      report_markdown(model, motions, scene, sweep, ranked, margin, title, names,
+                                      first_mode))
         names.insert(0, "report.md")
     return [out / n for n in names]
 
@@ -152,8 +157,10 @@ def _g(v: float, digits: int = 4) -> str:
 
 def report_markdown(model: Model, motions: Sequence[Motion], scene: SceneSizing,
                     sweep: CatalogueSweep | None, ranked: Sequence[CandidateResult],
-                    margin: float, title: str, files: Sequence[str]) -> str:
-    """report.md: the motions, the demand's peaks, the scene's checks, the ranking."""
+                    margin: float, title: str, files: Sequence[str],
+                    first_mode: Sequence[Resonance | None] = ()) -> str:
+    """report.md: the motions, the demand's peaks, the scene's checks, the first mode, the
+    ranking."""
     lines = [f"# Actuator sizing: {md_text(title)}", ""]
     lines += ["## Motions", "", "| motion | kind | duration (s) | samples |", "|---|---|---|---|"]
     kinds = {"platform": "platform trajectory",
@@ -161,6 +168,7 @@ def report_markdown(model: Model, motions: Sequence[Motion], scene: SceneSizing,
     lines += [f"| {md_text(m.name)} | {kinds[m.kind]} | {m.duration:.4g} | {m.t.size} |"
               for m in motions]
     lines += ["", *_demand_section(model, scene), "", *_scene_section(scene, margin)]
+    lines += _first_mode_section(motions, first_mode)
     if sweep is not None:
         lines += ["", *_catalogue_section(sweep, ranked, margin)]
     lines += ["", "## Files", "", *(f"- `{n}`" for n in files), ""]
@@ -223,6 +231,17 @@ def _scene_section(scene: SceneSizing, margin: float) -> list[str]:
               f"the margin when ratio × {1 + margin:g} ≤ 1, the stroke and cond(J) when "
               "ratio ≤ 1. Per motion: scene_checks.csv."]
     return lines
+
+
+def _first_mode_section(motions: Sequence[Motion],
+                        first_mode: Sequence[Resonance | None]) -> list[str]:
+    """Each motion against the scene's first mode, with its [stiffness] (else nothing)."""
+    found = [(m, r) for m, r in zip(motions, first_mode) if r is not None]
+    if not found:
+        return []
+    reached = "reached" if any(r.reaches for _, r in found) else "not reached"
+    return ["", f"## First mode ([stiffness]): {reached}", "",
+            *(f"- {md_text(r.line(m.name))}" for m, r in found)]
 
 
 def _catalogue_section(sweep: CatalogueSweep, ranked: Sequence[CandidateResult],

@@ -22,7 +22,8 @@ RESULT_UNITS = {**dict.fromkeys((*(f"sigma{i}_max" for i in range(1, 7)), "sigma
                 "kp": "V/m", "ki": "V/(m s)", "kd": "V s/m", "phase_margin": "deg",
                 "crossover_hz": "Hz", "leg_err_rms": "m", "leg_err_max": "m",
                 "pose_err_max_linear": "m", "pose_err_max_angular": "rad", "current_max": "A",
-                "voltage_rms": "V", "saturated_time": "s"}
+                "voltage_rms": "V", "saturated_time": "s", "lowest_hz": "Hz",
+                "weakest_n_per_um": "N/um"}
 
 
 def refinement_figure(table: Mapping[str, np.ndarray], grid: GridSpec, title: str) -> Figure:

@@ -77,6 +77,9 @@ def eval_spec(scene: Path, grid: GridSpec) -> EvalSpec:
     base = scene_from_dict(data, str(scene))
     if grid.evaluation == "closed_loop":
         controller_config(base)     # the scene's own [controller]: its file is at fault
+    if grid.evaluation == "modes" and base.stiffness is None:
+        raise SceneError("stiffness", "the modes evaluation needs the scene's [stiffness] "
+                         "(each leg's axial stiffness, N/m)", str(scene))
     files = {}
     names = {grid.trajectory.file} | {v for a in grid.axes if a.key == "trajectory.file"
                                       for v in a.grid_values()}

@@ -15,6 +15,8 @@ and one of:
                tracking errors, effort;
   envelope     the static (and load-case) forces over a pose grid about home: peak |sigma|,
                worst cond(J) over the reachable poses, the reachable share.
+  modes        the scene's [stiffness] at home (stewart_fmu.stiffness.modes_map): the first
+               mode's frequency and the weakest translational stiffness at C's origin.
 
 Trajectories (TrajectorySettings.kind): "demo" (controller.moves's six-axis raised-cosine move,
 fitted to the point's workspace), "run" (the `run` command's move out and back), "file" (a
@@ -44,7 +46,9 @@ from stewart_fmu.model import Model
 from stewart_fmu.scene import apply_overrides, scene_from_dict
 from stewart_fmu.standard import N_STANDARD, standard_parameters
 from stewart_sim.studies.compare.study import run_mode
+from stewart_fmu.stiffness import modes_map
 from stewart_sim.studies.sweep.grid import EnvelopeSettings, TrajectorySettings
+from stewart_sim.studies.sweep.joint_layout import LAYOUT_KEYS, apply_layout
 
 LEGS = tuple(f"sigma{i}_max" for i in range(1, 7))
 RESULTS = {
@@ -53,6 +57,7 @@ RESULTS = {
                     "leg_err_max", "pose_err_max_linear", "pose_err_max_angular", "current_max",
                     "voltage_rms", "saturated_time"),
     "envelope": (*LEGS, "sigma_max", "torque_max", "cond_max", "reachable"),
+    "modes": ("lowest_hz", "weakest_n_per_um"),
 }
 # What the results are: magnitudes (peaks, RMS, a time, a frequency) are at least 0, cond(J) at
 # least 1, the reachable share at most 1; every other result need only be finite. torque_max is
@@ -60,7 +65,8 @@ RESULTS = {
 _AT_LEAST = {**dict.fromkeys((*LEGS, "sigma_max", "torque_max", "power_max", "crossover_hz",
                               "leg_err_rms", "leg_err_max", "pose_err_max_linear",
                               "pose_err_max_angular", "current_max", "voltage_rms",
-                              "saturated_time", "reachable"), 0.0), "cond_max": 1.0}
+                              "saturated_time", "reachable", "lowest_hz", "weakest_n_per_um"),
+                             0.0), "cond_max": 1.0}
 _AT_MOST = {"reachable": 1.0}
 ERROR_CHARS = 4000   # an error row's text is cut to this (a chunk's rows have a size bound)
 MAX_TRAJECTORIES = 16   # geometries whose trajectory and regressor a task or worker keeps
@@ -173,8 +179,9 @@ def point_label(pid: int | None, values: Mapping[str, Any]) -> str:
 
 def point_scene(spec: EvalSpec, values: Mapping[str, Any]) -> dict[str, Any]:
     """The point's scene dict: the base scene with the point's scene and controller values."""
-    overrides = {k: v for k, v in values.items() if not k.startswith("trajectory.")}
-    return apply_overrides(spec.scene, overrides)
+    overrides = {k: v for k, v in values.items()
+                 if not k.startswith("trajectory.") and k not in LAYOUT_KEYS}
+    return apply_layout(apply_overrides(spec.scene, overrides), values)
 
 
 def point_model(spec: EvalSpec, values: Mapping[str, Any]) -> Model:
@@ -281,4 +288,12 @@ def reachable(model: Model, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return inside & (kin.cond < COND_LIMIT), kin.cond
 
 
-_EVALUATE = {"inverse": _inverse, "closed_loop": _closed_loop, "envelope": _envelope}
+def _modes(spec: EvalSpec, values: Mapping[str, Any], cache: dict[str, Any]) -> dict[str, float]:
+    model = point_model(spec, values)
+    at_home = modes_map(model, np.asarray(model.home, dtype=float)[None])
+    return {"lowest_hz": float(at_home.lowest_hz[0]),
+            "weakest_n_per_um": float(at_home.weakest[0]) * 1e-6}
+
+
+_EVALUATE = {"inverse": _inverse, "closed_loop": _closed_loop, "envelope": _envelope,
+             "modes": _modes}

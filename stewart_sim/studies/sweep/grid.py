@@ -1,7 +1,7 @@
 """Design-sweep specifications (GRID.toml): what each point evaluates and the points themselves,
 a full grid or a seeded Latin hypercube over dotted scene, controller and trajectory keys.
 
-    evaluation = "inverse"            # "inverse" | "closed_loop" | "envelope"
+    evaluation = "inverse"            # "inverse" | "closed_loop" | "envelope" | "modes"
     method = "grid"                   # "grid": every combination | "lhs": Latin hypercube
     samples = 1000                    # lhs: number of points
     seed = 1                          # lhs: the sample is reproducible from it
@@ -21,6 +21,7 @@ a full grid or a seeded Latin hypercube over dotted scene, controller and trajec
     threshold = 1500.0                # a result column: the value whose crossing is sought
     [axes]
     "platform.mass" = [0.5, 1.0, 2.0]                     # values
+    "pairs.base_half_angle" = [8.0, 12.0, 16.0]           # the joints (sweep/joint_layout.py)
     "drive.gear_ratio" = {min = 5, max = 40, points = 8, log = true}   # a range
 """
 from __future__ import annotations
@@ -44,8 +45,9 @@ from stewart_fmu.budget import SCENE_BYTES, BudgetError, InputFileError, check_c
 from stewart_fmu.errors import SweepError
 from stewart_fmu.io import POSE
 from stewart_fmu.scene import NUMBER_KEYS as SCENE_NUMBERS
+from stewart_sim.studies.sweep.joint_layout import LAYOUT_KEYS
 
-EVALUATIONS = ("inverse", "closed_loop", "envelope")
+EVALUATIONS = ("inverse", "closed_loop", "envelope", "modes")
 METHODS = ("grid", "lhs")
 MAX_BATCH = 10_000   # the most points a sized task takes (a chunk file's bound without `batch`)
 TRAJECTORY_KINDS = ("demo", "run", "file")
@@ -58,7 +60,8 @@ _RANGE = {"min", "max", "points", "log"}
 # What an axis may vary: numbers, plus the string-valued keys with their allowed values (None:
 # any string).
 NUMBER_AXES = (SCENE_NUMBERS | {f"controller.{k}" for k in CONTROLLER_NUMBERS}
-               | {f"controller.motor.{k}" for k in MOTOR_KEYS} | {"trajectory.duration"})
+               | {f"controller.motor.{k}" for k in MOTOR_KEYS} | {"trajectory.duration"}
+               | set(LAYOUT_KEYS))
 STRING_AXES = {"controller.feedforward": FEEDFORWARD, "trajectory.kind": TRAJECTORY_KINDS,
                "trajectory.file": None}
 
@@ -295,11 +298,14 @@ def _axis(key: str, value: Any, method: str, fail) -> Axis:
 
 
 def _check_relevant(key: str, evaluation: str, fail) -> None:
-    """Controller keys act only in the closed loop; trajectory keys not in the envelope."""
+    """Controller keys act only in the closed loop; trajectory keys not in the envelope nor
+    the modes."""
     if key.startswith("controller.") and evaluation != "closed_loop":
         fail(f"axes.{key}", f"controller settings have no effect on evaluation '{evaluation}'")
     if key.startswith("trajectory.") and evaluation == "envelope":
         fail(f"axes.{key}", "the envelope follows no trajectory (see [envelope])")
+    if key.startswith("trajectory.") and evaluation == "modes":
+        fail(f"axes.{key}", "the modes are taken at home: no trajectory")
 
 
 def _check_value(key: str, v: Any, where: str, fail) -> None:

@@ -18,12 +18,14 @@ from stewart_fmu.model import Model
 from stewart_sim.studies.sweep.adaptive import REFINEMENT
 from stewart_sim.studies.sweep.evaluate import reachable
 from stewart_sim.studies.sweep.grid import EnvelopeSettings, GridSpec
+from stewart_sim.studies.sweep.joint_layout import LAYOUT_KEYS
 
 SLICE_POINTS = 61            # per side of a workspace slice
 DEFAULT_SLICE_SPAN = 6.0     # without [envelope]: +- this many demo amplitudes in x and y
 METRIC = {"inverse": ("sigma_max", "peak actuator force max|σ_i| (N)", "peak_force.png"),
           "envelope": ("sigma_max", "peak force over the workspace (N)", "peak_force.png"),
-          "closed_loop": ("leg_err_rms", "RMS leg tracking error (m)", "tracking_error.png")}
+          "closed_loop": ("leg_err_rms", "RMS leg tracking error (m)", "tracking_error.png"),
+          "modes": ("lowest_hz", "first mode at home (Hz)", "lowest_hz.png")}
 # Units of the keys a sweep may vary: the scene's from stewart_fmu.fmu.variables.SCENE_KEYS,
 # the rest (controller/config.py ControllerConfig, controller/drive.py Motor, the sweep's
 # trajectory and case tables) here, the one place the plots take them from.
@@ -34,7 +36,7 @@ AXIS_UNITS = {
     "controller.motor.torque_constant": "N m/A", "controller.motor.back_emf": "V s/rad",
     "controller.motor.current_limit": "A", "controller.motor.voltage_limit": "V",
     "trajectory.duration": "s", "case.duration": "s", "case.step": "s",
-    "case.force_scale": "1", "case.acceleration": "m/s2",
+    "case.force_scale": "1", "case.acceleration": "m/s2", **LAYOUT_KEYS,
 }
 
 
