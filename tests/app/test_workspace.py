@@ -442,3 +442,16 @@ def test_unknown_frame_and_missing_columns(tmp_path, capsys):
     assert cli.main(["workspace", str(MICRO), "--check", str(poses), "--out", str(out)]) == 2
     assert "line 3, column 'z'" in capsys.readouterr().err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("name, label", [("micro_manipulator", "micro-manipulator, "),
+                                         ("motion_simulator", "motion simulator, ")])
+def test_readme_ranges_are_what_the_command_prints(name, label, capsys):
+    """The README's datasheet tables (beside each machine's volume) are `--ranges`' own lines."""
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    block = readme[readme.index(label):]
+    block = block[block.index("```text\n") + len("```text\n"):]
+    stated = block[:block.index("```")].splitlines()
+    assert cli.main(["workspace", str(ROOT / "scenes" / f"{name}.toml"), "--ranges"]) == 0
+    printed = capsys.readouterr().out.splitlines()
+    assert len(stated) == 7 and stated == printed[1:8]
