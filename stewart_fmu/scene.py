@@ -347,7 +347,10 @@ class _Validator:
         """A key breaks its own rule (SceneKeyError)."""
         raise SceneKeyError(key, reason, self.source)
 
-    def table(self, data: Mapping[str, Any], name: str, required: bool = False):
+    def table(self, data: Mapping[str, Any], name: str, required: bool = False,
+              keys: tuple[set, set] | None = None):
+        """The table `name` of `data` (None when left out), its keys checked against `keys`
+        (required, optional), by default the scene's own _TABLE_KEYS."""
         t = data.get(name)
         if t is None:
             if required:
@@ -355,7 +358,7 @@ class _Validator:
             return None
         if not isinstance(t, Mapping):
             self.fail_key(name, f"must be a table, got {type(t).__name__}")
-        need, optional = _TABLE_KEYS[name]
+        need, optional = _TABLE_KEYS[name] if keys is None else keys
         for key in sorted(set(t) - need - optional):
             self.fail_key(f"{name}.{key}", f"unknown key (allowed: {sorted(need | optional)})")
         for key in sorted(need - set(t)):

@@ -51,17 +51,7 @@ def generic_key(dotted: str) -> str:
 
 
 def _table(v, data: Mapping[str, Any], name: str) -> Mapping[str, Any] | None:
-    t = data.get(name)
-    if t is None:
-        return None
-    if not isinstance(t, Mapping):
-        v.fail_key(name, f"must be a table, got {type(t).__name__}")
-    need, optional = _KEYS[name]
-    for key in sorted(set(t) - need - optional):
-        v.fail_key(f"{name}.{key}", f"unknown key (allowed: {sorted(need | optional)})")
-    for key in sorted(need - set(t)):
-        v.fail_key(f"{name}.{key}", "required key is missing")
-    return t
+    return v.table(data, name, keys=_KEYS[name])
 
 
 def _directions(v, t: Mapping[str, Any], dotted: str) -> np.ndarray | None:

@@ -42,6 +42,9 @@ void sw_symmetric_eigen(double A[36], double w[6], double V[36]);
 void sw_singular_values(const double A[36], double s[6]);
 double sw_condition(const double A[36]);
 
+/* kinematics.c */
+void sw_jacobian_rows(const double U[18], const double R[18], double scale, double J[36]);
+
 /* kane.c */
 int sw_twist_forces(const double *p, const double x[6], const double v[6], const double acc[6],
                     const double al[3], sw_ws *ws);

@@ -20,13 +20,14 @@ int stewart_leg_state(const double *params, const double q[6], const double qd[6
     return st;
 }
 
-/* J rows [u_i, scale (r_i x u_i)]. */
-static void jacobian_rows(const sw_ws *ws, double scale, double J[36])
+/* J rows [u_i, scale (r_i x u_i)] from the legs' unit vectors U and the platform joints'
+   arms R (both 6 x 3): the one Jacobian of the core (kinematics and reach.c). */
+void sw_jacobian_rows(const double U[18], const double R[18], double scale, double J[36])
 {
     int i;
     for (i = 0; i < 6; ++i) {
-        const double u0 = ws->U[3 * i], u1 = ws->U[3 * i + 1], u2 = ws->U[3 * i + 2];
-        const double r0 = ws->Rr[3 * i], r1 = ws->Rr[3 * i + 1], r2 = ws->Rr[3 * i + 2];
+        const double u0 = U[3 * i], u1 = U[3 * i + 1], u2 = U[3 * i + 2];
+        const double r0 = R[3 * i], r1 = R[3 * i + 1], r2 = R[3 * i + 2];
         J[6 * i] = u0;
         J[6 * i + 1] = u1;
         J[6 * i + 2] = u2;
@@ -43,7 +44,7 @@ int stewart_jacobian(const double *params, const double q[6], int scaled, double
     sw_ws_init(&ws);
     sw_orientation(q, SW_ZERO6, SW_ZERO6, ws.R, ws.om, ws.al, 0);
     st = sw_twist_forces(params, q, SW_ZERO6, SW_ZERO6, ws.al, &ws);
-    jacobian_rows(&ws, scaled ? 1.0 / params[STEWART_P_CHAR_LENGTH] : 1.0, J);
+    sw_jacobian_rows(ws.U, ws.Rr, scaled ? 1.0 / params[STEWART_P_CHAR_LENGTH] : 1.0, J);
     return st;
 }
 

@@ -300,19 +300,14 @@ static int cond_surely_below(const double J[36], double limit)
 static double condition(const double *p, const double q[6], const pose_geometry *g,
                         double limit, int sign_only)
 {
-    double J[36], scale = 1.0 / p[STEWART_P_CHAR_LENGTH];
-    int i;
-    for (i = 0; i < 6; ++i) {
-        const double *L = g->L + 3 * i;
-        double u0 = L[0] / g->l[i], u1 = L[1] / g->l[i], u2 = L[2] / g->l[i];
-        double r0 = g->P[3 * i] - q[0], r1 = g->P[3 * i + 1] - q[1], r2 = g->P[3 * i + 2] - q[2];
-        J[6 * i] = u0;
-        J[6 * i + 1] = u1;
-        J[6 * i + 2] = u2;
-        J[6 * i + 3] = scale * (r1 * u2 - r2 * u1);
-        J[6 * i + 4] = scale * (r2 * u0 - r0 * u2);
-        J[6 * i + 5] = scale * (r0 * u1 - r1 * u0);
-    }
+    double J[36], U[18], R[18];
+    int i, k;
+    for (i = 0; i < 6; ++i)
+        for (k = 0; k < 3; ++k) {
+            U[3 * i + k] = g->L[3 * i + k] / g->l[i];
+            R[3 * i + k] = g->P[3 * i + k] - q[k];
+        }
+    sw_jacobian_rows(U, R, 1.0 / p[STEWART_P_CHAR_LENGTH], J);
     for (i = 0; i < 36; ++i)
         if (!isfinite(J[i]))
             return HUGE_VAL;
