@@ -20,6 +20,7 @@ import numpy as np
 from hil.gcs import errors as E
 from hil.gcs import parser as P
 from hil.gcs.axes import AXES, MM_PER_M
+from hil.gcs.coordinate_systems import DIRECTED as CS_DIRECTED
 from hil.gcs.coordinate_systems import TOOL as CS_TOOL
 from hil.gcs.coordinate_systems import TYPES as CS_TYPES
 from hil.gcs.coordinate_systems import WORK as CS_WORK
@@ -472,6 +473,8 @@ COMMANDS: dict[str, Command] = {
                    "Define Work Coordinate System (fixed in space)"),
     "KST": Command(_define(CS_TOOL), "KST <CSname> {<AxisID> <Value>}",
                    "Define Tool Coordinate System (fixed to the platform)"),
+    "KSD": Command(_define(CS_DIRECTED), "KSD <CSname> {<AxisID> <Value>}",
+                   "Set Directed Coordinate System (a pivot on the platform, turned axes)"),
     "KLN": Command(kln, "KLN <Child> <Parent>", "Link Coordinate Systems"),
     "KEN": Command(ken, "KEN <CSname>", "Enable Coordinate System (KEN ZERO: none)"),
     "KRM": Command(krm, "KRM <CSname>", "Remove Coordinate System"),

@@ -1,5 +1,5 @@
-"""PI's coordinate systems on the twin: KSW (work), KST (tool), KLN (linking), KEN (enabling),
-KET? and KLT?; the root ZERO is the system of hil.gcs.axes.
+"""PI's coordinate systems on the twin: KSW (work), KST (tool), KSD (directed), KLN (linking),
+KEN (enabling), KET? and KLT?; the root ZERO is the system of hil.gcs.axes.
 
 A coordinate system is a pose in GCS units (X Y Z mm, U V W deg, PI's rotation order) relative
 to its parent (ZERO unless KLN links it to another of its kind): a work system (KSW) is fixed in
@@ -14,6 +14,12 @@ axis value are the pose of M seen from W:
 arithmetic is stewart_fmu.frames' (native/src/frames.c: a moving frame fixed to the platform
 seen from a fixed frame), on the ZERO coordinates as the pose and the chains as its tool and
 user frames; the angles are turned between PI's order and the contract's at the boundary.
+
+A directed system D (KSD: X Y Z a point relative to the platform, U V W the turn of its axes)
+is a work and a tool system that coincide while the platform is at ZERO: enabled, it is both W
+and M (T_f = T_D^-1 T_z T_D), so POS? reads 0 at ZERO and U V W turn about D's origin along
+D's axes. It replaces an enabled work and tool system, and they it (docs/guides/gcs-twin.md
+names the sources and what is the twin's choice).
 """
 from __future__ import annotations
 
@@ -30,8 +36,8 @@ from stewart_fmu.frames import from_platform, to_platform
 from stewart_fmu.reach_params import FrameParams
 
 ZERO = "ZERO"
-WORK, TOOL = "KSW", "KST"
-TYPES = (WORK, TOOL)
+WORK, TOOL, DIRECTED = "KSW", "KST", "KSD"
+TYPES = (WORK, TOOL, DIRECTED)
 MAX_SYSTEMS = 32            # defined systems besides ZERO
 VALUE_MAX = (1000.0,) * 3 + (360.0,) * 3    # mm, deg: the largest |value| of a definition
 _NAME = re.compile(r"[A-Z][A-Z0-9_]{0,15}\Z")
@@ -129,12 +135,18 @@ class Systems:
         self.systems[child].parent = parent
 
     def enable(self, name: str) -> None:
-        """KEN: enable a system (replacing the enabled one of its kind); ZERO disables all."""
+        """KEN: enable a system (replacing the enabled one of its kind); ZERO disables all. A
+        directed system is a work and a tool system at once: it replaces both, and they it."""
         name = self.existing(name)
         if name == ZERO:
             self.enabled.clear()
+            return
+        kind = self.systems[name].kind
+        if kind == DIRECTED:
+            self.enabled.clear()
         else:
-            self.enabled[self.systems[name].kind] = name
+            self.enabled.pop(DIRECTED, None)
+        self.enabled[kind] = name
 
     def remove(self, name: str) -> None:
         """KRM: a system neither in use nor a parent."""
@@ -175,6 +187,9 @@ class Systems:
         """The frame POS? and MOV speak in: ZERO's, or the enabled work and tool's."""
         if not self.enabled:
             return zero
+        if DIRECTED in self.enabled:
+            pose = self.composed(self.enabled[DIRECTED])
+            return Enabled(zero, model, pose, pose)
         work = self.composed(self.enabled[WORK]) if WORK in self.enabled else np.zeros(6)
         tool = self.composed(self.enabled[TOOL]) if TOOL in self.enabled else np.zeros(6)
         return Enabled(zero, model, work, tool)

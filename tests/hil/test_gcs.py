@@ -759,6 +759,49 @@ def test_coordinate_systems_define_link_enable_and_moves_follow_them(model):
     assert ask(c, s, "KRM TIP") is None and ask(c, s, "KRM TOOL") is None and err(c, s) == 0
 
 
+def test_directed_system_is_a_work_and_tool_that_coincide_at_zero(model):
+    """KSD D X 3 Y -2 Z 10 W 30: a point on the platform with turned axes; enabled, POS? reads 0
+    at ZERO and a move is D's pose seen from where D was at ZERO, in D's axes (checked with
+    scipy's rotations on the plant's own pose); it replaces an enabled work/tool and they it."""
+    d, c, s = referenced(model)
+    offset, turn = np.array([3.0, -2.0, 10.0]), Rotation.from_euler("z", 30, degrees=True)
+    for line in ("KSD D X 3 Y -2 Z 10 W 30", "KSW WORK X 5"):
+        assert ask(c, s, line) is None and err(c, s) == 0, line
+    for line, code in (("KLN D WORK", E.CS_MAY_NOT_BE_LINKED), ("KSD D V 90", E.PARAM_OUT_OF_RANGE),
+                       ("KSD WORK X 1", E.CS_IN_USE), ("KET? KSD", E.NO_CS_OF_TYPE_ENABLED)):
+        assert ask(c, s, line) is None and err(c, s) == code, line
+    assert ask(c, s, "KEN WORK") is None and ask(c, s, "KEN D") is None and err(c, s) == 0
+    assert ask(c, s, "KET?") == "KSD=D\n" and ask(c, s, "KET? KSD") == "KSD=D\n"
+    assert ask(c, s, "KSD D X 1") is None and err(c, s) == E.CS_IN_USE
+
+    def seen_from_d(q):
+        """D's pose from where D was at ZERO (home), in D's axes, independently: scipy."""
+        r_c = Rotation.from_euler("xyz", q[3:])               # the contract's Rz Ry Rx
+        p = turn.inv().apply(q[:3] + r_c.apply(offset / 1e3) - model.home[:3] - offset / 1e3)
+        return np.r_[p * 1e3, (turn.inv() * r_c * turn).as_euler("XYZ", degrees=True)]
+
+    pos = np.array(list(_values(ask(c, s, "POS?")).values()))
+    assert np.all(np.abs(pos) <= 1e-9)
+    assert np.all(np.abs(pos - seen_from_d(np.asarray(d.snapshot().q))) <= 1e-9)
+    for line, goal in (("MOV X 2 Y 1", [2, 1, 0, 0, 0, 0]),
+                       ("MOV U 1.5 V -1 W 2", [2, 1, 0, 1.5, -1, 2])):
+        assert ask(c, s, line) is None and err(c, s) == 0, line
+        for _ in range(1000):
+            run(c, 10)
+            if ask(c, s, "ONT?").count("=1") == 6:
+                break
+        assert ask(c, s, "ONT?").count("=1") == 6, line
+        got = seen_from_d(np.asarray(d.snapshot().q))
+        assert np.all(np.abs(got - goal) <= ONT_TOLERANCE), (line, got)
+    assert ask(c, s, "MOV X 0 Y 0 U 0 V 0 W 0") is None
+    for _ in range(1000):
+        run(c, 10)
+        if ask(c, s, "ONT?").count("=1") == 6:
+            break
+    assert ask(c, s, "KEN WORK") is None and ask(c, s, "KET?") == "KSW=WORK\n"
+    assert ask(c, s, "KEN ZERO") is None and ask(c, s, "KRM D") is None and err(c, s) == 0
+
+
 def test_coordinate_systems_are_refused_on_a_scene_whose_home_is_rotated(model):
     import dataclasses
 

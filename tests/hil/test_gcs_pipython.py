@@ -331,3 +331,43 @@ def test_coordinate_systems_through_pipython():
         stop.set()
         thread.join(10)
         link.close()
+
+
+@unraisable
+def test_directed_coordinate_system_through_pipython():
+    """PIPython's KSD, KEN, qKET, qKLT: a directed system 10 mm above C turned 30 deg about Z
+    reads 0 at ZERO; MOV X 1 moves that point 1 mm along its own X, checked on the plant's pose."""
+    from scipy.spatial.transform import Rotation
+
+    model = load_scene(SCENE)
+    device = Device(model)
+    link = gcs_link(device, "127.0.0.1", 0)
+    thread, stop, _ = serve_in_thread(device, link)
+    try:
+        with connect(link.server.address[1]) as pi:
+            pitools.startup(pi, refmodes="FRF")
+            pi.KSD("D", {"Z": 10.0, "W": 30.0})
+            pi.KEN("D")
+            assert pi.qKET() == {"KSD": "D"}
+            klt = dict(row.split("=") for row in pi.qKLT("D").split())
+            assert list(klt) == AXES
+            assert np.allclose([float(v) for v in klt.values()], [0, 0, 10, 0, 0, 30],
+                               rtol=0.0, atol=1e-12)
+            assert all(abs(v) <= 1e-9 for v in pi.qPOS(AXES).values())
+            pi.MOV({"X": 1.0})
+            pitools.waitontarget(pi, timeout=WAIT, polldelay=0.05)
+            q = np.asarray(device.snapshot().q)
+            r = Rotation.from_euler("xyz", q[3:])
+            point = q[:3] + r.apply([0.0, 0.0, 0.01]) - model.home[:3] - [0.0, 0.0, 0.01]
+            expected = Rotation.from_euler("z", 30, degrees=True).apply([1.0, 0.0, 0.0]) / 1e3
+            assert np.all(np.abs(point - expected) <= ONT_TOLERANCE / 1e3)
+            assert np.degrees(np.linalg.norm(r.as_rotvec())) <= 2 * ONT_TOLERANCE
+            pi.KEN("ZERO")
+            pi.KRM("D")
+            assert pi.qERR() == 0
+        del pi
+        release()
+    finally:
+        stop.set()
+        thread.join(10)
+        link.close()
