@@ -326,6 +326,15 @@ def krm(c: GcsController, s: Session, a: Args) -> Answer:
     return None
 
 
+def ken_q(c: GcsController, s: Session, a: Args) -> Answer:
+    """The enabled systems as `NAME=TYPE` lines, ZERO not among them (nothing enabled: an empty
+    line); the form with names is not there (docs/guides/gcs-twin.md)."""
+    if a:
+        raise E.GcsError(E.PARAM_SYNTAX, "KEN? (without names)")
+    enabled = c.systems.enabled
+    return P.answer([f"{enabled[kind]}={kind}" for kind in CS_TYPES if kind in enabled])
+
+
 def ket_q(c: GcsController, s: Session, a: Args) -> Answer:
     enabled = c.systems.enabled
     if not a:
@@ -478,6 +487,7 @@ COMMANDS: dict[str, Command] = {
     "KLN": Command(kln, "KLN <Child> <Parent>", "Link Coordinate Systems"),
     "KEN": Command(ken, "KEN <CSname>", "Enable Coordinate System (KEN ZERO: none)"),
     "KRM": Command(krm, "KRM <CSname>", "Remove Coordinate System"),
+    "KEN?": Command(ken_q, "KEN?", "Get Enabled Coordinate Systems And Their Types"),
     "KET?": Command(ket_q, "KET? [{<Type>}]", "Get Enabled Coordinate Systems"),
     "KLT?": Command(klt_q, "KLT? <StartCS> [<EndCS>]", "Get Pose Of A Chain"),
     "VLS": Command(vls, "VLS <SystemVelocity>", "Set System Velocity (mm/s, deg/s)"),

@@ -772,6 +772,8 @@ def test_directed_system_is_a_work_and_tool_that_coincide_at_zero(model):
         assert ask(c, s, line) is None and err(c, s) == code, line
     assert ask(c, s, "KEN WORK") is None and ask(c, s, "KEN D") is None and err(c, s) == 0
     assert ask(c, s, "KET?") == "KSD=D\n" and ask(c, s, "KET? KSD") == "KSD=D\n"
+    assert ask(c, s, "KEN?") == "D=KSD\n"
+    assert ask(c, s, "KEN? D") is None and err(c, s) == E.PARAM_SYNTAX
     assert ask(c, s, "KSD D X 1") is None and err(c, s) == E.CS_IN_USE
 
     def seen_from_d(q):
@@ -799,7 +801,9 @@ def test_directed_system_is_a_work_and_tool_that_coincide_at_zero(model):
         if ask(c, s, "ONT?").count("=1") == 6:
             break
     assert ask(c, s, "KEN WORK") is None and ask(c, s, "KET?") == "KSW=WORK\n"
+    assert ask(c, s, "KEN?") == "WORK=KSW\n"
     assert ask(c, s, "KEN ZERO") is None and ask(c, s, "KRM D") is None and err(c, s) == 0
+    assert ask(c, s, "KEN?") == "\n"
 
 
 def test_coordinate_systems_are_refused_on_a_scene_whose_home_is_rotated(model):

@@ -349,6 +349,7 @@ def test_directed_coordinate_system_through_pipython():
             pi.KSD("D", {"Z": 10.0, "W": 30.0})
             pi.KEN("D")
             assert pi.qKET() == {"KSD": "D"}
+            assert pi.qKEN() == {"D": "KSD"}
             klt = dict(row.split("=") for row in pi.qKLT("D").split())
             assert list(klt) == AXES
             assert np.allclose([float(v) for v in klt.values()], [0, 0, 10, 0, 0, 30],
@@ -363,6 +364,7 @@ def test_directed_coordinate_system_through_pipython():
             assert np.all(np.abs(point - expected) <= ONT_TOLERANCE / 1e3)
             assert np.degrees(np.linalg.norm(r.as_rotvec())) <= 2 * ONT_TOLERANCE
             pi.KEN("ZERO")
+            assert pi.qKEN() == {}
             pi.KRM("D")
             assert pi.qERR() == 0
         del pi
