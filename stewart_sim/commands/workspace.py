@@ -5,6 +5,7 @@ feasibility engine of stewart_fmu.reach).
     --reach --direction D [--from Q]  the largest step along D before the first limit
     --ranges [--out RANGES.csv]     per-axis travel from home, both ways, and what ends it
     --map --out DIR [--resolution H]  the constant-orientation workspace: volume, runs, slices
+    --load --accel A --out DIR [--payload P]  where the rack force binds over that workspace
 """
 from __future__ import annotations
 
@@ -31,6 +32,20 @@ def add_parser(sub, help_text: str) -> None:
                            "of a column) and DIR/slices.png; the orientation workspace at "
                            "--from's position: DIR/tilt.csv and DIR/tilt.png (the largest "
                            "tilt per azimuth); --out DIR")
+    what.add_argument("--load", action="store_true",
+                      help="over --map's grid (the constant-orientation workspace at --from's "
+                           "angles, x-y step --resolution, z every step in each run), the least "
+                           "rack-force margin over the 12 signed axis corners of --accel, at "
+                           "rest, with the scene's [payload] or --payload: DIR/load.csv (x, y, "
+                           "z, margin_n, leg, corner) and DIR/load.png (x-y and x-z slices through "
+                           "--from's position); --out DIR")
+    p.add_argument("--accel", metavar="ax,ay,az,alx,aly,alz",
+                   help="--load: the acceleration envelope's half-widths, m/s^2 (C's linear "
+                        "acceleration) and rad/s^2 (the angles' second derivatives)")
+    p.add_argument("--payload", metavar="MASS|FILE|KEYS",
+                   help="--load: a payload in place of the scene's, as `modes --payload` takes "
+                        "it: a mass in kg (a point mass at C's origin), a TOML file ([payload] "
+                        "mass, com, inertia) or those keys inline")
     p.add_argument("--out", metavar="FILE", help="V.csv of --check (required there); the "
                    "ranges as CSV with --ranges")
     p.add_argument("--frame", metavar="NAME",
@@ -70,6 +85,9 @@ def run(args: argparse.Namespace) -> None:
     from controller.capability import engine
 
     scene = load(args.scene)
+    if args.load:
+        _load(args, scene)
+        return
     frame = args.frame or default_frame(scene.model)
     frame_change(scene.model, frame)   # an unknown frame name: one line, exit 2
     eng = engine(scene.model, scene.controller)
@@ -107,24 +125,27 @@ def run(args: argparse.Namespace) -> None:
             print(f"wrote {args.out}")
 
 
-def _map(args: argparse.Namespace, model, eng, frame: str) -> None:
-    """--map: the volume printed, map.csv and slices.png written together (a result set)."""
+def _grid_step(args: argparse.Namespace, model) -> float:
+    """--resolution, checked (default: the characteristic length / 30)."""
     import math
 
+    from stewart_fmu.errors import StewartError
+
+    h = args.resolution if args.resolution is not None else model.characteristic_length / 30
+    if not (math.isfinite(h) and h > 0):
+        raise StewartError(f"--resolution {args.resolution!r}: must be a finite step > 0 (m)")
+    return h
+
+
+def _start_map(args: argparse.Namespace, model, eng, frame: str):
+    """The start pose (--from, default home) and the constant-orientation map at its angles."""
     import numpy as np
 
     from stewart_fmu.errors import StewartError
     from stewart_fmu.frames import from_platform
-    from stewart_fmu.io import named_array, write_csv
-    from stewart_sim.shell.outputs import result_set
-    from stewart_sim.studies.workspace.maps import (MAX_CELLS, constant_orientation, position_box, slices,
-                                            tilt_figure, tilts)
+    from stewart_sim.studies.workspace.maps import MAX_CELLS, constant_orientation, position_box
 
-    if not args.out:
-        raise StewartError("--map needs --out DIR")
-    h = args.resolution if args.resolution is not None else model.characteristic_length / 30
-    if not (math.isfinite(h) and h > 0):
-        raise StewartError(f"--resolution {args.resolution!r}: must be a finite step > 0 (m)")
+    h = _grid_step(args, model)
     start = from_platform(model, model.home, frame) if args.start is None \
         else _six(args.start, "--from")
     lo, hi = position_box(eng, start[3:], frame)
@@ -132,7 +153,72 @@ def _map(args: argparse.Namespace, model, eng, frame: str) -> None:
     if not cells <= MAX_CELLS:
         raise StewartError(f"--resolution {h!r}: {cells:.3g} grid cells in the box searched, "
                            f"more than {MAX_CELLS:.0e}: give a coarser step")
-    m = constant_orientation(eng, start, frame, h)
+    return start, constant_orientation(eng, start, frame, h)
+
+
+def _load(args: argparse.Namespace, scene) -> None:
+    """--load: the load map's CSV and PNG written together (a result set), the summary printed."""
+    import numpy as np
+
+    from stewart_fmu.errors import StewartError
+    from stewart_fmu.frames import default_frame, frame_change
+    from stewart_fmu.io import write_csv
+    from stewart_sim.shell.outputs import result_set
+    from stewart_sim.studies.modes.study import payload_from, with_payload
+    from stewart_sim.studies.workspace.rack_force import load_figure, load_map, load_table
+    from controller.capability import engine
+
+    if not args.out:
+        raise StewartError("--load needs --out DIR")
+    if args.accel is None:
+        raise StewartError("--load needs --accel ax,ay,az,alx,aly,alz")
+    accel = _six(args.accel, "--accel")
+    if np.any(accel < 0):
+        raise StewartError(f"--accel {args.accel!r}: the envelope's half-widths must be >= 0")
+    model = scene.model
+    if args.payload is not None:
+        model = with_payload(model, payload_from(args.payload, model))
+    frame = args.frame or default_frame(model)
+    frame_change(model, frame)
+    eng = engine(model, scene.controller)
+    start, m = _start_map(args, model, eng, frame)
+    lm = load_map(eng, m, accel)
+    p = model.payload
+    what = "no payload" if p is None else \
+        f"payload {p.mass:.6g} kg at ({', '.join(f'{v:.4g}' for v in p.com)}) m"
+    envelope = ", ".join(f"{v:.6g}" for v in accel)
+    with result_set(args.out, known=("load.csv", "load.png")) as stage:
+        write_csv(stage / "load.csv", load_table(lm))
+        load_figure(lm, m, start[:3], stage / "load.png",
+                    f"least rack-force margin over the 12 corners +-({envelope}) (m/s^2, "
+                    f"rad/s^2), at rest\n{what}; {frame} frame, angles "
+                    f"{', '.join(f'{a:.3g}' for a in m.angles)} rad")
+    print(f"rack force over the constant-orientation workspace ({frame} frame, angles "
+          f"{', '.join(f'{a:.6g}' for a in m.angles)} rad; {len(lm.margin)} grid positions, "
+          f"step {m.h * 1e3:.4g} mm), {what}, envelope +-({envelope}) m/s^2 and rad/s^2 on "
+          f"each axis alone, at rest:")
+    if len(lm.margin):
+        k = int(np.argmin(lm.margin))
+        x, y, z = lm.points[k]
+        print(f"binds on {lm.binding_fraction * 100:.4g} % of the reachable volume; least "
+              f"margin {lm.margin[k]:.6g} N at ({x * 1e3:.3f}, {y * 1e3:.3f}, {z * 1e3:.3f}) "
+              f"mm, leg {lm.leg[k]}, corner {lm.corner[k]}")
+    print(f"wrote {args.out}/load.csv and load.png")
+
+
+def _map(args: argparse.Namespace, model, eng, frame: str) -> None:
+    """--map: the volume printed, map.csv and slices.png written together (a result set)."""
+    import numpy as np
+
+    from stewart_fmu.errors import StewartError
+    from stewart_fmu.io import named_array, write_csv
+    from stewart_sim.shell.outputs import result_set
+    from stewart_sim.studies.workspace.maps import slices, tilt_figure, tilts
+
+    if not args.out:
+        raise StewartError("--map needs --out DIR")
+    start, m = _start_map(args, model, eng, frame)
+    h = m.h
     tilt = tilts(eng, start, frame)
     with result_set(args.out, known=("map.csv", "slices.png", "tilt.csv", "tilt.png")) as stage:
         write_csv(stage / "map.csv", named_array({"x": m.runs[:, 0], "y": m.runs[:, 1],
