@@ -1,6 +1,7 @@
 """`stewart-sim modes SCENE --pose x,y,z,thx,thy,thz --out DIR`: the small oscillations about the
-static equilibrium at a pose (DIR/modes.csv, first columns mode,frequency_hz, ascending) and the
-stiffness at the pivot (DIR/stiffness.csv), from the scene's [stiffness] (stewart_sim.studies.modes)."""
+static equilibrium at a pose (DIR/modes.csv, first columns mode,frequency_hz, ascending), the
+stiffness at the pivot (DIR/stiffness.csv) and the mode shapes animated (DIR/view.html), from
+the scene's [stiffness] (stewart_sim.studies.modes)."""
 from __future__ import annotations
 
 import argparse
@@ -27,6 +28,9 @@ def add_parser(sub, help_text: str) -> None:
                    "(start:stop:count per pose component, the others at --pose): DIR/map.csv with the "
                    "lowest frequency and the weakest translational stiffness and its direction, "
                    "and their slices through the first two axes as PNG")
+    p.add_argument("--no-view", action="store_true",
+                   help="do not write the 3D view (by default DIR/view.html: each mode shape "
+                        "animated, one cycle per second, its frequency in the title)")
     p.set_defaults(run=run)
 
 
@@ -47,5 +51,5 @@ def run(args: argparse.Namespace) -> None:
     grid = study.parse_grid(args.map, np.asarray(q, dtype=float)) if args.map else None
     result = study.compute(model, np.asarray(q, dtype=float), pivot, args.modes)
     mapped = study.compute_map(model, grid, pivot) if grid is not None else None
-    report.write(args.out, result, mapped, grid)
+    report.write(args.out, result, mapped, grid, view=not args.no_view)
     print(report.summary(result))

@@ -1,0 +1,88 @@
+"""`stewart-sim modes` writes DIR/view.html with its result set: one cycle per mode, every
+frame on the mode's line through the pose (x - x0 along v, R R0^T a rotation about omega, by
+the same sin(2 pi k / CYCLE_FRAMES) scale), checked against modes.csv's shape columns; the
+title names each mode's frequency; a failing view leaves no result set."""
+from __future__ import annotations
+
+import base64
+import csv
+import json
+import re
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from stewart_fmu.errors import StewartError
+from stewart_sim import cli
+from stewart_sim.studies.modes import animation as modes_view_module
+from stewart_sim.studies.modes.animation import AMPLITUDE, CYCLE_FRAMES, EULER
+from tests.app.test_modes_command import SIM
+
+POSE = "0.05,-0.02,2.35,0.02,-0.03,0.04"
+EPS32 = float(np.finfo(np.float32).eps)
+
+
+def page_data(html: str) -> dict:
+    return json.loads(re.search(r'<script type="application/json" id="view-data">(.*?)</script>',
+                                html, re.S).group(1).replace("<\\/", "</"))
+
+
+def _floats(b64: str, cols: int) -> np.ndarray:
+    return np.frombuffer(base64.b64decode(b64), dtype="<f4").astype(float).reshape(-1, cols)
+
+
+def test_view_holds_one_cycle_per_mode_along_its_twist(tmp_path):
+    out = tmp_path / "m"
+    assert cli.main(["modes", str(SIM), "--pose", POSE, "--modes", "4", "--out", str(out)]) == 0
+    with (out / "modes.csv").open(newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    shapes = np.array([[float(r[c]) for c in ("dx", "dy", "dz", "dthx", "dthy", "dthz")]
+                       for r in rows])
+    data = page_data((out / "view.html").read_text(encoding="utf-8"))
+    frames = data["frames"]
+    assert frames["count"] == len(rows) * CYCLE_FRAMES == 4 * CYCLE_FRAMES
+    q = _floats(frames["q"], 6).reshape(len(rows), CYCLE_FRAMES, 6)
+    t = _floats(frames["t"], 1).ravel()
+    assert np.allclose(t, np.arange(t.size) / CYCLE_FRAMES, rtol=0, atol=4 * EPS32 * t.size)
+    q0 = np.array([float(v) for v in POSE.split(",")])
+    R0 = Rotation.from_euler(EULER, q0[3:])
+    phase = np.sin(2 * np.pi * np.arange(CYCLE_FRAMES) / CYCLE_FRAMES)
+    size = max(data["geometry"]["base_radius"], data["geometry"]["home"][2])
+    r_p = data["geometry"]["platform_radius"]
+    # the page's float32: a pose of |q| <= 3 holds to ~ 3 eps32 per component
+    tol = 8 * EPS32 * max(1.0, float(np.max(np.abs(q0))))
+    for j, shape in enumerate(shapes):
+        moved = np.column_stack([q[j, :, :3] - q0[:3],
+                                 (Rotation.from_euler(EULER, q[j, :, 3:]) * R0.inv()).as_rotvec()])
+        scale = moved @ shape / (shape @ shape)          # each frame's multiple of the shape
+        assert np.allclose(moved, np.outer(scale, shape), rtol=0, atol=tol), f"mode {j + 1}"
+        a = float(np.max(np.abs(scale)))
+        assert np.allclose(scale, a * phase, rtol=0, atol=tol / np.linalg.norm(shape) * 4)
+        reach = a * (np.linalg.norm(shape[:3]) + r_p * np.linalg.norm(shape[3:]))
+        assert abs(reach - AMPLITUDE * size) <= 1e-6 * size
+        # and not along another mode's shape (the check tells the modes apart)
+        other = shapes[(j + 1) % len(shapes)]
+        off = moved - np.outer(moved @ other / (other @ other), other)
+        assert np.max(np.abs(off)) > 1e3 * tol
+    title = _title(out)
+    for r in rows:
+        assert f"mode {r['mode']} {float(r['frequency_hz']):.4g} Hz" in title
+
+
+def _title(out) -> str:
+    return re.search(r"<title>(.*?)</title>", (out / "view.html").read_text(encoding="utf-8"),
+                     re.S).group(1)
+
+
+def test_no_view_and_a_failing_view_keep_the_set_whole(tmp_path, monkeypatch):
+    out = tmp_path / "plain"
+    assert cli.main(["modes", str(SIM), "--pose", POSE, "--no-view", "--out", str(out)]) == 0
+    assert (out / "modes.csv").is_file() and not (out / "view.html").exists()
+
+    def broken(*_a, **_k):
+        raise StewartError("view: broken on purpose")
+
+    monkeypatch.setattr(modes_view_module, "modes_view", broken)
+    failed = tmp_path / "failed"
+    assert cli.main(["modes", str(SIM), "--pose", POSE, "--out", str(failed)]) != 0
+    assert not failed.exists()
