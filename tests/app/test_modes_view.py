@@ -86,3 +86,38 @@ def test_no_view_and_a_failing_view_keep_the_set_whole(tmp_path, monkeypatch):
     failed = tmp_path / "failed"
     assert cli.main(["modes", str(SIM), "--pose", POSE, "--out", str(failed)]) != 0
     assert not failed.exists()
+
+
+def test_the_page_selects_a_mode_and_plays_it_in_a_loop(browser, tmp_path):
+    """The page's selector lists each mode with its frequency; picking mode 3 plays its cycle
+    (t in [2, 3) s) in a loop: every frame shown within [2, 3) s, wrapping
+    back; the time line names the mode shown (a run's view has no selector: test_view_browser)."""
+    from tests.browser import open_view, settle
+
+    out = tmp_path / "m"
+    assert cli.main(["modes", str(SIM), "--pose", POSE, "--out", str(out)]) == 0
+    with (out / "modes.csv").open(newline="") as fh:
+        hz = [float(r["frequency_hz"]) for r in csv.DictReader(fh)]
+    page = open_view(browser, out / "view.html")
+    try:
+        assert page.errors == [] and page.is_visible("#chapter")
+        labels = page.eval_on_selector_all("#chapter option", "os => os.map(o => o.textContent)")
+        assert labels == ["all, in turn", *(f"mode {j + 1}: {f:.4g} Hz" for j, f in enumerate(hz))]
+        page.select_option("#chapter", "2")
+        settle(page)
+        assert 2.0 <= page.evaluate("window.stewartView.shown().t") < 3.0   # playing mode 3
+        assert "mode 3:" in page.inner_text("#time")
+        # record every frame shown until the cycle has wrapped (the page plays on the real
+        # clock: the wait is bounded generously, the assertions are on what was shown)
+        page.evaluate("""() => { window.seen = [];
+            (function rec() { window.seen.push(window.stewartView.shown().t);
+                              requestAnimationFrame(rec); })(); }""")
+        page.wait_for_function("""() => { const s = window.seen;
+            const top = s.findIndex(t => t > 2.5);
+            return top >= 0 && s.slice(top).some(t => t < 2.5); }""", timeout=60_000)
+        seen = np.array(page.evaluate("window.seen"))
+        assert np.all((seen >= 2.0) & (seen < 3.0)), seen
+        assert np.any(np.diff(seen) < 0), seen   # it wrapped within mode 3's cycle
+        assert page.errors == []
+    finally:
+        page.close()

@@ -1,6 +1,6 @@
 """The modes' 3D view (DIR/view.html): the platform at the pose, then each mode shape played
 as one cycle of a sampled sequence of poses, one second of the page's time per mode (the
-page's time slider picks the mode; the title gives each mode's frequency and its second).
+page's selector plays one mode in a loop, its frequency in the label; the title lists them).
 
 Pose k of mode j: the pose displaced along the mode's twist chi_j = (v, omega) (N, about C's
 origin) by a sin(2 pi k / CYCLE_FRAMES): x = x0 + a s v, R = exp(a s [omega]x) R0, so every
@@ -8,6 +8,8 @@ frame lies on the mode's line through the pose. `a` is chosen visible: the large
 displacement of a platform joint, |v| + r |omega| to first order, is AMPLITUDE of the view's
 characteristic length (ViewGeometry.size)."""
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -55,8 +57,10 @@ def modes_view(result: ModesResult, source: str = "") -> ViewData:
     q = mode_poses(result, g.size, g.platform_radius).reshape(-1, 6)
     t = np.arange(q.shape[0]) / CYCLE_FRAMES
     forces = np.array([static_forces(model, p) for p in q])
-    names = ", ".join(f"mode {j + 1} {f:.4g} Hz ({j}-{j + 1} s)"
-                      for j, f in enumerate(result.modes.frequency_hz[:result.count]))
-    return view_data(model, t, q, forces, controller=None, fps=float(CYCLE_FRAMES),
+    hz = result.modes.frequency_hz[:result.count]
+    names = ", ".join(f"mode {j + 1} {f:.4g} Hz ({j}-{j + 1} s)" for j, f in enumerate(hz))
+    view = view_data(model, t, q, forces, controller=None, fps=float(CYCLE_FRAMES),
                      force_label="static leg force (holding each frame's pose)",
                      title=f"{model.name}: modes, one cycle per second: {names}", source=source)
+    return replace(view, chapters=tuple((f"mode {j + 1}: {f:.4g} Hz", float(j))
+                                        for j, f in enumerate(hz)))
