@@ -10,6 +10,7 @@ import json
 import re
 
 import numpy as np
+import pytest
 from scipy.spatial.transform import Rotation
 
 from stewart_fmu.errors import StewartError
@@ -121,3 +122,46 @@ def test_the_page_selects_a_mode_and_plays_it_in_a_loop(browser, tmp_path):
         assert page.errors == []
     finally:
         page.close()
+
+
+def _rows(path):
+    with path.open(newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def test_frame_gives_the_pose_and_the_grid_in_the_scenes_frames(tmp_path, capsys):
+    """--frame tool: --pose is the tool frame's pose (stewart_fmu.frames, the core's frames.c);
+    the modes are those of the platform pose it names, and --map's grid is in the same frame
+    (map.csv's pose columns as given, each value that of its platform pose). An unknown frame
+    is refused in one line, exit 2, nothing written."""
+    from stewart_fmu import load_scene
+    from stewart_fmu.frames import to_platform
+
+    scene = tmp_path / "framed.toml"
+    scene.write_text(SIM.read_text(encoding="utf-8")
+                     + "\n[frames]\npivot = [0.0, 0.0, 0.4]\ntool = [0.1, 0.0, 0.5, 0.0, 0.0, 0.2]\n")
+    model = load_scene(scene)
+    given = np.array([0.05, -0.02, 2.9, 0.02, -0.03, 0.04])
+    q = to_platform(model, given, "tool")
+    assert np.max(np.abs(q - given)) > 0.1          # the frame makes a difference
+    framed, plain = tmp_path / "framed", tmp_path / "plain"
+    text = ",".join(repr(float(v)) for v in given)
+    assert cli.main(["modes", str(scene), "--frame", "tool", f"--pose={text}", "--no-view",
+                     "--map", "z=2.85:2.95:3", "--out", str(framed)]) == 0
+    assert cli.main(["modes", str(scene), "--pose=" + ",".join(repr(float(v)) for v in q), "--no-view",
+                     "--out", str(plain)]) == 0
+    assert _rows(framed / "modes.csv") == _rows(plain / "modes.csv")
+    rows = _rows(framed / "map.csv")
+    assert [float(r["z"]) for r in rows] == np.linspace(2.85, 2.95, 3).tolist()
+    from stewart_fmu.stiffness import modes
+    for r in rows:
+        p = given.copy()
+        p[2] = float(r["z"])
+        assert r["inside"] == "1"
+        lowest = modes(model, to_platform(model, p, "tool")).frequency_hz[0]
+        assert float(r["lowest_hz"]) == pytest.approx(lowest, rel=1e-12)
+    capsys.readouterr()
+    bad = tmp_path / "bad"
+    assert cli.main(["modes", str(scene), "--frame", "hand", "--out", str(bad)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "hand" in err[0] and not bad.exists()
