@@ -1,6 +1,7 @@
 """`stewart-sim modes SCENE --pose x,y,z,thx,thy,thz --out DIR`: the small oscillations about the
-static equilibrium at a pose (DIR/modes.csv, first columns mode,frequency_hz, ascending) and the
-stiffness at the pivot (DIR/stiffness.csv), from the scene's [stiffness] (stewart_sim.studies.modes)."""
+static equilibrium at a pose (DIR/modes.csv, first columns mode,frequency_hz, ascending), the
+stiffness at the pivot (DIR/stiffness.csv) and the mode shapes animated (DIR/view.html), from
+the scene's [stiffness] (stewart_sim.studies.modes)."""
 from __future__ import annotations
 
 import argparse
@@ -27,6 +28,12 @@ def add_parser(sub, help_text: str) -> None:
                    "(start:stop:count per pose component, the others at --pose): DIR/map.csv with the "
                    "lowest frequency and the weakest translational stiffness and its direction, "
                    "and their slices through the first two axes as PNG")
+    p.add_argument("--frame", metavar="NAME", default="platform",
+                   help="the frame --pose and --map's grid are given in: platform, pivot, tool, "
+                        "user (the scene's [frames]; default platform, the contract's pose)")
+    p.add_argument("--no-view", action="store_true",
+                   help="do not write the 3D view (by default DIR/view.html: each mode shape "
+                        "animated, one cycle per second, its frequency in the title)")
     p.set_defaults(run=run)
 
 
@@ -42,10 +49,15 @@ def run(args: argparse.Namespace) -> None:
     model = scene.model
     if args.payload is not None:
         model = study.with_payload(model, study.payload_from(args.payload, model))
-    q = model.home if args.pose is None else study.parse_numbers(args.pose, 6, "--pose")
+    from stewart_fmu.frames import frame_change, from_platform, to_platform
+
+    frame_change(model, args.frame)     # an unknown frame name: one line, exit 2
+    given = from_platform(model, model.home, args.frame) if args.pose is None \
+        else study.parse_numbers(args.pose, 6, "--pose")
+    q = to_platform(model, np.asarray(given, dtype=float), args.frame)
     pivot = study.parse_numbers(args.pivot, 3, "--pivot")
-    grid = study.parse_grid(args.map, np.asarray(q, dtype=float)) if args.map else None
-    result = study.compute(model, np.asarray(q, dtype=float), pivot, args.modes)
-    mapped = study.compute_map(model, grid, pivot) if grid is not None else None
-    report.write(args.out, result, mapped, grid)
+    grid = study.parse_grid(args.map, np.asarray(given, dtype=float)) if args.map else None
+    result = study.compute(model, q, pivot, args.modes)
+    mapped = study.compute_map(model, grid, pivot, args.frame) if grid is not None else None
+    report.write(args.out, result, mapped, grid, view=not args.no_view)
     print(report.summary(result))

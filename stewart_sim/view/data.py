@@ -46,6 +46,9 @@ class ViewData:
     # vehicle's and the delivered one of a cueing run, or None
     f_vehicle: np.ndarray | None = None     # (F, 3)
     f_delivered: np.ndarray | None = None   # (F, 3)
+    # parts of the frames a person picks from the page's selector, which then plays that part
+    # in a loop: (label, start time in s), start times increasing (e.g. the modes' cycles)
+    chapters: tuple[tuple[str, float], ...] = ()
 
     @property
     def frames(self) -> int:

@@ -91,7 +91,8 @@ def static_view_html(view: ViewData) -> str:
               **{name: None if getattr(view, name) is None else _b64(getattr(view, name), "<f4")
                  for name in CUES}}
     meta = {"fps": view.fps, "frames": view.frames, "speed": view.speed,
-            "source_samples": view.source_samples, "source": view.source}
+            "source_samples": view.source_samples, "source": view.source,
+            "chapters": [{"label": label, "t": float(t)} for label, t in view.chapters]}
     span = float(view.t[-1] - view.t[0])
     subtitle = (f"{span:.6g} s, {view.frames} frames at {view.fps:g} frames/s of simulated time "
                 f"from {view.source_samples} samples"

@@ -306,10 +306,34 @@
     const slider = el("slider");
     slider.max = n - 1;
     let k = 0, playing = false, clock = 0, last = null;
+    // the chapters (meta.chapters: label, start time): the selector plays one in a loop
+    const chapters = DATA.meta.chapters || [];
+    const pick = el("chapter");
+    let loop = null;                  // {c, first, t0, t1}: the chapter played in a loop
+    function chapterAt(i) {
+      let c = -1;
+      chapters.forEach((ch, j) => { if (t[i] >= ch.t - 1e-6) c = j; });
+      return c;
+    }
+    function chapterLoop(c) {
+      let first = 0;
+      while (first + 1 < n && t[first] < chapters[c].t - 1e-6) first++;
+      const end = c + 1 < chapters.length ? chapters[c + 1].t
+                                          : t[n - 1] + (n > 1 ? t[n - 1] - t[n - 2] : 1);
+      return {c, first, t0: t[first], t1: end};
+    }
+    if (chapters.length) {
+      pick.add(new Option("all, in turn", "-1"));
+      chapters.forEach((ch, j) => pick.add(new Option(ch.label, String(j))));
+      pick.style.display = "";
+    }
     function go(i) {
       k = Math.max(0, Math.min(n - 1, i));
       slider.value = k;
-      el("time").textContent = `${t[k].toFixed(3)} / ${t[n - 1].toFixed(3)} s`;
+      const c = chapters.length ? chapterAt(k) : -1;
+      el("time").textContent = `${t[k].toFixed(3)} / ${t[n - 1].toFixed(3)} s` +
+                               (c >= 0 ? ` \u00b7 ${chapters[c].label}` : "");
+      if (chapters.length) pick.value = String(loop ? loop.c : -1);
       show(frame(k));
     }
     api.show = go;
@@ -320,9 +344,13 @@
       if (last !== null) clock += (now - last) / 1000 * Number(el("speed").value);
       last = now;
       let j = k;
+      if (loop && clock >= loop.t1) {
+        clock = loop.t0 + (clock - loop.t1) % (loop.t1 - loop.t0);
+        j = loop.first;
+      }
       while (j + 1 < n && t[j + 1] <= clock) j++;
       if (j !== k) go(j);
-      if (k >= n - 1) { setPlaying(false); return; }
+      if (!loop && k >= n - 1) { setPlaying(false); return; }
       requestAnimationFrame(tick);
     }
     function setPlaying(p) {
@@ -335,7 +363,16 @@
       }
     }
     el("play").addEventListener("click", () => setPlaying(!playing));
-    slider.addEventListener("input", () => { setPlaying(false); go(Number(slider.value)); });
+    slider.addEventListener("input", () => {
+      setPlaying(false); loop = null; go(Number(slider.value));
+    });
+    pick.addEventListener("change", () => {
+      const c = Number(pick.value);
+      setPlaying(false);
+      loop = c >= 0 ? chapterLoop(c) : null;
+      go(loop ? loop.first : 0);
+      setPlaying(true);
+    });
     drawColourBar();
     go(0);
     ready();

@@ -123,6 +123,7 @@ def test_controls_and_text(browser, run_view):
     try:
         for sel in ("#play", "#slider", "#time", "#bar", "#info"):
             assert page.is_visible(sel), sel
+        assert not page.is_visible("#chapter")     # a run has no chapters: no selector
         assert page.inner_text("#tick-max").endswith(" N")
         sub = page.inner_text("#head .sub")
         assert f"{view.frames} frames at 30 frames/s" in sub and str(view.source_samples) in sub

@@ -73,9 +73,10 @@ def map_rows(m: MapResult) -> tuple[list[str], list[dict]]:
 
 
 def write(out: str | Path, result: ModesResult, map_result: MapResult | None = None,
-          grid: Grid | None = None) -> list[str]:
+          grid: Grid | None = None, view: bool = False) -> list[str]:
     """Write the set into out (whole or not at all); the names written. With a map, its
-    figures too (map_lowest_hz.png, map_weakest.png: stewart_sim.studies.modes.plots)."""
+    figures too (map_lowest_hz.png, map_weakest.png: stewart_sim.studies.modes.plots); with
+    `view`, view.html (the mode shapes animated: stewart_sim.studies.modes.animation)."""
     names = []
     with result_set(out) as stage:
         def table(name: str, columns_rows) -> None:
@@ -94,6 +95,14 @@ def write(out: str | Path, result: ModesResult, map_result: MapResult | None = N
             for name, fig in map_figures(result.model.name, grid, map_result).items():
                 save_figure(fig, stage / name)
                 names.append(name)
+        if view:
+            from stewart_sim.view.files import VIEW_FILE
+            from stewart_sim.view.html import write_view
+
+            from .animation import modes_view
+
+            write_view(stage / VIEW_FILE, modes_view(result, source=str(out)))
+            names.append(VIEW_FILE)
     return names
 
 

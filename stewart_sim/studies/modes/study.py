@@ -13,6 +13,7 @@ import numpy as np
 from stewart_fmu import table
 from stewart_fmu.budget import SCENE_BYTES, InputFileError, read_input
 from stewart_fmu.errors import SceneError, StewartError
+from stewart_fmu.frames import to_platform
 from stewart_fmu.kinematics import COND_LIMIT, inverse_kinematics
 from stewart_fmu.model import Model, PayloadParams
 from stewart_fmu.scene import scene_from_dict
@@ -189,15 +190,17 @@ def parse_grid(text: str, base: np.ndarray) -> Grid:
 class MapResult:
     """The map over a grid: the poses inside the stroke and regular, their values."""
 
-    poses: np.ndarray        # (N, 6) every pose of the grid
+    poses: np.ndarray        # (N, 6) every pose of the grid (in the frame it was given in)
     inside: np.ndarray       # (N,) bool: within the stroke, regular
     values: ModesMap | None  # over poses[inside]
 
 
-def compute_map(model: Model, grid: Grid, pivot: np.ndarray) -> MapResult:
+def compute_map(model: Model, grid: Grid, pivot: np.ndarray, frame: str = "platform") -> MapResult:
     """The lowest frequency and the weakest translational stiffness at each pose of the grid
-    within the stroke and away from singularities (the others are left out, marked)."""
+    (given in `frame`: stewart_fmu.frames) within the stroke and away from singularities (the
+    others are left out, marked)."""
     Q = grid.poses()
-    inside = regular_poses(model, Q)
-    values = modes_map(model, Q[inside], pivot) if inside.any() else None
+    P = to_platform(model, Q, frame)
+    inside = regular_poses(model, P)
+    values = modes_map(model, P[inside], pivot) if inside.any() else None
     return MapResult(Q, inside, values)
