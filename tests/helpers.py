@@ -22,6 +22,14 @@ SCENES_DIR = ROOT / "scenes"
 SCENE_FILES = {"micro": SCENES_DIR / "micro_manipulator.toml",
                "sim": SCENES_DIR / "motion_simulator.toml"}
 DOCS_DIR = ROOT / "docs"
+# folders of scenes/ that hold other inputs than scenes: sweep grids, design requirements
+NOT_SCENES = ("sweeps", "design")
+
+
+def shipped_scenes() -> list[Path]:
+    """Every scene file shipped under scenes/ (the grids and requirements beside them left out)."""
+    return sorted(p for p in SCENES_DIR.rglob("*.toml") if not set(NOT_SCENES) & set(p.parts))
+
 
 # Model levels: the tables dropped from the scene dict. "platform_friction" is the variant with
 # friction but no drive (and no legs), so friction is seen without any leg or drive inertia.

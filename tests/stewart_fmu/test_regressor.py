@@ -12,9 +12,11 @@ from stewart_fmu.errors import StrokeLimitError
 from stewart_fmu.rotations import euler_motion
 from stewart_fmu.standard import N_STANDARD, NAMES, STANDARD, present, span, standard_parameters
 
+from tests.helpers import shipped_scenes
+
 ROOT = Path(__file__).resolve().parents[2]
 # every plant scene we ship (scenes/sweeps holds sweep definitions, not scenes)
-SCENES = sorted(p for p in (ROOT / "scenes").rglob("*.toml") if "sweeps" not in p.parts)
+SCENES = shipped_scenes()
 
 
 def samples(model, n=300, seed=0):

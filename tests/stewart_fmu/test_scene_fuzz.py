@@ -21,9 +21,9 @@ import tomlkit
 
 from stewart_fmu import SceneError, load_scene
 from stewart_sim import cli
-from tests.helpers import SCENE_FILES, SCENES_DIR
+from tests.helpers import SCENE_FILES, SCENES_DIR, shipped_scenes
 
-SHIPPED = sorted(p for p in SCENES_DIR.rglob("*.toml") if "sweeps" not in p.parts)
+SHIPPED = shipped_scenes()
 HOSTILE = [1e308, -1e308, 1e-300, 0, -1.5, math.nan, math.inf, -math.inf, "nan", "inf",
            10**30, 10**400, [[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[1.0]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]],
            True, {"a": 1.0}, [], "x\x1b[31m\n\t\\\"\u202e"]

@@ -18,6 +18,8 @@ from stewart_fmu.io import POSE
 from stewart_fmu.native.core import lib
 from stewart_fmu.scene import load_scene
 
+from tests.helpers import shipped_scenes
+
 ROOT = Path(__file__).resolve().parents[2]
 NATIVE = ROOT / "stewart_fmu" / "native"
 C_FILES = sorted([*NATIVE.glob("include/*.h"), *NATIVE.glob("src/*.[ch]"), *NATIVE.glob("fmi/*.[ch]")])
@@ -207,9 +209,7 @@ def test_every_parameter_has_physical_bounds_and_every_scene_meets_them():
     assert params and all(g.bound in (table.BOUND_CLOSED, table.BOUND_OPEN) for g in params)
     assert all(np.isfinite(g.min) and np.isfinite(g.max) and g.min < g.max for g in params)
     assert all(g.bound == table.BOUND_ANY for g in table.VARIABLES if g.causality != "parameter")
-    for path in sorted((ROOT / "scenes").rglob("*.toml")):
-        if "sweeps" in path.parts:
-            continue
+    for path in shipped_scenes():
         model = load_scene(path)
         for key, g in table.scene_groups().items():
             value = V.scene_value(model, key)
