@@ -20,15 +20,21 @@ SOURCES = sorted((HERE / "src").glob("*.c"))
 CFLAGS = ["-std=c99", "-O2", "-ffp-contract=off", "-fno-math-errno"]
 
 
+# X-macro tables of stewart_table.h that stewart.h expands: the prefix of the names each defines
+# and its count
+_X_TABLES = {"STEWART_PARAMS": ("STEWART_P_", "STEWART_N_PARAMS"),
+             "STEWART_STANDARD": ("STEWART_S_", "STEWART_N_STANDARD"),
+             "STEWART_REACH_PARAMS": ("STEWART_R_", "STEWART_N_REACH"),
+             "STEWART_LIMITS": ("STEWART_LIMIT_", "STEWART_N_LIMITS"),
+             "STEWART_ELASTIC": ("STEWART_E_", "STEWART_N_ELASTIC")}
+
+
 def _cdef() -> str:
     """The declarations of stewart.h for cffi, which expands no macro: comments and
     preprocessor lines dropped (continuations included), the object-like #define constants of
     stewart.h and stewart_table.h declared (floating-point ones as `static const double`, the
     others as `#define NAME ...`: cffi reads their values from the compiled core), and the
-    X-macro expansions of stewart.h replaced by the names they define (STEWART_P_* of the
-    STEWART_PARAMS table, STEWART_N_PARAMS; STEWART_S_* of STEWART_STANDARD, STEWART_N_STANDARD;
-    STEWART_R_* of STEWART_REACH_PARAMS, STEWART_N_REACH; STEWART_LIMIT_* of STEWART_LIMITS,
-    STEWART_N_LIMITS; STEWART_E_* of STEWART_ELASTIC, STEWART_N_ELASTIC)."""
+    X-macro expansions of stewart.h replaced by the names they define (_X_TABLES)."""
     header = _joined(HERE / "include" / "stewart.h")
     table = _joined(HERE / "include" / "stewart_table.h")
     out = [_constant(line) for line in table.splitlines() if line.strip().startswith("#define")]
@@ -36,21 +42,10 @@ def _cdef() -> str:
         s = line.strip()
         if s.startswith("#define"):
             out.append(_constant(s))
-        elif "STEWART_PARAMS(" in s:
-            out += [f"#define STEWART_P_{name} ..." for name in _table_names(table, "STEWART_PARAMS")]
-            out.append("#define STEWART_N_PARAMS ...")
-        elif "STEWART_STANDARD(" in s:
-            out += [f"#define STEWART_S_{name} ..." for name in _table_names(table, "STEWART_STANDARD")]
-            out.append("#define STEWART_N_STANDARD ...")
-        elif "STEWART_REACH_PARAMS(" in s:
-            out += [f"#define STEWART_R_{name} ..." for name in _table_names(table, "STEWART_REACH_PARAMS")]
-            out.append("#define STEWART_N_REACH ...")
-        elif "STEWART_LIMITS(" in s:
-            out += [f"#define STEWART_LIMIT_{name} ..." for name in _table_names(table, "STEWART_LIMITS")]
-            out.append("#define STEWART_N_LIMITS ...")
-        elif "STEWART_ELASTIC(" in s:
-            out += [f"#define STEWART_E_{name} ..." for name in _table_names(table, "STEWART_ELASTIC")]
-            out.append("#define STEWART_N_ELASTIC ...")
+        elif (section := next((t for t in _X_TABLES if f"{t}(" in s), None)) is not None:
+            prefix, count = _X_TABLES[section]
+            out += [f"#define {prefix}{name} ..." for name in _table_names(table, section)]
+            out.append(f"#define {count} ...")
         elif s.startswith("#") or s in ('extern "C" {', "}") or not s:
             continue
         else:
