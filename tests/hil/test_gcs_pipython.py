@@ -7,6 +7,7 @@ the data recorder with qDRR's background read. Waits are PIPython's own, with bo
 the assertions are on values, never on how long anything took."""
 from __future__ import annotations
 
+import contextlib
 import gc
 import time
 from pathlib import Path
@@ -45,6 +46,20 @@ def connect(port: int) -> GCSDevice:
     pi = GCSDevice(gateway=PISocket(autoconnect=False))
     pi.ConnectTCPIP("127.0.0.1", port)
     return pi
+
+
+@contextlib.contextmanager
+def twin_in_process(device: Device):
+    """The device served in a thread behind a GCS server on a free loopback port (yielded),
+    stopped and closed on the way out."""
+    link = gcs_link(device, "127.0.0.1", 0)
+    thread, stop, _ = serve_in_thread(device, link)
+    try:
+        yield link.server.address[1]
+    finally:
+        stop.set()
+        thread.join(10)
+        link.close()
 
 
 def wait_data(pi: GCSDevice) -> np.ndarray:
@@ -179,10 +194,8 @@ def test_recorded_table_equals_the_devices_own_record_and_pipythons_datarecorder
     device = Device(model)
     keep = Keep()
     device.observe(keep, hz=device.rate)
-    link = gcs_link(device, "127.0.0.1", 0)
-    thread, stop, _ = serve_in_thread(device, link)
-    try:
-        with connect(link.server.address[1]) as pi:
+    with twin_in_process(device) as port:
+        with connect(port) as pi:
             # PIPython's samples start a controller so: stop all, servo, reference, wait
             pitools.startup(pi, refmodes="FRF")
             assert all(pi.qFRF().values())
@@ -214,10 +227,6 @@ def test_recorded_table_equals_the_devices_own_record_and_pipythons_datarecorder
             assert pi.qERR() == 0
         del pi
         release()
-    finally:
-        stop.set()
-        thread.join(10)
-        link.close()
     assert n > 100
     for k in range(n):
         snap = keep.by_tick[round(t[k] * device.rate)]
@@ -238,10 +247,8 @@ def test_pivot_rotation_vmo_and_tra_through_pipython(capsys):
 
     model = load_scene(SCENE)
     device = Device(model)
-    link = gcs_link(device, "127.0.0.1", 0)
-    thread, stop, _ = serve_in_thread(device, link)
-    try:
-        with connect(link.server.address[1]) as pi:
+    with twin_in_process(device) as port:
+        with connect(port) as pi:
             # TRA? before referencing, from the plant at home (it starts there; at rest it
             # drifts by rounding only, orders of magnitude below the bisection's 1e-9)
             assert np.all(np.abs(np.asarray(device.snapshot().q) - model.home) <= 1e-15)
@@ -277,10 +284,6 @@ def test_pivot_rotation_vmo_and_tra_through_pipython(capsys):
             assert pi.qERR() == 0
         del pi
         release()
-    finally:
-        stop.set()
-        thread.join(10)
-        link.close()
 
 
 @unraisable
@@ -292,10 +295,8 @@ def test_coordinate_systems_through_pipython():
 
     model = load_scene(SCENE)
     device = Device(model)
-    link = gcs_link(device, "127.0.0.1", 0)
-    thread, stop, _ = serve_in_thread(device, link)
-    try:
-        with connect(link.server.address[1]) as pi:
+    with twin_in_process(device) as port:
+        with connect(port) as pi:
             pitools.startup(pi, refmodes="FRF")
             pi.KSW("WORK", {"X": 5.0, "W": 30.0})
             pi.KST("TIP", {"Z": 10.0})
@@ -329,10 +330,6 @@ def test_coordinate_systems_through_pipython():
             assert pi.qERR() == 0
         del pi
         release()
-    finally:
-        stop.set()
-        thread.join(10)
-        link.close()
 
 
 @unraisable
@@ -343,10 +340,8 @@ def test_directed_coordinate_system_through_pipython():
 
     model = load_scene(SCENE)
     device = Device(model)
-    link = gcs_link(device, "127.0.0.1", 0)
-    thread, stop, _ = serve_in_thread(device, link)
-    try:
-        with connect(link.server.address[1]) as pi:
+    with twin_in_process(device) as port:
+        with connect(port) as pi:
             pitools.startup(pi, refmodes="FRF")
             pi.KSD("D", {"Z": 10.0, "W": 30.0})
             pi.KEN("D")
@@ -371,7 +366,3 @@ def test_directed_coordinate_system_through_pipython():
             assert pi.qERR() == 0
         del pi
         release()
-    finally:
-        stop.set()
-        thread.join(10)
-        link.close()
