@@ -16,6 +16,8 @@ DRV_V_LIMIT        [0.01, 1] x the motor's voltage_limit       [0.24, 24] V
 DRV_I_LIMIT        [0.01, 1] x the motor's current_limit       [0.02, 2] A
 WDG_TIMEOUT        [0.01, 10] s                                (also the constructor's)
 SP_COND_MAX        (1, 1e4]
+pose position      |x|, |y|, |z| <= pose_position_max (below)  0.351 m (platform frame)
+pose angles        |thx|, |thy|, |thz| <= pi                   pi rad
 SR_* (streams)     [0, min(controller rate, 1000)] Hz          [0, 1000] Hz
 =================  ==========================================  ===========================
 
@@ -28,6 +30,13 @@ not the servo, keeps the room: the servo's tick is the co-simulation master's
 (controller.axis.servo_step), so a host following the bounds gets the loop it designed, and the
 room is a read-only fact a host reads (SP_LEN_MIN, SP_LEN_MAX), not a hidden change of dynamics
 near the stops.
+
+A POSE_SETPOINT's position is bounded by where the frame's origin can be at all: C's origin is
+within |a_i| + l_i + |p_i| of the base's origin for every leg, so within max |a_i| + leg_max +
+max |p_i|; the moving frame's origin (pivot or tool, on the platform) adds its offset from C's
+origin, and the fixed frame (user, on the base) its offset from N's; no bound (inf) without a
+stroke. Past it no leg length can reach the pose; the bound refuses garbage before any
+arithmetic, the stroke check refuses the rest.
 
 The setpoint bounds are also reported as read-only parameters (SP_RATE_MAX, SP_FORCE_MAX,
 SP_FRATE_MAX, SP_LEN_MIN, SP_LEN_MAX) so a host can read them with PARAM_REQUEST_LIST.
@@ -42,6 +51,7 @@ from typing import Any
 import numpy as np
 
 from controller.capability import DEVICE_FORCE, DEVICE_RATE, bounds_of
+from stewart_fmu.frames import frame_change
 
 # Headroom over the drive's physical limits (declared in controller.capability beside the
 # other consumers' margins). Planned moves may ask more than a drive delivers (it then
@@ -56,6 +66,7 @@ LIMIT_FLOOR = 0.01      # drive limits down to this fraction of the motor's rati
 WATCHDOG_RANGE = (0.01, 10.0)   # s
 COND_MAX_LIMIT = 1e4
 STREAM_MAX = 1000.0     # Hz
+POSE_ANGLE_MAX = math.pi   # rad: every rotation has angles within it
 
 @dataclass(frozen=True)
 class Bounds:
@@ -122,6 +133,19 @@ def device_bounds(leg_min: float, leg_max: float, axis: Any, gains: Any,
         gain_max={k: GAIN_FACTOR * getattr(gains, k) for k in ("kp", "ki", "kd")},
         voltage_range=(LIMIT_FLOOR * m.voltage_limit, m.voltage_limit),
         current_range=(LIMIT_FLOOR * m.current_limit, m.current_limit), reach=reach)
+
+
+def pose_position_max(model: Any, frame: str) -> float:
+    """m, the largest |coordinate| of a pose's position in `frame` (a name of stewart_fmu.frames;
+    see the module doc): inf when the scene has no stroke."""
+    if model.leg_max is None or not math.isfinite(model.leg_max):
+        return math.inf
+    reach = (float(np.max(np.linalg.norm(model.base_joints, axis=1))) + model.leg_max
+             + float(np.max(np.linalg.norm(model.platform_joints, axis=1))))
+    change = frame_change(model, frame)
+    if change is None:
+        return reach
+    return reach + float(np.linalg.norm(change[:3])) + float(np.linalg.norm(change[6:9]))
 
 
 def check_rate(hz: Any) -> str | None:
