@@ -140,12 +140,14 @@ def pose_position_max(model: Any, frame: str) -> float:
     see the module doc): inf when the scene has no stroke."""
     if model.leg_max is None or not math.isfinite(model.leg_max):
         return math.inf
-    reach = (float(np.max(np.linalg.norm(model.base_joints, axis=1))) + model.leg_max
-             + float(np.max(np.linalg.norm(model.platform_joints, axis=1))))
+    # math.hypot on lists: a setpoint pays this, and numpy's per-call cost is tens of us
+    reach = (max(math.hypot(*a) for a in model.base_joints.tolist()) + model.leg_max
+             + max(math.hypot(*p) for p in model.platform_joints.tolist()))
     change = frame_change(model, frame)
     if change is None:
         return reach
-    return reach + float(np.linalg.norm(change[:3])) + float(np.linalg.norm(change[6:9]))
+    offsets = change.tolist()
+    return reach + math.hypot(*offsets[:3]) + math.hypot(*offsets[6:9])
 
 
 def check_rate(hz: Any) -> str | None:

@@ -4,7 +4,7 @@ In order (the first failure is the reason): no flag but STEWART_POSE_SETPOINT_FL
 frame of STEWART_FRAME; with HOLD nothing more (the pose is ignored, as LEG_SETPOINT's lengths
 are). Else every pose field finite, each position coordinate within the frame's
 hil.input_bounds.pose_position_max and each angle within POSE_ANGLE_MAX; then the platform's
-pose (stewart_fmu.frames.to_platform) and its leg lengths (inverse kinematics). The result is a
+pose (stewart_fmu.frames.to_platform) and its leg lengths (the core's leg_state). The result is a
 LEG_SETPOINT of the same time and sequence with those lengths, no rate and no force, which the
 device checks (hil.setpoint.check_setpoint: stroke, a pose, cond(J), cones and clearances) and
 follows as any other: one check path, whichever message a setpoint came in.
@@ -19,7 +19,7 @@ import numpy as np
 from hil import mavlink_stewart as ms
 from hil.input_bounds import POSE_ANGLE_MAX, pose_position_max
 from stewart_fmu.frames import to_platform
-from stewart_fmu.kinematics import inverse_kinematics
+from stewart_fmu.dynamics import leg_state
 from stewart_fmu.model import Model
 
 #: STEWART_FRAME value -> the frame's name in stewart_fmu.frames (reach_params.FRAME_NAMES).
@@ -67,6 +67,6 @@ def leg_setpoint(msg: Any, model: Model) -> tuple[str | None, Any, np.ndarray | 
         return None, ms.MAVLink_leg_setpoint_message(
             msg.time_usec, msg.sequence, _ZERO6, _ZERO6, ms.STEWART_SETPOINT_FLAG_HOLD), None
     q = to_platform(model, pose_of(msg), FRAMES[msg.frame])
-    lengths = inverse_kinematics(model, q, with_cond=False).lengths
+    lengths, _, _ = leg_state(model, q, np.zeros(6))      # the core's, one pose per call
     return None, ms.MAVLink_leg_setpoint_message(
         msg.time_usec, msg.sequence, [float(v) for v in lengths], _ZERO6, 0), q

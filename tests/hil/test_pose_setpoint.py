@@ -22,6 +22,7 @@ from hil.input_bounds import pose_position_max  # noqa: E402
 from hil.link import queue_pair, udp_server  # noqa: E402
 from hil.pose_setpoint import FRAMES  # noqa: E402
 from hil.serve import serve_in_thread  # noqa: E402
+from stewart_fmu.dynamics import leg_state  # noqa: E402
 from stewart_fmu.errors import StewartError  # noqa: E402
 from stewart_fmu.frames import from_platform, to_platform  # noqa: E402
 from stewart_fmu.kinematics import inverse_kinematics  # noqa: E402
@@ -125,21 +126,22 @@ def test_the_frame_codes_are_the_frames_names():
 @pytest.mark.parametrize("frame", ["user", "tool", "pivot", "platform"])
 def test_a_pose_in_a_frame_drives_the_legs_as_its_leg_setpoint(model, frame):
     """Lockstep, 150 steps of a quintic written in `frame` and 350 at its end: bit for bit the
-    run of the LEG_SETPOINTs of the lengths of its platform poses (what a host converting
-    itself sends); within the frames' round trip of the run of the original platform poses;
+    run of the LEG_SETPOINTs of the lengths of its platform poses (the core's leg_state: what a
+    host converting itself sends); within the frames' round trip of the run of the original platform poses;
     and at the end the frame's pose of the plant, converted in numpy, is the one asked."""
     traj = quintic(model.home, model.home + GOAL, rate=1000.0, duration=(MOVE - 1) / 1000.0)
     q = np.vstack([traj.q[:MOVE], np.repeat(traj.q[MOVE - 1:MOVE], STEPS - MOVE, axis=0)])
     f = from_platform(model, q, frame)
     posed, dev = lockstep(model, lambda c, k: c.pose_setpoint_message(k, k / 1000.0, f[k], frame))
-    converted = inverse_kinematics(model, to_platform(model, f, frame), with_cond=False).lengths
+    converted = np.array([leg_state(model, p, np.zeros(6))[0]
+                          for p in to_platform(model, f, frame)])
     legs, dev_legs = lockstep(model, lambda c, k: leg_setpoint(k, converted[k]))
     for name in ("length", "rate", "force"):
         assert bits(posed, name) == bits(legs, name), name
     assert np.array_equal(dev.plant.get_state().y, dev_legs.plant.get_state().y)
     # the frames' round trip (from_platform then to_platform) moves a length by a few ulp at
     # most; the closed loop carries that on, no more
-    direct = inverse_kinematics(model, q, with_cond=False).lengths
+    direct = np.array([leg_state(model, p, np.zeros(6))[0] for p in q])
     ulp = np.spacing(np.max(direct))
     assert np.max(np.abs(converted - direct)) <= 4 * ulp
     original, _ = lockstep(model, lambda c, k: leg_setpoint(k, direct[k]))
