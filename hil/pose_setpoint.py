@@ -18,8 +18,8 @@ import numpy as np
 
 from hil import mavlink_stewart as ms
 from hil.input_bounds import POSE_ANGLE_MAX, pose_position_max
-from stewart_fmu.frames import to_platform
 from stewart_fmu.dynamics import leg_state
+from stewart_fmu.frames import to_platform
 from stewart_fmu.model import Model
 
 #: STEWART_FRAME value -> the frame's name in stewart_fmu.frames (reach_params.FRAME_NAMES).

@@ -118,17 +118,19 @@ def rotation(th) -> np.ndarray:
 # --------------------------------------------------------------------------- the same lengths
 
 
-def test_the_frame_codes_are_the_frames_names():
+def test_the_frame_codes_are_the_frames_names_and_hold_is_leg_setpoints_bit():
     assert [FRAMES[getattr(ms, f"STEWART_FRAME_{n.upper()}")] for n in FRAME_NAMES] == \
         list(FRAME_NAMES)
+    assert ms.STEWART_POSE_SETPOINT_FLAG_HOLD == ms.STEWART_SETPOINT_FLAG_HOLD   # the XML says so
 
 
 @pytest.mark.parametrize("frame", ["user", "tool", "pivot", "platform"])
 def test_a_pose_in_a_frame_drives_the_legs_as_its_leg_setpoint(model, frame):
     """Lockstep, 150 steps of a quintic written in `frame` and 350 at its end: bit for bit the
     run of the LEG_SETPOINTs of the lengths of its platform poses (the core's leg_state: what a
-    host converting itself sends); within the frames' round trip of the run of the original platform poses;
-    and at the end the frame's pose of the plant, converted in numpy, is the one asked."""
+    host converting itself sends); within the frames' round trip of the run of the original
+    platform poses; and at the end the frame's pose of the plant, converted in numpy, is the
+    one asked."""
     traj = quintic(model.home, model.home + GOAL, rate=1000.0, duration=(MOVE - 1) / 1000.0)
     q = np.vstack([traj.q[:MOVE], np.repeat(traj.q[MOVE - 1:MOVE], STEPS - MOVE, axis=0)])
     f = from_platform(model, q, frame)
