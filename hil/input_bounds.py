@@ -31,16 +31,16 @@ not the servo, keeps the room: the servo's tick is the co-simulation master's
 room is a read-only fact a host reads (SP_LEN_MIN, SP_LEN_MAX), not a hidden change of dynamics
 near the stops.
 
+The setpoint bounds are also reported as read-only parameters (SP_RATE_MAX, SP_FORCE_MAX,
+SP_FRATE_MAX, SP_LEN_MIN, SP_LEN_MAX) so a host can read them with PARAM_REQUEST_LIST.
+Out-of-range values are refused: a STATUSTEXT names the value and the bound.
+
 A POSE_SETPOINT's position is bounded by where the frame's origin can be at all: C's origin is
 within |a_i| + l_i + |p_i| of the base's origin for every leg, so within max |a_i| + leg_max +
 max |p_i|; the moving frame's origin (pivot or tool, on the platform) adds its offset from C's
 origin, and the fixed frame (user, on the base) its offset from N's; no bound (inf) without a
 stroke. Past it no leg length can reach the pose; the bound refuses garbage before any
 arithmetic, the stroke check refuses the rest.
-
-The setpoint bounds are also reported as read-only parameters (SP_RATE_MAX, SP_FORCE_MAX,
-SP_FRATE_MAX, SP_LEN_MIN, SP_LEN_MAX) so a host can read them with PARAM_REQUEST_LIST.
-Out-of-range values are refused: a STATUSTEXT names the value and the bound.
 """
 from __future__ import annotations
 
@@ -51,7 +51,6 @@ from typing import Any
 import numpy as np
 
 from controller.capability import DEVICE_FORCE, DEVICE_RATE, bounds_of
-from stewart_fmu.frames import frame_change
 
 # Headroom over the drive's physical limits (declared in controller.capability beside the
 # other consumers' margins). Planned moves may ask more than a drive delivers (it then
@@ -66,7 +65,6 @@ LIMIT_FLOOR = 0.01      # drive limits down to this fraction of the motor's rati
 WATCHDOG_RANGE = (0.01, 10.0)   # s
 COND_MAX_LIMIT = 1e4
 STREAM_MAX = 1000.0     # Hz
-POSE_ANGLE_MAX = math.pi   # rad: every rotation has angles within it
 
 @dataclass(frozen=True)
 class Bounds:
@@ -135,21 +133,6 @@ def device_bounds(leg_min: float, leg_max: float, axis: Any, gains: Any,
         current_range=(LIMIT_FLOOR * m.current_limit, m.current_limit), reach=reach)
 
 
-def pose_position_max(model: Any, frame: str) -> float:
-    """m, the largest |coordinate| of a pose's position in `frame` (a name of stewart_fmu.frames;
-    see the module doc): inf when the scene has no stroke."""
-    if model.leg_max is None or not math.isfinite(model.leg_max):
-        return math.inf
-    # math.hypot on lists: a setpoint pays this, and numpy's per-call cost is tens of us
-    reach = (max(math.hypot(*a) for a in model.base_joints.tolist()) + model.leg_max
-             + max(math.hypot(*p) for p in model.platform_joints.tolist()))
-    change = frame_change(model, frame)
-    if change is None:
-        return reach
-    offsets = change.tolist()
-    return reach + math.hypot(*offsets[:3]) + math.hypot(*offsets[6:9])
-
-
 def check_rate(hz: Any) -> str | None:
     """Why `hz` is no rate (a finite number >= 0), or None."""
     if isinstance(hz, bool) or not isinstance(hz, (int, float)) or not math.isfinite(hz) or hz < 0:
@@ -170,3 +153,21 @@ def in_range(lo: float, hi: float, unit: str = "", lo_open: bool = False):
 
 def read_only(x: float) -> str | None:
     return "read-only (a bound of the device)"
+
+
+POSE_ANGLE_MAX = math.pi   # rad: a POSE_SETPOINT's angles (every rotation has angles within it)
+
+
+def pose_position_max(model: Any, change: Any) -> float:
+    """m, the largest |coordinate| of a pose's position in a frame whose (mov, fix) of
+    stewart_fmu.frames.frame_change is `change` (None: the platform's own pose; see the module
+    doc): inf when the scene has no stroke."""
+    if model.leg_max is None or not math.isfinite(model.leg_max):
+        return math.inf
+    # math.hypot on lists: a setpoint pays this, and numpy's per-call cost is tens of us
+    reach = (max(math.hypot(*a) for a in model.base_joints.tolist()) + model.leg_max
+             + max(math.hypot(*p) for p in model.platform_joints.tolist()))
+    if change is None:
+        return reach
+    offsets = list(change)
+    return reach + math.hypot(*offsets[:3]) + math.hypot(*offsets[6:9])

@@ -19,7 +19,7 @@ import numpy as np
 from hil import mavlink_stewart as ms
 from hil.input_bounds import POSE_ANGLE_MAX, pose_position_max
 from stewart_fmu.dynamics import leg_state
-from stewart_fmu.frames import to_platform
+from stewart_fmu.frames import frame_change, to_platform
 from stewart_fmu.model import Model
 
 #: STEWART_FRAME value -> the frame's name in stewart_fmu.frames (reach_params.FRAME_NAMES).
@@ -49,7 +49,7 @@ def check_pose(msg: Any, model: Model) -> str | None:
     for name, v in zip(FIELDS, pose):
         if not math.isfinite(v):
             return f"non-finite pose {name}"
-    reach = pose_position_max(model, frame)
+    reach = pose_position_max(model, frame_change(model, frame))
     for name, v, bound, unit in zip(FIELDS, pose, (reach,) * 3 + (POSE_ANGLE_MAX,) * 3,
                                     ("m",) * 3 + ("rad",) * 3):
         if not abs(v) <= bound:

@@ -24,7 +24,7 @@ from hil.pose_setpoint import FRAMES  # noqa: E402
 from hil.serve import serve_in_thread  # noqa: E402
 from stewart_fmu.dynamics import leg_state  # noqa: E402
 from stewart_fmu.errors import StewartError  # noqa: E402
-from stewart_fmu.frames import from_platform, to_platform  # noqa: E402
+from stewart_fmu.frames import frame_change, from_platform, to_platform  # noqa: E402
 from stewart_fmu.kinematics import inverse_kinematics  # noqa: E402
 from stewart_fmu.reach_params import FRAME_NAMES  # noqa: E402
 from stewart_fmu.scene import load_scene  # noqa: E402
@@ -215,7 +215,7 @@ def test_a_pose_past_a_cone_or_a_clearance_is_refused_naming_it(tmp_path, frame,
 @pytest.mark.parametrize("field", range(6))
 def test_garbage_is_refused_with_its_reason(model, field):
     name = ("x", "y", "z", "thx", "thy", "thz")[field]
-    reach = pose_position_max(model, "user")
+    reach = pose_position_max(model, frame_change(model, "user"))
     home = from_platform(model, model.home, "user")
     c = Client(None)
 
@@ -267,7 +267,8 @@ def test_the_position_bound_is_where_a_frame_can_be(model):
     assert len(q) > 1000
     for frame in FRAME_NAMES:
         f = from_platform(model, q, frame)
-        assert np.max(np.abs(f[:, :3])) < pose_position_max(model, frame), frame
+        bound = pose_position_max(model, frame_change(model, frame))
+        assert np.max(np.abs(f[:, :3])) < bound, frame
 
 
 def test_hold_holds_and_ignores_the_pose(model):
