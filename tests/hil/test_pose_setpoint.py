@@ -248,13 +248,13 @@ def test_a_pose_past_the_stroke_is_refused_naming_the_leg(model, frame):
     """A bounded, finite pose whose legs leave the stroke: the LEG_SETPOINT's own check."""
     q = np.asarray(model.home) + [0.01, 0.0, 0.07, 0.0, 0.0, 0.0]
     lengths = inverse_kinematics(model, q, with_cond=False).lengths
-    dev = Device(model)
-    over = np.flatnonzero(lengths > dev.bounds.leg_max)
+    sp_len_max = Device(model).params["SP_LEN_MAX"].get()    # the parameter a host reads
+    over = np.flatnonzero(lengths > sp_len_max)
     assert len(over) > 0
     f = from_platform(model, q, frame)
     dev, said, moved = _refused(model, Client(None).pose_setpoint_message(1, 0.001, f, frame))
     assert said == [f"refused: leg {over[0] + 1} at {lengths[over[0]]:.4g} m, stroke max "
-                    f"{dev.bounds.leg_max:.4g}"]
+                    f"{sp_len_max:.4g}"]
     assert dev.counters.setpoints_refused == 1 and moved < 1e-12
 
 
