@@ -240,3 +240,75 @@ def test_travel_in_frames_with_obstacles_on_both_bodies():
             check_line(eng, ref, q0, d, frame, counts)
     print(counts)
     assert counts["bracketed"] >= 12
+
+
+
+def engine_dense_first(eng: Engine, q0, d, reach: float, samples: int):
+    """The first violation of a dense march of Engine.check (exact margins) along [0, reach]
+    bisected to 1e-12: (first outside sample, crossing) or None."""
+    t = np.linspace(0.0, reach, samples)
+    bad = ~eng.check(q0 + t[:, None] * d)["feasible"]
+    if not bad.any():
+        return None
+    v = int(np.argmax(bad))
+    lo, hi = t[v - 1], t[v]
+    while hi - lo > 1e-12:
+        mid = 0.5 * (lo + hi)
+        if eng.check(q0 + mid * d)["feasible"][0]:
+            lo = mid
+        else:
+            hi = mid
+    return t[v], lo
+
+
+def test_travel_with_boxes_and_cylinders_against_a_dense_march_of_the_engines_margins():
+    """A box on the platform and a cylinder on the base about the legs (test_reach.py holds
+    their margins, Engine.check's, against a scalar minimisation): along random lines from home
+    the travel ends at the first violation of a dense march of Engine.check (every 1e-4 of the
+    reach), bisected, to 1e-9, never past its first outside sample."""
+    obstacles = [
+        {"shape": "box", "body": "platform", "center": [0.0, 0.0, -0.02],
+         "size": [0.09, 0.08, 0.02], "angles": [0.1, 0.2, 0.3]},
+        {"shape": "cylinder", "body": "base", "center": [0.0, 0.0, 0.02], "radius": 0.05,
+         "length": 0.04, "angles": [0.0, 0.3, 0.0]}]
+    model = scene_from_dict(scene_data(MICRO, clearance={"leg_radius": 0.003,
+                                                         "obstacles": obstacles}), str(MICRO))
+    eng = Engine(model)
+    home = np.asarray(model.home, dtype=float)
+    hits = 0
+    for d in _lines(11, 16):
+        tr = eng.travel(home, d)
+        dense = engine_dense_first(eng, home, d, tr.reach, 10001)
+        if dense is None:
+            assert tr.limit is None
+            continue
+        assert tr.step <= dense[0]
+        assert -SLACK <= dense[1] - tr.step <= TOL + SLACK, (tr, dense)
+        hits += tr.limit == "obstacle"
+    print("obstacle ends", hits)
+    assert hits >= 8
+
+
+def test_a_small_box_a_leg_sweeps_through_is_not_stepped_over():
+    """A 1 mm cube beside leg 1's middle, 2 to 8 mm on along x, legs 0.2 mm thick, the platform
+    moving along x: the region outside is ~2.5 mm of travel, less than the steps' cap (the
+    characteristic length / 16); the travel ends where a dense march (every 1e-6 m) of
+    Engine.check first finds the leg in the box, to 1e-9."""
+    base = scene_from_dict(scene_data(MICRO), str(MICRO))
+    home = np.asarray(base.home, dtype=float)
+    a = np.asarray(base.base_joints)[0]
+    top = home[:3] + rot(home[3:])[0] @ np.asarray(base.platform_joints)[0]
+    u = (top - a) / np.linalg.norm(top - a)
+    side = np.array([1.0, 0.0, 0.0]) - u * u[0]
+    side /= np.linalg.norm(side)
+    d = np.array([1.0, 0, 0, 0, 0, 0])
+    for off in np.linspace(0.002, 0.008, 13):
+        cube = {"shape": "box", "body": "base", "center": (0.5 * (a + top) + off * side).tolist(),
+                "size": [0.001, 0.001, 0.001]}
+        model = scene_from_dict(scene_data(MICRO, clearance={"leg_radius": 0.0002,
+                                                             "obstacles": [cube]}), str(MICRO))
+        eng = Engine(model)
+        tr = eng.travel(home, d)
+        assert tr.limit == "obstacle" and tr.where == "[0] leg 1", (off, tr)
+        first, crossing = engine_dense_first(eng, home, d, 0.02, 20001)
+        assert tr.step <= first and -SLACK <= crossing - tr.step <= TOL + SLACK, (off, tr)

@@ -210,7 +210,9 @@ static void obstacle_place(const double *o, const pose_geometry *g, const double
 /* The least margin of the legs to obstacle record o (the signed distance of a leg's segment
    to the shape less the leg's radius) into m, w as obstacle ob. A leg whose distance to the
    shape's bounding sphere (a lower bound) is no less than the least margin so far cannot give
-   a lesser one and is skipped: the box and cylinder searches run for the near legs only. */
+   a lesser one and is skipped: the box and cylinder searches run for the near legs only. With
+   sign_only, a leg clear of the sphere gives that bound (a positive lower bound of its margin,
+   never above it). */
 static void obstacle_margins(const double *o, int ob, const pose_geometry *g, const double q[6],
                              const double *base, double radius, int sign_only, double *m, int *w)
 {
@@ -241,9 +243,11 @@ static void obstacle_margins(const double *o, int ob, const pose_geometry *g, co
             if (!done[i] && (next < 0 || bound[i] < bound[next]))
                 next = i;
         done[next] = 1;
-        if (shape == STEWART_SHAPE_SPHERE) {
+        if (shape == STEWART_SHAPE_SPHERE || (sign_only && bound[next] >= 0.0)) {
+            /* the sphere's exact; the bound of a leg surely clear (sign-only), a lower bound
+               of its margin that travel's steps may rest on */
             take(m, w, STEWART_LIMIT_OBSTACLE, bound[next], 6 * ob + next);
-        } else if (bound[next] < m[STEWART_LIMIT_OBSTACLE] && !(sign_only && bound[next] >= 0.0)) {
+        } else if (bound[next] < m[STEWART_LIMIT_OBSTACLE]) {
             take(m, w, STEWART_LIMIT_OBSTACLE,
                  segment_shape_distance(shape, a + 3 * next, d + 3 * next, h) - radius,
                  6 * ob + next);
@@ -367,7 +371,8 @@ static void cone_margins(const double *reach, const pose_geometry *g, double *m,
 }
 
 /* The geometric limits' and cond(J)'s margins; with sign_only, a margin that is surely
-   positive may be left larger than it is (cond(J), obstacles: what travel needs). */
+   positive may be left larger than it is (cond(J): the limit itself) or smaller (obstacles:
+   a positive lower bound). */
 static void geometric_margins(const double *p, const double *reach, const double q[6],
                               const int present[], int sign_only, double *m, int *w)
 {
