@@ -537,7 +537,7 @@ typedef struct {
     double Rt[9], Rw[9];
     int present[STEWART_N_LIMITS];   /* cond(J) left out: travel_cond takes it */
     int cond, moving_obstacles;
-    double lin, om, hmax, speed[6], vmax, arm[6];   /* arm_i = |p_i| */
+    double lin, om, hmax, speed[6], vmax, arm[6], rho[6];   /* |p_i|, |p_i - mov| */
 } travel_line;
 
 static void travel_rates(travel_line *line)
@@ -554,7 +554,8 @@ static void travel_rates(travel_line *line)
     for (i = 0; i < 6; ++i) {
         const double *z = p + STEWART_P_PLATFORM + 3 * i;
         double r[3] = {z[0] - mov[0], z[1] - mov[1], z[2] - mov[2]};
-        line->speed[i] = line->lin + line->om * sqrt(dot3(r, r));
+        line->rho[i] = sqrt(dot3(r, r));
+        line->speed[i] = line->lin + line->om * line->rho[i];
         line->arm[i] = sqrt(dot3(z, z));
         line->vmax = PY_MAX(line->vmax, line->speed[i]);
     }
@@ -596,19 +597,97 @@ static double obstacle_rate(const travel_line *line, const double q[6], const po
     return PY_MAX(line->vmax, line->lin + line->om * (far + line->lin * line->hmax));
 }
 
+/* The step of travel_cond for s_max, s_min: E / D, or with Taylor's bound (grow >= 0) the
+   larger of that and the root of G h + M h^2 / 2 = E. */
+static double travel_cond_step(double c, double smax, double smin, double rate, double grow,
+                               double bend)
+{
+    const double e = (c * smin - smax) / (1.0 + c);
+    double h = safe_step(e, rate);
+    if (grow >= 0.0)
+        h = PY_MAX(h, 2.0 * e / (grow + sqrt(grow * grow + 2.0 * bend * e)));
+    return h;
+}
+
+/* ||J'||_F at the pose, exactly: the platform's velocity along the line (v = R_fix dir[0..2],
+   w = R_fix E(th) dir[3..5], E's columns Rz Ry e_x, Rz e_y, e_z) moves P_i at v + w x (P_i - o),
+   o = x + R mov the frame's origin; row i's derivatives are u_i' = (P_i')_perp / l_i and
+   ((w x r_i) x u_i + r_i x u_i') / lc, r_i = P_i - x. */
+static double jacobian_rate(const travel_line *line, const double f[6], const double q[6],
+                            const pose_geometry *g)
+{
+    const double *d = line->dir, lc = line->params[STEWART_P_CHAR_LENGTH];
+    const double cy = cos(f[4]), sy = sin(f[4]), cz = cos(f[5]), sz = sin(f[5]);
+    const double wf[3] = {cy * cz * d[3] - sz * d[4], cy * sz * d[3] + cz * d[4], -sy * d[3] + d[5]};
+    double w[3], v[3], o[3], sum = 0.0;
+    int i, k;
+    for (k = 0; k < 3; ++k) {
+        w[k] = line->frame ? dot3(line->Rw + 3 * k, wf) : wf[k];
+        v[k] = line->frame ? dot3(line->Rw + 3 * k, d) : d[k];
+        o[k] = q[k] + (line->frame ? dot3(g->R + 3 * k, line->frame) : 0.0);
+    }
+    for (i = 0; i < 6; ++i) {
+        const double *P = g->P + 3 * i, *L = g->L + 3 * i;
+        double e[3], r[3], u[3], pd[3], ud[3], wr[3], x[3], along;
+        for (k = 0; k < 3; ++k) {
+            e[k] = P[k] - o[k];
+            r[k] = P[k] - q[k];
+            u[k] = L[k] / g->l[i];
+        }
+        pd[0] = v[0] + w[1] * e[2] - w[2] * e[1];
+        pd[1] = v[1] + w[2] * e[0] - w[0] * e[2];
+        pd[2] = v[2] + w[0] * e[1] - w[1] * e[0];
+        along = dot3(u, pd);
+        for (k = 0; k < 3; ++k)
+            ud[k] = (pd[k] - along * u[k]) / g->l[i];
+        wr[0] = w[1] * r[2] - w[2] * r[1];
+        wr[1] = w[2] * r[0] - w[0] * r[2];
+        wr[2] = w[0] * r[1] - w[1] * r[0];
+        x[0] = (wr[1] * u[2] - wr[2] * u[1]) + (r[1] * ud[2] - r[2] * ud[1]);
+        x[1] = (wr[2] * u[0] - wr[0] * u[2]) + (r[2] * ud[0] - r[0] * ud[2]);
+        x[2] = (wr[0] * u[1] - wr[1] * u[0]) + (r[0] * ud[1] - r[1] * ud[0]);
+        sum += dot3(ud, ud) + dot3(x, x) / (lc * lc);
+    }
+    return sqrt(sum);
+}
+
+/* A bound of ||J''||_F along a step (legs no shorter than l_lo): with |P_i'| <= speed_i and
+   |P_i''| <= a_i = (|w'| + om^2) |p_i - mov|, |w'| <= |thx'| (|thy'| + |thz'|) + |thy'| |thz'|
+   (E's columns turn at |thy'| + |thz'|, |thz'|, 0), |u_i'| <= speed_i / l_lo and
+   |u_i''| <= (2 a_i + 3 speed_i^2 / l_lo) / l_lo (from L'' = l u'' + 2 l' u' + l'' u), and
+   (r x u)'' = r'' x u + 2 r' x u' + r x u'' with |r'| <= om |p_i|, |r''| <= (|w'| + om^2) |p_i|. */
+static double jacobian_curvature(const travel_line *line, double l_lo)
+{
+    const double *d = line->dir, lc = line->params[STEWART_P_CHAR_LENGTH];
+    const double turn = fabs(d[3]) * (fabs(d[4]) + fabs(d[5])) + fabs(d[4]) * fabs(d[5]);
+    const double spin = turn + line->om * line->om;
+    double sum = 0.0;
+    int i;
+    for (i = 0; i < 6; ++i) {
+        const double s = line->speed[i], a = spin * line->rho[i];
+        const double udd = (2.0 * a + 3.0 * s * s / l_lo) / l_lo;
+        const double rdd = line->arm[i] * (spin + 2.0 * line->om * s / l_lo + udd) / lc;
+        sum += udd * udd + rdd * rdd;
+    }
+    return sqrt(sum);
+}
+
 /* cond(J)'s margin at the pose, and in *step how far along the line it surely holds (0 when
-   it does not): by Weyl's inequality each singular value moves by no more than ||dJ||_2 <=
-   ||dJ||_F, and along a step of at most h (legs no shorter than l_lo there) row i of J moves
-   at no more than |u_i'| <= speed_i / l_lo and |(R p_i x u_i)'| / lc <= arm_i (om + speed_i /
-   l_lo) / lc, so ||J'||_F <= D; cond(J) = s_max / s_min stays below c while
-   s_max + D h <= c (s_min - D h). s_max and s_min from sigma_bounds where that bound already
-   allows `enough`, else from sw_singular_values. */
-static double travel_cond(const travel_line *line, const double q[6], const pose_geometry *g,
-                          double l_lo, double enough, double *step)
+   it does not): by Weyl's inequality each singular value moves by no more than
+   e(h) = ||J(t + h) - J(t)||_2 <= ||J(t + h) - J(t)||_F, and cond(J) = s_max / s_min stays
+   below c while s_max + e <= c (s_min - e), e <= E = (c s_min - s_max) / (1 + c). Two bounds
+   of e, the larger step taken: e <= D h, D a bound of ||J'||_F over the step (row i moves at
+   no more than |u_i'| <= speed_i / l_lo and |(R p_i x u_i)'| / lc <= arm_i (om + speed_i /
+   l_lo) / lc); and Taylor's e <= G h + M h^2 / 2, G = ||J'||_F at t (jacobian_rate), M
+   (jacobian_curvature), which near a limit is G's alone. s_max and s_min from sigma_bounds
+   where that bound already allows `enough`, else from sw_singular_values; Taylor's bound only
+   where D's does not allow `enough`. */
+static double travel_cond(const travel_line *line, const double f[6], const double q[6],
+                          const pose_geometry *g, double l_lo, double enough, double *step)
 {
     const double c = line->reach[STEWART_R_COND_LIMIT], lc = line->params[STEWART_P_CHAR_LENGTH];
-    double J[36], smax, smin, sv[6], d2 = 0.0, rate;
-    int i;
+    double J[36], smax, smin, sv[6], d2 = 0.0, rate, grow = -1.0, bend = 0.0;
+    int i, bounded;
     *step = 0.0;
     if (!leg_jacobian(line->params, q, g, J))
         return -HUGE_VAL;
@@ -616,9 +695,13 @@ static double travel_cond(const travel_line *line, const double q[6], const pose
         double du = line->speed[i] / l_lo, dr = line->arm[i] * (line->om + du) / lc;
         d2 += du * du + dr * dr;
     }
-    rate = sqrt(d2) * (1.0 + c);
-    if (!(sigma_bounds(J, &smax, &smin) && smax * (1.0 + 1e-9) < c * smin
-          && safe_step(c * smin - smax, rate) >= enough)) {
+    rate = sqrt(d2);
+    bounded = sigma_bounds(J, &smax, &smin) && smax * (1.0 + 1e-9) < c * smin;
+    if (!(bounded && travel_cond_step(c, smax, smin, rate, grow, bend) >= enough)) {
+        grow = jacobian_rate(line, f, q, g);
+        bend = jacobian_curvature(line, l_lo);
+    }
+    if (!(bounded && travel_cond_step(c, smax, smin, rate, grow, bend) >= enough)) {
         sw_singular_values(J, sv);
         smax = 0.0;
         smin = HUGE_VAL;
@@ -629,7 +712,7 @@ static double travel_cond(const travel_line *line, const double q[6], const pose
         if (!(smin > 0.0 && smax / smin <= c))
             return smin > 0.0 ? c - smax / smin : -HUGE_VAL;
     }
-    *step = safe_step(c * smin - smax, rate);
+    *step = travel_cond_step(c, smax, smin, rate, grow, bend);
     return c - smax / smin;
 }
 
@@ -676,7 +759,7 @@ static int travel_probe(const travel_line *line, double t, double ahead, double 
         others = PY_MIN(others, horizon[k]);
     if (b < 0 && line->cond && horizon[STEWART_LIMIT_COND] - t <= ahead) {
         double hc;
-        if (travel_cond(line, q, &g, l_lo, PY_MIN(cap, others - t), &hc) < 0.0) {
+        if (travel_cond(line, f, q, &g, l_lo, PY_MIN(cap, others - t), &hc) < 0.0) {
             b = STEWART_LIMIT_COND;
             ws[b] = 0;
         } else {
