@@ -11,11 +11,11 @@
 /* Golden-section steps of a leg's closest approach to a box or cylinder: the interval shrinks
    by 0.618 a step, 64 steps leave 4e-14 of the leg. */
 #define GOLDEN_STEPS 64
-/* The most poses one travel evaluates while marching (a bound on the loop; smax / hmax beyond
-   it is refused). */
+/* smax / hmax beyond MAX_MARCH / 64 is refused: travel's steps (at most hmax) are then at
+   least smax / 156250 wherever no limit is near. */
 #define MAX_MARCH 10000000.0
 /* The most poses a travel's conservative advancement evaluates (a bound on the loop: a line
-   that runs within tol / 2 of certifying for longer stops there, status 2). */
+   that runs along a limit, stepping tol / 2 uncertified, for longer stops there, status 2). */
 #define MAX_PROBES 1000000
 /* The most bisection steps of a travel's last bracket (from at most hmax to tol: 128
    halvings cover any double bracket). */
