@@ -34,6 +34,9 @@ def add_parser(sub, help_text: str) -> None:
                    help="continue the search DIR/design-checkpoint.npz holds (the generations "
                         "evaluated before a Ctrl-C, or a shorter run's: --generations may be "
                         "larger): the same front as one run without a stop")
+    p.add_argument("--no-view", action="store_true",
+                   help="do not write DIR/view.html (the chosen design at home, its "
+                        "constant-orientation workspace and the required poses by margin)")
     p.set_defaults(run=run)
 
 
@@ -63,9 +66,16 @@ def run(args: argparse.Namespace) -> int:
             result = search.run(spec, client, workers, checkpoint=checkpoint)
     except KeyboardInterrupt:
         raise stopped(args.out, checkpoint) from None
-    with result_set(args.out, report.FILES) as stage:
+    from stewart_sim.studies.design.workspace_view import write_design_view
+
+    view = None
+    with result_set(args.out, report.FILES + ("view.html",)) as stage:
         written = report.write(stage, spec, result)
-    print(f"{args.out}: {', '.join(written)}")
+        if not args.no_view:
+            view = write_design_view(stage, spec, result)
+    print(f"{args.out}: {', '.join(written + (['view.html'] if view else []))}")
+    if view:
+        print(f"{args.out}/{view}")
     if result.chosen is None:
         print(f"stewart-sim: {report.binding_line(result)} (see {args.out}/summary.md)")
         return NO_DESIGN
