@@ -31,7 +31,7 @@ from stewart_fmu.budget import InputFileError, read_input
 from stewart_fmu.errors import StewartError
 from stewart_fmu.io import atomic_write
 
-from .spec import DesignSpec
+from .spec import MAX_GENERATIONS, DesignSpec
 
 CHECKPOINT_FILE = "design-checkpoint.npz"
 FORMAT = 1
@@ -108,8 +108,9 @@ def load(path: Path, spec: DesignSpec, names: tuple[str, ...]) -> Checkpoint:
     """The checkpoint at `path`, checked against the spec (CheckpointError naming the file and
     why it cannot be resumed from)."""
     cp = Checkpoint(path, spec, names)
-    limit = (spec.search.population * 1000 * (len(spec.free) + len(names) + 1) * 8
-             + 1000 * ROW_BYTES + 65536)
+    # the most generations a search runs, each of `population` rows of float64 and int64
+    limit = (spec.search.population * MAX_GENERATIONS * (len(spec.free) + len(names) + 1) * 8
+             + MAX_GENERATIONS * ROW_BYTES + 65536)
     try:
         raw = read_input(path, limit)
     except InputFileError as exc:
