@@ -35,7 +35,7 @@ from .spec import MAX_GENERATIONS, DesignSpec
 
 CHECKPOINT_FILE = "design-checkpoint.npz"
 FORMAT = 1
-ROW_BYTES = 64       # a candidate's share of the file beyond its numbers (the NPZ's overhead)
+ROW_BYTES = 64       # a generation's share of the file beyond its numbers (the NPZ's overhead)
 
 
 class CheckpointError(StewartError, ValueError):
