@@ -130,3 +130,24 @@ def test_another_requirement_a_damaged_checkpoint_or_none_is_refused(uninterrupt
     r = _design(empty, *SIZE, "--resume")
     assert r.returncode == 2 and "no checkpoint to resume from" in r.stderr
     assert not empty.exists()
+
+
+def test_the_requirements_hash_holds_every_motion_sample():
+    """Two loads of a requirement hash alike; one sample of a motion to fly changed deep inside
+    (where a printed array shows '...') changes it, and so does the seed, not the generations."""
+    from dataclasses import replace
+
+    path = EXAMPLE.parent / "motion_simulator.toml"
+    spec = S.load(path)
+    assert CP.requirement_hash(spec) == CP.requirement_hash(S.load(path))
+    m = spec.flight.motions[0]
+    assert m.q.size > np.get_printoptions()["threshold"]   # printed, it would be summarised
+    q = m.q.copy()
+    q[len(q) // 2, 2] += 1e-9
+    moved = replace(spec, flight=replace(spec.flight, motions=(replace(m, q=q),
+                                                               *spec.flight.motions[1:])))
+    assert CP.requirement_hash(moved) != CP.requirement_hash(spec)
+    assert CP.requirement_hash(S.with_search(spec, seed=spec.search.seed + 1)) \
+        != CP.requirement_hash(spec)
+    assert CP.requirement_hash(S.with_search(spec, generations=spec.search.generations + 1)) \
+        == CP.requirement_hash(spec)

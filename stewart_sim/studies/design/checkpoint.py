@@ -44,14 +44,31 @@ class CheckpointError(StewartError, ValueError):
 
 def requirement_hash(spec: DesignSpec) -> str:
     """sha256 of what decides the search's candidates and margins: every table of the spec
-    (the base scene as parsed, the parameters, the workspace, the payload, the requirements)
-    and the search's population and seed; not the generations (a resume may go further) nor
+    (the base scene as parsed, the parameters, the workspace, the payload, the requirements,
+    the motions to fly and the drives) and the search's population and seed; not the generations (a resume may go further) nor
     the reserve (it only picks among the evaluated)."""
     d = dataclasses.asdict(spec)
     d.pop("source")
     d["search"] = {"population": spec.search.population, "seed": spec.search.seed}
-    text = json.dumps(d, sort_keys=True, separators=(",", ":"), default=str, allow_nan=True)
+    text = json.dumps(d, sort_keys=True, separators=(",", ":"), default=_plain, allow_nan=True)
     return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _plain(o):
+    """A value json cannot write as one: an array by its dtype, shape and the sha256 of every
+    byte (the motions' samples: all of them count, not a printed summary), a NumPy scalar as
+    its number, a path as its text."""
+    if isinstance(o, np.ndarray):
+        if o.dtype.hasobject:
+            return o.tolist()
+        a = np.ascontiguousarray(o)
+        return {"dtype": a.dtype.str, "shape": list(a.shape),
+                "sha256": hashlib.sha256(a.tobytes()).hexdigest()}
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, Path):
+        return str(o)
+    raise TypeError(f"the requirement's hash: a {type(o).__name__} in the spec")
 
 
 def _pymoo_version() -> str:
