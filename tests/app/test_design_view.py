@@ -74,7 +74,7 @@ def test_the_boundary_drawn_is_the_maps_of_the_written_design(designed):
         | (runs[:, 1] == runs[:, 1].min()) | (runs[:, 1] == runs[:, 1].max())
     wall_set = {tuple(r) for r in as_runs}
     assert all(tuple(r) in wall_set for r in runs[rim].astype(F32))
-    assert f"({m.volume * 1e3:.4g} l)" in data["meta"]["source"] + _title(out)
+    assert f"workspace ({m.volume * 1e3:.4g} l, blue)" in _title(out)
 
 
 def _title(out) -> str:
@@ -107,7 +107,7 @@ def test_the_required_poses_are_the_specs_coloured_by_the_engines_margin(designe
     q = _frames(data, "q", 6)
     assert np.array_equal(q, np.vstack([home, Q]).astype(F32))
     chosen = re.search(r"Chosen: candidate (\d+)", (out / "summary.md").read_text()).group(1)
-    assert f"design: chosen candidate {chosen}, " in _title(out)
+    assert _title(out).startswith(f"chosen candidate {chosen}: workspace (")
     assert f"{len(Q)} required poses" in _title(out)
 
 

@@ -45,8 +45,9 @@ class CheckpointError(StewartError, ValueError):
 def requirement_hash(spec: DesignSpec) -> str:
     """sha256 of what decides the search's candidates and margins: every table of the spec
     (the base scene as parsed, the parameters, the workspace, the payload, the requirements,
-    the motions to fly and the drives) and the search's population and seed; not the generations (a resume may go further) nor
-    the reserve (it only picks among the evaluated)."""
+    the motions to fly and the drives) and the search's population and seed; not the
+    generations (a resume may go further) nor the reserve (it only picks among the
+    evaluated)."""
     d = dataclasses.asdict(spec)
     d.pop("source")
     d["search"] = {"population": spec.search.population, "seed": spec.search.seed}

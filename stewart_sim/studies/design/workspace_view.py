@@ -91,7 +91,7 @@ def margin_colours(margin: np.ndarray, reserve: float) -> np.ndarray:
 def _shown(r: SearchResult) -> tuple[Candidate | None, str]:
     if r.chosen is not None:
         return r.chosen, f"chosen candidate {r.chosen_index}"
-    return r.closest, "no design: the least-violating candidate"
+    return r.closest, "least-violating candidate (no design)"
 
 
 def design_view(spec: DesignSpec, r: SearchResult) -> DesignView | None:
@@ -122,12 +122,13 @@ def design_view(spec: DesignSpec, r: SearchResult) -> DesignView | None:
     )
     frames = np.vstack([model.home, Q]) if len(Q) <= MAX_POSE_FRAMES else \
         np.asarray(model.home, dtype=float)[None, :]
-    title = f"design: {label}, its workspace ({m.volume * 1e3:.4g} l), {len(Q)} required poses"
+    title = (f"{label}: workspace ({m.volume * 1e3:.4g} l, blue), {len(Q)} required poses "
+             "by margin")
     view = view_data(model, np.arange(len(frames), dtype=float), frames,
                      np.zeros((len(frames), 6)), controller=None, fps=1.0,
                      force_label="no forces computed (the geometry)", title=title,
-                     source=f"{Path(spec.source).name}; blue: the workspace at home's angles; "
-                            f"dots: margin green >= {spec.search.reserve:.0%}, amber >= 0, red < 0")
+                     source=f"{Path(spec.source).name}; dots: green >= "
+                            f"{spec.search.reserve:.0%}, amber >= 0, red < 0")
     return DesignView(replace(view, extra=extra, plate_opacity=PLATE_OPACITY), m, Q, margin,
                       label)
 
