@@ -9,8 +9,15 @@ scene's [frames] (stewart_fmu/scene_reach.py) names three more frames a pose may
 
 A pose in a frame whose rotations are zero keeps its angles exactly; positions round trip to a
 few units in the last place of the largest of the pose's and the frames' coordinates.
+
+Motions (a trajectory's poses with their rates and accelerations, the angles' being Euler-angle
+rates) convert with motion_to_platform / motion_from_platform: the frame's point moves as a
+point of the rigid platform and its Euler rates are those of its angles (stewart.h,
+stewart_frame_motion_from_platform).
 """
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 
@@ -62,3 +69,43 @@ def to_platform(model, poses, frame: str) -> np.ndarray:
 def from_platform(model, poses, frame: str) -> np.ndarray:
     """The poses q (N, 6) (or (6,)) of the contract written in `frame`."""
     return _convert(core.lib.stewart_frame_from_platform, model, poses, frame)
+
+
+class Motion(NamedTuple):
+    """Poses with their rates and accelerations, each (N, 6) in the contract's columns (the
+    angles' rates are Euler-angle rates); qdd None: no accelerations."""
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray | None
+
+
+def _motion(fn, model, q, qd, qdd, frame: str) -> Motion:
+    change = frame_change(model, frame)
+    arrays = [np.ascontiguousarray(a, dtype=float).reshape(-1, 6)
+              for a in (q, qd, qdd) if a is not None]
+    if len({a.shape for a in arrays}) != 1:
+        raise ValueError("motion: q, qd and qdd must have the same number of samples")
+    if change is None:
+        return Motion(*(a.copy() for a in arrays), *([None] if qdd is None else []))
+    outs = [np.empty_like(a) for a in arrays]
+    b = core.ffi.from_buffer
+    acc_in, acc_out = (b(arrays[2]), b(outs[2])) if qdd is not None else (core.ffi.NULL,) * 2
+    done = fn(b(change[:6]), b(change[6:]), arrays[0].shape[0], b(arrays[0]), b(arrays[1]),
+              acc_in, b(outs[0]), b(outs[1]), acc_out)
+    if done < 0:
+        k = -done - 1
+        raise StewartError(f"sample {k}: the {frame} frame's conversion meets gimbal lock "
+                           "(|cos thy| ~ 0): its Euler-angle rates are not defined")
+    return Motion(outs[0], outs[1], outs[2] if qdd is not None else None)
+
+
+def motion_to_platform(model, q, qd, qdd, frame: str) -> Motion:
+    """The contract's motion (C in N) of a motion given in `frame` (q, qd, qdd (N, 6); qdd may
+    be None); StewartError naming an unknown frame or the first sample at gimbal lock."""
+    return _motion(core.lib.stewart_frame_motion_to_platform, model, q, qd, qdd, frame)
+
+
+def motion_from_platform(model, q, qd, qdd, frame: str) -> Motion:
+    """The motion in `frame` of the contract's motion (C in N): q, qd, qdd (N, 6), qdd may be
+    None; StewartError naming an unknown frame or the first sample at gimbal lock."""
+    return _motion(core.lib.stewart_frame_motion_from_platform, model, q, qd, qdd, frame)
