@@ -76,7 +76,8 @@ def test_motion_finite_differences(frame):
         errs.append((d1, d2))
     (a1, a2), (b1, b2) = errs
     print(f"{frame}: rates {a1:.3g} -> {b1:.3g}, accelerations {a2:.3g} -> {b2:.3g}")
-    # the truncation error bound h^2 |f'''| / 6 with |f'''| < 50 here, and its order
+    # the truncation errors h^2 |f'''| / 6 and h^2 |f''''| / 12 (those derivatives < 50 here),
+    # and their order
     assert b1 < 50 * 1e-6 / 6 and b2 < 50 * 1e-6
     assert 3.6 < a1 / b1 < 4.4 and 3.2 < a2 / b2 < 4.8
 
