@@ -33,6 +33,14 @@ def default_frame(model) -> str:
     return model.frames.default if model.frames is not None else "platform"
 
 
+def chosen_frame(model, frame: str | None) -> str:
+    """`frame` (a command's --frame), or the scene's default when None; StewartError naming an
+    unknown frame."""
+    frame = default_frame(model) if frame is None else frame
+    frame_change(model, frame)
+    return frame
+
+
 def frame_change(model, frame: str) -> np.ndarray | None:
     """The frame's (mov, fix) of frames.c, 12 doubles (None: the platform's own pose);
     StewartError naming an unknown frame."""
@@ -109,3 +117,28 @@ def motion_from_platform(model, q, qd, qdd, frame: str) -> Motion:
     """The motion in `frame` of the contract's motion (C in N): q, qd, qdd (N, 6), qdd may be
     None; StewartError naming an unknown frame or the first sample at gimbal lock."""
     return _motion(core.lib.stewart_frame_motion_from_platform, model, q, qd, qdd, frame)
+
+
+def table_from_platform(model, table: np.ndarray, frame: str) -> np.ndarray:
+    """A copy of a named table (stewart_fmu.io.named_array) whose pose columns x..thz, their
+    rates dx..dthz (when present) and accelerations ddx..ddthz (when present) are C's motion,
+    with those columns written in `frame`; every other column as it is."""
+    from .io import POSE
+
+    names = table.dtype.names
+    groups = [[p + c for c in POSE] for p in ("", "d", "dd")]
+    present = [g for g in groups if all(c in names for c in g)]
+    out = table.copy()
+    if frame == "platform" or not present:
+        frame_change(model, frame)
+        return out
+    cols = [np.column_stack([table[c] for c in g]).astype(float) for g in present]
+    if len(present) == 1:
+        converted = [from_platform(model, cols[0], frame)]
+    else:
+        converted = motion_from_platform(model, *cols[:2], cols[2] if len(cols) > 2 else None,
+                                         frame)
+    for g, arr in zip(present, converted):
+        for k, c in enumerate(g):
+            out[c] = arr[:, k]
+    return out
