@@ -120,25 +120,33 @@ def motion_from_platform(model, q, qd, qdd, frame: str) -> Motion:
 
 
 def table_from_platform(model, table: np.ndarray, frame: str) -> np.ndarray:
-    """A copy of a named table (stewart_fmu.io.named_array) whose pose columns x..thz, their
-    rates dx..dthz (when present) and accelerations ddx..ddthz (when present) are C's motion,
-    with those columns written in `frame`; every other column as it is."""
+    """A copy of a named table (stewart_fmu.io.named_array) whose poses are C's, written in
+    `frame`: each pose x..thz (and x_ref..thz_ref) with its rates dx..dthz and accelerations
+    ddx..ddthz when the table has them (d/dd before the name, the suffix kept); every other
+    column as it is."""
     from .io import POSE
 
-    names = table.dtype.names
-    groups = [[p + c for c in POSE] for p in ("", "d", "dd")]
-    present = [g for g in groups if all(c in names for c in g)]
+    frame_change(model, frame)
     out = table.copy()
-    if frame == "platform" or not present:
-        frame_change(model, frame)
+    if frame == "platform":
         return out
-    cols = [np.column_stack([table[c] for c in g]).astype(float) for g in present]
-    if len(present) == 1:
-        converted = [from_platform(model, cols[0], frame)]
-    else:
-        converted = motion_from_platform(model, *cols[:2], cols[2] if len(cols) > 2 else None,
-                                         frame)
-    for g, arr in zip(present, converted):
-        for k, c in enumerate(g):
-            out[c] = arr[:, k]
+    names = table.dtype.names
+    for suffix in ("", "_ref"):
+        groups = [[p + c + suffix for c in POSE] for p in ("", "d", "dd")]
+        present = []            # the pose, then its rates, then their accelerations
+        for g in groups:
+            if not all(c in names for c in g):
+                break
+            present.append(g)
+        if not present:
+            continue
+        cols = [np.column_stack([table[c] for c in g]).astype(float) for g in present]
+        if len(cols) == 1:
+            converted = [from_platform(model, cols[0], frame)]
+        else:
+            converted = motion_from_platform(model, cols[0], cols[1],
+                                             cols[2] if len(cols) > 2 else None, frame)
+        for g, arr in zip(present, converted):
+            for k, c in enumerate(g):
+                out[c] = arr[:, k]
     return out
