@@ -124,6 +124,16 @@ def table_from_platform(model, table: np.ndarray, frame: str) -> np.ndarray:
     `frame`: each pose x..thz (and x_ref..thz_ref) with its rates dx..dthz and accelerations
     ddx..ddthz when the table has them (d/dd before the name, the suffix kept); every other
     column as it is."""
+    return _table(model, table, frame, from_platform, motion_from_platform)
+
+
+def table_to_platform(model, table: np.ndarray, frame: str) -> np.ndarray:
+    """The inverse of table_from_platform: a copy of a table whose poses (and their rates and
+    accelerations) are given in `frame`, with C's in their columns."""
+    return _table(model, table, frame, to_platform, motion_to_platform)
+
+
+def _table(model, table: np.ndarray, frame: str, poses, motions) -> np.ndarray:
     from .io import POSE
 
     frame_change(model, frame)
@@ -142,10 +152,10 @@ def table_from_platform(model, table: np.ndarray, frame: str) -> np.ndarray:
             continue
         cols = [np.column_stack([table[c] for c in g]).astype(float) for g in present]
         if len(cols) == 1:
-            converted = [from_platform(model, cols[0], frame)]
+            converted = [poses(model, cols[0], frame)]
         else:
-            converted = motion_from_platform(model, cols[0], cols[1],
-                                             cols[2] if len(cols) > 2 else None, frame)
+            converted = motions(model, cols[0], cols[1], cols[2] if len(cols) > 2 else None,
+                                frame)
         for g, arr in zip(present, converted):
             for k, c in enumerate(g):
                 out[c] = arr[:, k]
