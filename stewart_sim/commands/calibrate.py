@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import argparse
 
-from stewart_sim.shell.argtypes import add_frame, number
+from stewart_sim.commands.frame_option import add_frame
+from stewart_sim.shell.argtypes import number
 
 
 def _at_least_one(v: int) -> bool:

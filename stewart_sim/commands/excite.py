@@ -6,7 +6,8 @@ from __future__ import annotations
 import argparse
 
 from stewart_sim.commands.constants import literals
-from stewart_sim.shell.argtypes import add_frame, number, positive_seconds
+from stewart_sim.commands.frame_option import add_frame
+from stewart_sim.shell.argtypes import number, positive_seconds
 
 
 def _at_least(low: int):

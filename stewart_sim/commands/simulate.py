@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from stewart_sim.commands.constants import literals
-from stewart_sim.shell.argtypes import add_frame
+from stewart_sim.commands.frame_option import add_frame
 
 
 def add_parser(sub, help_text: str) -> None:

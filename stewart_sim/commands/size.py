@@ -11,7 +11,8 @@ import sys
 from pathlib import Path
 
 from stewart_sim.commands.constants import literals
-from stewart_sim.shell.argtypes import add_frame, number
+from stewart_sim.commands.frame_option import add_frame
+from stewart_sim.shell.argtypes import number
 
 _workers = number(int, "an integer", lambda v: 1 <= v <= 1024, "1 to 1024")
 _margin = number(float, "a number", lambda v: 0.0 <= v <= 10.0, "a fraction from 0 to 10")

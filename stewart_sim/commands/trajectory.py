@@ -7,7 +7,8 @@ import argparse
 from pathlib import Path
 
 from stewart_sim.commands.constants import literals
-from stewart_sim.shell.argtypes import add_frame, positive_rate, positive_seconds
+from stewart_sim.commands.frame_option import add_frame
+from stewart_sim.shell.argtypes import positive_rate, positive_seconds
 
 
 def add_parser(sub, help_text: str) -> None:

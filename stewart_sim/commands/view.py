@@ -8,7 +8,8 @@ import time
 from pathlib import Path
 
 from stewart_sim.commands.constants import literals
-from stewart_sim.shell.argtypes import add_frame, positive_rate
+from stewart_sim.commands.frame_option import add_frame
+from stewart_sim.shell.argtypes import positive_rate
 
 
 def add_parser(sub, help_text: str) -> None:

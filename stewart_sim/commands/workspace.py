@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import argparse
 
-from stewart_sim.shell.argtypes import add_frame
+from stewart_sim.commands.frame_option import add_frame
 
 
 def add_parser(sub, help_text: str) -> None:

@@ -33,15 +33,3 @@ def _port(v: int) -> bool:
 
 
 port = number(int, "a port number", _port, "a TCP port 1-65535, or 0 for any free one")
-
-
-def add_frame(parser: argparse.ArgumentParser, what: str) -> None:
-    """`--frame NAME` on a command that reads or writes poses: `what` says which poses (e.g.
-    "the trajectory T.csv is written in"); stewart_fmu.frames.chosen_frame resolves it."""
-    from stewart_sim.commands.constants import literals
-
-    (names,) = literals("stewart_fmu.reach_params", "FRAME_NAMES")
-    parser.add_argument("--frame", metavar="NAME",
-                        help=f"the frame {what}: {', '.join(names)} (the scene's [frames]; "
-                             "default: its [frames] default, else platform, the contract's "
-                             "pose of C in N)")
