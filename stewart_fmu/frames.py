@@ -22,6 +22,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .errors import StewartError
+from .io import POSE
 from .native import core
 from .reach_params import FRAME_NAMES, FrameParams
 
@@ -89,12 +90,14 @@ class Motion(NamedTuple):
 
 def _motion(fn, model, q, qd, qdd, frame: str) -> Motion:
     change = frame_change(model, frame)
-    arrays = [np.ascontiguousarray(a, dtype=float).reshape(-1, 6)
-              for a in (q, qd, qdd) if a is not None]
-    if len({a.shape for a in arrays}) != 1:
-        raise ValueError("motion: q, qd and qdd must have the same number of samples")
+    arrays = [np.ascontiguousarray(a, dtype=float) for a in (q, qd, qdd) if a is not None]
+    if len({a.shape for a in arrays}) != 1 or arrays[0].shape[-1:] != (6,):
+        raise ValueError("motion: q, qd and qdd must be arrays (N, 6) (or (6,)) of one shape")
+    shape = arrays[0].shape
+    arrays = [a.reshape(-1, 6) for a in arrays]
     if change is None:
-        return Motion(*(a.copy() for a in arrays), *([None] if qdd is None else []))
+        outs = [a.copy() for a in arrays]
+        return Motion(*(o.reshape(shape) for o in outs), *([None] if qdd is None else []))
     outs = [np.empty_like(a) for a in arrays]
     b = core.ffi.from_buffer
     acc_in, acc_out = (b(arrays[2]), b(outs[2])) if qdd is not None else (core.ffi.NULL,) * 2
@@ -104,6 +107,7 @@ def _motion(fn, model, q, qd, qdd, frame: str) -> Motion:
         k = -done - 1
         raise StewartError(f"sample {k}: the {frame} frame's conversion meets gimbal lock "
                            "(|cos thy| ~ 0): its Euler-angle rates are not defined")
+    outs = [o.reshape(shape) for o in outs]
     return Motion(outs[0], outs[1], outs[2] if qdd is not None else None)
 
 
@@ -134,8 +138,6 @@ def table_to_platform(model, table: np.ndarray, frame: str) -> np.ndarray:
 
 
 def _table(model, table: np.ndarray, frame: str, poses, motions) -> np.ndarray:
-    from .io import POSE
-
     frame_change(model, frame)
     out = table.copy()
     if frame == "platform":
