@@ -335,3 +335,19 @@ def test_table_conversions_invert_each_other(scene):
         if c.startswith("l") or c == "time":
             assert np.array_equal(framed[c], table[c])
         assert np.allclose(back[c], table[c], rtol=0, atol=2e-15 * max(1, np.abs(table[c]).max()))
+
+
+def test_the_scene_default_frame_applies(scene, tmp_path):
+    """Without --frame, the scene's [frames] default: the same file as --frame user; --frame
+    platform overrides it."""
+    default = tmp_path / "default.toml"
+    default.write_text(Path(scene).read_text(encoding="utf-8") + 'default = "user"\n',
+                       encoding="utf-8")
+    args = ("--move", "demo", "--duration", "0.5", "--out")
+    assert main("trajectory", scene, *args, tmp_path / "u.csv", "--frame", "user")[0] == 0
+    code, text = main("trajectory", default, *args, tmp_path / "d.csv")
+    assert code == 0 and "user frame" in text
+    assert (tmp_path / "u.csv").read_bytes() == (tmp_path / "d.csv").read_bytes()
+    assert main("trajectory", scene, *args, tmp_path / "p.csv")[0] == 0
+    assert main("trajectory", default, *args, tmp_path / "o.csv", "--frame", "platform")[0] == 0
+    assert (tmp_path / "p.csv").read_bytes() == (tmp_path / "o.csv").read_bytes()
