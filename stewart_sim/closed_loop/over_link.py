@@ -35,6 +35,7 @@ from hil.spawn import device_process
 from stewart_fmu import io as sio
 from stewart_fmu.budget import check_count
 from stewart_fmu.errors import TrajectoryError
+from stewart_fmu.frames import motion_to_platform
 from stewart_fmu.model import Model
 from stewart_sim.closed_loop.link_figures import run_figure
 from stewart_sim.shell.markdown import md_code, md_text
@@ -77,11 +78,14 @@ START_TOLERANCE = 1e-9   # m, rad, m/s, rad/s: a trajectory's first sample at re
 RATE_TOLERANCE = 1e-9    # relative: a file's time step taken as the controller period
 
 
-def link_trajectory(model: Model, config: ControllerConfig, path: str | Path) -> Trajectory:
-    """A trajectory file as the link's reference: from t = 0 at the controller rate (resampled
-    when its step is not the controller period, see the module doc); TrajectoryError when it
-    does not start at rest at the scene's home pose."""
+def link_trajectory(model: Model, config: ControllerConfig, path: str | Path,
+                    frame: str = "platform") -> Trajectory:
+    """A trajectory file (a motion in `frame` of the scene's [frames], converted to C's first)
+    as the link's reference: from t = 0 at the controller rate (resampled when its step is not
+    the controller period, see the module doc); TrajectoryError when it does not start at rest
+    at the scene's home pose."""
     t, q, qd, qdd = sio.read_trajectory(path)
+    q, qd, qdd = motion_to_platform(model, q, qd, qdd, frame)
     if t.size < 2:
         raise TrajectoryError(f"{path}: need two or more samples, got {t.size}")
     gap = float(np.max(np.abs(q[0] - model.home)))

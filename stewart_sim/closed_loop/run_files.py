@@ -14,6 +14,7 @@ from controller.moves import RUN_HOLD, RUN_MOVE, run_reference
 from controller.plants import FmuPlant
 from stewart_fmu import io
 from stewart_fmu.errors import StewartError
+from stewart_fmu.frames import table_from_platform
 from stewart_fmu.fmu.export import SCENE_RESOURCE
 from stewart_fmu.integrators import IntegratorOptions
 from stewart_fmu.io import writing
@@ -63,10 +64,11 @@ def write_parquet(path: Path, table: np.ndarray) -> Path:
 
 def run_closed_loop_files(model: Model, config: ControllerConfig, duration: float, out: Path,
                           fmu: Path | None = None, fmt: str = "csv", view: bool = True,
-                          options: IntegratorOptions | None = None):
+                          options: IntegratorOptions | None = None, frame: str = "platform"):
     """Run the closed loop (in-process plant with `options`, the scene's [solver]; or the FMU)
     and write run_files(fmt, view) into `out` (progress covers the writing: a long run's CSV
-    takes seconds); returns (ClosedLoopResult, reference)."""
+    takes seconds), the table's poses and its tracking figure in `frame` of the scene's
+    [frames]; returns (ClosedLoopResult, reference)."""
     check_format(fmt)
     traj = run_reference(model, config, duration)
     plant = open_fmu(fmu, model) if fmu is not None else None
@@ -84,17 +86,18 @@ def run_closed_loop_files(model: Model, config: ControllerConfig, duration: floa
                  f"({traj.t[-1]:g} s at {config.rate:g} Hz)")
         m = config.motor
         table = out / f"run.{fmt}"
+        framed = table_from_platform(model, result.table, frame)
         with writing(out):
             if fmt == "parquet":
                 progress.update(f"writing {table.name}", 0, len(result.table), unit="rows")
-                write_parquet(table, result.table)
+                write_parquet(table, framed)
                 progress.update(f"writing {table.name}", len(result.table), len(result.table),
                                 unit="rows")
             else:
-                io.write_csv(table, result.table, lambda k, n: progress.update(
+                io.write_csv(table, framed, lambda k, n: progress.update(
                     f"writing {table.name}", k, n, unit="rows"))
             figures = (
-                ("run_tracking.png", lambda: tracking_figure(result.table, f"{title}\npose tracking")),
+                ("run_tracking.png", lambda: tracking_figure(framed, f"{title}\npose tracking, {frame} frame")),
                 ("run_errors.png", lambda: leg_errors_figure(result.table,
                                                              f"{title}\ntracking errors")),
                 ("run_forces.png", lambda: drive_figure(result.table, m.voltage_limit,
@@ -103,7 +106,7 @@ def run_closed_loop_files(model: Model, config: ControllerConfig, duration: floa
                 progress.update("plotting", k, len(figures), unit="figures")
                 save_figure(figure(), out / name)
             progress.update("plotting", len(figures), len(figures), unit="figures")
-            io.write_text(out / "summary.md", run_summary(model, result, traj, where))
+            io.write_text(out / "summary.md", run_summary(model, result, traj, where, frame))
             if view:
                 progress.update("writing the view", 0, 1, unit="files")
                 write_beside(out / VIEW_FILE, run_table_view(
@@ -139,8 +142,9 @@ def open_fmu(path: Path, model: Model):
         raise StewartError(f"{path}: cannot load the FMU: {type(exc).__name__}: {exc}") from None
 
 
-def run_summary(model: Model, result, traj, where: str) -> str:
-    """summary.md of a run: design, tracking per leg and per pose coordinate, effort, timing."""
+def run_summary(model: Model, result, traj, where: str, frame: str = "platform") -> str:
+    """summary.md of a run: design, tracking per leg and per pose coordinate, effort, timing;
+    the frame of run.csv's poses (the summary's own figures are C's pose)."""
     s, a, g, ax, cfg = result.summary, result.analysis, result.gains, result.axis, result.config
     duration = float(traj.t[-1] - traj.t[0])
     units = ("m", "m", "m", "rad", "rad", "rad")
@@ -152,6 +156,8 @@ def run_summary(model: Model, result, traj, where: str) -> str:
         f"({RUN_HOLD * duration:.6g} s), move back, hold; {duration:.6g} s, "
         f"{len(traj.t)} samples at {cfg.rate:.6g} Hz; goal pose "
         f"{format_vector(traj.q[int(round(RUN_MOVE * duration * cfg.rate))])}",
+        f"- run.csv's poses (x..thz, x_ref..thz_ref) and the tracking figure: the {frame} "
+        "frame; the goal pose and the pose figures here: C's pose (platform)",
         f"- feedforward: {cfg.feedforward}",
         *([f"- actuation delay: {cfg.delay} controller period (controller.delay: each "
            f"sample's torque drives the period after it)"] if cfg.delay else []),

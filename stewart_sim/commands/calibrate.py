@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 
+from stewart_sim.commands.frame_option import add_frame
 from stewart_sim.shell.argtypes import number
 
 
@@ -38,18 +39,25 @@ def add_parser(sub, help_text: str) -> None:
                                            "a whole number >= 1"),
                    metavar="N", help="calibrate on the N most informative poses of the file "
                                      "(greedy D-optimal selection)")
+    add_frame(p, "P.csv's measured poses are given in (a tracker's target as the tool frame, "
+                 "its base as the user frame)")
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> None:
     """Run `calibrate`; StewartError subclasses for bad input."""
+    from dataclasses import replace
+
+    from stewart_fmu.frames import chosen_frame, to_platform
     from stewart_sim.scene.load import load
     from stewart_sim.studies.calibrate.report import write_calibration
     from stewart_sim.studies.calibrate.study import (calibrate, check_bounds, check_finite,
                                                      read_poses)
 
     scene = load(args.scene)
+    frame = chosen_frame(scene.model, args.frame)
     data = read_poses(args.poses)
+    data = replace(data, poses=to_platform(scene.model, data.poses, frame))
     check_bounds(scene.model, data, args.poses)
     cal = calibrate(scene.model, data, args.select)
     check_finite(cal, args.poses)       # before the first file is written
@@ -58,4 +66,5 @@ def run(args: argparse.Namespace) -> None:
     worst = max(range(6), key=lambda i: cal.rms[i])
     print(f"{len(cal.used)} poses, scaled cond {cal.cond:.3g}, "
           f"{int(cal.observable.sum())} of 42 parameters observable; residual RMS "
-          f"{cal.rms.min() * 1e6:.3g}-{cal.rms[worst] * 1e6:.3g} um (worst leg {worst + 1})")
+          f"{cal.rms.min() * 1e6:.3g}-{cal.rms[worst] * 1e6:.3g} um (worst leg {worst + 1}); "
+          f"poses read in the {frame} frame")

@@ -15,6 +15,7 @@ import argparse
 from pathlib import Path
 
 from stewart_sim.commands.constants import literals
+from stewart_sim.commands.frame_option import add_frame
 
 
 def add_parser(sub, help_text: str) -> None:
@@ -43,6 +44,7 @@ def add_parser(sub, help_text: str) -> None:
                    help="also run the scene's closed loop ([controller]) on the cue, as `run`")
     p.add_argument("--no-view", dest="view", action="store_false",
                    help=f"do not write the 3D view ({view_file})")
+    add_frame(p, "DIR/trajectory*.csv (and tracking.csv's poses) are written in")
     p.set_defaults(run=run)
 
 
@@ -58,6 +60,7 @@ def warn_first_mode(study) -> None:
 
 def run(args: argparse.Namespace) -> None:
     """Run `cue`; StewartError subclasses for bad input."""
+    from stewart_fmu.frames import chosen_frame
     from stewart_sim.cueing.motion import read_motion
     from stewart_sim.cueing.report import cue_view, verdict, write_cue_report
     from stewart_sim.cueing.study import MODES, cue_study
@@ -67,6 +70,7 @@ def run(args: argparse.Namespace) -> None:
 
     scene = load(args.scene)
     model = scene.model
+    frame = chosen_frame(model, args.frame)
     motion = read_motion(Path(args.motion))
     modes = (args.mode, *(m for m in MODES if m != args.mode)) if args.compare else (args.mode,)
     progress = Progress()
@@ -87,8 +91,10 @@ def run(args: argparse.Namespace) -> None:
         lines.append(write_beside(stage / VIEW_FILE, cue_view(study, title, scene.controller)))
         return [VIEW_FILE]
 
-    for path in write_cue_report(study, out, title, extra=view if args.view else None):
+    for path in write_cue_report(study, out, title, extra=view if args.view else None,
+                                 model=model, frame=frame):
         print(f"wrote {path}" + (f": {lines[0]}" if path.name == VIEW_FILE else ""))
+    print(f"trajectories in the {frame} frame")
     print(verdict(study))
 
 

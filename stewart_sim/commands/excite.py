@@ -1,11 +1,12 @@
 """`stewart-sim excite SCENE --out T.csv [--duration S] [--period S] [--harmonics H]
-[--starts N]`: an excitation trajectory for identification, optimised for the condition number
+[--starts N] [--frame NAME]`: an excitation trajectory for identification, optimised for the condition number
 of the stacked base regressor inside the scene's limits (stewart_sim/studies/excite/)."""
 from __future__ import annotations
 
 import argparse
 
 from stewart_sim.commands.constants import literals
+from stewart_sim.commands.frame_option import add_frame
 from stewart_sim.shell.argtypes import number, positive_seconds
 
 
@@ -54,6 +55,7 @@ def add_parser(sub, help_text: str) -> None:
                    default=starts, metavar="N",
                    help=f"random starts of the optimiser, {iterations} iterations each, then "
                         f"up to {polish} from the best (default {starts})")
+    add_frame(p, "T.csv is written in (its poses, rates and accelerations)")
     p.set_defaults(run=run)
 
 
@@ -61,6 +63,7 @@ def run(args: argparse.Namespace) -> None:
     """Run `excite`; StewartError subclasses for bad input."""
     from controller.moves import DEMO_RATE
     from stewart_fmu.errors import StewartError
+    from stewart_fmu.frames import chosen_frame
     from stewart_sim.scene.load import load
     from stewart_sim.shell.progress import Progress
     from stewart_sim.shell.run_length import check_samples
@@ -75,6 +78,7 @@ def run(args: argparse.Namespace) -> None:
                            f"{2 * args.period:g}, {3 * args.period:g})")
     periods = int(round(periods))
     scene = load(args.scene)
+    frame = chosen_frame(scene.model, args.frame)
     rate = DEMO_RATE if scene.controller is None else scene.controller.rate
     check_samples("--duration", periods * args.period, rate)
     check_sizes(args.harmonics, args.period, periods, rate)
@@ -87,8 +91,9 @@ def run(args: argparse.Namespace) -> None:
         e = excitation(scene.model, scene.controller, d, periods, rate)
     finally:
         progress.close()
-    for path in write_excitation(scene.model, e, args.scene, args.out):
+    for path in write_excitation(scene.model, e, args.scene, args.out, frame):
         print(f"wrote {path}")
+    print(f"the trajectory's motion in the {frame} frame")
     print(f"{periods} periods of {args.period:g} s ({periods * args.period:g} s) at {rate:g} Hz, "
           f"{args.harmonics} harmonics")
     for line in summary(e):

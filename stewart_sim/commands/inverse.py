@@ -1,10 +1,12 @@
-"""`stewart-sim inverse SCENE --trajectory TRAJ.csv --out FORCES.csv [--parts] [--no-view]`: the
-rack forces along a trajectory (stewart_sim.open_loop.inverse_forces.run_inverse) and their 3D view
+"""`stewart-sim inverse SCENE --trajectory TRAJ.csv --out FORCES.csv [--parts] [--no-view]
+[--frame NAME]`: the rack forces along a trajectory (stewart_sim.open_loop.inverse_forces.run_inverse) and their 3D view
 beside."""
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
+
+from stewart_sim.commands.frame_option import add_frame
 
 
 def add_parser(sub, help_text: str) -> None:
@@ -23,12 +25,14 @@ def add_parser(sub, help_text: str) -> None:
     p.add_argument("--no-view", action="store_true",
                    help="do not write the 3D view (by default FORCES.html beside FORCES.csv: "
                         "stewart-sim view)")
+    add_frame(p, "TRAJ.csv's poses, rates and accelerations are given in")
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> None:
     """Write the forces (and their view) or neither; print what was written."""
     from stewart_fmu.errors import StewartError
+    from stewart_fmu.frames import chosen_frame
     from stewart_sim.open_loop.inverse_forces import run_inverse
     from stewart_sim.scene.load import load
     from stewart_sim.shell.outputs import file_set
@@ -36,6 +40,7 @@ def run(args: argparse.Namespace) -> None:
 
     scene = load(args.scene)
     model = scene.model
+    frame = chosen_frame(model, args.frame)
     out = Path(args.out)
     view = None if args.no_view else out.with_suffix(".html")
     if view == out:
@@ -45,9 +50,11 @@ def run(args: argparse.Namespace) -> None:
     try:   # the forces and their view: both files or neither (Ctrl-C: neither)
         with file_set(out, *([view] if view else [])) as staged:
             n, _ = run_inverse(model, Path(args.trajectory), staged[0], args.parts, progress,
-                               view=staged[1] if view else None, controller=scene.controller)
+                               view=staged[1] if view else None, controller=scene.controller,
+                               frame=frame)
     finally:
         progress.close()
-    print(f"wrote {args.out}: {n} samples" + (" with the breakdown by part" if args.parts else ""))
+    print(f"wrote {args.out}: {n} samples" + (" with the breakdown by part" if args.parts else "")
+          + f" (trajectory read in the {frame} frame)")
     if view is not None:
         print(f"wrote {view}")

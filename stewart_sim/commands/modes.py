@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import argparse
 
+from stewart_sim.commands.frame_option import add_frame
+
 
 def add_parser(sub, help_text: str) -> None:
     """Register `modes` on the command line's subparsers."""
@@ -28,9 +30,7 @@ def add_parser(sub, help_text: str) -> None:
                    "(start:stop:count per pose component, the others at --pose): DIR/map.csv with the "
                    "lowest frequency and the weakest translational stiffness and its direction, "
                    "and their slices through the first two axes as PNG")
-    p.add_argument("--frame", metavar="NAME", default="platform",
-                   help="the frame --pose and --map's grid are given in: platform, pivot, tool, "
-                        "user (the scene's [frames]; default platform, the contract's pose)")
+    add_frame(p, "--pose and --map's grid are given in")
     p.add_argument("--no-view", action="store_true",
                    help="do not write the 3D view (by default DIR/view.html: each mode shape "
                         "animated, one cycle per second, its frequency in the title)")
@@ -49,15 +49,15 @@ def run(args: argparse.Namespace) -> None:
     model = scene.model
     if args.payload is not None:
         model = study.with_payload(model, study.payload_from(args.payload, model))
-    from stewart_fmu.frames import frame_change, from_platform, to_platform
+    from stewart_fmu.frames import chosen_frame, from_platform, to_platform
 
-    frame_change(model, args.frame)     # an unknown frame name: one line, exit 2
-    given = from_platform(model, model.home, args.frame) if args.pose is None \
+    frame = chosen_frame(model, args.frame)     # an unknown frame name: one line, exit 2
+    given = from_platform(model, model.home, frame) if args.pose is None \
         else study.parse_numbers(args.pose, 6, "--pose")
-    q = to_platform(model, np.asarray(given, dtype=float), args.frame)
+    q = to_platform(model, np.asarray(given, dtype=float), frame)
     pivot = study.parse_numbers(args.pivot, 3, "--pivot")
     grid = study.parse_grid(args.map, np.asarray(given, dtype=float)) if args.map else None
     result = study.compute(model, q, pivot, args.modes)
-    mapped = study.compute_map(model, grid, pivot, args.frame) if grid is not None else None
+    mapped = study.compute_map(model, grid, pivot, frame) if grid is not None else None
     report.write(args.out, result, mapped, grid, view=not args.no_view)
     print(report.summary(result))

@@ -1,6 +1,6 @@
 """`stewart-sim run SCENE [--fmu PLANT.fmu | --link serial|udp [--mode lockstep|realtime]
 [--truth TRUE.toml] [--trajectory T.csv] [--record RUN.csv]] --out DIR [--duration S]
-[--feedforward F] [--format csv|parquet] [--no-view]`: the closed loop
+[--feedforward F] [--format csv|parquet] [--no-view] [--frame NAME]`: the closed loop
 (stewart_sim.closed_loop.run_files, or stewart_sim.closed_loop.over_link over the link) into DIR,
 all or nothing; then the recording RUN.csv."""
 from __future__ import annotations
@@ -9,6 +9,7 @@ import argparse
 from pathlib import Path
 
 from stewart_sim.commands.constants import literals
+from stewart_sim.commands.frame_option import add_frame
 from stewart_sim.shell.argtypes import positive_seconds
 
 
@@ -59,6 +60,8 @@ def add_parser(sub, help_text: str) -> None:
                         "(A), one row per controller period (the input of identify)")
     p.add_argument("--no-view", action="store_true",
                    help="do not write the 3D view (by default DIR/view.html)")
+    add_frame(p, "--trajectory T.csv is given in and run.csv's poses (x..thz, x_ref..thz_ref) "
+                 "are written in")
     p.set_defaults(run=run)
 
 
@@ -76,7 +79,10 @@ def run(args: argparse.Namespace) -> None:
     from stewart_sim.shell.run_length import check_samples
     from stewart_sim.view.files import VIEW_FILE
 
+    from stewart_fmu.frames import chosen_frame
+
     model, config = scene.model, scene.require_controller()
+    frame = chosen_frame(model, args.frame)
     if args.feedforward is not None:
         config = replace(config, feedforward=args.feedforward)
     if args.link is not None and args.fmu:
@@ -123,7 +129,8 @@ def run(args: argparse.Namespace) -> None:
             check_truth(model, machine.model)
         latency_ticks(machine.sensors, config.rate, machine.model.source)
         truth = Path(args.truth) if args.truth is not None else None
-        traj = link_trajectory(model, config, args.trajectory) if args.trajectory else None
+        traj = link_trajectory(model, config, args.trajectory, frame) if args.trajectory \
+            else None
         with result_set(out, ANY_RUN_FILES) as stage:
             run, _ = run_link_files(model, config, args.duration, stage, args.link, args.mode,
                                     view=not args.no_view, traj=traj, truth=truth,
@@ -138,8 +145,10 @@ def run(args: argparse.Namespace) -> None:
         with result_set(out, ANY_RUN_FILES) as stage:
             run_closed_loop_files(model, config, args.duration, stage,
                                   Path(args.fmu) if args.fmu else None, args.format,
-                                  not args.no_view, options=scene.solver)
+                                  not args.no_view, options=scene.solver, frame=frame)
     print((out / "summary.md").read_text(encoding="utf-8"), end="")
+    print(f"poses in the {frame} frame" + (" (--trajectory read in it; run.csv over the link "
+                                           "holds leg lengths only)" if args.link else ""))
     for name in names:
         print(f"wrote {out / name}")
     if args.record is not None:

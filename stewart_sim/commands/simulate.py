@@ -1,11 +1,12 @@
-"""`stewart-sim simulate SCENE --forces F.csv --out DIR [--integrator M]`: open-loop forward
-dynamics from rack forces (stewart_sim.open_loop.forward)."""
+"""`stewart-sim simulate SCENE --forces F.csv --out DIR [--integrator M] [--frame NAME]`:
+open-loop forward dynamics from rack forces (stewart_sim.open_loop.forward)."""
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
 
 from stewart_sim.commands.constants import literals
+from stewart_sim.commands.frame_option import add_frame
 
 
 def add_parser(sub, help_text: str) -> None:
@@ -25,20 +26,25 @@ def add_parser(sub, help_text: str) -> None:
     p.add_argument("--integrator", choices=compiled + scipy, default=None,
                    help="plant integrator (default: the scene's [solver] method, else "
                         "stability.default_options: rk4 with a stiffness-aware max step)")
+    add_frame(p, "motion.csv's poses and rates (and motion.png's) are written in")
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> None:
     """Run `simulate`; StewartError subclasses for bad input or a refused step."""
+    from stewart_fmu.frames import chosen_frame, table_from_platform
     from stewart_sim.open_loop.forward import FILES, read_forces, simulate, write_motion
     from stewart_sim.scene.load import load
 
     scene = load(args.scene)
     model = scene.model
+    frame = chosen_frame(model, args.frame)
     t, sigma = read_forces(Path(args.forces))
     table = simulate(model, t, sigma, args.integrator, options=scene.solver)
     out = Path(args.out)
-    write_motion(model, table, out, f"{model.name}: open loop from {Path(args.forces).name}")
-    print(f"simulated {t[-1] - t[0]:g} s ({t.size} samples) open loop")
+    write_motion(model, table_from_platform(model, table, frame), out,
+                 f"{model.name}: open loop from {Path(args.forces).name}, {frame} frame")
+    print(f"simulated {t[-1] - t[0]:g} s ({t.size} samples) open loop; poses in the {frame} "
+          "frame")
     for name in FILES:
         print(f"wrote {out / name}")

@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 from stewart_sim.commands.constants import literals
+from stewart_sim.commands.frame_option import add_frame
 from stewart_sim.shell.argtypes import number
 
 _workers = number(int, "an integer", lambda v: 1 <= v <= 1024, "1 to 1024")
@@ -45,12 +46,15 @@ def add_parser(sub, help_text: str) -> None:
                        help="run the catalogue on this Dask distributed scheduler's workers")
     where.add_argument("--workers", type=_workers, metavar="N",
                        help="local worker processes (default: one per core, at most one per drive)")
+    add_frame(p, "the platform trajectories among --motions are given in (a vehicle motion is "
+                 "cued into C's pose)")
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> None:
     """Run the sizing and write its report; StewartError subclasses for bad input."""
     from stewart_fmu.errors import StewartError
+    from stewart_fmu.frames import chosen_frame
     from stewart_sim.scene.load import load
     from stewart_sim.shell.progress import Progress
     from stewart_sim.cueing.resonance import resonance
@@ -64,7 +68,8 @@ def run(args: argparse.Namespace) -> None:
         raise StewartError("--scheduler and --workers run the catalogue sweep: give --catalogue")
     scene = load(args.scene)
     model = scene.model
-    motions = read_motions(scene, args.motions)
+    frame = chosen_frame(model, args.frame)
+    motions = read_motions(scene, args.motions, frame)
     drives = read_catalogue(args.catalogue) if args.catalogue else None   # before any work
     if drives is not None:
         check_budget(drives, motions, args.catalogue)
@@ -87,10 +92,12 @@ def run(args: argparse.Namespace) -> None:
         if r is not None and r.reaches:
             print(r.line(m.name), file=sys.stderr)
     for path in write_size_report(Path(args.out), model, motions, sizing, sweep, ranked,
-                                  args.margin, model.name, first_mode):
+                                  args.margin, model.name, first_mode, frame):
         print(f"wrote {path}")
     peak = max((d.statistics()["force"].peak for d in sizing.demands), key=lambda p: p.magnitude)
     motion = next(d.motion for d in sizing.demands if d.statistics()["force"].peak == peak)
+    if any(m.kind == "platform" for m in motions):
+        print(f"platform trajectories read in the {frame} frame")
     print(f"peak rack force {peak.magnitude:.6g} N (leg {peak.leg}, t = {peak.t:g} s, {motion})")
     if drives is not None:
         good = [r for r in ranked if r.qualifies(args.margin)]

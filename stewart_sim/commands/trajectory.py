@@ -1,12 +1,13 @@
 """`stewart-sim trajectory SCENE (--waypoints W.csv | --move demo|run|quintic) --out T.csv
-[--rate HZ] [--duration S]`: a smooth reference trajectory in the `inverse` format
-(stewart_sim.open_loop.references)."""
+[--rate HZ] [--duration S] [--frame NAME]`: a smooth reference trajectory in the `inverse`
+format (stewart_sim.open_loop.references), in a frame of the scene's [frames]."""
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
 
 from stewart_sim.commands.constants import literals
+from stewart_sim.commands.frame_option import add_frame
 from stewart_sim.shell.argtypes import positive_rate, positive_seconds
 
 
@@ -34,6 +35,8 @@ def add_parser(sub, help_text: str) -> None:
     p.add_argument("--duration", type=positive_seconds, default=None, metavar="S",
                    help=f"length of the move (default {duration:g} s; not with --waypoints, "
                         "whose times set it)")
+    add_frame(p, "the waypoints are given in and T.csv is written in (its poses, rates and "
+                 "accelerations)")
     p.set_defaults(run=run)
 
 
@@ -41,24 +44,26 @@ def run(args: argparse.Namespace) -> None:
     """Run `trajectory`; StewartError subclasses for bad input."""
     from controller.moves import DEMO_DURATION, DEMO_RATE
     from stewart_fmu.errors import StewartError
+    from stewart_fmu.frames import chosen_frame
     from stewart_sim.open_loop.references import (checked, move, waypoint_trajectory,
                                                   write_trajectory)
     from stewart_sim.scene.load import load
 
     scene = load(args.scene)
     model = scene.model
+    frame = chosen_frame(model, args.frame)
     if args.waypoints is not None:
         if args.duration is not None:
             raise StewartError("trajectory: --duration applies to --move only (the waypoint "
                                "times set the length)")
-        traj = waypoint_trajectory(Path(args.waypoints), args.rate or DEMO_RATE)
+        traj = waypoint_trajectory(Path(args.waypoints), args.rate or DEMO_RATE, model, frame)
         what = f"spline through {args.waypoints}"
     else:
         traj = move(model, args.move, args.duration or DEMO_DURATION, args.rate, scene.controller)
         what = f"{args.move} move"
     checked(model, traj)
     out = Path(args.out)
-    write_trajectory(traj, out)
+    write_trajectory(traj, out, model, frame)
     rate = (traj.t.size - 1) / (traj.t[-1] - traj.t[0])
     print(f"wrote {out}: {what}, {traj.t.size} samples over {traj.t[-1] - traj.t[0]:g} s "
-          f"at {rate:g} Hz")
+          f"at {rate:g} Hz, {frame} frame")

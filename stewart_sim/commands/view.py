@@ -1,4 +1,5 @@
-"""`stewart-sim view SOURCE [--scene SCENE] [--trajectory TRAJ.csv] -o VIEW.html [--fps FPS]`:
+"""`stewart-sim view SOURCE [--scene SCENE] [--trajectory TRAJ.csv] -o VIEW.html [--fps FPS]
+[--frame NAME]`:
 the 3D view of a run directory or CSV as one self-contained HTML file (stewart_sim.view.html)."""
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ import time
 from pathlib import Path
 
 from stewart_sim.commands.constants import literals
+from stewart_sim.commands.frame_option import add_frame
 from stewart_sim.shell.argtypes import positive_rate
 
 
@@ -32,12 +34,15 @@ def add_parser(sub, help_text: str) -> None:
     p.add_argument("--fps", type=positive_rate, default=fps, metavar="FPS",
                    help=f"frames per second of simulated time (default {fps:g}): the "
                         "samples are decimated to this rate (the page states it)")
+    add_frame(p, "a trajectory CSV's and a run table's poses are given in (a `demo` or "
+                 "`paper` directory holds C's pose)")
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> None:
     """Write the page; print its size and what it shows."""
     from stewart_fmu.errors import StewartError
+    from stewart_fmu.frames import chosen_frame
     from stewart_fmu.io import writing
     from stewart_sim.scene.load import load
     from stewart_sim.view.files import VIEW_FILE, describe
@@ -49,16 +54,18 @@ def run(args: argparse.Namespace) -> None:
         raise StewartError(f"{source}: no such file or directory")
     scene = load(scene_for(source, args.scene))
     model = scene.model
+    frame = chosen_frame(model, args.frame)
     start = time.perf_counter()
     view = view_of(source, model, controller=scene.controller, fps=args.fps,
-                   trajectory=Path(args.trajectory) if args.trajectory else None)
+                   trajectory=Path(args.trajectory) if args.trajectory else None, frame=frame)
     out = Path(args.out)
     if out.is_dir():
         raise StewartError(f"-o {out} is a directory: give the page's file name, e.g. "
                            f"{out / VIEW_FILE}")
     with writing(out):
         size = write_view(out, view)
-    print(f"wrote {out}: {describe(view, size)} in {time.perf_counter() - start:.3g} s")
+    print(f"wrote {out}: {describe(view, size)} in {time.perf_counter() - start:.3g} s; poses "
+          f"read in the {frame} frame")
 
 
 def scene_for(source: Path, scene: str | None) -> Path:

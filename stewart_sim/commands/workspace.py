@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import argparse
 
+from stewart_sim.commands.frame_option import add_frame
+
 
 def add_parser(sub, help_text: str) -> None:
     """Register `workspace` on the command line's subparsers."""
@@ -48,9 +50,7 @@ def add_parser(sub, help_text: str) -> None:
                         "mass, com, inertia) or those keys inline")
     p.add_argument("--out", metavar="FILE", help="V.csv of --check (required there); the "
                    "ranges as CSV with --ranges")
-    p.add_argument("--frame", metavar="NAME",
-                   help="the frame poses are given in: platform, pivot, tool, user (default: "
-                        "the scene's [frames] default, else platform)")
+    add_frame(p, "poses are given in (POSES.csv, --from, --direction, the maps' grids)")
     p.add_argument("--from", dest="start", metavar="x,y,z,thx,thy,thz",
                    help="--reach: the start pose (default: home, in the frame)")
     p.add_argument("--direction", metavar="dx,dy,dz,dthx,dthy,dthz",
@@ -80,7 +80,7 @@ def run(args: argparse.Namespace) -> None:
     from pathlib import Path
 
     from stewart_fmu.errors import StewartError
-    from stewart_fmu.frames import default_frame, frame_change, from_platform
+    from stewart_fmu.frames import chosen_frame, from_platform
     from stewart_sim.scene.load import load
     from controller.capability import engine
 
@@ -88,8 +88,7 @@ def run(args: argparse.Namespace) -> None:
     if args.load:
         _load(args, scene)
         return
-    frame = args.frame or default_frame(scene.model)
-    frame_change(scene.model, frame)   # an unknown frame name: one line, exit 2
+    frame = chosen_frame(scene.model, args.frame)   # an unknown frame name: one line, exit 2
     eng = engine(scene.model, scene.controller)
     if args.check:
         if not args.out:
@@ -161,7 +160,7 @@ def _load(args: argparse.Namespace, scene) -> None:
     import numpy as np
 
     from stewart_fmu.errors import StewartError
-    from stewart_fmu.frames import default_frame, frame_change
+    from stewart_fmu.frames import chosen_frame
     from stewart_fmu.io import write_csv
     from stewart_sim.shell.outputs import result_set
     from stewart_sim.studies.modes.study import payload_from, with_payload
@@ -178,8 +177,7 @@ def _load(args: argparse.Namespace, scene) -> None:
     model = scene.model
     if args.payload is not None:
         model = with_payload(model, payload_from(args.payload, model))
-    frame = args.frame or default_frame(model)
-    frame_change(model, frame)
+    frame = chosen_frame(model, args.frame)
     eng = engine(model, scene.controller)
     start, m = _start_map(args, model, eng, frame)
     lm = load_map(eng, m, accel)

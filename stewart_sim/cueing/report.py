@@ -26,6 +26,8 @@ import numpy as np
 
 from controller.config import ControllerConfig
 from stewart_fmu import io
+from stewart_fmu.frames import table_from_platform
+from stewart_fmu.model import Model
 from stewart_sim.shell.markdown import md_text
 from stewart_sim.shell.outputs import result_set
 from stewart_sim.view.data import view_data
@@ -40,21 +42,27 @@ RACK = "rack force σ (inverse dynamics of the cue, incl. drive)"
 
 
 def write_cue_report(study: CueStudy, out: Path, title: str,
-                     extra: Callable[[Path], list[str]] | None = None) -> list[Path]:
+                     extra: Callable[[Path], list[str]] | None = None, model: Model | None = None,
+                     frame: str = "platform") -> list[Path]:
     """Every file of the study into `out`, all or nothing; `extra(stage)` may add files (the
-    3D view) and returns their names."""
+    3D view) and returns their names. The trajectories and tracking.csv's poses are written
+    in `frame` of `model`'s [frames] (said in summary.md)."""
     first = study.runs[0]
+
+    def framed(table: np.ndarray) -> np.ndarray:
+        return table if frame == "platform" else table_from_platform(model, table, frame)
+
     with result_set(out) as stage:
         names = ["trajectory.csv", "forces.csv", "perception.csv", "summary.md"]
-        io.write_csv(stage / "trajectory.csv", trajectory_table(first))
+        io.write_csv(stage / "trajectory.csv", framed(trajectory_table(first)))
         for run in study.runs[1:]:
             name = f"trajectory_{run.mode}.csv"
-            io.write_csv(stage / name, trajectory_table(run))
+            io.write_csv(stage / name, framed(trajectory_table(run)))
             names.append(name)
         io.write_csv(stage / "forces.csv", forces_table(first.feasibility))
         io.write_csv(stage / "perception.csv", perception_table(first.perception))
         if study.tracking is not None:
-            io.write_csv(stage / "tracking.csv", study.tracking.table)
+            io.write_csv(stage / "tracking.csv", framed(study.tracking.table))
             names.append("tracking.csv")
         from stewart_sim.shell.plots import save_figure   # matplotlib: only when plotting
         for name, make in FIGURES:
@@ -64,7 +72,7 @@ def write_cue_report(study: CueStudy, out: Path, title: str,
                 names.append(name)
         if extra is not None:
             names += extra(stage)
-        io.write_text(stage / "summary.md", summary_markdown(study, title))
+        io.write_text(stage / "summary.md", summary_markdown(study, title, frame))
     return [out / n for n in names]
 
 
@@ -103,15 +111,17 @@ def perception_table(p: Perception) -> np.ndarray:
 
 # --- summary.md --------------------------------------------------------------------------------
 
-def summary_markdown(study: CueStudy, title: str) -> str:
+def summary_markdown(study: CueStudy, title: str, frame: str = "platform") -> str:
     """Perception error per axis and mode, false-cue time, workspace, limit margins, every
-    violation with its time and leg, the closed loop's tracking if run."""
+    violation with its time and leg, the closed loop's tracking if run; the frame of the
+    written trajectories."""
     m = study.motion
     lines = [f"# {md_text(title)}", "",
              f"Vehicle motion: {m.t.size} samples over {m.t[-1] - m.t[0]:g} s "
              f"({(m.t.size - 1) / (m.t[-1] - m.t[0]):g} Hz). Cue modes: "
              + ", ".join(f"{r.mode} ({r.seconds:.3f} s to compute)" for r in study.runs)
-             + f"; the written trajectory is the {study.runs[0].mode} cue's.", ""]
+             + f"; the written trajectory is the {study.runs[0].mode} cue's, in the {frame} "
+             "frame (the workspace and margins below: C's pose).", ""]
     lines += _solver_lines(study.runs)
     lines += _first_mode_lines(study)
     lines += _perception_section(study.runs)

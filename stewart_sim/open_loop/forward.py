@@ -8,7 +8,7 @@ home pose at the first time. The run goes through stewart_fmu.plant.Plant, so th
 checks apply: a step that leaves the stroke, meets a singularity or goes unstable ends the run
 with its typed error (StepRejected, IntegrationError), and nothing is written. On success DIR
 gets motion.csv (t, the pose x..thz, its rates dx..dthz, leg lengths l1..l6) and motion.png,
-all or nothing.
+all or nothing; with `--frame F` the pose and its rates are F's (stewart_fmu.frames).
 """
 from __future__ import annotations
 

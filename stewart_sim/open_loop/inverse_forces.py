@@ -11,6 +11,7 @@ from controller.config import ControllerConfig
 from stewart_fmu import io
 from stewart_fmu.dynamics import inverse_dynamics, inverse_dynamics_parts, present_parts
 from stewart_fmu.errors import KinematicsError
+from stewart_fmu.frames import motion_to_platform
 from stewart_fmu.io import writing
 from stewart_fmu.kinematics import check_poses
 from stewart_fmu.model import Model
@@ -23,14 +24,18 @@ CHUNK_SAMPLES = 50_000       # samples per block of the pose check and of the dy
 
 def run_inverse(model: Model, trajectory: Path, out: Path, parts: bool, progress: Progress,
                 keep: bool = False, view: Path | None = None,
-                controller: ControllerConfig | None = None) -> tuple[int, np.ndarray | None]:
-    """Read, check every pose, compute and write the forces; the table too if `keep`; then the
-    3D view into `view` (its forces by inverse dynamics at its frames: the file's numbers at
-    those samples; its force scale from the scene's parsed [controller], `controller`). `out`
-    and `view` are the caller's temporaries (cmd_inverse: an outputs.file_set, so the two files
-    appear together or not at all; demo: its result set)."""
+                controller: ControllerConfig | None = None,
+                frame: str = "platform") -> tuple[int, np.ndarray | None]:
+    """Read (a motion in `frame` of the scene's [frames], converted to C's first), check every
+    pose, compute and write the forces; the table too if `keep`; then the 3D view into `view`
+    (its forces by inverse dynamics at its frames: the file's numbers at those samples; its
+    force scale from the scene's parsed [controller], `controller`). `out` and `view` are the
+    caller's temporaries (cmd_inverse: an outputs.file_set, so the two files appear together or
+    not at all; demo: its result set)."""
     t, q, qd, qdd = io.read_trajectory(
         trajectory, progress=lambda rows: progress.update(f"reading {trajectory}", rows))
+    if frame != "platform":
+        q, qd, qdd = motion_to_platform(model, q, qd, qdd, frame)
     cond = check_trajectory(model, t, q, trajectory, progress)
     kept: list[np.ndarray] = []
     chunks = force_chunks(model, (t, q, qd, qdd), cond, parts, trajectory, progress)

@@ -16,7 +16,9 @@ with exact rates and accelerations:
 
 Every sample is checked by inverse kinematics (stroke, singularity: leg_references) before the
 file is written (atomically). The output has the contract's columns (stewart_fmu.io
-TRAJECTORY_COLUMNS) and feeds `stewart-sim inverse` as it is.
+TRAJECTORY_COLUMNS) and feeds `stewart-sim inverse` as it is. With `--frame F` the waypoints
+are F's poses (converted to C's before the spline) and the file holds F's motion
+(stewart_fmu.frames.motion_from_platform), which `inverse --frame F` reads.
 """
 from __future__ import annotations
 
@@ -30,6 +32,7 @@ from controller.trajectory import Trajectory, leg_references, waypoints
 from stewart_fmu import io
 from stewart_fmu.budget import BudgetError
 from stewart_fmu.errors import StewartError
+from stewart_fmu.frames import motion_from_platform, to_platform
 from stewart_fmu.io import POSE, writing
 from stewart_fmu.model import Model
 
@@ -53,9 +56,13 @@ def move(model: Model, name: str, duration: float, rate: float | None = None,
     raise StewartError(f"trajectory: move '{name}' unknown: one of {', '.join(MOVES)}")
 
 
-def waypoint_trajectory(path: Path, rate: float) -> Trajectory:
-    """controller.trajectory.waypoints through the poses of a waypoint CSV."""
+def waypoint_trajectory(path: Path, rate: float, model: Model | None = None,
+                        frame: str = "platform") -> Trajectory:
+    """controller.trajectory.waypoints through the poses of a waypoint CSV, given in `frame`
+    (of `model`'s [frames]; the spline runs through their poses of C)."""
     times, poses = read_waypoints(path)
+    if frame != "platform":
+        poses = to_platform(model, poses, frame)
     try:
         return waypoints(times, poses, rate)
     except BudgetError as exc:     # the samples its times ask for: name the file
@@ -75,7 +82,12 @@ def checked(model: Model, traj: Trajectory) -> Trajectory:
     return traj
 
 
-def write_trajectory(traj: Trajectory, out: Path) -> Path:
-    """The trajectory in the contract's columns, atomically."""
+def write_trajectory(traj: Trajectory, out: Path, model: Model | None = None,
+                     frame: str = "platform") -> Path:
+    """The trajectory (C's motion) in the contract's columns, as `frame`'s motion (of `model`'s
+    [frames]), atomically."""
+    q, qd, qdd = traj.q, traj.qd, traj.qdd
+    if frame != "platform":
+        q, qd, qdd = motion_from_platform(model, q, qd, qdd, frame)
     with writing(out):
-        return io.write_csv(out, io.trajectory_table(traj.t, traj.q, traj.qd, traj.qdd))
+        return io.write_csv(out, io.trajectory_table(traj.t, q, qd, qdd))

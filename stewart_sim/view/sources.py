@@ -21,6 +21,7 @@ from controller.config import ControllerConfig
 from stewart_fmu.budget import CSV_BYTES, SCENE_BYTES, InputFileError, open_input, read_input
 from stewart_fmu.dynamics import inverse_dynamics
 from stewart_fmu.errors import KinematicsError, StewartError
+from stewart_fmu.frames import motion_to_platform, table_to_platform
 from stewart_fmu.io import (FORCE_COLUMNS, POSE, TRAJECTORY_COLUMNS, csv_header, read_samples,
                             read_trajectory)
 from stewart_fmu.kinematics import forward_kinematics
@@ -156,32 +157,46 @@ def _run_columns(path: Path, header) -> tuple[str, ...]:
 
 
 def view_of(path: Path, model: Model, *, controller: ControllerConfig | None,
-            fps: float = DEFAULT_FPS, trajectory: Path | None = None) -> ViewData:
-    """The view of a file or result directory (see the module doc)."""
+            fps: float = DEFAULT_FPS, trajectory: Path | None = None,
+            frame: str = "platform") -> ViewData:
+    """The view of a file or result directory (see the module doc); the poses of a trajectory
+    or run table (file or directory) given in `frame` of the scene's [frames] (a `demo` or
+    `paper` directory holds C's)."""
     if path.is_dir():
-        return _directory_view(path, model, controller, fps)
+        return _directory_view(path, model, controller, fps, frame)
     if not path.exists():
         raise StewartError(f"{path}: no such file or directory")
     header = csv_header(path, "table") if path.suffix != ".parquet" else ()
     if path.suffix == ".parquet" or "time" in header:
-        return run_table_view(model, read_run_table(path), controller=controller, fps=fps,
-                              source=str(path), title=f"{model.name}: closed-loop run")
+        return run_table_view(model, _run_table(model, path, frame), controller=controller,
+                              fps=fps, source=str(path), title=f"{model.name}: closed-loop run")
     if tuple(header[:len(FORCE_COLUMNS)]) == FORCE_COLUMNS:
         if trajectory is None:
             raise StewartError(f"{path} holds forces but no poses: give --trajectory TRAJ.csv, "
                                "the trajectory they were computed from")
-        return _forces_view(model, controller, path, trajectory, fps)
+        return _forces_view(model, controller, path, trajectory, fps, frame)
     if header == TRAJECTORY_COLUMNS:
-        return trajectory_view(model, *read_trajectory(path), controller=controller, fps=fps,
-                               source=str(path), title=f"{model.name}: {path.name}")
+        return trajectory_view(model, *_trajectory(model, path, frame), controller=controller,
+                               fps=fps, source=str(path), title=f"{model.name}: {path.name}")
     raise StewartError(f"{path}: not a trajectory (t,x..ddthz), forces (t,sigma1..6) or run "
                        "table (time, ...) CSV")
 
 
+def _trajectory(model: Model, path: Path, frame: str) -> tuple[np.ndarray, ...]:
+    """t, q, qd, qdd of C of a trajectory file given in `frame`."""
+    t, q, qd, qdd = read_trajectory(path)
+    return (t, *motion_to_platform(model, q, qd, qdd, frame))
+
+
+def _run_table(model: Model, path: Path, frame: str) -> np.ndarray:
+    """A run table whose poses (x..thz, x_ref..thz_ref) are given in `frame`, with C's."""
+    return table_to_platform(model, read_run_table(path), frame)
+
+
 def _forces_view(model: Model, controller: ControllerConfig | None, forces: Path,
-                 trajectory: Path, fps: float) -> ViewData:
+                 trajectory: Path, fps: float, frame: str = "platform") -> ViewData:
     f = read_samples(forces, FORCE_COLUMNS, "forces", prefix=True)
-    t, q, qd, qdd = read_trajectory(trajectory)
+    t, q, qd, qdd = _trajectory(model, trajectory, frame)
     if f.shape[0] != t.size or not np.allclose(f[:, 0], t, rtol=0, atol=1e-9):
         raise StewartError(f"{forces} and {trajectory}: not the same sample times")
     return trajectory_view(model, t, q, qd, qdd, controller=controller, fps=fps,
@@ -190,10 +205,10 @@ def _forces_view(model: Model, controller: ControllerConfig | None, forces: Path
 
 
 def _directory_view(directory: Path, model: Model, controller: ControllerConfig | None,
-                    fps: float) -> ViewData:
+                    fps: float, frame: str = "platform") -> ViewData:
     for name in ("run.csv", "run.parquet"):
         if (directory / name).is_file():
-            return run_table_view(model, read_run_table(directory / name),
+            return run_table_view(model, _run_table(model, directory / name, frame),
                                   controller=controller, fps=fps, source=str(directory / name),
                                   title=f"{model.name}: closed-loop run")
     if (directory / "demo_trajectory.csv").is_file() and (directory / "demo_forces.csv").is_file():

@@ -637,6 +637,24 @@ void stewart_frame_from_platform(const double mov[6], const double fix[6], long 
 void stewart_frame_to_platform(const double mov[6], const double fix[6], long n,
                                const double *F, double *Q);
 
+/* Motions in frames: the poses of stewart_frame_from/to_platform with their rates and
+   accelerations, in the contract's columns (x, y, z and Euler angles; rates and accelerations
+   of those, the angles' being Euler-angle rates). The frame's point moves with
+   v + w x r and a + alpha x r + w x (w x r) (r: the point from C's origin, in N); its angular
+   velocity and acceleration are C's, seen from W; its Euler rates solve E(th) thd = w and
+   E(th) thdd = alpha - Edot thd at its angles. A frame whose angles are all zero passes the
+   angles' rates and accelerations through unchanged. n samples, each array row-major (n, 6);
+   Qdd (Fdd) NULL: accelerations zero in, and none written out (Fdd, Qdd NULL). Returns n, or
+   -(1 + k) for the first sample k whose angles out are at gimbal lock
+   (|cos thy| < STEWART_GIMBAL_LIMIT: their Euler rates are not defined; that sample's and
+   later outputs unspecified; never with a frame that passes the angles through). */
+long stewart_frame_motion_from_platform(const double mov[6], const double fix[6], long n,
+                                        const double *Q, const double *Qd, const double *Qdd,
+                                        double *F, double *Fd, double *Fdd);
+long stewart_frame_motion_to_platform(const double mov[6], const double fix[6], long n,
+                                      const double *F, const double *Fd, const double *Fdd,
+                                      double *Q, double *Qd, double *Qdd);
+
 #ifdef __cplusplus
 }
 #endif

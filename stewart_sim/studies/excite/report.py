@@ -18,6 +18,7 @@ from matplotlib.figure import Figure
 
 from stewart_fmu import io
 from stewart_fmu.errors import StewartError
+from stewart_fmu.frames import table_from_platform
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.model import Model
 from stewart_sim.shell.markdown import md_code, md_text
@@ -39,13 +40,16 @@ def side_paths(out: str | Path) -> tuple[Path, Path, Path]:
     return out, out.with_suffix(".md"), out.with_suffix(".png")
 
 
-def write_excitation(model: Model, e: Excitation, scene: str, out: str | Path) -> list[Path]:
-    """T.csv, its report and its figure, all or nothing; returns their paths."""
+def write_excitation(model: Model, e: Excitation, scene: str, out: str | Path,
+                     frame: str = "platform") -> list[Path]:
+    """T.csv (its motion in `frame` of the scene's [frames]), its report and its figure, all or
+    nothing; returns their paths."""
     paths = side_paths(out)
     traj = e.trajectory
+    table = io.trajectory_table(traj.t, traj.q, traj.qd, traj.qdd)
     with file_set(*paths) as (csv, md, png):
-        io.write_csv(csv, io.trajectory_table(traj.t, traj.q, traj.qd, traj.qdd))
-        io.write_text(md, report_text(e, scene, paths[0]))
+        io.write_csv(csv, table_from_platform(model, table, frame))
+        io.write_text(md, report_text(e, scene, paths[0], frame))
         save_figure(figure(model, e), png)
     return list(paths)
 
@@ -98,8 +102,9 @@ def summary(e: Excitation) -> list[str]:
     return lines
 
 
-def report_text(e: Excitation, scene: str, out: Path) -> str:
-    """The report (.md): what the trajectory is, its condition number and its margins."""
+def report_text(e: Excitation, scene: str, out: Path, frame: str = "platform") -> str:
+    """The report (.md): what the trajectory is (the frame its file is written in), its
+    condition number and its margins."""
     d, s = e.design, e.design.series
     q0, a, b = s.coefficients(e.shrunk * d.x)
     duration = e.trajectory.t[-1] - e.trajectory.t[0]
@@ -108,7 +113,8 @@ def report_text(e: Excitation, scene: str, out: Path) -> str:
              f"{s.harmonics} harmonics of f_f = {1 / s.period:g} Hz (period {s.period:g} s, "
              f"up to {s.harmonics / s.period:g} Hz), at rest at home at both ends; "
              f"{e.periods} periods = {duration:g} s at {e.rate:g} Hz "
-             f"({e.trajectory.t.size} samples).", "",
+             f"({e.trajectory.t.size} samples). The file holds the motion of the {frame} "
+             "frame (the series and the figure: C's pose).", "",
              "## Condition number", "",
              f"Scaled condition number (columns of unit norm: the units of the parameters do "
              f"not enter it) of the base regressor stacked over every sample and leg: "

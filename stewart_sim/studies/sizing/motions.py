@@ -17,6 +17,7 @@ from typing import Sequence
 import numpy as np
 
 from stewart_fmu.errors import TrajectoryError
+from stewart_fmu.frames import motion_to_platform
 from stewart_fmu.io import TRAJECTORY_COLUMNS, csv_header, read_trajectory
 from stewart_sim.cueing.motion import MOTION_COLUMNS, read_motion
 from stewart_sim.cueing.washout import classical_washout
@@ -60,9 +61,11 @@ def motion_kind(path: Path) -> str:
         f"({','.join(MOTION_COLUMNS)})")
 
 
-def read_motions(scene: Scene, paths: Sequence[str]) -> tuple[Motion, ...]:
-    """Every motion file read (and a vehicle motion cued), in the order given; a file given
-    twice is refused."""
+def read_motions(scene: Scene, paths: Sequence[str], frame: str = "platform"
+                 ) -> tuple[Motion, ...]:
+    """Every motion file read (a platform trajectory given in `frame` of the scene's [frames],
+    converted to C's; a vehicle motion cued), in the order given; a file given twice is
+    refused."""
     seen: set[Path] = set()
     motions = []
     for name in paths:
@@ -71,19 +74,19 @@ def read_motions(scene: Scene, paths: Sequence[str]) -> tuple[Motion, ...]:
         if key in seen:
             raise MotionFileError(f"{name}: given twice")
         seen.add(key)
-        motions.append(read_one(scene, path, name))
+        motions.append(read_one(scene, path, name, frame))
     return tuple(motions)
 
 
-def read_one(scene: Scene, path: Path, name: str) -> Motion:
-    """One motion file as a platform trajectory (a vehicle motion cued by the scene's [cueing]
-    classical washout, as `cue` does)."""
+def read_one(scene: Scene, path: Path, name: str, frame: str = "platform") -> Motion:
+    """One motion file as a platform trajectory (given in `frame`, converted to C's; a vehicle
+    motion cued by the scene's [cueing] classical washout, as `cue` does)."""
     kind = motion_kind(path)
     if kind == "platform":
         t, q, qd, qdd = read_trajectory(path)
         if t.size < 2:      # a peak has a time, an RMS a duration
             raise MotionFileError(f"{path}: need two or more samples, got {t.size}")
-        return Motion(name, kind, t, q, qd, qdd)
+        return Motion(name, kind, t, *motion_to_platform(scene.model, q, qd, qdd, frame))
     vehicle = read_motion(path)
     model = scene.model
     cue = classical_washout(scene.cueing, vehicle, np.asarray(model.home, dtype=float),

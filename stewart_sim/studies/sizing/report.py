@@ -119,9 +119,11 @@ def candidate_motion_rows(ranked: Sequence[CandidateResult]) -> tuple[list[str],
 def write_size_report(out: Path, model: Model, motions: Sequence[Motion], scene: SceneSizing,
                       sweep: CatalogueSweep | None, ranked: Sequence[CandidateResult],
                       margin: float, title: str,
-                      first_mode: Sequence[Resonance | None] = ()) -> list[Path]:
+                      first_mode: Sequence[Resonance | None] = (),
+                      frame: str = "platform") -> list[Path]:
     """Every file of the sizing into `out`, all or nothing; returns their paths. `first_mode`:
-    each motion against the scene's first mode (cueing.resonance; None: no [stiffness])."""
+    each motion against the scene's first mode (cueing.resonance; None: no [stiffness]);
+    `frame`: the one the platform trajectories were given in (said in report.md)."""
     from stewart_sim.shell.plots import save_figure   # matplotlib: only when writing
 
     names = []
@@ -146,7 +148,7 @@ def write_size_report(out: Path, model: Model, motions: Sequence[Motion], scene:
             figure("candidates.png", candidates_figure(ranked, margin, title))
         io.write_text(stage / "report.md",
                       report_markdown(model, motions, scene, sweep, ranked, margin, title, names,
-                                      first_mode))
+                                      first_mode, frame))
         names.insert(0, "report.md")
     return [out / n for n in names]
 
@@ -158,12 +160,12 @@ def _g(v: float, digits: int = 4) -> str:
 def report_markdown(model: Model, motions: Sequence[Motion], scene: SceneSizing,
                     sweep: CatalogueSweep | None, ranked: Sequence[CandidateResult],
                     margin: float, title: str, files: Sequence[str],
-                    first_mode: Sequence[Resonance | None] = ()) -> str:
+                    first_mode: Sequence[Resonance | None] = (), frame: str = "platform") -> str:
     """report.md: the motions, the demand's peaks, the scene's checks, the first mode, the
     ranking."""
     lines = [f"# Actuator sizing: {md_text(title)}", ""]
     lines += ["## Motions", "", "| motion | kind | duration (s) | samples |", "|---|---|---|---|"]
-    kinds = {"platform": "platform trajectory",
+    kinds = {"platform": f"platform trajectory ({frame} frame)",
              "vehicle": "vehicle motion, cued ([cueing] classical washout)"}
     lines += [f"| {md_text(m.name)} | {kinds[m.kind]} | {m.duration:.4g} | {m.t.size} |"
               for m in motions]
