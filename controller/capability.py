@@ -61,11 +61,12 @@ class Margins:
 # of the stroke at each end; the drives' limits and cond(J): at most a fraction of each)
 EXCITE_STROKE = 0.05
 EXCITE_FRACTION = 0.8
-# The emulated device's headroom over the drives' limits (Capability.setpoint_*): planned moves
-# may ask more than a drive delivers (it then saturates): the project's own references for the
-# paper's 0.1 s moves ask the micro-manipulator's legs for 6.5x the no-load speed and 21x the
-# peak force (Kane feed-forward), and the host must be able to send them. The device refuses
-# absurd values, not ambitious ones
+# The emulated device's headroom over the drives' limits (Capability.setpoint_rate,
+# setpoint_force, setpoint_force_rate): planned moves may ask more than a drive delivers (it
+# then saturates): the project's own references for the paper's 0.1 s moves ask the
+# micro-manipulator's legs for 6.5x the no-load speed and 21x the peak force (Kane
+# feed-forward), and the host must be able to send them. The device refuses absurd values,
+# not ambitious ones
 DEVICE_RATE = 10.0        # setpoint rate: this many times the no-load speed
 DEVICE_FORCE = 50.0       # feed-forward force: this many times the peak force
 DEVICE_FORCE_RATE = 10.0  # feed-forward force rate: this many times the drive's fastest

@@ -31,7 +31,7 @@ def on_setpoint(dev: DeviceView, msg: Any) -> list[Any]:
     flags = msg.flags
     hold = bool(flags & ms.STEWART_SETPOINT_FLAG_HOLD)
     why, pose = (None, None) if hold else check_setpoint(
-        msg, flags, dev.bounds, dev.model, dev.state.last_pose, dev.settings.cond_max)
+        msg, flags, dev.capability, dev.model, dev.state.last_pose, dev.settings.cond_max)
     if why is not None:
         dev.counters.setpoints_refused += 1
         return dev.say_once(ms.MAV_SEVERITY_WARNING, f"refused: {why}", key="refused")
