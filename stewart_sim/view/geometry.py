@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from controller.capability import drive_bounds
 from controller.config import ControllerConfig
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.model import Model
@@ -130,12 +131,10 @@ def frames_geometry(model: Model, plate_radius: float, leg_radius: float) -> dic
 
 
 def drive_peak_force(model: Model, controller: ControllerConfig | None) -> float | None:
-    """The peak rack force of the scene's drives (Kt zeta / r x current limit, N), when the
+    """The peak rack force of the scene's drives (Kf I_max, N: controller.capability), when the
     scene has a [drive] and a [controller] (its motor); else None."""
-    if model.drive is None or controller is None:
-        return None
-    motor = controller.motor
-    return float(motor.torque_constant * motor.current_limit * model.drive.force_per_torque)
+    drive = drive_bounds(model, controller)
+    return None if drive is None else float(drive.force)
 
 
 def rotation(q) -> np.ndarray:
