@@ -31,9 +31,12 @@ from stewart_fmu.dynamics import inverse_dynamics
 from stewart_fmu.errors import TrajectoryError
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.model import Model
+from stewart_fmu.reach import LIMITS
 from stewart_fmu.reach_params import COND_LIMIT   # the engine's cond(J) limit, SP_COND_MAX's default
+
 QUANTITIES = ("stroke_min", "stroke_max", "cond", "force", "current", "voltage")
-UNITS = {"stroke_min": "m", "stroke_max": "m", "cond": "1", "force": "N", "current": "A",
+# the engine's units for the limits it shares (stewart_fmu.reach.LIMITS), the motor's for its own
+UNITS = {**{lim.name: lim.unit for lim in LIMITS if lim.name in QUANTITIES}, "current": "A",
          "voltage": "V"}
 
 
