@@ -12,8 +12,8 @@ table), every tick to the servo, the watchdog and fault rules (hil.faults) and t
 transition table (hil.operating_mode: DISARMED, ARMED, TRACKING, HOMING, TRIPPED), the plant and the six
 drive loops (hil.servo, whose tick is the co-simulation master's `controller.axis.servo_step`),
 the setpoint checks (hil.setpoint, against the device's capability: controller.capability),
-the parameter table (hil.params, its ranges hil.input_bounds), the STATUSTEXT rules (hil.statustext, hil.throttle) and signing
-(hil.signing); its counters and per-run state are hil.device_state's. The device starts DISARMED
+the parameter table (hil.params, its ranges hil.input_bounds), the STATUSTEXT rules
+(hil.statustext, hil.throttle) and signing (hil.signing); its counters and per-run state are hil.device_state's. The device starts DISARMED
 at the scene's home pose with the drives holding it. Every text a user reads numbers the legs
 1..6, as the tables and plots do.
 
@@ -21,12 +21,13 @@ Setpoints (LEG_SETPOINT)
 ------------------------
 A setpoint is refused (STATUSTEXT, counted, never applied) when a length, rate or force is not
 finite, a rate, force or force rate is beyond the device's capability (Capability.setpoint_rate,
-setpoint_force, setpoint_force_rate; the text names the leg, the value and the bound), a length is outside [SP_LEN_MIN, SP_LEN_MAX]
-(the stroke less the servo's overshoot room at each end, controller.capability.overshoot_room),
-forward kinematics finds no pose for the lengths (Newton from the last accepted pose), cond(J)
-at that pose exceeds the parameter SP_COND_MAX, or the pose violates a joint cone or a leg or
-obstacle clearance of the scene's [joints] and [clearance] tables (Capability.geometric; the
-text names the limit, the leg or pair, and the margin). A valid setpoint is the event SETPOINT: applied
+setpoint_force, setpoint_force_rate; the text names the leg, the value and the bound), a length
+is outside [SP_LEN_MIN, SP_LEN_MAX] (the stroke less the servo's overshoot room at each end,
+controller.capability.overshoot_room), forward kinematics finds no pose for the lengths (Newton
+from the last accepted pose), cond(J) at that pose exceeds the parameter SP_COND_MAX, or the
+pose violates a joint cone or a leg or obstacle clearance of the scene's [joints] and
+[clearance] tables (Capability.geometric; the text names the limit, the leg or pair, and the
+margin). A valid setpoint is the event SETPOINT: applied
 while armed, ignored and counted while disarmed (hil.operating_mode). Rates are used with
 STEWART_SETPOINT_FLAG_RATE_VALID, forces
 with STEWART_SETPOINT_FLAG_FORCE_VALID (the feed-forward of hil.servo; di/dt from the force rate
