@@ -1,11 +1,12 @@
 """`design`'s cost: a candidate's evaluation in a plain in-process loop (the search's grid and
-the dense check's), and the whole search of a design.toml on a LocalCluster of N workers (as
-`stewart-sim design --workers N`): its wall time, the candidates per second, and the ratio to
-the plain loop over the same number of candidates (what the tasks, NSGA-II and the dense check
-add, and what N workers take off).
+motion samples, and the dense check's), and the whole search of a design.toml on a LocalCluster
+of N workers (as `stewart-sim design --workers N`): the candidates, how many are feasible, the
+front's size, its wall time, the time a candidate, and the ratio to the plain loop over the
+same number of candidates (what the tasks, NSGA-II and the dense check add, and what N workers
+take off). Both shipped examples by default, at their full size.
 
-    .venv/bin/python benchmarks/bench_design.py [DESIGN.toml] [--workers 1,2] [--population N]
-                                                [--generations N]
+    .venv/bin/python benchmarks/bench_design.py [DESIGN.toml ...] [--workers 1,2]
+                                                [--population N] [--generations N]
 
 The cluster's start and close are excluded. The load average is printed before and after.
 """
@@ -19,10 +20,11 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-EXAMPLE = ROOT / "scenes" / "design" / "positioning_hexapod.toml"
+EXAMPLES = [ROOT / "scenes" / "design" / f for f in ("positioning_hexapod.toml",
+                                                     "motion_simulator.toml")]
 
 
-def plain_loop(spec, names, n: int, points: int) -> float:
+def plain_loop(spec, names, n: int, points: int, every: int | None = None) -> float:
     """Seconds a candidate, n random candidates (seed 0) evaluated in this process."""
     from stewart_sim.studies.design.candidate import evaluate
 
@@ -32,13 +34,13 @@ def plain_loop(spec, names, n: int, points: int) -> float:
     X = lo + rng.random((n, len(lo))) * (hi - lo)
     t = time.perf_counter()
     for x in X:
-        evaluate(spec, x, names, points=points)
+        evaluate(spec, x, names, points=points, every=every)
     return (time.perf_counter() - t) / n
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("design", nargs="?", default=str(EXAMPLE))
+    ap.add_argument("design", nargs="*", default=[str(e) for e in EXAMPLES])
     ap.add_argument("--workers", default="1,2")
     ap.add_argument("--population", type=int)
     ap.add_argument("--generations", type=int)
@@ -49,26 +51,39 @@ def main() -> None:
     from stewart_sim.studies.sweep.cluster import dask_client
 
     print(f"load average {os.getloadavg()}")
-    spec = with_search(load(args.design), population=args.population,
+    for design in args.design:
+        bench(design, args, search, requirement_names, load, with_search, dask_client)
+    print(f"load average {os.getloadavg()}")
+
+
+def bench(design, args, search, requirement_names, load, with_search, dask_client) -> None:
+    spec = with_search(load(design), population=args.population,
                        generations=args.generations)
     names = requirement_names(spec)
     ws = spec.workspace
-    search_cost = plain_loop(spec, names, 200, ws.search_points)
-    dense_cost = plain_loop(spec, names, 50, ws.check_points)
-    print(f"a candidate, plain loop: {search_cost * 1e3:.2f} ms ({ws.search_points} points an "
-          f"axis), {dense_cost * 1e3:.2f} ms dense ({ws.check_points})")
+    search_cost = plain_loop(spec, names, 100, ws.search_points)
+    dense_cost = plain_loop(spec, names, 20, ws.check_points, every=1)
+    print(f"\n{Path(design).name}: a candidate, plain loop: {search_cost * 1e3:.2f} ms "
+          f"({ws.search_points} points an axis), {dense_cost * 1e3:.2f} ms dense "
+          f"({ws.check_points}, every motion sample)")
     n = spec.search.population * spec.search.generations
-    print(f"{'workers':>7} {'search s':>9} {'cand/s':>8} {'plain loop s':>13} {'ratio':>6}  chosen")
+    print(f"{'workers':>7} {'candidates':>10} {'feasible':>8} {'front':>5} {'search s':>9} "
+          f"{'ms/cand':>8} {'plain loop s':>13} {'ratio':>6} {'total s':>8}  chosen")
     for w in (int(v) for v in args.workers.split(",")):
         with dask_client(None, w) as client:
+            t = time.perf_counter()
             r = search.run(spec, client, w, progress=lambda line: None)
+            total = time.perf_counter() - t
         plain = n * search_cost
+        feasible = int(np.sum(np.all(r.margins >= 0, axis=1)))
         chosen = "none" if r.chosen is None else \
             f"base radius {r.chosen.values['base_radius'] * 1e3:.1f} mm, least " \
             f"{r.chosen.least.name} {r.chosen.least.relative:+.1%}"
-        print(f"{w:>7} {r.seconds:>9.2f} {n / r.seconds:>8.0f} {plain:>13.2f} "
-              f"{r.seconds / plain:>6.2f}  {chosen}")
-    print(f"load average {os.getloadavg()}")
+        if r.chosen is not None and spec.drive(r.chosen.values) is not None:
+            chosen += f", drive {spec.drive(r.chosen.values).name}"
+        print(f"{w:>7} {len(r.X):>10} {feasible:>8} {len(r.front):>5} {r.seconds:>9.2f} "
+              f"{r.seconds / len(r.X) * 1e3:>8.2f} {plain:>13.2f} {r.seconds / plain:>6.2f} "
+              f"{total:>8.2f}  {chosen}")
 
 
 if __name__ == "__main__":

@@ -5,7 +5,8 @@ serial port (its pseudo-terminal) or UDP 127.0.0.1:PORT with `pymavlink.mavutil`
 (`hil.link.MavutilTransport`), and the client speaks our dialect: it packs
 with a host `MAVLink` (system 255, component 190), receives through the robust
 `hil.framing.Receiver` (which drops unknown ids and bad frames), and offers arm / disarm / home
-(COMMAND_LONG -> COMMAND_ACK), parameter read / set, LEG_SETPOINT and LOCKSTEP.
+(COMMAND_LONG -> COMMAND_ACK), parameter read / set, LEG_SETPOINT, POSE_SETPOINT (a pose in a
+frame of the scene's [frames]: `send_pose`) and LOCKSTEP.
 
 Closed loop over the link
 -------------------------
@@ -62,8 +63,10 @@ from hil.dialect import connection
 from hil.errors import LinkError
 from hil.framing import Receiver, pack
 from hil.link import MavutilTransport
+from hil.pose_setpoint import FRAMES
 from hil.spawn import parse_udp
 from hil.timing import Lateness, gc_frozen, wait_until
+from stewart_fmu.errors import StewartError
 from stewart_fmu.io import named_array
 from stewart_fmu.model import Model
 
@@ -73,6 +76,7 @@ RETRIES = 5          # lockstep resends of one step before giving up
 _FLAGS_RATE = ms.STEWART_SETPOINT_FLAG_RATE_VALID
 _FLAGS_FORCE = ms.STEWART_SETPOINT_FLAG_FORCE_VALID
 _FLAGS_FORCE_RATE = ms.STEWART_SETPOINT_FLAG_FORCE_RATE_VALID
+_FRAME_CODES = {name: code for code, name in FRAMES.items()}   # frame name -> STEWART_FRAME
 
 
 # ---------------------------------------------------------------- connecting
@@ -283,6 +287,25 @@ class Client:
         return ms.MAVLink_leg_setpoint_message(int(round(t * 1e6)), seq & 0xFFFFFFFF,
                                                [float(x) for x in l], [float(x) for x in ldot],
                                                flags, f, fr)
+
+    def pose_setpoint_message(self, seq: int, t: float, pose, frame: str = "platform",
+                              hold: bool = False) -> Any:
+        """POSE_SETPOINT of `pose` (x, y, z, thx, thy, thz; m, rad) in `frame` (platform,
+        pivot, tool or user: the scene's [frames]); HOLD (pose ignored) with `hold`.
+        StewartError naming an unknown frame or a pose that is not six numbers."""
+        code = _FRAME_CODES.get(frame)
+        if code is None:
+            raise StewartError(f"frame {frame!r}: unknown frame (known: {', '.join(_FRAME_CODES)})")
+        p = np.asarray(pose, dtype=float)
+        if p.shape != (6,):
+            raise StewartError(f"pose: six numbers x, y, z, thx, thy, thz, got shape {p.shape}")
+        return ms.MAVLink_pose_setpoint_message(int(round(t * 1e6)), seq & 0xFFFFFFFF,
+                                                *map(float, p), code,
+                                                ms.STEWART_POSE_SETPOINT_FLAG_HOLD if hold else 0)
+
+    def send_pose(self, seq: int, t: float, pose, frame: str = "platform") -> None:
+        """Send POSE_SETPOINT `seq` of `pose` in `frame` at time `t` (s) (pose_setpoint_message)."""
+        self.send(self.pose_setpoint_message(seq, t, pose, frame))
 
     def reference_setpoint(self, ref: "LinkReference", k: int) -> Any:
         """LEG_SETPOINT k of a LinkReference (sequence k, its time, lengths, rates, feedforward)."""

@@ -33,6 +33,12 @@ STEWART_SETPOINT_FLAG_RATE_VALID, forces
 with STEWART_SETPOINT_FLAG_FORCE_VALID (the feed-forward of hil.servo; di/dt from the force rate
 with STEWART_SETPOINT_FLAG_FORCE_RATE_VALID, else 0). HOLD holds the current leg lengths.
 
+POSE_SETPOINT carries a pose in a frame of the scene's [frames] (STEWART_FRAME: platform, pivot,
+tool, user). It is refused when a flag other than HOLD is set, the frame is unknown, a field is
+not finite, or a position coordinate or an angle is past its bound (hil.input_bounds); else it
+becomes the LEG_SETPOINT of the leg lengths of its platform pose (hil.pose_setpoint), checked
+and followed as above (forward kinematics starts at that pose), with no rate and no force.
+
 Watchdog and faults
 -------------------
 While TRACKING, when `watchdog` seconds (device time, i.e. ticks; served in real time, the

@@ -19,6 +19,7 @@ from hil import mavlink_stewart as ms
 from hil import params
 from hil.device_state import DeviceView
 from hil.operating_mode import Event, Mode
+from hil.pose_setpoint import leg_setpoint
 from hil.setpoint import check_setpoint, flagged
 
 Handler = Callable[[DeviceView, Any], list[Any]]
@@ -28,13 +29,33 @@ Command = Callable[[DeviceView, Any], tuple[int, list[Any]]]
 def on_setpoint(dev: DeviceView, msg: Any) -> list[Any]:
     """LEG_SETPOINT: refused (counted, one STATUSTEXT per STATUS_REPEAT), ignored while
     disarmed, else followed (HOLD: the lengths now)."""
+    return follow(dev, msg, dev.state.last_pose)
+
+
+def on_pose_setpoint(dev: DeviceView, msg: Any) -> list[Any]:
+    """POSE_SETPOINT: its own checks (hil.pose_setpoint), then the LEG_SETPOINT of its leg
+    lengths checked and followed as any other (forward kinematics starts at its pose)."""
+    why, leg, pose = leg_setpoint(msg, dev.model)
+    if why is not None:
+        return refuse(dev, why)
+    return follow(dev, leg, dev.state.last_pose if pose is None else pose)
+
+
+def refuse(dev: DeviceView, why: str) -> list[Any]:
+    """A refused setpoint: counted, one STATUSTEXT per STATUS_REPEAT."""
+    dev.counters.setpoints_refused += 1
+    return dev.say_once(ms.MAV_SEVERITY_WARNING, f"refused: {why}", key="refused")
+
+
+def follow(dev: DeviceView, msg: Any, guess: np.ndarray) -> list[Any]:
+    """A LEG_SETPOINT checked (forward kinematics from `guess`): refused, ignored while
+    disarmed, else followed (HOLD: the lengths now)."""
     flags = msg.flags
     hold = bool(flags & ms.STEWART_SETPOINT_FLAG_HOLD)
     why, pose = (None, None) if hold else check_setpoint(
-        msg, flags, dev.capability, dev.model, dev.state.last_pose, dev.settings.cond_max)
+        msg, flags, dev.capability, dev.model, guess, dev.settings.cond_max)
     if why is not None:
-        dev.counters.setpoints_refused += 1
-        return dev.say_once(ms.MAV_SEVERITY_WARNING, f"refused: {why}", key="refused")
+        return refuse(dev, why)
     state = dev.state
     was = state.mode
     why = dev.fire(Event.SETPOINT)
@@ -180,6 +201,7 @@ def for_me(dev: DeviceView, msg: Any) -> bool:
 #: Message id -> its handler: the one dispatch of the device's input.
 HANDLERS: dict[int, Handler] = {
     ms.MAVLINK_MSG_ID_LEG_SETPOINT: on_setpoint,
+    ms.MAVLINK_MSG_ID_POSE_SETPOINT: on_pose_setpoint,
     ms.MAVLINK_MSG_ID_COMMAND_LONG: on_command,
     ms.MAVLINK_MSG_ID_COMMAND_INT: on_command,      # the same commands, the same acks
     ms.MAVLINK_MSG_ID_PARAM_REQUEST_LIST: on_param_request_list,

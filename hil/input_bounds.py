@@ -19,6 +19,8 @@ DRV_V_LIMIT        [0.01, 1] x the motor's voltage_limit       [0.24, 24] V
 DRV_I_LIMIT        [0.01, 1] x the motor's current_limit       [0.02, 2] A
 WDG_TIMEOUT        [0.01, 10] s                                (also the constructor's)
 SP_COND_MAX        (1, 1e4]
+pose position      |x|, |y|, |z| <= pose_position_max (below)  0.351 m (platform frame)
+pose angles        |thx|, |thy|, |thz| <= pi                   pi rad
 SR_* (streams)     [0, min(controller rate, 1000)] Hz          [0, 1000] Hz
 =================  ==========================================  ===========================
 
@@ -31,6 +33,13 @@ SP_LEN_MAX), not a hidden change of dynamics near the stops.
 The setpoint bounds are also reported as read-only parameters (SP_RATE_MAX, SP_FORCE_MAX,
 SP_FRATE_MAX, SP_LEN_MIN, SP_LEN_MAX) so a host can read them with PARAM_REQUEST_LIST.
 Out-of-range values are refused: a STATUSTEXT names the value and the bound.
+
+A POSE_SETPOINT's position is bounded by where the frame's origin can be at all: C's origin is
+within |a_i| + l_i + |p_i| of the base's origin for every leg, so within max |a_i| + leg_max +
+max |p_i|; the moving frame's origin (pivot or tool, on the platform) adds its offset from C's
+origin, and the fixed frame (user, on the base) its offset from N's; no bound (inf) without a
+stroke. Past it no leg length can reach the pose; the bound refuses garbage before any
+arithmetic, the stroke check refuses the rest.
 """
 from __future__ import annotations
 
@@ -90,3 +99,21 @@ def in_range(lo: float, hi: float, unit: str = "", lo_open: bool = False):
 
 def read_only(x: float) -> str | None:
     return "read-only (a bound of the device)"
+
+
+POSE_ANGLE_MAX = math.pi   # rad: a POSE_SETPOINT's angles (every rotation has angles within it)
+
+
+def pose_position_max(model: Any, change: Any) -> float:
+    """m, the largest |coordinate| of a pose's position in a frame whose (mov, fix) of
+    stewart_fmu.frames.frame_change is `change` (None: the platform's own pose; see the module
+    doc): inf when the scene has no stroke."""
+    if model.leg_max is None or not math.isfinite(model.leg_max):
+        return math.inf
+    # math.hypot on lists: a setpoint pays this, and numpy's per-call cost is tens of us
+    reach = (max(math.hypot(*a) for a in model.base_joints.tolist()) + model.leg_max
+             + max(math.hypot(*p) for p in model.platform_joints.tolist()))
+    if change is None:
+        return reach
+    offsets = list(change)
+    return reach + math.hypot(*offsets[:3]) + math.hypot(*offsets[6:9])

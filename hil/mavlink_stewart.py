@@ -384,6 +384,28 @@ enums["STEWART_WATCHDOG_STATE"][2] = EnumEntry("STEWART_WATCHDOG_TRIPPED", """No
 STEWART_WATCHDOG_STATE_ENUM_END = 3
 enums["STEWART_WATCHDOG_STATE"][3] = EnumEntry("STEWART_WATCHDOG_STATE_ENUM_END", """""")
 
+# STEWART_FRAME
+enums["STEWART_FRAME"] = Enum()
+enums["STEWART_FRAME"].bitmask = False
+STEWART_FRAME_PLATFORM = 0
+enums["STEWART_FRAME"][0] = EnumEntry("STEWART_FRAME_PLATFORM", """The contract's pose q: C's origin in N and R = Rz Ry Rx.""")
+STEWART_FRAME_PIVOT = 1
+enums["STEWART_FRAME"][1] = EnumEntry("STEWART_FRAME_PIVOT", """The pivot point's position in N and C's angles (rotations about the pivot).""")
+STEWART_FRAME_TOOL = 2
+enums["STEWART_FRAME"][2] = EnumEntry("STEWART_FRAME_TOOL", """The tool frame's pose in N.""")
+STEWART_FRAME_USER = 3
+enums["STEWART_FRAME"][3] = EnumEntry("STEWART_FRAME_USER", """The tool frame's pose in the user (work) frame.""")
+STEWART_FRAME_ENUM_END = 4
+enums["STEWART_FRAME"][4] = EnumEntry("STEWART_FRAME_ENUM_END", """""")
+
+# STEWART_POSE_SETPOINT_FLAG
+enums["STEWART_POSE_SETPOINT_FLAG"] = Enum()
+enums["STEWART_POSE_SETPOINT_FLAG"].bitmask = True
+STEWART_POSE_SETPOINT_FLAG_HOLD = 2
+enums["STEWART_POSE_SETPOINT_FLAG"][2] = EnumEntry("STEWART_POSE_SETPOINT_FLAG_HOLD", """Hold the current leg lengths; the pose fields are ignored (still keeps the watchdog fed). The same bit as STEWART_SETPOINT_FLAG_HOLD.""")
+STEWART_POSE_SETPOINT_FLAG_ENUM_END = 3
+enums["STEWART_POSE_SETPOINT_FLAG"][3] = EnumEntry("STEWART_POSE_SETPOINT_FLAG_ENUM_END", """""")
+
 # HL_FAILURE_FLAG
 enums["HL_FAILURE_FLAG"] = Enum()
 enums["HL_FAILURE_FLAG"].bitmask = True
@@ -6346,6 +6368,7 @@ MAVLINK_MSG_ID_LEG_SETPOINT = 44000
 MAVLINK_MSG_ID_LEG_STATE = 44001
 MAVLINK_MSG_ID_DRIVE_STATUS = 44002
 MAVLINK_MSG_ID_LOCKSTEP = 44003
+MAVLINK_MSG_ID_POSE_SETPOINT = 44004
 MAVLINK_MSG_ID_SYS_STATUS = 1
 MAVLINK_MSG_ID_SYSTEM_TIME = 2
 MAVLINK_MSG_ID_PING = 4
@@ -6735,6 +6758,64 @@ class MAVLink_lockstep_message(MAVLink_message):
 # Define name on the class for backwards compatibility (it is now msgname).
 # Done with setattr to hide the class variable from mypy.
 setattr(MAVLink_lockstep_message, "name", mavlink_msg_deprecated_name_property())
+
+
+class MAVLink_pose_setpoint_message(MAVLink_message):
+    """
+    Pose setpoint (host to device): the pose of the frame `frame`
+    names. The device converts it to the platform's pose
+    (stewart_fmu.frames.to_platform) and that to leg lengths (inverse
+    kinematics), then checks and follows those lengths exactly as a
+    LEG_SETPOINT's (stroke, cond(J), joint cones and clearances;
+    refused with a STATUSTEXT, counted in
+    DRIVE_STATUS.setpoints_refused). A non-finite pose, a position or
+    angle past its bound, an unknown frame or an unknown flag is
+    refused naming the field. No rate feed-forward: the legs follow
+    the lengths with zero rate reference. Every valid setpoint feeds
+    the watchdog; in lockstep mode its sequence is the step's, as
+    LEG_SETPOINT's.
+    """
+
+    id = MAVLINK_MSG_ID_POSE_SETPOINT
+    msgname = "POSE_SETPOINT"
+    fieldnames = ["time_usec", "sequence", "x", "y", "z", "thx", "thy", "thz", "frame", "flags"]
+    ordered_fieldnames = ["time_usec", "x", "y", "z", "thx", "thy", "thz", "sequence", "frame", "flags"]
+    fieldtypes = ["uint64_t", "uint32_t", "double", "double", "double", "double", "double", "double", "uint8_t", "uint8_t"]
+    fielddisplays_by_name: Dict[str, str] = {"flags": "bitmask"}
+    fieldenums_by_name: Dict[str, str] = {"frame": "STEWART_FRAME", "flags": "STEWART_POSE_SETPOINT_FLAG"}
+    fieldunits_by_name: Dict[str, str] = {"time_usec": "us", "x": "m", "y": "m", "z": "m", "thx": "rad", "thy": "rad", "thz": "rad"}
+    native_format = bytearray(b"<QddddddIBB")
+    orders = [0, 7, 1, 2, 3, 4, 5, 6, 8, 9]
+    lengths = [1, 1, 1, 1, 1, 1, 1, 1, 1, 1]
+    array_lengths = [0, 0, 0, 0, 0, 0, 0, 0, 0, 0]
+    crc_extra = 18
+    unpacker = struct.Struct("<QddddddIBB")
+    instance_field = None
+    instance_offset = -1
+
+    def __init__(self, time_usec: int, sequence: int, x: float, y: float, z: float, thx: float, thy: float, thz: float, frame: int, flags: int):
+        MAVLink_message.__init__(self, MAVLink_pose_setpoint_message.id, MAVLink_pose_setpoint_message.msgname)
+        self._fieldnames = MAVLink_pose_setpoint_message.fieldnames
+        self._instance_field = MAVLink_pose_setpoint_message.instance_field
+        self._instance_offset = MAVLink_pose_setpoint_message.instance_offset
+        self.time_usec = time_usec
+        self.sequence = sequence
+        self.x = x
+        self.y = y
+        self.z = z
+        self.thx = thx
+        self.thy = thy
+        self.thz = thz
+        self.frame = frame
+        self.flags = flags
+
+    def pack(self, mav: "MAVLink", force_mavlink1: bool = False) -> bytes:
+        return self._pack(mav, self.crc_extra, self.unpacker.pack(self.time_usec, self.x, self.y, self.z, self.thx, self.thy, self.thz, self.sequence, self.frame, self.flags), force_mavlink1=force_mavlink1)
+
+
+# Define name on the class for backwards compatibility (it is now msgname).
+# Done with setattr to hide the class variable from mypy.
+setattr(MAVLink_pose_setpoint_message, "name", mavlink_msg_deprecated_name_property())
 
 
 class MAVLink_sys_status_message(MAVLink_message):
@@ -16814,6 +16895,7 @@ mavlink_map: Dict[int, Type[MAVLink_message]] = {
     MAVLINK_MSG_ID_LEG_STATE: MAVLink_leg_state_message,
     MAVLINK_MSG_ID_DRIVE_STATUS: MAVLink_drive_status_message,
     MAVLINK_MSG_ID_LOCKSTEP: MAVLink_lockstep_message,
+    MAVLINK_MSG_ID_POSE_SETPOINT: MAVLink_pose_setpoint_message,
     MAVLINK_MSG_ID_SYS_STATUS: MAVLink_sys_status_message,
     MAVLINK_MSG_ID_SYSTEM_TIME: MAVLink_system_time_message,
     MAVLINK_MSG_ID_PING: MAVLink_ping_message,
@@ -17545,6 +17627,64 @@ class MAVLink(object):
 
         """
         self.send(self.lockstep_encode(time_usec, step), force_mavlink1=force_mavlink1)
+
+    def pose_setpoint_encode(self, time_usec: int, sequence: int, x: float, y: float, z: float, thx: float, thy: float, thz: float, frame: int, flags: int) -> MAVLink_pose_setpoint_message:
+        """
+        Pose setpoint (host to device): the pose of the frame `frame` names.
+        The device converts it to the platform's pose
+        (stewart_fmu.frames.to_platform) and that to leg lengths
+        (inverse kinematics), then checks and follows those lengths
+        exactly as a LEG_SETPOINT's (stroke, cond(J), joint cones and
+        clearances; refused with a STATUSTEXT, counted in
+        DRIVE_STATUS.setpoints_refused). A non-finite pose, a position
+        or angle past its bound, an unknown frame or an unknown flag
+        is refused naming the field. No rate feed-forward: the legs
+        follow the lengths with zero rate reference. Every valid
+        setpoint feeds the watchdog; in lockstep mode its sequence is
+        the step's, as LEG_SETPOINT's.
+
+        time_usec                 : Timestamp of the setpoint (host time, or simulated time in lockstep mode). [us] (type:uint64_t)
+        sequence                  : Setpoint sequence number, incremented by one per setpoint sent (LEG_SETPOINT and POSE_SETPOINT share it; wraps at 2^32). (type:uint32_t)
+        x                         : Position x of the frame's origin (double: lockstep runs over the link are bit-identical to in-process runs). [m] (type:double)
+        y                         : Position y. [m] (type:double)
+        z                         : Position z. [m] (type:double)
+        thx                       : Angle about the fixed X axis (R = Rz(thz) Ry(thy) Rx(thx)), within [-pi, pi]. [rad] (type:double)
+        thy                       : Angle about the fixed Y axis, within [-pi, pi]. [rad] (type:double)
+        thz                       : Angle about the fixed Z axis, within [-pi, pi]. [rad] (type:double)
+        frame                     : The frame the pose is given in. (type:uint8_t, values:STEWART_FRAME)
+        flags                     : Setpoint flags. (type:uint8_t, values:STEWART_POSE_SETPOINT_FLAG)
+
+        """
+        return MAVLink_pose_setpoint_message(time_usec, sequence, x, y, z, thx, thy, thz, frame, flags)
+
+    def pose_setpoint_send(self, time_usec: int, sequence: int, x: float, y: float, z: float, thx: float, thy: float, thz: float, frame: int, flags: int, force_mavlink1: bool = False) -> None:
+        """
+        Pose setpoint (host to device): the pose of the frame `frame` names.
+        The device converts it to the platform's pose
+        (stewart_fmu.frames.to_platform) and that to leg lengths
+        (inverse kinematics), then checks and follows those lengths
+        exactly as a LEG_SETPOINT's (stroke, cond(J), joint cones and
+        clearances; refused with a STATUSTEXT, counted in
+        DRIVE_STATUS.setpoints_refused). A non-finite pose, a position
+        or angle past its bound, an unknown frame or an unknown flag
+        is refused naming the field. No rate feed-forward: the legs
+        follow the lengths with zero rate reference. Every valid
+        setpoint feeds the watchdog; in lockstep mode its sequence is
+        the step's, as LEG_SETPOINT's.
+
+        time_usec                 : Timestamp of the setpoint (host time, or simulated time in lockstep mode). [us] (type:uint64_t)
+        sequence                  : Setpoint sequence number, incremented by one per setpoint sent (LEG_SETPOINT and POSE_SETPOINT share it; wraps at 2^32). (type:uint32_t)
+        x                         : Position x of the frame's origin (double: lockstep runs over the link are bit-identical to in-process runs). [m] (type:double)
+        y                         : Position y. [m] (type:double)
+        z                         : Position z. [m] (type:double)
+        thx                       : Angle about the fixed X axis (R = Rz(thz) Ry(thy) Rx(thx)), within [-pi, pi]. [rad] (type:double)
+        thy                       : Angle about the fixed Y axis, within [-pi, pi]. [rad] (type:double)
+        thz                       : Angle about the fixed Z axis, within [-pi, pi]. [rad] (type:double)
+        frame                     : The frame the pose is given in. (type:uint8_t, values:STEWART_FRAME)
+        flags                     : Setpoint flags. (type:uint8_t, values:STEWART_POSE_SETPOINT_FLAG)
+
+        """
+        self.send(self.pose_setpoint_encode(time_usec, sequence, x, y, z, thx, thy, thz, frame, flags), force_mavlink1=force_mavlink1)
 
     def sys_status_encode(self, onboard_control_sensors_present: int, onboard_control_sensors_enabled: int, onboard_control_sensors_health: int, load: int, voltage_battery: int, current_battery: int, battery_remaining: int, drop_rate_comm: int, errors_comm: int, errors_count1: int, errors_count2: int, errors_count3: int, errors_count4: int, onboard_control_sensors_present_extended: int = 0, onboard_control_sensors_enabled_extended: int = 0, onboard_control_sensors_health_extended: int = 0) -> MAVLink_sys_status_message:
         """

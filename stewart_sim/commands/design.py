@@ -12,9 +12,10 @@ NO_DESIGN = 3   # exit status: the search found no design meeting every requirem
 def add_parser(sub, help_text: str) -> None:
     """Register `design` on the command line's subparsers."""
     p = sub.add_parser("design", help=help_text, description=(
-        "Search the geometry (radii, joint pair angles, home height, stroke, leg stiffness) "
-        "that meets a design.toml's requirements (workspace, payload, first resonance, "
-        "stiffness, cond(J), joint cones); the chosen design re-checked densely and written as "
+        "Search the geometry (radii, joint pair angles and heights, home height, stroke, leg "
+        "stiffness, the drive from a catalogue) that meets a design.toml's requirements "
+        "(workspace, payload, first resonance, stiffness, cond(J), joint cones, the motions to "
+        "fly within the drive's limits); the chosen design re-checked densely and written as "
         "DIR/best.toml. Exit 3: no design meets every requirement (DIR/summary.md says which "
         "binds and by how much)."))
     p.add_argument("design", metavar="DESIGN.toml", help="the requirements (docs/guides/design.md)")
@@ -60,6 +61,10 @@ def run(args: argparse.Namespace) -> int:
         print(f"stewart-sim: {report.binding_line(result)} (see {args.out}/summary.md)")
         return NO_DESIGN
     least = result.chosen.least
-    print(f"chosen design re-checked on {result.chosen.poses} poses: least margin "
-          f"{least.name} {least.relative:+.1%}")
+    drive = spec.drive(result.chosen.values)
+    flown = "" if spec.flight is None else \
+        f" and every sample of {len(spec.flight.motions)} motions"
+    print(f"chosen design re-checked on {result.chosen.poses} poses{flown}: least margin "
+          f"{least.name} {least.relative:+.1%}" + ("" if drive is None else
+                                                   f"; drive {drive.name}"))
     return 0

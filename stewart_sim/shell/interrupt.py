@@ -18,6 +18,8 @@ from __future__ import annotations
 import signal
 import sys
 import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from types import FrameType
 
 # the signals that end a command as Ctrl-C does (a shell's `kill`, a closed terminal): the
@@ -78,6 +80,26 @@ def check_interrupted() -> None:
     """Raise KeyboardInterrupt if SIGINT arrived, even if the exception was swallowed."""
     if _interrupted.is_set():
         raise KeyboardInterrupt
+
+
+@contextmanager
+def signals_held() -> Iterator[list]:
+    """SIGINT, SIGTERM and SIGHUP (STOP_SIGNALS) only recorded (not raised) inside: for a step
+    that must not be cut in two (a result set's swap, a cluster's start-up). The list yielded
+    is non-empty if one came, and the command's exit status then names it (note_signal). Off
+    the main thread, where no handler can be set, nothing is held."""
+    held: list = []
+    if threading.current_thread() is not threading.main_thread():
+        yield held
+        return
+    previous = {s: signal.signal(s, lambda n, f: held.append(n)) for s in STOP_SIGNALS}
+    try:
+        yield held
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+        if held:     # the command's exit status names the signal that came
+            note_signal(held[0])
 
 
 def _outermost_import(frame: FrameType | None) -> FrameType | None:

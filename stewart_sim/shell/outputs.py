@@ -36,9 +36,7 @@ from __future__ import annotations
 import os
 import re
 import shutil
-import signal
 import tempfile
-import threading
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Callable, Iterable, Iterator
@@ -46,7 +44,7 @@ from typing import Callable, Iterable, Iterator
 from stewart_fmu.io import (WRITE_ERRNOS, OutputError, check_output, partial_prefix,
                             remove_stale_partials, write_text)
 from stewart_sim.shell import dirswap
-from stewart_sim.shell.interrupt import STOP_SIGNALS, check_interrupted, note_signal
+from stewart_sim.shell.interrupt import check_interrupted, signals_held
 
 MANIFEST = ".stewart-sim-set"   # names of the files of the set in DIR, one a line
 # the trash folder a set swapped file by file left in DIR when killed mid-swap: part of no set
@@ -156,7 +154,7 @@ def _staged(beside: Path, target: Path, kept: str, commit: Callable[[Path], None
             if exc.errno not in WRITE_ERRNOS:
                 raise
             raise OutputError(f"cannot write {target}: {exc.strerror or exc}") from None
-        with _sigint_held() as held:
+        with signals_held() as held:
             try:
                 commit(stage)
             except OSError as exc:
@@ -237,20 +235,3 @@ def _manifest(out: Path) -> set[str]:
     return {n for n in text.splitlines() if n and "/" not in n and n not in (".", "..")}
 
 
-@contextmanager
-def _sigint_held() -> Iterator[list]:
-    """SIGINT, SIGTERM and SIGHUP (STOP_SIGNALS) only recorded (not raised) inside; the list
-    yielded is non-empty if one came (and the command's exit status then names it:
-    interrupt.note_signal)."""
-    held: list = []
-    if threading.current_thread() is not threading.main_thread():
-        yield held
-        return
-    previous = {s: signal.signal(s, lambda n, f: held.append(n)) for s in STOP_SIGNALS}
-    try:
-        yield held
-    finally:
-        for s, handler in previous.items():
-            signal.signal(s, handler)
-        if held:     # the command's exit status names the signal that came
-            note_signal(held[0])

@@ -225,14 +225,17 @@ def test_envelope_rows_are_the_physics(tmp_path):
     assert by[(0.5, 0.15)]["reachable"] < by[(0.5, 0.19)]["reachable"] <= 1.0
 
 
-def test_interrupted_sweep_keeps_its_rows_and_resumes(tmp_path, cluster):
+@pytest.mark.parametrize("group", [False, True], ids=["process", "process-group"])
+def test_interrupted_sweep_keeps_its_rows_and_resumes(tmp_path, cluster, group):
     """Ctrl-C (SIGINT) mid-sweep: exit 130, the finished rows are in the table; the rerun
-    computes only the rest, and the final table is the serial one: nothing lost, nothing twice."""
+    computes only the rest, and the final table is the serial one: nothing lost, nothing twice.
+    Sent to the whole process group, as a terminal does, it reaches the local cluster's workers
+    too: still one line, no worker's traceback (cluster.WORKER_PRELOAD)."""
     grid = grid_file(tmp_path, SLOW)
     out = tmp_path / "out"
     exe = Path(sys.executable).parent / "stewart-sim"
     proc = subprocess.Popen([str(exe), "sweep", str(SCENE), "--grid", str(grid), "--out", str(out),
-                             "--workers", "1", "--no-plots"],
+                             "--workers", "1", "--no-plots"], start_new_session=group,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + WAIT
@@ -240,7 +243,10 @@ def test_interrupted_sweep_keeps_its_rows_and_resumes(tmp_path, cluster):
             assert proc.poll() is None, proc.communicate()
             assert time.monotonic() < deadline, "no rows appeared"
             time.sleep(0.05)
-        proc.send_signal(signal.SIGINT)
+        if group:
+            os.killpg(proc.pid, signal.SIGINT)
+        else:
+            proc.send_signal(signal.SIGINT)
         _, err = proc.communicate(timeout=WAIT)
     finally:
         if proc.poll() is None:
@@ -248,6 +254,7 @@ def test_interrupted_sweep_keeps_its_rows_and_resumes(tmp_path, cluster):
             proc.wait(timeout=WAIT)
     assert proc.returncode == 130, err
     assert err.rstrip().endswith("stewart-sim: error: interrupted")
+    assert "Traceback" not in err, err
     partial = read_table(out / "sweep.csv")["point"]
     assert 12 <= len(partial) < 120 and len(set(partial)) == len(partial)
 

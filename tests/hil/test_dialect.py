@@ -19,7 +19,8 @@ from pymavlink.dialects.v20 import common as pm_common  # noqa: E402
 from hil import dialect  # noqa: E402
 from hil import mavlink_stewart as ms  # noqa: E402
 
-OUR_IDS = {44000: "LEG_SETPOINT", 44001: "LEG_STATE", 44002: "DRIVE_STATUS", 44003: "LOCKSTEP"}
+OUR_IDS = {44000: "LEG_SETPOINT", 44001: "LEG_STATE", 44002: "DRIVE_STATUS", 44003: "LOCKSTEP",
+           44004: "POSE_SETPOINT"}
 
 PINNED_SHA256 = {
     "common.xml": "fbac92d0689c9b1bc03b49ebc5cdf989f3fc23026c3c856f7224e4b9af1b5f53",
@@ -133,6 +134,8 @@ def test_xml_units_and_descriptions():
         "LEG_STATE": {"time_usec": "us", "length": "m", "rate": "m/s", "force": "N"},
         "DRIVE_STATUS": {"time_usec": "us", "voltage": "V", "current": "A"},
         "LOCKSTEP": {"time_usec": "us"},
+        "POSE_SETPOINT": {"time_usec": "us", "x": "m", "y": "m", "z": "m", "thx": "rad",
+                          "thy": "rad", "thz": "rad"},
     }
     for name, units in expected_units.items():
         cls = ms.mavlink_map[getattr(ms, f"MAVLINK_MSG_ID_{name}")]
@@ -210,6 +213,19 @@ def test_leg_setpoint_and_state_roundtrip():
     assert st.step == 0
 
 
+def test_pose_setpoint_roundtrip():
+    """x..thz are doubles: exact, bit for bit (also -0.0, inf, subnormals); frame and flags
+    as sent, also values no enum names (the device refuses those, hil.pose_setpoint)."""
+    for k, vals in enumerate(float_sets(3)):
+        t = (2**64 - 1) if k == 0 else k * 1_000_003
+        sp, buf = roundtrip(ms.MAVLink_pose_setpoint_message(t, 2**32 - 1 - k, *vals, k % 256,
+                                                             255 - k % 256))
+        assert buf[0] == 0xFD
+        assert (sp.time_usec, sp.sequence, sp.frame, sp.flags) == (t, 2**32 - 1 - k, k % 256,
+                                                                   255 - k % 256)
+        assert same_f64([sp.x, sp.y, sp.z, sp.thx, sp.thy, sp.thz], vals)
+
+
 def test_drive_status_and_lockstep_roundtrip():
     for k, vals in enumerate(float_sets(2)):
         cur = [-v for v in vals]
@@ -264,6 +280,8 @@ def device_frames() -> dict[str, bytes]:
         "LEG_STATE": ms.MAVLink_leg_state_message(9, [0.3] * 6, [0.0] * 6, [10.0] * 6).pack(mav),
         "DRIVE_STATUS": ms.MAVLink_drive_status_message(9, [1.0] * 6, [0.1] * 6, 0, 1, 0, 0).pack(mav),
         "LOCKSTEP": ms.MAVLink_lockstep_message(9, 1).pack(mav),
+        "POSE_SETPOINT": ms.MAVLink_pose_setpoint_message(9, 1, 0.0, 0.0, 0.25, 0.0, 0.0, 0.0,
+                                                          ms.STEWART_FRAME_USER, 0).pack(mav),
     }
 
 

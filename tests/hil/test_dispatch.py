@@ -23,7 +23,7 @@ ROOT = Path(__file__).resolve().parents[2]
 SCENE = ROOT / "scenes" / "micro_manipulator.toml"
 
 # What a host may send the device (hil.device's module doc), and the commands it carries out.
-HANDLED = {"LEG_SETPOINT", "COMMAND_LONG", "COMMAND_INT", "PARAM_REQUEST_LIST",
+HANDLED = {"LEG_SETPOINT", "POSE_SETPOINT", "COMMAND_LONG", "COMMAND_INT", "PARAM_REQUEST_LIST",
            "PARAM_REQUEST_READ", "PARAM_SET", "LOCKSTEP"}
 COMMANDS = {"MAV_CMD_COMPONENT_ARM_DISARM", "MAV_CMD_NAV_RETURN_TO_LAUNCH",
             "MAV_CMD_GET_HOME_POSITION", "MAV_CMD_REQUEST_MESSAGE"}

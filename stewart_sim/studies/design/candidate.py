@@ -21,24 +21,14 @@ from stewart_fmu.reach import Engine
 from stewart_fmu.scene import scene_from_dict
 from stewart_fmu.stiffness import modes_map, stiffness
 
+from .flight import flight_margins, flight_names
 from .layout import scene_dict
+from .margin import FAILED, UNITS, Margin
 from .spec import POSE, DesignSpec, Workspace
 
 GEOMETRIC = ("stroke_min", "stroke_max", "base_cone", "platform_cone", "leg_clearance",
              "obstacle", "cond")
-UNITS = {"stroke_min": "m", "stroke_max": "m", "base_cone": "rad", "platform_cone": "rad",
-         "leg_clearance": "m", "obstacle": "m", "cond": "1", "first_resonance": "Hz"}
 STIFF_UNITS = ("N/m", "N/m", "N/m", "N m/rad", "N m/rad", "N m/rad")
-FAILED = -10.0   # the relative margin of a requirement a candidate cannot be evaluated on
-
-
-@dataclass(frozen=True)
-class Margin:
-    name: str
-    absolute: float      # in `unit`; positive: met
-    unit: str
-    relative: float      # absolute / the requirement's scale
-    where: str = ""      # the pose (or leg) that binds
 
 
 @dataclass(frozen=True)
@@ -73,14 +63,21 @@ def requirement_names(spec: DesignSpec) -> tuple[str, ...]:
     if spec.requirements.first_resonance is not None:
         names.append("first_resonance")
     names += [f"stiffness_{a}" for a, k in zip(POSE, spec.requirements.stiffness) if k]
-    return tuple(names)
+    return tuple(names) + flight_names(spec, tuple(present))
+
+
+def candidate_scene(spec: DesignSpec, values: dict[str, float]) -> dict:
+    """A candidate's scene tables: the base scene's with its geometry, payload, cones and
+    catalogue drive in place."""
+    r, drive = spec.requirements, spec.drive(values)
+    return scene_dict(spec.base, values, spec.payload, (r.base_cone, r.platform_cone),
+                      None if drive is None else drive.drive_table)
 
 
 def candidate_model(spec: DesignSpec, values: dict[str, float], check: bool = True):
     """The Model of a candidate (SceneError when its home is outside its stroke or singular;
     check=False: the stroke left out, for a look at the tables only)."""
-    r = spec.requirements
-    d = scene_dict(spec.base, values, spec.payload, (r.base_cone, r.platform_cone))
+    d = candidate_scene(spec, values)
     if not check:
         d["geometry"]["leg_min"] = d["geometry"]["leg_max"] = None
         d["geometry"] = {k: v for k, v in d["geometry"].items() if v is not None}
@@ -115,9 +112,9 @@ def workspace_poses(ws: Workspace, home: np.ndarray, points: int) -> np.ndarray:
 
 
 def evaluate(spec: DesignSpec, x: np.ndarray, names: tuple[str, ...],
-             points: int | None = None) -> Candidate:
+             points: int | None = None, every: int | None = None) -> Candidate:
     """The candidate of the free parameters x checked on every requirement (`points` per axis
-    of the workspace grid: the search's by default)."""
+    of the workspace grid, every `every`-th sample of the motions: the search's by default)."""
     values = spec.values(np.asarray(x, dtype=float))
     points = points or spec.workspace.search_points
     try:
@@ -129,6 +126,9 @@ def evaluate(spec: DesignSpec, x: np.ndarray, names: tuple[str, ...],
     feasible = found.pop("_feasible")
     first_hz, modal = _modal(spec, model, Q[feasible])
     found.update(modal)
+    if spec.flight is not None:
+        found.update(flight_margins(spec, model, candidate_scene(spec, values), values, names,
+                                    every or spec.flight.every))
     return Candidate(values, tuple(found[n] for n in names), first_hz, len(Q))
 
 

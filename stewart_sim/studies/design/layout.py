@@ -15,16 +15,22 @@ from stewart_sim.studies.sweep.joint_layout import joints
 
 
 def scene_dict(base: dict[str, Any], p: dict[str, float], payload: dict | None = None,
-               cones: tuple[float | None, float | None] = (None, None)) -> dict[str, Any]:
-    """The base scene with the candidate's geometry (the parameters `p` of spec.PARAMETERS),
-    leg stiffness, payload and joint cones in place (the base's [joints] axes dropped: they
-    belong to its own legs; the default axes are the legs' directions at home)."""
+               cones: tuple[float | None, float | None] = (None, None),
+               drive: dict[str, float] | None = None) -> dict[str, Any]:
+    """The base scene with the candidate's geometry (the parameters `p` of spec.PARAMETERS:
+    the base joints at base_joint_z in N, 0 when not given, home_height above them), leg
+    stiffness, payload, joint cones and drive (a catalogue drive's [drive] table; None: the
+    base's) in place (the base's [joints] axes dropped: they belong to its own legs; the
+    default axes are the legs' directions at home)."""
     d = copy.deepcopy(base)
     g = d.setdefault("geometry", {})
-    g["base_joints"] = _rounded(joints(p["base_radius"], p["base_half_angle"]))
+    z0 = p.get("base_joint_z", 0.0)
+    g["base_joints"] = _rounded(joints(p["base_radius"], p["base_half_angle"], z0))
     g["platform_joints"] = _rounded(joints(p["platform_radius"], p["platform_half_angle"],
                                            p["platform_joint_z"]))
-    g["home"] = [0.0, 0.0, p["home_height"], 0.0, 0.0, 0.0]
+    g["home"] = [0.0, 0.0, z0 + p["home_height"], 0.0, 0.0, 0.0]
+    if drive is not None:
+        d["drive"] = dict(drive)
     g["leg_min"] = p["leg_min"]
     g["leg_max"] = p["leg_min"] + p["stroke"]
     stiff = d.setdefault("stiffness", {})

@@ -13,9 +13,9 @@ from stewart_fmu.io import write_csv, write_text
 from stewart_fmu.scene import parse_scene_bytes, scene_from_dict
 
 from .candidate import Candidate
-from .layout import scene_dict
+from .candidate import candidate_scene
 from .search import SearchResult, binding, least_violating, objectives
-from .spec import PARAMETERS, DesignSpec
+from .spec import DRIVE, DesignSpec, unit
 
 FILES = ("pareto.csv", "candidates.csv", "best.toml", "front.png", "margins.png",
          "parameters.png", "summary.md")
@@ -26,9 +26,13 @@ def candidates_table(spec: DesignSpec, r: SearchResult, rows: np.ndarray) -> np.
     F = objectives(spec, r.X[rows], r.margins[rows])
     cols = {"candidate": rows.astype(np.int64), "generation": r.generation[rows].astype(np.int64)}
     for k, p in enumerate(spec.free):
-        cols[p.name] = r.X[rows, k]
+        # the drive: its index in the catalogue's cost order, as the candidate used it
+        cols[p.name] = np.floor(r.X[rows, k]).astype(np.int64) if p.name == DRIVE \
+            else r.X[rows, k]
     cols["base_radius_m"] = F[:, 0]
     cols["least_margin"] = -F[:, 1]
+    if F.shape[1] > 2:
+        cols["drive_cost"] = F[:, 2]
     for k, n in enumerate(r.names):
         cols[f"margin_{n}"] = r.margins[rows, k]
     out = np.empty(len(rows), dtype=[(k, v.dtype) for k, v in cols.items()])
@@ -49,9 +53,8 @@ def best_text(spec: DesignSpec, c: Candidate, points: int) -> str:
         doc.add(tomlkit.comment(f"  {m.name:<16} {m.absolute:+.6g} {m.unit:<8} "
                                 f"({m.relative:+.1%})  {m.where}".rstrip()))
     doc.add(tomlkit.comment("Parameters: " + ", ".join(
-        f"{k} = {v:.6g} {PARAMETERS[k][0]}" for k, v in c.values.items())))
-    r = spec.requirements
-    d = scene_dict(spec.base, c.values, spec.payload, (r.base_cone, r.platform_cone))
+        f"{k} = {_value(spec, k, v)} {unit(k)}".rstrip() for k, v in c.values.items())))
+    d = candidate_scene(spec, c.values)
     d["name"] = f"{spec.base.get('name', 'design')}-designed"
     for key, value in d.items():
         doc[key] = value
@@ -141,7 +144,7 @@ def parameters_png(path: Path, spec: DesignSpec, r: SearchResult) -> None:
     if r.chosen_index is not None:
         ax.plot(k, (r.X[r.chosen_index] - lo) / span, "o-", c="tab:red", lw=2, label="chosen")
     ax.plot([], [], "-", c="tab:orange", label=f"front ({len(r.front)})")
-    ax.set_xticks(k, [f"{p.name}\n[{p.low:.3g}, {p.high:.3g}]\n{PARAMETERS[p.name][0]}"
+    ax.set_xticks(k, [f"{p.name}\n[{p.low:.3g}, {p.high:.3g}]\n{unit(p.name)}"
                       for p in free], fontsize=7, rotation=20, ha="right")
     ax.set_ylabel("position in its bounds (0: low, 1: high)")
     ax.set_ylim(-0.05, 1.05)
@@ -166,7 +169,7 @@ def summary_text(spec: DesignSpec, r: SearchResult) -> str:
         lines += [f"| {m.name} | {m.absolute:+.6g} | {m.unit} | {m.relative:+.1%} | {m.where} |"
                   for m in c.margins]
         lines += ["", "| parameter | value | unit |", "|---|---|---|"]
-        lines += [f"| {k} | {v:.6g} | {PARAMETERS[k][0]} |" for k, v in c.values.items()]
+        lines += [f"| {k} | {_value(spec, k, v)} | {unit(k)} |" for k, v in c.values.items()]
         if r.dense_failed:
             lines += ["", f"The dense check rejected front candidates {list(r.dense_failed)}."]
     else:
@@ -190,8 +193,15 @@ def infeasible_lines(spec: DesignSpec, r: SearchResult) -> list[str]:
     out += [f"- {m.name}: {m.absolute:+.6g} {m.unit} ({m.relative:+.1%}) {m.where}".rstrip()
             for m in r.closest.margins if m.relative < 0]
     out += ["", "| parameter | value | unit |", "|---|---|---|"]
-    out += [f"| {k} | {v:.6g} | {PARAMETERS[k][0]} |" for k, v in r.closest.values.items()]
+    out += [f"| {k} | {_value(spec, k, v)} | {unit(k)} |" for k, v in r.closest.values.items()]
     return out
+
+
+def _value(spec: DesignSpec, name: str, value: float) -> str:
+    """A parameter's value as printed: a number, or the catalogue drive's name."""
+    if name == DRIVE:
+        return f"{spec.drive({DRIVE: value}).name!r} (cost {spec.drive({DRIVE: value}).cost:g})"
+    return f"{value:.6g}"
 
 
 def binding_line(r: SearchResult) -> str:

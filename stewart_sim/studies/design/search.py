@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .candidate import Candidate, evaluate, evaluate_many, requirement_names
-from .spec import DesignSpec
+from .spec import DRIVE, DesignSpec
 
 TASKS_PER_WORKER = 2
 MAX_DENSE_TRIES = 8     # front designs re-checked densely before giving up
@@ -37,9 +37,18 @@ class SearchResult:
 
 
 def objectives(spec: DesignSpec, X: np.ndarray, margins: np.ndarray) -> np.ndarray:
-    """(N, 2): base radius (m), minus the least relative margin."""
-    radius = np.array([spec.values(x)["base_radius"] for x in X])
-    return np.column_stack([radius, -margins.min(axis=1)])
+    """(N, 2): base radius (m), minus the least relative margin; (N, 3) with the catalogue
+    drive's cost (price, else mass) when the drive is free."""
+    values = [spec.values(x) for x in X]
+    cols = [np.array([v["base_radius"] for v in values]), -margins.min(axis=1)]
+    if drive_free(spec):
+        cols.append(np.array([spec.drive(v).cost for v in values], dtype=float))
+    return np.column_stack(cols)
+
+
+def drive_free(spec: DesignSpec) -> bool:
+    """Whether the search chooses the drive among several catalogue drives."""
+    return any(p.free and p.name == DRIVE for p in spec.parameters)
 
 
 def run(spec: DesignSpec, client, workers: int, progress=print) -> SearchResult:
@@ -49,7 +58,7 @@ def run(spec: DesignSpec, client, workers: int, progress=print) -> SearchResult:
 
     names = requirement_names(spec)
     free = spec.free
-    problem = Problem(n_var=len(free), n_obj=2, n_ieq_constr=len(names),
+    problem = Problem(n_var=len(free), n_obj=3 if drive_free(spec) else 2, n_ieq_constr=len(names),
                       xl=np.array([p.low for p in free]), xu=np.array([p.high for p in free]))
     algorithm = NSGA2(pop_size=spec.search.population)
     algorithm.setup(problem, seed=spec.search.seed, termination=("n_gen", spec.search.generations),
@@ -121,16 +130,20 @@ def _front(spec: DesignSpec, X: np.ndarray, M: np.ndarray) -> np.ndarray:
 
 
 def _choose(spec: DesignSpec, X, M, front, names):
-    """The most compact front design keeping the [search] reserve on every requirement whose
-    dense check passes (every requirement met on the workspace's check_points grid); else the front's
-    most robust that passes; (None, None, rejected) when none does."""
+    """The most compact front design (with a free drive: the cheapest drive's, then the most
+    compact) keeping the [search] reserve on every requirement whose dense check passes (every
+    requirement met on the workspace's check_points grid and on every sample of the motions);
+    else the front's most robust that passes; (None, None, rejected) when none does."""
     reserve = spec.search.reserve
     order = [i for i in front if M[i].min() >= reserve]
+    if drive_free(spec) and order:
+        cost = objectives(spec, X[order], M[order])[:, 2]
+        order = [order[k] for k in np.argsort(cost, kind="stable")]
     order += [i for i in front[np.argsort(-M[front].min(axis=1), kind="stable")]
               if i not in order]
     failed = []
     for i in order[:MAX_DENSE_TRIES]:
-        c = evaluate(spec, X[i], names, points=spec.workspace.check_points)
+        c = evaluate(spec, X[i], names, points=spec.workspace.check_points, every=1)
         if c.feasible:
             return c, int(i), tuple(failed)
         failed.append(int(i))

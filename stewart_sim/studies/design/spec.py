@@ -15,6 +15,10 @@ from stewart_fmu.budget import SCENE_BYTES, InputFileError, read_input
 from stewart_fmu.errors import StewartError
 from stewart_fmu.scene import read_scene_dict
 
+from .flight_spec import Flight, flight
+from .keys import DesignInputError, integer as _int, is_number as _is_number, number as _number
+from .keys import only as _only
+
 POSE = ("x", "y", "z", "thx", "thy", "thz")
 # free parameter -> (unit, lowest allowed bound, highest allowed bound)
 PARAMETERS = {
@@ -28,14 +32,15 @@ PARAMETERS = {
     "leg_min": ("m", 1e-3, 100.0),
     "stroke": ("m", 1e-4, 100.0),
     "leg_stiffness": ("N/m", 1.0, 1e12),
+    "base_joint_z": ("m", -100.0, 100.0),
 }
+OPTIONAL = {"base_joint_z": 0.0}     # a parameter left out of [parameters] is fixed at this
+DRIVE = "drive"     # the catalogue drive's parameter: its index in cost order (floored)
 MAX_POSES = 200_000      # poses of one grid (the dense check's too)
 MAX_POPULATION = 1000
 MAX_GENERATIONS = 1000
 
 
-class DesignInputError(StewartError, ValueError):
-    """design.toml (or a command-line option) is at fault; the message names the key."""
 
 
 @dataclass(frozen=True)
@@ -80,6 +85,7 @@ class Search:
     reserve: float       # least relative margin the chosen design keeps on every requirement
 
 
+
 @dataclass(frozen=True)
 class DesignSpec:
     source: str
@@ -89,6 +95,7 @@ class DesignSpec:
     payload: dict[str, Any] | None
     requirements: Requirements
     search: Search
+    flight: Flight | None = None         # None: no motions to fly
 
     @property
     def free(self) -> tuple[Parameter, ...]:
@@ -104,6 +111,18 @@ class DesignSpec:
             else:
                 out[p.name] = p.low
         return out
+
+    def drive(self, values: dict[str, float]):
+        """The catalogue drive of a candidate's values (None: the base scene's drive)."""
+        if self.flight is None or self.flight.drives is None:
+            return None
+        drives = self.flight.drives
+        return drives[min(max(int(values[DRIVE]), 0), len(drives) - 1)]
+
+
+def unit(name: str) -> str:
+    """A parameter's unit ('' for the drive's index)."""
+    return PARAMETERS[name][0] if name in PARAMETERS else ""
 
 
 def load(path: str | Path) -> DesignSpec:
@@ -121,7 +140,8 @@ def load(path: str | Path) -> DesignSpec:
 
 def parse(data: dict, path: Path) -> DesignSpec:
     src = str(path)
-    _only(data, {"design", "parameters", "workspace", "payload", "requirements", "search"}, "", src)
+    _only(data, {"design", "parameters", "workspace", "payload", "requirements", "search",
+                 "motions", "drives"}, "", src)
     design = _table(data, "design", src, required=True)
     _only(design, {"base_scene"}, "design.", src)
     scene_path = (path.parent / _string(design, "base_scene", "design.", src)).resolve()
@@ -132,11 +152,18 @@ def parse(data: dict, path: Path) -> DesignSpec:
     payload = _table(data, "payload", src) or None
     if payload is not None:
         _check_payload(base, payload, src)
-    return DesignSpec(src, base, _parameters(_table(data, "parameters", src, required=True), src),
+    fl = flight(_table(data, "motions", src), _table(data, "drives", src), path, scene_path)
+    parameters = _parameters(_table(data, "parameters", src, required=True), src)
+    if fl is not None and fl.drives is not None:
+        n = len(fl.drives)   # one drive: fixed; more: free over [0, n), floored to the index
+        parameters += (Parameter(DRIVE, 0.0, float(n) if n > 1 else 0.0),)
+    if not any(p.free for p in parameters):
+        raise DesignInputError(f"{src}: parameters: at least one must be free ([low, high])")
+    return DesignSpec(src, base, parameters,
                       _workspace(_table(data, "workspace", src, required=True), src),
                       payload,
                       _requirements(_table(data, "requirements", src, required=True), src),
-                      _search(_table(data, "search", src), src))
+                      _search(_table(data, "search", src), src), fl)
 
 
 def _check_payload(base: dict, payload: dict, src: str) -> None:
@@ -157,6 +184,9 @@ def _parameters(t: dict, src: str) -> tuple[Parameter, ...]:
     out = []
     for name, (unit, lo, hi) in PARAMETERS.items():
         key = f"parameters.{name}"
+        if name not in t and name in OPTIONAL:
+            out.append(Parameter(name, OPTIONAL[name], OPTIONAL[name]))
+            continue
         if name not in t:
             raise DesignInputError(f"{src}: {key}: required ({unit}: a number, fixed, or "
                                    f"[low, high], free)")
@@ -169,8 +199,6 @@ def _parameters(t: dict, src: str) -> tuple[Parameter, ...]:
             raise DesignInputError(f"{src}: {key}: need {lo:g} <= low <= high <= {hi:g} "
                                    f"({unit}), got {v!r}")
         out.append(Parameter(name, a, b))
-    if not any(p.free for p in out):
-        raise DesignInputError(f"{src}: parameters: at least one must be free ([low, high])")
     return tuple(out)
 
 
@@ -266,15 +294,6 @@ def _table(data: dict, name: str, src: str, required: bool = False) -> dict:
     return data[name]
 
 
-def _only(t: dict, allowed: set, prefix: str, src: str) -> None:
-    for key in t:
-        if key not in allowed:
-            raise DesignInputError(f"{src}: {prefix}{key}: unknown key (known: "
-                                   f"{', '.join(sorted(allowed))})")
-
-
-def _is_number(v) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
 def _string(t: dict, key: str, prefix: str, src: str) -> str:
@@ -283,21 +302,3 @@ def _string(t: dict, key: str, prefix: str, src: str) -> str:
         raise DesignInputError(f"{src}: {prefix}{key}: required, a path (relative to the file)")
     return v
 
-
-def _number(t, key, default, lo, hi, prefix, src, unit):
-    if key not in t:
-        return default
-    v = t[key]
-    if not (_is_number(v) and lo <= v <= hi):
-        raise DesignInputError(f"{src}: {prefix}{key}: need a number in [{lo:g}, {hi:g}] "
-                               f"({unit}), got {v!r}")
-    return float(v)
-
-
-def _int(t, key, default, lo, hi, prefix, src) -> int:
-    if key not in t:
-        return default
-    v = t[key]
-    if not (isinstance(v, int) and not isinstance(v, bool) and lo <= v <= hi):
-        raise DesignInputError(f"{src}: {prefix}{key}: need an integer in [{lo}, {hi}], got {v!r}")
-    return v

@@ -1,7 +1,9 @@
 """A catalogue of drives to choose from (`size --catalogue drives.csv`): one row per drive, a
 motor with its gearbox and pinion, the columns (header row first, any order, SI units):
 
-    name               text, unique, non-empty
+    name               text, unique, non-empty, at most 64 characters, printable; not
+                       starting with = + - @ (a spreadsheet opening a result's CSV would
+                       run it as a formula)
     gear_ratio         1       gearbox reduction zeta (motor turns per pinion turn)
     pinion_radius      m       pitch radius r of the rack-and-pinion
     rotor_inertia      kg m^2  at the motor shaft: rotor plus the gearbox's input side
@@ -43,6 +45,8 @@ LIMITS = {"peak_torque": (1e-6, False, 1e5, "N m"),
           "price": (0.0, False, 1e12, ""),
           "mass": (0.0, True, 1e5, "kg"),
           "gear_ratio": (1e-2, False, 1e5, "")}
+MAX_NAME = 64
+FORMULA_STARTS = "=+-@"   # OWASP's CSV injection list; tab and CR are stripped or not printable
 REQUIRED = ("name", *DRIVE_KEYS, "peak_torque", "continuous_torque", "max_speed")
 COLUMNS = (*REQUIRED, *COST_KEYS)
 
@@ -140,8 +144,9 @@ def _drive(path: Path, line: int, header: list[str], row: list[str]) -> Drive:
         raise CatalogueError(f"{path}: line {line}: {len(row)} cells for {len(header)} columns")
     cells = {c: v.strip() for c, v in zip(header, row)}
     name = cells["name"]
-    if not name:
-        raise CatalogueError(f"{path}: line {line}, column 'name': empty")
+    why = _name_reason(name)
+    if why is not None:
+        raise CatalogueError(f"{path}: line {line}, column 'name': {why}")
     values: dict[str, float | str] = {"name": name}
     for column in header:
         if column != "name":
@@ -151,6 +156,20 @@ def _drive(path: Path, line: int, header: list[str], row: list[str]) -> Drive:
                              f"{values['continuous_torque']!r} N m above peak_torque "
                              f"{values['peak_torque']!r} N m")
     return Drive(**values)
+
+
+def _name_reason(name: str) -> str | None:
+    """Why a drive's name cannot be written into a result (None: it can)."""
+    if not name:
+        return "empty"
+    if len(name) > MAX_NAME:
+        return f"{len(name)} characters, at most {MAX_NAME}"
+    if not name.isprintable():
+        return f"{name!r} holds a control character"
+    if name[0] in FORMULA_STARTS:
+        return (f"{name!r} starts with {name[0]!r}, which a spreadsheet opening the results "
+                "would read as a formula")
+    return None
 
 
 def _number(path: Path, line: int, column: str, text: str) -> float:

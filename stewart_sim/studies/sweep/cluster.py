@@ -9,6 +9,7 @@ import math
 import os
 
 from stewart_fmu.errors import SweepError
+from stewart_sim.shell.interrupt import signals_held
 
 CONNECT_TIMEOUT = 30.0   # s to reach a scheduler or start the local cluster
 
@@ -36,6 +37,9 @@ LOCAL_CLUSTER = {
                                             "MKL_NUM_THREADS": 1, "OPENBLAS_NUM_THREADS": 1},
 }
 
+
+# Only for the workers a command starts itself: a `dask worker` started by hand keeps Ctrl-C.
+WORKER_PRELOAD = {"distributed.worker.preload": ["stewart_sim.studies.sweep.worker_signals"]}
 
 
 def dask_environment() -> dict[str, str]:
@@ -67,11 +71,25 @@ def dask_client(scheduler: str | None, workers: int | None):
     import dask
 
     n = workers or os.cpu_count() or 1
-    with dask.config.set(LOCAL_CLUSTER):
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                               host="127.0.0.1", dashboard_address=":0",
-                               silence_logs=logging.ERROR)
-        return OwnedClient(Client(cluster, timeout=CONNECT_TIMEOUT), cluster)
+    # A stop signal waits for the start-up to end (seconds): cut in two, LocalCluster leaves
+    # workers that Dask's exit handler fails to close, with a traceback. Whole, the cluster is
+    # closed here and the interrupt goes on. A terminal's Ctrl-C also reaches the workers (one
+    # process group), so a start-up that fails after one came is that interrupt.
+    with signals_held() as held, dask.config.set(LOCAL_CLUSTER), dask.config.set(WORKER_PRELOAD):
+        try:
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                   host="127.0.0.1", dashboard_address=":0",
+                                   silence_logs=logging.CRITICAL)
+            owned = OwnedClient(Client(cluster, timeout=CONNECT_TIMEOUT), cluster)
+        except Exception:
+            if not held:
+                raise
+            owned = None
+    if held:
+        if owned is not None:
+            owned.__exit__(None, None, None)
+        raise KeyboardInterrupt
+    return owned
 
 
 class OwnedClient:

@@ -1,0 +1,352 @@
+"""POSE_SETPOINT (hil.pose_setpoint, hil.handlers.on_pose_setpoint): a pose in a frame of the
+scene's [frames] drives the device as the LEG_SETPOINT of its leg lengths does, through the same
+checks. Messages go through the host's own encoding (hil.client.Client -> in-process queue ->
+Device.feed), through pymavlink's mavutil over loopback UDP, and signed as LEG_SETPOINT is."""
+from __future__ import annotations
+
+import struct
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("pymavlink")
+
+from controller.trajectory import quintic  # noqa: E402
+from hil import dialect  # noqa: E402
+from hil import mavlink_stewart as ms  # noqa: E402
+from hil.client import Client  # noqa: E402
+from hil.device import Device  # noqa: E402
+from hil.input_bounds import pose_position_max  # noqa: E402
+from hil.link import queue_pair, udp_server  # noqa: E402
+from hil.pose_setpoint import FRAMES  # noqa: E402
+from hil.serve import serve_in_thread  # noqa: E402
+from stewart_fmu.dynamics import leg_state  # noqa: E402
+from stewart_fmu.errors import StewartError  # noqa: E402
+from stewart_fmu.frames import frame_change, from_platform, to_platform  # noqa: E402
+from stewart_fmu.kinematics import inverse_kinematics  # noqa: E402
+from stewart_fmu.reach_params import FRAME_NAMES  # noqa: E402
+from stewart_fmu.scene import load_scene  # noqa: E402
+from tests.hil.test_device_reach import CROSSED, YAWED  # noqa: E402
+from tests.app.test_workspace import Reference, tomllib_load  # noqa: E402  (numpy, independent)
+
+ROOT = Path(__file__).resolve().parents[2]
+MICRO = ROOT / "scenes" / "micro_manipulator.toml"
+KEY = bytes(range(32))
+# every frame moved and turned off C and N, so no conversion is a plain copy
+FRAMES_TABLE = ("\n[frames]\npivot = [0.004, -0.003, 0.021]\n"
+                "user = [0.013, -0.021, 0.052, 0.02, -0.015, 0.7]\n"
+                "tool = [0.006, 0.008, 0.035, 0.12, -0.07, 0.4]\n")
+GOAL = np.array([0.002, -0.0015, 0.003, 0.03, -0.02, 0.025])   # off home, inside every limit
+MOVE, STEPS = 150, 500              # a 0.15 s quintic at 1 kHz, then its end held 0.35 s
+
+
+def scene(tmp_path: Path, extra: str = ""):
+    path = tmp_path / "micro_frames.toml"
+    path.write_text(MICRO.read_text() + FRAMES_TABLE + extra)
+    return load_scene(path)
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory):
+    return scene(tmp_path_factory.mktemp("pose"))
+
+
+def arm():
+    return ms.MAVLink_command_long_message(1, 1, ms.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1,
+                                           0, 0, 0, 0, 0, 0)
+
+
+def leg_setpoint(k: int, lengths):
+    return ms.MAVLink_leg_setpoint_message(k * 1000, k, [float(v) for v in lengths], [0.0] * 6, 0)
+
+
+def texts(msgs) -> list[str]:
+    """The texts said: the chunks of one STATUSTEXT id (hil.statustext) joined."""
+    said: dict[int, str] = {}
+    for m in msgs:
+        if m.get_type() == "STATUSTEXT":
+            said[m.id] = said.get(m.id, "") + m.text
+    return list(said.values())
+
+
+class Wire:
+    """A device fed in process through the host's own encoding: Client -> queue -> Device.feed."""
+
+    def __init__(self, model, **kw):
+        self.dev = Device(model, **kw)
+        host_end, self.dev_end = queue_pair()
+        self.client = Client(host_end)
+
+    def send(self, *msgs) -> list:
+        self.client.send_together(*msgs)
+        out: list = []
+        while data := self.dev_end.recv(0.0):
+            out += self.dev.feed(data)
+        return out
+
+
+def lockstep(model, setpoints) -> tuple[list, Device]:
+    """Arm, then per step k the setpoint setpoints(k) and LOCKSTEP(k) in one send; the
+    LEG_STATEs and the device."""
+    w = Wire(model, lockstep=True)
+    w.send(arm())
+    states = []
+    for k in range(STEPS):
+        out = w.send(setpoints(w.client, k), ms.MAVLink_lockstep_message(0, k))
+        assert [m.get_type() for m in out][-2:] == ["LEG_STATE", "LOCKSTEP"], texts(out)
+        states += [m for m in out if m.get_type() == "LEG_STATE"]
+    assert w.dev.counters.setpoints_refused == 0 and w.dev.counters.setpoints_accepted == STEPS
+    return states, w.dev
+
+
+def bits(states, name: str) -> list[bytes]:
+    return [struct.pack("<6d", *getattr(s, name)) for s in states]
+
+
+def rotation(th) -> np.ndarray:
+    """Rz Ry Rx in numpy (independent of the core's)."""
+    cx, cy, cz = np.cos(th)
+    sx, sy, sz = np.sin(th)
+    rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+# --------------------------------------------------------------------------- the same lengths
+
+
+def test_the_frame_codes_are_the_frames_names_and_hold_is_leg_setpoints_bit():
+    assert [FRAMES[getattr(ms, f"STEWART_FRAME_{n.upper()}")] for n in FRAME_NAMES] == \
+        list(FRAME_NAMES)
+    assert ms.STEWART_POSE_SETPOINT_FLAG_HOLD == ms.STEWART_SETPOINT_FLAG_HOLD   # the XML says so
+
+
+@pytest.mark.parametrize("frame", ["user", "tool", "pivot", "platform"])
+def test_a_pose_in_a_frame_drives_the_legs_as_its_leg_setpoint(model, frame):
+    """Lockstep, 150 steps of a quintic written in `frame` and 350 at its end: bit for bit the
+    run of the LEG_SETPOINTs of the lengths of its platform poses (the core's leg_state: what a
+    host converting itself sends); within the frames' round trip of the run of the original
+    platform poses; and at the end the frame's pose of the plant, converted in numpy, is the
+    one asked."""
+    traj = quintic(model.home, model.home + GOAL, rate=1000.0, duration=(MOVE - 1) / 1000.0)
+    q = np.vstack([traj.q[:MOVE], np.repeat(traj.q[MOVE - 1:MOVE], STEPS - MOVE, axis=0)])
+    f = from_platform(model, q, frame)
+    posed, dev = lockstep(model, lambda c, k: c.pose_setpoint_message(k, k / 1000.0, f[k], frame))
+    converted = np.array([leg_state(model, p, np.zeros(6))[0]
+                          for p in to_platform(model, f, frame)])
+    legs, dev_legs = lockstep(model, lambda c, k: leg_setpoint(k, converted[k]))
+    for name in ("length", "rate", "force"):
+        assert bits(posed, name) == bits(legs, name), name
+    assert np.array_equal(dev.plant.get_state().y, dev_legs.plant.get_state().y)
+    # the frames' round trip (from_platform then to_platform) moves a length by a few ulp at
+    # most; the closed loop carries that on, no more
+    direct = np.array([leg_state(model, p, np.zeros(6))[0] for p in q])
+    ulp = np.spacing(np.max(direct))
+    assert np.max(np.abs(converted - direct)) <= 4 * ulp
+    original, _ = lockstep(model, lambda c, k: leg_setpoint(k, direct[k]))
+    moved = np.array([s.length for s in posed]) - np.array([s.length for s in original])
+    assert np.max(np.abs(moved)) <= 16 * ulp, np.max(np.abs(moved)) / ulp
+    # numpy: the commanded platform pose written in the frame is the pose sent (to rounding),
+    # and where the plant put the frame is that pose to the servo's tracking error
+    asked = f[-1, :3], rotation(f[-1, 3:])
+    sent = in_frame(model, frame, q[-1])
+    plant = in_frame(model, frame, dev.plant.outputs.q)
+    assert np.max(np.abs(sent[0] - asked[0])) < 1e-15
+    assert np.max(np.abs(sent[1] - asked[1])) < 1e-14
+    off = np.max(np.abs(plant[0] - asked[0])), np.max(np.abs(plant[1] - asked[1]))
+    print(f"\n[pose {frame}] lengths round trip {np.max(np.abs(converted - direct)) / ulp:.0f} "
+          f"ulp, LEG_STATE {np.max(np.abs(moved)) / ulp:.0f} ulp; the frame's position off "
+          f"{off[0]:.3g} m, rotation {off[1]:.3g} after 0.35 s held")
+    assert off[0] < 1e-5 and off[1] < 1e-4
+    assert np.max(np.abs(dev.plant.outputs.q - q[0])) > 1e-3        # and it moved
+
+
+def in_frame(model, frame: str, p) -> tuple[np.ndarray, np.ndarray]:
+    """numpy: (position, rotation) of `frame` at platform pose p, in its fixed frame (N, or
+    the user frame)."""
+    fr = model.frames
+    t = {"platform": np.zeros(6), "pivot": np.r_[fr.pivot, 0, 0, 0]}.get(frame, fr.tool_pose)
+    w = np.asarray(fr.user, dtype=float) if frame == "user" else np.zeros(6)
+    Rw, R = rotation(w[3:]), rotation(p[3:])
+    return Rw.T @ (p[:3] + R @ t[:3] - w[:3]), Rw.T @ R @ rotation(t[3:])
+
+
+# --------------------------------------------------------------------------- the same checks
+
+
+def _refused(model, msg):
+    w = Wire(model)
+    w.send(arm())
+    l0 = w.dev.plant.outputs.lengths.copy()
+    out = w.send(msg)
+    for _ in range(50):
+        w.dev.tick()
+    moved = np.max(np.abs(w.dev.plant.outputs.lengths - l0))
+    return w.dev, texts(out), moved
+
+
+@pytest.mark.parametrize("frame", ["user", "tool", "pivot"])
+@pytest.mark.parametrize("offset, limit, where, cone, radius", [
+    (YAWED, "platform_cone", "leg 1", 0.6, 0.004), (CROSSED, "leg_clearance", "legs ", 1.2, 0.009)])
+def test_a_pose_past_a_cone_or_a_clearance_is_refused_naming_it(tmp_path, frame, offset, limit,
+                                                                where, cone, radius):
+    """The poses of tests/hil/test_device_reach.py, written in a frame."""
+    model = scene(tmp_path, f"\n[joints]\nbase_cone = {cone!r}\nplatform_cone = {cone!r}\n"
+                            f"\n[clearance]\nleg_radius = {radius!r}\n")
+    q = np.asarray(model.home) + offset
+    m = Reference(tomllib_load(MICRO), cone, radius).margins(q[None])
+    # numpy: this limit is the one violated, the other geometric limits hold
+    others = {"base_cone", "platform_cone", "leg_clearance"} - {limit}
+    assert m[limit][0] < 0 and min(m[k][0] for k in others) > 0
+    f = from_platform(model, q, frame)
+    dev, said, moved = _refused(model, Client(None).pose_setpoint_message(1, 0.001, f, frame))
+    assert len(said) == 1 and said[0].startswith(f"refused: {limit} at {where}"), said
+    assert dev.counters.setpoints_refused == 1 == dev.drive_status().setpoints_refused
+    assert dev.counters.setpoints_accepted == 0 and moved < 1e-12
+    # the same pose in the same frame, the scene without [joints] and [clearance]: followed
+    dev, said, moved = _refused(scene(tmp_path), Client(None).pose_setpoint_message(1, 0.001, f,
+                                                                                      frame))
+    assert said == [] and dev.counters.setpoints_accepted == 1 and moved > 1e-3
+
+
+@pytest.mark.parametrize("field", range(6))
+def test_garbage_is_refused_with_its_reason(model, field):
+    name = ("x", "y", "z", "thx", "thy", "thz")[field]
+    reach = pose_position_max(model, frame_change(model, "user"))
+    home = from_platform(model, model.home, "user")
+    c = Client(None)
+
+    def pose(value, frame=ms.STEWART_FRAME_USER, flags=0):
+        p = home.copy()
+        p[field] = value
+        msg = c.pose_setpoint_message(1, 0.001, p, "user")
+        msg.frame, msg.flags = frame, flags     # what no client of ours sends
+        return msg
+
+    big = 2 * reach if field < 3 else 4.0     # past the bound, finite
+    cases = [(pose(np.nan), f"non-finite pose {name}"),
+             (pose(-np.inf), f"non-finite pose {name}"),
+             (pose(1e300), f"pose {name} 1e+300 "),
+             (pose(big), f"pose {name} {big:.4g} "),
+             (pose(0.0, frame=4), "frame 4 unknown"),
+             (pose(0.0, frame=255), "frame 255 unknown"),
+             (pose(0.0, flags=ms.STEWART_SETPOINT_FLAG_RATE_VALID), "flags 0x01: unknown bits"),
+             (pose(0.0, flags=0x80 | ms.STEWART_POSE_SETPOINT_FLAG_HOLD),
+              "flags 0x82: unknown bits 0x80")]
+    for msg, why in cases:
+        dev, said, moved = _refused(model, msg)
+        assert len(said) == 1 and said[0].startswith(f"refused: {why}"), (said, why)
+        assert dev.counters.setpoints_refused == 1 and dev.counters.handler_errors == 0
+        assert moved < 1e-12
+
+
+@pytest.mark.parametrize("frame", ["user", "tool", "pivot"])
+def test_a_pose_past_the_stroke_is_refused_naming_the_leg(model, frame):
+    """A bounded, finite pose whose legs leave the stroke: the LEG_SETPOINT's own check."""
+    q = np.asarray(model.home) + [0.01, 0.0, 0.07, 0.0, 0.0, 0.0]
+    lengths = inverse_kinematics(model, q, with_cond=False).lengths
+    sp_len_max = Device(model).params["SP_LEN_MAX"].get()    # the parameter a host reads
+    over = np.flatnonzero(lengths > sp_len_max)
+    assert len(over) > 0
+    f = from_platform(model, q, frame)
+    dev, said, moved = _refused(model, Client(None).pose_setpoint_message(1, 0.001, f, frame))
+    assert said == [f"refused: leg {over[0] + 1} at {lengths[over[0]]:.4g} m, stroke max "
+                    f"{sp_len_max:.4g}"]
+    assert dev.counters.setpoints_refused == 1 and moved < 1e-12
+
+
+def test_the_position_bound_is_where_a_frame_can_be(model):
+    """No pose of the platform with every leg in the stroke puts a frame's origin past it."""
+    rng = np.random.default_rng(5)
+    q = np.asarray(model.home) + rng.uniform(-1, 1, (20000, 6)) * [0.06, 0.06, 0.06, 0.6, 0.6, 0.6]
+    l = inverse_kinematics(model, q, with_cond=False).lengths
+    q = q[np.all((l >= model.leg_min) & (l <= model.leg_max), axis=1)]
+    assert len(q) > 1000
+    for frame in FRAME_NAMES:
+        f = from_platform(model, q, frame)
+        bound = pose_position_max(model, frame_change(model, frame))
+        assert np.max(np.abs(f[:, :3])) < bound, frame
+
+
+def test_hold_holds_and_ignores_the_pose(model):
+    w = Wire(model)
+    w.send(arm())
+    c = w.client
+    target = from_platform(model, np.asarray(model.home) + GOAL * 0.2, "tool")
+    assert w.send(c.pose_setpoint_message(1, 0.001, target, "tool")) == []
+    for _ in range(100):
+        w.dev.tick()
+    held = w.dev.plant.outputs.lengths.copy()
+    assert w.send(c.pose_setpoint_message(2, 0.101, [np.nan] * 6, "tool", hold=True)) == []
+    assert w.dev.counters.setpoints_accepted == 2 and np.array_equal(w.dev.l_ref, held)
+
+
+def test_the_client_refuses_an_unknown_frame_name(model):
+    with pytest.raises(StewartError, match="frame 'world': unknown frame"):
+        Client(None).pose_setpoint_message(1, 0.0, np.zeros(6), "world")
+
+
+# --------------------------------------------------------------------------- signing, pymavlink
+
+
+def host_mav(key: bytes | None):
+    mav = ms.MAVLink(None, srcSystem=255, srcComponent=190)
+    if key is not None:
+        mav.signing.secret_key = key
+        mav.signing.sign_outgoing = True
+        mav.signing.timestamp = int((time.time() - 1420070400) * 1e5)
+    return mav
+
+
+def test_signing_applies_as_to_leg_setpoints(model):
+    dev = Device(model, signing_key=KEY)
+    good = host_mav(KEY)
+    dev.feed(bytes(arm().pack(good)))
+    assert dev.armed
+    pose = Client(None).pose_setpoint_message(1, 0.001, from_platform(
+        model, np.asarray(model.home) + GOAL * 0.2, "user"), "user")
+    assert dev.feed(bytes(pose.pack(host_mav(None)))) == []
+    assert dev.feed(bytes(pose.pack(host_mav(bytes(32))))) == []
+    assert dev.counters.signing_rejected == 2 and dev.counters.setpoints_accepted == 0
+    assert dev.feed(bytes(pose.pack(good))) == [] and dev.counters.setpoints_accepted == 1
+
+
+def test_a_pymavlink_script_in_lockstep_over_udp(model):
+    """A lab script: pymavlink's mavutil (our dialect attached), pose_setpoint_send in the
+    user frame and LOCKSTEP over loopback UDP; the LEG_STATEs are those of the in-process run
+    bit for bit."""
+    f = from_platform(model, np.asarray(model.home) + GOAL, "user")
+    steps = 20
+
+    def pose(c, k):
+        return c.pose_setpoint_message(k, k / 1000.0, f, "user")
+    w = Wire(model, lockstep=True)
+    w.send(arm())
+    direct = [w.send(pose(w.client, k), ms.MAVLink_lockstep_message(0, k))[-2]
+              for k in range(steps)]
+    dev = Device(model, lockstep=True)
+    server = udp_server("127.0.0.1", 0)
+    thread, stop, result = serve_in_thread(dev, server, realtime=False, poll=0.01)
+    host = dialect.connection(f"udpout:127.0.0.1:{server.address[1]}", source_system=255,
+                              source_component=190)
+    try:
+        host.mav.command_long_send(1, 1, ms.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0)
+        assert host.recv_match(type="COMMAND_ACK", blocking=True, timeout=10) is not None
+        got = []
+        for k in range(steps):
+            host.mav.pose_setpoint_send(k * 1000, k, *map(float, f), ms.STEWART_FRAME_USER, 0)
+            host.mav.lockstep_send(0, k)
+            m = host.recv_match(type="LEG_STATE", blocking=True, timeout=10)
+            assert m is not None and m.step == k
+            got.append(m)
+    finally:
+        stop.set()
+        thread.join(5)
+        host.close()
+        server.close()
+    assert not thread.is_alive() and dev.counters.setpoints_accepted == steps
+    for name in ("length", "rate", "force"):
+        assert bits(got, name) == bits(direct, name)
