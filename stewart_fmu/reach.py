@@ -37,9 +37,10 @@ from .scene_reach import pair_legs
 
 LIMITS = table.LIMITS
 NAMES = tuple(lim.name for lim in LIMITS)
-TOL = 1e-9   # travel: the bracket of the first limit closed to this (m or rad along a unit axis)
-# travel's march: steps of at most the characteristic length / MARCH_STEPS (scaled units: the
-# angles times the characteristic length)
+TOL = 1e-9   # travel: the first limit found to this (m or rad along a unit axis)
+# travel's conservative advancement: steps of at most the characteristic length / MARCH_STEPS
+# (scaled units: the angles times the characteristic length); a cap on the steps, not the
+# resolution (stewart_reach_travel)
 MARCH_STEPS = 16
 
 _ffi, _lib = core.ffi, core.lib
@@ -198,10 +199,13 @@ class Engine:
     def travel(self, q0, direction, frame: str = "platform", reach: float | None = None,
                tol: float = TOL, step: float | None = None) -> Travel:
         """The largest step s with q0 + t direction inside every geometric limit and cond(J)
-        for t in [0, s] (poses in `frame`), to `tol`: marching steps of at most `step`
-        (default: the characteristic length / MARCH_STEPS, in scaled units) up to `reach`
-        (default: a half turn of the angles, twice the longest leg (or 10 characteristic
-        lengths) of the position), then regula falsi on the least margin."""
+        for t in [0, s] (poses in `frame`), the first limit found to `tol` however narrow the
+        region outside it: conservative advancement (stewart_reach_travel: each step no longer
+        than every limit's margin over a bound of how fast it can fall along the line), in
+        steps of at most `step` (default: the characteristic length / MARCH_STEPS, in scaled
+        units) up to `reach` (default: a half turn of the angles, twice the longest leg (or 10
+        characteristic lengths) of the position). A line that runs along a limit, within tol
+        of certifying for 10^6 poses, stops at the last pose certified, named by that limit."""
         q0 = np.ascontiguousarray(q0, dtype=float)
         d = np.ascontiguousarray(direction, dtype=float)
         if q0.shape != (6,) or d.shape != (6,):
@@ -217,7 +221,7 @@ class Engine:
                         math.pi / ang if ang else math.inf)
         if step is None:
             step = lc / MARCH_STEPS / math.hypot(lin, lc * ang)
-        step = max(step, reach * 64.0 / 1e7)   # the march's bound (stewart_reach_travel)
+        step = max(step, reach * 64.0 / 1e7)   # the steps' bound (stewart_reach_travel)
         change = self._frames.get(frame)
         if change is None:
             arr = frame_change(self.model, frame)
@@ -233,7 +237,7 @@ class Engine:
                                "beyond 156250)")
         if limit[0] < 0:
             return Travel(s[0], None, "", reach)
-        return Travel(s[0], NAMES[limit[0]], where_text(limit[0], where[0]), reach, status == 0)
+        return Travel(s[0], NAMES[limit[0]], where_text(limit[0], where[0]), reach, status != 1)
 
 
 AXES = ("x", "y", "z", "thx", "thy", "thz")

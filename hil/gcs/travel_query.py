@@ -1,6 +1,7 @@
 """TRA?: how far the platform can go from where it stands along a direction in X Y Z U V W, by the
 feasibility engine's travel (stewart_fmu.reach.Engine.travel: every geometric limit and cond(J),
-marched and bisected in the C core).
+the first found to 1e-9 however narrow the region outside it, by conservative advancement in
+the C core).
 
 The engine moves a pose linearly in a frame's coordinates (stewart_fmu.frames: a frame M on the
 platform, given in C, seen from a frame F, given in N; positions, and the contract's angles of
@@ -37,10 +38,6 @@ from stewart_fmu.reach import Engine, Travel
 from stewart_fmu.reach_params import FrameParams
 
 _ZERO6 = np.zeros(6)
-# The engine's march steps (mm or deg along the largest component): a region outside a limit
-# narrower than a step can be stepped over (the engine's default step, the characteristic
-# length / 16, crossed a 1.4 deg band of cond(J) turning U about a tool 10 mm above C)
-MARCH_STEP = 0.05
 
 
 def _split(g0: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray]:
@@ -85,5 +82,4 @@ def travel(model, frame: Frame | Enabled, q_now: np.ndarray,
     d = np.zeros(6)
     d[:3] = r_fix.T @ w_r @ direction[:3] / MM_PER_M
     d[axis] = np.radians(direction[axis])
-    step = MARCH_STEP / float(np.max(np.abs(direction)))
-    return Engine(m).travel(f0, d, frame="user", step=step), g0
+    return Engine(m).travel(f0, d, frame="user"), g0

@@ -31,6 +31,13 @@ def add_parser(sub, help_text: str) -> None:
     p.add_argument("--generations", type=int, metavar="N",
                    help="generations, in place of search.generations")
     p.add_argument("--seed", type=int, metavar="N", help="in place of search.seed")
+    p.add_argument("--resume", action="store_true",
+                   help="continue the search DIR/design-checkpoint.npz holds (the generations "
+                        "evaluated before a Ctrl-C, or a shorter run's: --generations may be "
+                        "larger): the same front as one run without a stop")
+    p.add_argument("--no-view", action="store_true",
+                   help="do not write DIR/view.html (the chosen design at home, its "
+                        "constant-orientation workspace and the required poses by margin)")
     p.set_defaults(run=run)
 
 
@@ -50,13 +57,26 @@ def run(args: argparse.Namespace) -> int:
     from stewart_sim.studies.sweep.cluster import dask_client
 
     workers = args.workers or os.cpu_count() or 1
-    with dask_client(args.scheduler, workers) as client:
-        if args.scheduler is not None:
-            workers = max(1, len(client.scheduler_info().get("workers", {})))
-        result = search.run(spec, client, workers)
-    with result_set(args.out, report.FILES) as stage:
+    from stewart_sim.studies.design.checkpoint import open_checkpoint, stopped
+
+    checkpoint = open_checkpoint(args.out, spec, args.resume)
+    try:
+        with dask_client(args.scheduler, workers) as client:
+            if args.scheduler is not None:
+                workers = max(1, len(client.scheduler_info().get("workers", {})))
+            result = search.run(spec, client, workers, checkpoint=checkpoint)
+    except KeyboardInterrupt:
+        raise stopped(args.out, checkpoint) from None
+    from stewart_sim.studies.design.workspace_view import write_design_view
+
+    view = None
+    with result_set(args.out, report.FILES + ("view.html",)) as stage:
         written = report.write(stage, spec, result)
-    print(f"{args.out}: {', '.join(written)}")
+        if not args.no_view:
+            view = write_design_view(stage, spec, result)
+    print(f"{args.out}: {', '.join(written + (['view.html'] if view else []))}")
+    if view:
+        print(f"{args.out}/{view}")
     if result.chosen is None:
         print(f"stewart-sim: {report.binding_line(result)} (see {args.out}/summary.md)")
         return NO_DESIGN

@@ -49,6 +49,11 @@ class ViewData:
     # parts of the frames a person picks from the page's selector, which then plays that part
     # in a loop: (label, start time in s), start times increasing (e.g. the modes' cycles)
     chapters: tuple[tuple[str, float], ...] = ()
+    # a study's own objects, as meshcat commands (meshcat_scene's dicts), drawn once after the
+    # mechanism and left as they are (the design's workspace:
+    # stewart_sim.studies.design.workspace_view)
+    extra: tuple[dict, ...] = ()
+    plate_opacity: float = 1.0   # the platform plate's (below 1: what it covers shows through)
 
     @property
     def frames(self) -> int:

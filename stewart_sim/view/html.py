@@ -47,13 +47,16 @@ def _b64(a: np.ndarray, dtype) -> str:
 
 
 def _page(title: str, subtitle: str, force_label: str, status: str, geometry: ViewGeometry,
-          ghost: bool, force_scale: float | None, source: dict, cues: bool = False) -> str:
+          ghost: bool, force_scale: float | None, source: dict, cues: bool = False,
+          extra: tuple[dict, ...] = (), plate_opacity: float = 1.0) -> str:
     """page.html filled in (one pass, so no inserted text is read as a placeholder); its data:
     the scene's commands, the colour map and the frame source (frames, or the live URL);
-    `cues`: the frames may carry the specific-force arrows (geometry.CUES)."""
-    data = {"geometry": geometry.to_json(), "scene": scene_commands(geometry, ghost, cues),
+    `cues`: the frames may carry the specific-force arrows (geometry.CUES); `extra`: a study's
+    own objects' commands, after the scene's; `plate_opacity`: the platform plate's."""
+    data = {"geometry": geometry.to_json(),
+            "scene": scene_commands(geometry, ghost, cues) + list(extra),
             "ghost": ghost, "lut": colour_table().tolist(), "force_scale": force_scale,
-            "plate_rgb": rgb(PLATE), "live": None, "cues": cues,
+            "plate_rgb": rgb(PLATE), "plate_opacity": plate_opacity, "live": None, "cues": cues,
             "cue_rgb": {name: rgb(CUE_COLOURS[name]) for name in CUES}, **source}
     text = json.dumps(data, separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
     parts = {
@@ -100,7 +103,8 @@ def static_view_html(view: ViewData) -> str:
     status = "drag: orbit, right-drag: pan, wheel: zoom"
     cues = any(getattr(view, name) is not None for name in CUES)
     return _page(view.title, subtitle, view.force_label, status, g, view.q_ref is not None,
-                 scale, {"frames": frames, "meta": meta}, cues)
+                 scale, {"frames": frames, "meta": meta}, cues, view.extra,
+                 view.plate_opacity)
 
 
 def live_view_html(geometry: ViewGeometry, state_url: str = "/state") -> str:

@@ -178,3 +178,24 @@ def _translation(p) -> np.ndarray:
     T = np.eye(4)
     T[:3, 3] = p
     return T
+
+
+def buffer_object(path: str, kind: str, positions: np.ndarray, colours: np.ndarray,
+                  size: float | None = None) -> dict:
+    """meshcat's set_object of three.js Points (`size`: each point's, m) or LineSegments
+    (consecutive pairs of `positions`) at `path`, coloured per vertex: positions (N, 3) m,
+    colours (N, 3) in [0, 1], written as float32 (the page's precision)."""
+    def attribute(a: np.ndarray) -> dict:
+        flat = np.asarray(a, dtype=np.float32).ravel()
+        return {"itemSize": 3, "type": "Float32Array", "normalized": False,
+                "array": [float(v) for v in flat]}
+
+    g = {"uuid": f"{path}#geometry", "type": "BufferGeometry",
+         "data": {"attributes": {"position": attribute(positions), "color": attribute(colours)}}}
+    m = {"uuid": f"{path}#material", "vertexColors": True,
+         **({"type": "PointsMaterial", "size": size, "sizeAttenuation": True}
+            if kind == "Points" else {"type": "LineBasicMaterial", "linewidth": 1})}
+    obj = {"metadata": {"version": 4.5, "type": "Object"}, "geometries": [g], "materials": [m],
+           "object": {"uuid": f"{path}#object", "type": kind, "geometry": g["uuid"],
+                      "material": m["uuid"], "matrix": np.eye(4).flatten().tolist()}}
+    return {"type": "set_object", "path": path, "object": obj}

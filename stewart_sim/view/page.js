@@ -130,8 +130,9 @@
   }
 
   // --- one frame, through the viewer's commands ------------------------------------------
-  const PLATE = [...DATA.plate_rgb, 1];
-  const ALARM = [0.85, 0.12, 0.12, 1];
+  const PLATE_ALPHA = DATA.plate_opacity === undefined ? 1 : DATA.plate_opacity;
+  const PLATE = [...DATA.plate_rgb, PLATE_ALPHA];
+  const ALARM = [0.85, 0.12, 0.12, PLATE_ALPHA];
   const cmd = (c) => viewer.handle_command(c);
   const setT = (path, m) => cmd({type: "set_transform", path: path, matrix: m});
   const setP = (path, name, v) => cmd({type: "set_property", path: path, property: name, value: v});

@@ -822,7 +822,7 @@ def test_tra_in_enabled_coordinate_systems(model, capsys, tmp_path):
     same; along U (about the work's X axis, not a line of the contract's angles) the end is
     where the engine's verdict turns, on the GCS line itself (sampled poses all inside, the
     end's neighbour 1e-6 deg on outside): the first limit, a band of cond(J) 1.4 deg wide at
-    53.7 deg that the engine's default march steps over (hil.gcs.travel_query.MARCH_STEP)."""
+    53.7 deg (which a march of the characteristic length / 16 steps over)."""
     from stewart_fmu.reach import Engine
 
     d, c, s = twin(model)

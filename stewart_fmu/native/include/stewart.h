@@ -605,12 +605,19 @@ long stewart_reach_binding(const double *params, const double *reach, long n, co
 
 /* The largest step s in [0, smax] with the pose q0 + t dir inside every geometric limit (and
    cond(J)) for all t in [0, s]; q0 and dir in a frame (frame: 12 doubles, mov then fix of
-   stewart_frame_to_platform; NULL: the platform's own pose). Steps from 0 of at most hmax
-   (growing from hmax / 64), then regula falsi (Illinois) on the least margin to tol between the
-   last pose inside and the first outside. *limit, *where: what ends it (-1: nothing within smax). Returns 0; 1 when q0 itself
-   is outside a limit (s = 0, *limit the binding one); -1 when q0, dir or frame is not finite,
-   tol, hmax or smax not > 0, or smax / hmax above 156250 (the march's bound). A limit crossed
-   and left again within one march step (< hmax) is not seen: hmax is the resolution. */
+   stewart_frame_to_platform; NULL: the platform's own pose). Conservative advancement (reach.c,
+   travel_probe): each limit's margin over a bound of how fast it can fall along the line is a
+   step it surely holds for (steps of at most hmax); the next pose is at the least such end, or
+   tol / 2 on where that is nearer, until a pose is outside; a bracket left wider than tol is
+   bisected. Guarantee (up to rounding of the margins and singular values): [0, s] is inside
+   every limit but for gaps each shorter than tol / 2 at whose start a limit's margin was below
+   its rate bound x tol / 2 (a limit grazed, no deeper than that within the gap), and a pose
+   within tol past s is outside *limit: the first violation along the line is found to tol,
+   however narrow the region outside. *limit, *where: what ends it (-1: nothing within smax).
+   Returns 0; 1 when q0 itself is outside a limit (s = 0, *limit the binding one); 2 when the
+   line runs within tol / 2 of a limit for 10^6 poses (s the last pose certified, *limit that
+   limit, *where 0); -1 when q0, dir or frame is not finite, tol, hmax or smax not > 0, or
+   smax / hmax above 156250. */
 int stewart_reach_travel(const double *params, const double *reach, const double *frame,
                          const double q0[6], const double dir[6], double hmax, double smax,
                          double tol, double *s, int *limit, int *where);

@@ -3,7 +3,6 @@
    accelerations the drives' leg speed, acceleration and rack force), batched over poses, and
    the travel along a direction (the largest step before the first limit). The limits' bounds
    are the packed reach vector's (stewart_table.h STEWART_REACH_PARAMS). */
-#include <float.h>
 #include <math.h>
 #include "internal.h"
 
@@ -12,12 +11,15 @@
 /* Golden-section steps of a leg's closest approach to a box or cylinder: the interval shrinks
    by 0.618 a step, 64 steps leave 4e-14 of the leg. */
 #define GOLDEN_STEPS 64
-/* The most poses one travel evaluates while marching (a bound on the loop; smax / hmax beyond
-   it is refused). */
+/* smax / hmax beyond MAX_MARCH / 64 is refused: travel's steps (at most hmax) are then at
+   least smax / 156250 wherever no limit is near. */
 #define MAX_MARCH 10000000.0
-/* The most refinement steps of a travel's bracket: the first half regula falsi, then
-   bisection (from at most hmax to tol: 2 x 64 halvings cover any double bracket). */
-#define MAX_REFINE 256
+/* The most poses a travel's conservative advancement evaluates (a bound on the loop: a line
+   that runs along a limit, stepping tol / 2 uncertified, for longer stops there, status 2). */
+#define MAX_PROBES 1000000
+/* The most bisection steps of a travel's last bracket (from at most hmax to tol: 128
+   halvings cover any double bracket). */
+#define MAX_REFINE 128
 
 /* Where the legs are at a pose: R, the platform joints P_i = x + R p_i and the legs L_i = P_i - a_i
    in N, their lengths. */
@@ -208,7 +210,9 @@ static void obstacle_place(const double *o, const pose_geometry *g, const double
 /* The least margin of the legs to obstacle record o (the signed distance of a leg's segment
    to the shape less the leg's radius) into m, w as obstacle ob. A leg whose distance to the
    shape's bounding sphere (a lower bound) is no less than the least margin so far cannot give
-   a lesser one and is skipped: the box and cylinder searches run for the near legs only. */
+   a lesser one and is skipped: the box and cylinder searches run for the near legs only. With
+   sign_only, a leg clear of the sphere gives that bound (a positive lower bound of its margin,
+   never above it). */
 static void obstacle_margins(const double *o, int ob, const pose_geometry *g, const double q[6],
                              const double *base, double radius, int sign_only, double *m, int *w)
 {
@@ -239,9 +243,11 @@ static void obstacle_margins(const double *o, int ob, const pose_geometry *g, co
             if (!done[i] && (next < 0 || bound[i] < bound[next]))
                 next = i;
         done[next] = 1;
-        if (shape == STEWART_SHAPE_SPHERE) {
+        if (shape == STEWART_SHAPE_SPHERE || (sign_only && bound[next] >= 0.0)) {
+            /* the sphere's exact; the bound of a leg surely clear (sign-only), a lower bound
+               of its margin that travel's steps may rest on */
             take(m, w, STEWART_LIMIT_OBSTACLE, bound[next], 6 * ob + next);
-        } else if (bound[next] < m[STEWART_LIMIT_OBSTACLE] && !(sign_only && bound[next] >= 0.0)) {
+        } else if (bound[next] < m[STEWART_LIMIT_OBSTACLE]) {
             take(m, w, STEWART_LIMIT_OBSTACLE,
                  segment_shape_distance(shape, a + 3 * next, d + 3 * next, h) - radius,
                  6 * ob + next);
@@ -265,11 +271,10 @@ void stewart_reach_present(const double *params, const double *reach, int has_qd
     present[STEWART_LIMIT_FORCE] = drive && isfinite(RP(FORCE));
 }
 
-/* Whether cond(J) is surely below limit: ||J||_F ||J^-1||_F bounds cond_2(J) from above (LU
-   of J and six solves, ~0.2 us against sw_condition's ~1.2 us); with a relative allowance of
-   1e-9 for the rounding of the bound. A sign-only evaluation (travel) takes the SVD only when
-   this fails. */
-static int cond_surely_below(const double J[36], double limit)
+/* Bounds of J's extreme singular values: *upper = ||J||_F >= s_max, *lower = 1 / ||J^-1||_F
+   <= s_min (LU of J and six solves, ~0.2 us against sw_singular_values' ~1.2 us); 0 when the
+   LU finds J singular. */
+static int sigma_bounds(const double J[36], double *upper, double *lower)
 {
     double LU[36], fj = 0.0, fi = 0.0;
     int order[12], k, c;
@@ -291,16 +296,25 @@ static int cond_surely_below(const double J[36], double limit)
         for (k = 0; k < 6; ++k)
             fi += b[k] * b[k];
     }
-    return sqrt(fj) * sqrt(fi) * (1.0 + 1e-9) < limit;
+    *upper = sqrt(fj);
+    *lower = 1.0 / sqrt(fi);
+    return 1;
 }
 
-/* cond(J) of the scaled leg Jacobian at the geometry g (kinematics.c's rows [u_i, (R p_i) x
-   u_i / char_length], by the core's one sw_condition, linalg.c); with sign_only,
-   0 when cond_surely_below the limit (the value is then not needed). */
-static double condition(const double *p, const double q[6], const pose_geometry *g,
-                        double limit, int sign_only)
+/* Whether cond(J) is surely below limit: ||J||_F ||J^-1||_F bounds cond_2(J) from above, with
+   a relative allowance of 1e-9 for the rounding of the bound. A sign-only evaluation (travel)
+   takes the SVD only when this fails. */
+static int cond_surely_below(const double J[36], double limit)
 {
-    double J[36], U[18], R[18];
+    double upper, lower;
+    return sigma_bounds(J, &upper, &lower) && upper * (1.0 + 1e-9) < limit * lower;
+}
+
+/* The scaled leg Jacobian at the geometry g (kinematics.c's rows [u_i, (R p_i) x u_i /
+   char_length]); 0 when an entry is not finite. */
+static int leg_jacobian(const double *p, const double q[6], const pose_geometry *g, double J[36])
+{
+    double U[18], R[18];
     int i, k;
     for (i = 0; i < 6; ++i)
         for (k = 0; k < 3; ++k) {
@@ -310,7 +324,19 @@ static double condition(const double *p, const double q[6], const pose_geometry 
     sw_jacobian_rows(U, R, 1.0 / p[STEWART_P_CHAR_LENGTH], J);
     for (i = 0; i < 36; ++i)
         if (!isfinite(J[i]))
-            return HUGE_VAL;
+            return 0;
+    return 1;
+}
+
+/* cond(J) of the scaled leg Jacobian at the geometry g (leg_jacobian, by the core's one
+   sw_condition, linalg.c); with sign_only, 0 when cond_surely_below the limit (the value is
+   then not needed). */
+static double condition(const double *p, const double q[6], const pose_geometry *g,
+                        double limit, int sign_only)
+{
+    double J[36];
+    if (!leg_jacobian(p, q, g, J))
+        return HUGE_VAL;
     if (sign_only && cond_surely_below(J, limit))
         return 0.0;
     return sw_condition(J);
@@ -345,7 +371,8 @@ static void cone_margins(const double *reach, const pose_geometry *g, double *m,
 }
 
 /* The geometric limits' and cond(J)'s margins; with sign_only, a margin that is surely
-   positive may be left larger than it is (cond(J), obstacles: what travel needs). */
+   positive may be left larger than it is (cond(J): the limit itself) or smaller (obstacles:
+   a positive lower bound). */
 static void geometric_margins(const double *p, const double *reach, const double q[6],
                               const int present[], int sign_only, double *m, int *w)
 {
@@ -496,44 +523,266 @@ long stewart_reach_binding(const double *params, const double *reach, long n, co
     return inside;
 }
 
-/* A line of poses f = q0 + t dir in a frame (frame: mov, fix of frames.c; NULL: C itself). */
+/* A line of poses f = q0 + t dir in a frame (frame: mov, fix of frames.c; NULL: C itself), and
+   what bounds how fast its limits' margins can fall along it (travel_rates):
+
+   the frame's origin moves at |v| = |dir[0..2]| (its positions are turned by R_fix alone); the
+   angles are z-y-x (R = Rz Ry Rx, rotations.c), so the angular velocity of R (the frame's
+   turned by R_fix and R_mov, a rotation's speed unchanged) is e_x' thx' + e_y' thy' + e_z thz'
+   with e_x' . e_z = -sin(thy), the others orthogonal: |w|^2 <= |th'|^2 + 2 |thx' thz'| = om^2
+   at every t. A point z of the platform (in C) is at x + R z = R_fix f + fix - R mov + R z,
+   so it moves at no more than speed_i = |v| + om |z - mov| (platform joint i: z = p_i). */
 typedef struct {
     const double *params, *reach, *q0, *dir, *frame;
     double Rt[9], Rw[9];
-    int present[STEWART_N_LIMITS];
+    int present[STEWART_N_LIMITS];   /* cond(J) left out: travel_cond takes it */
+    int cond, moving_obstacles;
+    double lin, om, hmax, speed[6], vmax, arm[6], rho[6];   /* |p_i|, |p_i - mov| */
 } travel_line;
 
-/* The binding limit at t on the line (-1: inside every one), where of it in *w, and the least
-   margin in *least (of the sign-only evaluation: an estimate where surely positive). */
-static int binding_at(const travel_line *line, double t, int *w, double *least)
+static void travel_rates(travel_line *line)
 {
-    double f[6], q[6], m[STEWART_N_LIMITS];
-    int ws[STEWART_N_LIMITS], k, b;
+    const double *d = line->dir, *p = line->params;
+    double mov[3] = {0.0, 0.0, 0.0};
+    int i, k, n = (int)line->reach[STEWART_R_N_OBSTACLES];
+    line->lin = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    line->om = sqrt(d[3] * d[3] + d[4] * d[4] + d[5] * d[5] + 2.0 * fabs(d[3] * d[5]));
+    if (line->frame)
+        for (k = 0; k < 3; ++k)
+            mov[k] = line->frame[k];
+    line->vmax = 0.0;
+    for (i = 0; i < 6; ++i) {
+        const double *z = p + STEWART_P_PLATFORM + 3 * i;
+        double r[3] = {z[0] - mov[0], z[1] - mov[1], z[2] - mov[2]};
+        line->rho[i] = sqrt(dot3(r, r));
+        line->speed[i] = line->lin + line->om * line->rho[i];
+        line->arm[i] = sqrt(dot3(z, z));
+        line->vmax = PY_MAX(line->vmax, line->speed[i]);
+    }
+    line->cond = line->present[STEWART_LIMIT_COND];
+    line->present[STEWART_LIMIT_COND] = 0;
+    line->moving_obstacles = 0;
+    if (line->present[STEWART_LIMIT_OBSTACLE])
+        for (k = 0; k < n && k < STEWART_MAX_OBSTACLES; ++k)
+            if (line->reach[STEWART_R_OBSTACLES + STEWART_OBSTACLE_SIZE * k + 1]
+                == STEWART_BODY_PLATFORM)
+                line->moving_obstacles = 1;
+}
+
+/* x / rate, +inf where the rate is 0 (the margin cannot fall) or x is (a limit not present). */
+static double safe_step(double x, double rate)
+{
+    return rate > 0.0 ? x / rate : HUGE_VAL;
+}
+
+/* How fast the obstacle margins can fall for a step of at most hmax from the pose (q, R): a
+   leg's segment runs from a_i (fixed in N) to P_i (in C). To an obstacle fixed in N its points
+   move at no more than max speed_i; to one on the platform P_i is still and a_i moves, seen
+   from C, as the platform's point at a_i: |v| + om |a_i - o| with o = x + R mov the frame's
+   origin, which moves at |v| (the distance grows by at most |v| hmax). The signed distance to
+   a convex shape (and to a sphere about it, the sign-only bound) is 1-Lipschitz. */
+static double obstacle_rate(const travel_line *line, const double q[6], const pose_geometry *g)
+{
+    const double *base = line->params + STEWART_P_BASE;
+    double o[3], far = 0.0;
+    int i, k;
+    if (!line->moving_obstacles)
+        return line->vmax;
+    for (k = 0; k < 3; ++k)
+        o[k] = q[k] + (line->frame ? dot3(g->R + 3 * k, line->frame) : 0.0);
+    for (i = 0; i < 6; ++i) {
+        double r[3] = {base[3 * i] - o[0], base[3 * i + 1] - o[1], base[3 * i + 2] - o[2]};
+        far = PY_MAX(far, sqrt(dot3(r, r)));
+    }
+    return PY_MAX(line->vmax, line->lin + line->om * (far + line->lin * line->hmax));
+}
+
+/* The step of travel_cond for s_max, s_min: E / D, or with Taylor's bound (grow >= 0) the
+   larger of that and the root of G h + M h^2 / 2 = E. */
+static double travel_cond_step(double c, double smax, double smin, double rate, double grow,
+                               double bend)
+{
+    const double e = (c * smin - smax) / (1.0 + c);
+    double h = safe_step(e, rate);
+    if (grow >= 0.0)
+        h = PY_MAX(h, 2.0 * e / (grow + sqrt(grow * grow + 2.0 * bend * e)));
+    return h;
+}
+
+/* ||J'||_F at the pose, exactly: the platform's velocity along the line (v = R_fix dir[0..2],
+   w = R_fix E(th) dir[3..5], E's columns Rz Ry e_x, Rz e_y, e_z) moves P_i at v + w x (P_i - o),
+   o = x + R mov the frame's origin; row i's derivatives are u_i' = (P_i')_perp / l_i and
+   ((w x r_i) x u_i + r_i x u_i') / lc, r_i = P_i - x. */
+static double jacobian_rate(const travel_line *line, const double f[6], const double q[6],
+                            const pose_geometry *g)
+{
+    const double *d = line->dir, lc = line->params[STEWART_P_CHAR_LENGTH];
+    const double cy = cos(f[4]), sy = sin(f[4]), cz = cos(f[5]), sz = sin(f[5]);
+    const double wf[3] = {cy * cz * d[3] - sz * d[4], cy * sz * d[3] + cz * d[4], -sy * d[3] + d[5]};
+    double w[3], v[3], o[3], sum = 0.0;
+    int i, k;
+    for (k = 0; k < 3; ++k) {
+        w[k] = line->frame ? dot3(line->Rw + 3 * k, wf) : wf[k];
+        v[k] = line->frame ? dot3(line->Rw + 3 * k, d) : d[k];
+        o[k] = q[k] + (line->frame ? dot3(g->R + 3 * k, line->frame) : 0.0);
+    }
+    for (i = 0; i < 6; ++i) {
+        const double *P = g->P + 3 * i, *L = g->L + 3 * i;
+        double e[3], r[3], u[3], pd[3], ud[3], wr[3], x[3], along;
+        for (k = 0; k < 3; ++k) {
+            e[k] = P[k] - o[k];
+            r[k] = P[k] - q[k];
+            u[k] = L[k] / g->l[i];
+        }
+        pd[0] = v[0] + w[1] * e[2] - w[2] * e[1];
+        pd[1] = v[1] + w[2] * e[0] - w[0] * e[2];
+        pd[2] = v[2] + w[0] * e[1] - w[1] * e[0];
+        along = dot3(u, pd);
+        for (k = 0; k < 3; ++k)
+            ud[k] = (pd[k] - along * u[k]) / g->l[i];
+        wr[0] = w[1] * r[2] - w[2] * r[1];
+        wr[1] = w[2] * r[0] - w[0] * r[2];
+        wr[2] = w[0] * r[1] - w[1] * r[0];
+        x[0] = (wr[1] * u[2] - wr[2] * u[1]) + (r[1] * ud[2] - r[2] * ud[1]);
+        x[1] = (wr[2] * u[0] - wr[0] * u[2]) + (r[2] * ud[0] - r[0] * ud[2]);
+        x[2] = (wr[0] * u[1] - wr[1] * u[0]) + (r[0] * ud[1] - r[1] * ud[0]);
+        sum += dot3(ud, ud) + dot3(x, x) / (lc * lc);
+    }
+    return sqrt(sum);
+}
+
+/* A bound of ||J''||_F along a step (legs no shorter than l_lo): with |P_i'| <= speed_i and
+   |P_i''| <= a_i = (|w'| + om^2) |p_i - mov|, |w'| <= |thx'| (|thy'| + |thz'|) + |thy'| |thz'|
+   (E's columns turn at |thy'| + |thz'|, |thz'|, 0), |u_i'| <= speed_i / l_lo and
+   |u_i''| <= (2 a_i + 3 speed_i^2 / l_lo) / l_lo (from L'' = l u'' + 2 l' u' + l'' u), and
+   (r x u)'' = r'' x u + 2 r' x u' + r x u'' with |r'| <= om |p_i|, |r''| <= (|w'| + om^2) |p_i|. */
+static double jacobian_curvature(const travel_line *line, double l_lo)
+{
+    const double *d = line->dir, lc = line->params[STEWART_P_CHAR_LENGTH];
+    const double turn = fabs(d[3]) * (fabs(d[4]) + fabs(d[5])) + fabs(d[4]) * fabs(d[5]);
+    const double spin = turn + line->om * line->om;
+    double sum = 0.0;
+    int i;
+    for (i = 0; i < 6; ++i) {
+        const double s = line->speed[i], a = spin * line->rho[i];
+        const double udd = (2.0 * a + 3.0 * s * s / l_lo) / l_lo;
+        const double rdd = line->arm[i] * (spin + 2.0 * line->om * s / l_lo + udd) / lc;
+        sum += udd * udd + rdd * rdd;
+    }
+    return sqrt(sum);
+}
+
+/* cond(J)'s margin at the pose, and in *step how far along the line it surely holds (0 when
+   it does not): by Weyl's inequality each singular value moves by no more than
+   e(h) = ||J(t + h) - J(t)||_2 <= ||J(t + h) - J(t)||_F, and cond(J) = s_max / s_min stays
+   below c while s_max + e <= c (s_min - e), e <= E = (c s_min - s_max) / (1 + c). Two bounds
+   of e, the larger step taken: e <= D h, D a bound of ||J'||_F over the step (row i moves at
+   no more than |u_i'| <= speed_i / l_lo and |(R p_i x u_i)'| / lc <= arm_i (om + speed_i /
+   l_lo) / lc); and Taylor's e <= G h + M h^2 / 2, G = ||J'||_F at t (jacobian_rate), M
+   (jacobian_curvature), which near a limit is G's alone. s_max and s_min from sigma_bounds
+   where that bound already allows `enough`, else from sw_singular_values; Taylor's bound only
+   where D's does not allow `enough`. */
+static double travel_cond(const travel_line *line, const double f[6], const double q[6],
+                          const pose_geometry *g, double l_lo, double enough, double *step)
+{
+    const double c = line->reach[STEWART_R_COND_LIMIT], lc = line->params[STEWART_P_CHAR_LENGTH];
+    double J[36], smax, smin, sv[6], d2 = 0.0, rate, grow = -1.0, bend = 0.0;
+    int i, bounded;
+    *step = 0.0;
+    if (!leg_jacobian(line->params, q, g, J))
+        return -HUGE_VAL;
+    for (i = 0; i < 6; ++i) {
+        double du = line->speed[i] / l_lo, dr = line->arm[i] * (line->om + du) / lc;
+        d2 += du * du + dr * dr;
+    }
+    rate = sqrt(d2);
+    bounded = sigma_bounds(J, &smax, &smin) && smax * (1.0 + 1e-9) < c * smin;
+    if (!(bounded && travel_cond_step(c, smax, smin, rate, grow, bend) >= enough)) {
+        grow = jacobian_rate(line, f, q, g);
+        bend = jacobian_curvature(line, l_lo);
+    }
+    if (!(bounded && travel_cond_step(c, smax, smin, rate, grow, bend) >= enough)) {
+        sw_singular_values(J, sv);
+        smax = 0.0;
+        smin = HUGE_VAL;
+        for (i = 0; i < 6; ++i) {
+            smax = PY_MAX(smax, sv[i]);
+            smin = PY_MIN(smin, sv[i]);
+        }
+        if (!(smin > 0.0 && smax / smin <= c))
+            return smin > 0.0 ? c - smax / smin : -HUGE_VAL;
+    }
+    *step = travel_cond_step(c, smax, smin, rate, grow, bend);
+    return c - smax / smin;
+}
+
+/* The pose at t on the line: its binding limit (-1: inside every one) and where (*w). Each
+   limit k is surely held on [.., horizon[k]]; the limits whose horizon ends no more than
+   `ahead` past t (the last step: those that would hold the next one) are evaluated here and,
+   inside, their horizon moved to t + h_k, h_k the margin over its bound of how fast it can
+   fall (travel_rates, obstacle_rate, travel_cond), at most cap = min(hmax, l_min / (2 vmax)),
+   which keeps every leg longer than l_lo = l_min - vmax cap (l_min the shortest at t) on
+   [t, t + cap]: the rates divide by that. The others are surely held at t and not evaluated. */
+static int travel_probe(const travel_line *line, double t, double ahead, double horizon[],
+                        int *w)
+{
+    double f[6], q[6], m[STEWART_N_LIMITS], rate[STEWART_N_LIMITS], l_lo, cap, others = HUGE_VAL;
+    int ws[STEWART_N_LIMITS], due[STEWART_N_LIMITS], k, b;
+    pose_geometry g;
     for (k = 0; k < 6; ++k)
         f[k] = line->q0[k] + t * line->dir[k];
     if (line->frame)
         sw_frame_to_platform(line->frame, line->frame + 6, line->Rt, line->Rw, f, q);
-    b = margins_of(line->params, line->reach, line->present, 1, line->frame ? q : f, 0, 0, m, ws);
-    *w = b >= 0 ? ws[b] : -1;
-    *least = HUGE_VAL;
+    else
+        for (k = 0; k < 6; ++k)
+            q[k] = f[k];
     for (k = 0; k < STEWART_N_LIMITS; ++k)
-        *least = PY_MIN(*least, m[k]);
+        due[k] = line->present[k] && horizon[k] - t <= ahead;
+    due[STEWART_LIMIT_BASE_CONE] = due[STEWART_LIMIT_PLATFORM_CONE] =   /* one call takes both */
+        due[STEWART_LIMIT_BASE_CONE] || due[STEWART_LIMIT_PLATFORM_CONE];
+    b = margins_of(line->params, line->reach, due, 1, q, 0, 0, m, ws);
+    geometry(line->params, q, &g);
+    l_lo = g.l[0];
+    for (k = 1; k < 6; ++k)
+        l_lo = PY_MIN(l_lo, g.l[k]);
+    cap = PY_MIN(line->hmax, safe_step(0.5 * l_lo, line->vmax));
+    l_lo -= line->vmax * cap;
+    rate[STEWART_LIMIT_STROKE_MIN] = rate[STEWART_LIMIT_STROKE_MAX] = line->vmax;
+    rate[STEWART_LIMIT_BASE_CONE] = line->vmax / l_lo;   /* |u_i'| <= speed_i / l_i */
+    rate[STEWART_LIMIT_PLATFORM_CONE] = line->vmax / l_lo + line->om;   /* and R c_i turns */
+    rate[STEWART_LIMIT_LEG_CLEARANCE] = 2.0 * line->vmax;   /* both segments move */
+    rate[STEWART_LIMIT_OBSTACLE] = due[STEWART_LIMIT_OBSTACLE] ? obstacle_rate(line, q, &g) : 0.0;
+    for (k = 0; k < STEWART_LIMIT_COND; ++k)
+        if (b < 0 && due[k])
+            horizon[k] = PY_MAX(horizon[k], t + PY_MIN(cap, safe_step(m[k], rate[k])));
+    for (k = 0; k < STEWART_LIMIT_COND; ++k)
+        others = PY_MIN(others, horizon[k]);
+    if (b < 0 && line->cond && horizon[STEWART_LIMIT_COND] - t <= ahead) {
+        double hc;
+        if (travel_cond(line, f, q, &g, l_lo, PY_MIN(cap, others - t), &hc) < 0.0) {
+            b = STEWART_LIMIT_COND;
+            ws[b] = 0;
+        } else {
+            horizon[STEWART_LIMIT_COND] = PY_MAX(horizon[STEWART_LIMIT_COND],
+                                                 t + PY_MIN(cap, hc));
+        }
+    }
+    *w = b >= 0 ? ws[b] : -1;
     return b;
 }
 
-/* The next point inside (lo, hi) where the least margin fl > 0 at lo, fh < 0 at hi: regula
-   falsi, kept at least tol / 2 from either end (each step shrinks the bracket by that much,
-   and the last one closes it), the midpoint when the margins give no usable line. */
-static double falsi_point(double lo, double hi, double fl, double fh, double tol)
+/* The least horizon (where conservative advancement has got to) and in *near its limit. */
+static double frontier(const double horizon[], int *near)
 {
-    double c = lo + 0.5 * (hi - lo);
-    if (isfinite(fl) && isfinite(fh) && fl > fh)
-        c = lo + (hi - lo) * (fl / (fl - fh));
-    if (!(c > lo + 0.5 * tol))
-        c = lo + 0.5 * tol;
-    if (!(c < hi - 0.5 * tol))
-        c = hi - 0.5 * tol;
-    return c;
+    double out = HUGE_VAL;
+    int k;
+    *near = -1;
+    for (k = 0; k < STEWART_N_LIMITS; ++k)
+        if (horizon[k] < out) {
+            out = horizon[k];
+            *near = k;
+        }
+    return out;
 }
 
 int stewart_reach_travel(const double *params, const double *reach, const double *frame,
@@ -541,8 +790,8 @@ int stewart_reach_travel(const double *params, const double *reach, const double
                          double tol, double *s, int *limit, int *where)
 {
     travel_line line;
-    int b, w, steps, side = 0;
-    double lo = 0.0, hi = 0.0, h, fl, fh;
+    int b, w, near, probes, k;
+    double lo = 0.0, hi, reach_to, horizon[STEWART_N_LIMITS];
     *s = 0.0;
     *limit = *where = -1;
     if (!finite6(q0) || !finite6(dir) || (frame && (!finite6(frame) || !finite6(frame + 6))) ||
@@ -554,53 +803,52 @@ int stewart_reach_travel(const double *params, const double *reach, const double
     line.q0 = q0;
     line.dir = dir;
     line.frame = frame;
+    line.hmax = hmax;
     if (frame)
         sw_frame_rotations(frame, frame + 6, line.Rt, line.Rw);
     stewart_reach_present(params, reach, 0, 0, line.present);
-    b = binding_at(&line, 0.0, &w, &fl);
+    travel_rates(&line);
+    for (k = 0; k < STEWART_N_LIMITS; ++k)
+        horizon[k] = line.present[k] || (k == STEWART_LIMIT_COND && line.cond) ? 0.0 : HUGE_VAL;
+    b = travel_probe(&line, 0.0, 0.0, horizon, &w);
     if (b >= 0) {
         *limit = b;
         *where = w;
         return 1;
     }
-    h = hmax / 64.0;
-    for (;;) {   /* march: lo inside, until a pose outside (or smax) */
-        hi = PY_MIN(lo + h, smax);
-        b = binding_at(&line, hi, &w, &fh);
-        if (b >= 0)
-            break;
-        lo = hi;
-        fl = fh;
-        if (lo >= smax) {
+    /* Conservative advancement: [0, frontier] is inside every limit; the next pose is there,
+       or tol / 2 past lo where the frontier is nearer (a limit within its rate x tol / 2). */
+    for (probes = 0;; ++probes) {
+        reach_to = frontier(horizon, &near);
+        if (reach_to >= smax) {
             *s = smax;
             return 0;
         }
-        h = PY_MIN(2.0 * h, hmax);
-    }
-    /* Illinois (regula falsi on the least margin, halving the margin of an end kept twice):
-       lo inside, hi outside; superlinear where bisection gains a bit a step. */
-    for (steps = 0; hi - lo > tol && steps < MAX_REFINE; ++steps) {
-        double mid = falsi_point(lo, hi, fl, fh, tol), fm;
-        int bm, wm;
-        if (!(mid > lo && mid < hi))
+        if (probes >= MAX_PROBES) {   /* a line grazing a limit for MAX_PROBES x tol / 2 */
+            *s = lo;
+            *limit = near;
+            *where = 0;
+            return 2;
+        }
+        hi = PY_MIN(PY_MAX(reach_to, lo + 0.5 * tol), smax);
+        b = travel_probe(&line, hi, hi - lo, horizon, &w);
+        if (b >= 0)
             break;
-        if (steps >= MAX_REFINE / 2)   /* a safeguard: plain bisection */
-            mid = lo + 0.5 * (hi - lo);
-        bm = binding_at(&line, mid, &wm, &fm);
+        lo = hi;
+    }
+    /* lo inside, hi outside, everything between surely inside or no wider than tol / 2: what
+       is left wider than tol is a pose outside at a certified step's very end (rounding),
+       bisected. */
+    for (probes = 0; hi - lo > tol && probes < MAX_REFINE; ++probes) {
+        double mid = lo + 0.5 * (hi - lo);
+        int bm, wm;
+        bm = travel_probe(&line, mid, 0.0, horizon, &wm);
         if (bm >= 0) {
             hi = mid;
-            fh = PY_MIN(fm, -DBL_MIN);
             b = bm;
             w = wm;
-            if (side == 1)
-                fl *= 0.5;
-            side = 1;
         } else {
             lo = mid;
-            fl = PY_MAX(fm, DBL_MIN);
-            if (side == -1)
-                fh *= 0.5;
-            side = -1;
         }
     }
     *s = lo;

@@ -135,11 +135,7 @@ def evaluate(spec: DesignSpec, x: np.ndarray, names: tuple[str, ...],
 def _geometric(spec: DesignSpec, model, values: dict, Q: np.ndarray) -> dict:
     eng = Engine(model, None, spec.requirements.cond_limit)
     res = eng.check(Q)
-    r = spec.requirements
-    scale = {"stroke_min": values["stroke"], "stroke_max": values["stroke"],
-             "base_cone": r.base_cone, "platform_cone": r.platform_cone,
-             "leg_clearance": model.characteristic_length,
-             "obstacle": model.characteristic_length, "cond": r.cond_limit}
+    scale = margin_scales(spec, model, values)
     out: dict = {"_feasible": res["feasible"]}
     for lim in eng.present():
         col = res[lim.name]
@@ -148,6 +144,16 @@ def _geometric(spec: DesignSpec, model, values: dict, Q: np.ndarray) -> dict:
         out[lim.name] = Margin(lim.name, float(col[k]), UNITS[lim.name],
                                float(col[k]) / scale[lim.name], where)
     return out
+
+
+def margin_scales(spec: DesignSpec, model, values: dict) -> dict[str, float]:
+    """What each geometric margin is divided by to be relative: the stroke, the cone asked,
+    the characteristic length, the cond(J) limit."""
+    r = spec.requirements
+    return {"stroke_min": values["stroke"], "stroke_max": values["stroke"],
+            "base_cone": r.base_cone, "platform_cone": r.platform_cone,
+            "leg_clearance": model.characteristic_length,
+            "obstacle": model.characteristic_length, "cond": r.cond_limit}
 
 
 def _modal(spec: DesignSpec, model, Q: np.ndarray) -> tuple[float, dict]:

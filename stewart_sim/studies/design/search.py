@@ -51,8 +51,11 @@ def drive_free(spec: DesignSpec) -> bool:
     return any(p.free and p.name == DRIVE for p in spec.parameters)
 
 
-def run(spec: DesignSpec, client, workers: int, progress=print) -> SearchResult:
-    """The search on the Dask client, then the dense check of the chosen design."""
+def run(spec: DesignSpec, client, workers: int, progress=print,
+        checkpoint=None) -> SearchResult:
+    """The search on the Dask client, then the dense check of the chosen design. `checkpoint`
+    (a checkpoint.Checkpoint, or None): the generations it holds are told from it instead of
+    evaluated, and each generation evaluated is added to it."""
     from pymoo.algorithms.moo.nsga2 import NSGA2
     from pymoo.core.problem import Problem
 
@@ -70,13 +73,19 @@ def run(spec: DesignSpec, client, workers: int, progress=print) -> SearchResult:
     while algorithm.has_next():
         pop = algorithm.ask()
         X = pop.get("X")
-        M = _evaluate(client, spec_future, X, names, workers)
+        M = None if checkpoint is None else checkpoint.stored(g, X)
+        kept = M is not None
+        if not kept:
+            M = _evaluate(client, spec_future, X, names, workers)
+            if checkpoint is not None:
+                checkpoint.record(g, X, M)
         pop.set("F", objectives(spec, X, M), "G", -M)
         algorithm.tell(infills=pop)
         Xs.append(X), Ms.append(M), gens.append(np.full(len(X), g))
         feasible = int(np.sum(np.all(M >= 0, axis=1)))
         progress(f"generation {g + 1}/{spec.search.generations}: {len(X)} candidates, "
-                 f"{feasible} feasible, best least margin {M.min(axis=1).max():+.3f}")
+                 f"{feasible} feasible, best least margin {M.min(axis=1).max():+.3f}"
+                 + (" (from the checkpoint)" if kept else ""))
         g += 1
     seconds = time.perf_counter() - t0
     X, M, gen = np.vstack(Xs), np.vstack(Ms), np.concatenate(gens)

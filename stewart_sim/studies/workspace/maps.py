@@ -123,9 +123,9 @@ def _connected(runs: list, cells: list, at: np.ndarray, lo: np.ndarray, h: float
 def _column_runs(engine: Engine, column: np.ndarray, inside: np.ndarray, frame: str,
                  h: float) -> list[tuple[float, float]]:
     """The z intervals of a column inside every limit: from each first inside sample, down to
-    the first limit, and up by the engine's travel marching in steps of at most h (a barrier
-    between two inside samples at least h thick ends the run there), each end bisected to
-    1e-9 m; the next run starts at the next inside sample above."""
+    the first limit, and up by the engine's travel in steps of at most h (any barrier between
+    two inside samples, however thin, ends the run there), each end found to 1e-9 m; the next
+    run starts at the next inside sample above."""
     big = column[1, 2] - column[0, 2] if len(column) > 1 else h
     up_dir, down_dir = np.array([0, 0, 1.0, 0, 0, 0]), np.array([0, 0, -1.0, 0, 0, 0])
     out, k, n = [], 0, len(column)
