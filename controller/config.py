@@ -24,7 +24,7 @@ from typing import Any, Mapping
 from stewart_fmu.errors import SceneError
 from stewart_fmu.model import Model
 
-from .drive import MOTOR_KEYS, Motor
+from .drive import MOTOR_KEYS, AxisModel, Motor, axis_model
 
 FEEDFORWARD = ("none", "constant_load", "kane")
 NUMBER_KEYS = ("rate", "bandwidth", "phase_margin", "load_mass")  # the table's numbers
@@ -126,6 +126,12 @@ def controller_config(model: Model) -> ControllerConfig:
                                              f"delay), got {delay!r}", model.source)
     values["delay"] = delay
     return ControllerConfig(**values)
+
+
+def scene_axis(model: Model, config: ControllerConfig) -> AxisModel:
+    """The drive of the scene's legs: controller.drive.axis_model with its [controller] table's
+    motor and load (the one place a scene's axis model is built). SceneError without [drive]."""
+    return axis_model(model, config.motor, config.load_mass)
 
 
 def motor_from_table(table: Mapping[str, Any], source: str | None = None) -> Motor:

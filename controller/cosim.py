@@ -26,9 +26,9 @@ from stewart_fmu.status import ENERGY_GAIN, STATE_NONFINITE
 from stewart_fmu.transmission import initial_state
 
 from .axis import AxisControllers, MotorCurrents, servo_step
-from .config import ControllerConfig
+from .config import ControllerConfig, scene_axis
 from .design import Analysis, PidGains, UnstableLoopError, check_stable, tune_pid
-from .drive import AxisModel, axis_model
+from .drive import AxisModel
 from .feedforward import feedforward_voltage, start_at_equilibrium
 from .native._axis import ffi, lib
 from .plants import PlantPort, PlantStepError
@@ -72,7 +72,7 @@ def run_closed_loop(model: Model, config: ControllerConfig, traj: Trajectory,
     """Track traj with the per-axis controllers; raises UnstableLoopError, PlantStepError, or
     IntegrationError (a numerically unstable plant step, as Plant.do_step raises it).
     `options`: the in-process plant's integrator (default: stability.default_options, as Plant)."""
-    axis = axis_model(model, config.motor, config.load_mass)
+    axis = scene_axis(model, config)
     gains = gains or tune_pid(axis, config.bandwidth, config.phase_margin)
     analysis = check_stable(axis, gains, config.dt, config.delay)
     _check_rate(traj, config)

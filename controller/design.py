@@ -19,8 +19,8 @@ import numpy as np
 from stewart_fmu.errors import StewartError
 from stewart_fmu.model import Model
 
-from .config import ControllerConfig
-from .drive import AxisModel, axis_model
+from .config import ControllerConfig, scene_axis
+from .drive import AxisModel
 
 INTEGRAL_RATIO = 10.0
 
@@ -141,7 +141,7 @@ class UnstableLoopError(DesignError):
 
 def design_axis(model: Model, config: ControllerConfig) -> tuple[AxisModel, PidGains, Analysis]:
     """The constant-load drive, its tuned gains and the loop's analysis; refuses unstable loops."""
-    axis = axis_model(model, config.motor, config.load_mass)
+    axis = scene_axis(model, config)
     gains = tune_pid(axis, config.bandwidth, config.phase_margin)
     return axis, gains, check_stable(axis, gains, config.dt, config.delay)
 

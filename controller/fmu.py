@@ -34,9 +34,8 @@ from stewart_fmu.fmu.export import (NATIVE, build_binaries, core_sources, find_c
 from stewart_fmu.fmu.model_description import fmi_root
 from stewart_fmu.model import Model
 
-from .config import ControllerConfig
+from .config import ControllerConfig, scene_axis
 from .design import check_stable, tune_pid
-from .drive import axis_model
 from .feedforward import equilibrium, feedforward_voltage
 from .trajectory import Trajectory, leg_references
 
@@ -139,7 +138,7 @@ def start_values(model: Model, config: ControllerConfig) -> dict[str, np.ndarray
     design (tune_pid to the [controller] targets, checked stable at its rate), the drive, and
     the drives holding the platform at rest at home (feedforward.equilibrium with the
     feedforward the scene chose); inputs: the home's leg lengths, at rest."""
-    axis = axis_model(model, config.motor, config.load_mass)
+    axis = scene_axis(model, config)
     gains = tune_pid(axis, config.bandwidth, config.phase_margin)
     check_stable(axis, gains, config.dt, config.delay)
     zeros = np.zeros((2, 6))

@@ -46,8 +46,7 @@ from stewart_fmu.fmu import variables as plant_fmu
 from stewart_fmu.fmu.export import export_model, pack
 from stewart_fmu.model import Model
 
-from .config import ControllerConfig
-from .drive import axis_model
+from .config import ControllerConfig, scene_axis
 from .feedforward import feedforward_voltage
 from .fmu import Bound, export_controller, parameter_ranges, start_values, table_rows
 from .trajectory import Trajectory, leg_references
@@ -88,7 +87,7 @@ def move_of(model: Model, config: ControllerConfig, traj: Trajectory) -> np.ndar
     """(n, 18): l_ref, ldot_ref and the feedforward voltage per sample of traj, as
     cosim.run_closed_loop computes them."""
     refs = leg_references(model, traj)
-    axis = axis_model(model, config.motor, config.load_mass)
+    axis = scene_axis(model, config)
     v_ff, _ = feedforward_voltage(model, config, axis, traj, refs)
     return np.hstack([refs.l, refs.ldot, v_ff])
 

@@ -55,8 +55,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from controller.config import ControllerConfig
-from controller.drive import axis_model
+from controller.config import ControllerConfig, scene_axis
 from controller.feedforward import feedforward_force
 from controller.trajectory import LegReferences, Trajectory, leg_references
 from hil import mavlink_stewart as ms
@@ -342,7 +341,7 @@ def link_reference(model: Model, config: ControllerConfig, traj: Trajectory) -> 
     """Leg references of `traj`, the feed-forward force of config.feedforward and its rate
     (controller.feedforward.feedforward_force: the in-process loop's feedforward)."""
     refs = leg_references(model, traj)
-    force = feedforward_force(model, config, axis_model(model, config.motor, config.load_mass),
+    force = feedforward_force(model, config, scene_axis(model, config),
                               traj, refs)
     rate = None if force is None else np.gradient(force, traj.t, axis=0)
     return LinkReference(traj, refs, force, rate, config.feedforward)

@@ -11,22 +11,23 @@ table), every tick to the servo, the watchdog and fault rules (hil.faults) and t
 (hil.streams, over the message builders of hil.downlink). Its other parts: the mode and its one
 transition table (hil.operating_mode: DISARMED, ARMED, TRACKING, HOMING, TRIPPED), the plant and the six
 drive loops (hil.servo, whose tick is the co-simulation master's `controller.axis.servo_step`),
-the setpoint checks (hil.setpoint), the parameter table (hil.params), the input bounds
-(hil.input_bounds), the STATUSTEXT rules (hil.statustext, hil.throttle) and signing
-(hil.signing); its counters and per-run state are hil.device_state's. The device starts DISARMED
+the setpoint checks (hil.setpoint, against the device's capability: controller.capability),
+the parameter table (hil.params, its ranges hil.input_bounds), the STATUSTEXT rules
+(hil.statustext, hil.throttle) and signing (hil.signing); its counters and per-run state are hil.device_state's. The device starts DISARMED
 at the scene's home pose with the drives holding it. Every text a user reads numbers the legs
 1..6, as the tables and plots do.
 
 Setpoints (LEG_SETPOINT)
 ------------------------
 A setpoint is refused (STATUSTEXT, counted, never applied) when a length, rate or force is not
-finite, a rate, force or force rate is beyond the bounds of hil.input_bounds (the text names the
-leg, the value and the bound), a length is outside [SP_LEN_MIN, SP_LEN_MAX] (the stroke less the
-servo's overshoot room at each end, hil.input_bounds.overshoot_room), forward kinematics finds
-no pose for the lengths (Newton from the last accepted pose), cond(J) at that pose exceeds the
-parameter SP_COND_MAX, or the pose violates a joint cone or a leg or obstacle clearance of the
-scene's [joints] and [clearance] tables (controller.capability.geometric_engine; the text names
-the limit, the leg or pair, and the margin). A valid setpoint is the event SETPOINT: applied
+finite, a rate, force or force rate is beyond the device's capability (Capability.setpoint_rate,
+setpoint_force, setpoint_force_rate; the text names the leg, the value and the bound), a length
+is outside [SP_LEN_MIN, SP_LEN_MAX] (the stroke less the servo's overshoot room at each end,
+controller.capability.overshoot_room), forward kinematics finds no pose for the lengths (Newton
+from the last accepted pose), cond(J) at that pose exceeds the parameter SP_COND_MAX, or the
+pose violates a joint cone or a leg or obstacle clearance of the scene's [joints] and
+[clearance] tables (Capability.geometric; the text names the limit, the leg or pair, and the
+margin). A valid setpoint is the event SETPOINT: applied
 while armed, ignored and counted while disarmed (hil.operating_mode). Rates are used with
 STEWART_SETPOINT_FLAG_RATE_VALID, forces
 with STEWART_SETPOINT_FLAG_FORCE_VALID (the feed-forward of hil.servo; di/dt from the force rate
@@ -95,7 +96,7 @@ from typing import Any, Callable, Iterable
 import numpy as np
 
 from controller.axis import AxisControllers, MotorCurrents
-from controller.capability import geometric_engine
+from controller.capability import Capability, with_axis
 from controller.config import ControllerConfig, controller_config
 from controller.design import PidGains
 from controller.plants import PlantStepError
@@ -153,7 +154,9 @@ class Device:
         self.leg_min = model.leg_min if model.leg_min is not None else 0.0
         self.leg_max = model.leg_max if model.leg_max is not None else math.inf
         self.home_lengths = inverse_kinematics(model, model.home, with_cond=False).lengths.copy()
-        self.bounds = _bounds(self.leg_min, self.leg_max, self.servo, model)
+        # what the device accepts (controller.capability), the servo's overshoot room kept free
+        self.capability = _capability(self.servo, model)
+        self.param_ranges = input_bounds.param_ranges(self.servo.design_motor, self.design_gains)
         self.state = DeviceState(np.asarray(model.home, dtype=float).copy())
         self.k = 0                       # ticks done; device time = k / rate
         self.load = 0                    # per mille of the tick period (set by serve)
@@ -163,7 +166,8 @@ class Device:
         # observers (hil.observe): a snapshot every observe_every ticks into observer
         self.observer: Latest | None = None
         self.observe_every = 1
-        self.params = params.parameters(self.servo, self.settings, self.bounds, self.rate)
+        self.params = params.parameters(self.servo, self.settings, self.param_ranges,
+                                        self.capability, self.rate)
 
     #: The signing clock (10 us units since 2015): the wall clock; tests may replace it.
     signing_clock = staticmethod(wall_timestamp)
@@ -339,16 +343,17 @@ def _sensors(config: SensorConfig | None, servo: Servo, rate: float,
                    plant_scene.source)
 
 
-def _bounds(leg_min: float, leg_max: float, servo: Servo, model: Model) -> input_bounds.Bounds:
-    """The input bounds of a device of this stroke and servo (hil.input_bounds), with the
-    geometric limits of `model` (controller.capability); DeviceError when the servo's overshoot
-    room leaves no setpoint length."""
+def _capability(servo: Servo, model: Model) -> Capability:
+    """The setpoints a device of this servo accepts: the capability of `model` with the servo's
+    drive (controller.capability), inset by the servo's overshoot room at the force its plant
+    holds; DeviceError when the room leaves no setpoint length."""
     held = float(np.max(np.abs(servo.plant.rack_force)))
-    room = input_bounds.overshoot_room(servo.ctrl.axis, held)
-    b = input_bounds.device_bounds(leg_min, leg_max, servo.ctrl.axis, servo.design_gains, room,
-                                   geometric_engine(model))
-    if not b.leg_min < b.leg_max:
+    cap = with_axis(model, servo.ctrl.axis)
+    room = cap.room(held)
+    out = cap.inset(room)
+    if not out.leg_min < out.leg_max:
+        leg_min, leg_max = cap.ends
         raise DeviceError(f"the stroke [{leg_min:g}, {leg_max:g}] m leaves no "
                           f"setpoint once the servo's overshoot room ({room:.3g} m at each "
-                          "end, hil.input_bounds) is kept free")
-    return b
+                          "end, controller.capability) is kept free")
+    return out

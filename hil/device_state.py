@@ -16,7 +16,7 @@ import numpy as np
 from hil.operating_mode import Event, Mode
 
 if TYPE_CHECKING:
-    from hil.input_bounds import Bounds
+    from controller.capability import Capability
     from hil.framing import Receiver
     from hil.params import Param, Settings
     from hil.sensors import Sensors
@@ -82,7 +82,7 @@ class DeviceView(Protocol):
     last_fault: str | None
     settings: Settings
     params: dict[str, Param]
-    bounds: Bounds
+    capability: Capability
     leg_min: float
     leg_max: float
     home_lengths: np.ndarray

@@ -53,7 +53,7 @@ def follow(dev: DeviceView, msg: Any, guess: np.ndarray) -> list[Any]:
     flags = msg.flags
     hold = bool(flags & ms.STEWART_SETPOINT_FLAG_HOLD)
     why, pose = (None, None) if hold else check_setpoint(
-        msg, flags, dev.bounds, dev.model, guess, dev.settings.cond_max)
+        msg, flags, dev.capability, dev.model, guess, dev.settings.cond_max)
     if why is not None:
         return refuse(dev, why)
     state = dev.state

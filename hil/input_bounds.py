@@ -1,8 +1,11 @@
 """Physical bounds of everything that enters the emulated device.
 
-One table (`Bounds`, built by `device_bounds`) derived from the scene and its drives. The motor's
-ratings are those of the scene's [controller.motor] table; Kf = Kt zeta / r (N/A) and
-Ke' = Ke zeta / r (V s/m) are the drive's force and back-EMF constants at the rack.
+The setpoints' bounds are the device's capability (controller.capability.Capability, the one
+home of what the mechanism and its drives can do: its stroke inset by the servo's overshoot
+room, its `setpoint_*` headroom over the drives); the parameters' ranges (`ParamRanges`, built
+by `param_ranges`) and the stream rates' check are here. The motor's ratings are those of the
+scene's [controller.motor] table; Kf = Kt zeta / r (N/A) and Ke' = Ke zeta / r (V s/m) are the
+drive's force and back-EMF constants at the rack.
 
 =================  ==========================================  ===========================
 what               bound                                       micro-manipulator scene
@@ -21,15 +24,11 @@ pose angles        |thx|, |thy|, |thz| <= pi                   pi rad
 SR_* (streams)     [0, min(controller rate, 1000)] Hz          [0, 1000] Hz
 =================  ==========================================  ===========================
 
-The room kept free at each end of the stroke is the servo's own overshoot: a leg that arrives
-at a setpoint at the drive's no-load speed v0 = V_max / Ke' runs on until the peak force Kf I_max,
-less the static leg force F_hold the drive holds at home (gravity may push the same way), stops its
-moving mass m (the axis model's load plus m_d): room = m v0^2 / (2 (Kf I_max - F_hold)), 4.7 mm of
-the micro-manipulator's 120 mm stroke (its worst full-stroke step overshoots 2.7 mm). The bound,
-not the servo, keeps the room: the servo's tick is the co-simulation master's
-(controller.axis.servo_step), so a host following the bounds gets the loop it designed, and the
-room is a read-only fact a host reads (SP_LEN_MIN, SP_LEN_MAX), not a hidden change of dynamics
-near the stops.
+The room kept free at each end of the stroke is the servo's own overshoot
+(controller.capability.overshoot_room) with the static leg force the drive holds at home:
+room = m v0^2 / (2 (Kf I_max - F_hold)), 4.7 mm of the micro-manipulator's 120 mm stroke (its
+worst full-stroke step overshoots 2.7 mm). It is a read-only fact a host reads (SP_LEN_MIN,
+SP_LEN_MAX), not a hidden change of dynamics near the stops.
 
 The setpoint bounds are also reported as read-only parameters (SP_RATE_MAX, SP_FORCE_MAX,
 SP_FRATE_MAX, SP_LEN_MIN, SP_LEN_MAX) so a host can read them with PARAM_REQUEST_LIST.
@@ -48,89 +47,36 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
+from controller.design import PidGains
+from controller.drive import Motor
 
-from controller.capability import DEVICE_FORCE, DEVICE_RATE, bounds_of
-
-# Headroom over the drive's physical limits (declared in controller.capability beside the
-# other consumers' margins). Planned moves may ask more than a drive delivers (it then
-# saturates): the project's own references for the paper's 0.1 s moves ask the
-# micro-manipulator's legs for 6.5x the no-load speed and 21x the peak force (Kane feed-forward),
-# and the host must be able to send them. These bounds refuse absurd values, not ambitious ones.
-RATE_MARGIN = DEVICE_RATE
-FORCE_MARGIN = DEVICE_FORCE
-FORCE_RATE_MARGIN = 10.0
 GAIN_FACTOR = 10.0      # gains up to this many times the design's
 LIMIT_FLOOR = 0.01      # drive limits down to this fraction of the motor's rating
 WATCHDOG_RANGE = (0.01, 10.0)   # s
 COND_MAX_LIMIT = 1e4
 STREAM_MAX = 1000.0     # Hz
 
-@dataclass(frozen=True)
-class Bounds:
-    """The device's input bounds (see the module doc)."""
 
-    leg_min: float
-    leg_max: float
-    rate_max: float         # m/s
-    force_max: float        # N
-    force_rate_max: float   # N/s
-    gain_max: dict[str, float]      # kp, ki, kd
+@dataclass(frozen=True)
+class ParamRanges:
+    """What a PARAM_SET may set (see the module doc): the gains (kp, ki, kd) up to gain_max,
+    the drive limits, the watchdog, SP_COND_MAX's upper end and the stream rates' cap."""
+
+    gain_max: dict[str, float]
     voltage_range: tuple[float, float]
     current_range: tuple[float, float]
     watchdog_range: tuple[float, float] = WATCHDOG_RANGE
     cond_max_limit: float = COND_MAX_LIMIT
     stream_max: float = STREAM_MAX
-    # the pose's own limits (controller.capability.geometric_engine: joint cones, leg and
-    # obstacle clearance), None: not checked
-    reach: Any = None
-
-    def setpoint(self, msg: Any, flags: int, rate_flag: int, force_flag: int,
-                 force_rate_flag: int) -> str | None:
-        """Why a (finite) setpoint is out of bounds (legs numbered 1..6), or None. Lengths:
-        checked by the caller."""
-        checks = []
-        if flags & rate_flag:
-            checks.append(("rate", msg.rate, self.rate_max, "m/s"))
-        if flags & force_flag:
-            checks.append(("force", msg.force, self.force_max, "N"))
-        if flags & force_rate_flag:
-            checks.append(("force rate", msg.force_rate, self.force_rate_max, "N/s"))
-        for what, values, bound, unit in checks:
-            a = np.abs(np.asarray(values, dtype=float))
-            i = int(np.argmax(a))
-            if not a[i] <= bound:
-                return f"leg {i + 1} {what} {values[i]:.3g} {unit}, bound {bound:.3g}"
-        return None
 
 
-def overshoot_room(axis: Any, holding_force: float) -> float:
-    """m, the stroke kept free at each end (see the module doc): the distance in which the drive
-    `axis` (controller.drive.AxisModel) stops its moving mass from its no-load speed with its
-    peak force less `holding_force` (N); inf when the drive cannot out-push the load it holds."""
-    brake = axis.peak_force - abs(holding_force)
-    if not brake > 0:
-        return float("inf")
-    return axis.moving_mass * axis.no_load_speed ** 2 / (2.0 * brake)
-
-
-def device_bounds(leg_min: float, leg_max: float, axis: Any, gains: Any,
-                  room: float = 0.0, reach: Any = None) -> Bounds:
-    """The bounds of a device whose stroke is [leg_min, leg_max], whose drive is `axis`
-    (controller.drive.AxisModel, with the scene's motor ratings) and whose designed gains are
-    `gains` (controller.design.PidGains); setpoint lengths keep `room` (overshoot_room) free at
-    each end of the stroke; a setpoint's pose stays inside the limits of `reach` (a
-    stewart_fmu.reach.Engine of the pose's own limits)."""
-    m = axis.motor
-    kf, drive = axis.force_constant, bounds_of(axis)
-    return Bounds(
-        leg_min=leg_min + room, leg_max=leg_max - room,
-        rate_max=RATE_MARGIN * drive.speed,
-        force_max=FORCE_MARGIN * drive.force,
-        force_rate_max=FORCE_RATE_MARGIN * kf * m.voltage_limit / m.inductance,
+def param_ranges(motor: Motor, gains: PidGains) -> ParamRanges:
+    """The ranges of a device whose motor's ratings are `motor` and whose designed gains are
+    `gains` (controller.design.PidGains)."""
+    return ParamRanges(
         gain_max={k: GAIN_FACTOR * getattr(gains, k) for k in ("kp", "ki", "kd")},
-        voltage_range=(LIMIT_FLOOR * m.voltage_limit, m.voltage_limit),
-        current_range=(LIMIT_FLOOR * m.current_limit, m.current_limit), reach=reach)
+        voltage_range=(LIMIT_FLOOR * motor.voltage_limit, motor.voltage_limit),
+        current_range=(LIMIT_FLOOR * motor.current_limit, motor.current_limit))
 
 
 def check_rate(hz: Any) -> str | None:

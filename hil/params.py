@@ -1,9 +1,10 @@
 """The emulated device's parameter table: names, what each reads and sets, its bounds.
 
-Every parameter has a range (hil.input_bounds): a PARAM_SET out of range, or of a type other than
-REAL32 and the integer types up to 32 bits in MAVLink's bytewise encoding (hil.protocol), is
-refused with the unchanged PARAM_VALUE and a STATUSTEXT. The drive-derived setpoint bounds are
-read-only parameters (SP_LEN_MIN/MAX, SP_RATE_MAX, SP_FORCE_MAX, SP_FRATE_MAX).
+Every parameter has a range (hil.input_bounds.ParamRanges): a PARAM_SET out of range, or of a type
+other than REAL32 and the integer types up to 32 bits in MAVLink's bytewise encoding
+(hil.protocol), is refused with the unchanged PARAM_VALUE and a STATUSTEXT. The setpoint bounds,
+the device's capability (controller.capability.Capability), are read-only parameters
+(SP_LEN_MIN/MAX, SP_RATE_MAX, SP_FORCE_MAX, SP_FRATE_MAX).
 
   CTRL_KP, CTRL_KI, CTRL_KD     PID gains, [0, GAIN_FACTOR x designed]
   DRV_V_LIMIT, DRV_I_LIMIT      motor voltage and current limits, up to the ratings
@@ -18,6 +19,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
+from controller.capability import Capability
 from hil import input_bounds, protocol
 from hil import mavlink_stewart as ms
 from hil.servo import Servo
@@ -53,9 +55,10 @@ class Settings:
     rates: dict[str, float] = field(default_factory=lambda: dict(TELEMETRY))
 
 
-def parameters(servo: Servo, settings: Settings, b: input_bounds.Bounds,
+def parameters(servo: Servo, settings: Settings, b: input_bounds.ParamRanges, cap: Capability,
                rate: float) -> dict[str, Param]:
-    """The table, in the order PARAM_REQUEST_LIST answers (the index of PARAM_VALUE)."""
+    """The table, in the order PARAM_REQUEST_LIST answers (the index of PARAM_VALUE): the
+    settable ones within `b`, the setpoint bounds of `cap` read-only."""
 
     def gain(name: str) -> Param:
         return Param(lambda: getattr(servo.ctrl.gains, name), lambda x: servo.set_gain(name, x),
@@ -83,9 +86,10 @@ def parameters(servo: Servo, settings: Settings, b: input_bounds.Bounds,
                                    lambda x: setattr(settings, "cond_max", x),
                                    input_bounds.in_range(1.0, b.cond_max_limit, lo_open=True))}
     params.update({p: stream(s) for p, s in STREAM_PARAMS.items()})
-    params.update({"SP_LEN_MIN": bound(b.leg_min), "SP_LEN_MAX": bound(b.leg_max),
-                   "SP_RATE_MAX": bound(b.rate_max), "SP_FORCE_MAX": bound(b.force_max),
-                   "SP_FRATE_MAX": bound(b.force_rate_max)})
+    params.update({"SP_LEN_MIN": bound(cap.leg_min), "SP_LEN_MAX": bound(cap.leg_max),
+                   "SP_RATE_MAX": bound(cap.setpoint_rate),
+                   "SP_FORCE_MAX": bound(cap.setpoint_force),
+                   "SP_FRATE_MAX": bound(cap.setpoint_force_rate)})
     return params
 
 

@@ -1,11 +1,12 @@
 """The checks a LEG_SETPOINT passes before the device follows it, and its optional fields.
 
 In order (the first failure is the reason, legs numbered 1..6): every length, and every rate,
-force and force rate its flags declare valid, finite; those within the bounds of hil.input_bounds;
-every length within [SP_LEN_MIN, SP_LEN_MAX]; a pose with these lengths (forward kinematics by
-Newton from the last accepted pose); cond(J) at that pose at most SP_COND_MAX; the pose inside
-the joint cones and the leg and obstacle clearances (the engine of Bounds.reach,
-controller.capability: the one feasibility engine).
+force and force rate its flags declare valid, finite; those within the device's capability
+(controller.capability.Capability: setpoint_rate, setpoint_force, setpoint_force_rate); every
+length within [SP_LEN_MIN, SP_LEN_MAX] (the capability's stroke, the servo's overshoot room
+kept free); a pose with these lengths (forward kinematics by Newton from the last accepted
+pose); cond(J) at that pose at most SP_COND_MAX; the pose inside the joint cones and the leg and
+obstacle clearances (the capability's `geometric` engine: the one feasibility engine).
 """
 from __future__ import annotations
 
@@ -13,16 +14,15 @@ from typing import Any
 
 import numpy as np
 
-from controller.capability import first_violated
+from controller.capability import Capability, first_violated
 from hil import mavlink_stewart as ms
-from hil.input_bounds import Bounds
 from stewart_fmu.errors import StewartError
 from stewart_fmu.kinematics import condition_number, forward_kinematics
 from stewart_fmu.model import Model
 from stewart_fmu.reach import LIMITS
 
 
-def check_setpoint(msg: Any, flags: int, bounds: Bounds, model: Model, guess: np.ndarray,
+def check_setpoint(msg: Any, flags: int, cap: Capability, model: Model, guess: np.ndarray,
                    cond_max: float) -> tuple[str | None, np.ndarray | None]:
     """(why the setpoint is refused or None, its pose); `guess` starts forward kinematics."""
     lengths = np.array(msg.length, dtype=float)
@@ -35,12 +35,10 @@ def check_setpoint(msg: Any, flags: int, bounds: Bounds, model: Model, guess: np
     if (flags & ms.STEWART_SETPOINT_FLAG_FORCE_RATE_VALID
             and not np.all(np.isfinite(msg.force_rate))):
         return "non-finite force rate", None
-    why = bounds.setpoint(msg, flags, ms.STEWART_SETPOINT_FLAG_RATE_VALID,
-                          ms.STEWART_SETPOINT_FLAG_FORCE_VALID,
-                          ms.STEWART_SETPOINT_FLAG_FORCE_RATE_VALID)
+    why = beyond(msg, flags, cap)
     if why is not None:
         return why, None
-    lo, hi = bounds.leg_min, bounds.leg_max
+    lo, hi = cap.leg_min, cap.leg_max
     bad = [i for i in range(6) if not lo <= lengths[i] <= hi]
     if bad:
         i = bad[0]
@@ -53,8 +51,26 @@ def check_setpoint(msg: Any, flags: int, bounds: Bounds, model: Model, guess: np
     cond = condition_number(model, pose)
     if not cond <= cond_max:
         return f"near-singular, cond {cond:.3g} > {cond_max:g}", None
-    why = geometry(bounds.reach, pose)
+    why = geometry(cap.geometric, pose)
     return (why, None) if why is not None else (None, pose)
+
+
+def beyond(msg: Any, flags: int, cap: Capability) -> str | None:
+    """Why a (finite) setpoint's rate, force or force rate, where its flags declare them valid,
+    is beyond the capability's setpoint bounds (legs numbered 1..6), or None."""
+    checks = []
+    if flags & ms.STEWART_SETPOINT_FLAG_RATE_VALID:
+        checks.append(("rate", msg.rate, cap.setpoint_rate, "m/s"))
+    if flags & ms.STEWART_SETPOINT_FLAG_FORCE_VALID:
+        checks.append(("force", msg.force, cap.setpoint_force, "N"))
+    if flags & ms.STEWART_SETPOINT_FLAG_FORCE_RATE_VALID:
+        checks.append(("force rate", msg.force_rate, cap.setpoint_force_rate, "N/s"))
+    for what, values, bound, unit in checks:
+        a = np.abs(np.asarray(values, dtype=float))
+        i = int(np.argmax(a))
+        if not a[i] <= bound:
+            return f"leg {i + 1} {what} {values[i]:.3g} {unit}, bound {bound:.3g}"
+    return None
 
 
 def geometry(engine: Any, pose: np.ndarray) -> str | None:

@@ -255,7 +255,7 @@ class GcsController:
         SVD where its bound is sure, which keeps SPI and KEN, which recompute the range, short
         on the device's loop)."""
         lengths = self.mover.lengths(g)
-        b = self.device.bounds
+        b = self.device.capability
         return (np.all(lengths >= b.leg_min, axis=1) & np.all(lengths <= b.leg_max, axis=1)
                 & (engine.binding(self.frame.to_pose(g)) < 0))
 

@@ -5,12 +5,12 @@ A move runs from the reference now (where the previous path stands; at rest afte
 finished move) to the goal along the minimum-jerk profile of controller.trajectory (every
 coordinate on one straight line in X Y Z U V W, the pivot on a straight line). Before it starts
 the whole path is checked at PATH_SAMPLES poses: every leg within the device's own setpoint
-stroke (hil.input_bounds: the stroke less the servo's overshoot room), cond(J) within
+stroke (Device.capability: the stroke less the servo's overshoot room), cond(J) within
 SP_COND_MAX and every limit of the feasibility engine (stewart_fmu.reach) inside, else
 GcsError 7 naming the limit (the session keeps it: hil.gcs.controller.Session) and nothing
 moves. Its duration is the longest of: the translation
 at the system velocity (VLS, mm/s), the rotation at the same number in deg/s, and the legs at
-the drive's no-load speed (hil.input_bounds: SP_RATE_MAX / RATE_MARGIN), each with the quintic's
+the drive's no-load speed (Device.capability.speed), each with the quintic's
 peak rate factor. The leg rates sent are the central difference of the leg lengths along the
 path (a step of FD_STEP in the path parameter, times the profile's rate). After the goal the
 last setpoint is sent again every quarter of the device's watchdog, so an idle twin holds its
@@ -26,7 +26,6 @@ from typing import Any
 import numpy as np
 
 from controller.trajectory import QUINTIC_PEAK_RATE, minimum_jerk
-from hil import input_bounds
 from hil import mavlink_stewart as ms
 from hil.device import Device
 from hil.gcs import errors as E
@@ -72,7 +71,7 @@ class Mover:
         self.device, self.frame = device, frame
         self.model = device.model
         self.engine = Engine(device.model)      # the geometric limits and cond(J)
-        self.speed = device.bounds.rate_max / input_bounds.RATE_MARGIN   # the drive's no-load speed
+        self.speed = device.capability.speed    # the drive's no-load speed
         self.reference = np.zeros(6)            # GCS: where the path stands now
         self.path: Path | None = None
         self.held: np.ndarray | None = None     # lengths of the last setpoint (resent)
@@ -98,7 +97,7 @@ class Mover:
         s = np.linspace(0.0, 1.0, PATH_SAMPLES)
         q = self.frame.to_pose(start + (goal - start) * s[:, None])
         kin = inverse_kinematics(self.model, q)
-        b = self.device.bounds
+        b = self.device.capability
         lengths = kin.lengths
         if not np.all(np.isfinite(lengths)):
             raise E.GcsError(E.POS_OUT_OF_LIMITS, "a pose on the way is not finite")

@@ -7,12 +7,14 @@ need for those forces (controller/drive.py):
     V = R i + L di/dt + Ke' ldot     Ke' = Ke zeta / r (AxisModel.voltage)
 
 (AxisModel.drive_for, as the controller's feedforward: di/dt by central differences.)
-Limits (controller.capability, the one home of what the mechanism and its drives can do): the
-stroke [leg_min, leg_max] of [geometry]; cond(J) (scaled as in stewart_fmu.kinematics) below
-`cond_limit` (the engine's COND_LIMIT); |i| and |V| below [controller.motor]'s current_limit
-and voltage_limit; |sigma| below the drives' peak force Kf x current_limit, the most force the
-drive can give. What `cue-live`'s envelope keeps free of them on top is live.preflight's. A scene without [controller] (or without [drive]) has no motor:
-current, voltage and the force limit are then not computed (`drive_note` says why).
+Limits (the scene's Capability, controller.capability, the one home of what the mechanism and
+its drives can do; a Feasibility holds the one it was judged against): the stroke [leg_min,
+leg_max] of [geometry]; cond(J) (scaled as in stewart_fmu.kinematics) below `cond_limit` (the
+engine's COND_LIMIT); |i| and |V| below [controller.motor]'s current_limit and voltage_limit;
+|sigma| below the drives' peak force Kf x current_limit, the most force the drive can give.
+What `cue-live`'s envelope keeps free of them on top is live.preflight's. A scene without
+[controller] (or without [drive]) has no motor: current, voltage and the force limit are then
+not computed (`drive_note` says why).
 
 Forces are computed at every sample, also those past the stroke (the stroke is checked here,
 not refused by the dynamics), so a report shows what the whole trajectory would take.
@@ -23,15 +25,18 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from controller.capability import capability
+from controller.capability import Capability, capability
 from controller.config import ControllerConfig
 from stewart_fmu.dynamics import inverse_dynamics
 from stewart_fmu.errors import TrajectoryError
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.model import Model
+from stewart_fmu.reach import LIMITS
 from stewart_fmu.reach_params import COND_LIMIT   # the engine's cond(J) limit, SP_COND_MAX's default
+
 QUANTITIES = ("stroke_min", "stroke_max", "cond", "force", "current", "voltage")
-UNITS = {"stroke_min": "m", "stroke_max": "m", "cond": "1", "force": "N", "current": "A",
+# the engine's units for the limits it shares (stewart_fmu.reach.LIMITS), the motor's for its own
+UNITS = {**{lim.name: lim.unit for lim in LIMITS if lim.name in QUANTITIES}, "current": "A",
          "voltage": "V"}
 
 
@@ -75,12 +80,7 @@ class Feasibility:
     sigma: np.ndarray              # (N, 6) N, rack force incl. the drive term
     current: np.ndarray | None     # (N, 6) A (None: no motor in the scene)
     voltage: np.ndarray | None     # (N, 6) V
-    leg_min: float | None          # m (None: the scene gives no stroke limit)
-    leg_max: float | None
-    cond_limit: float
-    force_limit: float | None      # N, Kf x current_limit
-    current_limit: float | None    # A
-    voltage_limit: float | None    # V
+    capability: Capability         # the limits judged against (its cond: the cond(J) limit)
     violations: tuple[Violation, ...]   # in time order
     margins: tuple[Margin, ...]         # one per quantity that has a limit
     drive_note: str | None = None       # why current and voltage are missing, if they are
@@ -88,6 +88,35 @@ class Feasibility:
     @property
     def feasible(self) -> bool:
         return not self.violations
+
+    @property
+    def leg_min(self) -> float | None:
+        """m (None: the scene gives no stroke limit)."""
+        return self.capability.leg_min
+
+    @property
+    def leg_max(self) -> float | None:
+        return self.capability.leg_max
+
+    @property
+    def cond_limit(self) -> float:
+        return self.capability.cond
+
+    @property
+    def force_limit(self) -> float | None:
+        """N, Kf x current_limit (None: no motor)."""
+        return self.capability.force
+
+    @property
+    def current_limit(self) -> float | None:
+        """A (None: no motor)."""
+        axis = self.capability.axis
+        return None if axis is None else axis.motor.current_limit
+
+    @property
+    def voltage_limit(self) -> float | None:
+        """V (None: no motor)."""
+        return self.capability.voltage
 
 
 def feasibility(model: Model, t, q, qd, qdd, controller: ControllerConfig | None, *,
@@ -102,7 +131,8 @@ def feasibility(model: Model, t, q, qd, qdd, controller: ControllerConfig | None
                               f"{t.shape} and {np.shape(q)}")
     kin = inverse_kinematics(model, q, qd, qdd)
     sigma = inverse_dynamics(replace(model, leg_min=None, leg_max=None), q, qd, qdd)
-    current = voltage = force_limit = current_limit = voltage_limit = None
+    cap = replace(capability(model, controller), cond=cond_limit)
+    current = voltage = None
     note = None
     if controller is None:
         note = ("the scene has no [controller] table (the motor's ratings): current, voltage "
@@ -111,15 +141,13 @@ def feasibility(model: Model, t, q, qd, qdd, controller: ControllerConfig | None
         note = ("the scene has no [drive] table (gearbox and pinion): current, voltage and the "
                 "force limit not computed")
     else:
-        cap = capability(model, controller)
         voltage, current = cap.axis.drive_for(t, sigma, kin.rates)
-        current_limit, voltage_limit = cap.axis.motor.current_limit, cap.voltage
-        force_limit = cap.force
-    checks = {"stroke_min": (kin.lengths, model.leg_min, -1),
-              "stroke_max": (kin.lengths, model.leg_max, +1),
-              "cond": (kin.cond[:, None], cond_limit, +1),
-              "force": (sigma, force_limit, 0), "current": (current, current_limit, 0),
-              "voltage": (voltage, voltage_limit, 0)}
+    current_limit = None if cap.axis is None else cap.axis.motor.current_limit
+    checks = {"stroke_min": (kin.lengths, cap.leg_min, -1),
+              "stroke_max": (kin.lengths, cap.leg_max, +1),
+              "cond": (kin.cond[:, None], cap.cond, +1),
+              "force": (sigma, cap.force, 0), "current": (current, current_limit, 0),
+              "voltage": (voltage, cap.voltage, 0)}
     violations, margins = [], []
     for quantity, (values, limit, side) in checks.items():
         if values is None or limit is None:
@@ -127,8 +155,7 @@ def feasibility(model: Model, t, q, qd, qdd, controller: ControllerConfig | None
         violations += _crossings(t, quantity, values, limit, side)
         margins.append(_margin(t, quantity, values, limit, side))
     violations.sort(key=lambda v: (v.sample, QUANTITIES.index(v.quantity), v.leg or 0))
-    return Feasibility(t, kin.lengths, kin.cond, sigma, current, voltage, model.leg_min,
-                       model.leg_max, cond_limit, force_limit, current_limit, voltage_limit,
+    return Feasibility(t, kin.lengths, kin.cond, sigma, current, voltage, cap,
                        tuple(violations), tuple(margins), note)
 
 

@@ -1,13 +1,14 @@
 """The live safety envelope: between the washout's pose samples and the device's leg setpoints,
 one causal step per sample, a bounded amount of work each.
 
-Limits (`EnvelopeLimits`, built by `envelope_limits` from the one feasibility engine of the scene
-and its drives, controller.capability, less the margins its `Margins` keep free):
+Limits (`envelope_limits`: the scene's capability, controller.capability, inset by the servo's
+overshoot room as the device's setpoint lengths are, less the margins its `Margins` keep free:
+Capability.inset(room).less(margins)):
 
 =============  ==========================================================================
 stroke         [leg_min + room + m, leg_max - room - m]: the emulated device's setpoint
-               bounds (hil.input_bounds.device_bounds, room = hil.input_bounds.overshoot_room
-               against the force held at home) less a margin m, a fraction of the stroke
+               lengths (controller.capability.overshoot_room against the force held at
+               home) less a margin m, a fraction of the stroke
 speed          |ldot| <= (1 - margin) x the drive's no-load speed (DriveBounds.speed)
 acceleration   |lddot| <= (1 - margin) x the drive's peak acceleration (DriveBounds)
 force          |sigma| <= (1 - margin) x Kf I_max, sigma the scene's inverse dynamics (every
@@ -84,16 +85,12 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from controller.capability import (GEOMETRIC, Margins, axis_of, bounds_of, first_violated,
-                                   geometric_engine, kept)
+from controller.capability import GEOMETRIC, Capability, Margins, capability, first_violated
 from controller.config import ControllerConfig
-from hil.input_bounds import overshoot_room
 from stewart_fmu.errors import SceneError
 from stewart_fmu.model import Model
 from stewart_fmu.native import core
 from stewart_fmu.reach import LIMITS as REACH_LIMITS
-from stewart_fmu.reach import Engine
-from stewart_fmu.reach_params import COND_LIMIT
 
 LIMITS = ("stroke", "speed", "acceleration", "force", "cond", "invalid") + GEOMETRIC
 # the limits of the pose alone: a cue pose beyond one is refused (stop, the last good pose held)
@@ -109,32 +106,15 @@ TIGHTEN = 1e-2
 TRACK_TIME = 0.01   # s, the time constant of the tracking law's rate loop (at least 5 samples)
 
 
-@dataclass(frozen=True)
-class EnvelopeLimits:
-    """The envelope's limits (see the module doc), SI: the engine's (controller.capability)
-    less the margins kept free of them."""
-
-    leg_min: float
-    leg_max: float
-    speed: float          # m/s
-    acceleration: float   # m/s^2
-    force: float          # N
-    cond: float           # scaled cond(J)
-    # the pose's own limits (joint cones, clearances; controller.capability.geometric_engine)
-    # and the margin kept free of each (per limit of stewart_fmu.reach.LIMITS); None: none
-    reach: Engine | None = None
-    keep: np.ndarray | None = None
-
-
 def envelope_limits(model: Model, controller: ControllerConfig | None,
-                    margins: Margins = Margins()) -> EnvelopeLimits:
-    """The limits of `model`'s legs and drives (the scene's [drive] and [controller] tables,
-    as controller.capability gives them), each less its margin. SceneError when the scene has
-    no drive or no motor; ValueError naming the margin when one is not in [0, 1)."""
+                    margins: Margins = Margins()) -> Capability:
+    """What the envelope may use of `model`'s legs and drives (the scene's [drive] and
+    [controller] tables): its capability inset by the servo's overshoot room at home, less
+    `margins`. SceneError when the scene has no drive or no motor, or the stroke leaves no
+    room; ValueError naming the margin when one is not in [0, 1)."""
     margins.check()
-    axis = axis_of(model, controller)
-    drive = bounds_of(axis)
-    if drive is None:
+    cap = capability(model, controller)
+    if cap.drive is None:
         raise SceneError("controller", "the live envelope needs the drives' limits: the scene's "
                          "[drive] and [controller.motor] tables", model.source)
     free = replace(model, leg_min=None, leg_max=None)
@@ -143,22 +123,16 @@ def envelope_limits(model: Model, controller: ControllerConfig | None,
     if status:
         raise SceneError("geometry.home", "the inverse dynamics refuse the home pose",
                          model.source)
-    room = overshoot_room(axis, float(np.max(np.abs(held))))
-    leg_min = model.leg_min if model.leg_min is not None else 0.0
-    leg_max = model.leg_max if model.leg_max is not None else math.inf
-    keep = margins.stroke * (leg_max - leg_min) if math.isfinite(leg_max) else 0.0
-    lo, hi = leg_min + room + keep, leg_max - room - keep
-    if not lo < hi:
+    room = cap.room(float(np.max(np.abs(held))))
+    inset = cap.inset(room)
+    out = inset.less(margins)
+    if not out.leg_min < out.leg_max:
+        leg_min, leg_max = cap.ends
+        keep = out.leg_min - inset.leg_min
         raise SceneError("geometry", f"the stroke [{leg_min:g}, {leg_max:g}] m leaves no room "
                          f"once the servo's overshoot room ({room:.3g} m) and the envelope's "
                          f"margin ({keep:.3g} m) are kept at each end", model.source)
-    reach = geometric_engine(model)
-    geometric = bool({lim.name for lim in reach.present()} & set(GEOMETRIC))
-    return EnvelopeLimits(lo, hi, (1 - margins.speed) * drive.speed,
-                          (1 - margins.acceleration) * drive.acceleration,
-                          (1 - margins.force) * drive.force, (1 - margins.cond) * COND_LIMIT,
-                          reach if geometric else None,
-                          kept(model, margins) if geometric else None)
+    return out
 
 
 @dataclass(frozen=True)
@@ -205,7 +179,7 @@ class Envelope:
     several times faster than numpy's per-call overhead, and the work per sample is what the
     live loop's 1 ms must hold."""
 
-    def __init__(self, model: Model, limits: EnvelopeLimits, dt: float, start=None) -> None:
+    def __init__(self, model: Model, limits: Capability, dt: float, start=None) -> None:
         if not dt > 0:
             raise ValueError(f"dt must be > 0, got {dt}")
         # the stroke is the envelope's own check: the core must not refuse a cue outside it
@@ -294,9 +268,9 @@ class Envelope:
     def _geometry(self, q, keep) -> str | None:
         """The first joint cone or clearance (GEOMETRIC) whose margin at q is below `keep`
         (per limit; None: 0), or None (also without such limits)."""
-        if self.limits.reach is None:
+        if self.limits.geometric is None:
             return None
-        k = first_violated(self.limits.reach.verdict(q).margins, 0.0 if keep is None else keep)
+        k = first_violated(self.limits.geometric.verdict(q).margins, 0.0 if keep is None else keep)
         return None if k is None else REACH_LIMITS[k].name
 
     def _cond(self, q) -> float:
@@ -375,7 +349,7 @@ class Envelope:
         """The limited step, unless its pose leaves a joint cone or a clearance (no margin
         kept): then the emergency stop's step, and if that leaves one too, the last pose sent
         held at rest. No sample sent lies outside those limits."""
-        if self.limits.reach is None:
+        if self.limits.geometric is None:
             return self._limited_step(a_des, reasons)
         out = self._limited_step(a_des, dict(reasons))
         name = self._geometry(out.q, None) or self._geometry(self._stop(out), None)

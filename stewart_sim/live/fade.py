@@ -27,11 +27,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from controller.capability import Capability
 from controller.trajectory import minimum_jerk, quintic_duration
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.model import Model
-
-from stewart_sim.live.envelope import EnvelopeLimits
 
 FADE_FRACTION = 0.25   # of the envelope's speed and acceleration limits
 FADE_MIN_TIME = 1.0    # s
@@ -58,7 +57,7 @@ class Fade:
         return t >= self.t0 + self.duration
 
 
-def fade_to_home(model: Model, limits: EnvelopeLimits, q, t0: float,
+def fade_to_home(model: Model, limits: Capability, q, t0: float,
                  fraction: float = FADE_FRACTION, min_time: float = FADE_MIN_TIME) -> Fade:
     """The fade from pose `q` to the scene's home starting at t0 (see the module doc)."""
     start = np.array(q, dtype=float)

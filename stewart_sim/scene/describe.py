@@ -5,8 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from controller.config import ControllerConfig
-from controller.drive import axis_model
+from controller.config import ControllerConfig, scene_axis
 from stewart_fmu.integrators import IntegratorOptions
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.model import Model, PerLeg, is_per_leg
@@ -69,7 +68,7 @@ def _describe_controller(model: Model, cfg: ControllerConfig | None) -> str:
     if cfg is None:
         return "controller: none (run, compare and closed-loop sweeps need a [controller] table)"
     m = cfg.motor
-    axis = axis_model(model, m, cfg.load_mass)
+    axis = scene_axis(model, cfg)
     load = "given" if cfg.load_mass is not None else "largest diagonal of Kane's [m] at home"
     return (f"controller: rate {cfg.rate:g} Hz, bandwidth {cfg.bandwidth:g} Hz, phase margin "
             f"{cfg.phase_margin:g} deg, feedforward {cfg.feedforward}; motor R "

@@ -32,16 +32,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from controller.capability import drive_bounds
 from controller.config import ControllerConfig
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.model import Model
+from stewart_fmu.reach_params import COND_LIMIT
 from stewart_fmu.rotations import euler_motion
 from stewart_sim.scene.cueing_config import cueing_config
 from stewart_sim.view.colours import nice_ceiling
 
 # cond(J) (scaled, stewart_fmu.kinematics) above which a pose is marked near-singular: the
-# emulated device's default SP_COND_MAX (hil.params.COND_MAX; a test holds them equal).
-COND_WARN = 100.0
+# engine's cond(J) limit, the emulated device's default SP_COND_MAX (hil.params.COND_MAX).
+COND_WARN = COND_LIMIT
 # A leg within this fraction of its stroke of leg_min or leg_max is marked at its limit.
 STROKE_MARGIN = 0.01
 # m/s^2: the arrows' scale is chosen so that a specific force of this size (about 1 g, what a
@@ -130,12 +132,10 @@ def frames_geometry(model: Model, plate_radius: float, leg_radius: float) -> dic
 
 
 def drive_peak_force(model: Model, controller: ControllerConfig | None) -> float | None:
-    """The peak rack force of the scene's drives (Kt zeta / r x current limit, N), when the
+    """The peak rack force of the scene's drives (Kf I_max, N: controller.capability), when the
     scene has a [drive] and a [controller] (its motor); else None."""
-    if model.drive is None or controller is None:
-        return None
-    motor = controller.motor
-    return float(motor.torque_constant * motor.current_limit * model.drive.force_per_torque)
+    drive = drive_bounds(model, controller)
+    return None if drive is None else float(drive.force)
 
 
 def rotation(q) -> np.ndarray:

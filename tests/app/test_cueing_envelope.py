@@ -84,7 +84,7 @@ def test_limits_sit_inside_the_device_bounds(model, limits):
 
     dev = Device(model)
     axis = dev.servo.ctrl.axis
-    assert dev.bounds.leg_min < limits.leg_min < limits.leg_max < dev.bounds.leg_max
+    assert dev.capability.leg_min < limits.leg_min < limits.leg_max < dev.capability.leg_max
     assert limits.speed == pytest.approx(0.8 * axis.no_load_speed)
     assert limits.acceleration == pytest.approx(0.8 * axis.peak_acceleration)
     assert limits.force == pytest.approx(0.8 * axis.force_constant * axis.motor.current_limit)

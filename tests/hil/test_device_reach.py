@@ -59,7 +59,7 @@ def _refused(model, pose):
     dev.receive(arm())
     l0 = dev.plant.outputs.lengths.copy()
     lengths = inverse_kinematics(model, np.asarray(model.home) + pose).lengths
-    assert np.all(lengths > dev.bounds.leg_min) and np.all(lengths < dev.bounds.leg_max)
+    assert np.all(lengths > dev.capability.leg_min) and np.all(lengths < dev.capability.leg_max)
     out = dev.receive(setpoint(lengths))
     for _ in range(50):
         dev.tick()

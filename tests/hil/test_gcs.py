@@ -590,7 +590,7 @@ def test_travel_range_ends_where_a_leg_or_the_singularity_bound_binds(idle):
     from stewart_fmu.kinematics import inverse_kinematics
 
     d, c, s = idle
-    b = d.bounds
+    b = d.capability
 
     def inside(g) -> bool:
         kin = inverse_kinematics(d.model, c.frame.to_pose(g))
@@ -659,7 +659,7 @@ def test_vmo_says_what_mov_does_and_a_refused_move_names_its_limit(model):
     kin_q = c.frame.to_pose(np.r_[0.9 * high["X"], 0.0, 0.9 * high["Z"], 0.0, 0.0, 0.0])
     from stewart_fmu.kinematics import inverse_kinematics
     lengths = inverse_kinematics(model, kin_q[None]).lengths[0]
-    assert not d.bounds.leg_min <= lengths[n] <= d.bounds.leg_max
+    assert not d.capability.leg_min <= lengths[n] <= d.capability.leg_max
 
 
 def _reach_step(capsys, scene, direction, frame=None) -> float:

@@ -1,5 +1,5 @@
 """Hostile input to the emulated device: every repro of the hardening brief is refused and the
-device keeps serving (hil.input_bounds, hil.throttle, hil.signing, hil.peer, the numerical safe
+device keeps serving (controller.capability, hil.input_bounds, hil.throttle, hil.signing, hil.peer, the numerical safe
 hold); a seeded fuzz in process and once against the device process over UDP. Bounded and deterministic: no
 wall-clock pass/fail (wall-clock waits only bound how long a socket is read)."""
 from __future__ import annotations
@@ -20,7 +20,8 @@ import pytest
 
 pytest.importorskip("pymavlink")
 
-from hil import input_bounds, throttle  # noqa: E402
+from controller.capability import DEVICE_FORCE, DEVICE_RATE, overshoot_room  # noqa: E402
+from hil import throttle  # noqa: E402
 from hil import mavlink_stewart as ms  # noqa: E402
 from hil.device import Device, DeviceError  # noqa: E402
 from hil.framing import Receiver, crc16, pack  # noqa: E402
@@ -145,8 +146,8 @@ def test_every_accepted_bound_is_reached_without_a_fault(scene):
     (ticks), deterministic."""
     m = load_scene(ROOT / "scenes" / f"{scene}.toml")
     dev = Device(m)
-    room = input_bounds.overshoot_room(dev.ctrl.axis, float(np.max(np.abs(dev.plant.rack_force))))
-    b = dev.bounds
+    room = overshoot_room(dev.ctrl.axis, float(np.max(np.abs(dev.plant.rack_force))))
+    b = dev.capability
     assert room > 0 and (b.leg_min, b.leg_max) == pytest.approx((m.leg_min + room, m.leg_max - room))
     values = {p.param_id: p.param_value for p in dev.receive(ms.MAVLink_param_request_list_message(1, 1))}
     assert (values["SP_LEN_MIN"], values["SP_LEN_MAX"]) == pytest.approx((b.leg_min, b.leg_max))
@@ -187,10 +188,10 @@ def test_a_setpoint_past_the_overshoot_room_is_refused(model):
     """Between SP_LEN_MAX and the stroke's end: refused, the text names the setpoint stroke."""
     dev = Device(model)
     dev.receive(arm())
-    past = np.full(6, dev.bounds.leg_max + 1e-5)
+    past = np.full(6, dev.capability.leg_max + 1e-5)
     assert past[0] < model.leg_max
     [t] = texts(dev.receive(setpoint(1, past)))
-    assert t == f"refused: leg 1 at {past[0]:.4g} m, stroke max {dev.bounds.leg_max:.4g}", t
+    assert t == f"refused: leg 1 at {past[0]:.4g} m, stroke max {dev.capability.leg_max:.4g}", t
     assert dev.counters.setpoints_refused == 1 and dev.counters.setpoints_accepted == 0
 
 @pytest.mark.parametrize("field, value, flags", [("force", 1e308, FORCE), ("rate", 1e300, RATE),
@@ -215,18 +216,18 @@ def test_absurd_finite_setpoints_are_refused(model, field, value, flags):
 
 def test_bounds_table_follows_the_drive(model):
     dev = Device(model)
-    b, ax = dev.bounds, dev.ctrl.axis
+    b, ax, r = dev.capability, dev.ctrl.axis, dev.param_ranges
     # 10 x 0.3 m/s
-    assert b.rate_max == pytest.approx(input_bounds.RATE_MARGIN * 24.0 / ax.emf_constant)
-    assert b.force_max == pytest.approx(input_bounds.FORCE_MARGIN * ax.force_constant * 2.0)
-    room = input_bounds.overshoot_room(ax, float(np.max(np.abs(dev.plant.rack_force))))
+    assert b.setpoint_rate == pytest.approx(DEVICE_RATE * 24.0 / ax.emf_constant)
+    assert b.setpoint_force == pytest.approx(DEVICE_FORCE * ax.force_constant * 2.0)
+    room = overshoot_room(ax, float(np.max(np.abs(dev.plant.rack_force))))
     assert (b.leg_min, b.leg_max) == (model.leg_min + room, model.leg_max - room)
-    assert b.voltage_range[1] == 24.0 and b.current_range[1] == 2.0
+    assert r.voltage_range[1] == 24.0 and r.current_range[1] == 2.0
     values = {m.param_id: m.param_value for m in dev.receive(ms.MAVLink_param_request_list_message(1, 1))}
-    assert values["SP_RATE_MAX"] == pytest.approx(b.rate_max)
-    assert values["SP_FORCE_MAX"] == pytest.approx(b.force_max)
+    assert values["SP_RATE_MAX"] == pytest.approx(b.setpoint_rate)
+    assert values["SP_FORCE_MAX"] == pytest.approx(b.setpoint_force)
     out = dev.receive(param_set("SP_RATE_MAX", 1e9))  # read-only
-    assert out[0].param_value == pytest.approx(b.rate_max) and "read-only" in texts(out)[0]
+    assert out[0].param_value == pytest.approx(b.setpoint_rate) and "read-only" in texts(out)[0]
     with pytest.raises(DeviceError):
         Device(model, watchdog=1e-38)
 
@@ -674,7 +675,7 @@ def test_fuzz_in_process(model, capsys):
     assert c.handler_errors == 0                  # no handler raised (nothing hidden)
     assert c.setpoints_refused > 100 and c.params_refused > 100
     # no parameter left outside its bounds
-    b = dev.bounds
+    b = dev.param_ranges
     assert dev.gains.kp <= b.gain_max["kp"] and dev.gains.kd <= b.gain_max["kd"]
     assert dev.ctrl.axis.motor.voltage_limit <= 24.0 and dev.ctrl.axis.motor.current_limit <= 2.0
     assert b.watchdog_range[0] <= dev.watchdog <= b.watchdog_range[1]

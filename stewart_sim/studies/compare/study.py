@@ -37,10 +37,10 @@ from typing import Callable, Sequence
 import control as ct
 import numpy as np
 
-from controller.config import FEEDFORWARD, ControllerConfig
+from controller.config import FEEDFORWARD, ControllerConfig, scene_axis
 from controller.cosim import run_closed_loop
 from controller.design import PidGains, design_axis, loop, sampled_spectral_radius
-from controller.drive import AxisModel, axis_model
+from controller.drive import AxisModel
 from controller.moves import move_and_hold
 from controller.trajectory import Trajectory, leg_references
 from stewart_fmu.errors import StewartError
@@ -186,7 +186,7 @@ def compare_drive_inertia(model: Model, config: ControllerConfig, n_points: int 
     unknown = [m for m in modes if m not in FEEDFORWARD]
     if unknown or n_points < 1:
         raise StewartError(f"modes must be among {FEEDFORWARD} (got {unknown}) and n_points >= 1")
-    load = axis_model(model, config.motor, config.load_mass).load_mass
+    load = scene_axis(model, config).load_mass
     traj, move_time = comparison_reference(model, config)
     refs = leg_references(model, traj)
     n_move = int(round(move_time * config.rate)) + 1
