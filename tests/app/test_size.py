@@ -278,3 +278,39 @@ def test_a_motion_past_the_stroke_is_reported_not_refused(tmp_path):
     assert checks["stroke_max"]["verdict"] == "past the limit"
     assert float(checks["stroke_max"]["value"]) > 3.3 and float(checks["stroke_max"]["ratio"]) > 1
     assert checks["force"]["verdict"] == "meets"
+
+
+def test_a_drives_checks_take_the_demand_alone_with_the_same_numbers(tmp_path):
+    """A catalogue drive's checks skip feasibility's (stroke, cond(J)): leg_demand without
+    them gives the same arrays, also past the stroke, and drive_result on a model built with
+    the drive is evaluate_drive's result, figure for figure."""
+    from stewart_fmu.scene import read_scene_dict, scene_from_dict
+    from stewart_sim.scene.load import load
+    from stewart_sim.studies.sizing.catalogue import read_catalogue
+    from stewart_sim.studies.sizing.demand import leg_demand
+    from stewart_sim.studies.sizing.motions import read_motions
+    from stewart_sim.studies.sizing.study import drive_result, evaluate_drive
+
+    high = tmp_path / "high.csv"      # past leg_max at t = 0.5 s
+    t = np.array([0.0, 0.5, 1.0])
+    q = np.tile([0, 0, 3.3, 0, 0, 0.0], (3, 1))
+    q[1, 2] = 3.8
+    io.write_csv(high, io.trajectory_table(t, q, np.zeros((3, 6)), np.zeros((3, 6))))
+    motions = read_motions(load(SIM), [str(MOTIONS[1]), str(high)])
+    data = read_scene_dict(SIM)
+    drive = read_catalogue(CATALOGUE)[0]
+    model = scene_from_dict({**data, "drive": drive.drive_table}, str(SIM))
+    for m in motions:
+        full, alone = leg_demand(model, m, None), leg_demand(model, m, None, checks=False)
+        assert alone.feasibility is None and full.feasibility is not None
+        assert np.array_equal(alone.t, full.t) and np.array_equal(alone.lengths, full.lengths)
+        assert alone.values.keys() == full.values.keys()
+        for k, v in full.values.items():
+            assert (v is None and alone.values[k] is None) or np.array_equal(alone.values[k], v), k
+    past = {mg.quantity: mg for mg in full.feasibility.margins}["stroke_max"]
+    assert past.ratio > 1.0      # the second motion is past leg_max
+    direct, built = drive_result(model, drive, motions), evaluate_drive(data, str(SIM), drive,
+                                                                        motions)
+    assert direct.error is None and repr(direct.motions) == repr(built.motions)
+    for (s1, t1), (s2, t2) in zip(direct.points, built.points, strict=True):
+        assert np.array_equal(s1, s2) and np.array_equal(t1, t2)

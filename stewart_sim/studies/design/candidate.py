@@ -127,8 +127,7 @@ def evaluate(spec: DesignSpec, x: np.ndarray, names: tuple[str, ...],
     first_hz, modal = _modal(spec, model, Q[feasible])
     found.update(modal)
     if spec.flight is not None:
-        found.update(flight_margins(spec, model, candidate_scene(spec, values), values, names,
-                                    every or spec.flight.every))
+        found.update(flight_margins(spec, model, values, names, every or spec.flight.every))
     return Candidate(values, tuple(found[n] for n in names), first_hz, len(Q))
 
 

@@ -10,8 +10,9 @@ sample in the dense check), with the candidate's payload and drive:
   constant load, the peak rack force Kf I_max, the rack force by the inverse dynamics); with a
   catalogue drive, the peak acceleration of the constant load (peak torque zeta / r over the
   constant load plus the reflected inertia, as controller.drive.AxisModel defines it);
-- with a catalogue drive, `size`'s checks of the drive's ratings, the same call
-  (stewart_sim.studies.sizing.study.evaluate_drive): torque_peak, torque_rms, motor_speed;
+- with a catalogue drive, `size`'s checks of the drive's ratings, the same call on the
+  candidate's model (stewart_sim.studies.sizing.study.drive_result, evaluate_drive's):
+  torque_peak, torque_rms, motor_speed;
 - with the base scene's drive, `size`'s checks of its motor, the same call
   (stewart_sim.studies.sizing.study.size_scene): the current and the voltage the motor needs
   for the rack force (controller.drive.AxisModel.drive_for) against its current_limit and
@@ -63,10 +64,10 @@ def drive_bounds(spec, model, drive) -> DriveBounds:
     return DriveBounds(None, peak_force / (constant_load(model) + reflected) / keep, None)
 
 
-def flight_margins(spec, model, scene: dict, values: dict[str, float], names: tuple[str, ...],
+def flight_margins(spec, model, values: dict[str, float], names: tuple[str, ...],
                    every: int) -> dict[str, Margin]:
     """Each of the motions' requirements among `names` over every motion: the least margin and
-    where."""
+    where (`model`: the candidate's, its catalogue drive in place)."""
     names = tuple(n for n in names if n.startswith("motion_") or n in RATINGS + MOTOR)
     fl = spec.flight
     drive = spec.drive(values)
@@ -90,7 +91,7 @@ def flight_margins(spec, model, scene: dict, values: dict[str, float], names: tu
                 _keep(out, Margin(name, value, ENGINE_UNITS[lim.name], value / scale[lim.name],
                                   where.rstrip()))
         if drive is not None:
-            _ratings(out, scene, drive, motions, fl.margin)
+            _ratings(out, model, drive, motions, fl.margin)
         else:
             _motor(out, model, fl.controller, motions, fl.margin)
     except StewartError as exc:      # a pose the dynamics refuse, a drive the scene refuses
@@ -99,12 +100,12 @@ def flight_margins(spec, model, scene: dict, values: dict[str, float], names: tu
     return {n: out.get(n, Margin(n, float("nan"), "", FAILED, "not computed")) for n in names}
 
 
-def _ratings(out: dict, scene: dict, drive, motions, margin: float) -> None:
-    """size's checks of a catalogue drive's ratings (evaluate_drive), relative to the rating
-    derated by the margin."""
-    from stewart_sim.studies.sizing.study import evaluate_drive
+def _ratings(out: dict, model, drive, motions, margin: float) -> None:
+    """size's checks of a catalogue drive's ratings (evaluate_drive's, on the candidate's model
+    that has the drive's [drive] table), relative to the rating derated by the margin."""
+    from stewart_sim.studies.sizing.study import drive_result
 
-    r = evaluate_drive(scene, "candidate", drive, motions)
+    r = drive_result(model, drive, motions)
     if r.error is not None:
         raise StewartError(r.error)
     keep = 1.0 + margin

@@ -16,11 +16,12 @@ RMS is per leg over the motion's time (trapezoidal, so any sampling weighs alike
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from controller.config import ControllerConfig
+from stewart_fmu.dynamics import inverse_dynamics
 from stewart_fmu.kinematics import inverse_kinematics
 from stewart_fmu.model import Model
 from stewart_sim.cueing.feasibility import Feasibility, feasibility
@@ -59,13 +60,14 @@ class Statistic:
 @dataclass(frozen=True)
 class LegDemand:
     """Every leg's demand along one motion (arrays (N, 6); None: not computed, see
-    `feasibility.drive_note` for current and voltage, no [drive] for torque and motor speed)."""
+    `feasibility.drive_note` for current and voltage, no [drive] for torque and motor speed;
+    feasibility None: the checks not asked for)."""
 
     motion: str
     t: np.ndarray
     lengths: np.ndarray
     values: dict[str, np.ndarray | None]   # QUANTITIES -> (N, 6) or None
-    feasibility: Feasibility               # stroke, cond(J) and the motor's margins
+    feasibility: Feasibility | None        # stroke, cond(J) and the motor's margins
 
     @property
     def stroke_used(self) -> np.ndarray:
@@ -77,21 +79,33 @@ class LegDemand:
         return {k: statistic(self.t, v) for k, v in self.values.items() if v is not None}
 
 
-def leg_demand(model: Model, motion: Motion, controller: ControllerConfig | None) -> LegDemand:
+def leg_demand(model: Model, motion: Motion, controller: ControllerConfig | None,
+               checks: bool = True) -> LegDemand:
     """The demand of `motion` on the drives of `model` (its [drive]: the scene's, or a
-    catalogue drive put in its place); current and voltage with `controller`'s motor."""
-    f = feasibility(model, motion.t, motion.q, motion.qd, motion.qdd, controller)
+    catalogue drive put in its place); current and voltage with `controller`'s motor.
+    checks=False: the demand alone, without feasibility's checks (stroke, cond(J), the motor:
+    an SVD per sample for cond(J), the bulk of the cost), what a catalogue drive's checks need;
+    the same numbers."""
     kin = inverse_kinematics(model, motion.q, motion.qd, motion.qdd, with_cond=False)
     speed, accel = kin.rates, kin.accelerations
+    f = feasibility(model, motion.t, motion.q, motion.qd, motion.qdd, controller) if checks \
+        else None
+    if f is not None:
+        t, lengths, sigma = f.t, f.lengths, f.sigma
+    else:   # the rack force at every sample, also past the stroke, as feasibility takes it
+        t, lengths = np.asarray(motion.t, dtype=float), kin.lengths
+        sigma = inverse_dynamics(replace(model, leg_min=None, leg_max=None), motion.q,
+                                 motion.qd, motion.qdd)
     values: dict[str, np.ndarray | None] = {
-        "speed": speed, "acceleration": accel, "force": f.sigma, "torque": None,
-        "motor_speed": None, "power": f.sigma * speed, "current": f.current,
-        "voltage": f.voltage}
+        "speed": speed, "acceleration": accel, "force": sigma, "torque": None,
+        "motor_speed": None, "power": sigma * speed,
+        "current": None if f is None else f.current,
+        "voltage": None if f is None else f.voltage}
     if model.drive is not None:
         ratio = model.drive.force_per_torque
-        values["torque"] = f.sigma / ratio
+        values["torque"] = sigma / ratio
         values["motor_speed"] = speed * ratio
-    return LegDemand(motion.name, f.t, f.lengths, values, f)
+    return LegDemand(motion.name, t, lengths, values, f)
 
 
 def statistic(t: np.ndarray, values: np.ndarray) -> Statistic:

@@ -143,9 +143,19 @@ def evaluate_drive(scene: Mapping[str, Any], source: str | None, drive: Drive,
     refuse) is the result's error, not an exception."""
     try:
         model = scene_from_dict({**scene, "drive": drive.drive_table}, source)
+    except StewartError as exc:
+        return CandidateResult(drive, (), (), str(exc)[:ERROR_CHARS])
+    return drive_result(model, drive, motions)
+
+
+def drive_result(model: Model, drive: Drive, motions: Sequence[Motion]) -> CandidateResult:
+    """evaluate_drive on a model built with the drive's [drive] table (drive.drive_table), for
+    a caller that has it already: the checks of the ratings need the demand alone
+    (leg_demand's checks=False)."""
+    try:
         rows, points = [], []
         for m in motions:
-            d = leg_demand(model, m, None)
+            d = leg_demand(model, m, None, checks=False)
             stats = d.statistics()
             torque, speed = d.values["torque"], d.values["motor_speed"]
             checks = (
