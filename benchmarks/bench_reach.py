@@ -97,8 +97,8 @@ class NumpyLimits:
         return out
 
     def travel(self, q0, d, hmax, tol=1e-9, reach=np.inf):
-        """The engine's march (steps from hmax / 64 doubling to hmax, up to reach), then
-        bisection to tol."""
+        """A march (steps from hmax / 64 doubling to hmax, up to reach), then bisection to
+        tol: the engine's answer where no region outside a limit is narrower than a step."""
         lo, h = 0.0, hmax / 64
         while True:
             hi = min(lo + h, reach)
