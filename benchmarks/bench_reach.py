@@ -16,8 +16,8 @@ joint cones, the 15 leg pairs' clearance and cond(J) (limit 100) at each pose. R
 - the constant-orientation map of the shipped micro-manipulator (stroke and cond(J)) at
   --map-grid (default 1 mm; stewart_sim.studies.workspace.maps): the same map code driven by
   the numpy implementation (its binding limits and travel) at --numpy-map-grid (default 10 mm:
-  at 1 mm it takes ~100 times as long, minutes), against the engine on that grid; the 1 mm row
-  is the engine's alone.
+  its cost grows with the columns, 100 times as many at 1 mm), against the engine on that grid;
+  the 1 mm row is the engine's alone.
 
 CPU time of this process, the least of a few runs (run with OPENBLAS_NUM_THREADS=1: numpy's SVD
 then uses one core, as the engine does). Printed, never asserted in tests.
