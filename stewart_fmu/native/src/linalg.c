@@ -168,7 +168,8 @@ static void jacobi_rotation(double alpha, double beta, double g, double *c, doub
 
 /* The exponent e for A 2^-e to have its largest entry in [1/2, 1), when A's largest entry lies
    outside [2^-200, 2^200] (else 0: no scaling). The squared norms and their squares in
-   jacobi_rotation then neither overflow nor underflow; scaling by a power of two is exact. */
+   jacobi_rotation then do not overflow, and underflow only for columns far below the largest
+   (whose products then fail the test of a pair to rotate); scaling by a power of two is exact. */
 static int jacobi_exponent(const double A[36])
 {
     double amax = 0.0;
