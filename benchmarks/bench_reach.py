@@ -14,7 +14,10 @@ joint cones, the 15 leg pairs' clearance and cond(J) (limit 100) at each pose. R
 - a reach query: Engine.travel from home along a random direction to 1e-9, against a numpy
   march + bisection with the vectorised margins at one pose per step;
 - the constant-orientation map of the shipped micro-manipulator (stroke and cond(J)) at
-  --map-grid (default 1 mm; stewart_sim.studies.workspace.maps), engine only.
+  --map-grid (default 1 mm; stewart_sim.studies.workspace.maps): the same map code driven by
+  the numpy implementation (its binding limits and travel) at --numpy-map-grid (default 10 mm:
+  its cost grows with the columns, 100 times as many at 1 mm), against the engine on that grid;
+  the 1 mm row is the engine's alone.
 
 CPU time of this process, the least of a few runs (run with OPENBLAS_NUM_THREADS=1: numpy's SVD
 then uses one core, as the engine does). Printed, never asserted in tests.
@@ -24,6 +27,7 @@ from __future__ import annotations
 import argparse
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -36,9 +40,12 @@ PAIRS = [(i, j) for i in range(6) for j in range(i + 1, 6)]
 
 
 class NumpyLimits:
-    """The same margins, vectorised in numpy (Ericson's clamped closest points per pair)."""
+    """The same margins, vectorised in numpy (Ericson's clamped closest points per pair); the
+    joint cones and the leg clearance left out (their margins inf) with joints=False, as for
+    the shipped scene, which has neither."""
 
-    def __init__(self, model):
+    def __init__(self, model, joints: bool = True):
+        self.joints = joints
         self.a, self.p = np.asarray(model.base_joints), np.asarray(model.platform_joints)
         self.lo, self.hi = model.leg_min, model.leg_max
         self.lc = model.characteristic_length
@@ -65,6 +72,14 @@ class NumpyLimits:
         out = np.empty((len(q), 6))
         out[:, 0] = np.min(l - self.lo, axis=1)
         out[:, 1] = np.min(self.hi - l, axis=1)
+        out[:, 2:5] = np.inf
+        if with_cond:
+            J = np.concatenate([u, np.cross(P - q[:, None, :3], u) / self.lc], axis=2)
+            out[:, 5] = COND - np.linalg.cond(J)
+        else:
+            out[:, 5] = np.inf
+        if not self.joints:
+            return out
         out[:, 2] = CONE - np.max(np.arccos(np.clip(np.sum(u * self.base_axes, -1), -1, 1)), 1)
         top = np.einsum("nij,kj->nki", R, self.top_axes)
         out[:, 3] = CONE - np.max(np.arccos(np.clip(np.sum(u * top, -1), -1, 1)), 1)
@@ -79,19 +94,18 @@ class NumpyLimits:
         t = np.clip(t, 0, 1)
         gap = (self.a[i] + d1 * s[..., None]) - (self.a[j] + d2 * t[..., None])
         out[:, 4] = np.min(np.linalg.norm(gap, axis=-1), axis=1) - 2 * RADIUS
-        if with_cond:
-            J = np.concatenate([u, np.cross(P - q[:, None, :3], u) / self.lc], axis=2)
-            out[:, 5] = COND - np.linalg.cond(J)
-        else:
-            out[:, 5] = np.inf
         return out
 
-    def travel(self, q0, d, hmax, tol=1e-9):
+    def travel(self, q0, d, hmax, tol=1e-9, reach=np.inf):
+        """A march (steps from hmax / 64 doubling to hmax, up to reach), then bisection to
+        tol: the engine's answer where no region outside a limit is narrower than a step."""
         lo, h = 0.0, hmax / 64
         while True:
-            hi = lo + h
+            hi = min(lo + h, reach)
             if np.any(self.margins((q0 + hi * d)[None])[0] < 0):
                 break
+            if hi >= reach:
+                return reach
             lo, h = hi, min(2 * h, hmax)
         while hi - lo > tol:
             mid = 0.5 * (lo + hi)
@@ -100,6 +114,25 @@ class NumpyLimits:
             else:
                 lo = mid
         return lo
+
+
+class NumpyEngine:
+    """What the workspace map asks of an Engine (model, binding, travel in the platform frame),
+    answered by NumpyLimits: the same map algorithm on the numpy margins."""
+
+    def __init__(self, model, limits: NumpyLimits):
+        self.model, self.limits = model, limits
+
+    def binding(self, Q) -> np.ndarray:
+        out = self.limits.margins(np.asarray(Q, dtype=float)) < 0
+        return np.where(out.any(axis=1), out.argmax(axis=1), -1)
+
+    def travel(self, q0, direction, frame: str = "platform", reach: float = np.inf,
+               step: float | None = None):
+        assert frame == "platform" and step is not None
+        return SimpleNamespace(step=self.limits.travel(np.asarray(q0, dtype=float),
+                                                       np.asarray(direction, dtype=float), step,
+                                                       reach=reach))
 
 
 def best_of(fn, repeat: int) -> float:
@@ -118,6 +151,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--poses", type=int, default=1_000_000)
     ap.add_argument("--map-grid", type=float, default=0.001, help="m; 0: no map row")
+    ap.add_argument("--numpy-map-grid", type=float, default=0.01,
+                    help="m, the grid of the map timed against numpy; 0: no such row")
     args = ap.parse_args()
     data = read_scene_dict(MICRO)
     data["joints"] = {"base_cone": CONE, "platform_cone": CONE}
@@ -168,15 +203,24 @@ def main() -> None:
     t_c = best_of(lambda: [eng.travel(home, d) for _ in range(200)], 3) / 200
     t_np = best_of(lambda: ref.travel(home, d, hmax), 3)
     rows.append((f"reach query (steps {s_c:.9f} / {s_np:.9f})", t_c, t_np))
-    if args.map_grid > 0:
+    if args.map_grid > 0 or args.numpy_map_grid > 0:
         from stewart_fmu import load_scene
         from stewart_sim.studies.workspace.maps import constant_orientation
 
         plain = Engine(load_scene(MICRO))
-        found = []
-        t_c = best_of(lambda: found.append(constant_orientation(plain, plain.model.home,
-                                                                "platform", args.map_grid)), 1)
-        rows.append((f"map {args.map_grid * 1e3:g} mm: {found[0].volume * 1e3:.5f} l", t_c, None))
+        home = plain.model.home
+        twin = NumpyEngine(plain.model, NumpyLimits(plain.model, joints=False))
+        for grid, engines in ((args.numpy_map_grid, (plain, twin)), (args.map_grid, (plain,))):
+            if grid <= 0:
+                continue
+            found, times = [], []
+            for e in engines:
+                times.append(best_of(lambda: found.append(
+                    constant_orientation(e, home, "platform", grid)), 1))
+            name = f"map {grid * 1e3:g} mm: {found[0].volume * 1e3:.5f} l"
+            if len(found) > 1:
+                name += f" / {found[1].volume * 1e3:.5f} l"
+            rows.append((name, times[0], times[1] if len(times) > 1 else None))
     print(f"{'workload':<44} {'engine':>12} {'numpy':>12} {'ratio':>8}")
     for name, a, b in rows:
         tail = f"{fmt(b):>12} {b / a:>7.1f}x" if b is not None else f"{'-':>12} {'-':>8}"

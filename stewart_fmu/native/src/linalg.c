@@ -134,59 +134,80 @@ static const int JACOBI_PAIRS[15][2] = {{0, 1}, {2, 3}, {4, 5}, {0, 2}, {1, 4}, 
    moves each singular value by less than 6 eps relative). */
 #define JACOBI_TOL2 (36.0 * 2.220446049250313e-16 * 2.220446049250313e-16)
 
+/* x . y summed in pairs: three independent products deep, not six. */
 static double dot6(const double *x, const double *y)
 {
-    double a = 0.0;
-    int i;
-    for (i = 0; i < 6; ++i)
-        a += x[i] * y[i];
-    return a;
+    return (x[0] * y[0] + x[1] * y[1]) + (x[2] * y[2] + x[3] * y[3])
+           + (x[4] * y[4] + x[5] * y[5]);
 }
 
-/* The rotation (c, s, t = s/c) that makes two columns of squared norms alpha, beta and product
-   g orthogonal (Rutishauser's smaller angle); for a small angle (|zeta| > 1e5) the series of
-   the same formulas, whose dropped terms are below 1e-20 relative. */
+/* The rotation (c, s) that makes two columns of squared norms alpha, beta and product g
+   orthogonal (Rutishauser's smaller angle, t = s / c = sign(d) 2g / (|d| + r) with d = beta -
+   alpha, r = sqrt(d^2 + 4 g^2)); *tg = t g, the change of the squared norms. As
+   1 + t^2 = 2 r / (|d| + r), c = (|d| + r) / w and s = sign(d) 2g / w with w = sqrt(2 r (|d| + r)):
+   two square roots and one division in a row. For a small angle (|d| > 2e5 |g|) the series
+   t = h (1 - h^2), h = g / d, c = 1 - t^2 / 2, whose dropped terms are below 1e-20 relative. The
+   caller keeps the squares finite (jacobi_exponent). */
 static void jacobi_rotation(double alpha, double beta, double g, double *c, double *s,
-                            double *t)
+                            double *tg)
 {
-    const double zeta = (beta - alpha) / (2.0 * g);
-    if (fabs(zeta) > 1e5) {
-        const double h = 0.5 / zeta;
-        *t = h * (1.0 - h * h);
-        *c = 1.0 - 0.5 * *t * *t;
+    const double d = beta - alpha, ad = fabs(d);
+    if (ad > 2e5 * fabs(g)) {
+        const double h = g / d, t = h * (1.0 - h * h);
+        *c = 1.0 - 0.5 * t * t;
+        *s = *c * t;
+        *tg = t * g;
     } else {
-        *t = (zeta >= 0.0 ? 1.0 : -1.0) / (fabs(zeta) + sqrt(1.0 + zeta * zeta));
-        *c = 1.0 / sqrt(1.0 + *t * *t);
+        const double r = sqrt(d * d + 4.0 * g * g), u = ad + r, w = sqrt(2.0 * r * u);
+        const double sg = d >= 0.0 ? 2.0 * g : -2.0 * g, iw = 1.0 / w;
+        *c = u * iw;
+        *s = sg * iw;
+        *tg = sg * g / u;
     }
-    *s = *c * *t;
 }
 
-/* Singular values of a 6x6 (unordered) by one-sided Jacobi (Hestenes): plane rotations of
-   column pairs until all columns are orthogonal to working precision; the singular values
-   are then the column norms, each to high relative accuracy. The columns are kept as rows of
-   W (contiguous), their squared norms recomputed each sweep and updated by each rotation. */
-void sw_singular_values(const double A[36], double s[6])
+/* The exponent e for A 2^-e to have its largest entry in [1/2, 1), when A's largest entry lies
+   outside [2^-200, 2^200] (else 0: no scaling). The squared norms and their squares in
+   jacobi_rotation then do not overflow, and underflow only for columns far below the largest
+   (whose products then fail the test of a pair to rotate); scaling by a power of two is exact. */
+static int jacobi_exponent(const double A[36])
+{
+    double amax = 0.0;
+    int i, e = 0;
+    for (i = 0; i < 36; ++i)
+        amax = PY_MAX(amax, fabs(A[i]));
+    if (amax > 0.0 && (amax < 0x1p-200 || amax > 0x1p200))
+        (void)frexp(amax, &e);
+    return e;
+}
+
+/* The singular values of A 2^-e (unordered; e from jacobi_exponent) by one-sided Jacobi
+   (Hestenes): plane rotations of column pairs until all columns are orthogonal to working
+   precision; the singular values are then the column norms, each to high relative accuracy.
+   The columns are kept as rows of W (contiguous), their squared norms recomputed each sweep
+   and updated by each rotation; a rotation's parameters are computed only for the pairs that
+   rotate (the last sweep, which finds every pair orthogonal, computes products only). */
+static void jacobi_singular_values(const double A[36], int e, double s[6])
 {
     double W[36], n[6];
     int i, j, m, r, sweep;
     for (i = 0; i < 6; ++i)
         for (j = 0; j < 6; ++j)
-            W[j * 6 + i] = A[i * 6 + j];
+            W[j * 6 + i] = e ? ldexp(A[i * 6 + j], -e) : A[i * 6 + j];
     for (sweep = 0; sweep < 60; ++sweep) {
         int rotated = 0;
         for (j = 0; j < 6; ++j)
             n[j] = dot6(W + 6 * j, W + 6 * j);
         for (r = 0; r < 15; r += 3) {   /* the round's three rotations, then their work */
-            double g[3], c[3], sn[3], t[3];
+            double g[3], c[3], sn[3], tg[3];
             int on[3];
             for (m = 0; m < 3; ++m)
                 g[m] = dot6(W + 6 * JACOBI_PAIRS[r + m][0], W + 6 * JACOBI_PAIRS[r + m][1]);
             for (m = 0; m < 3; ++m) {
                 const double na = n[JACOBI_PAIRS[r + m][0]], nb = n[JACOBI_PAIRS[r + m][1]];
                 on[m] = g[m] * g[m] > JACOBI_TOL2 * (na * nb);
-                /* computed for every pair (a pair not on: of g = 1, never used), so that the
-                   three run side by side; never a division by zero, an overflow or a NaN */
-                jacobi_rotation(na, nb, on[m] ? g[m] : 1.0, c + m, sn + m, t + m);
+                if (on[m])
+                    jacobi_rotation(na, nb, g[m], c + m, sn + m, tg + m);
             }
             for (m = 0; m < 3; ++m) {
                 const int a = JACOBI_PAIRS[r + m][0], b = JACOBI_PAIRS[r + m][1];
@@ -199,8 +220,8 @@ void sw_singular_values(const double A[36], double s[6])
                     x[i] = c[m] * xa - sn[m] * yb;
                     y[i] = sn[m] * xa + c[m] * yb;
                 }
-                n[a] -= t[m] * g[m];
-                n[b] += t[m] * g[m];
+                n[a] -= tg[m];
+                n[b] += tg[m];
             }
         }
         if (!rotated)
@@ -210,9 +231,19 @@ void sw_singular_values(const double A[36], double s[6])
         s[j] = sqrt(dot6(W + 6 * j, W + 6 * j));
 }
 
-/* The 2-norm condition number s_max / s_min of a 6x6 from sw_singular_values (as
-   numpy.linalg.cond); inf when A is singular or not finite. The one cond(J) of the core
-   (kinematics.c, reach.c). */
+/* Singular values of a 6x6 (unordered): jacobi_singular_values, scaled back. */
+void sw_singular_values(const double A[36], double s[6])
+{
+    const int e = jacobi_exponent(A);
+    int j;
+    jacobi_singular_values(A, e, s);
+    for (j = 0; e && j < 6; ++j)
+        s[j] = ldexp(s[j], e);
+}
+
+/* The 2-norm condition number s_max / s_min of a 6x6 (as numpy.linalg.cond), the ratio of
+   jacobi_singular_values (the scale 2^e cancels); inf when A is singular or not finite. The one
+   cond(J) of the core (kinematics.c, reach.c). */
 double sw_condition(const double A[36])
 {
     double s[6], smax = 0.0, smin = HUGE_VAL, cond;
@@ -220,7 +251,7 @@ double sw_condition(const double A[36])
     for (i = 0; i < 36; ++i)
         if (!isfinite(A[i]))
             return HUGE_VAL;
-    sw_singular_values(A, s);
+    jacobi_singular_values(A, jacobi_exponent(A), s);
     for (i = 0; i < 6; ++i) {
         smax = PY_MAX(smax, s[i]);
         smin = PY_MIN(smin, s[i]);
