@@ -233,7 +233,8 @@ def test_garbage_is_refused_with_its_reason(model, field):
              (pose(big), f"pose {name} {big:.4g} "),
              (pose(0.0, frame=4), "frame 4 unknown"),
              (pose(0.0, frame=255), "frame 255 unknown"),
-             (pose(0.0, flags=ms.STEWART_SETPOINT_FLAG_RATE_VALID), "flags 0x01: unknown bits"),
+             (pose(0.0, flags=ms.STEWART_SETPOINT_FLAG_FORCE_VALID),
+              "flags 0x04: unknown bits 0x04"),   # LEG_SETPOINT's bit, not POSE_SETPOINT's
              (pose(0.0, flags=0x80 | ms.STEWART_POSE_SETPOINT_FLAG_HOLD),
               "flags 0x82: unknown bits 0x80")]
     for msg, why in cases:
