@@ -239,8 +239,8 @@ def test_a_pose_with_rates_drives_the_legs_as_its_leg_setpoint_with_rates(model,
           f"{np.max(np.abs(dr)) / r_ulp:.0f} ulp off the platform motion's, LEG_STATE "
           f"{np.max(np.abs(moved)) / l_ulp:.0f} ulp; tracking error {with_rates:.3g} m with "
           f"rates, {without:.3g} m without")
-    # the drives saturate on this 0.15 s move, so the rate reference takes about a quarter
-    # off the peak error (0.290 mm against 0.385 mm in either frame, ratio 0.755), not more
+    # no force feed-forward, so the legs' inertia still lags: the rate reference takes about a
+    # quarter off the peak error (0.290 mm against 0.385 mm in either frame, ratio 0.755)
     assert with_rates < 0.8 * without
     assert np.max(np.abs(dev.plant.outputs.q - q[0])) > 1e-3        # and it moved
 
