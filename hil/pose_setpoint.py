@@ -84,8 +84,8 @@ def check_pose(msg: Any, model: Model, leg_rate: float, cond_max: float) -> str 
     return None
 
 
-def leg_setpoint(msg: Any, model: Model, leg_rate: float = math.inf,
-                 cond_max: float = math.inf) -> tuple[str | None, Any, np.ndarray | None]:
+def leg_setpoint(msg: Any, model: Model, leg_rate: float,
+                 cond_max: float) -> tuple[str | None, Any, np.ndarray | None]:
     """(why a POSE_SETPOINT is refused or None, the LEG_SETPOINT it becomes, the platform's
     pose: None with HOLD); `leg_rate` (m/s, the capability's setpoint_rate) and `cond_max`
     (SP_COND_MAX) bound its rates (check_pose)."""
