@@ -103,7 +103,7 @@ def leg_setpoint(msg: Any, model: Model, leg_rate: float,
             msg.time_usec, msg.sequence, [float(v) for v in lengths], _ZERO6, 0), q
     try:
         q, qd, _ = motion_to_platform(model, pose_of(msg), rate_of(msg), None, frame)
-    except StewartError as exc:          # gimbal lock: the frame's Euler rates are undefined
+    except StewartError as exc:          # the platform's pose at gimbal lock: no Euler rates
         return f"rate in frame {frame}: {exc}", None, None
     lengths, rates, _ = leg_state(model, q, qd)               # ldot = J nu, the core's J
     return None, ms.MAVLink_leg_setpoint_message(

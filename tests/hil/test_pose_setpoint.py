@@ -289,6 +289,11 @@ def test_rates_are_refused_with_their_reason(model):
              (rated(4, 1.5 * turn), f"rate dthy {1.5 * turn:.4g} rad/s"),
              (rated(1, 10 * leg_rate), legs_too_fast(model, home, 10 * leg_rate, leg_rate))]
     assert 10 * leg_rate < move          # the last: within the pose's bound, not the legs'
+    # a tool pose whose platform pose is at gimbal lock: no Euler rates of the platform give
+    # the frame's motion (motion_to_platform refuses; no reachable pose is there)
+    locked = from_platform(model, np.r_[model.home[:3], 0.0, np.pi / 2, 0.0], "tool")
+    cases.append((c.pose_setpoint_message(1, 0.001, locked, "tool", rate=[0, 0, 0, 0.1, 0, 0]),
+                  "rate in frame tool: sample 0: the tool frame's conversion meets gimbal lock"))
     for msg, why in cases:
         dev, said, moved = _refused(model, msg)
         assert len(said) == 1 and said[0].startswith(f"refused: {why}"), (said, why)
