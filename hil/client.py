@@ -289,23 +289,34 @@ class Client:
                                                flags, f, fr)
 
     def pose_setpoint_message(self, seq: int, t: float, pose, frame: str = "platform",
-                              hold: bool = False) -> Any:
+                              hold: bool = False, rate=None) -> Any:
         """POSE_SETPOINT of `pose` (x, y, z, thx, thy, thz; m, rad) in `frame` (platform,
-        pivot, tool or user: the scene's [frames]); HOLD (pose ignored) with `hold`.
-        StewartError naming an unknown frame or a pose that is not six numbers."""
+        pivot, tool or user: the scene's [frames]); with `rate` (dx, dy, dz, dthx, dthy, dthz;
+        m/s, rad/s Euler-angle rates, in `frame`) its RATE_VALID, the device's leg-rate
+        feed-forward; HOLD (pose and rate ignored) with `hold`. StewartError naming an unknown
+        frame or a pose or rate that is not six numbers."""
         code = _FRAME_CODES.get(frame)
         if code is None:
             raise StewartError(f"frame {frame!r}: unknown frame (known: {', '.join(_FRAME_CODES)})")
         p = np.asarray(pose, dtype=float)
         if p.shape != (6,):
             raise StewartError(f"pose: six numbers x, y, z, thx, thy, thz, got shape {p.shape}")
-        return ms.MAVLink_pose_setpoint_message(int(round(t * 1e6)), seq & 0xFFFFFFFF,
-                                                *map(float, p), code,
-                                                ms.STEWART_POSE_SETPOINT_FLAG_HOLD if hold else 0)
+        flags = ms.STEWART_POSE_SETPOINT_FLAG_HOLD if hold else 0
+        if rate is None:
+            return ms.MAVLink_pose_setpoint_message(int(round(t * 1e6)), seq & 0xFFFFFFFF,
+                                                    *map(float, p), code, flags)
+        r = np.asarray(rate, dtype=float)
+        if r.shape != (6,):
+            raise StewartError(f"rate: six numbers dx, dy, dz, dthx, dthy, dthz, got shape "
+                               f"{r.shape}")
+        return ms.MAVLink_pose_setpoint_message(
+            int(round(t * 1e6)), seq & 0xFFFFFFFF, *map(float, p), code,
+            flags | ms.STEWART_POSE_SETPOINT_FLAG_RATE_VALID, [float(v) for v in r])
 
-    def send_pose(self, seq: int, t: float, pose, frame: str = "platform") -> None:
-        """Send POSE_SETPOINT `seq` of `pose` in `frame` at time `t` (s) (pose_setpoint_message)."""
-        self.send(self.pose_setpoint_message(seq, t, pose, frame))
+    def send_pose(self, seq: int, t: float, pose, frame: str = "platform", rate=None) -> None:
+        """Send POSE_SETPOINT `seq` of `pose` in `frame` at time `t` (s), with its `rate` when
+        given (pose_setpoint_message)."""
+        self.send(self.pose_setpoint_message(seq, t, pose, frame, rate=rate))
 
     def reference_setpoint(self, ref: "LinkReference", k: int) -> Any:
         """LEG_SETPOINT k of a LinkReference (sequence k, its time, lengths, rates, feedforward)."""

@@ -34,10 +34,12 @@ with STEWART_SETPOINT_FLAG_FORCE_VALID (the feed-forward of hil.servo; di/dt fro
 with STEWART_SETPOINT_FLAG_FORCE_RATE_VALID, else 0). HOLD holds the current leg lengths.
 
 POSE_SETPOINT carries a pose in a frame of the scene's [frames] (STEWART_FRAME: platform, pivot,
-tool, user). It is refused when a flag other than HOLD is set, the frame is unknown, a field is
-not finite, or a position coordinate or an angle is past its bound (hil.input_bounds); else it
-becomes the LEG_SETPOINT of the leg lengths of its platform pose (hil.pose_setpoint), checked
-and followed as above (forward kinematics starts at that pose), with no rate and no force.
+tool, user) and, with STEWART_POSE_SETPOINT_FLAG_RATE_VALID, its rates. It is refused when a
+flag other than HOLD and RATE_VALID is set, the frame is unknown, a field is not finite, or a
+position coordinate, an angle or a rate is past its bound (hil.input_bounds); else it becomes
+the LEG_SETPOINT of the leg lengths of its platform pose and, with RATE_VALID, the leg rates of
+its platform motion (hil.pose_setpoint), checked and followed as above (forward kinematics
+starts at that pose), with no force.
 
 Watchdog and faults
 -------------------

@@ -34,8 +34,10 @@ def on_setpoint(dev: DeviceView, msg: Any) -> list[Any]:
 
 def on_pose_setpoint(dev: DeviceView, msg: Any) -> list[Any]:
     """POSE_SETPOINT: its own checks (hil.pose_setpoint), then the LEG_SETPOINT of its leg
-    lengths checked and followed as any other (forward kinematics starts at its pose)."""
-    why, leg, pose = leg_setpoint(msg, dev.model)
+    lengths (and rates) checked and followed as any other (forward kinematics starts at its
+    pose)."""
+    why, leg, pose = leg_setpoint(msg, dev.model, dev.capability.setpoint_rate,
+                                  dev.settings.cond_max)
     if why is not None:
         return refuse(dev, why)
     return follow(dev, leg, dev.state.last_pose if pose is None else pose)

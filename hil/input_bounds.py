@@ -117,3 +117,26 @@ def pose_position_max(model: Any, change: Any) -> float:
         return reach
     offsets = list(change)
     return reach + math.hypot(*offsets[:3]) + math.hypot(*offsets[6:9])
+
+
+def pose_rate_max(leg_rate: float, cond_max: float, char_length: float, change: Any,
+                  thy: float) -> tuple[float, float]:
+    """(m/s, rad/s), the largest |position rate| and |Euler-angle rate| of a POSE_SETPOINT in
+    a frame whose (mov, fix) of stewart_fmu.frames.frame_change is `change` (None: the
+    platform's own) and whose pitch is `thy`, when its legs' rates are within `leg_rate`
+    (the capability's setpoint_rate) at a pose of cond(J) <= `cond_max` (SP_COND_MAX).
+
+    ldot = J_s nu_s with J_s the scaled Jacobian (kinematics.condition_number) and
+    nu_s = (v, Lc omega); every row of J_s starts with a unit vector, so s_max(J_s) >= 1 and
+    |nu_s| <= cond |ldot| <= cond_max sqrt(6) leg_rate = S: |v| <= S, |omega| <= S / Lc. The
+    frame's origin, |d| off C's, moves at most S (1 + |d| / Lc) (the user frame's rotation keeps
+    norms) and turns with the platform; Euler rates of R = Rz Ry Rx are Rz^T omega through
+    [[c, 0, 0], [0, 1, 0], [-s, 0, 1]] (c, s of thy), so each is at most
+    |omega| (1 + |s|) / |c| (inf at gimbal lock). Past these no leg rate within the bound can
+    give the pose's rates; inside them the LEG_SETPOINT's own rate check decides."""
+    s = cond_max * math.sqrt(6.0) * leg_rate
+    d = 0.0 if change is None else math.hypot(*list(change)[:3])
+    omega = s / char_length
+    c = abs(math.cos(thy))
+    turn = omega * (1.0 + abs(math.sin(thy))) / c if c > 0.0 else math.inf
+    return s * (1.0 + d / char_length), turn

@@ -401,6 +401,8 @@ enums["STEWART_FRAME"][4] = EnumEntry("STEWART_FRAME_ENUM_END", """""")
 # STEWART_POSE_SETPOINT_FLAG
 enums["STEWART_POSE_SETPOINT_FLAG"] = Enum()
 enums["STEWART_POSE_SETPOINT_FLAG"].bitmask = True
+STEWART_POSE_SETPOINT_FLAG_RATE_VALID = 1
+enums["STEWART_POSE_SETPOINT_FLAG"][1] = EnumEntry("STEWART_POSE_SETPOINT_FLAG_RATE_VALID", """The rate field is valid: the device converts it with the pose to the platform's (stewart_fmu.frames.motion_to_platform) and to leg rates (the leg Jacobian), and sends those as the LEG_SETPOINT's rate feed-forward (STEWART_SETPOINT_FLAG_RATE_VALID); without this flag the device ignores rate. The same bit as STEWART_SETPOINT_FLAG_RATE_VALID.""")
 STEWART_POSE_SETPOINT_FLAG_HOLD = 2
 enums["STEWART_POSE_SETPOINT_FLAG"][2] = EnumEntry("STEWART_POSE_SETPOINT_FLAG_HOLD", """Hold the current leg lengths; the pose fields are ignored (still keeps the watchdog fed). The same bit as STEWART_SETPOINT_FLAG_HOLD.""")
 STEWART_POSE_SETPOINT_FLAG_ENUM_END = 3
@@ -6770,30 +6772,32 @@ class MAVLink_pose_setpoint_message(MAVLink_message):
     refused with a STATUSTEXT, counted in
     DRIVE_STATUS.setpoints_refused). A non-finite pose, a position or
     angle past its bound, an unknown frame or an unknown flag is
-    refused naming the field. No rate feed-forward: the legs follow
-    the lengths with zero rate reference. Every valid setpoint feeds
-    the watchdog; in lockstep mode its sequence is the step's, as
-    LEG_SETPOINT's.
+    refused naming the field. With
+    STEWART_POSE_SETPOINT_FLAG_RATE_VALID its rate (the frame's pose
+    rates) becomes the leg-rate feed-forward, checked as
+    LEG_SETPOINT's rate; without it the legs follow the lengths with
+    zero rate reference. Every valid setpoint feeds the watchdog; in
+    lockstep mode its sequence is the step's, as LEG_SETPOINT's.
     """
 
     id = MAVLINK_MSG_ID_POSE_SETPOINT
     msgname = "POSE_SETPOINT"
-    fieldnames = ["time_usec", "sequence", "x", "y", "z", "thx", "thy", "thz", "frame", "flags"]
-    ordered_fieldnames = ["time_usec", "x", "y", "z", "thx", "thy", "thz", "sequence", "frame", "flags"]
-    fieldtypes = ["uint64_t", "uint32_t", "double", "double", "double", "double", "double", "double", "uint8_t", "uint8_t"]
+    fieldnames = ["time_usec", "sequence", "x", "y", "z", "thx", "thy", "thz", "frame", "flags", "rate"]
+    ordered_fieldnames = ["time_usec", "x", "y", "z", "thx", "thy", "thz", "sequence", "frame", "flags", "rate"]
+    fieldtypes = ["uint64_t", "uint32_t", "double", "double", "double", "double", "double", "double", "uint8_t", "uint8_t", "double"]
     fielddisplays_by_name: Dict[str, str] = {"flags": "bitmask"}
     fieldenums_by_name: Dict[str, str] = {"frame": "STEWART_FRAME", "flags": "STEWART_POSE_SETPOINT_FLAG"}
     fieldunits_by_name: Dict[str, str] = {"time_usec": "us", "x": "m", "y": "m", "z": "m", "thx": "rad", "thy": "rad", "thz": "rad"}
-    native_format = bytearray(b"<QddddddIBB")
-    orders = [0, 7, 1, 2, 3, 4, 5, 6, 8, 9]
-    lengths = [1, 1, 1, 1, 1, 1, 1, 1, 1, 1]
-    array_lengths = [0, 0, 0, 0, 0, 0, 0, 0, 0, 0]
+    native_format = bytearray(b"<QddddddIBBd")
+    orders = [0, 7, 1, 2, 3, 4, 5, 6, 8, 9, 10]
+    lengths = [1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 6]
+    array_lengths = [0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 6]
     crc_extra = 18
-    unpacker = struct.Struct("<QddddddIBB")
+    unpacker = struct.Struct("<QddddddIBB6d")
     instance_field = None
     instance_offset = -1
 
-    def __init__(self, time_usec: int, sequence: int, x: float, y: float, z: float, thx: float, thy: float, thz: float, frame: int, flags: int):
+    def __init__(self, time_usec: int, sequence: int, x: float, y: float, z: float, thx: float, thy: float, thz: float, frame: int, flags: int, rate: Sequence[float] = (0, 0, 0, 0, 0, 0)):
         MAVLink_message.__init__(self, MAVLink_pose_setpoint_message.id, MAVLink_pose_setpoint_message.msgname)
         self._fieldnames = MAVLink_pose_setpoint_message.fieldnames
         self._instance_field = MAVLink_pose_setpoint_message.instance_field
@@ -6808,9 +6812,10 @@ class MAVLink_pose_setpoint_message(MAVLink_message):
         self.thz = thz
         self.frame = frame
         self.flags = flags
+        self.rate = rate
 
     def pack(self, mav: "MAVLink", force_mavlink1: bool = False) -> bytes:
-        return self._pack(mav, self.crc_extra, self.unpacker.pack(self.time_usec, self.x, self.y, self.z, self.thx, self.thy, self.thz, self.sequence, self.frame, self.flags), force_mavlink1=force_mavlink1)
+        return self._pack(mav, self.crc_extra, self.unpacker.pack(self.time_usec, self.x, self.y, self.z, self.thx, self.thy, self.thz, self.sequence, self.frame, self.flags, self.rate[0], self.rate[1], self.rate[2], self.rate[3], self.rate[4], self.rate[5]), force_mavlink1=force_mavlink1)
 
 
 # Define name on the class for backwards compatibility (it is now msgname).
@@ -17628,7 +17633,7 @@ class MAVLink(object):
         """
         self.send(self.lockstep_encode(time_usec, step), force_mavlink1=force_mavlink1)
 
-    def pose_setpoint_encode(self, time_usec: int, sequence: int, x: float, y: float, z: float, thx: float, thy: float, thz: float, frame: int, flags: int) -> MAVLink_pose_setpoint_message:
+    def pose_setpoint_encode(self, time_usec: int, sequence: int, x: float, y: float, z: float, thx: float, thy: float, thz: float, frame: int, flags: int, rate: Sequence[float] = (0, 0, 0, 0, 0, 0)) -> MAVLink_pose_setpoint_message:
         """
         Pose setpoint (host to device): the pose of the frame `frame` names.
         The device converts it to the platform's pose
@@ -17638,10 +17643,13 @@ class MAVLink(object):
         clearances; refused with a STATUSTEXT, counted in
         DRIVE_STATUS.setpoints_refused). A non-finite pose, a position
         or angle past its bound, an unknown frame or an unknown flag
-        is refused naming the field. No rate feed-forward: the legs
-        follow the lengths with zero rate reference. Every valid
-        setpoint feeds the watchdog; in lockstep mode its sequence is
-        the step's, as LEG_SETPOINT's.
+        is refused naming the field. With
+        STEWART_POSE_SETPOINT_FLAG_RATE_VALID its rate (the frame's
+        pose rates) becomes the leg-rate feed-forward, checked as
+        LEG_SETPOINT's rate; without it the legs follow the lengths
+        with zero rate reference. Every valid setpoint feeds the
+        watchdog; in lockstep mode its sequence is the step's, as
+        LEG_SETPOINT's.
 
         time_usec                 : Timestamp of the setpoint (host time, or simulated time in lockstep mode). [us] (type:uint64_t)
         sequence                  : Setpoint sequence number, incremented by one per setpoint sent (LEG_SETPOINT and POSE_SETPOINT share it; wraps at 2^32). (type:uint32_t)
@@ -17653,11 +17661,12 @@ class MAVLink(object):
         thz                       : Angle about the fixed Z axis, within [-pi, pi]. [rad] (type:double)
         frame                     : The frame the pose is given in. (type:uint8_t, values:STEWART_FRAME)
         flags                     : Setpoint flags. (type:uint8_t, values:STEWART_POSE_SETPOINT_FLAG)
+        rate                      : The pose's rates dx, dy, dz (m/s), dthx, dthy, dthz (rad/s: Euler-angle rates, the contract's trajectory derivatives) in the frame `frame`; used only with STEWART_POSE_SETPOINT_FLAG_RATE_VALID. An extension field, so senders that omit it send zeros. (type:double)
 
         """
-        return MAVLink_pose_setpoint_message(time_usec, sequence, x, y, z, thx, thy, thz, frame, flags)
+        return MAVLink_pose_setpoint_message(time_usec, sequence, x, y, z, thx, thy, thz, frame, flags, rate)
 
-    def pose_setpoint_send(self, time_usec: int, sequence: int, x: float, y: float, z: float, thx: float, thy: float, thz: float, frame: int, flags: int, force_mavlink1: bool = False) -> None:
+    def pose_setpoint_send(self, time_usec: int, sequence: int, x: float, y: float, z: float, thx: float, thy: float, thz: float, frame: int, flags: int, rate: Sequence[float] = (0, 0, 0, 0, 0, 0), force_mavlink1: bool = False) -> None:
         """
         Pose setpoint (host to device): the pose of the frame `frame` names.
         The device converts it to the platform's pose
@@ -17667,10 +17676,13 @@ class MAVLink(object):
         clearances; refused with a STATUSTEXT, counted in
         DRIVE_STATUS.setpoints_refused). A non-finite pose, a position
         or angle past its bound, an unknown frame or an unknown flag
-        is refused naming the field. No rate feed-forward: the legs
-        follow the lengths with zero rate reference. Every valid
-        setpoint feeds the watchdog; in lockstep mode its sequence is
-        the step's, as LEG_SETPOINT's.
+        is refused naming the field. With
+        STEWART_POSE_SETPOINT_FLAG_RATE_VALID its rate (the frame's
+        pose rates) becomes the leg-rate feed-forward, checked as
+        LEG_SETPOINT's rate; without it the legs follow the lengths
+        with zero rate reference. Every valid setpoint feeds the
+        watchdog; in lockstep mode its sequence is the step's, as
+        LEG_SETPOINT's.
 
         time_usec                 : Timestamp of the setpoint (host time, or simulated time in lockstep mode). [us] (type:uint64_t)
         sequence                  : Setpoint sequence number, incremented by one per setpoint sent (LEG_SETPOINT and POSE_SETPOINT share it; wraps at 2^32). (type:uint32_t)
@@ -17682,9 +17694,10 @@ class MAVLink(object):
         thz                       : Angle about the fixed Z axis, within [-pi, pi]. [rad] (type:double)
         frame                     : The frame the pose is given in. (type:uint8_t, values:STEWART_FRAME)
         flags                     : Setpoint flags. (type:uint8_t, values:STEWART_POSE_SETPOINT_FLAG)
+        rate                      : The pose's rates dx, dy, dz (m/s), dthx, dthy, dthz (rad/s: Euler-angle rates, the contract's trajectory derivatives) in the frame `frame`; used only with STEWART_POSE_SETPOINT_FLAG_RATE_VALID. An extension field, so senders that omit it send zeros. (type:double)
 
         """
-        self.send(self.pose_setpoint_encode(time_usec, sequence, x, y, z, thx, thy, thz, frame, flags), force_mavlink1=force_mavlink1)
+        self.send(self.pose_setpoint_encode(time_usec, sequence, x, y, z, thx, thy, thz, frame, flags, rate), force_mavlink1=force_mavlink1)
 
     def sys_status_encode(self, onboard_control_sensors_present: int, onboard_control_sensors_enabled: int, onboard_control_sensors_health: int, load: int, voltage_battery: int, current_battery: int, battery_remaining: int, drop_rate_comm: int, errors_comm: int, errors_count1: int, errors_count2: int, errors_count3: int, errors_count4: int, onboard_control_sensors_present_extended: int = 0, onboard_control_sensors_enabled_extended: int = 0, onboard_control_sensors_health_extended: int = 0) -> MAVLink_sys_status_message:
         """

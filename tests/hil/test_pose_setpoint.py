@@ -18,13 +18,14 @@ from hil import dialect  # noqa: E402
 from hil import mavlink_stewart as ms  # noqa: E402
 from hil.client import Client  # noqa: E402
 from hil.device import Device  # noqa: E402
-from hil.input_bounds import pose_position_max  # noqa: E402
+from hil.input_bounds import pose_position_max, pose_rate_max  # noqa: E402
 from hil.link import queue_pair, udp_server  # noqa: E402
 from hil.pose_setpoint import FRAMES  # noqa: E402
 from hil.serve import serve_in_thread  # noqa: E402
 from stewart_fmu.dynamics import leg_state  # noqa: E402
 from stewart_fmu.errors import StewartError  # noqa: E402
-from stewart_fmu.frames import frame_change, from_platform, to_platform  # noqa: E402
+from stewart_fmu.frames import (frame_change, from_platform, motion_from_platform,  # noqa: E402
+                                motion_to_platform, to_platform)
 from stewart_fmu.kinematics import inverse_kinematics  # noqa: E402
 from stewart_fmu.reach_params import FRAME_NAMES  # noqa: E402
 from stewart_fmu.scene import load_scene  # noqa: E402
@@ -174,6 +175,173 @@ def in_frame(model, frame: str, p) -> tuple[np.ndarray, np.ndarray]:
     return Rw.T @ (p[:3] + R @ t[:3] - w[:3]), Rw.T @ R @ rotation(t[3:])
 
 
+# --------------------------------------------------------------------------- with rates
+
+
+def held_move(model):
+    """The quintic of test_a_pose_in_a_frame_drives_the_legs_as_its_leg_setpoint with its exact
+    rates: (q, qd) over STEPS steps, the end held at rest."""
+    traj = quintic(model.home, model.home + GOAL, rate=1000.0, duration=(MOVE - 1) / 1000.0)
+    rest = STEPS - MOVE
+    q = np.vstack([traj.q[:MOVE], np.repeat(traj.q[MOVE - 1:MOVE], rest, axis=0)])
+    qd = np.vstack([traj.qd[:MOVE], np.zeros((rest, 6))])
+    return q, qd
+
+
+def leg_rate_setpoint(k: int, lengths, rates):
+    return ms.MAVLink_leg_setpoint_message(k * 1000, k, [float(v) for v in lengths],
+                                           [float(v) for v in rates],
+                                           ms.STEWART_SETPOINT_FLAG_RATE_VALID)
+
+
+def tracking(model, states, q) -> float:
+    """m, the largest |measured - commanded| leg length over the run, each LEG_STATE against
+    the leg lengths of the platform pose at its own time (numpy inverse kinematics)."""
+    worst = 0.0
+    for s in states:
+        k = min(int(round(s.time_usec / 1000)), len(q) - 1)
+        ref = inverse_kinematics(model, q[k], with_cond=False).lengths
+        worst = max(worst, float(np.max(np.abs(np.array(s.length) - ref))))
+    return worst
+
+
+@pytest.mark.parametrize("frame", ["user", "tool"])
+def test_a_pose_with_rates_drives_the_legs_as_its_leg_setpoint_with_rates(model, frame):
+    """Lockstep: the quintic written in `frame` with its exact rates (motion_from_platform),
+    sent as POSE_SETPOINTs with RATE_VALID, moves the plant bit for bit as the LEG_SETPOINTs
+    of the lengths and rates of its platform motion (motion_to_platform, the core's leg_state:
+    what a host converting itself sends), and within the frames' round trip as those of the
+    original platform motion; with the rates it tracks closer than the same poses without."""
+    q, qd = held_move(model)
+    f, fd, _ = motion_from_platform(model, q, qd, None, frame)
+    posed, dev = lockstep(model, lambda c, k: c.pose_setpoint_message(k, k / 1000.0, f[k],
+                                                                      frame, rate=fd[k]))
+    back_q, back_qd, _ = motion_to_platform(model, f, fd, None, frame)
+    converted = [leg_state(model, back_q[k], back_qd[k])[:2] for k in range(STEPS)]
+    legs, dev_legs = lockstep(model, lambda c, k: leg_rate_setpoint(k, *converted[k]))
+    for name in ("length", "rate", "force"):
+        assert bits(posed, name) == bits(legs, name), name
+    assert np.array_equal(dev.plant.get_state().y, dev_legs.plant.get_state().y)
+    # the frames' round trip of the motion moves a leg rate by a few ulp of the largest
+    direct = [leg_state(model, q[k], qd[k])[:2] for k in range(STEPS)]
+    dl = np.array([c[0] - d[0] for c, d in zip(converted, direct)])
+    dr = np.array([c[1] - d[1] for c, d in zip(converted, direct)])
+    l_ulp = np.spacing(max(np.max(np.abs(d[0])) for d in direct))
+    r_ulp = np.spacing(max(np.max(np.abs(d[1])) for d in direct))
+    assert np.max(np.abs(dl)) <= 4 * l_ulp and np.max(np.abs(dr)) <= 16 * r_ulp
+    original, _ = lockstep(model, lambda c, k: leg_rate_setpoint(k, *direct[k]))
+    moved = np.array([s.length for s in posed]) - np.array([s.length for s in original])
+    assert np.max(np.abs(moved)) <= 16 * l_ulp, np.max(np.abs(moved)) / l_ulp
+    # the same poses without their rates: the legs follow with a zero rate reference
+    plain, _ = lockstep(model, lambda c, k: c.pose_setpoint_message(k, k / 1000.0, f[k], frame))
+    with_rates, without = tracking(model, posed, q), tracking(model, plain, q)
+    print(f"\n[pose+rate {frame}] lengths {np.max(np.abs(dl)) / l_ulp:.0f} ulp, rates "
+          f"{np.max(np.abs(dr)) / r_ulp:.0f} ulp off the platform motion's, LEG_STATE "
+          f"{np.max(np.abs(moved)) / l_ulp:.0f} ulp; tracking error {with_rates:.3g} m with "
+          f"rates, {without:.3g} m without")
+    # no force feed-forward, so the legs' inertia still lags: the rate reference takes about a
+    # quarter off the peak error (0.290 mm against 0.385 mm in either frame, ratio 0.755)
+    assert with_rates < 0.8 * without
+    assert np.max(np.abs(dev.plant.outputs.q - q[0])) > 1e-3        # and it moved
+
+
+def test_a_pose_without_rates_is_todays_frame_and_setpoint(model):
+    """A sender that leaves the rate out (an older one, or rate=None) sends the frame of the
+    message without the field (MAVLink 2 trims the payload's trailing zeros: the extension's
+    zeros, here also flags 0), packed independently below, and the device makes the
+    LEG_SETPOINT it made before: the lengths of the platform pose, no rate, flags 0."""
+    from hil.pose_setpoint import leg_setpoint as to_legs
+    f = from_platform(model, np.asarray(model.home) + GOAL, "user")
+    msg = Client(None).pose_setpoint_message(3, 0.003, f, "user")
+    mav = host_mav(None)
+    frame = bytes(msg.pack(mav))
+    # the payload before the extension: time_usec, x..thz, sequence, frame, flags (wire order)
+    today = struct.pack("<Q6dIBB", 3000, *map(float, f), 3, ms.STEWART_FRAME_USER, 0)
+    today = today.rstrip(b"\0")
+    assert frame[1] == len(today) and frame[10:-2] == today
+    why, leg, _ = to_legs(mav.decode(bytearray(frame)), model, 3.0, 100.0)
+    assert why is None and leg.flags == 0 and list(leg.rate) == [0.0] * 6
+    lengths = leg_state(model, to_platform(model, f, "user"), np.zeros(6))[0]
+    assert struct.pack("<6d", *leg.length) == struct.pack("<6d", *lengths)
+
+
+def test_rates_are_refused_with_their_reason(model):
+    """Non-finite rates, rates past pose_rate_max, and finite ones within it whose legs' rates
+    pass the capability's setpoint_rate (the LEG_SETPOINT's own check): one STATUSTEXT each,
+    nothing moves."""
+    dev0 = Device(model)
+    leg_rate = dev0.capability.setpoint_rate
+    cond_max = dev0.settings.cond_max
+    home = from_platform(model, model.home, "tool")
+    move, turn = pose_rate_max(leg_rate, cond_max, model.characteristic_length,
+                               frame_change(model, "tool"), home[4])
+    c = Client(None)
+
+    def rated(i, v):
+        r = np.zeros(6)
+        r[i] = v
+        return c.pose_setpoint_message(1, 0.001, home, "tool", rate=r)
+    cases = [(rated(0, np.nan), "non-finite rate dx"),
+             (rated(5, np.inf), "non-finite rate dthz"),
+             (rated(3, 1e300), "rate dthx 1e+300 rad/s in frame tool, bound "),
+             (rated(2, -2 * move), f"rate dz {-2 * move:.4g} m/s in frame tool, bound "
+                                   f"{move:.4g} m/s"),
+             (rated(4, 1.5 * turn), f"rate dthy {1.5 * turn:.4g} rad/s"),
+             (rated(1, 10 * leg_rate), legs_too_fast(model, home, 10 * leg_rate, leg_rate))]
+    assert 10 * leg_rate < move          # the last: within the pose's bound, not the legs'
+    # a tool pose whose platform pose is at gimbal lock: no Euler rates of the platform give
+    # the frame's motion (motion_to_platform refuses; no reachable pose is there)
+    locked = from_platform(model, np.r_[model.home[:3], 0.0, np.pi / 2, 0.0], "tool")
+    cases.append((c.pose_setpoint_message(1, 0.001, locked, "tool", rate=[0, 0, 0, 0.1, 0, 0]),
+                  "rate in frame tool: sample 0: the tool frame's conversion meets gimbal lock"))
+    for msg, why in cases:
+        dev, said, moved = _refused(model, msg)
+        assert len(said) == 1 and said[0].startswith(f"refused: {why}"), (said, why)
+        assert dev.counters.setpoints_refused == 1 and dev.counters.handler_errors == 0
+        assert dev.counters.setpoints_accepted == 0 and moved < 1e-12
+
+
+def legs_too_fast(model, home, dy: float, leg_rate: float) -> str:
+    """The LEG_SETPOINT rate check's reason for the tool frame's pose `home` moving at `dy`
+    (its leg rates from the platform's motion, the first fastest leg)."""
+    q, qd, _ = motion_to_platform(model, home, np.r_[0.0, dy, 0, 0, 0, 0], None, "tool")
+    rates = leg_state(model, q, qd)[1]
+    i = int(np.argmax(np.abs(rates)))
+    assert abs(rates[i]) > leg_rate
+    return f"leg {i + 1} rate {rates[i]:.3g} m/s, bound {leg_rate:.3g}"
+
+
+def test_the_rate_bound_holds_every_rate_legs_within_the_capability_give(model):
+    """numpy: at random poses of cond(J) <= SP_COND_MAX and leg rates within setpoint_rate,
+    the twist nu = J^-1 ldot (J in numpy), written in each frame, is within pose_rate_max."""
+    dev = Device(model)
+    leg_rate, cond_max = dev.capability.setpoint_rate, dev.settings.cond_max
+    rng = np.random.default_rng(11)
+    lc = model.characteristic_length
+    checked = 0
+    for _ in range(300):
+        q = np.asarray(model.home) + rng.uniform(-1, 1, 6) * [0.02, 0.02, 0.02, 0.2, 0.2, 0.2]
+        R = rotation(q[3:])
+        arms = np.array([R @ p for p in model.platform_joints])
+        legs = q[:3] + arms - np.asarray(model.base_joints)
+        u = legs / np.linalg.norm(legs, axis=1)[:, None]
+        J = np.hstack([u, np.cross(arms, u)])
+        if np.linalg.cond(np.hstack([u, np.cross(arms, u) / lc])) > cond_max:
+            continue
+        ldot = rng.uniform(-1, 1, 6) * leg_rate
+        v_om = np.linalg.solve(J, ldot)
+        # Euler rates of the platform's angles: omega = E thd, E = [Rz Ry e_x, Rz e_y, e_z]
+        cy, sy, cz, sz = np.cos(q[4]), np.sin(q[4]), np.cos(q[5]), np.sin(q[5])
+        E = np.array([[cz * cy, -sz, 0], [sz * cy, cz, 0], [-sy, 0, 1]])
+        qd = np.r_[v_om[:3], np.linalg.solve(E, v_om[3:])]
+        for frame in FRAME_NAMES:
+            f, fd, _ = motion_from_platform(model, q, qd, None, frame)
+            move, turn = pose_rate_max(leg_rate, cond_max, lc, frame_change(model, frame), f[4])
+            assert np.max(np.abs(fd[:3])) <= move and np.max(np.abs(fd[3:])) <= turn, frame
+        checked += 1
+    assert checked > 200
+
+
 # --------------------------------------------------------------------------- the same checks
 
 
@@ -233,7 +401,8 @@ def test_garbage_is_refused_with_its_reason(model, field):
              (pose(big), f"pose {name} {big:.4g} "),
              (pose(0.0, frame=4), "frame 4 unknown"),
              (pose(0.0, frame=255), "frame 255 unknown"),
-             (pose(0.0, flags=ms.STEWART_SETPOINT_FLAG_RATE_VALID), "flags 0x01: unknown bits"),
+             (pose(0.0, flags=ms.STEWART_SETPOINT_FLAG_FORCE_VALID),
+              "flags 0x04: unknown bits 0x04"),   # LEG_SETPOINT's bit, not POSE_SETPOINT's
              (pose(0.0, flags=0x80 | ms.STEWART_POSE_SETPOINT_FLAG_HOLD),
               "flags 0x82: unknown bits 0x80")]
     for msg, why in cases:
@@ -319,13 +488,30 @@ def test_a_pymavlink_script_in_lockstep_over_udp(model):
     user frame and LOCKSTEP over loopback UDP; the LEG_STATEs are those of the in-process run
     bit for bit."""
     f = from_platform(model, np.asarray(model.home) + GOAL, "user")
-    steps = 20
+    over_udp(model, lambda c, k: c.pose_setpoint_message(k, k / 1000.0, f, "user"),
+             lambda host, k: host.mav.pose_setpoint_send(k * 1000, k, *map(float, f),
+                                                         ms.STEWART_FRAME_USER, 0))
 
-    def pose(c, k):
-        return c.pose_setpoint_message(k, k / 1000.0, f, "user")
+
+def test_a_pymavlink_script_with_rates_in_lockstep_over_udp(model):
+    """As above, the quintic's first 20 steps in the user frame with their rates: the script
+    passes the extension field `rate` and the RATE_VALID flag."""
+    q, qd = held_move(model)
+    f, fd, _ = motion_from_platform(model, q, qd, None, "user")
+    over_udp(model, lambda c, k: c.pose_setpoint_message(k, k / 1000.0, f[k], "user",
+                                                         rate=fd[k]),
+             lambda host, k: host.mav.pose_setpoint_send(
+                 k * 1000, k, *map(float, f[k]), ms.STEWART_FRAME_USER,
+                 ms.STEWART_POSE_SETPOINT_FLAG_RATE_VALID, [float(v) for v in fd[k]]))
+
+
+def over_udp(model, message, send, steps: int = 20) -> None:
+    """The LEG_STATEs of `steps` lockstep steps whose setpoints pymavlink sends over loopback
+    UDP (`send(host, k)`) are, bit for bit, those of the in-process run of `message(client,
+    k)`."""
     w = Wire(model, lockstep=True)
     w.send(arm())
-    direct = [w.send(pose(w.client, k), ms.MAVLink_lockstep_message(0, k))[-2]
+    direct = [w.send(message(w.client, k), ms.MAVLink_lockstep_message(0, k))[-2]
               for k in range(steps)]
     dev = Device(model, lockstep=True)
     server = udp_server("127.0.0.1", 0)
@@ -337,7 +523,7 @@ def test_a_pymavlink_script_in_lockstep_over_udp(model):
         assert host.recv_match(type="COMMAND_ACK", blocking=True, timeout=10) is not None
         got = []
         for k in range(steps):
-            host.mav.pose_setpoint_send(k * 1000, k, *map(float, f), ms.STEWART_FRAME_USER, 0)
+            send(host, k)
             host.mav.lockstep_send(0, k)
             m = host.recv_match(type="LEG_STATE", blocking=True, timeout=10)
             assert m is not None and m.step == k
@@ -348,5 +534,6 @@ def test_a_pymavlink_script_in_lockstep_over_udp(model):
         host.close()
         server.close()
     assert not thread.is_alive() and dev.counters.setpoints_accepted == steps
+    assert dev.counters.setpoints_refused == 0
     for name in ("length", "rate", "force"):
         assert bits(got, name) == bits(direct, name)
