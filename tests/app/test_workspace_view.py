@@ -156,3 +156,43 @@ def test_the_page_draws_the_surface(browser, mapped):
         assert page.errors == []
     finally:
         page.close()
+
+
+def _winding(v: np.ndarray, tris: np.ndarray, at: np.ndarray) -> float:
+    """The mesh's winding number about `at` (its triangles' solid angles over 4 pi,
+    Van Oosterom and Strackee): 1 inside a closed outward mesh, 0 outside."""
+    a, b, c = (v[tris[:, k]] - at for k in range(3))
+    la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
+    num = np.einsum("ij,ij->i", a, np.cross(b, c))
+    den = la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", b, c) * la \
+        + np.einsum("ij,ij->i", c, a) * lb
+    return float(np.sum(2 * np.arctan2(num, den)) / (4 * np.pi))
+
+
+def test_a_map_in_a_user_frame_is_drawn_where_c_goes(tmp_path):
+    """In a user frame rotated and shifted from N, the surface is drawn in N about C's
+    positions: closed, the map's volume (a rigid motion keeps it), C's home inside, and the
+    user frame's coordinates of C's home (where a surface left in the frame's coordinates would
+    sit) outside."""
+    from stewart_fmu import load_scene
+    from stewart_fmu.frames import from_platform
+    from tests.app.test_frame_option import FRAMES
+
+    scene = tmp_path / "framed.toml"
+    scene.write_text(MICRO.read_text(encoding="utf-8") + FRAMES, encoding="utf-8")
+    out = tmp_path / "m"
+    assert cli.main(["workspace", str(scene), "--map", "--out", str(out), "--frame", "user",
+                     "--resolution", "0.008"]) == 0
+    with (out / "map.csv").open(newline="") as fh:
+        runs = np.array([[float(r[c]) for c in ("z_low", "z_high")] for r in csv.DictReader(fh)])
+    pos, _, tris = _mesh(page_data((out / "view.html").read_text(encoding="utf-8")))
+    _closed(tris)
+    volume = np.sum(runs[:, 1] - runs[:, 0]) * 0.008 ** 2
+    vol, area = _volume_and_area(pos.astype(float), tris)
+    assert abs(vol - volume) <= area * 0.5 * EPS32 * float(np.abs(pos).max()) + 1e-12 * volume
+    model = load_scene(scene)
+    home = np.asarray(model.home, dtype=float)
+    assert _winding(pos.astype(float), tris, home[:3]) == pytest.approx(1, abs=1e-6)
+    in_frame = from_platform(model, home, "user")[:3]
+    assert np.linalg.norm(in_frame - home[:3]) > 0.2
+    assert _winding(pos.astype(float), tris, in_frame) == pytest.approx(0, abs=1e-6)
