@@ -101,19 +101,28 @@ def _holds(runs: list[tuple[float, float]], z: float) -> bool:
     return any(lo < z < hi for lo, hi in runs)
 
 
-def _edge(cols: dict, c: tuple[int, int], zs: np.ndarray, a: float,
-          b: float) -> list[tuple[float, bool]]:
-    """A wall's vertical edge on corner line c from a to b: the line's vertices there, and a
-    midpoint (z, True) inside each stretch where only two diagonal cells about the line hold
-    runs (four walls on one edge: the midpoint, one per cell, keeps the two cells' walls apart)."""
+def _diagonal(cols: dict, c: tuple[int, int], zs: np.ndarray) -> set[float]:
+    """The lower ends of the stretches of corner line c (between its vertices zs) where only
+    two diagonal cells about the line hold runs."""
+    around = [cols.get((c[0] + di, c[1] + dj), []) for di, dj in ((-1, -1), (0, -1), (-1, 0),
+                                                                    (0, 0))]
+    out = set()
+    for z0, z1 in zip(zs.tolist(), zs[1:].tolist()):
+        held = [_holds(runs, 0.5 * (z0 + z1)) for runs in around]
+        if held in ([True, False, False, True], [False, True, True, False]):
+            out.add(z0)
+    return out
+
+
+def _edge(zs: np.ndarray, diagonal: set[float], a: float, b: float) -> list[tuple[float, bool]]:
+    """A wall's vertical edge on a corner line from a to b: the line's vertices zs there, and a
+    midpoint (z, True) inside each of its `diagonal` stretches (four walls on one edge: the
+    midpoint, one per cell, keeps the two cells' walls apart)."""
     inside = zs[(zs >= a) & (zs <= b)].tolist()
     out = [(inside[0], False)]
     for z0, z1 in zip(inside, inside[1:]):
-        mid = 0.5 * (z0 + z1)
-        held = [_holds(cols.get((c[0] + di, c[1] + dj), []), mid)
-                for di, dj in ((-1, -1), (0, -1), (-1, 0), (0, 0))]
-        if held in ([True, False, False, True], [False, True, True, False]):
-            out.append((mid, True))
+        if z0 in diagonal:
+            out.append((0.5 * (z0 + z1), True))
         out.append((z1, False))
     return out
 
@@ -139,6 +148,7 @@ def surface(m: WorkspaceMap, k: int = 1) -> Surface:
         for c in (P, Q):
             line.setdefault(c, set()).update((a, b))
     ordered = {c: np.array(sorted(zs)) for c, zs in line.items()}
+    diagonal = {c: _diagonal(cols, c, zs) for c, zs in ordered.items()}
     index: dict[tuple, int] = {}
 
     def vertex(c: tuple[int, int], z: float, cell: tuple = ()) -> int:
@@ -151,7 +161,7 @@ def surface(m: WorkspaceMap, k: int = 1) -> Surface:
             quad.reverse()
         tris += [(quad[0], quad[1], quad[2]), (quad[0], quad[2], quad[3])]
     for cell, P, Q, a, b in walls:
-        edges = [_edge(cols, c, ordered[c], a, b) for c in (P, Q)]
+        edges = [_edge(ordered[c], diagonal[c], a, b) for c in (P, Q)]
         for tri in _ladder(*([z for z, _ in e] for e in edges)):
             tris.append(tuple(vertex((P, Q)[s], edges[s][n][0], cell * edges[s][n][1])
                               for s, n in tri))
