@@ -36,9 +36,10 @@ def mapped(tmp_path_factory):
     return out, runs, page_data((out / "view.html").read_text(encoding="utf-8"))
 
 
-def _mesh(data: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    (cmd,) = [c for c in data["scene"] if c["type"] == "set_object"
-              and c["path"] == "/workspace/surface"]
+def surface_mesh(data: dict, path: str = "/workspace/surface") -> tuple[np.ndarray, np.ndarray,
+                                                                       np.ndarray]:
+    """The page's mesh at `path`: positions (V, 3) float32, normals (V, 3), triangles (T, 3)."""
+    (cmd,) = [c for c in data["scene"] if c["type"] == "set_object" and c["path"] == path]
     obj = cmd["object"]
     assert obj["object"]["type"] == "Mesh"
     assert obj["materials"][0]["transparent"] and obj["materials"][0]["opacity"] < 1
@@ -49,7 +50,7 @@ def _mesh(data: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return pos, normals, tris
 
 
-def _closed(tris: np.ndarray) -> None:
+def assert_closed(tris: np.ndarray) -> None:
     directed = np.vstack([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
     _, once = np.unique(directed, axis=0, return_counts=True)
     assert np.all(once == 1)                     # no directed edge twice: one orientation
@@ -57,7 +58,7 @@ def _closed(tris: np.ndarray) -> None:
     assert np.all(both == 2)                     # every edge bounds exactly two triangles
 
 
-def _volume_and_area(v: np.ndarray, tris: np.ndarray) -> tuple[float, float]:
+def volume_and_area(v: np.ndarray, tris: np.ndarray) -> tuple[float, float]:
     """Divergence theorem: the flux of x/3 through the triangles (about the centroid)."""
     p = v[tris] - v.mean(axis=0)
     cross = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
@@ -65,7 +66,7 @@ def _volume_and_area(v: np.ndarray, tris: np.ndarray) -> tuple[float, float]:
     return float(vol), float(np.sum(np.linalg.norm(cross, axis=1)) / 2)
 
 
-def _check_vertices(v: np.ndarray, runs: np.ndarray, step: float) -> None:
+def assert_vertices_on_runs(v: np.ndarray, runs: np.ndarray, step: float) -> None:
     """Every vertex at a grid corner of the drawing (a side of a drawn cell), at a run's end
     or inside a run of a cell touching that corner (a midpoint keeping two cells apart)."""
     ulp = np.abs(v).max() * EPS32
@@ -85,20 +86,20 @@ def _check_vertices(v: np.ndarray, runs: np.ndarray, step: float) -> None:
 
 def test_the_surface_is_closed_and_encloses_the_maps_volume(mapped):
     out, runs, data = mapped
-    pos, normals, tris = _mesh(data)
-    _closed(tris)
+    pos, normals, tris = surface_mesh(data)
+    assert_closed(tris)
     h = float(np.min(np.diff(np.unique(runs[:, 0]))))
     volume = np.sum(runs[:, 3] - runs[:, 2]) * h * h
     # the page's volume from its float32 positions: each within half a float32 step of the
     # exact one, so the volume moves by at most the area times that step
-    vol, area = _volume_and_area(pos.astype(float), tris)
+    vol, area = volume_and_area(pos.astype(float), tris)
     bound = area * 0.5 * EPS32 * float(np.abs(pos).max()) + 1e-12 * volume
     assert abs(vol - volume) <= bound, (vol, volume, bound)
     assert vol > 0.002                            # 2.66 litres, outward normals
     text = (out / "view.html").read_text(encoding="utf-8")
     title = re.search(r"<title>(.*?)</title>", text, re.S).group(1)
     assert f"workspace {volume * 1e3:.4g} l" in title
-    _check_vertices(pos, runs, h)
+    assert_vertices_on_runs(pos, runs, h)
     # the shading normals: unit, and on the outer side of the triangles they shade (all but a
     # few thin walls between cells touching along an edge, where the mean turns: 59 of 182,440)
     assert np.allclose(np.linalg.norm(normals, axis=1), 1, atol=3e-3)
@@ -114,14 +115,14 @@ def test_a_coarser_drawing_keeps_its_columns_closed_and_exact(mapped):
     lo = np.r_[runs[:, 0].min() - h / 2, runs[:, 1].min() - h / 2, 0.0]
     m = WorkspaceMap(np.zeros(3), "platform", h, runs, 0.0, lo, lo, 0.0)
     s = surface(m, 3)
-    _closed(s.triangles)
+    assert_closed(s.triangles)
     cell = np.rint((runs[:, :2] - lo[:2]) / h - 0.5).astype(int)
     drawn = runs[np.all(cell % 3 == 1, axis=1)]
     assert s.columns == len(np.unique(drawn[:, :2], axis=0)) > 100
-    vol, area = _volume_and_area(s.vertices, s.triangles)
+    vol, area = volume_and_area(s.vertices, s.triangles)
     want = np.sum(drawn[:, 3] - drawn[:, 2]) * (3 * h) ** 2
     assert abs(vol - want) <= 1e-12 * want
-    _check_vertices(s.vertices.astype(F32), drawn, 3 * h)
+    assert_vertices_on_runs(s.vertices.astype(F32), drawn, 3 * h)
 
 
 def test_no_view_leaves_the_page_out(tmp_path):
@@ -136,7 +137,7 @@ def test_the_page_draws_the_surface(browser, mapped):
     from tests.browser import canvas_pixels, open_view
 
     out, _, data = mapped
-    _, _, tris = _mesh(data)
+    _, _, tris = surface_mesh(data)
     page = open_view(browser, out / "view.html")
     try:
         assert page.errors == []
@@ -185,10 +186,10 @@ def test_a_map_in_a_user_frame_is_drawn_where_c_goes(tmp_path):
                      "--resolution", "0.008"]) == 0
     with (out / "map.csv").open(newline="") as fh:
         runs = np.array([[float(r[c]) for c in ("z_low", "z_high")] for r in csv.DictReader(fh)])
-    pos, _, tris = _mesh(page_data((out / "view.html").read_text(encoding="utf-8")))
-    _closed(tris)
+    pos, _, tris = surface_mesh(page_data((out / "view.html").read_text(encoding="utf-8")))
+    assert_closed(tris)
     volume = np.sum(runs[:, 1] - runs[:, 0]) * 0.008 ** 2
-    vol, area = _volume_and_area(pos.astype(float), tris)
+    vol, area = volume_and_area(pos.astype(float), tris)
     assert abs(vol - volume) <= area * 0.5 * EPS32 * float(np.abs(pos).max()) + 1e-12 * volume
     model = load_scene(scene)
     home = np.asarray(model.home, dtype=float)
