@@ -39,7 +39,7 @@ def main() -> None:
     eng = engine(model, scene.controller)
     home = np.asarray(model.home, dtype=float)
     print(f"{'grid mm':>8} {'columns':>8} {'map s':>7} {'k':>3} {'triangles':>10} "
-          f"{'surface s':>10} {'page s':>7} {'page MB':>8}")
+          f"{'surface s':>10} {'view s':>7} {'page MB':>8}")
     for h in steps:
         m = constant_orientation(eng, home, "platform", h)
         k = drawing_step(m)
