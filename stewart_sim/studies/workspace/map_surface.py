@@ -8,8 +8,10 @@ a vertical wall over the part of the cell's z-intervals that the neighbour cell 
 does not hold (all of them where the neighbour holds no run). Every vertex is a corner of the
 grid at a run's end; a wall's vertical edges are split at every vertex on their corner line, so
 no vertex sits inside another triangle's edge, and a wall is triangulated as a ladder between
-its two edges' vertices. The mesh encloses the runs' volume exactly: the map's volume (its
-z-lengths times h^2).
+its two edges' vertices. Where two diagonal cells alone meet along a stretch of a corner line
+(four walls on one edge), each cell's walls get their own vertex at the stretch's midpoint, so
+the two stay apart and every edge bounds exactly two triangles. The mesh encloses the runs'
+volume exactly: the map's volume (its z-lengths times h^2).
 
 A map of many columns draws on a coarser grid (drawing_step): every k-th column in x and in y
 (k odd, the centre column of each k x k block), as a cell of side k h; the volume reported
@@ -127,19 +129,21 @@ def _edge(zs: np.ndarray, diagonal: set[float], a: float, b: float) -> list[tupl
     return out
 
 
-def surface(m: WorkspaceMap, k: int = 1) -> Surface:
-    """The boundary of the map's runs drawn on the grid of every k-th column (k odd; 1: all)."""
-    if k < 1 or k % 2 == 0:
-        raise ValueError(f"drawing step {k}: must be an odd count of columns")
-    cols = _columns(m, k)
-    tops: list[tuple[tuple[int, int], float, bool]] = []      # (cell, z, up)
-    walls: list[tuple] = []      # (cell, P, Q, a, b)
+def _faces(cols: dict) -> tuple[list, list]:
+    """The faces before triangulation: tops (cell, z, up: top or bottom) and walls (cell, P, Q,
+    a, b: on the side from grid corner P to Q, from z a to b)."""
+    tops, walls = [], []
     for (i, j), runs in cols.items():
         for zl, zh in runs:
             tops += [((i, j), zh, True), ((i, j), zl, False)]
         for (di, dj), p, q in SIDES:
             for a, b in _minus(runs, cols.get((i + di, j + dj), [])):
                 walls.append(((i, j), (i + p[0], j + p[1]), (i + q[0], j + q[1]), a, b))
+    return tops, walls
+
+
+def _corner_lines(tops: list, walls: list) -> dict[tuple[int, int], np.ndarray]:
+    """Each grid corner's vertical line: the z of every face's vertex on it, ascending."""
     line: dict[tuple[int, int], set[float]] = {}
     for (i, j), z, _ in tops:
         for c in ((i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1)):
@@ -147,9 +151,18 @@ def surface(m: WorkspaceMap, k: int = 1) -> Surface:
     for _, P, Q, a, b in walls:
         for c in (P, Q):
             line.setdefault(c, set()).update((a, b))
-    ordered = {c: np.array(sorted(zs)) for c, zs in line.items()}
+    return {c: np.array(sorted(zs)) for c, zs in line.items()}
+
+
+def surface(m: WorkspaceMap, k: int = 1) -> Surface:
+    """The boundary of the map's runs drawn on the grid of every k-th column (k odd; 1: all)."""
+    if k < 1 or k % 2 == 0:
+        raise ValueError(f"drawing step {k}: must be an odd count of columns")
+    cols = _columns(m, k)
+    tops, walls = _faces(cols)
+    ordered = _corner_lines(tops, walls)
     diagonal = {c: _diagonal(cols, c, zs) for c, zs in ordered.items()}
-    index: dict[tuple, int] = {}
+    index: dict[tuple, int] = {}      # (corner i, corner j, z[, the cell of a midpoint])
 
     def vertex(c: tuple[int, int], z: float, cell: tuple = ()) -> int:
         return index.setdefault((c[0], c[1], z, *cell), len(index))
