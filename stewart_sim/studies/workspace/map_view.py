@@ -19,9 +19,9 @@ PLATE_OPACITY = 0.35
 SURFACE_PATH = "/workspace/surface"
 
 
-def map_view(scene, m: WorkspaceMap, start: np.ndarray, source: str) -> ViewData:
+def map_view(scene, m: WorkspaceMap, start: np.ndarray, source: str) -> tuple[ViewData, str]:
     """The view: the mechanism at `start` (a pose in the map's frame) and the map's surface;
-    `source`: the scene file's name."""
+    `source`: the scene file's name. Returns it and what the surface drawn is."""
     model = scene.model
     q = to_platform(model, np.asarray(start, dtype=float)[None, :], m.frame)
     obj, s = surface_object(SURFACE_PATH, m, model)
@@ -31,11 +31,11 @@ def map_view(scene, m: WorkspaceMap, start: np.ndarray, source: str) -> ViewData
     title = (f"{model.name}: constant-orientation workspace {m.volume * 1e3:.4g} l "
              f"(blue, where C goes; angles {', '.join(f'{a:.3g}' for a in m.angles)} rad, "
              f"{m.frame} frame)")
+    drawn = f"surface drawn on a {grid} grid, {len(s.triangles)} triangles"
     view = view_data(model, np.zeros(1), q, np.zeros((1, 6)), controller=scene.controller,
                      fps=1.0, force_label="no forces computed (the geometry)", title=title,
-                     source=f"{source}; surface drawn on a {grid} grid, "
-                            f"{len(s.triangles)} triangles")
-    return replace(view, extra=(obj,), plate_opacity=PLATE_OPACITY)
+                     source=f"{source}; {drawn}")
+    return replace(view, extra=(obj,), plate_opacity=PLATE_OPACITY), drawn
 
 
 def write_map_view(folder: Path, scene, m: WorkspaceMap, start: np.ndarray,
@@ -43,6 +43,7 @@ def write_map_view(folder: Path, scene, m: WorkspaceMap, start: np.ndarray,
     """view.html into `folder` (a result set's stage); the line saying what it holds."""
     from stewart_sim.view.files import VIEW_FILE, write_beside
 
-    view = map_view(scene, m, start, source)
-    line = write_beside(Path(folder) / VIEW_FILE, view)
-    return f"{VIEW_FILE} ({line}; {view.source.split('; ', 1)[1]})"
+    view, drawn = map_view(scene, m, start, source)
+    path = Path(folder) / VIEW_FILE
+    write_beside(path, view)
+    return f"{VIEW_FILE} ({path.stat().st_size / 1e6:.2f} MB; {drawn})"
