@@ -4,7 +4,8 @@ feasibility engine of stewart_fmu.reach).
     --check POSES.csv --out V.csv   each pose against every limit (the contract's V.csv)
     --reach --direction D [--from Q]  the largest step along D before the first limit
     --ranges [--out RANGES.csv]     per-axis travel from home, both ways, and what ends it
-    --map --out DIR [--resolution H]  the constant-orientation workspace: volume, runs, slices
+    --map --out DIR [--resolution H] [--no-view]  the constant-orientation workspace: volume,
+                                    runs, slices, tilts, the 3D view of its surface
     --load --accel A --out DIR [--payload P]  where the rack force binds over that workspace
 """
 from __future__ import annotations
@@ -56,6 +57,9 @@ def add_parser(sub, help_text: str) -> None:
     p.add_argument("--direction", metavar="dx,dy,dz,dthx,dthy,dthz",
                    help="--reach: the direction (the step is in its units: m or rad along a "
                         "unit axis)")
+    p.add_argument("--no-view", action="store_true",
+                   help="--map: leave out DIR/view.html (the mechanism at --from with the "
+                        "workspace's surface)")
     p.add_argument("--resolution", type=float, metavar="H",
                    help="--map: the x-y grid step, m (default: the characteristic length / 30)")
     p.set_defaults(run=run)
@@ -111,7 +115,7 @@ def run(args: argparse.Namespace) -> None:
             else _six(args.start, "--from")
         print(reach_text(eng.travel(q0, d, frame=frame), q0, d, frame))
     elif args.map:
-        _map(args, scene.model, eng, frame)
+        _map(args, scene, eng, frame)
     else:
         from stewart_fmu.io import write_csv
         from stewart_fmu.reach import axis_ranges
@@ -204,21 +208,26 @@ def _load(args: argparse.Namespace, scene) -> None:
     print(f"wrote {args.out}/load.csv and load.png")
 
 
-def _map(args: argparse.Namespace, model, eng, frame: str) -> None:
-    """--map: the volume printed, map.csv and slices.png written together (a result set)."""
+def _map(args: argparse.Namespace, scene, eng, frame: str) -> None:
+    """--map: the volume printed, map.csv, slices.png, the tilt files and view.html written
+    together (a result set)."""
     import numpy as np
 
     from stewart_fmu.errors import StewartError
     from stewart_fmu.io import named_array, write_csv
     from stewart_sim.shell.outputs import result_set
+    from pathlib import Path
+
     from stewart_sim.studies.workspace.maps import slices, tilt_figure, tilts
 
     if not args.out:
         raise StewartError("--map needs --out DIR")
+    model = scene.model
     start, m = _start_map(args, model, eng, frame)
     h = m.h
     tilt = tilts(eng, start, frame)
-    with result_set(args.out, known=("map.csv", "slices.png", "tilt.csv", "tilt.png")) as stage:
+    known = ("map.csv", "slices.png", "tilt.csv", "tilt.png", "view.html")
+    with result_set(args.out, known=known) as stage:
         write_csv(stage / "map.csv", named_array({"x": m.runs[:, 0], "y": m.runs[:, 1],
                                                   "z_low": m.runs[:, 2], "z_high": m.runs[:, 3]}))
         slices(eng, m, start[:3], stage / "slices.png")
@@ -228,6 +237,10 @@ def _map(args: argparse.Namespace, model, eng, frame: str) -> None:
         table["limit"], table["where"] = tilt.limit, tilt.where
         write_csv(stage / "tilt.csv", table)
         tilt_figure(tilt, stage / "tilt.png")
+        if not args.no_view:
+            from stewart_sim.studies.workspace.map_view import write_map_view
+
+            view_line = write_map_view(stage, scene, m, start, Path(args.scene).name)
     print(f"constant-orientation workspace at angles ({', '.join(f'{a:.6g}' for a in m.angles)})"
           f" rad, {frame} frame: {m.volume * 1e3:.6g} litres ({len(m.runs)} runs of "
           f"{len(np.unique(m.runs[:, :2], axis=0))} columns; x-y grid {h * 1e3:.4g} mm, z by "
@@ -237,4 +250,7 @@ def _map(args: argparse.Namespace, model, eng, frame: str) -> None:
     print(f"orientation workspace at ({', '.join(f'{v:.6g}' for v in start[:3])}) m: tilt "
           f"{np.degrees(tilt.tilt.min()):.3f} to {np.degrees(tilt.tilt.max()):.3f} deg over "
           f"{len(tilt.tilt)} azimuths (least at {np.degrees(tilt.azimuth[k]):.0f} deg: {least})")
-    print(f"wrote {args.out}/map.csv, slices.png, tilt.csv and tilt.png")
+    if args.no_view:
+        print(f"wrote {args.out}/map.csv, slices.png, tilt.csv and tilt.png")
+    else:
+        print(f"wrote {args.out}/map.csv, slices.png, tilt.csv, tilt.png and {view_line}")

@@ -199,3 +199,30 @@ def buffer_object(path: str, kind: str, positions: np.ndarray, colours: np.ndarr
            "object": {"uuid": f"{path}#object", "type": kind, "geometry": g["uuid"],
                       "material": m["uuid"], "matrix": np.eye(4).flatten().tolist()}}
     return {"type": "set_object", "path": path, "object": obj}
+
+
+def _float32_list(a: np.ndarray) -> list[float]:
+    """a as float32, each value written with the fewest digits that give back the same
+    float32 (the page reads them into a Float32Array): the page's precision at about half
+    the text of float64's digits."""
+    return [float(str(v)) for v in np.asarray(a, dtype=np.float32).ravel()]
+
+
+def triangle_mesh(path: str, positions: np.ndarray, normals: np.ndarray, triangles: np.ndarray,
+                  colour: int, opacity: float = 1.0) -> dict:
+    """meshcat's set_object of an indexed three.js Mesh at `path`: positions (V, 3) m (float32,
+    the page's precision), normals (V, 3) (shading only: written to 1e-3), triangles (T, 3)
+    vertex indices, counter-clockwise seen from the side the normals point to; a Phong
+    material of `colour`, both sides lit, translucent below opacity 1."""
+    index = np.asarray(triangles, dtype=np.int64).ravel()
+    if index.size and not (0 <= index.min() and index.max() < len(positions)):
+        raise ValueError(f"{path}: triangle indices outside the {len(positions)} vertices")
+    obj = mesh(path, {"type": "BufferGeometry", "data": {
+        "index": {"type": "Uint32Array", "array": index.tolist()},
+        "attributes": {
+            "position": {"itemSize": 3, "type": "Float32Array", "normalized": False,
+                         "array": _float32_list(positions)},
+            "normal": {"itemSize": 3, "type": "Float32Array", "normalized": False,
+                       "array": np.round(np.asarray(normals, dtype=float), 3).ravel().tolist()}}}},
+        colour, opacity)
+    return {"type": "set_object", "path": path, "object": obj}

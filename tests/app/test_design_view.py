@@ -1,6 +1,7 @@
 """`stewart-sim design` writes DIR/view.html with its result set (studies.design.workspace_view):
 the chosen design at home, its constant-orientation workspace drawn as the workspace engine's
-map of the written best.toml (every run's two ends, the side runs as segments), the dense
+map of the written best.toml (the closed surface `workspace --map` draws: every run's two ends,
+a wall on each side run's open side, the map's volume enclosed), the dense
 check's required poses at their positions, coloured by the least relative margin the engine
 gives there (computed here from the limits' margins and the requirement's scales), and a frame
 for home and each required pose. --no-view leaves it out; a view that fails leaves no result
@@ -23,6 +24,13 @@ from stewart_sim.studies.design.workspace_view import GOOD, MAP_STEPS, OUT, SHOR
 from stewart_sim.studies.workspace.maps import constant_orientation
 from tests.app.test_design import EXAMPLE, REDUCED, cli
 from tests.app.test_modes_view import page_data
+from tests.app.test_workspace_view import (
+    EPS32,
+    assert_closed,
+    assert_vertices_on_runs,
+    surface_mesh,
+    volume_and_area,
+)
 
 F32 = np.float32
 
@@ -61,19 +69,38 @@ def test_the_boundary_drawn_is_the_maps_of_the_written_design(designed):
                              model.characteristic_length / MAP_STEPS)
     runs = m.runs
     assert len(runs) > 100
-    ends = _attribute(_object(data, "/design/workspace/ends"), "position")
-    want = np.vstack([runs[:, [0, 1, 2]], runs[:, [0, 1, 3]]]).astype(F32)
-    assert np.array_equal(ends, want)
-    walls = _attribute(_object(data, "/design/workspace/walls"), "position").reshape(-1, 2, 3)
-    as_runs = np.column_stack([walls[:, 0, :2], walls[:, 0, 2], walls[:, 1, 2]])
-    run_set = {tuple(r) for r in runs.astype(F32)}
-    assert 0 < len(as_runs) < len(runs)
-    assert all(tuple(r) in run_set for r in as_runs)          # each wall is a run of the map
-    # the columns at the box's rim of the map's x-y extent are side columns: all drawn
-    rim = (runs[:, 0] == runs[:, 0].min()) | (runs[:, 0] == runs[:, 0].max()) \
-        | (runs[:, 1] == runs[:, 1].min()) | (runs[:, 1] == runs[:, 1].max())
-    wall_set = {tuple(r) for r in as_runs}
-    assert all(tuple(r) in wall_set for r in runs[rim].astype(F32))
+    # the surface of `workspace --map` (tests/app/test_workspace_view.py): closed, every vertex
+    # on a cell's side at a run's end of this map, enclosing its volume
+    pos, _, tris = surface_mesh(data, "/design/workspace/surface")
+    assert_closed(tris)
+    assert_vertices_on_runs(pos, runs, m.h)
+    vol, area = volume_and_area(pos.astype(float), tris)
+    assert abs(vol - m.volume) <= area * 0.5 * EPS32 * float(np.abs(pos).max()) + 1e-12 * m.volume
+    # each run's two ends are drawn: a vertex at each corner of its cell at z_low and z_high
+    drawn = {tuple(v) for v in pos.tolist()}
+    for dx, dy in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
+        for z in (2, 3):
+            corner = np.column_stack([runs[:, 0] + dx * m.h / 2, runs[:, 1] + dy * m.h / 2,
+                                      runs[:, z]]).astype(F32)
+            assert all(tuple(c) in drawn for c in corner.tolist())
+    # the columns at the rim of the map's x-y extent are side columns: a wall on the outer
+    # side of each, over its whole run (upright triangles at that side from z_low to z_high)
+    v = pos.astype(float)[tris]
+    ulp = float(np.abs(pos).max()) * EPS32
+    upright = np.abs(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])[:, 2]) <= ulp * m.h
+    rims = 0
+    for axis, sign in ((0, -1), (0, 1), (1, -1), (1, 1)):
+        edge = runs[:, axis].min() if sign < 0 else runs[:, axis].max()
+        side = edge + sign * m.h / 2
+        wall = v[upright & np.all(np.abs(v[:, :, axis] - side) <= ulp, axis=1)]
+        other = 1 - axis
+        for r in runs[runs[:, axis] == edge]:
+            near = wall[np.all(np.abs(wall[:, :, other] - r[other]) <= m.h / 2 + ulp, axis=1)
+                        & np.all((wall[:, :, 2] >= F32(r[2])) & (wall[:, :, 2] <= F32(r[3])),
+                                 axis=1)]
+            assert near[:, :, 2].min() == F32(r[2]) and near[:, :, 2].max() == F32(r[3])
+            rims += 1
+    assert rims >= 4
     assert f"workspace ({m.volume * 1e3:.4g} l, blue)" in _title(out)
 
 
@@ -143,21 +170,20 @@ def test_the_page_draws_the_workspace_and_the_poses(browser, designed):
         assert page.errors == []
         counts = page.evaluate("""() => {
             const v = window.stewartView.viewer, out = {};
-            for (const p of [["design", "workspace", "ends"], ["design", "workspace", "walls"],
-                             ["design", "required"]]) {
+            for (const p of [["design", "workspace", "surface"], ["design", "required"]]) {
                 let n = 0, kind = null;
                 v.scene_tree.find(p).object.traverse(o => {
-                    if (o.isPoints || o.isLineSegments) {
-                        n += o.geometry.attributes.position.count; kind = o.type; }
+                    if (o.isPoints || o.isMesh) {
+                        n += o.isMesh ? o.geometry.index.count
+                                      : o.geometry.attributes.position.count;
+                        kind = o.type; }
                 });
                 out[p.join("/")] = [kind, n];
             }
             return out; }""")
-        ends = len(_attribute(_object(data, "/design/workspace/ends"), "position"))
-        walls = len(_attribute(_object(data, "/design/workspace/walls"), "position"))
+        _, _, tris = surface_mesh(data, "/design/workspace/surface")
         req = len(_attribute(_object(data, "/design/required"), "position"))
-        assert counts == {"design/workspace/ends": ["Points", ends],
-                          "design/workspace/walls": ["LineSegments", walls],
+        assert counts == {"design/workspace/surface": ["Mesh", 3 * len(tris)],
                           "design/required": ["Points", req]}
         shown = canvas_pixels(page)
         page.evaluate("""() => window.stewartView.viewer.handle_command(

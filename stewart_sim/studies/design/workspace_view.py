@@ -3,10 +3,9 @@ least-violating candidate) drawn at home in the project's view (stewart_sim.view
 
 - its constant-orientation workspace at home's angles: the map of the workspace engine
   (stewart_sim.studies.workspace.maps.constant_orientation, the engine of the design's
-  cond(J) limit, x-y step the characteristic length / MAP_STEPS), drawn as its boundary: the
-  two ends of every run (the top and bottom surfaces, points at "/design/workspace/ends") and
-  the runs of the side columns (a 4-neighbour cell holding no run that overlaps them: the
-  walls, segments at "/design/workspace/walls");
+  cond(J) limit, x-y step the characteristic length / MAP_STEPS), drawn as its surface, the
+  closed translucent mesh `workspace --map` draws too (studies.workspace.map_surface, at
+  "/design/workspace/surface");
 - the required poses of the dense check (the workspace's check_points grid), a point each at
   its position ("/design/required"), coloured by its least relative geometric margin (each
   limit's margin over the scale the search uses, candidate.margin_scales): green at least the
@@ -24,6 +23,7 @@ import numpy as np
 
 from stewart_fmu.errors import StewartError
 from stewart_fmu.reach import Engine
+from stewart_sim.studies.workspace.map_surface import surface_object
 from stewart_sim.studies.workspace.maps import WorkspaceMap, constant_orientation
 from stewart_sim.view.data import ViewData, view_data
 from stewart_sim.view.meshcat_scene import buffer_object
@@ -34,8 +34,6 @@ from .spec import DesignSpec
 
 MAP_STEPS = 20           # the map's x-y step: the characteristic length / MAP_STEPS
 MAX_POSE_FRAMES = 5000   # required poses shown as frames (about 1 kB each in the page)
-ENDS_RGB = (0.16, 0.42, 0.78)
-WALLS_RGB = (0.55, 0.70, 0.90)
 PLATE_OPACITY = 0.35     # the platform plate, translucent: the workspace about C shows through
 GOOD, SHORT, OUT = (0.18, 0.62, 0.27), (0.96, 0.62, 0.04), (0.85, 0.12, 0.12)
 
@@ -50,25 +48,6 @@ class DesignView:
     poses: np.ndarray
     margin: np.ndarray
     label: str                 # which candidate: "chosen candidate 17"
-
-
-def boundary(m: WorkspaceMap) -> tuple[np.ndarray, np.ndarray]:
-    """The map's boundary: the ends (2K, 3), (x, y, z_low) then (x, y, z_high) of each run in
-    order, and the walls (2W, 3), the two ends of each side run (see the module doc)."""
-    r = m.runs
-    ends = np.vstack([r[:, [0, 1, 2]], r[:, [0, 1, 3]]])
-    cell = np.rint((r[:, :2] - m.lo[:2]) / m.h - 0.5).astype(np.int64)
-    by_cell: dict[tuple[int, int], list[int]] = {}
-    for k, c in enumerate(map(tuple, cell)):
-        by_cell.setdefault(c, []).append(k)
-    side = []
-    for k, (i, j) in enumerate(cell):
-        for n in ((i + 1, j), (i - 1, j), (i, j + 1), (i, j - 1)):
-            if not any(r[o, 2] <= r[k, 3] and r[k, 2] <= r[o, 3] for o in by_cell.get(n, ())):
-                side.append(k)
-                break
-    walls = np.column_stack([r[side][:, [0, 1, 2]], r[side][:, [0, 1, 3]]]).reshape(-1, 3)
-    return ends, walls
 
 
 def pose_margins(spec: DesignSpec, model, values: dict, Q: np.ndarray) -> np.ndarray:
@@ -110,13 +89,9 @@ def design_view(spec: DesignSpec, r: SearchResult) -> DesignView | None:
     Q = workspace_poses(spec.workspace, np.asarray(model.home, dtype=float),
                         spec.workspace.check_points)
     margin = pose_margins(spec, model, c.values, Q)
-    ends, walls = boundary(m)
     size = model.characteristic_length
     extra = (
-        buffer_object("/design/workspace/ends", "Points", ends,
-                      np.tile(ENDS_RGB, (len(ends), 1)), size / 150),
-        buffer_object("/design/workspace/walls", "LineSegments", walls,
-                      np.tile(WALLS_RGB, (len(walls), 1))),
+        surface_object("/design/workspace/surface", m)[0],
         buffer_object("/design/required", "Points", Q[:, :3],
                       margin_colours(margin, spec.search.reserve), size / 25),
     )
