@@ -149,7 +149,7 @@ def evaluate_drive(scene: Mapping[str, Any], source: str | None, drive: Drive,
 
 
 def drive_result(model: Model, drive: Drive, motions: Sequence[Motion]) -> CandidateResult:
-    """evaluate_drive on a model built with the drive's [drive] table (drive.drive_table), for
+    """evaluate_drive on a model built with the drive's [drive] table (Drive.drive_table), for
     a caller that has it already: the checks of the ratings need the demand alone
     (leg_demand's checks=False)."""
     try:
