@@ -490,7 +490,7 @@ def test_ctrl_c_parks_then_exits_130(tmp_path):
                 proc.kill()
                 proc.wait()
     assert proc.returncode == 130, err
-    assert "mode at the end parked" in out
+    assert "mode at the end parked" in out, out + err
     lines = err.strip().splitlines()
     assert len(lines) == 1 and "interrupted" in lines[0] and "parked" in lines[0]
     header = record.read_text().splitlines()[0].split(",")
