@@ -27,9 +27,10 @@ SCENES_DIR = Path(__file__).resolve().parents[2] / "scenes"
 
 def test_condition_number_towards_fichters_singularity():
     """cond(J) on the yaw move onto Fichter's singular pose (scenes/extreme/singular_move.toml):
-    C (one-sided Jacobi) equals numpy's SVD of the C core's scaled J to 1e-10 relative while cond <= 3e4; closer in,
-    both carry the relative error eps * cond of the smallest singular value, so the test
-    asks 1e-15 * cond, and at the singular pose both lie far above COND_LIMIT."""
+    C (linalg.c's sw_condition) equals numpy's SVD of the C core's scaled J to 1e-10 relative while
+    cond <= 3e4; closer in, both carry the relative error eps * cond of the smallest singular
+    value, so the test asks 1e-15 * cond, and at the singular pose both lie far above
+    COND_LIMIT."""
     from stewart_fmu.kinematics import COND_LIMIT
 
     model = load_scene(SCENES_DIR / "extreme" / "singular_move.toml")

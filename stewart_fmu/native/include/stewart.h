@@ -168,8 +168,9 @@ int stewart_leg_state(const double *params, const double q[6], const double qd[6
 int stewart_jacobian(const double *params, const double q[6], int scaled, double J[36]);
 
 /* cond(J) of the scaled Jacobian (kinematics.condition_number): ratio of the extreme singular
-   values (one-sided Jacobi SVD), inf when J is singular or non-finite. Returns OK, or
-   NONFINITE for a non-finite q. The pose counts as singular when cond >= STEWART_COND_LIMIT. */
+   values (Householder bidiagonal, then dqds and Laguerre), inf when J is singular or
+   non-finite. Returns OK, or NONFINITE for a non-finite q. The pose counts as singular when
+   cond >= STEWART_COND_LIMIT. */
 int stewart_condition_number(const double *params, const double q[6], double *cond);
 
 /* ---- Kane's equations (src/kane.c; stewart_fmu/kane_terms.py is their term-by-term form) -- */

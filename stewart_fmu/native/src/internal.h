@@ -39,7 +39,7 @@ int sw_cholesky_factor(double A[36]);
 void sw_cholesky_forward(const double L[36], double b[6]);
 void sw_cholesky_back(const double L[36], double b[6]);
 void sw_symmetric_eigen(double A[36], double w[6], double V[36]);
-void sw_singular_values(const double A[36], double s[6]);
+void sw_singular_range(const double A[36], double *smax, double *smin);
 double sw_condition(const double A[36]);
 
 /* kinematics.c */
