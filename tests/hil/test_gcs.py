@@ -71,6 +71,16 @@ def err(c, s) -> int:
     return int(ask(c, s, "ERR?"))
 
 
+def on_target(c, s, rounds: int = 1000) -> bool:
+    """Run the twin 10 ticks at a time until ONT? says every axis is on target (at most
+    `rounds` times); whether they all are."""
+    for _ in range(rounds):
+        run(c, 10)
+        if ask(c, s, "ONT?").count("=1") == 6:
+            return True
+    return False
+
+
 def referenced(model):
     d, c, s = twin(model)
     assert ask(c, s, "FRF") is None and err(c, s) == 0
@@ -624,11 +634,7 @@ def test_pivot_is_set_only_while_u_v_w_are_0_and_the_platform_turns_about_it(mod
     assert _values(ask(c, s, "MOV? X Y Z")) == {"X": 1.0, "Y": -0.5, "Z": 0.0}
     goal = np.array([1.0, -0.5, 0.0, 2.0, -1.5, 3.0])
     assert ask(c, s, "MOV U 2 V -1.5 W 3") is None and err(c, s) == 0
-    for _ in range(400):
-        run(c, 10)
-        if ask(c, s, "ONT?").count("=1") == 6:
-            break
-    assert ask(c, s, "ONT?").count("=1") == 6
+    assert on_target(c, s, 400)
     # the plant's own pose: the pivot (in C) stays where X Y Z put it, while C's origin moved
     q = np.asarray(d.snapshot().q)
     p = np.array([1.0, -2.0, 15.0]) / 1e3
@@ -748,11 +754,7 @@ def test_coordinate_systems_define_link_enable_and_moves_follow_them(model):
     for line, goal in (("MOV X 2 Y 1 Z 8 U 0 V 0 W 0", [2, 1, 8, 0, 0, 0]),
                        ("MOV U 1.5 V -1 W 2", [2, 1, 8, 1.5, -1, 2])):
         assert ask(c, s, line) is None and err(c, s) == 0, line
-        for _ in range(1000):
-            run(c, 10)
-            if ask(c, s, "ONT?").count("=1") == 6:
-                break
-        assert ask(c, s, "ONT?").count("=1") == 6, line
+        assert on_target(c, s), line
         got = seen_from_work(np.asarray(d.snapshot().q))
         assert np.all(np.abs(got - goal) <= ONT_TOLERANCE), (line, got)
     assert ask(c, s, "KEN ZERO") is None and ask(c, s, "KET?") == "ZERO=ZERO\n"
@@ -788,18 +790,11 @@ def test_directed_system_is_a_work_and_tool_that_coincide_at_zero(model):
     for line, goal in (("MOV X 2 Y 1", [2, 1, 0, 0, 0, 0]),
                        ("MOV U 1.5 V -1 W 2", [2, 1, 0, 1.5, -1, 2])):
         assert ask(c, s, line) is None and err(c, s) == 0, line
-        for _ in range(1000):
-            run(c, 10)
-            if ask(c, s, "ONT?").count("=1") == 6:
-                break
-        assert ask(c, s, "ONT?").count("=1") == 6, line
+        assert on_target(c, s), line
         got = seen_from_d(np.asarray(d.snapshot().q))
         assert np.all(np.abs(got - goal) <= ONT_TOLERANCE), (line, got)
     assert ask(c, s, "MOV X 0 Y 0 U 0 V 0 W 0") is None
-    for _ in range(1000):
-        run(c, 10)
-        if ask(c, s, "ONT?").count("=1") == 6:
-            break
+    on_target(c, s)
     assert ask(c, s, "KEN WORK") is None and ask(c, s, "KET?") == "KSW=WORK\n"
     assert ask(c, s, "KEN?") == "WORK=KSW\n"
     assert ask(c, s, "KEN ZERO") is None and ask(c, s, "KRM D") is None and err(c, s) == 0
