@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import threading
+from contextlib import contextmanager
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 
 import numpy as np
@@ -238,28 +239,35 @@ class _State(BaseHTTPRequestHandler):
         pass
 
 
-def test_live_page_draws_what_the_url_serves(browser, micro_model):
-    g = view_geometry(micro_model, controller=scene_of(micro_model).controller)
-    q = micro_model.home + np.array([0.01, -0.005, 0.01, 0.05, 0.0, -0.05])
-    handler = type("Handler", (_State,), {
-        "page": live_view_html(g, "/state").encode(),
-        "state": {"t": 1.25, "q": q.tolist(), "q_ref": None, "lengths": [0.13] * 6,
-                  "forces": [10.0, -10.0, 0.0, 0.0, 0.0, 0.0], "cond": 2.5}})
+@contextmanager
+def live_page(browser, g, state: dict):
+    """A page of live_view_html(g) loaded from a loopback server answering /state with `state`,
+    ready; the server and the page closed after."""
+    handler = type("Handler", (_State,), {"page": live_view_html(g, "/state").encode(),
+                                          "state": state})
     server = ThreadingHTTPServer(("127.0.0.1", 0), handler)
-    thread = threading.Thread(target=server.serve_forever, daemon=True)
-    thread.start()
+    threading.Thread(target=server.serve_forever, daemon=True).start()
     page = browser.new_page()
     try:
         page.goto(f"http://127.0.0.1:{server.server_address[1]}/")
         page.wait_for_function("window.stewartView && window.stewartView.ready", timeout=60_000)
+        yield page
+    finally:
+        page.close()
+        server.shutdown()
+
+
+def test_live_page_draws_what_the_url_serves(browser, micro_model):
+    g = view_geometry(micro_model, controller=scene_of(micro_model).controller)
+    q = micro_model.home + np.array([0.01, -0.005, 0.01, 0.05, 0.0, -0.05])
+    state = {"t": 1.25, "q": q.tolist(), "q_ref": None, "lengths": [0.13] * 6,
+             "forces": [10.0, -10.0, 0.0, 0.0, 0.0, 0.0], "cond": 2.5}
+    with live_page(browser, g, state) as page:
         got = world_matrices(page, ["platform"])["platform"]
         np.testing.assert_allclose(got, object_transforms(g, q)["platform"], atol=1e-9)
         assert page.evaluate("window.stewartView.forceScale()") == pytest.approx(g.force_scale)
         assert not page.is_visible("#player")
         assert "t = 1.250 s" in page.inner_text("#info")
-    finally:
-        page.close()
-        server.shutdown()
 
 
 def test_live_page_draws_the_pivot_and_the_frames_where_geometry_puts_them(browser):
@@ -272,17 +280,9 @@ def test_live_page_draws_the_pivot_and_the_frames_where_geometry_puts_them(brows
     model = scene_from_dict(data)
     g = view_geometry(model, controller=None)
     q = model.home + np.array([0.01, -0.005, 0.01, 0.05, 0.0, -0.05])
-    handler = type("Handler", (_State,), {
-        "page": live_view_html(g, "/state").encode(),
-        "state": {"t": 0.5, "q": q.tolist(), "q_ref": None, "lengths": [0.13] * 6,
-                  "forces": [0.0] * 6, "cond": 2.5}})
-    server = ThreadingHTTPServer(("127.0.0.1", 0), handler)
-    thread = threading.Thread(target=server.serve_forever, daemon=True)
-    thread.start()
-    page = browser.new_page()
-    try:
-        page.goto(f"http://127.0.0.1:{server.server_address[1]}/")
-        page.wait_for_function("window.stewartView && window.stewartView.ready", timeout=60_000)
+    state = {"t": 0.5, "q": q.tolist(), "q_ref": None, "lengths": [0.13] * 6,
+             "forces": [0.0] * 6, "cond": 2.5}
+    with live_page(browser, g, state) as page:
         page.wait_for_function("window.stewartView.shown() !== null", timeout=60_000)
         expected = object_transforms(g, q)
         axes = triad_transforms(g.frames["axis_length"])
@@ -294,6 +294,3 @@ def test_live_page_draws_the_pivot_and_the_frames_where_geometry_puts_them(brows
                 np.testing.assert_allclose(got[f"frames/{f}/{a}"],
                                            expected[f"frames/{f}"] @ axes[a], atol=1e-9,
                                            err_msg=f"{f}/{a}")
-    finally:
-        page.close()
-        server.shutdown()
